@@ -1,0 +1,63 @@
+# reflcheck - build, test, benchmark and report.
+#   make            library, CLI and tests          make test     unit + renderer tests
+#   make report     the nightly report (all renderers, large renders)
+#   make bench      rasterizer benchmarks            make fuzz     coverage-guided fuzzing
+#   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
+CC ?= cc
+PKGS := OpenEXR yaml-0.1 cmocka
+
+WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
+           -Wpointer-arith -Wcast-qual -Wvla -Wformat=2
+STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
+OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
+SAN     := $(if $(SANITIZE),-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+DEPFLAGS = -MMD -MP
+CFLAGS  ?=
+CFLAGS  += $(STD) $(OPT) $(WARN) $(SAN) -pthread -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+LDLIBS  += $(SAN) -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lm
+
+BUILD ?= build$(if $(SANITIZE),-san)$(if $(DEBUG),-dbg)
+
+MODEL_SRC   := $(wildcard model/*.c)
+HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c))
+TEST_SRC    := $(wildcard tests/test_*.c)
+MODEL_OBJ   := $(MODEL_SRC:%.c=$(BUILD)/%.o)
+HARNESS_OBJ := $(HARNESS_SRC:%.c=$(BUILD)/%.o)
+TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
+LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
+CLI         := $(BUILD)/reflcheck
+
+.PHONY: all test test-unit test-scenes bench report fuzz deps clean
+all: $(CLI) $(TEST_BIN)
+
+deps:
+	@bash harness/deps.sh
+
+$(BUILD)/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+$(BUILD)/libreflcheck_model.a: $(MODEL_OBJ)
+	$(AR) rcs $@ $^
+$(BUILD)/libreflcheck_harness.a: $(HARNESS_OBJ)
+	$(AR) rcs $@ $^
+
+$(CLI): $(BUILD)/harness/main.o $(LIBS)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
+
+$(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBS)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
+
+# Unit tests (also the sanitizer run in CI), then the renderer-backed tests.
+test-unit: $(TEST_BIN) $(CLI)
+	@bash tests/run_unit.sh $(BUILD)
+
+test: deps
+	$(MAKE) all
+	$(MAKE) SANITIZE=1 test-unit
+	$(MAKE) test-unit
+
+clean:
+	rm -rf build build-san build-dbg build-san-dbg
+
+-include $(MODEL_OBJ:.o=.d) $(HARNESS_OBJ:.o=.d) $(TEST_BIN:=.d) $(BUILD)/harness/main.d

@@ -1,0 +1,88 @@
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "scene_file.h"
+#include "status.h"
+
+static const cli_command cli_commands[] = {
+    {"render", cli_render},
+    {"check", cli_check},
+    {"eval", cli_eval},
+};
+
+const cli_command *cli_find(const char *name)
+{
+    for (size_t i = 0; i < sizeof cli_commands / sizeof cli_commands[0]; i++)
+        if (strcmp(cli_commands[i].name, name) == 0)
+            return &cli_commands[i];
+    return NULL;
+}
+
+int cli_exit_status(int rc)
+{
+    if (rc == RC_OK)
+        return CLI_OK;
+    return (rc == RC_ERR_PARSE || rc == RC_ERR_RANGE) ? CLI_BAD_INPUT : CLI_FAILED;
+}
+
+int cli_load_scene(const char *path, scene *s, mesh *m)
+{
+    char err[1024];
+    rc_status st = scene_file_load(path, s, err, sizeof err);
+    if (st == RC_OK && m != NULL)
+        st = mesh_build(s, m, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        if (st == RC_ERR_IO)
+            return CLI_BAD_INPUT;
+        return cli_exit_status(st);
+    }
+    return CLI_OK;
+}
+
+int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(text, &end, 10);
+    if (errno != 0 || end == text || *end != '\0' || v < lo || v > hi) {
+        fprintf(stderr, "reflcheck: %s '%s': expected a whole number from %d to %d\n", opt, text, lo, hi);
+        return CLI_BAD_INPUT;
+    }
+    *out = (int)v;
+    return CLI_OK;
+}
+
+int cli_parse_double(const char *opt, const char *text, double lo, double hi, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(text, &end);
+    if (errno != 0 || end == text || *end != '\0' || !isfinite(v) || v < lo || v > hi) {
+        fprintf(stderr, "reflcheck: %s '%s': expected a number from %g to %g\n", opt, text, lo, hi);
+        return CLI_BAD_INPUT;
+    }
+    *out = v;
+    return CLI_OK;
+}
+
+int cli_check(int argc, char **argv)
+{
+    if (argc != 2) {
+        fprintf(stderr, "reflcheck: usage: reflcheck check SCENE\n");
+        return CLI_BAD_INPUT;
+    }
+    scene s;
+    mesh m = {0};
+    int rc = cli_load_scene(argv[1], &s, &m);
+    if (rc == CLI_OK)
+        printf("%s: ok: %d objects, %d triangles, %d lights, %d materials\n", argv[1], s.n_objects, m.n_tris,
+               s.n_lights, s.n_materials);
+    mesh_free(&m);
+    return rc;
+}

@@ -1,0 +1,35 @@
+/* cli.h - the reflcheck commands: one function per command, argv[0] is the command name.
+ *
+ * Usage:
+ *   const cli_command *c = cli_find("render");  c->run(argc, argv) returns the exit status:
+ *   0 ok, 1 a run failed (I/O, renderer), 2 bad input (command line or scene file).
+ * cli_load_scene parses a scene file and tessellates it; errors are printed as one line.
+ */
+#ifndef REFLCHECK_CLI_H
+#define REFLCHECK_CLI_H
+
+#include "mesh.h"
+#include "scene.h"
+
+typedef struct {
+    const char *name;
+    int (*run)(int argc, char **argv);
+} cli_command;
+
+enum { CLI_OK = 0, CLI_FAILED = 1, CLI_BAD_INPUT = 2 };
+
+const cli_command *cli_find(const char *name);
+
+/* Exit status for an rc_status: parse and range errors are bad input (2), others failures (1). */
+int cli_exit_status(int rc);
+/* Loads and validates SCENE, then tessellates it into m (if m is not NULL). Prints the error. */
+int cli_load_scene(const char *path, scene *s, mesh *m);
+/* Parses a whole positive integer option value; prints an error naming the option. */
+int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out);
+int cli_parse_double(const char *opt, const char *text, double lo, double hi, double *out);
+
+int cli_render(int argc, char **argv);
+int cli_check(int argc, char **argv);
+int cli_eval(int argc, char **argv);
+
+#endif

@@ -1,0 +1,113 @@
+#include <getopt.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "envfile.h"
+#include "exr.h"
+#include "render.h"
+
+/* Writes every layer the render produced, with the scene hash and timing in the header. */
+static int cli_write_render(const char *path, const scene *s, const mesh *m, const render_image *img)
+{
+    exr_channel ch[RENDER_CHANNELS];
+    int n = 0;
+    for (int c = 0; c < RENDER_CHANNELS; c++)
+        if (img->chan[c] != NULL)
+            ch[n++] = (exr_channel){render_channel_names[c], img->chan[c]};
+    char hash[32], ms[32], k[16], tris[32], samples[32];
+    snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
+    snprintf(ms, sizeof ms, "%.3f", img->seconds * 1e3);
+    snprintf(k, sizeof k, "%d", img->supersample);
+    snprintf(tris, sizeof tris, "%d", m->n_tris);
+    snprintf(samples, sizeof samples, "%lld", img->shaded_samples);
+    exr_attr at[] = {
+        {"reflcheck.scene", s->name},       {"reflcheck.scene_hash", hash},
+        {"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms},
+        {"reflcheck.supersample", k},       {"reflcheck.triangles", tris},
+        {"reflcheck.shaded_samples", samples},
+    };
+    char err[1024];
+    rc_status st = exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        return CLI_FAILED;
+    }
+    return CLI_OK;
+}
+
+int cli_render(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"output", required_argument, NULL, 'o'},  {"width", required_argument, NULL, 'W'},
+        {"height", required_argument, NULL, 'H'},  {"supersample", required_argument, NULL, 'k'},
+        {"threads", required_argument, NULL, 't'}, {"aovs", required_argument, NULL, 'a'},
+        {"quiet", no_argument, NULL, 'q'},         {NULL, 0, NULL, 0},
+    };
+    const char *out = NULL;
+    render_options ro = {0};
+    int quiet = 0, c, rc = CLI_OK;
+    optind = 1;
+    opterr = 0;
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:W:H:k:t:a:q", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'o': out = optarg; break;
+        case 'W': rc = cli_parse_int("--width", optarg, 1, 16384, &ro.width); break;
+        case 'H': rc = cli_parse_int("--height", optarg, 1, 16384, &ro.height); break;
+        case 'k': rc = cli_parse_int("--supersample", optarg, 1, 16, &ro.supersample); break;
+        case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &ro.threads); break;
+        case 'q': quiet = 1; break;
+        case 'a':
+            if (strcmp(optarg, "all") == 0)
+                ro.aovs = RENDER_AOV_ALL;
+            else if (strcmp(optarg, "none") == 0)
+                ro.aovs = RENDER_AOV_NONE;
+            else {
+                fprintf(stderr, "reflcheck: render: --aovs '%s': use all or none\n", optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            break;
+        default:
+            fprintf(stderr, "reflcheck: render: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
+            rc = CLI_BAD_INPUT;
+        }
+    }
+    if (rc != CLI_OK)
+        return rc;
+    if (optind != argc - 1 || out == NULL) {
+        fprintf(stderr, "reflcheck: usage: reflcheck render SCENE -o OUT.exr [options]\n");
+        return CLI_BAD_INPUT;
+    }
+
+    scene *s = malloc(sizeof *s);
+    mesh m = {0};
+    env_map env;
+    float *env_pixels = NULL;
+    render_image img = {0};
+    char err[1024];
+    if (s == NULL)
+        return CLI_FAILED;
+    rc = cli_load_scene(argv[optind], s, &m);
+    if (rc == CLI_OK) {
+        rc_status st = envfile_load(s, &env, &env_pixels, err, sizeof err);
+        if (st == RC_OK)
+            st = render_scene(s, &m, &env, &ro, &img, err, sizeof err);
+        if (st != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = cli_exit_status(st);
+        }
+    }
+    if (rc == CLI_OK) {
+        rc = cli_write_render(out, s, &m, &img);
+        if (rc == CLI_OK && !quiet)
+            printf("%s: %dx%d k=%d, %d triangles, %.3f ms, %lld shaded samples -> %s\n", s->name, img.width,
+                   img.height, img.supersample, m.n_tris, img.seconds * 1e3, img.shaded_samples, out);
+    }
+    render_image_free(&img);
+    free(env_pixels);
+    mesh_free(&m);
+    free(s);
+    return rc;
+}

@@ -1,0 +1,49 @@
+#include "envfile.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "exr.h"
+
+rc_status envfile_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
+{
+    *pixels = NULL;
+    e->kind = s->env.kind;
+    e->constant = s->env.radiance;
+    e->scale = s->env.radiance;
+    e->width = e->height = 0;
+    e->rgb = NULL;
+    if (s->env.kind != ENV_IMAGE)
+        return RC_OK;
+
+    exr_image img;
+    char why[512];
+    rc_status st = exr_read(s->env.path, &img, why, sizeof why);
+    if (st != RC_OK) {
+        snprintf(err, errlen, "%s: environment.image: %s", s->path, why);
+        return st;
+    }
+    const float *ch[3] = {exr_image_channel(&img, "R"), exr_image_channel(&img, "G"), exr_image_channel(&img, "B")};
+    if (ch[0] == NULL || ch[1] == NULL || ch[2] == NULL) {
+        snprintf(err, errlen, "%s: environment.image: %s has no R, G, B channels; give an RGB equirectangular EXR",
+                 s->path, s->env.path);
+        exr_image_free(&img);
+        return RC_ERR_PARSE;
+    }
+    size_t n = (size_t)img.width * (size_t)img.height;
+    float *p = malloc(3 * n * sizeof *p);
+    if (p == NULL) {
+        exr_image_free(&img);
+        snprintf(err, errlen, "%s: out of memory for environment %s", s->path, s->env.path);
+        return RC_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++)
+            p[3 * i + (size_t)c] = ch[c][i];
+    e->width = img.width;
+    e->height = img.height;
+    e->rgb = p;
+    *pixels = p;
+    exr_image_free(&img);
+    return RC_OK;
+}

@@ -1,0 +1,40 @@
+/* reflcheck - command line.
+ *
+ *   reflcheck render SCENE -o OUT.exr [--width W] [--height H] [--supersample K] [--threads N] [--aovs all|none]
+ *   reflcheck eval fresnel|beckmann [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]
+ *   reflcheck check SCENE                 parse and validate only
+ * Exit status: 0 ok, 1 a run failed (I/O, renderer), 2 bad input (command line, scene file).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+
+static void usage(FILE *f)
+{
+    fputs("usage: reflcheck COMMAND ...\n"
+          "  render SCENE -o OUT.exr [--width W] [--height H] [--supersample K] [--threads N] [--aovs all|none]\n"
+          "  eval fresnel|beckmann|smith [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]\n"
+          "  check SCENE\n"
+          "  povray SCENE -o OUT.pov [--role twin|validate] [--width W] [--height H] [--supersample K]\n"
+          "  cycles-job SCENE -o JOB.json [--role twin|validate] [--samples N] [--seed S] [--width W] [--height H]\n"
+          "  compare TEST.exr REF.exr [--mask-silhouette] [--json]\n",
+          f);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "--help") == 0) {
+        usage(argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    const cli_command *c = cli_find(argv[1]);
+    if (c == NULL) {
+        fprintf(stderr, "reflcheck: unknown command '%s'\n", argv[1]);
+        usage(stderr);
+        return 2;
+    }
+    return c->run(argc - 1, argv + 1);
+}

@@ -1,0 +1,42 @@
+/* runner.h - run an external renderer as its own process, with a time limit and a log.
+ *
+ * Usage:
+ *   const char *argv[] = {"povray", "+Iscene.pov", ..., NULL};
+ *   runner_result r;
+ *   runner_exec(argv, 120.0, "job.log", &r);        returns r.status, never aborts the caller
+ *   if (r.status != RUNNER_OK) ... runner_status_name(r.status), r.exit_code, r.signal
+ *   runner_version("povray", buf, sizeof buf);      first line naming a version, "" if missing
+ * The child gets its own process group, so a timeout kills the renderer and every process
+ * it started (SIGTERM, then SIGKILL after 2 s). stdout and stderr go to the log file.
+ * wall_s is elapsed time, cpu_s the user + system time of the child and its children.
+ */
+#ifndef REFLCHECK_RUNNER_H
+#define REFLCHECK_RUNNER_H
+
+#include <stddef.h>
+
+typedef enum {
+    RUNNER_OK = 0,
+    RUNNER_MISSING,   /* the program is not installed (not on PATH) */
+    RUNNER_FAILED,    /* exited with a non-zero status */
+    RUNNER_CRASHED,   /* killed by a signal it did not get from us */
+    RUNNER_TIMEOUT,   /* exceeded the time limit and was killed */
+    RUNNER_ERROR      /* could not start (fork, log file) */
+} runner_status;
+
+typedef struct {
+    runner_status status;
+    int exit_code;
+    int signal;
+    double wall_s, cpu_s;
+    long max_rss_kb;
+} runner_result;
+
+/* 1 if `program` is an executable on PATH (or a path that is executable). */
+int runner_available(const char *program);
+runner_status runner_exec(const char *const argv[], double timeout_s, const char *log_path, runner_result *r);
+const char *runner_status_name(runner_status s);
+/* Runs `program --version` and keeps the line that names the version. */
+int runner_version(const char *program, char *out, size_t outlen);
+
+#endif

@@ -1,0 +1,34 @@
+/* mesh.h - triangle meshes: the one tessellation every renderer receives.
+ *
+ * Usage:
+ *   mesh m = {0};
+ *   if (mesh_build(&scn, &m, err, sizeof err) != RC_OK) ...;   all objects, world space
+ *   ... m.pos[m.idx[3*t + c]], m.nrm[...], m.tri_object[t] ...
+ *   mesh_free(&m);
+ * Triangles wind counter-clockwise seen from the side their normals point to.
+ * Normals are unit per-vertex shading normals (smooth where the shape is smooth,
+ * duplicated vertices along creases). The mesh owns its arrays.
+ */
+#ifndef REFLCHECK_MESH_H
+#define REFLCHECK_MESH_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "scene.h"
+#include "status.h"
+
+typedef struct {
+    int n_verts, n_tris;
+    int cap_verts, cap_tris;
+    vec3 *pos;
+    vec3 *nrm;
+    uint32_t *idx;       /* 3 per triangle */
+    int *tri_object;     /* index into scene.objects, per triangle */
+} mesh;
+
+rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen);
+/* One object, appended to out, in world space. */
+rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err, size_t errlen);
+void mesh_free(mesh *m);
+
+#endif

@@ -1,0 +1,70 @@
+/* render.h - the shading loop: a scene's mesh through the rasterizer into linear float layers.
+ *
+ * Usage:
+ *   render_options o = {0};                 zero = all cores, every AOV, scene's own size
+ *   render_image img;
+ *   render_scene(&scn, &msh, &env, &o, &img, err, sizeof err);
+ *   img.chan[RENDER_R][y * img.width + x] ... ; NULL for layers not asked for
+ *   render_image_free(&img);
+ * The image owns its channel arrays (planar floats, row 0 at the top). Radiance is linear RGB
+ * in the scene's radiometric units; each pixel is the box average of its k x k samples.
+ * R, G, B = diffuse + specular + reflection + emission, or the environment where no surface is
+ * (the background is in no AOV). A = coverage times the model's alpha (D3D9Client eq. 7).
+ * "object" is the index of the object at the sample nearest the pixel centre, -1 for none.
+ * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
+ */
+#ifndef REFLCHECK_RENDER_H
+#define REFLCHECK_RENDER_H
+
+#include <stddef.h>
+#include "env.h"
+#include "mesh.h"
+#include "scene.h"
+#include "status.h"
+
+typedef enum {
+    RENDER_R, RENDER_G, RENDER_B, RENDER_A,
+    RENDER_DIFFUSE_R, RENDER_DIFFUSE_G, RENDER_DIFFUSE_B,
+    RENDER_SPECULAR_R, RENDER_SPECULAR_G, RENDER_SPECULAR_B,
+    RENDER_REFLECTION_R, RENDER_REFLECTION_G, RENDER_REFLECTION_B,
+    RENDER_EMISSION_R, RENDER_EMISSION_G, RENDER_EMISSION_B,
+    RENDER_COVERAGE, RENDER_OBJECT,
+    RENDER_CHANNELS
+} render_channel;
+
+/* Layers beyond R, G, B, A, coverage and object: bits of render_options.aovs. */
+enum { RENDER_AOV_DIFFUSE = 1, RENDER_AOV_SPECULAR = 2, RENDER_AOV_REFLECTION = 4, RENDER_AOV_EMISSION = 8,
+       RENDER_AOV_ALL = 15, RENDER_AOV_NONE = 16 };
+
+typedef struct {
+    int threads;          /* 0 = all cores */
+    int tile;             /* 0 = rasterizer default */
+    unsigned aovs;        /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
+    int width, height;    /* 0 = the scene's */
+    int supersample;      /* 0 = the scene's */
+} render_options;
+
+typedef struct {
+    int width, height, supersample;
+    float *chan[RENDER_CHANNELS];
+    double seconds;       /* wall time of render_scene */
+    long long shaded_samples;
+} render_image;
+
+extern const char *const render_channel_names[RENDER_CHANNELS];
+
+rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *o,
+                       render_image *out, char *err, size_t errlen);
+void render_image_free(render_image *img);
+
+/* Camera: world point to raster clip coordinates; and the world ray through a screen point
+ * (pixel units, row 0 at the top). Exposed for tests and the translators. */
+typedef struct {
+    vec3 eye, forward, right, up;
+    float tan_half_x, tan_half_y;
+    int width, height;
+} render_camera;
+void render_camera_make(const scene *s, int width, int height, render_camera *c);
+vec3 render_camera_ray(const render_camera *c, float sx, float sy);
+
+#endif

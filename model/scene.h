@@ -1,0 +1,157 @@
+/* scene.h - the in-memory scene: what a scene file describes, in canonical units.
+ *
+ * Usage:
+ *   scene s; scene_init(&s);         fills every default (see the field comments)
+ *   ... fill or parse (harness/scene_file.h) ...
+ * The struct owns no heap memory: fixed-size arrays, so copying it is fine.
+ * Frame: right-handed, +Y up, metres. Angles in the struct are radians (files use degrees).
+ * Lights are radiometric: point/spot intensity I [W/sr] with 1/d^2 falloff, sun irradiance
+ * E [W/m^2] at normal incidence, environment radiance. A Lambert surface of albedo rho
+ * therefore reflects rho*E/pi. The Direct3D model has no 1/pi: it is fed colours I/pi, E/pi.
+ * Colours are linear RGB in vec3 (x = R, y = G, z = B).
+ */
+#ifndef REFLCHECK_SCENE_H
+#define REFLCHECK_SCENE_H
+
+#include <stdint.h>
+#include "vec.h"
+
+#define SCENE_NAME_MAX 64
+#define SCENE_PATH_MAX 512
+
+typedef enum { LIGHT_POINT, LIGHT_SUN, LIGHT_SPOT } light_kind;
+/* Spot cone profile: D3D's power law, or cos(theta)*smoothstep as POV-Ray (tightness 1)
+ * and Cycles compute it. Only `smooth` can be matched by the references. */
+typedef enum { SPOT_D3D, SPOT_SMOOTH } spot_profile;
+
+typedef struct {
+    light_kind kind;
+    vec3 position;      /* point, spot */
+    vec3 direction;     /* sun, spot: unit direction the light travels (from the light) */
+    vec3 intensity;     /* point/spot: I [W/sr]; sun: E [W/m^2] */
+    vec3 ambient;       /* D3D La, default 0 */
+    float a0, a1, a2;   /* D3D attenuation 1/(a0 + a1 d + a2 d^2); default 0, 0, 1 */
+    float range;        /* D3D range; default INFINITY */
+    float inner, outer; /* spot: full cone angles theta, phi [rad] */
+    float falloff;      /* spot: D3D exponent, default 1 */
+    spot_profile profile;
+} light;
+
+typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE } env_kind;
+
+typedef struct {
+    env_kind kind;
+    vec3 radiance;              /* constant radiance, or scale for the image (default 1) */
+    char path[SCENE_PATH_MAX];  /* equirectangular linear EXR, resolved relative to the scene file */
+} environment;
+
+typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
+typedef enum { NORM_MAX, NORM_MEAN, NORM_LUMINANCE, NORM_EUCLID } colour_norm;
+typedef enum { CT_WALTER, CT_CT1982 } ct_normalisation;
+typedef enum { G_VCAVITY, G_SMITH_WALTER, G_SMITH_EXACT } ct_geometry;
+typedef enum { F_SCHLICK, F_ONE, F_EXACT } ct_fresnel;
+
+typedef struct {
+    vec3 ambient;       /* Va, default 0 */
+    vec3 diffuse;       /* Vd, default = albedo */
+    vec3 specular;      /* Vs, default 0 */
+    vec3 emissive;      /* Ve, default 0 */
+    float power;        /* P, default 0 (specular off) */
+    int local_viewer;   /* D3DRS_LOCALVIEWER, default 1 */
+    int per_vertex;     /* Gouraud, default 0 (per pixel) */
+    int clamp;          /* clamp Dv + Sv to [0, 1], default 0 */
+} d3d_params;
+
+typedef struct {
+    float p;            /* fresnel power, default 3 */
+    float r0;           /* offset, default ((1-n)/(1+n))^2 from the material ior */
+    float m;            /* multiplier, default 1 - r0 */
+    vec3 reflect;       /* lambda, metallic reflect colour, default 0 */
+    vec3 fresnel_colour;/* s, default white */
+    colour_norm norm;   /* |lambda| and |R_tot|, default max */
+    int sun_angle;      /* equation (8), default 0 */
+    float alpha;        /* d_a, the material/texture alpha of equation (7), default 1 */
+} d3d9client_params;
+
+typedef struct {
+    float m;                 /* Beckmann roughness, default = material roughness */
+    vec3 f0;                 /* Schlick F0, default from ior (dielectric) or conductor at 0 deg */
+    vec3 ks;                 /* specular colour scale, default 1 */
+    ct_normalisation norm;   /* default walter */
+    ct_geometry g;           /* default vcavity */
+    ct_fresnel f;            /* default schlick */
+    int reflection;          /* environment reflection term CM * Fr, default 1 */
+} ct_params;
+
+typedef struct {
+    char name[SCENE_NAME_MAX];
+    /* physical intent */
+    vec3 albedo;             /* diffuse albedo rho, default 0.8 grey */
+    float ior;               /* dielectric index n, default 1.5 */
+    int conductor;           /* 1 if eta/k given */
+    vec3 eta, k;             /* conductor complex index per channel */
+    float roughness;         /* Beckmann m, default 0.3 */
+    model_kind model;
+    d3d_params d3d;          /* also the lit diffuse d of the D3D9Client model */
+    d3d9client_params d9;
+    ct_params ct;
+} material;
+
+typedef enum { SHAPE_SPHERE, SHAPE_QUAD, SHAPE_BOX, SHAPE_TORUS, SHAPE_MESH } shape_kind;
+
+typedef struct {
+    shape_kind shape;
+    vec3 center;
+    vec3 rotate;             /* Euler angles [rad], applied X then Y then Z */
+    float radius;            /* sphere; box edge rounding; torus tube radius */
+    float major;             /* torus ring radius */
+    vec3 size;               /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */
+    int tessellation;        /* segments; default 32 */
+    char path[SCENE_PATH_MAX]; /* mesh: OBJ or PLY */
+    int material;            /* index into scene.materials */
+} object;
+
+typedef enum { RENDERER_RASTER, RENDERER_POVRAY, RENDERER_CYCLES, RENDERER_COUNT } renderer_id;
+typedef enum { ROLE_TWIN, ROLE_VALIDATE, ROLE_AGREE } comparison_role;
+
+#define METRIC_MAX 8
+typedef struct {
+    char metric[32];         /* e.g. rel_rms, psnr, max_abs, z_fail_share */
+    double warn, fail;
+    char why[160];
+} threshold;
+
+typedef struct {
+    renderer_id test, reference;  /* test is usually RENDERER_RASTER */
+    comparison_role role;
+    int n_thresholds;
+    threshold thresholds[METRIC_MAX];
+} comparison;
+
+#define SCENE_MAX_LIGHTS 8
+#define SCENE_MAX_MATERIALS 16
+#define SCENE_MAX_OBJECTS 32
+#define SCENE_MAX_COMPARISONS 8
+
+typedef struct {
+    char name[SCENE_NAME_MAX];
+    char path[SCENE_PATH_MAX];   /* the scene file, for messages */
+    int width, height, supersample;
+    int samples;                 /* Cycles samples per pixel, default 64 */
+    struct { vec3 eye, target, up; float hfov; } camera; /* hfov [rad] */
+    vec3 global_ambient;         /* D3D Ia, default 0 */
+    environment env;
+    int n_lights, n_materials, n_objects, n_comparisons;
+    light lights[SCENE_MAX_LIGHTS];
+    material materials[SCENE_MAX_MATERIALS];
+    object objects[SCENE_MAX_OBJECTS];
+    comparison comparisons[SCENE_MAX_COMPARISONS];
+    uint64_t hash;               /* FNV-1a of the scene file's bytes */
+} scene;
+
+void scene_init(scene *s);
+void light_init(light *l);
+void material_init(material *m);
+void object_init(object *o);
+
+#endif

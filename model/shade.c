@@ -1,0 +1,202 @@
+#include "shade.h"
+
+#include <math.h>
+#include <stddef.h>
+
+#include "cooktorrance.h"
+#include "d3d.h"
+#include "d3d9client.h"
+
+#define SHADE_INV_PI 0.318309886183790671538f
+
+void shade_context_make(const scene *s, const env_map *env, shade_context *c)
+{
+    c->s = s;
+    c->env = env;
+    c->eye = s->camera.eye;
+    c->e_inf = v3_norm(v3_sub(s->camera.eye, s->camera.target));
+}
+
+int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, float *atten)
+{
+    if (l->kind == LIGHT_SUN) {
+        *to_light = v3_neg(v3_norm(l->direction));
+        *e_perp = l->intensity;
+        *atten = 1.0f;
+        return 1;
+    }
+    vec3 d = v3_sub(l->position, x);
+    float dist = v3_len(d);
+    /* A light exactly at the shaded point has no direction; it lights nothing there. */
+    if (!(dist > 0.0f))
+        return 0;
+    *to_light = v3_scale(d, 1.0f / dist);
+    *atten = d3d_attenuation(l, dist) * d3d_spot(l, v3_neg(*to_light));
+    *e_perp = v3_scale(l->intensity, *atten);
+    return *atten > 0.0f;
+}
+
+/* Direct3D fixed function (MODELS.md 1). The flags are compile-time constants in each
+ * wrapper below, so every specialised path is its own branch-free loop body. */
+static inline void shade_d3d_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v,
+                                  shade_terms *out, const int specular, const int ambient)
+{
+    const d3d_params *d = &m->d3d;
+    vec3 diffuse = ambient ? v3_mul(d->ambient, c->s->global_ambient) : v3s(0.0f);
+    vec3 spec = v3s(0.0f);
+    for (int i = 0; i < c->s->n_lights; i++) {
+        const light *l = &c->s->lights[i];
+        vec3 to_l, e_perp;
+        float atten;
+        if (!shade_light_incident(l, x, &to_l, &e_perp, &atten))
+            continue;
+        if (ambient)
+            diffuse = v3_add(diffuse, v3_scale(v3_mul(d->ambient, l->ambient), atten));
+        float n_l = v3_dot(n, to_l);
+        /* D3D lights nothing, not even the highlight, from behind the surface. */
+        if (n_l <= 0.0f)
+            continue;
+        /* The D3D model has no 1/pi: its light colour is E/pi (CONVENTIONS.md). */
+        vec3 colour = v3_scale(e_perp, SHADE_INV_PI);
+        diffuse = v3_add(diffuse, v3_scale(v3_mul(d->diffuse, colour), d3d_lambert(n_l)));
+        if (specular) {
+            vec3 h = d3d_half_vector(to_l, v, c->e_inf, d->local_viewer);
+            spec = v3_add(spec, v3_scale(v3_mul(d->specular, colour), d3d_blinn(v3_dot(n, h), d->power)));
+        }
+    }
+    vec3 emission = d->emissive;
+    if (d->clamp) {
+        /* D3D saturates Dv (which holds the emissive colour) and Sv to [0, 1] separately. */
+        emission = v3(fminf(emission.x, 1.0f), fminf(emission.y, 1.0f), fminf(emission.z, 1.0f));
+        vec3 room = v3_sub(v3s(1.0f), emission);
+        diffuse = v3(fminf(diffuse.x, room.x), fminf(diffuse.y, room.y), fminf(diffuse.z, room.z));
+        spec = v3(fminf(spec.x, 1.0f), fminf(spec.y, 1.0f), fminf(spec.z, 1.0f));
+    }
+    out->diffuse = diffuse;
+    out->specular = spec;
+    out->reflection = v3s(0.0f);
+    out->emission = emission;
+    out->alpha = 1.0f;
+}
+
+static void shade_d3d_diffuse(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    shade_d3d_impl(c, p->mat, x, n, v, out, 0, 0);
+}
+
+static void shade_d3d_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    shade_d3d_impl(c, p->mat, x, n, v, out, 1, 1);
+}
+
+/* The main light of equation (8): the first sun, else the first light. */
+static const light *shade_main_light(const scene *s)
+{
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == LIGHT_SUN)
+            return &s->lights[i];
+    return s->n_lights > 0 ? &s->lights[0] : NULL;
+}
+
+static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    const material *m = p->mat;
+    shade_d3d_impl(c, m, x, n, v, out, 1, 1);
+    vec3 phi = env_lookup(c->env, v3_reflect(v, n));
+    float n_sun = 0.0f;
+    const light *sun = m->d9.sun_angle ? shade_main_light(c->s) : NULL;
+    if (sun != NULL) {
+        vec3 to_l, e_perp;
+        float atten;
+        if (shade_light_incident(sun, x, &to_l, &e_perp, &atten))
+            n_sun = v3_dot(n, to_l);
+    }
+    d3d9_result r;
+    d3d9client_combine(&m->d9, out->diffuse, m->d9.alpha, phi, v3_dot(n, v), n_sun, &r);
+    out->diffuse = v3_sub(r.rgb, r.r_tot);
+    out->reflection = r.r_tot;
+    out->alpha = r.alpha;
+}
+
+static inline void shade_ct_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v,
+                                 shade_terms *out, const int reflection)
+{
+    vec3 diffuse = v3s(0.0f), spec = v3s(0.0f);
+    vec3 kd = v3_scale(m->albedo, SHADE_INV_PI);
+    for (int i = 0; i < c->s->n_lights; i++) {
+        vec3 to_l, e_perp;
+        float atten;
+        if (!shade_light_incident(&c->s->lights[i], x, &to_l, &e_perp, &atten))
+            continue;
+        float n_l = v3_dot(n, to_l);
+        if (n_l <= 0.0f)
+            continue;
+        diffuse = v3_add(diffuse, v3_scale(v3_mul(kd, e_perp), n_l));
+        spec = v3_add(spec, v3_mul(cooktorrance_specular(&m->ct, n, v, to_l, m), e_perp));
+    }
+    out->diffuse = diffuse;
+    out->specular = spec;
+    out->reflection = reflection ? v3_mul(env_lookup(c->env, v3_reflect(v, n)),
+                                          cooktorrance_reflection_weight(&m->ct, v3_dot(n, v), m))
+                                 : v3s(0.0f);
+    out->emission = m->d3d.emissive;
+    out->alpha = 1.0f;
+}
+
+static void shade_ct_lights(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    shade_ct_impl(c, p->mat, x, n, v, out, 0);
+}
+
+static void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    shade_ct_impl(c, p->mat, x, n, v, out, 1);
+}
+
+static int shade_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
+
+void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
+{
+    const scene *s = c->s;
+    int has_env = c->env != NULL && c->env->kind != ENV_NONE;
+    int light_ambient = 0;
+    for (int i = 0; i < s->n_lights; i++)
+        light_ambient |= shade_nonzero(s->lights[i].ambient);
+    p->mat = m;
+    p->terms = SHADE_TERM_DIFFUSE | (shade_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
+    switch (m->model) {
+    case MODEL_D3D: {
+        int spec = shade_nonzero(m->d3d.specular);
+        int amb = shade_nonzero(m->d3d.ambient) && (light_ambient || shade_nonzero(s->global_ambient));
+        int plain = !spec && !amb && !m->d3d.clamp;
+        p->terms |= spec ? SHADE_TERM_SPECULAR : 0u;
+        p->fn = plain ? shade_d3d_diffuse : shade_d3d_full;
+        p->path = plain ? "d3d-diffuse" : "d3d-full";
+        break;
+    }
+    case MODEL_D3D9CLIENT:
+        p->terms |= SHADE_TERM_SPECULAR | (has_env ? SHADE_TERM_REFLECTION : 0u);
+        p->fn = shade_d3d9client;
+        p->path = "d3d9client";
+        break;
+    case MODEL_COOK_TORRANCE: {
+        int refl = m->ct.reflection && has_env;
+        p->terms |= SHADE_TERM_SPECULAR | (refl ? SHADE_TERM_REFLECTION : 0u);
+        p->fn = refl ? shade_ct_full : shade_ct_lights;
+        p->path = refl ? "cook-torrance-env" : "cook-torrance-lights";
+        break;
+    }
+    }
+}
+
+void shade_plan_make_general(const shade_context *c, const material *m, shade_plan *p)
+{
+    shade_plan_make(c, m, p);
+    if (m->model == MODEL_D3D) {
+        p->fn = shade_d3d_full;
+        p->path = "d3d-full";
+    } else if (m->model == MODEL_COOK_TORRANCE) {
+        p->fn = shade_ct_full;
+        p->path = "cook-torrance-env";
+    }
+}
