@@ -56,7 +56,7 @@ typedef struct {
     vec3 diffuse;       /* Vd, default = albedo */
     vec3 specular;      /* Vs, default 0 */
     vec3 emissive;      /* Ve, default 0 */
-    float power;        /* P, default 0 (specular off) */
+    float power;        /* P, default 0: ((N.H)+)^0 = 1, so a non-zero Vs then gives a flat highlight */
     int local_viewer;   /* D3DRS_LOCALVIEWER, default 1 */
     int per_vertex;     /* Gouraud, default 0 (per pixel) */
     int clamp;          /* clamp Dv + Sv to [0, 1], default 0 */
@@ -138,6 +138,10 @@ typedef struct {
     char path[SCENE_PATH_MAX];   /* the scene file, for messages */
     int width, height, supersample;
     int samples;                 /* Cycles samples per pixel, default 64 */
+    /* The small variant `make test` renders (all renderers): 0 = derived from the full size
+     * (width at most 96, aspect kept, supersample at most 2, samples at most 32). */
+    struct { int width, height, supersample, samples; } small;
+    double timeout;              /* seconds one reference render may take, 0 = 600 */
     struct { vec3 eye, target, up; float hfov; } camera; /* hfov [rad] */
     vec3 global_ambient;         /* D3D Ia, default 0 */
     environment env;

@@ -1,0 +1,39 @@
+/* d3d9client.h - D3D9Client Fresnel + metallic reflection (MODELS.md section 2, seed
+ * equations (1)-(8)), evaluated for one surface point.
+ *
+ * Usage:
+ *   d3d9_result r;
+ *   d3d9client_combine(&mat->d9, lit_diffuse_rgb, diffuse_alpha, env(reflect(-V, N)),
+ *                      n_v, n_sun, &r);          r.rgb is the pixel colour (6) or (8)
+ * diffuse_rgb is the lit diffuse colour d (section 1's Dv, or texture x lighting);
+ * env_radiance_phi is phi, the radiance arriving along the mirror direction. Outputs are
+ * radiance-like colours in the inputs' units; nothing is clamped (HDR), so a negative
+ * diffuse weight (euclid norm of a bright lambda) shows in the result instead of hiding.
+ * Pure functions; every finite argument gives a finite result (sums are formed in double
+ * and saturated to +-FLT_MAX); a NaN argument propagates.
+ */
+#ifndef REFLCHECK_D3D9CLIENT_H
+#define REFLCHECK_D3D9CLIENT_H
+
+#include "scene.h"
+
+/* |c| for a colour: NORM_MAX largest component, NORM_MEAN (R+G+B)/3, NORM_LUMINANCE
+ * 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709), NORM_EUCLID sqrt(R^2+G^2+B^2) (sqrt 3 for
+ * white: 1 - |lambda| < 0). Unknown values behave as NORM_MAX. */
+float d3d9_colour_norm(vec3 c, colour_norm norm);
+
+typedef struct {
+    vec3 rgb;              /* (6), or (8) when p->sun_angle */
+    float alpha;           /* (7) max(d_a, |R_tot|) */
+    vec3 r_tot;            /* (5) (lambda (1 - R) + s R) phi */
+    float fresnel_R;       /* (3) R0 + m (1 - (N.V)+)^p */
+    float diffuse_weight;  /* 1 - |lambda|, reported unclamped: < 0 flags a norm (euclid)
+                              that makes bright metals subtract diffuse light */
+} d3d9_result;
+
+/* Equations (3)-(8). n_v = N.V (clamped to [0, 1] inside (3)); n_sun = cos sigma = N.L of
+ * the main light, read only when p->sun_angle (clamped the same way in (8)). */
+void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
+                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9_result *out);
+
+#endif
