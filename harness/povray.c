@@ -1,0 +1,896 @@
+/* povray.c - POV-Ray 3.7 SDL writer, command line, runner and box filter (see povray.h).
+ *
+ * The SDL facts used here (finish defaults are not zero, fade law, spot profile, camera
+ * handedness, sky_sphere orientation, half-float EXR) are those of /work/shared/CONVENTIONS.md;
+ * tests/test_povray.c renders each one and checks it against an independent formula.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include "povray.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "exr.h"
+
+#define POVRAY_PI 3.14159265358979323846
+
+static void povray_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    if (!err || errlen == 0)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+/* ---- resolved options ---------------------------------------------------------------- */
+
+typedef struct {
+    int validate;         /* physical material instead of the model twin */
+    unsigned term;
+    int k;
+    int max_trace_level;
+    double fade_ratio;
+    double scale;
+} povray_resolved;
+
+static rc_status povray_resolve(const scene *s, const povray_options *o, povray_resolved *r,
+                                const char *where, char *err, size_t errlen)
+{
+    povray_options zero = {0};
+    if (!o)
+        o = &zero;
+    r->validate = o->role == ROLE_VALIDATE || o->role == ROLE_AGREE;
+    r->term = o->term ? o->term : POVRAY_TERM_ALL;
+    r->k = o->supersample > 0 ? o->supersample : (s && s->supersample > 0 ? s->supersample : 1);
+    r->max_trace_level = o->max_trace_level > 0 ? o->max_trace_level : 2;
+    r->fade_ratio = o->fade_ratio > 0.0 ? o->fade_ratio : 1e-3;
+    r->scale = o->output_scale > 0.0 ? o->output_scale : 1.0;
+    if ((r->term & ~(unsigned)POVRAY_TERM_ALL) || o->supersample < 0 || o->threads < 0 ||
+        o->max_trace_level < 0 || !(o->fade_ratio >= 0.0 && o->fade_ratio < 1.0) ||
+        !(o->output_scale >= 0.0 && isfinite(o->output_scale))) {
+        povray_err(err, errlen,
+                   "%s: povray_options: term must be a POVRAY_TERM_* mask, supersample/threads/"
+                   "max_trace_level >= 0, fade_ratio in [0, 1), output_scale finite >= 0",
+                   where);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+/* ---- geometry helpers ------------------------------------------------------------------ */
+
+/* Distance from p to triangle abc (closest point by Voronoi regions, Ericson 5.1.5). */
+static double povray_point_tri_dist(dvec3 p, dvec3 a, dvec3 b, dvec3 c)
+{
+    dvec3 ab = dv3_sub(b, a), ac = dv3_sub(c, a), ap = dv3_sub(p, a);
+    double d1 = dv3_dot(ab, ap), d2 = dv3_dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0)
+        return dv3_len(ap);
+    dvec3 bp = dv3_sub(p, b);
+    double d3 = dv3_dot(ab, bp), d4 = dv3_dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3)
+        return dv3_len(bp);
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        double v = d1 / (d1 - d3);
+        return dv3_len(dv3_sub(p, dv3_add(a, dv3_scale(ab, v))));
+    }
+    dvec3 cp = dv3_sub(p, c);
+    double d5 = dv3_dot(ab, cp), d6 = dv3_dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6)
+        return dv3_len(cp);
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        double w = d2 / (d2 - d6);
+        return dv3_len(dv3_sub(p, dv3_add(a, dv3_scale(ac, w))));
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return dv3_len(dv3_sub(p, dv3_add(b, dv3_scale(dv3_sub(c, b), w))));
+    }
+    double denom = 1.0 / (va + vb + vc);
+    double v = vb * denom, w = vc * denom;
+    dvec3 q = dv3_add(a, dv3_add(dv3_scale(ab, v), dv3_scale(ac, w)));
+    return dv3_len(dv3_sub(p, q));
+}
+
+/* Nearest and farthest distance from p to the mesh (the farthest is at a vertex, since the
+ * distance is convex over each triangle). */
+static void povray_mesh_dist(const mesh *m, vec3 p, double *dmin, double *dmax)
+{
+    dvec3 q = dv3_from(p);
+    double lo = INFINITY, hi = 0.0;
+    for (int t = 0; t < m->n_tris; t++) {
+        dvec3 a = dv3_from(m->pos[m->idx[3 * t]]);
+        dvec3 b = dv3_from(m->pos[m->idx[3 * t + 1]]);
+        dvec3 c = dv3_from(m->pos[m->idx[3 * t + 2]]);
+        double d = povray_point_tri_dist(q, a, b, c);
+        if (d < lo)
+            lo = d;
+    }
+    for (int v = 0; v < m->n_verts; v++) {
+        double d = dv3_len(dv3_sub(dv3_from(m->pos[v]), q));
+        if (d > hi)
+            hi = d;
+    }
+    *dmin = lo;
+    *dmax = hi;
+}
+
+static void povray_mesh_bounds(const mesh *m, dvec3 *centre, double *radius)
+{
+    dvec3 lo = dv3(INFINITY, INFINITY, INFINITY), hi = dv3(-INFINITY, -INFINITY, -INFINITY);
+    for (int v = 0; v < m->n_verts; v++) {
+        dvec3 p = dv3_from(m->pos[v]);
+        lo = dv3(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+        hi = dv3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+    }
+    if (m->n_verts == 0) {
+        *centre = dv3(0, 0, 0);
+        *radius = 1.0;
+        return;
+    }
+    *centre = dv3_scale(dv3_add(lo, hi), 0.5);
+    *radius = 0.5 * dv3_len(dv3_sub(hi, lo));
+}
+
+static int povray_finite3(vec3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
+
+/* ---- lights ---------------------------------------------------------------------------- */
+
+/* How one light is written: colour, fade law, and the distance-independent part of its
+ * attenuation when there is one (for the D3D ambient term Va*La*A). */
+typedef struct {
+    int skip;             /* the whole mesh lies beyond the light's range */
+    dvec3 colour;         /* POV-Ray light colour */
+    double fade_distance; /* 0 = no fade */
+    int fade_power;
+    int constant_atten;   /* A does not depend on the distance */
+    double atten;         /* that constant A */
+} povray_light;
+
+static rc_status povray_light_convert(const scene *s, const mesh *m, int i, const povray_resolved *r,
+                                      povray_light *pl, char *err, size_t errlen)
+{
+    const light *l = &s->lights[i];
+    memset(pl, 0, sizeof *pl);
+    int needs_dir = l->kind == LIGHT_SUN || l->kind == LIGHT_SPOT;
+    /* POV-Ray's falloff is a half angle, which must stay below 90 degrees. */
+    if (!povray_finite3(l->intensity) || !povray_finite3(l->position) ||
+        !povray_finite3(l->direction) || (needs_dir && v3_len(l->direction) == 0.0f) ||
+        (l->kind == LIGHT_SPOT && !(l->inner >= 0.0f && l->inner <= l->outer && (double)l->outer < POVRAY_PI))) {
+        povray_err(err, errlen,
+                   "%s: lights[%d]: intensity/position/direction must be finite, a sun or spot "
+                   "direction non-zero, and a spot's 0 <= inner <= outer < 180 degrees", s->path, i);
+        return RC_ERR_RANGE;
+    }
+    dvec3 c = dv3_scale(dv3_from(l->intensity), r->scale / POVRAY_PI);
+    if (l->kind == LIGHT_SUN) {
+        pl->colour = c;
+        pl->constant_atten = 1;
+        pl->atten = 1.0;
+        return RC_OK;
+    }
+    if (l->kind == LIGHT_SPOT && l->profile != SPOT_SMOOTH) {
+        povray_err(err, errlen,
+                   "%s: lights[%d]: a spot with profile d3d (power law) has no POV-Ray equivalent; "
+                   "use profile smooth", s->path, i);
+        return RC_ERR_RANGE;
+    }
+    double dmin, dmax;
+    povray_mesh_dist(m, l->position, &dmin, &dmax);
+    if (isfinite(l->range)) {
+        if (dmin > l->range) {
+            pl->skip = 1;
+            return RC_OK;
+        }
+        if (dmax > l->range) {
+            povray_err(err, errlen,
+                       "%s: lights[%d]: range %g m cuts through the geometry (%g..%g m away) and "
+                       "POV-Ray has no light range; set range to infinity or beyond %g m",
+                       s->path, i, (double)l->range, dmin, dmax, dmax);
+            return RC_ERR_RANGE;
+        }
+    }
+    double a0 = l->a0, a1 = l->a1, a2 = l->a2;
+    /* The nearest geometry sets the fade distance when a0 = 0: (D/d)^2 <= fade_ratio^2. */
+    double dfade = r->fade_ratio * (dmin > 0.0 ? dmin : 1.0);
+    if (a0 < 0.0 || a1 < 0.0 || a2 < 0.0 || !(a0 + a1 + a2 > 0.0)) {
+        povray_err(err, errlen, "%s: lights[%d]: attenuation a0, a1, a2 must be >= 0 and not all 0",
+                   s->path, i);
+        return RC_ERR_RANGE;
+    }
+    if (a1 == 0.0 && a2 > 0.0) {
+        /* 2/(1 + (d/D)^2) = 2 D^2/(D^2 + d^2): with D^2 = a0/a2 it is 2 a0/(a0 + a2 d^2). */
+        pl->fade_power = 2;
+        pl->fade_distance = a0 > 0.0 ? sqrt(a0 / a2) : dfade;
+        pl->colour = dv3_scale(c, 1.0 / (2.0 * a2 * pl->fade_distance * pl->fade_distance));
+    } else if (a2 == 0.0 && a1 > 0.0) {
+        /* 2/(1 + d/D) = 2 D/(D + d): with D = a0/a1 it is 2 a0/(a0 + a1 d). */
+        pl->fade_power = 1;
+        pl->fade_distance = a0 > 0.0 ? a0 / a1 : dfade;
+        pl->colour = dv3_scale(c, 1.0 / (2.0 * a1 * pl->fade_distance));
+    } else if (a1 == 0.0 && a2 == 0.0) {
+        pl->colour = dv3_scale(c, 1.0 / a0);
+        pl->constant_atten = 1;
+        pl->atten = 1.0 / a0;
+    } else {
+        povray_err(err, errlen,
+                   "%s: lights[%d]: attenuation with both a1 and a2 non-zero has no POV-Ray "
+                   "fade law; set a1 = 0 or a2 = 0", s->path, i);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+/* ---- materials ------------------------------------------------------------------------- */
+
+typedef struct {
+    dvec3 pigment;
+    double diffuse;
+    dvec3 emission;       /* POV-Ray's emission, which it multiplies by the pigment */
+    double specular, roughness;
+    int reflection;       /* 0 none, 1 { min, max falloff p }, 2 { 0, 1 fresnel on } */
+    dvec3 rmin, rmax;
+    double falloff, ior;
+} povray_finish;
+
+static double povray_colour_norm(vec3 c, colour_norm n)
+{
+    switch (n) {
+    case NORM_MEAN: return ((double)c.x + c.y + c.z) / 3.0;
+    case NORM_LUMINANCE: return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    case NORM_EUCLID: return dv3_len(dv3_from(c));
+    case NORM_MAX:
+    default: return fmax(c.x, fmax(c.y, c.z));
+    }
+}
+
+static double povray_comp(dvec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y : v.z); }
+
+static int povray_is_zero(vec3 v) { return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f; }
+
+static rc_status povray_material_twin(const scene *s, int mi, const povray_light *lights,
+                                      const povray_resolved *r, povray_finish *f, char *err,
+                                      size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    const d3d_params *d = &mat->d3d;
+    const char *name = mat->name[0] ? mat->name : "(unnamed)";
+    if (mat->model == MODEL_COOK_TORRANCE) {
+        povray_err(err, errlen,
+                   "%s: materials[%d] '%s': model cook_torrance has no POV-Ray twin (no Beckmann "
+                   "lobe); compare it against cycles, or use role validate", s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
+    if (d->per_vertex || d->clamp) {
+        povray_err(err, errlen,
+                   "%s: materials[%d] '%s': d3d.per_vertex and d3d.clamp have no POV-Ray twin; "
+                   "set both to false for a twin comparison", s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
+    int d9 = mat->model == MODEL_D3D9CLIENT;
+    if (d9 && mat->d9.sun_angle) {
+        povray_err(err, errlen,
+                   "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
+                   "set it to false", s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
+    double keep = d9 ? 1.0 - povray_colour_norm(mat->d9.reflect, mat->d9.norm) : 1.0;
+    f->pigment = dv3_scale(dv3_from(d->diffuse), keep);
+    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
+
+    /* The constant part: D3D ambient Va*(Ia + sum La*A) (diffuse term, scaled by 1 - |lambda|
+     * like all of d) and Ve. POV-Ray has it only as emission, times the pigment. */
+    dvec3 amb = dv3_from(s->global_ambient);
+    for (int i = 0; i < s->n_lights; i++) {
+        if (povray_is_zero(s->lights[i].ambient) || povray_is_zero(d->ambient) || lights[i].skip)
+            continue;
+        if (!lights[i].constant_atten) {
+            povray_err(err, errlen,
+                       "%s: materials[%d] '%s' with lights[%d]: the D3D ambient term Va*La*A(d) "
+                       "varies with distance and POV-Ray cannot express it; set the light's ambient "
+                       "or the material's d3d.ambient to 0", s->path, mi, name, i);
+            return RC_ERR_RANGE;
+        }
+        amb = dv3_add(amb, dv3_scale(dv3_from(s->lights[i].ambient), lights[i].atten));
+    }
+    dvec3 konst = dv3(0, 0, 0);
+    if (r->term & POVRAY_TERM_DIFFUSE)
+        konst = dv3_scale(dv3_mul(dv3_from(d->ambient), amb), keep * r->scale);
+    if (r->term & POVRAY_TERM_EMISSION)
+        konst = dv3_add(konst, dv3_scale(dv3_from(d->emissive), r->scale));
+    double e[3];
+    for (int c = 0; c < 3; c++) {
+        double p = povray_comp(f->pigment, c), k = povray_comp(konst, c);
+        if (k == 0.0)
+            e[c] = 0.0;
+        else if (p != 0.0)
+            e[c] = k / p;
+        else {
+            povray_err(err, errlen,
+                       "%s: materials[%d] '%s': emissive/ambient colour on channel %d where the "
+                       "POV-Ray pigment (d3d.diffuse%s) is 0; POV-Ray multiplies emission by the "
+                       "pigment, so give that channel a non-zero diffuse", s->path, mi, name, c,
+                       d9 ? " * (1 - |reflect|)" : "");
+            return RC_ERR_RANGE;
+        }
+    }
+    f->emission = dv3(e[0], e[1], e[2]);
+
+    f->specular = 0.0;
+    f->roughness = 1.0;
+    if ((r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
+        if (!(d->specular.x == d->specular.y && d->specular.y == d->specular.z)) {
+            povray_err(err, errlen,
+                       "%s: materials[%d] '%s': d3d.specular (%g, %g, %g) is not grey, and POV-Ray's "
+                       "specular is a scalar times the light colour: this scene cannot be twinned; "
+                       "use a grey specular", s->path, mi, name, (double)d->specular.x,
+                       (double)d->specular.y, (double)d->specular.z);
+            return RC_ERR_RANGE;
+        }
+        if (!d->local_viewer) {
+            povray_err(err, errlen,
+                       "%s: materials[%d] '%s': d3d.local_viewer false (infinite viewer) has no "
+                       "POV-Ray twin; set it to true", s->path, mi, name);
+            return RC_ERR_RANGE;
+        }
+        f->specular = d->specular.x;
+        f->roughness = 1.0 / d->power;
+    }
+
+    f->reflection = 0;
+    if (d9 && (r->term & POVRAY_TERM_REFLECTION)) {
+        /* eq. 5: lambda + (s - lambda) R, R = R0 + m (1 - cos)^p, is POV-Ray's
+         * Rmin + (Rmax - Rmin)(1 - cos)^falloff with these end points. */
+        dvec3 lam = dv3_from(mat->d9.reflect), sc = dv3_from(mat->d9.fresnel_colour);
+        dvec3 span = dv3_sub(sc, lam);
+        f->rmin = dv3_add(lam, dv3_scale(span, mat->d9.r0));
+        f->rmax = dv3_add(lam, dv3_scale(span, (double)mat->d9.r0 + mat->d9.m));
+        f->falloff = mat->d9.p;
+        if (dv3_dot(f->rmin, f->rmin) > 0.0 || dv3_dot(f->rmax, f->rmax) > 0.0)
+            f->reflection = 1;
+    }
+    return RC_OK;
+}
+
+static rc_status povray_material_physical(const scene *s, int mi, const povray_resolved *r,
+                                          povray_finish *f, char *err, size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    if (mat->conductor) {
+        povray_err(err, errlen,
+                   "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
+                   "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
+                   "against cycles or the exact reference instead",
+                   s->path, mi, mat->name[0] ? mat->name : "(unnamed)");
+        return RC_ERR_RANGE;
+    }
+    f->pigment = dv3_from(mat->albedo);
+    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
+    f->emission = dv3(0, 0, 0);
+    /* A smooth dielectric's highlight from a point or sun light is a delta lobe: nothing to
+     * render with `specular`, so it is left out. */
+    f->specular = 0.0;
+    f->roughness = 1.0;
+    f->reflection = (r->term & POVRAY_TERM_REFLECTION) ? 2 : 0;
+    f->rmin = dv3(0, 0, 0);
+    f->rmax = dv3(1, 1, 1);
+    f->falloff = 1.0;
+    f->ior = mat->ior;
+    if (f->reflection && !(mat->ior >= 1.0f && isfinite(mat->ior))) {
+        povray_err(err, errlen, "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
+                   "fresnel reflection", s->path, mi, (double)mat->ior);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+/* ---- SDL writing ----------------------------------------------------------------------- */
+
+static void povray_put_vec(FILE *fp, dvec3 v) { fprintf(fp, "<%.9g, %.9g, %.9g>", v.x, v.y, v.z); }
+
+static void povray_put_fvec(FILE *fp, vec3 v)
+{
+    fprintf(fp, "<%.9g, %.9g, %.9g>", (double)v.x, (double)v.y, (double)v.z);
+}
+
+static rc_status povray_check_path(const char *p, const char *what, char *err, size_t errlen)
+{
+    if (strchr(p, '"') || strchr(p, '\\')) {
+        povray_err(err, errlen, "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
+                   "hold unescaped; rename the file", what, p);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+
+static void povray_write_finish(FILE *fp, const povray_finish *f)
+{
+    fprintf(fp, "    texture {\n      pigment { color rgb ");
+    povray_put_vec(fp, f->pigment);
+    fprintf(fp, " }\n      finish {\n        ambient 0\n        emission rgb ");
+    povray_put_vec(fp, f->emission);
+    fprintf(fp, "\n        diffuse %.9g\n        brilliance 1\n        crand 0\n", f->diffuse);
+    fprintf(fp, "        specular %.9g\n        roughness %.9g\n        phong 0\n        metallic 0\n",
+            f->specular, f->roughness);
+    if (f->reflection == 1) {
+        fprintf(fp, "        reflection { color rgb ");
+        povray_put_vec(fp, f->rmin);
+        fprintf(fp, ", color rgb ");
+        povray_put_vec(fp, f->rmax);
+        fprintf(fp, " falloff %.9g exponent 1 metallic 0 }\n", f->falloff);
+    } else if (f->reflection == 2) {
+        fprintf(fp, "        reflection { 0, 1 fresnel on exponent 1 metallic 0 }\n");
+    } else {
+        fprintf(fp, "        reflection 0\n");
+    }
+    fprintf(fp, "      }\n    }\n");
+    if (f->reflection == 2)
+        fprintf(fp, "    interior { ior %.9g }\n", f->ior);
+}
+
+rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o,
+                             const char *sdl_path, char *err, size_t errlen)
+{
+    povray_resolved r;
+    rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
+    if (st != RC_OK)
+        return st;
+    /* A perspective angle must stay below 180 degrees (tan(hfov/2) finite). */
+    if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < POVRAY_PI) ||
+        !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) ||
+        !povray_finite3(s->camera.up)) {
+        povray_err(err, errlen, "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
+                   "eye/target/up finite", s->path);
+        return RC_ERR_RANGE;
+    }
+    if (s->n_lights < 0 || s->n_lights > SCENE_MAX_LIGHTS || s->n_materials < 0 ||
+        s->n_materials > SCENE_MAX_MATERIALS || s->n_objects < 0 || s->n_objects > SCENE_MAX_OBJECTS) {
+        povray_err(err, errlen, "%s: scene counts out of range", s->path);
+        return RC_ERR_RANGE;
+    }
+    for (int t = 0; t < m->n_tris; t++) {
+        int ob = m->tri_object[t];
+        if (ob < 0 || ob >= s->n_objects || s->objects[ob].material < 0 ||
+            s->objects[ob].material >= s->n_materials) {
+            povray_err(err, errlen, "%s: mesh triangle %d: object %d or its material is out of range; "
+                       "build the mesh from this scene", s->path, t, ob);
+            return RC_ERR_RANGE;
+        }
+    }
+
+    povray_light lights[SCENE_MAX_LIGHTS];
+    for (int i = 0; i < s->n_lights; i++)
+        if ((st = povray_light_convert(s, m, i, &r, &lights[i], err, errlen)) != RC_OK)
+            return st;
+
+    povray_finish fin[SCENE_MAX_MATERIALS];
+    int used[SCENE_MAX_MATERIALS] = {0};
+    for (int t = 0; t < m->n_tris; t++)
+        used[s->objects[m->tri_object[t]].material] = 1;
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        if (!used[mi])
+            continue;
+        st = r.validate ? povray_material_physical(s, mi, &r, &fin[mi], err, errlen)
+                        : povray_material_twin(s, mi, lights, &r, &fin[mi], err, errlen);
+        if (st != RC_OK)
+            return st;
+    }
+
+    int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION);
+    if (with_env && s->env.kind == ENV_IMAGE &&
+        (st = povray_check_path(s->env.path, "environment", err, errlen)) != RC_OK)
+        return st;
+
+    int *remap = malloc(sizeof *remap * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
+    int *local = malloc(sizeof *local * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
+    if (!remap || !local) {
+        free(remap);
+        free(local);
+        povray_err(err, errlen, "%s: out of memory for the vertex map", sdl_path);
+        return RC_ERR_NOMEM;
+    }
+    FILE *fp = fopen(sdl_path, "w");
+    if (!fp) {
+        free(remap);
+        free(local);
+        povray_err(err, errlen, "%s: cannot write: %s; check the output directory", sdl_path,
+                   strerror(errno));
+        return RC_ERR_IO;
+    }
+
+    fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n",
+            s->name, r.validate ? "validate" : "twin", r.term, r.scale);
+    fprintf(fp, "#version 3.7;\n");
+    fprintf(fp, "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
+                "max_trace_level %d }\n\n", r.max_trace_level);
+
+    /* Right-handed Y-up canonical frame: POV-Ray keeps it with a negative right vector. */
+    fprintf(fp, "camera {\n  perspective\n  location ");
+    povray_put_fvec(fp, s->camera.eye);
+    fprintf(fp, "\n  right -x*%.9g\n  up y\n  sky ", (double)s->width / (double)s->height);
+    povray_put_fvec(fp, s->camera.up);
+    fprintf(fp, "\n  angle %.9g\n  look_at ", (double)s->camera.hfov * 180.0 / POVRAY_PI);
+    povray_put_fvec(fp, s->camera.target);
+    fprintf(fp, "\n}\n\n");
+
+    if (!with_env) {
+        fprintf(fp, "background { color rgb 0 }\n\n");
+    } else if (s->env.kind == ENV_CONSTANT) {
+        fprintf(fp, "sky_sphere { pigment { color rgb ");
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
+        fprintf(fp, " } }\n\n");
+    } else {
+        /* rotate y*180: POV-Ray's map_type 1 otherwise shows the image's -x along +x. */
+        fprintf(fp, "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
+                    "rotate y*180 }\n  emission rgb ", s->env.path);
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
+        fprintf(fp, "\n}\n\n");
+    }
+
+    dvec3 bc;
+    double br;
+    povray_mesh_bounds(m, &bc, &br);
+    for (int i = 0; i < s->n_lights; i++) {
+        const light *l = &s->lights[i];
+        const povray_light *pl = &lights[i];
+        if (pl->skip) {
+            fprintf(fp, "// lights[%d]: every surface is beyond its range\n", i);
+            continue;
+        }
+        dvec3 dir = dv3_norm(dv3_from(l->direction));
+        fprintf(fp, "light_source {\n  ");
+        if (l->kind == LIGHT_SUN) {
+            /* Outside the geometry's bounding sphere, so that no surface is behind it. */
+            dvec3 from = dv3_sub(bc, dv3_scale(dir, 4.0 * br + 10.0));
+            povray_put_vec(fp, from);
+            fprintf(fp, "\n  color rgb ");
+            povray_put_vec(fp, pl->colour);
+            fprintf(fp, "\n  parallel\n  point_at ");
+            povray_put_vec(fp, dv3_add(from, dir));
+            fprintf(fp, "\n");
+        } else {
+            povray_put_fvec(fp, l->position);
+            fprintf(fp, "\n  color rgb ");
+            povray_put_vec(fp, pl->colour);
+            fprintf(fp, "\n");
+            if (l->kind == LIGHT_SPOT) {
+                /* POV-Ray's radius/falloff are half angles; tightness 1 = the extra cos. */
+                fprintf(fp, "  spotlight\n  radius %.9g\n  falloff %.9g\n  tightness 1\n  point_at ",
+                        (double)l->inner * 90.0 / POVRAY_PI, (double)l->outer * 90.0 / POVRAY_PI);
+                povray_put_vec(fp, dv3_add(dv3_from(l->position), dir));
+                fprintf(fp, "\n");
+            }
+            if (pl->fade_power > 0)
+                fprintf(fp, "  fade_distance %.9g\n  fade_power %d\n", pl->fade_distance,
+                        pl->fade_power);
+        }
+        fprintf(fp, "}\n\n");
+    }
+
+    for (int ob = 0; ob < s->n_objects; ob++) {
+        int nv = 0, nt = 0;
+        for (int v = 0; v < m->n_verts; v++)
+            remap[v] = -1;
+        for (int t = 0; t < m->n_tris; t++) {
+            if (m->tri_object[t] != ob)
+                continue;
+            nt++;
+            for (int c = 0; c < 3; c++) {
+                uint32_t v = m->idx[3 * t + c];
+                if (remap[v] < 0) {
+                    remap[v] = nv;
+                    local[nv++] = (int)v;
+                }
+            }
+        }
+        if (nt == 0)
+            continue;
+        fprintf(fp, "// objects[%d], material %d\nmesh2 {\n  vertex_vectors { %d", ob,
+                s->objects[ob].material, nv);
+        for (int v = 0; v < nv; v++) {
+            fprintf(fp, ",\n    ");
+            povray_put_fvec(fp, m->pos[local[v]]);
+        }
+        fprintf(fp, "\n  }\n  normal_vectors { %d", nv);
+        for (int v = 0; v < nv; v++) {
+            fprintf(fp, ",\n    ");
+            povray_put_fvec(fp, m->nrm[local[v]]);
+        }
+        fprintf(fp, "\n  }\n  face_indices { %d", nt);
+        for (int t = 0; t < m->n_tris; t++) {
+            if (m->tri_object[t] != ob)
+                continue;
+            fprintf(fp, ",\n    <%d, %d, %d>", remap[m->idx[3 * t]], remap[m->idx[3 * t + 1]],
+                    remap[m->idx[3 * t + 2]]);
+        }
+        fprintf(fp, "\n  }\n");
+        povray_write_finish(fp, &fin[s->objects[ob].material]);
+        fprintf(fp, "  no_shadow\n  no_reflection\n}\n\n");
+    }
+    free(remap);
+    free(local);
+    int bad = ferror(fp);
+    if (fclose(fp) != 0 || bad) {
+        povray_err(err, errlen, "%s: write failed (disk full?)", sdl_path);
+        return RC_ERR_IO;
+    }
+    return RC_OK;
+}
+
+/* ---- command line and running ---------------------------------------------------------- */
+
+rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out,
+                         int width_px, int height_px, int supersample, povray_argv *cmd,
+                         char *err, size_t errlen)
+{
+    povray_options zero = {0};
+    if (!o)
+        o = &zero;
+    int k = supersample > 0 ? supersample : 1;
+    if (width_px <= 0 || height_px <= 0 || supersample < 0 || o->threads < 0 ||
+        width_px > 65536 / k || height_px > 65536 / k) {
+        povray_err(err, errlen, "povray_command: size %dx%d with supersample %d is out of range "
+                   "(positive, k*size <= 65536)", width_px, height_px, supersample);
+        return RC_ERR_RANGE;
+    }
+    size_t n = strlen(exr_out);
+    if (n < 4 || strcmp(exr_out + n - 4, ".exr") != 0) {
+        povray_err(err, errlen, "povray_command: output '%s' must end in .exr (POV-Ray would "
+                   "append its own extension)", exr_out);
+        return RC_ERR_RANGE;
+    }
+    char tmp[POVRAY_ARGV_MAX][64];
+    const char *args[POVRAY_ARGV_MAX];
+    int argc = 0;
+    args[argc++] = o->povray ? o->povray : "povray";
+    args[argc++] = "+I";   /* joined with the path below */
+    args[argc++] = "+O";
+    args[argc++] = "+FE";  /* OpenEXR, half float */
+    snprintf(tmp[argc], sizeof tmp[argc], "+W%d", width_px * k);
+    args[argc] = tmp[argc];
+    argc++;
+    snprintf(tmp[argc], sizeof tmp[argc], "+H%d", height_px * k);
+    args[argc] = tmp[argc];
+    argc++;
+    /* No antialiasing (one ray through each pixel centre), no jitter, no alpha channel,
+     * no preview window, no verbose/statistics/render console streams, no pause. */
+    const char *fixed[] = {"-A", "-J", "-UA", "-D", "-V", "-P", "+Q9", "-GS", "-GR"};
+    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++)
+        args[argc++] = fixed[i];
+    if (o->threads > 0) {
+        snprintf(tmp[argc], sizeof tmp[argc], "+WT%d", o->threads);
+        args[argc] = tmp[argc];
+        argc++;
+    }
+    size_t used = 0;
+    for (int i = 0; i < argc; i++) {
+        const char *tail = i == 1 ? sdl_path : (i == 2 ? exr_out : "");
+        size_t len = strlen(args[i]) + strlen(tail) + 1;
+        if (used + len > sizeof cmd->buf) {
+            povray_err(err, errlen, "povray_command: paths too long (over %d bytes in all)",
+                       POVRAY_ARGV_BUF);
+            return RC_ERR_NOMEM;
+        }
+        cmd->argv[i] = cmd->buf + used;
+        snprintf(cmd->buf + used, len, "%s%s", args[i], tail);
+        used += len;
+    }
+    cmd->argv[argc] = NULL;
+    cmd->argc = argc;
+    return RC_OK;
+}
+
+void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen)
+{
+    if (buflen == 0)
+        return;
+    size_t used = 0;
+    buf[0] = '\0';
+    for (int i = 0; i < cmd->argc && used < buflen; i++) {
+        const char *a = cmd->argv[i];
+        int plain = a[0] != '\0' && strspn(a, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                              "0123456789+-_./=:,@%") == strlen(a);
+        if (i > 0 && used + 1 < buflen)
+            buf[used++] = ' ';
+        if (plain) {
+            int w = snprintf(buf + used, buflen - used, "%s", a);
+            used += w > 0 ? (size_t)w : 0;
+        } else {
+            if (used + 1 < buflen)
+                buf[used++] = '\'';
+            for (; *a && used + 5 < buflen; a++) {
+                if (*a == '\'') {
+                    memcpy(buf + used, "'\\''", 4);
+                    used += 4;
+                } else
+                    buf[used++] = *a;
+            }
+            if (used + 1 < buflen)
+                buf[used++] = '\'';
+        }
+        if (used >= buflen)
+            used = buflen - 1;
+        buf[used] = '\0';
+    }
+}
+
+/* The first line of POV-Ray's log that reports an error, for the one-line message. */
+static void povray_log_error(const char *log, char *line, size_t n)
+{
+    line[0] = '\0';
+    FILE *fp = fopen(log, "r");
+    if (!fp)
+        return;
+    char buf[512];
+    while (fgets(buf, sizeof buf, fp)) {
+        if (strstr(buf, "Error") || strstr(buf, "error") || strstr(buf, "failed")) {
+            size_t len = strcspn(buf, "\r\n");
+            if (len >= n)
+                len = n - 1;
+            memcpy(line, buf, len);
+            line[len] = '\0';
+            break;
+        }
+    }
+    fclose(fp);
+}
+
+rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *seconds, char *err,
+                     size_t errlen)
+{
+    char log[POVRAY_ARGV_BUF];
+    snprintf(log, sizeof log, "%s.log", exr_out);
+    /* A stale image from an earlier run must not pass for this one. */
+    if (unlink(exr_out) != 0 && errno != ENOENT) {
+        povray_err(err, errlen, "%s: cannot remove the old image: %s", exr_out, strerror(errno));
+        return RC_ERR_IO;
+    }
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0) {
+        povray_err(err, errlen, "povray_run: fork failed: %s", strerror(errno));
+        return RC_ERR_RENDERER;
+    }
+    if (pid == 0) {
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd >= 0) {
+            dup2(fd, 1);
+            dup2(fd, 2);
+            close(fd);
+        }
+        execvp(cmd->argv[0], cmd->argv);
+        dprintf(2, "povray_run: exec %s failed: %s\n", cmd->argv[0], strerror(errno));
+        _exit(127);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0) {
+        if (errno != EINTR) {
+            povray_err(err, errlen, "povray_run: waitpid failed: %s", strerror(errno));
+            return RC_ERR_RENDERER;
+        }
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (seconds)
+        *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    struct stat sb;
+    int ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(exr_out, &sb) == 0;
+    if (!ok) {
+        char line[300];
+        povray_log_error(log, line, sizeof line);
+        povray_err(err, errlen, "%s: POV-Ray failed (%s %d)%s%s; see %s", cmd->argv[1] + 2,
+                   WIFEXITED(status) ? "exit status" : "signal",
+                   WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status),
+                   line[0] ? ": " : "", line, log);
+        return RC_ERR_RENDERER;
+    }
+    return RC_OK;
+}
+
+/* ---- box filter ------------------------------------------------------------------------ */
+
+rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *dst)
+{
+    /* k <= 256 keeps k*k <= 65536 summands per pixel, the bound povray.h states. */
+    if (k < 1 || kw < k || kh < k || kw % k != 0 || kh % k != 0 || k > 256)
+        return RC_ERR_RANGE;
+    int w = kw / k, h = kh / k;
+    double inv = 1.0 / ((double)k * k);
+    for (int j = 0; j < h; j++) {
+        for (int i = 0; i < w; i++) {
+            double sum = 0.0;
+            for (int t = 0; t < k; t++) {
+                const float *row = src + (size_t)(j * k + t) * (size_t)kw + (size_t)i * k;
+                for (int u = 0; u < k; u++)
+                    sum += row[u];
+            }
+            dst[(size_t)j * w + i] = (float)(sum * inv);
+        }
+    }
+    return RC_OK;
+}
+
+/* ---- all in one ------------------------------------------------------------------------ */
+
+void povray_image_free(povray_image *img)
+{
+    for (int c = 0; c < 3; c++) {
+        free(img->rgb[c]);
+        img->rgb[c] = NULL;
+    }
+}
+
+rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
+                        const char *sdl_path, const char *exr_out, povray_image *out,
+                        char *err, size_t errlen)
+{
+    memset(out, 0, sizeof *out);
+    povray_resolved r;
+    rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
+    if (st != RC_OK)
+        return st;
+    if ((st = povray_write_scene(s, m, o, sdl_path, err, errlen)) != RC_OK)
+        return st;
+    povray_argv cmd;
+    if ((st = povray_command(o, sdl_path, exr_out, s->width, s->height, r.k, &cmd, err, errlen)) != RC_OK)
+        return st;
+    povray_command_string(&cmd, out->command, sizeof out->command);
+    if ((st = povray_run(&cmd, exr_out, &out->seconds, err, errlen)) != RC_OK)
+        return st;
+    exr_image img;
+    if ((st = exr_read(exr_out, &img, err, errlen)) != RC_OK)
+        return st;
+    int kw = s->width * r.k, kh = s->height * r.k;
+    if (img.width != kw || img.height != kh) {
+        povray_err(err, errlen, "%s: POV-Ray wrote %dx%d, expected %dx%d", exr_out, img.width,
+                   img.height, kw, kh);
+        exr_image_free(&img);
+        return RC_ERR_RENDERER;
+    }
+    const char *names[3] = {"R", "G", "B"};
+    size_t n = (size_t)s->width * (size_t)s->height;
+    for (int c = 0; c < 3 && st == RC_OK; c++) {
+        const float *src = exr_image_channel(&img, names[c]);
+        if (!src) {
+            povray_err(err, errlen, "%s: no channel %s in POV-Ray's output", exr_out, names[c]);
+            st = RC_ERR_RENDERER;
+            break;
+        }
+        out->rgb[c] = malloc(n * sizeof(float));
+        if (!out->rgb[c]) {
+            povray_err(err, errlen, "%s: out of memory", exr_out);
+            st = RC_ERR_NOMEM;
+            break;
+        }
+        povray_box_downsample(src, kw, kh, r.k, out->rgb[c]);
+        if (r.scale != 1.0)
+            for (size_t i = 0; i < n; i++)
+                out->rgb[c][i] = (float)(out->rgb[c][i] / r.scale);
+    }
+    exr_image_free(&img);
+    if (st != RC_OK) {
+        povray_image_free(out);
+        return st;
+    }
+    out->width = s->width;
+    out->height = s->height;
+    out->supersample = r.k;
+    return RC_OK;
+}

@@ -1,0 +1,119 @@
+/* povray.h - a scene as POV-Ray 3.7 SDL, the exact povray command line, and the box filter.
+ *
+ * Usage:
+ *   povray_options o = {0};                    zero = twin role, every term, scene's k, all cores
+ *   povray_write_scene(&scn, &msh, &o, "out/s.pov", err, sizeof err);
+ *   povray_render(&scn, &msh, &o, "out/s.pov", "out/s_pov.exr", &img, err, sizeof err);
+ *   ... img.rgb[c][y * img.width + x], c = 0, 1, 2 (linear, radiance / output_scale undone) ...
+ *   povray_image_free(&img);
+ * or by hand: povray_command(&o, sdl, exr, W, H, &cmd, ...) gives argv for execvp (the image is
+ * rendered at k*W x k*H with antialiasing off), then povray_box_downsample per channel.
+ *
+ * What the SDL reproduces (see .notes/CONTRACT.md):
+ * - role ROLE_TWIN: the rasterizer's model per material (d3d, d3d9client); cook_torrance and
+ *   anything POV-Ray cannot express (coloured Vs, infinite viewer, Gouraud, clamping, eq. 8,
+ *   D3D spot profile, D3D ambient La on a distance-attenuated light, a range that cuts through
+ *   the geometry, a1 and a2 both non-zero, Ve on a channel whose pigment is 0) -> RC_ERR_RANGE
+ *   with a message naming the material or light: the harness skips that comparison.
+ * - role ROLE_VALIDATE / ROLE_AGREE: the physical intent: Lambert albedo and, for dielectrics,
+ *   the exact unpolarised Fresnel reflection of the environment (`fresnel on`, `interior { ior }`).
+ *   Conductors -> RC_ERR_RANGE (POV-Ray has no complex Fresnel). The mirror highlight of a
+ *   point or sun light is not represented (a delta lobe; specular 0).
+ * - no shadows, no inter-reflection: every object has no_shadow and no_reflection, so a
+ *   reflection ray sees only the environment (sky_sphere).
+ * - lights: colour I/pi (E/pi for a sun); D3D attenuation 1/(a0 + a2 d^2) or 1/(a0 + a1 d) is
+ *   exact through fade_distance/fade_power; a0 = 0 uses fade_distance D = fade_ratio * (the
+ *   nearest light-to-geometry distance), leaving a relative error (D/d)^2 (fade_power 2) or
+ *   D/d (fade_power 1), at most fade_ratio^2 resp. fade_ratio.
+ * - background: uncovered pixels show the environment, like the rasterizer's R, G, B. A term
+ *   render (o.term) omits the sky_sphere when the reflection term is off, so uncovered pixels
+ *   are 0 as in the AOV layers; a term render that includes reflection but not every term
+ *   still shows the environment there (mask it with the rasterizer's coverage).
+ * POV-Ray's EXR output is half float: values are quantised to 2^-11 relative (4.9e-4) and
+ * overflow above 65504; output_scale multiplies every source (lights, emission, ambient,
+ * environment) so that HDR scenes fit, and povray_render divides it out again.
+ * Paths are written into the SDL as given (relative paths are relative to POV-Ray's working
+ * directory, the caller's); povray_write_scene refuses paths containing '"' or '\\'.
+ * All functions return RC_OK or an error with one line in err; nothing is allocated except
+ * by povray_render (free with povray_image_free).
+ */
+#ifndef REFLCHECK_POVRAY_H
+#define REFLCHECK_POVRAY_H
+
+#include <stddef.h>
+#include "../model/mesh.h"
+#include "../model/scene.h"
+#include "../model/status.h"
+
+/* Terms for povray_options.term (bits, same meaning as the rasterizer's AOV layers). */
+enum {
+    POVRAY_TERM_DIFFUSE = 1,    /* lit diffuse plus the D3D ambient terms Va*Ia, Va*La */
+    POVRAY_TERM_SPECULAR = 2,   /* D3D Blinn-Phong highlight */
+    POVRAY_TERM_REFLECTION = 4, /* environment reflection (D3D9Client eq. 5, Fresnel) */
+    POVRAY_TERM_EMISSION = 8,   /* Ve */
+    POVRAY_TERM_ALL = 15
+};
+
+typedef struct {
+    comparison_role role;   /* ROLE_TWIN (0, default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
+    unsigned term;          /* POVRAY_TERM_* mask, 0 = POVRAY_TERM_ALL */
+    int supersample;        /* k, 0 = the scene's supersample (at least 1) */
+    int threads;            /* +WT<n>; 0 = POV-Ray's default (all cores) */
+    int max_trace_level;    /* 0 = 2: the camera ray plus one reflection ray to the sky */
+    double fade_ratio;      /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
+    double output_scale;    /* multiplies every radiance source; 0 = 1 */
+    const char *povray;     /* executable, NULL = "povray" (found on PATH) */
+} povray_options;
+
+/* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the
+ * same triangles and per-vertex normals the rasterizer draws (printed with %.9g, exact for
+ * floats). Objects without triangles are skipped. */
+rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o,
+                             const char *sdl_path, char *err, size_t errlen);
+
+#define POVRAY_ARGV_MAX 24
+#define POVRAY_ARGV_BUF 4096
+typedef struct {
+    int argc;
+    char *argv[POVRAY_ARGV_MAX + 1];   /* NULL-terminated, pointing into buf */
+    char buf[POVRAY_ARGV_BUF];
+} povray_argv;
+
+/* The command that renders sdl_path into exr_out (half-float EXR, no alpha) at
+ * k*width_px x k*height_px, without antialiasing, display, verbose output or pausing:
+ *   povray +I<sdl> +O<exr> +FE +W<kW> +H<kH> -A -J -UA -D -V -P +Q9 -GS -GR [+WT<n>]
+ * Returns RC_ERR_RANGE for non-positive sizes or k, RC_ERR_NOMEM if the paths do not fit. */
+rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out,
+                         int width_px, int height_px, int supersample, povray_argv *cmd,
+                         char *err, size_t errlen);
+
+/* The command as one shell-quoted line (for logs and reports). */
+void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen);
+
+/* Runs the command (fork + execvp), console output to <exr_out>.log. *seconds = wall time
+ * (may be NULL). RC_ERR_RENDERER with the log's first error line if POV-Ray fails or writes
+ * no image. */
+rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *seconds, char *err,
+                     size_t errlen);
+
+/* Exact box filter: dst[(j * kw/k) + i] = mean of the k x k block of src (kw x kh, row-major)
+ * whose top-left sample is (i*k, j*k). One channel. RC_ERR_RANGE if k < 1 or kw, kh are not
+ * positive multiples of k. Sums in double, so the result is the float nearest the exact mean
+ * up to one rounding of each sample's addition (k*k <= 65536). */
+rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *dst);
+
+typedef struct {
+    int width, height, supersample;
+    float *rgb[3];          /* width*height each, row 0 at the top; radiance (scale undone) */
+    double seconds;         /* POV-Ray's wall time (parse + render + write) */
+    char command[POVRAY_ARGV_BUF + 256];
+} povray_image;
+
+/* povray_write_scene + povray_command at the scene's size + povray_run + exr_read +
+ * povray_box_downsample, divided by output_scale. */
+rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
+                        const char *sdl_path, const char *exr_out, povray_image *out,
+                        char *err, size_t errlen);
+void povray_image_free(povray_image *img);
+
+#endif
