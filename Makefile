@@ -4,10 +4,12 @@
 #   make bench      rasterizer benchmarks            make fuzz     coverage-guided fuzzing
 #   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
 CC ?= cc
-PKGS := OpenEXR yaml-0.1 cmocka
+PKGS := OpenEXR yaml-0.1 cmocka libcjson
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wvla -Wformat=2
+# Messages are cut to their buffers on purpose (snprintf); a cut path is still readable.
+WARN    += -Wno-format-truncation
 STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
 SAN     := $(if $(SANITIZE),-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
@@ -56,6 +58,16 @@ test: deps
 	$(MAKE) all
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
+	$(MAKE) test-scenes
+
+# Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds.
+test-scenes: $(CLI)
+	@bash tests/run_scenes.sh $(BUILD)
+
+# The nightly report: full-size renders in all renderers, metrics, plots, history.
+report: deps
+	$(MAKE) all
+	@bash harness/nightly.sh
 
 clean:
 	rm -rf build build-san build-dbg build-san-dbg

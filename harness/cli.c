@@ -13,6 +13,9 @@ static const cli_command cli_commands[] = {
     {"render", cli_render},
     {"check", cli_check},
     {"eval", cli_eval},
+    {"run", cli_run},
+    {"compare", cli_compare},
+    {"plan", cli_plan},
 };
 
 const cli_command *cli_find(const char *name)

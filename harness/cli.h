@@ -31,5 +31,8 @@ int cli_parse_double(const char *opt, const char *text, double lo, double hi, do
 int cli_render(int argc, char **argv);
 int cli_check(int argc, char **argv);
 int cli_eval(int argc, char **argv);
+int cli_run(int argc, char **argv);
+int cli_compare(int argc, char **argv);
+int cli_plan(int argc, char **argv);
 
 #endif

@@ -3,7 +3,7 @@
 # `make report` and .ci/run; safe to run again (it checks before it installs).
 set -euo pipefail
 
-pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev
+pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjson-dev
       povray blender openimageio-tools gnuplot-nox chromium
       libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3)
 

@@ -15,7 +15,7 @@ const char *const render_channel_names[RENDER_CHANNELS] = {
     "specular.R", "specular.G", "specular.B",
     "reflection.R", "reflection.G", "reflection.B",
     "emission.R", "emission.G", "emission.B",
-    "coverage", "object",
+    "coverage", "object", "ndotv", "ndotl",
 };
 
 void render_camera_make(const scene *s, int width, int height, render_camera *c)
@@ -63,7 +63,8 @@ static vec3 render_terms_sum(const shade_terms *t)
     return v3_add(v3_add(t->diffuse, t->specular), v3_add(t->reflection, t->emission));
 }
 
-static void render_shade_hit(const render_job *j, const raster_sample *rs, shade_terms *t)
+/* Shades one sample; *n_v and *n_l get N.V and N.L (first light) for the angle channels. */
+static void render_shade_hit(const render_job *j, const raster_sample *rs, shade_terms *t, float *n_v, float *n_l)
 {
     const mesh *m = j->m;
     const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
@@ -79,6 +80,8 @@ static void render_shade_hit(const render_job *j, const raster_sample *rs, shade
         t->emission = RENDER_BLEND(emission);
 #undef RENDER_BLEND
         t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
+        /* Gouraud shading has no per-sample normal; the angle channels stay 0 there. */
+        *n_v = *n_l = 0.0f;
         return;
     }
 
@@ -94,6 +97,14 @@ static void render_shade_hit(const render_job *j, const raster_sample *rs, shade
     /* Two-sided, as POV-Ray and Cycles shade: the normal faces the viewer. */
     if (v3_dot(n, v) < 0.0f)
         n = v3_neg(n);
+    *n_v = v3_dot(n, v);
+    *n_l = 0.0f;
+    if (j->s->n_lights > 0) {
+        vec3 to_l, e_perp;
+        float atten;
+        if (shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten) || j->s->lights[0].kind == LIGHT_SUN)
+            *n_l = v3_dot(n, to_l);
+    }
     shade_eval(&j->sc, &j->plans[obj], x, n, v, t);
 }
 
@@ -110,6 +121,7 @@ static void render_tile(void *user, const raster_tile *tile)
             shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
             vec3 background = v3s(0.0f);
             int covered = 0, object_id = -1;
+            float centre_nv = 0.0f, centre_nl = 0.0f;
             for (int t = 0; t < k; t++) {
                 const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
                 for (int s = 0; s < k; s++) {
@@ -122,15 +134,19 @@ static void render_tile(void *user, const raster_tile *tile)
                         continue;
                     }
                     shade_terms st;
-                    render_shade_hit(j, rs, &st);
+                    float n_v, n_l;
+                    render_shade_hit(j, rs, &st, &n_v, &n_l);
                     sum.diffuse = v3_add(sum.diffuse, st.diffuse);
                     sum.specular = v3_add(sum.specular, st.specular);
                     sum.reflection = v3_add(sum.reflection, st.reflection);
                     sum.emission = v3_add(sum.emission, st.emission);
                     sum.alpha += st.alpha;
                     covered++;
-                    if (centre)
+                    if (centre) {
                         object_id = j->m->tri_object[rs->tri];
+                        centre_nv = n_v;
+                        centre_nl = n_l;
+                    }
                 }
             }
             shaded += covered;
@@ -142,6 +158,8 @@ static void render_tile(void *user, const raster_tile *tile)
             o->chan[RENDER_A][i] = sum.alpha * inv;
             o->chan[RENDER_COVERAGE][i] = (float)covered * inv;
             o->chan[RENDER_OBJECT][i] = (float)object_id;
+            o->chan[RENDER_NDOTV][i] = centre_nv;
+            o->chan[RENDER_NDOTL][i] = centre_nl;
             const vec3 *aov[4] = {&sum.diffuse, &sum.specular, &sum.reflection, &sum.emission};
             for (int a = 0; a < 4; a++) {
                 float **c = &o->chan[RENDER_DIFFUSE_R + 3 * a];

@@ -10,7 +10,9 @@
  * in the scene's radiometric units; each pixel is the box average of its k x k samples.
  * R, G, B = diffuse + specular + reflection + emission, or the environment where no surface is
  * (the background is in no AOV). A = coverage times the model's alpha (D3D9Client eq. 7).
- * "object" is the index of the object at the sample nearest the pixel centre, -1 for none.
+ * "object" is the index of the object at the sample nearest the pixel centre, -1 for none;
+ * "ndotv" and "ndotl" are N.V and N.L (first light) there, 0 for none: the axes on which the
+ * report plots error against angle.
  * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
  */
 #ifndef REFLCHECK_RENDER_H
@@ -28,7 +30,7 @@ typedef enum {
     RENDER_SPECULAR_R, RENDER_SPECULAR_G, RENDER_SPECULAR_B,
     RENDER_REFLECTION_R, RENDER_REFLECTION_G, RENDER_REFLECTION_B,
     RENDER_EMISSION_R, RENDER_EMISSION_G, RENDER_EMISSION_B,
-    RENDER_COVERAGE, RENDER_OBJECT,
+    RENDER_COVERAGE, RENDER_OBJECT, RENDER_NDOTV, RENDER_NDOTL,
     RENDER_CHANNELS
 } render_channel;
 

@@ -1,0 +1,46 @@
+/* reflcheck compare: measure each listed comparison of the scenes on one run's renders. */
+#include <getopt.h>
+#include <stdio.h>
+
+#include "cli.h"
+#include "compare.h"
+
+int cli_compare(int argc, char **argv)
+{
+    static const struct option longopts[] = {{"run", required_argument, NULL, 'r'}, {NULL, 0, NULL, 0}};
+    const char *run = NULL;
+    int c;
+    optind = 1;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        if (c != 'r') {
+            fprintf(stderr, "reflcheck: compare: unknown option '%s'; usage: reflcheck compare SCENE... --run DIR\n",
+                    argv[optind - 1]);
+            return CLI_BAD_INPUT;
+        }
+        run = optarg;
+    }
+    if (run == NULL || optind >= argc) {
+        fprintf(stderr, "reflcheck: usage: reflcheck compare SCENE... --run DIR\n");
+        return CLI_BAD_INPUT;
+    }
+    int failed = 0, worst = CLI_OK;
+    for (int i = optind; i < argc; i++) {
+        compare_summary sum;
+        char err[1024];
+        rc_status st = compare_scene(argv[i], run, &sum, err, sizeof err);
+        if (st != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            worst = cli_exit_status(st);
+            continue;
+        }
+        printf("%-40s pass %d  warn %d  fail %d  skipped %d  error %d\n", argv[i], sum.pass, sum.warn, sum.fail,
+               sum.skipped, sum.error);
+        if (sum.fail > 0 || sum.error > 0) {
+            failed = 1;
+            if (sum.first_failure[0])
+                fprintf(stderr, "FAIL %s\n", sum.first_failure);
+        }
+    }
+    return worst != CLI_OK ? worst : (failed ? CLI_FAILED : CLI_OK);
+}

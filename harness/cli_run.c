@@ -1,0 +1,74 @@
+/* reflcheck run: one scene in one renderer and role, cached and recorded (harness/jobs.h). */
+#include <getopt.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "jobs.h"
+
+int cli_run(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"renderer", required_argument, NULL, 'r'}, {"role", required_argument, NULL, 'R'},
+        {"small", no_argument, NULL, 's'},          {"out", required_argument, NULL, 'o'},
+        {"cache", required_argument, NULL, 'c'},    {"no-cache", no_argument, NULL, 'n'},
+        {"timeout", required_argument, NULL, 'T'},  {"threads", required_argument, NULL, 't'},
+        {"seeds", required_argument, NULL, 'S'},    {NULL, 0, NULL, 0},
+    };
+    job_spec j = {.renderer = RENDERER_RASTER, .role = ROLE_VALIDATE, .variant = JOB_FULL,
+                  .out_dir = "reports/runs/manual", .cache_dir = "reports/cache"};
+    int c, rc = CLI_OK, v;
+    optind = 1;
+    opterr = 0;
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'r':
+            if ((v = job_renderer_from_name(optarg)) < 0) {
+                fprintf(stderr, "reflcheck: run: --renderer '%s': use raster, povray or cycles\n", optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            j.renderer = (renderer_id)v;
+            break;
+        case 'R':
+            if ((v = job_role_from_name(optarg)) < 0) {
+                fprintf(stderr, "reflcheck: run: --role '%s': use twin, validate or agree\n", optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            j.role = (comparison_role)v;
+            break;
+        case 's': j.variant = JOB_SMALL; break;
+        case 'o': j.out_dir = optarg; break;
+        case 'c': j.cache_dir = optarg; break;
+        case 'n': j.cache_dir = NULL; break;
+        case 'T': {
+            double t;
+            rc = cli_parse_double("--timeout", optarg, 0.1, 1e6, &t);
+            j.timeout_s = t;
+            break;
+        }
+        case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &j.threads); break;
+        case 'S': rc = cli_parse_int("--seeds", optarg, 1, 64, &j.seeds); break;
+        default:
+            fprintf(stderr, "reflcheck: run: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
+            rc = CLI_BAD_INPUT;
+        }
+    }
+    if (rc != CLI_OK)
+        return rc;
+    if (optind != argc - 1) {
+        fprintf(stderr, "reflcheck: usage: reflcheck run SCENE --renderer R [--role ROLE] [--small] [--out DIR]\n");
+        return CLI_BAD_INPUT;
+    }
+    j.scene_path = argv[optind];
+    job_record r;
+    char err[1024];
+    rc_status st = job_run(&j, &r, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        return cli_exit_status(st) == CLI_OK ? CLI_FAILED : (st == RC_ERR_IO ? CLI_FAILED : CLI_BAD_INPUT);
+    }
+    printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, job_renderer_names[j.renderer],
+           job_role_names[j.role], runner_status_name(r.status), r.wall_s, r.cached ? " (cached)" : "",
+           r.status == RUNNER_OK ? r.exr : r.message);
+    return CLI_OK;
+}

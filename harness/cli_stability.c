@@ -1,0 +1,88 @@
+/* reflcheck stability: the numerical stability table (harness/stability.h) on the terminal,
+ * optionally as JSON and CSV. Exit 1 when any gate fails (NaN, Inf or a negative value for
+ * finite input, or a gating physics check), 2 for bad options. */
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "stability.h"
+
+static int cli_stability_write(const char *path, const stability_table *t, int json)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "reflcheck: stability: cannot write '%s' (%s); check the directory exists\n", path,
+                strerror(errno));
+        return CLI_FAILED;
+    }
+    int bad = json ? stability_write_json(f, t) : stability_write_csv(f, t);
+    if (fclose(f) != 0) bad = -1;
+    if (bad) {
+        fprintf(stderr, "reflcheck: stability: write error on '%s'; check free space\n", path);
+        return CLI_FAILED;
+    }
+    return CLI_OK;
+}
+
+int cli_stability(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"json", required_argument, NULL, 'j'}, {"csv", required_argument, NULL, 'c'},
+        {"samples", required_argument, NULL, 's'}, {"seed", required_argument, NULL, 'r'},
+        {"quiet", no_argument, NULL, 'q'}, {NULL, 0, NULL, 0},
+    };
+    const char *json = NULL, *csv = NULL;
+    stability_options o = {0};
+    int c, rc = CLI_OK, quiet = 0;
+    optind = 1;
+    opterr = 0;
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'j': json = optarg; break;
+        case 'c': csv = optarg; break;
+        case 's': rc = cli_parse_int("--samples", optarg, 16, STABILITY_MAX_SAMPLES, &o.samples); break;
+        case 'r': {
+            int seed = 0;
+            rc = cli_parse_int("--seed", optarg, 1, 2147483647, &seed);
+            o.seed = (unsigned)seed;
+            break;
+        }
+        case 'q': quiet = 1; break;
+        default:
+            fprintf(stderr, "reflcheck: stability: unknown option '%s'; options: --json FILE --csv FILE "
+                    "--samples N --seed N --quiet\n", argv[optind - 1]);
+            rc = CLI_BAD_INPUT;
+        }
+    }
+    if (rc != CLI_OK)
+        return rc;
+    if (optind != argc) {
+        fprintf(stderr, "reflcheck: stability: unexpected argument '%s'; usage: reflcheck stability "
+                "[--json FILE] [--csv FILE] [--samples N]\n", argv[optind]);
+        return CLI_BAD_INPUT;
+    }
+    stability_table *t = malloc(sizeof *t);
+    if (!t) {
+        fprintf(stderr, "reflcheck: stability: out of memory for the table\n");
+        return CLI_FAILED;
+    }
+    rc_status st = stability_run(&o, t);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: stability: the run failed (status %d); check --samples\n", (int)st);
+        free(t);
+        return cli_exit_status(st);
+    }
+    if (!quiet)
+        stability_write_text(stdout, t);
+    if (json && rc == CLI_OK) rc = cli_stability_write(json, t, 1);
+    if (csv && rc == CLI_OK) rc = cli_stability_write(csv, t, 0);
+    int fails = stability_failures(t);
+    if (fails)
+        fprintf(stderr, "reflcheck: stability: %d rows fail a gate (NaN, Inf or negative output for finite input, "
+                "or a gating physics check); see the FAIL rows\n", fails);
+    free(t);
+    return rc != CLI_OK ? rc : (fails ? CLI_FAILED : CLI_OK);
+}

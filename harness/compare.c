@@ -1,0 +1,587 @@
+#include "compare.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cJSON.h>
+
+#include "exr.h"
+#include "jobs.h"
+#include "metrics.h"
+#include "scene_file.h"
+
+static const char *const compare_aovs[3] = {"diffuse", "specular", "reflection"};
+#define COMPARE_ANGLE_BINS 10
+
+/* One side of a comparison: its record and image. */
+typedef struct {
+    renderer_id renderer;
+    comparison_role role;
+    cJSON *record;
+    exr_image img;
+    int have_img;
+    char path[1024];
+} compare_side;
+
+static cJSON *compare_read_json(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (f == NULL)
+        return NULL;
+    char *buf = NULL;
+    size_t len = 0, cap = 0, n;
+    char chunk[8192];
+    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0) {
+        if (len + n + 1 > cap) {
+            cap = (len + n + 1) * 2;
+            char *nb = realloc(buf, cap);
+            if (nb == NULL) {
+                free(buf);
+                fclose(f);
+                return NULL;
+            }
+            buf = nb;
+        }
+        memcpy(buf + len, chunk, n);
+        len += n;
+    }
+    fclose(f);
+    if (buf == NULL)
+        return NULL;
+    buf[len] = '\0';
+    cJSON *j = cJSON_Parse(buf);
+    free(buf);
+    return j;
+}
+
+static const char *compare_json_str(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    return cJSON_IsString(v) ? v->valuestring : "";
+}
+
+static rc_status compare_write_file(const char *path, const char *text, char *err, size_t errlen)
+{
+    char tmp[1100];
+    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    int ok = f != NULL && fputs(text, f) >= 0;
+    if (f != NULL)
+        ok &= fclose(f) == 0;
+    if (!ok || rename(tmp, path) != 0) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        unlink(tmp);
+        return RC_ERR_IO;
+    }
+    return RC_OK;
+}
+
+/* Loads a side; returns a reason string (static or in buf) when it cannot be compared. */
+static const char *compare_load_side(const char *run, const char *scene_name, compare_side *s, char *buf, size_t len)
+{
+    char rec[1024];
+    job_output_path(run, scene_name, s->renderer, s->role, "json", rec, sizeof rec);
+    job_output_path(run, scene_name, s->renderer, s->role, "exr", s->path, sizeof s->path);
+    s->record = compare_read_json(rec);
+    if (s->record == NULL) {
+        snprintf(buf, len, "no job record %s; render it with: reflcheck run SCENE --renderer %s --role %s", rec,
+                 job_renderer_names[s->renderer], job_role_names[s->role]);
+        return buf;
+    }
+    const char *status = compare_json_str(s->record, "status");
+    if (strcmp(status, "ok") != 0) {
+        snprintf(buf, len, "%s %s: %s", job_renderer_names[s->renderer], status, compare_json_str(s->record, "message"));
+        return buf;
+    }
+    char e[512];
+    if (exr_read(s->path, &s->img, e, sizeof e) != RC_OK) {
+        snprintf(buf, len, "%s", e);
+        return buf;
+    }
+    s->have_img = 1;
+    if (!exr_image_channel(&s->img, "R") || !exr_image_channel(&s->img, "G") || !exr_image_channel(&s->img, "B")) {
+        snprintf(buf, len, "%s has no R, G, B channels", s->path);
+        return buf;
+    }
+    return NULL;
+}
+
+static void compare_side_free(compare_side *s)
+{
+    cJSON_Delete(s->record);
+    s->record = NULL;
+    if (s->have_img)
+        exr_image_free(&s->img);
+    s->have_img = 0;
+}
+
+static metrics_image compare_planes(const exr_image *img, const char *layer)
+{
+    metrics_image m = {img->width, img->height, {NULL, NULL, NULL}};
+    const char *c = "RGB";
+    for (int i = 0; i < 3; i++) {
+        char name[64];
+        if (layer[0])
+            snprintf(name, sizeof name, "%s.%c", layer, c[i]);
+        else
+            snprintf(name, sizeof name, "%c", c[i]);
+        m.c[i] = exr_image_channel(img, name);
+    }
+    return m;
+}
+
+static cJSON *compare_metrics_json(const metrics_result *r)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "n_pixels", (double)r->n_pixels);
+    cJSON_AddNumberToObject(o, "n_nonfinite", (double)r->n_nonfinite);
+    cJSON_AddNumberToObject(o, "mae", r->mae);
+    cJSON_AddNumberToObject(o, "rmse", r->rmse);
+    cJSON_AddNumberToObject(o, "rel_mse", r->rel_mse);
+    cJSON_AddNumberToObject(o, "rel_rms", r->rel_rms);
+    /* JSON has no infinity: identical images report psnr as null. */
+    if (isfinite(r->psnr))
+        cJSON_AddNumberToObject(o, "psnr", r->psnr);
+    else
+        cJSON_AddNullToObject(o, "psnr");
+    cJSON_AddNumberToObject(o, "max_abs", r->max_abs);
+    cJSON_AddNumberToObject(o, "max_x", r->max_x);
+    cJSON_AddNumberToObject(o, "max_y", r->max_y);
+    cJSON_AddNumberToObject(o, "max_c", r->max_c);
+    cJSON_AddNumberToObject(o, "max_ref", r->max_ref);
+    cJSON_AddNumberToObject(o, "max_test", r->max_test);
+    cJSON_AddNumberToObject(o, "share_over", r->share_over);
+    cJSON_AddNumberToObject(o, "ssim", r->ssim);
+    return o;
+}
+
+/* Metrics over a mask, or NULL when the mask selects nothing. */
+static cJSON *compare_region(const metrics_image *ref, const metrics_image *test, const unsigned char *mask)
+{
+    metrics_options mo = {.rel_eps = COMPARE_REL_EPS, .threshold = 1e-3};
+    metrics_result r;
+    char e[256];
+    if (metrics_compare(ref, test, mask, &mo, &r, e, sizeof e) != RC_OK || r.n_pixels == 0)
+        return NULL;
+    return compare_metrics_json(&r);
+}
+
+/* Relative RMS error per bin of an angle channel (N.V or N.L) over the surface mask. */
+static cJSON *compare_angle_bins(const metrics_image *ref, const metrics_image *test, const float *angle,
+                                 const unsigned char *mask)
+{
+    cJSON *arr = cJSON_CreateArray();
+    if (angle == NULL)
+        return arr;
+    double se[COMPARE_ANGLE_BINS] = {0}, sr[COMPARE_ANGLE_BINS] = {0};
+    long n[COMPARE_ANGLE_BINS] = {0};
+    size_t np = (size_t)ref->width * (size_t)ref->height;
+    for (size_t i = 0; i < np; i++) {
+        if (!mask[i] || !(angle[i] > 0.0f))
+            continue;
+        int b = (int)(angle[i] * COMPARE_ANGLE_BINS);
+        b = b >= COMPARE_ANGLE_BINS ? COMPARE_ANGLE_BINS - 1 : b;
+        for (int c = 0; c < 3; c++) {
+            double d = (double)test->c[c][i] - (double)ref->c[c][i];
+            if (!isfinite(d))
+                continue;
+            se[b] += d * d / ((double)ref->c[c][i] * ref->c[c][i] + COMPARE_REL_EPS);
+            sr[b] += fabs(d) / (fabs((double)ref->c[c][i]) + sqrt(COMPARE_REL_EPS));
+        }
+        n[b]++;
+    }
+    for (int b = 0; b < COMPARE_ANGLE_BINS; b++) {
+        if (n[b] == 0)
+            continue;
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddNumberToObject(o, "lo", (double)b / COMPARE_ANGLE_BINS);
+        cJSON_AddNumberToObject(o, "hi", (double)(b + 1) / COMPARE_ANGLE_BINS);
+        cJSON_AddNumberToObject(o, "n", (double)n[b]);
+        cJSON_AddNumberToObject(o, "rel_rms", sqrt(se[b] / (3.0 * (double)n[b])));
+        cJSON_AddNumberToObject(o, "mean_rel", sr[b] / (3.0 * (double)n[b]));
+        cJSON_AddItemToArray(arr, o);
+    }
+    return arr;
+}
+
+/* The variance of a Cycles mean from a few seeds has few degrees of freedom; pooling it over
+ * the 3x3 neighbourhood (same mask) multiplies them by up to 9, so the normal quantiles of
+ * the z-test are not fooled by a lucky low estimate. Noise varies smoothly across a surface. */
+static void compare_pool_variance(const metrics_image *var, const unsigned char *mask, float *out[3])
+{
+    int w = var->width, h = var->height;
+    for (int c = 0; c < 3; c++)
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                double s = 0.0;
+                int n = 0;
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++) {
+                        int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= w || yy >= h || !mask[yy * w + xx])
+                            continue;
+                        s += var->c[c][yy * w + xx];
+                        n++;
+                    }
+                out[c][y * w + x] = n > 0 ? (float)(s / n) : var->c[c][y * w + x];
+            }
+}
+
+static cJSON *compare_noise(const exr_image *ref, const metrics_image *refm, const exr_image *test,
+                            const metrics_image *testm, const unsigned char *mask)
+{
+    metrics_image rv = compare_planes(ref, "var");
+    if (rv.c[0] == NULL || rv.c[1] == NULL || rv.c[2] == NULL)
+        return NULL;
+    size_t np = (size_t)ref->width * (size_t)ref->height;
+    float *pool[6];
+    for (int i = 0; i < 6; i++)
+        pool[i] = malloc(np * sizeof(float));
+    cJSON *o = NULL;
+    if (pool[0] && pool[1] && pool[2] && pool[3] && pool[4] && pool[5]) {
+        compare_pool_variance(&rv, mask, pool);
+        metrics_image pv = {ref->width, ref->height, {pool[0], pool[1], pool[2]}};
+        metrics_image tv = compare_planes(test, "var"), *tvp = NULL;
+        metrics_image tpv = {ref->width, ref->height, {pool[3], pool[4], pool[5]}};
+        if (tv.c[0] && tv.c[1] && tv.c[2]) {
+            compare_pool_variance(&tv, mask, &pool[3]);
+            tvp = &tpv;
+        }
+        double var_sum = 0.0, ref_sq = 0.0;
+        long n = 0;
+        for (size_t i = 0; i < np; i++) {
+            if (!mask[i])
+                continue;
+            for (int c = 0; c < 3; c++) {
+                var_sum += rv.c[c][i];
+                ref_sq += (double)refm->c[c][i] * refm->c[c][i];
+            }
+            n++;
+        }
+        metrics_ztest_options zo = {.alpha = 0.01, .correction = METRICS_HOLM};
+        metrics_ztest_result z;
+        char e[256];
+        o = cJSON_CreateObject();
+        cJSON_AddNumberToObject(o, "ref_rel_rms", n > 0 && ref_sq > 0 ? sqrt(var_sum / ref_sq) : 0.0);
+        if (metrics_ztest(refm, &pv, testm, tvp, mask, &zo, &z, e, sizeof e) == RC_OK) {
+            cJSON *zj = cJSON_AddObjectToObject(o, "ztest");
+            cJSON_AddNumberToObject(zj, "n_tests", (double)z.n_tests);
+            cJSON_AddNumberToObject(zj, "n_fail", (double)z.n_fail);
+            cJSON_AddNumberToObject(zj, "n_fail_pixels", (double)z.n_fail_pixels);
+            cJSON_AddNumberToObject(zj, "z_crit", z.z_crit);
+            cJSON_AddNumberToObject(zj, "max_abs_z", z.max_abs_z);
+            cJSON_AddNumberToObject(zj, "share_fail_pixels", n > 0 ? (double)z.n_fail_pixels / (double)n : 0.0);
+            cJSON_AddStringToObject(zj, "correction", "holm, alpha 0.01, variance pooled 3x3");
+        }
+    }
+    for (int i = 0; i < 6; i++)
+        free(pool[i]);
+    return o;
+}
+
+/* Looks a threshold's metric up in a comparison's JSON. */
+static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
+{
+    const cJSON *x = NULL;
+    char head[64];
+    const char *dot = strchr(metric, '.');
+    if (strcmp(metric, "z_fail_share") == 0) {
+        x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(
+                cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ztest"), "share_fail_pixels");
+    } else if (strcmp(metric, "noise_rel_rms") == 0) {
+        x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ref_rel_rms");
+    } else if (strcmp(metric, "coverage_agreement") == 0) {
+        x = cJSON_GetObjectItemCaseSensitive(cmp, "coverage_agreement");
+    } else if (dot != NULL && (size_t)(dot - metric) < sizeof head) {
+        memcpy(head, metric, (size_t)(dot - metric));
+        head[dot - metric] = '\0';
+        const cJSON *grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "regions"), head);
+        if (grp == NULL)
+            grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "aovs"), head);
+        x = cJSON_GetObjectItemCaseSensitive(grp, dot + 1);
+    } else {
+        x = cJSON_GetObjectItemCaseSensitive(
+            cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "regions"), "surface"), metric);
+    }
+    if (!cJSON_IsNumber(x))
+        return 0;
+    *v = x->valuedouble;
+    return 1;
+}
+
+static int compare_higher_is_better(const char *metric)
+{
+    const char *base = strrchr(metric, '.');
+    base = base ? base + 1 : metric;
+    return strcmp(base, "psnr") == 0 || strcmp(base, "ssim") == 0 || strcmp(base, "coverage_agreement") == 0;
+}
+
+static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp, const char *id,
+                                 compare_summary *sum)
+{
+    cJSON *arr = cJSON_AddArrayToObject(cmp, "thresholds");
+    int worst = 0; /* 0 pass, 1 warn, 2 fail */
+    for (int i = 0; i < c->n_thresholds; i++) {
+        const threshold *t = &c->thresholds[i];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "metric", t->metric);
+        cJSON_AddNumberToObject(o, "warn", t->warn);
+        cJSON_AddNumberToObject(o, "fail", t->fail);
+        cJSON_AddStringToObject(o, "why", t->why);
+        double v;
+        const char *verdict;
+        if (!compare_metric_value(cmp, t->metric, &v)) {
+            verdict = "fail";
+            cJSON_AddNullToObject(o, "value");
+            worst = 2;
+            if (sum->first_failure[0] == '\0')
+                snprintf(sum->first_failure, sizeof sum->first_failure,
+                         "%s: %s: metric %s was not measured (threshold %g)", s->name, id, t->metric, t->fail);
+        } else {
+            int hib = compare_higher_is_better(t->metric);
+            int fail = hib ? v < t->fail : v > t->fail;
+            int warn = hib ? v < t->warn : v > t->warn;
+            verdict = fail ? "fail" : warn ? "warn" : "pass";
+            cJSON_AddNumberToObject(o, "value", v);
+            if (fail && worst < 2) {
+                worst = 2;
+            } else if (warn && worst < 1)
+                worst = 1;
+            if (fail && sum->first_failure[0] == '\0')
+                snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s = %.4g %s fail threshold %.4g (%s)",
+                         s->name, id, t->metric, v, hib ? "<" : ">", t->fail, t->why);
+        }
+        cJSON_AddStringToObject(o, "verdict", verdict);
+        cJSON_AddItemToArray(arr, o);
+    }
+    return worst == 2 ? "fail" : worst == 1 ? "warn" : "pass";
+}
+
+static const char compare_b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+/* Appends base64 of n floats (little-endian IEEE, as JS Float32Array reads on x86/ARM). */
+static void compare_append_b64(FILE *f, const float *v, size_t n)
+{
+    const unsigned char *p = (const unsigned char *)v;
+    size_t len = n * sizeof(float);
+    for (size_t i = 0; i < len; i += 3) {
+        unsigned a = p[i], b = i + 1 < len ? p[i + 1] : 0, c = i + 2 < len ? p[i + 2] : 0;
+        unsigned t = (a << 16) | (b << 8) | c;
+        fputc(compare_b64[(t >> 18) & 63], f);
+        fputc(compare_b64[(t >> 12) & 63], f);
+        fputc(i + 1 < len ? compare_b64[(t >> 6) & 63] : '=', f);
+        fputc(i + 2 < len ? compare_b64[t & 63] : '=', f);
+    }
+}
+
+/* view.js: every render of this scene as interleaved RGB floats, plus coverage and N.V. */
+static rc_status compare_write_view(const scene *s, const char *run, char *err, size_t errlen)
+{
+    char path[1024], tmp[1100];
+    snprintf(path, sizeof path, "%s/%s/view.js", run, s->name);
+    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (f == NULL) {
+        snprintf(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
+        return RC_ERR_IO;
+    }
+    fprintf(f, "window.REFLCHECK_VIEW = {\"scene\": \"%s\", \"images\": {", s->name);
+    int first = 1, w = 0, h = 0;
+    float *buf = NULL;
+    exr_image raster = {0};
+    int have_raster = 0;
+    for (int r = 0; r < RENDERER_COUNT; r++)
+        for (int role = ROLE_TWIN; role <= ROLE_VALIDATE; role++) {
+            char exr[1024], e[256];
+            job_output_path(run, s->name, (renderer_id)r, (comparison_role)role, "exr", exr, sizeof exr);
+            exr_image img;
+            if (access(exr, R_OK) != 0 || exr_read(exr, &img, e, sizeof e) != RC_OK)
+                continue;
+            metrics_image m = compare_planes(&img, "");
+            if (m.c[0] && m.c[1] && m.c[2] && (first || (img.width == w && img.height == h))) {
+                w = img.width;
+                h = img.height;
+                size_t np = (size_t)w * (size_t)h;
+                float *nb = realloc(buf, 3 * np * sizeof(float));
+                if (nb != NULL) {
+                    buf = nb;
+                    for (size_t i = 0; i < np; i++)
+                        for (int c = 0; c < 3; c++)
+                            buf[3 * i + (size_t)c] = m.c[c][i];
+                    fprintf(f, "%s\"%s-%s\": \"", first ? "" : ", ", job_renderer_names[r], job_role_names[role]);
+                    compare_append_b64(f, buf, 3 * np);
+                    fputc('"', f);
+                    first = 0;
+                }
+            }
+            if (r == RENDERER_RASTER && !have_raster && img.width == w && img.height == h) {
+                raster = img;
+                have_raster = 1;
+            } else
+                exr_image_free(&img);
+        }
+    fprintf(f, "}, \"width\": %d, \"height\": %d", w, h);
+    const char *extra[3] = {"coverage", "ndotv", "object"};
+    for (int i = 0; i < 3 && have_raster; i++) {
+        const float *ch = exr_image_channel(&raster, extra[i]);
+        if (ch == NULL)
+            continue;
+        fprintf(f, ", \"%s\": \"", extra[i]);
+        compare_append_b64(f, ch, (size_t)w * (size_t)h);
+        fputc('"', f);
+    }
+    fputs("};\n", f);
+    if (have_raster)
+        exr_image_free(&raster);
+    free(buf);
+    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        unlink(tmp);
+        return RC_ERR_IO;
+    }
+    return RC_OK;
+}
+
+/* The comparison's renders: agree compares two references' physical (validate) renders. */
+static comparison_role compare_render_role(comparison_role r) { return r == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE; }
+
+static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
+{
+    char id[128], reason[1200];
+    comparison_role rr = compare_render_role(c->role);
+    snprintf(id, sizeof id, "%s-vs-%s-%s", job_renderer_names[c->test], job_renderer_names[c->reference],
+             job_role_names[c->role]);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "id", id);
+    cJSON_AddStringToObject(o, "test", job_renderer_names[c->test]);
+    cJSON_AddStringToObject(o, "reference", job_renderer_names[c->reference]);
+    cJSON_AddStringToObject(o, "role", job_role_names[c->role]);
+
+    compare_side t = {.renderer = c->test, .role = rr}, r = {.renderer = c->reference, .role = rr};
+    compare_side mask_src = {.renderer = RENDERER_RASTER, .role = rr};
+    const char *why = compare_load_side(run, s->name, &t, reason, sizeof reason);
+    if (why == NULL)
+        why = compare_load_side(run, s->name, &r, reason, sizeof reason);
+    if (why == NULL && (t.img.width != r.img.width || t.img.height != r.img.height)) {
+        snprintf(reason, sizeof reason, "image sizes differ: %s is %dx%d, %s is %dx%d", t.path, t.img.width,
+                 t.img.height, r.path, r.img.width, r.img.height);
+        why = reason;
+    }
+    const exr_image *geo = NULL;
+    if (why == NULL) {
+        char tmp[256];
+        geo = c->test == RENDERER_RASTER ? &t.img : (c->reference == RENDERER_RASTER ? &r.img : NULL);
+        if (geo == NULL && compare_load_side(run, s->name, &mask_src, tmp, sizeof tmp) == NULL &&
+            mask_src.img.width == t.img.width && mask_src.img.height == t.img.height)
+            geo = &mask_src.img;
+    }
+    if (why != NULL) {
+        int is_skip = (t.record != NULL || c->test == RENDERER_RASTER) && strstr(reason, "no job record") == NULL;
+        cJSON_AddStringToObject(o, "status", is_skip ? "skipped" : "error");
+        cJSON_AddStringToObject(o, "reason", why);
+        if (is_skip)
+            sum->skipped++;
+        else
+            sum->error++;
+        compare_side_free(&t);
+        compare_side_free(&r);
+        compare_side_free(&mask_src);
+        return o;
+    }
+
+    int w = t.img.width, h = t.img.height;
+    size_t np = (size_t)w * (size_t)h;
+    unsigned char *cls = malloc(np), *mask[3] = {malloc(np), malloc(np), malloc(np)};
+    metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
+    const char *region_names[3] = {"surface", "edges", "background"};
+    const int region_class[3] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND};
+    cJSON *regions = cJSON_AddObjectToObject(o, "regions");
+    if (cls && mask[0] && mask[1] && mask[2]) {
+        const float *cov = geo ? exr_image_channel(geo, "coverage") : NULL;
+        const float *obj = geo ? exr_image_channel(geo, "object") : NULL;
+        metrics_classify(w, h, cov, obj, cls);
+        for (int i = 0; i < 3; i++) {
+            metrics_mask_from_class(w, h, cls, region_class[i], NULL, 0.0f, mask[i]);
+            cJSON *m = compare_region(&rm, &tm, mask[i]);
+            if (m != NULL)
+                cJSON_AddItemToObject(regions, region_names[i], m);
+        }
+        cJSON *aovs = cJSON_AddObjectToObject(o, "aovs");
+        for (int a = 0; a < 3; a++) {
+            metrics_image ta = compare_planes(&t.img, compare_aovs[a]), ra = compare_planes(&r.img, compare_aovs[a]);
+            if (!ta.c[0] || !ta.c[1] || !ta.c[2] || !ra.c[0] || !ra.c[1] || !ra.c[2])
+                continue;
+            cJSON *m = compare_region(&ra, &ta, mask[0]);
+            if (m != NULL)
+                cJSON_AddItemToObject(aovs, compare_aovs[a], m);
+        }
+        const float *rc = exr_image_channel(&r.img, "coverage"), *tc = exr_image_channel(&t.img, "coverage");
+        if (rc != NULL && tc != NULL) {
+            long agree = 0;
+            for (size_t i = 0; i < np; i++)
+                agree += (rc[i] > 0.5f) == (tc[i] > 0.5f);
+            cJSON_AddNumberToObject(o, "coverage_agreement", (double)agree / (double)np);
+        }
+        cJSON *noise = compare_noise(&r.img, &rm, &t.img, &tm, mask[0]);
+        if (noise != NULL)
+            cJSON_AddItemToObject(o, "noise", noise);
+        cJSON_AddItemToObject(o, "angle_bins",
+                              compare_angle_bins(&rm, &tm, geo ? exr_image_channel(geo, "ndotv") : NULL, mask[0]));
+        cJSON_AddItemToObject(o, "angle_bins_ndotl",
+                              compare_angle_bins(&rm, &tm, geo ? exr_image_channel(geo, "ndotl") : NULL, mask[0]));
+    }
+    cJSON *times = cJSON_AddObjectToObject(o, "times");
+    const cJSON *tw = cJSON_GetObjectItemCaseSensitive(t.record, "wall_s");
+    const cJSON *rw = cJSON_GetObjectItemCaseSensitive(r.record, "wall_s");
+    cJSON_AddNumberToObject(times, "test_wall_s", cJSON_IsNumber(tw) ? tw->valuedouble : 0.0);
+    cJSON_AddNumberToObject(times, "reference_wall_s", cJSON_IsNumber(rw) ? rw->valuedouble : 0.0);
+
+    const char *verdict = compare_judge(s, c, o, id, sum);
+    cJSON_AddStringToObject(o, "status", verdict);
+    if (strcmp(verdict, "fail") == 0)
+        sum->fail++;
+    else if (strcmp(verdict, "warn") == 0)
+        sum->warn++;
+    else
+        sum->pass++;
+    free(cls);
+    for (int i = 0; i < 3; i++)
+        free(mask[i]);
+    compare_side_free(&t);
+    compare_side_free(&r);
+    compare_side_free(&mask_src);
+    return o;
+}
+
+rc_status compare_scene(const char *scene_path, const char *run_dir, compare_summary *sum, char *err, size_t errlen)
+{
+    memset(sum, 0, sizeof *sum);
+    scene *s = malloc(sizeof *s);
+    if (s == NULL)
+        return RC_ERR_NOMEM;
+    rc_status st = scene_file_load(scene_path, s, err, errlen);
+    if (st != RC_OK) {
+        free(s);
+        return st;
+    }
+    cJSON *root = cJSON_CreateObject();
+    cJSON_AddStringToObject(root, "scene", s->name);
+    cJSON_AddStringToObject(root, "scene_path", scene_path);
+    cJSON *arr = cJSON_AddArrayToObject(root, "comparisons");
+    for (int i = 0; i < s->n_comparisons; i++)
+        cJSON_AddItemToArray(arr, compare_one(s, &s->comparisons[i], run_dir, sum));
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s/compare.json", run_dir, s->name);
+    char *text = cJSON_Print(root);
+    st = text ? compare_write_file(path, text, err, errlen) : RC_ERR_NOMEM;
+    cJSON_free(text);
+    cJSON_Delete(root);
+    if (st == RC_OK)
+        st = compare_write_view(s, run_dir, err, errlen);
+    free(s);
+    return st;
+}

@@ -1,0 +1,36 @@
+/* compare.h - every comparison a scene lists, measured on the renders of one run.
+ *
+ * Usage:
+ *   compare_scene("scenes/x.yaml", "reports/runs/r1", &summary, err, sizeof err);
+ * Reads RUN/<scene>/<renderer>-<role>.exr and .json (harness/jobs.h), writes
+ * RUN/<scene>/compare.json (format: .notes/REPORT_DATA.md) and RUN/<scene>/view.js (the
+ * linear images for the report's viewer). A comparison whose render is missing or failed is
+ * recorded as skipped with the renderer's message; it is not an error.
+ * Regions are kept apart: surface (interior pixels), edges (silhouettes: partial coverage or
+ * an object boundary, from the rasterizer's coverage and object layers) and background.
+ * Thresholds (from the scene file) are judged on the surface unless the metric names a
+ * region or layer: "rel_rms", "edges.rel_rms", "reflection.rel_rms", "z_fail_share",
+ * "coverage_agreement". psnr, ssim and coverage_agreement fail below the threshold, every
+ * other metric above it.
+ * summary counts verdicts; returns RC_OK unless the scene or our own files cannot be read or
+ * written.
+ */
+#ifndef REFLCHECK_COMPARE_H
+#define REFLCHECK_COMPARE_H
+
+#include <stddef.h>
+#include "status.h"
+
+typedef struct {
+    int pass, warn, fail, skipped, error;
+    char first_failure[1024];   /* "scene: comparison: metric value > threshold (why)" */
+} compare_summary;
+
+rc_status compare_scene(const char *scene_path, const char *run_dir, compare_summary *sum, char *err,
+                        size_t errlen);
+
+/* Relative error denominators r^2 + COMPARE_REL_EPS: below 1e-4 radiance a pixel is dark
+ * enough that half-float and noise floors dominate; above it the error is truly relative. */
+#define COMPARE_REL_EPS 1e-8
+
+#endif

@@ -1,0 +1,419 @@
+#include "jobs.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cJSON.h>
+
+#include "cycles.h"
+#include "envfile.h"
+#include "exr.h"
+#include "mesh.h"
+#include "povray.h"
+#include "render.h"
+#include "scene_file.h"
+
+const char *const job_renderer_names[RENDERER_COUNT] = {"raster", "povray", "cycles"};
+const char *const job_role_names[3] = {"twin", "validate", "agree"};
+
+int job_renderer_from_name(const char *name)
+{
+    for (int i = 0; i < RENDERER_COUNT; i++)
+        if (strcmp(name, job_renderer_names[i]) == 0)
+            return i;
+    return -1;
+}
+
+int job_role_from_name(const char *name)
+{
+    for (int i = 0; i < 3; i++)
+        if (strcmp(name, job_role_names[i]) == 0)
+            return i;
+    return -1;
+}
+
+void job_apply_variant(scene *s, job_variant v)
+{
+    if (v != JOB_SMALL)
+        return;
+    int w = s->small.width, h = s->small.height;
+    if (w <= 0) {
+        w = s->width < 96 ? s->width : 96;
+        h = h > 0 ? h : (int)((long)s->height * w / s->width);
+    } else if (h <= 0)
+        h = (int)((long)s->height * w / s->width);
+    s->width = w;
+    s->height = h > 0 ? h : 1;
+    s->supersample = s->small.supersample > 0 ? s->small.supersample : (s->supersample < 2 ? s->supersample : 2);
+    s->samples = s->small.samples > 0 ? s->small.samples : (s->samples < 32 ? s->samples : 32);
+}
+
+void job_output_path(const char *out_dir, const char *scene_name, renderer_id r, comparison_role role,
+                     const char *ext, char *buf, size_t len)
+{
+    snprintf(buf, len, "%s/%s/%s-%s.%s", out_dir, scene_name, job_renderer_names[r], job_role_names[role], ext);
+}
+
+static int job_mkdirs(const char *path)
+{
+    char tmp[1024];
+    snprintf(tmp, sizeof tmp, "%s", path);
+    for (char *p = tmp + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = '\0';
+        if (mkdir(tmp, 0755) != 0 && errno != EEXIST)
+            return -1;
+        *p = '/';
+    }
+    return (mkdir(tmp, 0755) != 0 && errno != EEXIST) ? -1 : 0;
+}
+
+static uint64_t job_hash_file(const char *path, uint64_t h)
+{
+    FILE *f = fopen(path, "rb");
+    if (f == NULL)
+        return h;
+    unsigned char buf[65536];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, f)) > 0)
+        h ^= scene_file_hash(buf, n) + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
+    fclose(f);
+    return h;
+}
+
+static int job_copy(const char *from, const char *to)
+{
+    char tmp[1100];
+    snprintf(tmp, sizeof tmp, "%s.tmp%ld", to, (long)getpid());
+    FILE *in = fopen(from, "rb");
+    if (in == NULL)
+        return -1;
+    FILE *out = fopen(tmp, "wb");
+    if (out == NULL) {
+        fclose(in);
+        return -1;
+    }
+    char buf[65536];
+    size_t n;
+    int ok = 1;
+    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
+        ok &= fwrite(buf, 1, n, out) == n;
+    fclose(in);
+    ok &= fclose(out) == 0;
+    if (!ok || rename(tmp, to) != 0) {
+        unlink(tmp);
+        return -1;
+    }
+    return 0;
+}
+
+/* Twin role: the rasterizer switches Cook-Torrance to what Cycles' Glossy Beckmann computes
+ * (separable Smith G in Walter's form, F = 1), on our side and in the job we hand Cycles. */
+static void job_twin_switches(scene *s)
+{
+    for (int i = 0; i < s->n_materials; i++) {
+        if (s->materials[i].model != MODEL_COOK_TORRANCE)
+            continue;
+        s->materials[i].ct.g = G_SMITH_WALTER;
+        s->materials[i].ct.f = F_ONE;
+    }
+}
+
+typedef struct {
+    const job_spec *j;
+    scene *s;
+    mesh *m;
+    char dir[1024];       /* where the work happens (cache entry or output folder) */
+    char exr[1100], log[1100];
+    char version[256];
+    char command[2048];
+    double timeout;
+} job_ctx;
+
+static void job_fail(job_record *r, runner_status st, const char *fmt, const char *a, const char *b)
+{
+    r->status = st;
+    snprintf(r->message, sizeof r->message, fmt, a, b);
+}
+
+static void job_raster(job_ctx *c, job_record *r)
+{
+    env_map env;
+    float *pixels = NULL;
+    render_image img = {0};
+    char err[1024];
+    render_options ro = {.threads = c->j->threads};
+    rc_status st = envfile_load(c->s, &env, &pixels, err, sizeof err);
+    if (st == RC_OK)
+        st = render_scene(c->s, c->m, &env, &ro, &img, err, sizeof err);
+    free(pixels);
+    if (st != RC_OK) {
+        job_fail(r, RUNNER_FAILED, "%s%s", err, "");
+        return;
+    }
+    exr_channel ch[RENDER_CHANNELS];
+    int n = 0;
+    for (int i = 0; i < RENDER_CHANNELS; i++)
+        if (img.chan[i] != NULL)
+            ch[n++] = (exr_channel){render_channel_names[i], img.chan[i]};
+    char ms[32];
+    snprintf(ms, sizeof ms, "%.3f", img.seconds * 1e3);
+    exr_attr at[] = {{"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms}};
+    st = exr_write(c->exr, img.width, img.height, ch, n, at, 2, err, sizeof err);
+    r->wall_s = img.seconds;
+    r->cpu_s = img.seconds;
+    render_image_free(&img);
+    if (st != RC_OK)
+        job_fail(r, RUNNER_ERROR, "%s%s", err, "");
+    snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
+}
+
+static void job_povray(job_ctx *c, job_record *r)
+{
+    char sdl[1100], raw[1100], err[1024];
+    snprintf(sdl, sizeof sdl, "%s/scene.pov", c->dir);
+    snprintf(raw, sizeof raw, "%s/povray-raw.exr", c->dir);
+    povray_options o = {.role = c->j->role, .threads = c->j->threads};
+    /* Half-float EXR overflows at 65504: scale bright scenes down, and undo it after. */
+    o.output_scale = 1.0;
+    rc_status st = povray_write_scene(c->s, c->m, &o, sdl, err, sizeof err);
+    povray_argv cmd;
+    if (st == RC_OK)
+        st = povray_command(&o, sdl, raw, c->s->width, c->s->height, c->s->supersample, &cmd, err, sizeof err);
+    if (st != RC_OK) {
+        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "povray cannot represent this: %s%s", err, "");
+        return;
+    }
+    povray_command_string(&cmd, c->command, sizeof c->command);
+    runner_result rr;
+    runner_exec((const char *const *)cmd.argv, c->timeout, c->log, &rr);
+    r->wall_s = rr.wall_s;
+    r->cpu_s = rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        job_fail(r, rr.status, "povray %s; see %s", runner_status_name(rr.status), c->log);
+        return;
+    }
+    exr_image img;
+    st = exr_read(raw, &img, err, sizeof err);
+    if (st != RC_OK) {
+        job_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s%s", err, "");
+        return;
+    }
+    int k = c->s->supersample, w = c->s->width, h = c->s->height;
+    const char *names[3] = {"R", "G", "B"};
+    float *planes[3] = {NULL, NULL, NULL};
+    exr_channel ch[3];
+    int ok = img.width == k * w && img.height == k * h;
+    for (int i = 0; ok && i < 3; i++) {
+        const float *src = exr_image_channel(&img, names[i]);
+        planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
+        ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
+        for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
+            planes[i][p] = (float)(planes[i][p] / o.output_scale);
+        ch[i] = (exr_channel){names[i], planes[i]};
+    }
+    exr_image_free(&img);
+    if (!ok)
+        job_fail(r, RUNNER_FAILED, "povray image %s is not %s the size asked for, or lacks R, G, B", raw, "");
+    else {
+        exr_attr at[] = {{"reflcheck.renderer", c->version}};
+        if (exr_write(c->exr, w, h, ch, 3, at, 1, err, sizeof err) != RC_OK)
+            job_fail(r, RUNNER_ERROR, "%s%s", err, "");
+    }
+    for (int i = 0; i < 3; i++)
+        free(planes[i]);
+}
+
+static void job_cycles(job_ctx *c, job_record *r)
+{
+    char job[1100], err[1024];
+    snprintf(job, sizeof job, "%s/job.json", c->dir);
+    cycles_options o = {.role = c->j->role, .n_seeds = c->j->seeds > 0 ? c->j->seeds : 2,
+                        .threads = c->j->threads, .partial = 1};
+    rc_status st = cycles_write_job(c->s, c->m, &o, job, err, sizeof err);
+    cycles_argv a;
+    if (st == RC_OK)
+        st = cycles_command(&o, job, c->exr, &a, err, sizeof err);
+    if (st != RC_OK) {
+        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "cycles cannot represent this: %s%s", err, "");
+        return;
+    }
+    size_t used = 0;
+    for (int i = 0; i < a.argc && used < sizeof c->command; i++)
+        used += (size_t)snprintf(c->command + used, sizeof c->command - used, "%s%s", i ? " " : "", a.argv[i]);
+    runner_result rr;
+    runner_exec(a.argv, c->timeout, c->log, &rr);
+    r->wall_s = rr.wall_s;
+    r->cpu_s = rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        job_fail(r, rr.status, "blender %s; see %s", runner_status_name(rr.status), c->log);
+        return;
+    }
+    if (cycles_collect(&o, c->exr, err, sizeof err) != RC_OK)
+        job_fail(r, RUNNER_FAILED, "cycles output unreadable: %s%s", err, "");
+}
+
+/* Writes a cJSON document to path through a temporary file and a rename. */
+static rc_status job_write_json(cJSON *doc, const char *path, char *err, size_t errlen)
+{
+    char tmp[1100];
+    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
+    char *text = cJSON_Print(doc);
+    FILE *f = text != NULL ? fopen(tmp, "w") : NULL;
+    int ok = f != NULL && fputs(text, f) >= 0 && fputc('\n', f) != EOF;
+    if (f != NULL)
+        ok &= fclose(f) == 0;
+    cJSON_free(text);
+    if (!ok || rename(tmp, path) != 0) {
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        unlink(tmp);
+        return RC_ERR_IO;
+    }
+    return RC_OK;
+}
+
+static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key,
+                                  char *err, size_t errlen)
+{
+    const scene *s = c->s;
+    char hash[32], keyhex[32];
+    snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
+    snprintf(keyhex, sizeof keyhex, "%016" PRIx64, key);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "scene", s->name);
+    cJSON_AddStringToObject(o, "scene_path", c->j->scene_path);
+    cJSON_AddStringToObject(o, "scene_hash", hash);
+    cJSON_AddStringToObject(o, "renderer", job_renderer_names[c->j->renderer]);
+    cJSON_AddStringToObject(o, "role", job_role_names[c->j->role]);
+    cJSON_AddStringToObject(o, "variant", c->j->variant == JOB_SMALL ? "small" : "full");
+    cJSON_AddStringToObject(o, "status", runner_status_name(r->status));
+    cJSON_AddStringToObject(o, "message", r->message);
+    cJSON_AddStringToObject(o, "version", c->version);
+    cJSON_AddStringToObject(o, "command", c->command);
+    cJSON_AddNumberToObject(o, "wall_s", r->wall_s);
+    cJSON_AddNumberToObject(o, "cpu_s", r->cpu_s);
+    cJSON_AddBoolToObject(o, "cached", r->cached);
+    cJSON_AddNumberToObject(o, "width", s->width);
+    cJSON_AddNumberToObject(o, "height", s->height);
+    cJSON_AddNumberToObject(o, "supersample", s->supersample);
+    cJSON_AddNumberToObject(o, "samples", c->j->renderer == RENDERER_CYCLES ? s->samples : 0);
+    cJSON_AddStringToObject(o, "key", keyhex);
+    cJSON_AddStringToObject(o, "exr", r->exr);
+    cJSON_AddStringToObject(o, "log", r->log);
+    cJSON_AddNumberToObject(o, "finished_unix", (double)time(NULL));
+    rc_status st = job_write_json(o, path, err, errlen);
+    cJSON_Delete(o);
+    return st;
+}
+
+rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
+{
+    memset(rec, 0, sizeof *rec);
+    scene *s = malloc(sizeof *s);
+    mesh m = {0};
+    if (s == NULL)
+        return RC_ERR_NOMEM;
+    rc_status st = scene_file_load(j->scene_path, s, err, errlen);
+    if (st == RC_OK)
+        st = mesh_build(s, &m, err, errlen);
+    if (st != RC_OK) {
+        free(s);
+        return st;
+    }
+    job_apply_variant(s, j->variant);
+    if (j->role == ROLE_TWIN)
+        job_twin_switches(s);
+
+    job_ctx c = {.j = j, .s = s, .m = &m};
+    c.timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
+    static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
+    static const char *const packages[RENDERER_COUNT] = {NULL, "povray", "blender"};
+    if (j->renderer == RENDERER_RASTER)
+        snprintf(c.version, sizeof c.version, "reflcheck-raster");
+    else if (!runner_version(programs[j->renderer], c.version, sizeof c.version)) {
+        rec->status = RUNNER_MISSING;
+        snprintf(rec->message, sizeof rec->message, "%s is not installed; install it with: apt-get install %s",
+                 programs[j->renderer], packages[j->renderer]);
+    }
+
+    /* The cache key: everything that can change the image. */
+    uint64_t key = s->hash;
+    char settings[512];
+    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d|%s", job_renderer_names[j->renderer],
+             job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full", s->width, s->height,
+             s->supersample, s->samples, j->seeds, c.version);
+    key ^= scene_file_hash(settings, strlen(settings)) * 31u;
+    key = job_hash_file("/proc/self/exe", key);
+    if (j->renderer == RENDERER_CYCLES)
+        key = job_hash_file("harness/cycles_render.py", key);
+    if (s->env.kind == ENV_IMAGE)
+        key = job_hash_file(s->env.path, key);
+
+    char dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024];
+    snprintf(dest_dir, sizeof dest_dir, "%s/%s", j->out_dir, s->name);
+    job_output_path(j->out_dir, s->name, j->renderer, j->role, "exr", dest_exr, sizeof dest_exr);
+    job_output_path(j->out_dir, s->name, j->renderer, j->role, "json", dest_json, sizeof dest_json);
+    job_output_path(j->out_dir, s->name, j->renderer, j->role, "log", dest_log, sizeof dest_log);
+    if (j->cache_dir != NULL)
+        snprintf(c.dir, sizeof c.dir, "%s/%016" PRIx64, j->cache_dir, key);
+    else
+        snprintf(c.dir, sizeof c.dir, "%s/work-%s-%s", dest_dir, job_renderer_names[j->renderer],
+                 job_role_names[j->role]);
+    if (job_mkdirs(dest_dir) != 0 || job_mkdirs(c.dir) != 0) {
+        snprintf(err, errlen, "%s: cannot create the output folder: %s", dest_dir, strerror(errno));
+        mesh_free(&m);
+        free(s);
+        return RC_ERR_IO;
+    }
+    snprintf(c.exr, sizeof c.exr, "%s/out.exr", c.dir);
+    snprintf(c.log, sizeof c.log, "%s/render.log", c.dir);
+    char done[1100];
+    snprintf(done, sizeof done, "%s/ok", c.dir);
+
+    if (rec->status == RUNNER_OK) {
+        if (j->cache_dir != NULL && access(done, F_OK) == 0 && access(c.exr, R_OK) == 0) {
+            rec->cached = 1;
+            FILE *f = fopen(done, "r");
+            if (f != NULL) {
+                if (fscanf(f, "%lf %lf", &rec->wall_s, &rec->cpu_s) != 2)
+                    rec->wall_s = rec->cpu_s = 0.0;
+                fclose(f);
+            }
+            snprintf(c.command, sizeof c.command, "(cached %016" PRIx64 ")", key);
+        } else {
+            unlink(done);
+            switch (j->renderer) {
+            case RENDERER_RASTER: job_raster(&c, rec); break;
+            case RENDERER_POVRAY: job_povray(&c, rec); break;
+            default: job_cycles(&c, rec); break;
+            }
+            if (rec->status == RUNNER_OK) {
+                FILE *f = fopen(done, "w");
+                if (f != NULL) {
+                    fprintf(f, "%.6f %.6f\n", rec->wall_s, rec->cpu_s);
+                    fclose(f);
+                }
+            }
+        }
+    }
+    if (rec->status == RUNNER_OK && job_copy(c.exr, dest_exr) != 0) {
+        rec->status = RUNNER_ERROR;
+        snprintf(rec->message, sizeof rec->message, "cannot copy %s to %s", c.exr, dest_exr);
+    }
+    if (access(c.log, R_OK) == 0)
+        job_copy(c.log, dest_log);
+    snprintf(rec->exr, sizeof rec->exr, "%s", rec->status == RUNNER_OK ? dest_exr : "");
+    snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
+    snprintf(rec->record, sizeof rec->record, "%s", dest_json);
+    st = job_write_record(&c, rec, dest_json, key, err, errlen);
+    mesh_free(&m);
+    free(s);
+    return st;
+}

@@ -1,0 +1,553 @@
+/* metrics.c - image error metrics, masks and a noise-aware per-pixel test (see metrics.h). */
+#include "metrics.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Default relative-MSE epsilon: the value used with relMSE in the denoising literature
+ * (Rousselle, Knaus and Zwicker 2011 and later work). It keeps near-black reference pixels
+ * from dominating the mean: below r ~ 0.1 the error is judged in absolute terms. */
+#define METRICS_REL_EPS 1e-2
+/* idiff's default -fail/-warn threshold, so share_over matches its "pixels over" line. */
+#define METRICS_THRESHOLD 1e-6
+/* Wang, Bovik, Sheikh and Simoncelli 2004, "Image quality assessment: from error visibility
+ * to structural similarity", IEEE TIP 13(4): K1 = 0.01, K2 = 0.03, Gaussian sigma 1.5 over
+ * 11x11. L = 1 treats 1.0 as reference white; for HDR data the constants only keep the
+ * ratios finite in flat dark regions, and bright regions (values >> L) dominate regardless. */
+#define SSIM_K1 0.01
+#define SSIM_K2 0.03
+#define SSIM_SIGMA 1.5
+/* Default z-test variance floor: sigma = 1e-5 absolute, about 100 float ulps at 1.0, so a
+ * pixel whose seeds agree exactly (variance 0) tolerates float rounding but nothing more. */
+#define ZTEST_VAR_FLOOR 1e-10
+#define ZTEST_ALPHA 0.01
+
+static void set_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    if (!err || errlen == 0)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+static int check_image(const metrics_image *im, const char *what, int w, int h, char *err, size_t errlen)
+{
+    if (!im) {
+        set_err(err, errlen, "metrics: %s image is NULL; pass a metrics_image", what);
+        return 0;
+    }
+    if (im->width <= 0 || im->height <= 0 || (w > 0 && (im->width != w || im->height != h))) {
+        set_err(err, errlen, "metrics: %s image is %dx%d but %dx%d was expected; compare images of one size",
+                what, im->width, im->height, w, h);
+        return 0;
+    }
+    for (int c = 0; c < 3; c++)
+        if (!im->c[c]) {
+            set_err(err, errlen, "metrics: %s image channel %c is NULL; fill all of R, G, B", what, "RGB"[c]);
+            return 0;
+        }
+    return 1;
+}
+
+double metrics_luminance(double r, double g, double b)
+{
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b;
+}
+
+/* ---------------------------------------------------------------- SSIM */
+
+static double ssim_const(const metrics_options *opt, double k)
+{
+    double L = opt && opt->ssim_range > 0 ? opt->ssim_range : 1.0;
+    return (k * L) * (k * L);
+}
+
+/* One separable pass of the window over a plane: out = rows then columns of k[lo..hi],
+ * taps outside the image dropped (the mask-weight plane renormalises them later). */
+static void window_pass(int w, int h, const double *in, double *tmp, double *out, const double *k, int lo, int hi)
+{
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double s = 0;
+            for (int d = lo; d <= hi; d++)
+                if (x + d >= 0 && x + d < w)
+                    s += k[d - lo] * in[(size_t)y * (size_t)w + (size_t)(x + d)];
+            tmp[(size_t)y * (size_t)w + (size_t)x] = s;
+        }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double s = 0;
+            for (int d = lo; d <= hi; d++)
+                if (y + d >= 0 && y + d < h)
+                    s += k[d - lo] * tmp[(size_t)(y + d) * (size_t)w + (size_t)x];
+            out[(size_t)y * (size_t)w + (size_t)x] = s;
+        }
+}
+
+rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test,
+                           const unsigned char *mask, const metrics_options *opt, float *map,
+                           double *mean, char *err, size_t errlen)
+{
+    if (width <= 0 || height <= 0 || !ref || !test) {
+        set_err(err, errlen, "metrics_ssim_map: need positive size and two planes (got %dx%d)", width, height);
+        return RC_ERR_RANGE;
+    }
+    if (opt && opt->ssim_window != METRICS_SSIM_BOX8 && opt->ssim_window != METRICS_SSIM_GAUSS11) {
+        set_err(err, errlen, "metrics: ssim_window %d unknown; use METRICS_SSIM_GAUSS11 or METRICS_SSIM_BOX8",
+                opt->ssim_window);
+        return RC_ERR_RANGE;
+    }
+    int box = opt && opt->ssim_window == METRICS_SSIM_BOX8;
+    /* Box: the 8x8 window of Wang et al.'s first experiment, offsets -3..4 (even size has no
+     * centre pixel). Gaussian: 11x11, offsets -5..5. Both are separable, and so is the
+     * window times the mask, which makes the masked moments five filtered planes. */
+    int lo = box ? -3 : -5, hi = box ? 4 : 5;
+    double k[11];
+    for (int i = lo; i <= hi; i++)
+        k[i - lo] = box ? 1.0 : exp(-(double)(i * i) / (2.0 * SSIM_SIGMA * SSIM_SIGMA));
+    const double c1 = ssim_const(opt, SSIM_K1), c2 = ssim_const(opt, SSIM_K2);
+
+    const size_t np = (size_t)width * (size_t)height;
+    enum { PW, PX, PY, PXX, PYY, PXY, NPL };
+    double *buf = malloc(np * (NPL + 2) * sizeof *buf);
+    if (!buf) {
+        set_err(err, errlen, "metrics_ssim_map: out of memory for a %dx%d image", width, height);
+        return RC_ERR_NOMEM;
+    }
+    double *in = buf + NPL * np, *tmp = in + np;
+    for (int pl = 0; pl < NPL; pl++) {
+        for (size_t p = 0; p < np; p++) {
+            double m = !mask || mask[p] ? 1.0 : 0.0;
+            /* Zero the value where excluded so a NaN there cannot reach a sum. */
+            double x = m != 0 ? ref[p] : 0.0, y = m != 0 ? test[p] : 0.0;
+            switch (pl) {
+            case PW: in[p] = m; break;
+            case PX: in[p] = x; break;
+            case PY: in[p] = y; break;
+            case PXX: in[p] = x * x; break;
+            case PYY: in[p] = y * y; break;
+            default: in[p] = x * y; break;
+            }
+        }
+        window_pass(width, height, in, tmp, buf + (size_t)pl * np, k, lo, hi);
+    }
+    double sum = 0.0;
+    long n = 0;
+    for (size_t p = 0; p < np; p++) {
+        if (mask && !mask[p]) {
+            if (map)
+                map[p] = 0.0f;
+            continue;
+        }
+        /* Moments in double: E[x^2] - E[x]^2 keeps ~1e-16 relative, ample for the variances
+         * of HDR data (a 1e-4 variance at x = 100 keeps 8 digits). */
+        double wsum = buf[PW * np + p];
+        double mx = buf[PX * np + p] / wsum, my = buf[PY * np + p] / wsum;
+        double sxx = fmax(buf[PXX * np + p] / wsum - mx * mx, 0.0);
+        double syy = fmax(buf[PYY * np + p] / wsum - my * my, 0.0);
+        double sxy = buf[PXY * np + p] / wsum - mx * my;
+        double s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2));
+        if (map)
+            map[p] = (float)s;
+        sum += s;
+        n++;
+    }
+    free(buf);
+    if (mean)
+        *mean = n > 0 ? sum / (double)n : NAN;
+    return RC_OK;
+}
+
+/* ---------------------------------------------------------------- compare */
+
+static int pixel_finite(const metrics_image *a, const metrics_image *b, size_t p)
+{
+    for (int c = 0; c < 3; c++)
+        if (!isfinite(a->c[c][p]) || !isfinite(b->c[c][p]))
+            return 0;
+    return 1;
+}
+
+rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                          const metrics_options *opt, metrics_result *out, char *err, size_t errlen)
+{
+    if (!out) {
+        set_err(err, errlen, "metrics_compare: result pointer is NULL; pass a metrics_result");
+        return RC_ERR_RANGE;
+    }
+    memset(out, 0, sizeof *out);
+    out->max_x = out->max_y = out->max_c = -1;
+    if (!check_image(ref, "reference", 0, 0, err, errlen) ||
+        !check_image(test, "test", ref->width, ref->height, err, errlen))
+        return RC_ERR_RANGE;
+    double thr = opt && opt->threshold > 0 ? opt->threshold : METRICS_THRESHOLD;
+    double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
+    if (opt && (opt->threshold < 0 || opt->rel_eps < 0 || opt->psnr_peak < 0 || opt->ssim_range < 0)) {
+        set_err(err, errlen, "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
+                "ssim_range %g); use 0 for the default", opt->threshold, opt->rel_eps, opt->psnr_peak,
+                opt->ssim_range);
+        return RC_ERR_RANGE;
+    }
+
+    const int w = ref->width, h = ref->height;
+    const size_t np = (size_t)w * (size_t)h;
+    unsigned char *use = malloc(np);
+    float *yr = malloc(np * sizeof *yr), *yt = malloc(np * sizeof *yt);
+    if (!use || !yr || !yt) {
+        free(use);
+        free(yr);
+        free(yt);
+        set_err(err, errlen, "metrics_compare: out of memory for a %dx%d image", w, h);
+        return RC_ERR_NOMEM;
+    }
+
+    double sabs[3] = {0}, ssq[3] = {0}, srel[3] = {0};
+    double peak = 1.0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = (size_t)y * (size_t)w + (size_t)x;
+            use[p] = 0;
+            yr[p] = yt[p] = 0.0f;
+            if (mask && !mask[p])
+                continue;
+            if (!pixel_finite(ref, test, p)) {
+                out->n_nonfinite++;
+                continue;
+            }
+            use[p] = 1;
+            out->n_pixels++;
+            int over = 0;
+            for (int c = 0; c < 3; c++) {
+                double r = ref->c[c][p], t = test->c[c][p];
+                double d = t - r, a = fabs(d);
+                sabs[c] += a;
+                ssq[c] += d * d;
+                srel[c] += d * d / (r * r + eps);
+                peak = fmax(peak, fmax(fabs(r), fabs(t)));
+                if (a > out->max_abs_ch[c])
+                    out->max_abs_ch[c] = a;
+                /* Strictly greater keeps the first maximum in scan order, as idiff reports it. */
+                if (a > out->max_abs || out->max_c < 0) {
+                    out->max_abs = a;
+                    out->max_x = x;
+                    out->max_y = y;
+                    out->max_c = c;
+                    out->max_ref = r;
+                    out->max_test = t;
+                }
+                if (a > thr)
+                    over = 1;
+            }
+            out->n_over += over;
+            yr[p] = (float)metrics_luminance(ref->c[0][p], ref->c[1][p], ref->c[2][p]);
+            yt[p] = (float)metrics_luminance(test->c[0][p], test->c[1][p], test->c[2][p]);
+        }
+
+    rc_status st = RC_OK;
+    if (out->n_pixels > 0) {
+        double n = (double)out->n_pixels;
+        double tabs = 0, tsq = 0, trel = 0;
+        for (int c = 0; c < 3; c++) {
+            out->mae_ch[c] = sabs[c] / n;
+            out->rmse_ch[c] = sqrt(ssq[c] / n);
+            out->rel_mse_ch[c] = srel[c] / n;
+            tabs += sabs[c];
+            tsq += ssq[c];
+            trel += srel[c];
+        }
+        out->mae = tabs / (3 * n);
+        out->rmse = sqrt(tsq / (3 * n));
+        out->rel_mse = trel / (3 * n);
+        out->rel_rms = sqrt(out->rel_mse);
+        out->peak = opt && opt->psnr_peak > 0 ? opt->psnr_peak : peak;
+        out->psnr = out->rmse > 0 ? 20.0 * log10(out->peak / out->rmse) : INFINITY;
+        out->share_over = (double)out->n_over / n;
+        st = metrics_ssim_map(w, h, yr, yt, use, opt, NULL, &out->ssim, err, errlen);
+        for (int c = 0; st == RC_OK && c < 3; c++)
+            st = metrics_ssim_map(w, h, ref->c[c], test->c[c], use, opt, NULL, &out->ssim_ch[c], err, errlen);
+    } else {
+        out->mae = out->rmse = out->rel_mse = out->rel_rms = out->psnr = out->ssim = NAN;
+        out->peak = opt && opt->psnr_peak > 0 ? opt->psnr_peak : 1.0;
+        for (int c = 0; c < 3; c++)
+            out->mae_ch[c] = out->rmse_ch[c] = out->rel_mse_ch[c] = out->ssim_ch[c] = NAN;
+    }
+    free(use);
+    free(yr);
+    free(yt);
+    return st;
+}
+
+/* ---------------------------------------------------------------- masks */
+
+/* Coverage within 1e-6 of 0 or 1 counts as empty or full: float accumulation of box-filtered
+ * samples leaves a full pixel a few ulps (6e-8 each) below 1, while one real sample in 1024
+ * changes coverage by 1e-3. */
+#define COVER_TOL 1e-6f
+
+static int cover_state(const float *cov, size_t p)
+{
+    if (!cov)
+        return 2;
+    float a = cov[p];
+    if (!(a > COVER_TOL))
+        return 0;
+    return a >= 1.0f - COVER_TOL ? 2 : 1;
+}
+
+void metrics_classify(int width, int height, const float *coverage, const float *object_id,
+                      unsigned char *cls)
+{
+    if (width <= 0 || height <= 0 || !cls)
+        return;
+    for (int y = 0; y < height; y++)
+        for (int x = 0; x < width; x++) {
+            size_t p = (size_t)y * (size_t)width + (size_t)x;
+            int sp = cover_state(coverage, p);
+            int edge = sp == 1;
+            for (int dy = -1; dy <= 1 && !edge; dy++)
+                for (int dx = -1; dx <= 1 && !edge; dx++) {
+                    int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= width || yy >= height)
+                        continue;
+                    size_t q = (size_t)yy * (size_t)width + (size_t)xx;
+                    int sq = cover_state(coverage, q);
+                    if (sq != sp)
+                        edge = 1;
+                    else if (sp != 0 && object_id && object_id[q] != object_id[p])
+                        edge = 1;
+                }
+            cls[p] = edge ? METRICS_PX_EDGE : sp ? METRICS_PX_INTERIOR : METRICS_PX_BACKGROUND;
+        }
+}
+
+long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want,
+                             const float *object_id, float id, unsigned char *mask)
+{
+    if (width <= 0 || height <= 0 || !cls || !mask)
+        return 0;
+    long n = 0;
+    size_t np = (size_t)width * (size_t)height;
+    for (size_t p = 0; p < np; p++) {
+        int sel = (want < 0 || cls[p] == want) && (!object_id || object_id[p] == id);
+        mask[p] = (unsigned char)sel;
+        n += sel;
+    }
+    return n;
+}
+
+/* ---------------------------------------------------------------- statistics */
+
+/* Acklam's rational approximation of the normal quantile (P. J. Acklam, "An algorithm for
+ * computing the inverse normal cumulative distribution function", 2003; relative error
+ * < 1.15e-9), refined by one Halley step on Phi(x) = p using the C library's erfc, which
+ * brings it to double precision (the step converges cubically). */
+double metrics_norm_quantile(double p)
+{
+    static const double a[6] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+                                1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00};
+    static const double b[5] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+                                6.680131188771972e+01, -1.328068155288572e+01};
+    static const double c[6] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+                                -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00};
+    static const double d[4] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                                3.754408661907416e+00};
+    if (isnan(p) || p < 0.0 || p > 1.0)
+        return NAN;
+    if (p == 0.0)
+        return -INFINITY;
+    if (p == 1.0)
+        return INFINITY;
+    /* Work in the lower half; 1 - p is exact for p >= 0.5 (Sterbenz), so symmetry loses nothing. */
+    if (p > 0.5)
+        return -metrics_norm_quantile(1.0 - p);
+    const double plow = 0.02425;
+    double x;
+    if (p < plow) {
+        double q = sqrt(-2.0 * log(p));
+        x = (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+            ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0);
+    } else {
+        double q = p - 0.5, r = q * q;
+        x = (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+            (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0);
+    }
+    double e = 0.5 * erfc(-x / sqrt(2.0)) - p;
+    double u = e * 2.5066282746310002 /* sqrt(2 pi) */ * exp(0.5 * x * x);
+    return x - u / (1.0 + 0.5 * x * u);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* z and two-sided p of one value, or 0 when the value cannot be tested. */
+static int z_of(const metrics_image *rm, const metrics_image *rv, const metrics_image *t,
+                const metrics_image *tv, double floor_abs, double floor_rel, size_t p, int c,
+                double *z, double *pv)
+{
+    double r = rm->c[c][p], x = t->c[c][p], v = rv->c[c][p];
+    double vt = tv ? tv->c[c][p] : 0.0;
+    double var = v + vt + floor_abs + (floor_rel * r) * (floor_rel * r);
+    if (!isfinite(r) || !isfinite(x) || !isfinite(var) || v < 0 || vt < 0 || !(var > 0))
+        return 0;
+    *z = (x - r) / sqrt(var);
+    *pv = erfc(fabs(*z) / sqrt(2.0));
+    return 1;
+}
+
+rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var,
+                        const metrics_image *test, const metrics_image *test_var,
+                        const unsigned char *mask, const metrics_ztest_options *opt,
+                        metrics_ztest_result *out, char *err, size_t errlen)
+{
+    if (!out) {
+        set_err(err, errlen, "metrics_ztest: result pointer is NULL; pass a metrics_ztest_result");
+        return RC_ERR_RANGE;
+    }
+    memset(out, 0, sizeof *out);
+    out->max_x = out->max_y = out->max_c = -1;
+    out->min_p = 1.0;
+    if (!check_image(ref_mean, "reference mean", 0, 0, err, errlen))
+        return RC_ERR_RANGE;
+    int w = ref_mean->width, h = ref_mean->height;
+    if (!check_image(ref_var, "reference variance", w, h, err, errlen) ||
+        !check_image(test, "test", w, h, err, errlen) ||
+        (test_var && !check_image(test_var, "test variance", w, h, err, errlen)))
+        return RC_ERR_RANGE;
+    double alpha = opt && opt->alpha > 0 ? opt->alpha : ZTEST_ALPHA;
+    double floor_abs = !opt || opt->var_floor == 0 ? ZTEST_VAR_FLOOR : opt->var_floor < 0 ? 0.0 : opt->var_floor;
+    double floor_rel = opt ? opt->rel_floor : 0.0;
+    int corr = opt ? opt->correction : METRICS_BONFERRONI;
+    if (alpha >= 1 || floor_rel < 0 || (corr != METRICS_BONFERRONI && corr != METRICS_HOLM && corr != METRICS_SIDAK)) {
+        set_err(err, errlen, "metrics_ztest: bad option (alpha %g must be in (0,1), rel_floor %g >= 0, "
+                "correction %d one of BONFERRONI/HOLM/SIDAK)", alpha, floor_rel, corr);
+        return RC_ERR_RANGE;
+    }
+
+    size_t np = (size_t)w * (size_t)h;
+    unsigned char *use = malloc(np);
+    if (!use) {
+        set_err(err, errlen, "metrics_ztest: out of memory");
+        return RC_ERR_NOMEM;
+    }
+    /* First pass: which pixels are testable (all three channels), and m. */
+    for (size_t p = 0; p < np; p++) {
+        double z, pv;
+        use[p] = 0;
+        if (mask && !mask[p])
+            continue;
+        int ok = 1;
+        for (int c = 0; c < 3 && ok; c++)
+            ok = z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
+        if (!ok) {
+            out->n_nonfinite++;
+            continue;
+        }
+        use[p] = 1;
+        out->n_tests += 3;
+    }
+    long m = out->n_tests;
+    double level = 0.0; /* a value fails when its p <= level */
+    rc_status st = RC_OK;
+    if (m > 0) {
+        if (corr == METRICS_SIDAK)
+            level = -expm1(log1p(-alpha) / (double)m);
+        else
+            level = alpha / (double)m;
+        out->z_crit = -metrics_norm_quantile(0.5 * level);
+        if (corr == METRICS_HOLM) {
+            double *ps = malloc((size_t)m * sizeof *ps);
+            if (!ps) {
+                set_err(err, errlen, "metrics_ztest: out of memory for %ld p-values", m);
+                st = RC_ERR_NOMEM;
+                goto done;
+            }
+            long k = 0;
+            for (size_t p = 0; p < np; p++)
+                for (int c = 0; use[p] && c < 3; c++) {
+                    double z = 0.0, pv = 1.0;
+                    z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
+                    ps[k++] = pv;
+                }
+            qsort(ps, (size_t)m, sizeof *ps, cmp_double);
+            /* Step down: reject the i-th smallest while p_(i) <= alpha / (m - i). Tied values
+             * share a fate, so the last rejected p is a threshold for all. */
+            long i = 0;
+            while (i < m && ps[i] <= alpha / (double)(m - i))
+                i++;
+            level = i > 0 ? ps[i - 1] : -1.0;
+            free(ps);
+        }
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = (size_t)y * (size_t)w + (size_t)x;
+            if (!use[p])
+                continue;
+            int failed = 0;
+            for (int c = 0; c < 3; c++) {
+                double z = 0.0, pv = 1.0;
+                z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
+                if (fabs(z) > out->max_abs_z || out->max_c < 0) {
+                    out->max_abs_z = fabs(z);
+                    out->max_x = x;
+                    out->max_y = y;
+                    out->max_c = c;
+                }
+                if (pv < out->min_p)
+                    out->min_p = pv;
+                if (pv <= level) {
+                    out->n_fail++;
+                    failed = 1;
+                }
+            }
+            out->n_fail_pixels += failed;
+        }
+done:
+    free(use);
+    return st;
+}
+
+rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3],
+                             char *err, size_t errlen)
+{
+    if (!seeds || k < 2 || !mean || !var) {
+        set_err(err, errlen, "metrics_seed_stats: need at least 2 seed images (got %d) and output planes", k);
+        return RC_ERR_RANGE;
+    }
+    if (!check_image(&seeds[0], "seed 0", 0, 0, err, errlen))
+        return RC_ERR_RANGE;
+    for (int i = 1; i < k; i++) {
+        char what[32];
+        snprintf(what, sizeof what, "seed %d", i);
+        if (!check_image(&seeds[i], what, seeds[0].width, seeds[0].height, err, errlen))
+            return RC_ERR_RANGE;
+    }
+    for (int c = 0; c < 3; c++)
+        if (!mean[c] || !var[c]) {
+            set_err(err, errlen, "metrics_seed_stats: output plane %c is NULL; pass w*h floats", "RGB"[c]);
+            return RC_ERR_RANGE;
+        }
+    size_t np = (size_t)seeds[0].width * (size_t)seeds[0].height;
+    for (int c = 0; c < 3; c++)
+        for (size_t p = 0; p < np; p++) {
+            double s = 0, ss = 0;
+            for (int i = 0; i < k; i++)
+                s += seeds[i].c[c][p];
+            double mu = s / k;
+            for (int i = 0; i < k; i++) {
+                double d = seeds[i].c[c][p] - mu;
+                ss += d * d;
+            }
+            mean[c][p] = (float)mu;
+            var[c][p] = (float)(ss / (double)(k - 1) / (double)k);
+        }
+    return RC_OK;
+}

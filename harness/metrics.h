@@ -1,0 +1,132 @@
+/* metrics.h - per-pixel error metrics between a reference and a test linear float RGB image.
+ *
+ * Usage:
+ *   metrics_image ref = {w, h, {r0, g0, b0}}, tst = {w, h, {r1, g1, b1}};   planar, row 0 at the top
+ *   metrics_result res;
+ *   metrics_compare(&ref, &tst, mask, NULL, &res, err, sizeof err);    mask NULL = every pixel
+ *
+ *   unsigned char *cls = malloc(w * h), *m = malloc(w * h);
+ *   metrics_classify(w, h, alpha, object_id, cls);                     background / interior / edge
+ *   metrics_mask_from_class(w, h, cls, METRICS_PX_INTERIOR, object_id, 3.0f, m);   object 3 only
+ *   metrics_compare(&ref, &tst, m, NULL, &res, err, sizeof err);
+ *
+ *   metrics_seed_stats(seeds, k, mean, var, err, sizeof err);   reference mean, variance of the mean
+ *   metrics_ztest(&mean, &var, &tst, NULL, mask, NULL, &z, err, sizeof err);
+ *
+ * Units: whatever the images hold (linear radiance); every metric is over R, G, B only.
+ * Masks are w*h bytes, 0 = pixel excluded, anything else = included. The caller owns every
+ * array; nothing here allocates memory that outlives a call. Options structs may be NULL,
+ * and a zero field means the default stated beside it.
+ * Return: RC_OK, or RC_ERR_RANGE (size mismatch, NULL plane, bad option) with a one-line
+ * message in err naming the argument and the fix; RC_ERR_NOMEM when scratch memory fails.
+ * A pixel where either image holds a NaN or Inf in any channel is left out of every sum and
+ * counted in n_nonfinite (idiff instead scores such values as matching or as an infinite max).
+ */
+#ifndef REFLCHECK_METRICS_H
+#define REFLCHECK_METRICS_H
+
+#include <stddef.h>
+#include "../model/status.h"
+
+typedef struct {
+    int width, height;
+    const float *c[3]; /* R, G, B planes of width*height floats */
+} metrics_image;
+
+enum { METRICS_SSIM_GAUSS11 = 0, METRICS_SSIM_BOX8 = 1 };
+
+typedef struct {
+    double threshold;  /* share_over counts pixels with any |t - r| > threshold; 0 -> 1e-6 (idiff -fail default) */
+    double rel_eps;    /* relative MSE denominator r^2 + rel_eps; 0 -> 1e-2 */
+    double psnr_peak;  /* 0 -> idiff convention: max(1, largest |value| in either image) */
+    int ssim_window;   /* METRICS_SSIM_GAUSS11 (sigma 1.5, Wang et al. 2004) or METRICS_SSIM_BOX8 */
+    double ssim_range; /* dynamic range L in C1 = (0.01 L)^2, C2 = (0.03 L)^2; 0 -> 1.0 */
+} metrics_options;
+
+typedef struct {
+    long n_pixels;     /* pixels included by the mask and finite */
+    long n_nonfinite;  /* included pixels left out because a value was NaN or Inf */
+    double mae, rmse;  /* over all included values of R, G, B */
+    double rel_mse, rel_rms;
+    double psnr, peak; /* psnr in dB, +inf when rmse == 0; peak as used */
+    double max_abs;    /* largest |t - r|; first in row-major, then R, G, B order */
+    int max_x, max_y, max_c;           /* its pixel and channel (0 R, 1 G, 2 B); -1 if no pixel */
+    double max_ref, max_test;          /* the two values there */
+    long n_over;       /* pixels with any channel |t - r| > threshold */
+    double share_over; /* n_over / n_pixels */
+    double ssim;       /* mean SSIM of Rec.709 luminance over included pixels */
+    double mae_ch[3], rmse_ch[3], rel_mse_ch[3], max_abs_ch[3], ssim_ch[3];
+} metrics_result;
+
+rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                          const metrics_options *opt, metrics_result *out, char *err, size_t errlen);
+
+/* Per-pixel SSIM of one plane pair (w*h each) into map (w*h; 0 where mask excludes the pixel).
+ * Windows are truncated at the image border and at excluded pixels, with the remaining
+ * weights renormalised, so an excluded region never leaks into the score. *mean gets the
+ * mean over included pixels (may be NULL). */
+rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test,
+                           const unsigned char *mask, const metrics_options *opt, float *map,
+                           double *mean, char *err, size_t errlen);
+
+/* Rec.709 luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of one pixel. */
+double metrics_luminance(double r, double g, double b);
+
+/* ---- masks ---- */
+enum { METRICS_PX_BACKGROUND = 0, METRICS_PX_INTERIOR = 1, METRICS_PX_EDGE = 2 };
+
+/* Class per pixel into cls (w*h). A pixel is covered when coverage > 0 (coverage NULL: all
+ * covered). It is an EDGE when its coverage is partial (not within 1e-6 of 0 or 1), or when
+ * any pixel in its 3x3 neighbourhood differs in covered-ness or, both covered, in object id
+ * (exact float compare: box-filtered ids at a boundary are fractional and so differ;
+ * object_id NULL: ids ignored). Otherwise INTERIOR if covered, BACKGROUND if not. */
+void metrics_classify(int width, int height, const float *coverage, const float *object_id,
+                      unsigned char *cls);
+
+/* mask[i] = 1 where cls[i] == want (want < 0: any class) and, if object_id is not NULL,
+ * object_id[i] == id; else 0. Returns the number of pixels selected. */
+long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want,
+                             const float *object_id, float id, unsigned char *mask);
+
+/* ---- noise-aware per-pixel test ---- */
+enum { METRICS_BONFERRONI = 0, METRICS_HOLM = 1, METRICS_SIDAK = 2 };
+
+typedef struct {
+    double alpha;       /* family-wise error rate; 0 -> 0.01 (Mitsuba 3's render tests) */
+    double var_floor;   /* absolute variance added to every value; 0 -> 1e-10, < 0 -> none */
+    double rel_floor;   /* sigma_floor = rel_floor * |r| added in quadrature; 0 -> none */
+    int correction;     /* METRICS_BONFERRONI, METRICS_HOLM or METRICS_SIDAK */
+} metrics_ztest_options;
+
+typedef struct {
+    long n_tests;       /* values tested: included finite pixels times 3 channels */
+    long n_fail;        /* values whose null hypothesis (same mean) is rejected */
+    long n_fail_pixels; /* pixels with at least one rejected channel */
+    long n_nonfinite;   /* included pixels skipped for a NaN/Inf or a non-positive variance */
+    double z_crit;      /* |z| threshold of the per-value level (Bonferroni/Sidak; the first Holm step) */
+    double max_abs_z;
+    int max_x, max_y, max_c;
+    double min_p;       /* smallest two-sided p-value */
+} metrics_ztest_result;
+
+/* z = (t - r) / sqrt(var_ref + var_test + var_floor + (rel_floor r)^2) per channel, with
+ * two-sided p = erfc(|z| / sqrt 2) under a normal model, judged at the family-wise alpha over
+ * all tested values. var_ref is the variance of the reference mean (see metrics_seed_stats);
+ * var_test may be NULL for a deterministic test image. With few seeds the variance estimate
+ * has k - 1 degrees of freedom and normal quantiles understate its tails: use many seeds or a
+ * floor. */
+rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var,
+                        const metrics_image *test, const metrics_image *test_var,
+                        const unsigned char *mask, const metrics_ztest_options *opt,
+                        metrics_ztest_result *out, char *err, size_t errlen);
+
+/* Mean and variance of the mean (unbiased sample variance / k) over k >= 2 renders with
+ * different seeds, into caller planes mean[3] and var[3] (w*h floats each). */
+rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3],
+                             char *err, size_t errlen);
+
+/* Standard normal quantile: x with Phi(x) = p, for 0 < p < 1 (returns -inf/+inf at 0/1, NaN
+ * outside). Accurate to about 1e-15 relative, also for p near 1e-300. */
+double metrics_norm_quantile(double p);
+
+#endif

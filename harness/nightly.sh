@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# The nightly run (`make report`): every canonical scene in every renderer its comparisons
+# list, full size; then metrics, the stability table and the report. A run writes only into
+# its own folder reports/runs/<id>; reports/latest moves to it at the very end and the
+# history gets one appended line, so a run killed midway leaves both as they were.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+bin=build/reflcheck
+jobs=${JOBS:-2}
+commit=$(git rev-parse --short HEAD 2>/dev/null || echo nogit)
+id=${RUN_ID:-$(date -u +%Y%m%d-%H%M%S)-$commit}
+run=reports/runs/$id
+scenes=${SCENES:-$(ls scenes/*.yaml)}
+mkdir -p "$run"
+echo "reflcheck nightly: run $id -> $run"
+
+t0=$(date +%s)
+# shellcheck disable=SC2086
+"$bin" plan $scenes --out "$run" --cache reports/cache > "$run/jobs.mk" || exit 2
+make -k -j"$jobs" -f "$run/jobs.mk" all
+t1=$(date +%s)
+echo "$((t1 - t0))" > "$run/render_wall_s"
+# shellcheck disable=SC2086
+"$bin" compare $scenes --run "$run" | tee "$run/compare.txt"
+"$bin" stability --json "$run/stability.json" > "$run/stability.txt" || true
+if [ -f harness/plots/figure1.gp ]; then
+    "$bin" eval fresnel --ior 1.5 --p 2 > "$run/fresnel_p2.csv"
+    "$bin" eval fresnel --ior 1.5 --p 4 > "$run/fresnel_p4.csv"
+    "$bin" eval fresnel --ior 1.5 --p 5 > "$run/fresnel_p5.csv"
+    gnuplot -e "dir='$run'" harness/plots/figure1.gp > /dev/null 2>&1 || echo "figure1 plot failed" >&2
+fi
+/usr/bin/python3 harness/report.py --run "$run" --history reports/history.jsonl --commit "$commit" \
+    --latest reports/latest --screenshot
+echo "reflcheck nightly: report at $run/index.html (reports/latest/index.html)"
