@@ -19,11 +19,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <openexr.h>
+
+#include "runner.h"
 
 extern char **environ;
 
@@ -377,25 +377,12 @@ static rc_status read_attrs(exr_context_t ctxt, int part, exr_image *img)
     return RC_OK;
 }
 
-/* Run oiiotool without a shell (no quoting issues with odd paths), output discarded. */
+/* Converts through oiiotool, run as its own process with a time limit (harness/runner.h). */
 static int run_oiiotool_convert(const char *in, const char *out)
 {
-    char *argv[] = {"oiiotool", (char *)in, "-d", "float", "--compression", "zip", "-o", (char *)out, NULL};
-    posix_spawn_file_actions_t fa;
-    if (posix_spawn_file_actions_init(&fa) != 0)
-        return -1;
-    posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&fa, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-    pid_t pid;
-    int rc = posix_spawnp(&pid, "oiiotool", &fa, NULL, argv, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0)
-        return -1;
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return -1;
-    return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
+    const char *argv[] = {"oiiotool", in, "-d", "float", "--compression", "zip", "-o", out, NULL};
+    runner_result r;
+    return runner_exec(argv, 120.0, NULL, &r) == RUNNER_OK ? 0 : -1;
 }
 
 /* Read a DWA-compressed file through an oiiotool conversion; attributes are taken from the

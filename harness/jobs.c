@@ -1,7 +1,9 @@
 #include "jobs.h"
 
 #include <errno.h>
+#include <math.h>
 #include <inttypes.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -137,10 +139,13 @@ typedef struct {
     double timeout;
 } job_ctx;
 
-static void job_fail(job_record *r, runner_status st, const char *fmt, const char *a, const char *b)
+__attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner_status st, const char *fmt, ...)
 {
+    va_list ap;
+    va_start(ap, fmt);
     r->status = st;
-    snprintf(r->message, sizeof r->message, fmt, a, b);
+    vsnprintf(r->message, sizeof r->message, fmt, ap);
+    va_end(ap);
 }
 
 static void job_raster(job_ctx *c, job_record *r)
@@ -155,7 +160,7 @@ static void job_raster(job_ctx *c, job_record *r)
         st = render_scene(c->s, c->m, &env, &ro, &img, err, sizeof err);
     free(pixels);
     if (st != RC_OK) {
-        job_fail(r, RUNNER_FAILED, "%s%s", err, "");
+        job_fail(r, RUNNER_FAILED, "%s", err);
         return;
     }
     exr_channel ch[RENDER_CHANNELS];
@@ -171,64 +176,79 @@ static void job_raster(job_ctx *c, job_record *r)
     r->cpu_s = img.seconds;
     render_image_free(&img);
     if (st != RC_OK)
-        job_fail(r, RUNNER_ERROR, "%s%s", err, "");
+        job_fail(r, RUNNER_ERROR, "%s", err);
     snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
 }
 
-static void job_povray(job_ctx *c, job_record *r)
+/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees).
+ * Returns 0, or -1 with the record's status and message set. */
+static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, const char *tag, float *planes[3])
 {
     char sdl[1100], raw[1100], err[1024];
-    snprintf(sdl, sizeof sdl, "%s/scene.pov", c->dir);
-    snprintf(raw, sizeof raw, "%s/povray-raw.exr", c->dir);
-    povray_options o = {.role = c->j->role, .threads = c->j->threads};
-    /* Half-float EXR overflows at 65504: scale bright scenes down, and undo it after. */
-    o.output_scale = 1.0;
-    rc_status st = povray_write_scene(c->s, c->m, &o, sdl, err, sizeof err);
+    snprintf(sdl, sizeof sdl, "%s/%s.pov", c->dir, tag);
+    snprintf(raw, sizeof raw, "%s/%s-raw.exr", c->dir, tag);
+    rc_status st = povray_write_scene(c->s, c->m, o, sdl, err, sizeof err);
     povray_argv cmd;
     if (st == RC_OK)
-        st = povray_command(&o, sdl, raw, c->s->width, c->s->height, c->s->supersample, &cmd, err, sizeof err);
+        st = povray_command(o, sdl, raw, c->s->width, c->s->height, c->s->supersample, &cmd, err, sizeof err);
     if (st != RC_OK) {
-        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "povray cannot represent this: %s%s", err, "");
-        return;
+        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "povray cannot represent this: %s", err);
+        return -1;
     }
-    povray_command_string(&cmd, c->command, sizeof c->command);
+    if (!o->coverage)
+        povray_command_string(&cmd, c->command, sizeof c->command);
     runner_result rr;
+    unlink(raw);
     runner_exec((const char *const *)cmd.argv, c->timeout, c->log, &rr);
-    r->wall_s = rr.wall_s;
-    r->cpu_s = rr.cpu_s;
+    r->wall_s += rr.wall_s;
+    r->cpu_s += rr.cpu_s;
     if (rr.status != RUNNER_OK) {
-        job_fail(r, rr.status, "povray %s; see %s", runner_status_name(rr.status), c->log);
-        return;
+        job_fail(r, rr.status, "povray %s (%s pass); see %s", runner_status_name(rr.status), tag, c->log);
+        return -1;
     }
     exr_image img;
-    st = exr_read(raw, &img, err, sizeof err);
-    if (st != RC_OK) {
-        job_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s%s", err, "");
-        return;
+    if (exr_read(raw, &img, err, sizeof err) != RC_OK) {
+        job_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s", err);
+        return -1;
     }
     int k = c->s->supersample, w = c->s->width, h = c->s->height;
     const char *names[3] = {"R", "G", "B"};
-    float *planes[3] = {NULL, NULL, NULL};
-    exr_channel ch[3];
     int ok = img.width == k * w && img.height == k * h;
     for (int i = 0; ok && i < 3; i++) {
         const float *src = exr_image_channel(&img, names[i]);
         planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
         ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
         for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
-            planes[i][p] = (float)(planes[i][p] / o.output_scale);
-        ch[i] = (exr_channel){names[i], planes[i]};
+            planes[i][p] = (float)(planes[i][p] / (o->output_scale > 0 ? o->output_scale : 1.0));
     }
     exr_image_free(&img);
-    if (!ok)
-        job_fail(r, RUNNER_FAILED, "povray image %s is not %s the size asked for, or lacks R, G, B", raw, "");
-    else {
-        exr_attr at[] = {{"reflcheck.renderer", c->version}};
-        if (exr_write(c->exr, w, h, ch, 3, at, 1, err, sizeof err) != RC_OK)
-            job_fail(r, RUNNER_ERROR, "%s%s", err, "");
+    if (!ok) {
+        job_fail(r, RUNNER_FAILED, "povray image %s is not the size asked for, or lacks R, G, B", raw);
+        return -1;
     }
-    for (int i = 0; i < 3; i++)
-        free(planes[i]);
+    return 0;
+}
+
+static void job_povray(job_ctx *c, job_record *r)
+{
+    povray_options o = {.role = c->j->role, .threads = c->j->threads};
+    povray_options geo = {.role = c->j->role, .threads = c->j->threads, .coverage = 1};
+    float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL};
+    if (job_povray_pass(c, r, &o, "scene", rgb) == 0 && job_povray_pass(c, r, &geo, "coverage", cov) == 0) {
+        /* Coverage pass: R is the covered share, G/R the object index + 1 (box-filtered). */
+        size_t np = (size_t)c->s->width * (size_t)c->s->height;
+        for (size_t p = 0; p < np; p++)
+            cov[1][p] = cov[0][p] > 0.5f ? floorf(cov[1][p] / cov[0][p] + 0.5f) - 1.0f : -1.0f;
+        exr_channel ch[5] = {{"R", rgb[0]}, {"G", rgb[1]}, {"B", rgb[2]}, {"coverage", cov[0]}, {"object", cov[1]}};
+        exr_attr at[] = {{"reflcheck.renderer", c->version}};
+        char err[1024];
+        if (exr_write(c->exr, c->s->width, c->s->height, ch, 5, at, 1, err, sizeof err) != RC_OK)
+            job_fail(r, RUNNER_ERROR, "%s", err);
+    }
+    for (int i = 0; i < 3; i++) {
+        free(rgb[i]);
+        free(cov[i]);
+    }
 }
 
 static void job_cycles(job_ctx *c, job_record *r)
@@ -242,7 +262,7 @@ static void job_cycles(job_ctx *c, job_record *r)
     if (st == RC_OK)
         st = cycles_command(&o, job, c->exr, &a, err, sizeof err);
     if (st != RC_OK) {
-        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "cycles cannot represent this: %s%s", err, "");
+        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "cycles cannot represent this: %s", err);
         return;
     }
     size_t used = 0;
@@ -257,7 +277,7 @@ static void job_cycles(job_ctx *c, job_record *r)
         return;
     }
     if (cycles_collect(&o, c->exr, err, sizeof err) != RC_OK)
-        job_fail(r, RUNNER_FAILED, "cycles output unreadable: %s%s", err, "");
+        job_fail(r, RUNNER_FAILED, "cycles output unreadable: %s", err);
 }
 
 /* Writes a cJSON document to path through a temporary file and a rename. */

@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "exr.h"
+#include "runner.h"
 
 #define POVRAY_PI 3.14159265358979323846
 
@@ -474,8 +475,9 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         }
     }
 
+    int coverage = o != NULL && o->coverage;
     povray_light lights[SCENE_MAX_LIGHTS];
-    for (int i = 0; i < s->n_lights; i++)
+    for (int i = 0; i < s->n_lights && !coverage; i++)
         if ((st = povray_light_convert(s, m, i, &r, &lights[i], err, errlen)) != RC_OK)
             return st;
 
@@ -484,7 +486,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     for (int t = 0; t < m->n_tris; t++)
         used[s->objects[m->tri_object[t]].material] = 1;
     for (int mi = 0; mi < s->n_materials; mi++) {
-        if (!used[mi])
+        if (!used[mi] || coverage)
             continue;
         st = r.validate ? povray_material_physical(s, mi, &r, &fin[mi], err, errlen)
                         : povray_material_twin(s, mi, lights, &r, &fin[mi], err, errlen);
@@ -492,7 +494,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             return st;
     }
 
-    int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION);
+    int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
     if (with_env && s->env.kind == ENV_IMAGE &&
         (st = povray_check_path(s->env.path, "environment", err, errlen)) != RC_OK)
         return st;
@@ -546,7 +548,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     dvec3 bc;
     double br;
     povray_mesh_bounds(m, &bc, &br);
-    for (int i = 0; i < s->n_lights; i++) {
+    for (int i = 0; i < s->n_lights && !coverage; i++) {
         const light *l = &s->lights[i];
         const povray_light *pl = &lights[i];
         if (pl->skip) {
@@ -620,7 +622,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                     remap[m->idx[3 * t + 2]]);
         }
         fprintf(fp, "\n  }\n");
-        povray_write_finish(fp, &fin[s->objects[ob].material]);
+        if (coverage)
+            fprintf(fp, "  texture {\n    pigment { color rgb <1, %d, 0> }\n    finish { ambient 0 diffuse 0 "
+                        "specular 0 phong 0 reflection 0 emission 1 }\n  }\n", ob + 1);
+        else
+            povray_write_finish(fp, &fin[s->objects[ob].material]);
         fprintf(fp, "  no_shadow\n  no_reflection\n}\n\n");
     }
     free(remap);
@@ -761,44 +767,17 @@ rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *second
         povray_err(err, errlen, "%s: cannot remove the old image: %s", exr_out, strerror(errno));
         return RC_ERR_IO;
     }
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0) {
-        povray_err(err, errlen, "povray_run: fork failed: %s", strerror(errno));
-        return RC_ERR_RENDERER;
-    }
-    if (pid == 0) {
-        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        if (fd >= 0) {
-            dup2(fd, 1);
-            dup2(fd, 2);
-            close(fd);
-        }
-        execvp(cmd->argv[0], cmd->argv);
-        dprintf(2, "povray_run: exec %s failed: %s\n", cmd->argv[0], strerror(errno));
-        _exit(127);
-    }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0) {
-        if (errno != EINTR) {
-            povray_err(err, errlen, "povray_run: waitpid failed: %s", strerror(errno));
-            return RC_ERR_RENDERER;
-        }
-    }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
+    runner_result rr;
+    runner_exec((const char *const *)cmd->argv, 0.0, log, &rr);
     if (seconds)
-        *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+        *seconds = rr.wall_s;
     struct stat sb;
-    int ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(exr_out, &sb) == 0;
+    int ok = rr.status == RUNNER_OK && stat(exr_out, &sb) == 0;
     if (!ok) {
         char line[300];
         povray_log_error(log, line, sizeof line);
-        povray_err(err, errlen, "%s: POV-Ray failed (%s %d)%s%s; see %s", cmd->argv[1] + 2,
-                   WIFEXITED(status) ? "exit status" : "signal",
-                   WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status),
-                   line[0] ? ": " : "", line, log);
+        povray_err(err, errlen, "%s: POV-Ray %s (exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
+                   runner_status_name(rr.status), rr.exit_code, rr.signal, line[0] ? ": " : "", line, log);
         return RC_ERR_RENDERER;
     }
     return RC_OK;

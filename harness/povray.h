@@ -63,6 +63,9 @@ typedef struct {
     double fade_ratio;      /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
     double output_scale;    /* multiplies every radiance source; 0 = 1 */
     const char *povray;     /* executable, NULL = "povray" (found on PATH) */
+    int coverage;           /* nonzero: a geometry pass instead: no lights, black background,
+                               every object emits rgb <1, object index + 1, 0>, so the box-
+                               filtered R is coverage and G/R the object index + 1 */
 } povray_options;
 
 /* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the
