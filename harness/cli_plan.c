@@ -1,6 +1,7 @@
 /* reflcheck plan: the render jobs the scenes' comparisons need, as a Makefile, so that
  * `make -j` runs them in parallel and each scene renders only the renderers and roles its
- * comparisons list (agree comparisons use the physical, validate renders). */
+ * comparisons list. Each role has its own renders: twin switches our Cook-Torrance to Smith
+ * G and F = 1, agree sets both references up the one way both can represent. */
 #include <getopt.h>
 #include <stdio.h>
 #include <string.h>
@@ -47,16 +48,16 @@ int cli_plan(int argc, char **argv)
             fprintf(stderr, "reflcheck: %s\n", err);
             return cli_exit_status(st) == CLI_OK ? CLI_FAILED : CLI_BAD_INPUT;
         }
-        unsigned char need[RENDERER_COUNT][2] = {{0}};
+        unsigned char need[RENDERER_COUNT][3] = {{0}};
         for (int k = 0; k < s.n_comparisons; k++) {
             const comparison *cp = &s.comparisons[k];
-            int role = cp->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE;
+            int role = cp->role;
             need[cp->test][role] = need[cp->reference][role] = 1;
             /* Masks (surface, edges) come from the rasterizer's coverage and object layers. */
             need[RENDERER_RASTER][role] = 1;
         }
         for (int r = 0; r < RENDERER_COUNT; r++)
-            for (int role = 0; role < 2; role++) {
+            for (int role = 0; role < 3; role++) {
                 if (!need[r][role])
                     continue;
                 char target[1024];

@@ -395,7 +395,7 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
     exr_image raster = {0};
     int have_raster = 0;
     for (int r = 0; r < RENDERER_COUNT; r++)
-        for (int role = ROLE_TWIN; role <= ROLE_VALIDATE; role++) {
+        for (int role = ROLE_TWIN; role <= ROLE_AGREE; role++) {
             char exr[1024], e[256];
             job_output_path(run, s->name, (renderer_id)r, (comparison_role)role, "exr", exr, sizeof exr);
             exr_image img;
@@ -446,13 +446,11 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
     return RC_OK;
 }
 
-/* The comparison's renders: agree compares two references' physical (validate) renders. */
-static comparison_role compare_render_role(comparison_role r) { return r == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE; }
 
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
-    comparison_role rr = compare_render_role(c->role);
+    comparison_role rr = c->role;
     snprintf(id, sizeof id, "%s-vs-%s-%s", job_renderer_names[c->test], job_renderer_names[c->reference],
              job_role_names[c->role]);
     cJSON *o = cJSON_CreateObject();

@@ -1,0 +1,894 @@
+/* cycles.c - the Cycles job file, the blender command line, and the collected EXR. */
+/* realpath */
+#define _XOPEN_SOURCE 700
+
+#include "cycles.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../model/d3d9client.h"
+#include "exr.h"
+#include "runner.h"
+
+#define CYCLES_PI 3.14159265358979323846
+
+static void cycles_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    if (err == NULL || errlen == 0) return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+/* ------------------------------------------------------------------ JSON writing */
+
+typedef struct {
+    FILE *fp;
+    int bad;            /* a non-finite number was asked for: JSON cannot hold it */
+    const char *bad_key;
+} jw;
+
+static void jw_num(jw *w, const char *key, double x)
+{
+    if (!isfinite(x)) {
+        if (!w->bad) w->bad_key = key;
+        w->bad = 1;
+        x = 0.0;
+    }
+    fprintf(w->fp, "%.9g", x);
+}
+
+static void jw_vec(jw *w, const char *key, vec3 v)
+{
+    fputc('[', w->fp);
+    jw_num(w, key, v.x);
+    fputs(", ", w->fp);
+    jw_num(w, key, v.y);
+    fputs(", ", w->fp);
+    jw_num(w, key, v.z);
+    fputc(']', w->fp);
+}
+
+static void jw_str(jw *w, const char *s)
+{
+    fputc('"', w->fp);
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(w->fp, "\\%c", *p);
+        else if (*p < 0x20)
+            fprintf(w->fp, "\\u%04x", *p);
+        else
+            fputc(*p, w->fp);
+    }
+    fputc('"', w->fp);
+}
+
+/* ------------------------------------------------------------------ translation checks */
+
+static int cycles_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
+
+static int cycles_finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+
+typedef struct {
+    const scene *s;
+    const mesh *m;
+    const cycles_options *o;
+    int twin;                 /* twin or agree-as-twin translation */
+    int agree;
+    char missing[8][160];     /* terms left out under options.partial */
+    int n_missing;
+    char *err;
+    size_t errlen;
+} cycles_ctx;
+
+/* A term Cycles cannot reproduce: an error, or (options.partial) a note in the job. */
+static rc_status cycles_cannot(cycles_ctx *c, const char *what, const char *fix)
+{
+    if (!c->o->partial) {
+        cycles_err(c->err, c->errlen, "%s: %s; %s, or render with cycles partial terms", c->s->path, what, fix);
+        return RC_ERR_RANGE;
+    }
+    if (c->n_missing < (int)(sizeof c->missing / sizeof c->missing[0]))
+        snprintf(c->missing[c->n_missing++], sizeof c->missing[0], "%s", what);
+    return RC_OK;
+}
+
+static int cycles_material_used(const scene *s, int mi)
+{
+    for (int i = 0; i < s->n_objects; i++)
+        if (s->objects[i].material == mi) return 1;
+    return 0;
+}
+
+/* Largest distance from p to any mesh vertex: decides whether a light's range cuts the geometry. */
+static double cycles_max_dist(const mesh *m, vec3 p)
+{
+    double d = 0.0;
+    for (int i = 0; i < m->n_verts; i++)
+        d = fmax(d, dv3_len(dv3_sub(dv3_from(m->pos[i]), dv3_from(p))));
+    return d;
+}
+
+static rc_status cycles_check_light(cycles_ctx *c, int i)
+{
+    const light *l = &c->s->lights[i];
+    if (!cycles_finite3(l->intensity) || l->intensity.x < 0.0f || l->intensity.y < 0.0f || l->intensity.z < 0.0f) {
+        cycles_err(c->err, c->errlen, "%s: lights[%d]: intensity must be finite and >= 0", c->s->path, i);
+        return RC_ERR_RANGE;
+    }
+    if (l->kind == LIGHT_SUN) return RC_OK;
+    if (l->a0 != 0.0f || l->a1 != 0.0f || !(l->a2 > 0.0f)) {
+        cycles_err(c->err, c->errlen,
+                   "%s: lights[%d]: Cycles lights fall off as 1/d^2 only (a0 = %g, a1 = %g, a2 = %g); "
+                   "set a0 = a1 = 0 and a2 > 0 for a Cycles comparison", c->s->path, i,
+                   (double)l->a0, (double)l->a1, (double)l->a2);
+        return RC_ERR_RANGE;
+    }
+    if (isfinite(l->range) && (double)l->range < cycles_max_dist(c->m, l->position)) {
+        cycles_err(c->err, c->errlen,
+                   "%s: lights[%d]: range %g cuts through the geometry and Cycles lights have no range; "
+                   "raise the range beyond %g or remove it", c->s->path, i, (double)l->range,
+                   cycles_max_dist(c->m, l->position));
+        return RC_ERR_RANGE;
+    }
+    if (l->kind == LIGHT_SPOT) {
+        if (l->profile != SPOT_SMOOTH) {
+            cycles_err(c->err, c->errlen,
+                       "%s: lights[%d]: the D3D spot power law has no Cycles equivalent; use profile smooth",
+                       c->s->path, i);
+            return RC_ERR_RANGE;
+        }
+        if (!(l->outer > 0.0f && l->outer <= (float)CYCLES_PI && l->inner >= 0.0f && l->inner <= l->outer)) {
+            cycles_err(c->err, c->errlen,
+                       "%s: lights[%d]: spot cones need 0 <= inner <= outer <= 180 degrees, outer > 0", c->s->path, i);
+            return RC_ERR_RANGE;
+        }
+    }
+    return RC_OK;
+}
+
+/* ------------------------------------------------------------------ job sections */
+
+static void cycles_write_light(jw *w, const light *l)
+{
+    /* Cycles takes a scalar power times a colour; the colour carries the RGB ratio. */
+    float mx = v3_max_comp(l->intensity);
+    vec3 col = mx > 0.0f ? v3_scale(l->intensity, 1.0f / mx) : v3s(1.0f);
+    /* 1/(a2 d^2) is pure inverse square with intensity I/a2. */
+    double inv_a2 = l->kind == LIGHT_SUN ? 1.0 : 1.0 / (double)l->a2;
+    FILE *fp = w->fp;
+    fputs("    {\"type\": ", fp);
+    if (l->kind == LIGHT_SUN) {
+        /* Sun strength is irradiance at normal incidence. */
+        jw_str(w, "SUN");
+        fputs(", \"energy\": ", fp);
+        jw_num(w, "lights.energy", mx);
+    } else {
+        /* Point energy P [W] radiates P / (4 pi) W/sr; spots keep the point's intensity. */
+        jw_str(w, l->kind == LIGHT_SPOT ? "SPOT" : "POINT");
+        fputs(", \"energy\": ", fp);
+        jw_num(w, "lights.energy", 4.0 * CYCLES_PI * (double)mx * inv_a2);
+        fputs(", \"position\": ", fp);
+        jw_vec(w, "lights.position", l->position);
+    }
+    fputs(", \"color\": ", fp);
+    jw_vec(w, "lights.color", col);
+    if (l->kind != LIGHT_POINT) {
+        fputs(", \"direction\": ", fp);
+        jw_vec(w, "lights.direction", v3_norm(l->direction));
+    }
+    if (l->kind == LIGHT_SPOT) {
+        /* Cycles: cos * smoothstep from cos(size/2) over (1 - cos(size/2)) * blend, which is
+         * POV-Ray's radius/falloff pair with half angles inner/2, outer/2 (CONVENTIONS.md). */
+        double cf = cos(0.5 * (double)l->outer), cr = cos(0.5 * (double)l->inner);
+        fputs(", \"spot_size\": ", fp);
+        jw_num(w, "lights.spot_size", l->outer);
+        fputs(", \"spot_blend\": ", fp);
+        jw_num(w, "lights.spot_blend", cf < 1.0 ? (cr - cf) / (1.0 - cf) : 0.0);
+    }
+    fputs("}", fp);
+}
+
+static void cycles_write_fresnel_of(jw *w, const material *mat)
+{
+    FILE *fp = w->fp;
+    if (mat->conductor) {
+        fputs("{\"kind\": \"conductor\", \"eta\": ", fp);
+        jw_vec(w, "materials.eta", mat->eta);
+        fputs(", \"k\": ", fp);
+        jw_vec(w, "materials.k", mat->k);
+        fputs("}", fp);
+    } else {
+        fputs("{\"kind\": \"dielectric\", \"ior\": ", fp);
+        jw_num(w, "materials.ior", mat->ior);
+        fputs("}", fp);
+    }
+}
+
+/* The main light of D3D9Client eq. (8), as the rasterizer picks it: the first sun, else the first light. */
+static const light *cycles_main_light(const scene *s)
+{
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == LIGHT_SUN) return &s->lights[i];
+    return s->n_lights > 0 ? &s->lights[0] : NULL;
+}
+
+typedef struct {
+    int mirror;       /* a SHARP glossy closure that must see the environment */
+    int glossy;       /* a Beckmann closure lit by the lamps */
+} cycles_usage;
+
+static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usage *u)
+{
+    const scene *s = c->s;
+    const material *mat = &s->materials[mi];
+    int has_env = s->env.kind != ENV_NONE;
+    int used = cycles_material_used(s, mi);
+    FILE *fp = w->fp;
+    char what[160];
+    rc_status rc = RC_OK;
+
+    fputs("    {\"name\": ", fp);
+    jw_str(w, mat->name);
+
+    if (!c->twin) {
+        /* Physical intent (validate): a dielectric coating over Lambert, or a bare conductor. */
+        if (!(mat->roughness > 0.0f && mat->roughness <= 1.0f) && used) {
+            cycles_err(c->err, c->errlen,
+                       "%s: materials[%d] '%s': roughness %g outside (0, 1]; Cycles clamps Beckmann alpha "
+                       "to 1, so use a roughness in (0, 1]", s->path, mi, mat->name, (double)mat->roughness);
+            return RC_ERR_RANGE;
+        }
+        if (!mat->conductor) {
+            fputs(", \"diffuse\": {\"color\": ", fp);
+            jw_vec(w, "materials.albedo", mat->albedo);
+            fputs(", \"fresnel_ior\": ", fp);
+            jw_num(w, "materials.ior", mat->ior);
+            fputs("}", fp);
+        }
+        fputs(", \"glossy\": {\"roughness\": ", fp);
+        jw_num(w, "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
+        fputs(", \"color\": [1, 1, 1], \"fresnel\": ", fp);
+        cycles_write_fresnel_of(w, mat);
+        fputs("}", fp);
+        if (cycles_nonzero(mat->d3d.emissive)) {
+            fputs(", \"emission\": ", fp);
+            jw_vec(w, "materials.emissive", mat->d3d.emissive);
+        }
+        fputs("}", fp);
+        u->glossy |= used;
+        return RC_OK;
+    }
+
+    if (c->agree) {
+        /* What POV-Ray's validate/agree scene holds: Lambert albedo plus an exact-Fresnel mirror
+         * of the environment (no highlight of the lamps, no diffuse environment light). */
+        fputs(", \"diffuse\": {\"color\": ", fp);
+        jw_vec(w, "materials.albedo", mat->conductor ? v3s(0.0f) : mat->albedo);
+        fputs("}", fp);
+        if (has_env) {
+            fputs(", \"mirror\": ", fp);
+            cycles_write_fresnel_of(w, mat);
+            u->mirror |= used;
+        }
+        if (cycles_nonzero(mat->d3d.emissive)) {
+            fputs(", \"emission\": ", fp);
+            jw_vec(w, "materials.emissive", mat->d3d.emissive);
+        }
+        fputs("}", fp);
+        return RC_OK;
+    }
+
+    /* Twin: the rasterizer's own terms (CONTRACT.md). */
+    const d3d_params *d = &mat->d3d;
+    if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT)) {
+        int amb_light = 0;
+        for (int i = 0; i < s->n_lights; i++) amb_light |= cycles_nonzero(s->lights[i].ambient);
+        if (cycles_nonzero(d->specular)) {
+            snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi,
+                     mat->name);
+            if ((rc = cycles_cannot(c, what, "set the d3d specular colour to 0")) != RC_OK) return rc;
+        }
+        if (cycles_nonzero(d->ambient) && (amb_light || cycles_nonzero(s->global_ambient))) {
+            snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
+                     mat->name);
+            if ((rc = cycles_cannot(c, what, "set the material ambient to 0")) != RC_OK) return rc;
+        }
+        if (d->per_vertex) {
+            snprintf(what, sizeof what, "materials[%d] '%s': Gouraud (per-vertex) shading", mi, mat->name);
+            if ((rc = cycles_cannot(c, what, "shade per pixel")) != RC_OK) return rc;
+        }
+        if (d->clamp) {
+            snprintf(what, sizeof what, "materials[%d] '%s': D3D clamping to [0, 1]", mi, mat->name);
+            if ((rc = cycles_cannot(c, what, "turn clamp off")) != RC_OK) return rc;
+        }
+    }
+
+    switch (mat->model) {
+    case MODEL_D3D:
+        fputs(", \"diffuse\": {\"color\": ", fp);
+        jw_vec(w, "materials.d3d.diffuse", d->diffuse);
+        fputs("}", fp);
+        break;
+    case MODEL_D3D9CLIENT: {
+        const d3d9client_params *p = &mat->d9;
+        /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
+        float weight = 1.0f - d3d9_colour_norm(p->reflect, p->norm);
+        fputs(", \"diffuse\": {\"color\": ", fp);
+        jw_vec(w, "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
+        if (p->sun_angle) {
+            const light *ml = cycles_main_light(s);
+            if (ml != NULL && ml->kind != LIGHT_SUN && used) {
+                snprintf(what, sizeof what,
+                         "materials[%d] '%s': eq. (8) with a point or spot main light (position-dependent)", mi,
+                         mat->name);
+                if ((rc = cycles_cannot(c, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
+                    return rc;
+            } else if (ml != NULL) {
+                fputs(", \"sun_angle\": {\"to_sun\": ", fp);
+                jw_vec(w, "lights.direction", v3_neg(v3_norm(ml->direction)));
+                fputs(", \"r0\": ", fp);
+                jw_num(w, "materials.d9.r0", p->r0);
+                fputs(", \"m\": ", fp);
+                jw_num(w, "materials.d9.m", p->m);
+                fputs(", \"p\": ", fp);
+                jw_num(w, "materials.d9.p", p->p);
+                fputs("}", fp);
+            }
+        }
+        fputs("}", fp);
+        if (has_env) {
+            fputs(", \"mirror\": {\"kind\": \"d3d9client\", \"lambda\": ", fp);
+            jw_vec(w, "materials.d9.reflect", p->reflect);
+            fputs(", \"s\": ", fp);
+            jw_vec(w, "materials.d9.fresnel_colour", p->fresnel_colour);
+            fputs(", \"r0\": ", fp);
+            jw_num(w, "materials.d9.r0", p->r0);
+            fputs(", \"m\": ", fp);
+            jw_num(w, "materials.d9.m", p->m);
+            fputs(", \"p\": ", fp);
+            jw_num(w, "materials.d9.p", p->p);
+            fputs("}", fp);
+            u->mirror |= used;
+        }
+        break;
+    }
+    case MODEL_COOK_TORRANCE: {
+        const ct_params *p = &mat->ct;
+        fputs(", \"diffuse\": {\"color\": ", fp);
+        jw_vec(w, "materials.albedo", mat->albedo);
+        fputs("}", fp);
+        int lobe = cycles_nonzero(p->ks);
+        if (lobe && used && (p->g != G_SMITH_WALTER || p->f != F_ONE || p->norm != CT_WALTER)) {
+            snprintf(what, sizeof what,
+                     "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
+                     mat->name);
+            if ((rc = cycles_cannot(c, what, "set ct g smith_walter, f one, norm walter")) != RC_OK) return rc;
+            lobe = 0;
+        }
+        if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
+            cycles_err(c->err, c->errlen,
+                       "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
+                       "so use m in (0, 1]", s->path, mi, mat->name, (double)p->m);
+            return RC_ERR_RANGE;
+        }
+        if (lobe) {
+            /* Cycles: alpha = Roughness^2 and alpha is Beckmann's m. */
+            fputs(", \"glossy\": {\"roughness\": ", fp);
+            jw_num(w, "materials.ct.m", sqrt((double)p->m));
+            fputs(", \"color\": ", fp);
+            jw_vec(w, "materials.ct.ks", p->ks);
+            fputs("}", fp);
+            u->glossy |= used;
+        }
+        if (p->reflection && has_env) {
+            /* env(reflect(-V, N)) * Fr(N.V), Fr as cooktorrance_reflection_weight picks it. */
+            fputs(", \"reflection_lookup\": {\"fresnel\": ", fp);
+            if (p->f == F_ONE) {
+                fputs("{\"kind\": \"one\"}", fp);
+            } else if (p->f == F_EXACT) {
+                cycles_write_fresnel_of(w, mat);
+            } else {
+                fputs("{\"kind\": \"schlick\", \"f0\": ", fp);
+                jw_vec(w, "materials.ct.f0", p->f0);
+                fputs("}", fp);
+            }
+            fputs("}", fp);
+        }
+        break;
+    }
+    }
+    if (cycles_nonzero(d->emissive)) {
+        fputs(", \"emission\": ", fp);
+        jw_vec(w, "materials.d3d.emissive", d->emissive);
+    }
+    fputs("}", fp);
+    return RC_OK;
+}
+
+static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *remap)
+{
+    FILE *fp = w->fp;
+    int first_obj = 1;
+    for (int oi = 0; oi < s->n_objects; oi++) {
+        int n_tris = 0, n_verts = 0;
+        for (int t = 0; t < m->n_tris; t++) {
+            if (m->tri_object[t] != oi) continue;
+            n_tris++;
+            for (int k = 0; k < 3; k++) {
+                uint32_t v = m->idx[3 * t + k];
+                if (remap[v] < 0) remap[v] = n_verts++;
+            }
+        }
+        if (n_tris == 0) continue;
+        /* Object-local vertex order: the order of first use, so the list can be written in one pass. */
+        int *order = remap + m->n_verts;
+        for (int v = 0; v < m->n_verts; v++)
+            if (remap[v] >= 0) order[remap[v]] = v;
+        fprintf(fp, "%s    {\"name\": ", first_obj ? "" : ",\n");
+        first_obj = 0;
+        char name[32];
+        snprintf(name, sizeof name, "object_%d", oi);
+        jw_str(w, name);
+        fprintf(fp, ", \"material\": %d, \"pass_index\": %d,\n     \"verts\": [", s->objects[oi].material, oi + 1);
+        for (int i = 0; i < n_verts; i++) {
+            vec3 p = m->pos[order[i]];
+            fputs(i ? ", " : "", fp);
+            jw_num(w, "mesh.pos", p.x);
+            fputs(", ", fp);
+            jw_num(w, "mesh.pos", p.y);
+            fputs(", ", fp);
+            jw_num(w, "mesh.pos", p.z);
+        }
+        fputs("],\n     \"normals\": [", fp);
+        for (int i = 0; i < n_verts; i++) {
+            vec3 n = m->nrm[order[i]];
+            fputs(i ? ", " : "", fp);
+            jw_num(w, "mesh.nrm", n.x);
+            fputs(", ", fp);
+            jw_num(w, "mesh.nrm", n.y);
+            fputs(", ", fp);
+            jw_num(w, "mesh.nrm", n.z);
+        }
+        fputs("],\n     \"tris\": [", fp);
+        int first = 1;
+        for (int t = 0; t < m->n_tris; t++) {
+            if (m->tri_object[t] != oi) continue;
+            fprintf(fp, "%s%d, %d, %d", first ? "" : ", ", remap[m->idx[3 * t]], remap[m->idx[3 * t + 1]],
+                    remap[m->idx[3 * t + 2]]);
+            first = 0;
+        }
+        fputs("]}", fp);
+        for (int i = 0; i < n_verts; i++) remap[order[i]] = -1;
+    }
+    fputs("\n", fp);
+}
+
+rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path,
+                           char *err, size_t errlen)
+{
+    cycles_options defaults = {0};
+    if (o == NULL) o = &defaults;
+    cycles_ctx c = {.s = s, .m = m, .o = o, .err = err, .errlen = errlen};
+    c.agree = o->role == ROLE_AGREE;
+    c.twin = o->role == ROLE_TWIN || c.agree;
+    if (o->role != ROLE_TWIN && o->role != ROLE_VALIDATE && o->role != ROLE_AGREE) {
+        cycles_err(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
+        return RC_ERR_RANGE;
+    }
+    int width = o->width > 0 ? o->width : s->width;
+    int height = o->height > 0 ? o->height : s->height;
+    int samples = o->samples > 0 ? o->samples : s->samples;
+    int n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
+    /* Blender refuses images smaller than 4 pixels (CONVENTIONS.md). */
+    if (width < 4 || height < 4 || width > 65536 || height > 65536) {
+        cycles_err(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
+                   s->path, width, height);
+        return RC_ERR_RANGE;
+    }
+    if (samples < 1 || n_seeds > 64) {
+        cycles_err(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path, samples,
+                   n_seeds);
+        return RC_ERR_RANGE;
+    }
+    if (m->n_tris > 0 && (m->tri_object == NULL || m->idx == NULL || m->pos == NULL || m->nrm == NULL)) {
+        cycles_err(err, errlen, "%s: mesh arrays missing; build the mesh with mesh_build", s->path);
+        return RC_ERR_RANGE;
+    }
+    for (int t = 0; t < m->n_tris; t++) {
+        if (m->tri_object[t] < 0 || m->tri_object[t] >= s->n_objects) {
+            cycles_err(err, errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path, t,
+                       m->tri_object[t], s->n_objects);
+            return RC_ERR_RANGE;
+        }
+        for (int k = 0; k < 3; k++)
+            if (m->idx[3 * t + k] >= (uint32_t)m->n_verts) {
+                cycles_err(err, errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path, t,
+                           m->idx[3 * t + k], m->n_verts);
+                return RC_ERR_RANGE;
+            }
+    }
+    rc_status rc;
+    for (int i = 0; i < s->n_lights; i++)
+        if ((rc = cycles_check_light(&c, i)) != RC_OK) return rc;
+    if (c.twin && !c.agree) {
+        char what[160];
+        for (int i = 0; i < s->n_lights; i++) {
+            int any_va = 0;
+            for (int mi = 0; mi < s->n_materials; mi++)
+                any_va |= cycles_material_used(s, mi) && s->materials[mi].model != MODEL_COOK_TORRANCE &&
+                          cycles_nonzero(s->materials[mi].d3d.ambient);
+            if (cycles_nonzero(s->lights[i].ambient) && any_va) {
+                snprintf(what, sizeof what, "lights[%d]: D3D light ambient La", i);
+                if ((rc = cycles_cannot(&c, what, "set the light ambient to 0")) != RC_OK) return rc;
+            }
+        }
+    }
+
+    char env_path[PATH_MAX] = "";
+    if (s->env.kind == ENV_IMAGE) {
+        /* Blender resolves relative paths against its own idea of the .blend directory. */
+        if (realpath(s->env.path, env_path) == NULL) {
+            cycles_err(err, errlen, "%s: environment '%s': %s; check the path (relative to the working directory)",
+                       s->path, s->env.path, strerror(errno));
+            return RC_ERR_IO;
+        }
+    }
+
+    FILE *fp = fopen(job_json_path, "w");
+    if (fp == NULL) {
+        cycles_err(err, errlen, "%s: cannot write the Cycles job: %s; check the output directory", job_json_path,
+                   strerror(errno));
+        return RC_ERR_IO;
+    }
+    jw w = {.fp = fp};
+    fputs("{\"format\": \"reflcheck-cycles-job\", \"version\": 1,\n \"scene\": ", fp);
+    jw_str(&w, s->name);
+    fputs(", \"scene_path\": ", fp);
+    jw_str(&w, s->path);
+    fprintf(fp, ", \"scene_hash\": \"%016llx\",\n \"role\": \"%s\", \"width\": %d, \"height\": %d, \"samples\": %d,",
+            (unsigned long long)s->hash, c.agree ? "agree" : (c.twin ? "twin" : "validate"), width, height, samples);
+    fputs(" \"seeds\": [", fp);
+    for (int i = 0; i < n_seeds; i++) fprintf(fp, "%s%u", i ? ", " : "", o->seed + (unsigned)i);
+    fputs("],\n", fp);
+
+    /* Camera rays start at clip_start: keep it far below any scene distance. */
+    double far = cycles_max_dist(m, s->camera.eye);
+    fputs(" \"camera\": {\"eye\": ", fp);
+    jw_vec(&w, "camera.eye", s->camera.eye);
+    fputs(", \"target\": ", fp);
+    jw_vec(&w, "camera.target", s->camera.target);
+    fputs(", \"up\": ", fp);
+    jw_vec(&w, "camera.up", s->camera.up);
+    fputs(", \"hfov\": ", fp);
+    jw_num(&w, "camera.hfov", s->camera.hfov);
+    fputs(", \"clip_start\": ", fp);
+    jw_num(&w, "camera.clip_start", fmax(1e-6, 1e-5 * far));
+    fputs(", \"clip_end\": ", fp);
+    jw_num(&w, "camera.clip_end", fmax(1.0, 4.0 * far));
+    fputs("},\n \"lights\": [\n", fp);
+    for (int i = 0; i < s->n_lights; i++) {
+        cycles_write_light(&w, &s->lights[i]);
+        fputs(i + 1 < s->n_lights ? ",\n" : "\n", fp);
+    }
+    fputs(" ],\n \"environment\": ", fp);
+    switch (s->env.kind) {
+    case ENV_NONE:
+        fputs("{\"type\": \"none\"}", fp);
+        break;
+    case ENV_CONSTANT:
+        fputs("{\"type\": \"constant\", \"radiance\": ", fp);
+        jw_vec(&w, "environment.radiance", s->env.radiance);
+        fputs("}", fp);
+        break;
+    case ENV_IMAGE:
+        fputs("{\"type\": \"image\", \"path\": ", fp);
+        jw_str(&w, env_path);
+        fputs(", \"scale\": ", fp);
+        jw_vec(&w, "environment.radiance", s->env.radiance);
+        fputs("}", fp);
+        break;
+    }
+    fputs(",\n \"materials\": [\n", fp);
+    cycles_usage u = {0};
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        if ((rc = cycles_write_material(&c, &w, mi, &u)) != RC_OK) {
+            fclose(fp);
+            remove(job_json_path);
+            return rc;
+        }
+        fputs(mi + 1 < s->n_materials ? ",\n" : "\n", fp);
+    }
+    fputs(" ],\n", fp);
+
+    /* Glossy passes hold every glossy closure: they can be routed to one AOV only. A Beckmann
+     * lobe also sees the environment whenever a mirror needs the world visible to glossy rays. */
+    if (c.twin && !c.agree && u.mirror && u.glossy) {
+        fclose(fp);
+        remove(job_json_path);
+        cycles_err(err, errlen,
+                   "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
+                   "(reflection) under one environment; put them in separate scenes", s->path);
+        return RC_ERR_RANGE;
+    }
+    int world_diffuse = !c.twin, world_glossy = !c.twin || u.mirror;
+    /* Light-sampling the world only helps closures that sample lights: diffuse and Beckmann,
+     * not a mirror. Skipping it saves the importance map (~1.7 s for a 1024 x 512 image). */
+    int world_sampled = s->env.kind != ENV_NONE && (world_diffuse || (world_glossy && u.glossy));
+    fprintf(fp,
+            " \"world_visibility\": {\"diffuse\": %s, \"glossy\": %s, \"light_sampling\": %s},\n"
+            " \"glossy_aov\": \"%s\",\n",
+            world_diffuse ? "true" : "false", world_glossy ? "true" : "false", world_sampled ? "true" : "false",
+            u.mirror ? "reflection" : "specular");
+    fputs(" \"missing\": [", fp);
+    for (int i = 0; i < c.n_missing; i++) {
+        fputs(i ? ", " : "", fp);
+        jw_str(&w, c.missing[i]);
+    }
+    fputs("],\n \"objects\": [\n", fp);
+    int *remap = malloc(sizeof(int) * 2 * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
+    if (remap == NULL) {
+        fclose(fp);
+        remove(job_json_path);
+        cycles_err(err, errlen, "%s: out of memory for the vertex map", job_json_path);
+        return RC_ERR_NOMEM;
+    }
+    for (int i = 0; i < m->n_verts; i++) remap[i] = -1;
+    cycles_write_objects(&w, s, m, remap);
+    free(remap);
+    fputs(" ]\n}\n", fp);
+    int werr = ferror(fp);
+    if (fclose(fp) != 0 || werr) {
+        remove(job_json_path);
+        cycles_err(err, errlen, "%s: write failed; check disk space", job_json_path);
+        return RC_ERR_IO;
+    }
+    if (w.bad) {
+        remove(job_json_path);
+        cycles_err(err, errlen, "%s: %s is NaN or infinite; fix the scene value", s->path, w.bad_key);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+/* ------------------------------------------------------------------ running */
+
+static const char *cycles_put(cycles_argv *a, size_t *used, const char *s)
+{
+    size_t n = strlen(s) + 1;
+    if (*used + n > sizeof a->buf || a->argc >= CYCLES_ARGV_MAX) return NULL;
+    char *p = a->buf + *used;
+    memcpy(p, s, n);
+    *used += n;
+    a->argv[a->argc++] = p;
+    a->argv[a->argc] = NULL;
+    return p;
+}
+
+rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path,
+                         cycles_argv *out, char *err, size_t errlen)
+{
+    cycles_options defaults = {0};
+    if (o == NULL) o = &defaults;
+    size_t used = 0;
+    out->argc = 0;
+    out->argv[0] = NULL;
+    char threads[32];
+    snprintf(threads, sizeof threads, "%d", o->threads > 0 ? o->threads : 0);
+    const char *list[] = {o->blender ? o->blender : "blender", "-b", "--factory-startup",
+                          /* without this a Python exception still exits 0 */
+                          "--python-exit-code", "1", "-t", threads, "-P",
+                          o->script ? o->script : "harness/cycles_render.py", "--", job_json_path, out_exr_path};
+    for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
+        if (cycles_put(out, &used, list[i]) == NULL) {
+            cycles_err(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
+            return RC_ERR_RANGE;
+        }
+    return RC_OK;
+}
+
+rc_status cycles_run(const cycles_argv *a, const char *log_path, double *seconds, char *err, size_t errlen)
+{
+    runner_result r;
+    /* Generous: the tests render in seconds; a real scene at 1k spp can take minutes. */
+    runner_exec(a->argv, 3600.0, log_path, &r);
+    if (seconds) *seconds = r.wall_s;
+    if (r.status == RUNNER_OK) return RC_OK;
+    char line[512] = "";
+    FILE *fp = log_path ? fopen(log_path, "r") : NULL;
+    if (fp != NULL) {
+        char buf[512];
+        while (fgets(buf, sizeof buf, fp) != NULL)
+            if (strstr(buf, "cycles_render.py: error:") != NULL || strstr(buf, "Error:") != NULL) {
+                buf[strcspn(buf, "\n")] = '\0';
+                snprintf(line, sizeof line, "%s", buf);
+                if (strstr(buf, "cycles_render.py") != NULL) break;
+            }
+        fclose(fp);
+    }
+    cycles_err(err, errlen, "%s: %s (exit %d)%s%s; see %s", a->argv[0], runner_status_name(r.status), r.exit_code,
+               line[0] ? ": " : "", line, log_path ? log_path : "the log (none kept)");
+    return RC_ERR_RENDERER;
+}
+
+static size_t cycles_stem_len(const char *out)
+{
+    size_t n = strlen(out);
+    if (n >= 4 && (strcmp(out + n - 4, ".exr") == 0 || strcmp(out + n - 4, ".EXR") == 0)) n -= 4;
+    return n;
+}
+
+rc_status cycles_raw_path(const char *out_exr_path, int seed_index, char *buf, size_t len)
+{
+    int n = snprintf(buf, len, "%.*s.cyc%d.exr", (int)cycles_stem_len(out_exr_path), out_exr_path, seed_index);
+    return n < 0 || (size_t)n >= len ? RC_ERR_RANGE : RC_OK;
+}
+
+const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len)
+{
+    if (aov == NULL || aov[0] == '\0')
+        snprintf(buf, len, "%c", c);
+    else if (c == 0)
+        snprintf(buf, len, "%s.V", aov);
+    else
+        snprintf(buf, len, "%s.%c", aov, c);
+    return buf;
+}
+
+/* reflcheck's names and where they come from in the raw file. */
+static const struct { const char *aov; char c; } cycles_layout[] = {
+    {"", 'R'}, {"", 'G'}, {"", 'B'}, {"", 'A'},
+    {"diffuse", 'R'}, {"diffuse", 'G'}, {"diffuse", 'B'},
+    {"specular", 'R'}, {"specular", 'G'}, {"specular", 'B'},
+    {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'},
+    {"emission", 'R'}, {"emission", 'G'}, {"emission", 'B'},
+    {"background", 'R'}, {"background", 'G'}, {"background", 'B'},
+    {"coverage", 0}, {"object", 0},
+};
+#define CYCLES_LAYOUT_N ((int)(sizeof cycles_layout / sizeof cycles_layout[0]))
+
+/* Reads "key": number from the flat timing JSON the script writes; NAN if absent. */
+static double cycles_timing_value(const char *text, const char *key)
+{
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(text, pat);
+    if (p == NULL) return NAN;
+    p += strlen(pat);
+    if (*p == '[') p++;
+    double sum = 0.0;
+    for (;;) {
+        char *end;
+        double v = strtod(p, &end);
+        if (end == p) break;
+        sum += v;
+        p = end;
+        while (*p == ' ') p++;
+        if (*p != ',') break;
+        p++;
+    }
+    return sum;
+}
+
+rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char *err, size_t errlen)
+{
+    cycles_options defaults = {0};
+    if (o == NULL) o = &defaults;
+    int n = o->n_seeds > 0 ? o->n_seeds : 1;
+    if (n > 64) {
+        cycles_err(err, errlen, "cycles: %d seeds; at most 64", n);
+        return RC_ERR_RANGE;
+    }
+    exr_image img[64];
+    memset(img, 0, sizeof img);
+    char path[PATH_MAX];
+    rc_status rc = RC_OK;
+    int loaded = 0;
+    float *data = NULL;
+    for (int i = 0; i < n && rc == RC_OK; i++) {
+        if (cycles_raw_path(out_exr_path, i, path, sizeof path) != RC_OK) {
+            cycles_err(err, errlen, "%s: path too long", out_exr_path);
+            rc = RC_ERR_RANGE;
+            break;
+        }
+        rc = exr_read(path, &img[i], err, errlen);
+        if (rc != RC_OK) break;
+        loaded++;
+        if (img[i].width != img[0].width || img[i].height != img[0].height) {
+            cycles_err(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
+                       img[i].height, img[0].width, img[0].height);
+            rc = RC_ERR_PARSE;
+        }
+    }
+    const float *src[64][CYCLES_LAYOUT_N];
+    char raw[64];
+    for (int i = 0; i < loaded && rc == RC_OK; i++)
+        for (int k = 0; k < CYCLES_LAYOUT_N && rc == RC_OK; k++) {
+            cycles_channel_name(cycles_layout[k].aov, cycles_layout[k].c, raw, sizeof raw);
+            src[i][k] = exr_image_channel(&img[i], raw);
+            if (src[i][k] == NULL) {
+                cycles_raw_path(out_exr_path, i, path, sizeof path);
+                cycles_err(err, errlen, "%s: channel %s missing; the file is not from cycles_render.py", path, raw);
+                rc = RC_ERR_PARSE;
+            }
+        }
+    int nch = n > 1 ? 2 * CYCLES_LAYOUT_N : CYCLES_LAYOUT_N;
+    size_t npix = rc == RC_OK ? (size_t)img[0].width * (size_t)img[0].height : 0;
+    if (rc == RC_OK && (data = malloc(sizeof(float) * npix * (size_t)nch)) == NULL) {
+        cycles_err(err, errlen, "%s: out of memory", out_exr_path);
+        rc = RC_ERR_NOMEM;
+    }
+    if (rc == RC_OK) {
+        char names[CYCLES_LAYOUT_N][32], vnames[CYCLES_LAYOUT_N][40];
+        exr_channel ch[2 * CYCLES_LAYOUT_N];
+        for (int k = 0; k < CYCLES_LAYOUT_N; k++) {
+            const char *aov = cycles_layout[k].aov;
+            char c = cycles_layout[k].c;
+            if (aov[0] == '\0')
+                snprintf(names[k], sizeof names[k], "%c", c);
+            else if (c == 0)
+                snprintf(names[k], sizeof names[k], "%s", aov);
+            else
+                snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
+            snprintf(vnames[k], sizeof vnames[k], "var.%s", names[k]);
+            float *mean = data + (size_t)k * npix;
+            float *var = n > 1 ? data + (size_t)(CYCLES_LAYOUT_N + k) * npix : NULL;
+            int is_object = c == 0 && strcmp(aov, "object") == 0;
+            for (size_t p = 0; p < npix; p++) {
+                if (is_object) {
+                    /* An index is not averaged: seed 0's first sample names the object. */
+                    mean[p] = src[0][k][p];
+                    if (var) var[p] = 0.0f;
+                    continue;
+                }
+                double s1 = 0.0;
+                for (int i = 0; i < n; i++) s1 += src[i][k][p];
+                double mu = s1 / n, s2 = 0.0;
+                for (int i = 0; i < n; i++) s2 += (src[i][k][p] - mu) * (src[i][k][p] - mu);
+                mean[p] = (float)mu;
+                /* Variance of the mean: sample variance over the seeds (n - 1 dof) / n. */
+                if (var) var[p] = (float)(s2 / (n - 1) / n);
+            }
+            ch[k].name = names[k];
+            ch[k].data = mean;
+            if (var) {
+                ch[CYCLES_LAYOUT_N + k].name = vnames[k];
+                ch[CYCLES_LAYOUT_N + k].data = var;
+            }
+        }
+        char tpath[PATH_MAX], seeds[32], build[32] = "", render[32] = "";
+        snprintf(tpath, sizeof tpath, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
+        FILE *fp = fopen(tpath, "r");
+        if (fp != NULL) {
+            char text[2048];
+            size_t got = fread(text, 1, sizeof text - 1, fp);
+            text[got] = '\0';
+            fclose(fp);
+            snprintf(build, sizeof build, "%.3f", cycles_timing_value(text, "build_s"));
+            snprintf(render, sizeof render, "%.3f", cycles_timing_value(text, "render_s"));
+        }
+        snprintf(seeds, sizeof seeds, "%d", n);
+        exr_attr at[] = {{"reflcheck.renderer", "cycles"},
+                         {"reflcheck.cycles_seeds", seeds},
+                         {"reflcheck.cycles_build_s", build},
+                         {"reflcheck.cycles_render_s", render}};
+        rc = exr_write(out_exr_path, img[0].width, img[0].height, ch, nch, at, 4, err, errlen);
+    }
+    free(data);
+    for (int i = 0; i < loaded; i++) exr_image_free(&img[i]);
+    if (rc == RC_OK && !o->keep_raw) {
+        for (int i = 0; i < n; i++)
+            if (cycles_raw_path(out_exr_path, i, path, sizeof path) == RC_OK) remove(path);
+        snprintf(path, sizeof path, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
+        remove(path);
+    }
+    return rc;
+}

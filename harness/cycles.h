@@ -1,0 +1,92 @@
+/* cycles.h - a reflcheck scene as a Blender 3.4 Cycles render (harness/cycles_render.py).
+ *
+ * Usage:
+ *   cycles_options o = {.role = ROLE_TWIN, .n_seeds = 2};       zero = defaults (below)
+ *   cycles_write_job(&scn, &msh, &o, "job.json", err, sizeof err);
+ *   cycles_argv a; cycles_command(&o, "job.json", "out.exr", &a, err, sizeof err);
+ *   cycles_run(&a, "out.log", &seconds, err, sizeof err);        runs blender, waits
+ *   cycles_collect(&o, "out.exr", err, sizeof err);               raw seed files -> out.exr
+ *
+ * The job (JSON) holds the image size, samples, seeds, the camera in the canonical frame,
+ * lights converted to Cycles units (point/spot energy P = 4 pi I, sun strength E), the
+ * environment, every object's triangles with the per-vertex normals of `msh` (the mesh our
+ * rasterizer draws), and one material recipe per scene material for the role:
+ *   twin:     the model's own terms (Lambert -> Diffuse BSDF Vd; Cook-Torrance with
+ *             G = smith_walter, F = one -> Glossy 'BECKMANN' roughness sqrt(m) colour ks;
+ *             D3D9Client reflection -> Glossy 'SHARP' coloured lambda + (s - lambda) R;
+ *             Cook-Torrance reflection env(reflect(-V, N)) * Schlick(F0, N.V) -> shader AOV).
+ *             A term Cycles cannot reproduce (Blinn-Phong specular, ambient, per-vertex
+ *             shading, clamping, D3D attenuation or spot profile) is an RC_ERR_RANGE error
+ *             naming the fix, unless options.partial is set (then it is left out and listed
+ *             in the job's "missing").
+ *   validate: the material's physical intent: Lambert albedo * (1 - F_dielectric(N.V)) +
+ *             Glossy 'BECKMANN' sqrt(roughness) coloured by the exact Fresnel of N.V
+ *             (dielectric ior, or conductor eta + ik without diffuse); world fully visible.
+ *   agree:    what POV-Ray's validate/agree scene holds: Lambert albedo (conductors 0) plus a
+ *             Glossy 'SHARP' mirror of the environment coloured by the exact Fresnel of N.V;
+ *             no highlight of the lamps, no environment light on diffuse.
+ * Noise: a mirror beside a non-zero diffuse closure carries closure-selection noise (Cycles
+ * picks one closure per bounce); the "var." channels measure it.
+ *
+ * cycles_collect writes out.exr (32-bit float) with reflcheck's channel names: R G B A,
+ * diffuse.RGB, specular.RGB, reflection.RGB, emission.RGB, background.RGB (the environment
+ * seen by camera rays, in no other layer), coverage, object (-1 = background, taken from
+ * Cycles' first sample, not the pixel centre). With n_seeds >= 2 every channel is the mean
+ * over the seeds and "var.<channel>" holds the estimated variance of that mean
+ * (sample variance over seeds / n_seeds). The raw per-seed files OUT.cyc<i>.exr and
+ * OUT.timing.json stay beside out.exr unless options.keep_raw is 0 and collection succeeds
+ * (then they are removed).
+ *
+ * All functions return RC_OK or an rc_status with a one-line message in err.
+ * Units: lengths in scene units, angles in radians, radiance in the scene's radiometric units.
+ */
+#ifndef REFLCHECK_CYCLES_H
+#define REFLCHECK_CYCLES_H
+
+#include <stddef.h>
+#include "../model/mesh.h"
+#include "../model/scene.h"
+#include "../model/status.h"
+
+typedef struct {
+    comparison_role role;   /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE */
+    int samples;            /* per seed; 0 = the scene's samples */
+    int n_seeds;            /* renders with seeds seed, seed+1, ...; 0 = 1 */
+    unsigned seed;          /* first seed, default 0 */
+    int width, height;      /* 0 = the scene's */
+    int threads;            /* blender -t; 0 = all cores */
+    int partial;            /* nonzero: leave out the terms Cycles cannot reproduce */
+    int keep_raw;           /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
+    const char *blender;    /* executable; NULL = "blender" (searched in PATH) */
+    const char *script;     /* NULL = "harness/cycles_render.py" */
+} cycles_options;
+
+rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path,
+                           char *err, size_t errlen);
+
+#define CYCLES_ARGV_MAX 16
+typedef struct {
+    int argc;
+    const char *argv[CYCLES_ARGV_MAX + 1];  /* NULL-terminated; points into buf */
+    char buf[4096];
+} cycles_argv;
+
+/* blender -b --factory-startup --python-exit-code 1 [-t N] -P SCRIPT -- JOB OUT */
+rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path,
+                         cycles_argv *out, char *err, size_t errlen);
+
+/* Runs the command, stdout and stderr to log_path (NULL = /dev/null), waits; *seconds = wall
+ * time (may be NULL). RC_ERR_RENDERER with the script's error line if blender fails. */
+rc_status cycles_run(const cycles_argv *a, const char *log_path, double *seconds, char *err, size_t errlen);
+
+/* The raw file cycles_render.py writes for seed index i: OUT without ".exr" + ".cyc<i>.exr". */
+rc_status cycles_raw_path(const char *out_exr_path, int seed_index, char *buf, size_t len);
+
+/* Reads the raw seed files, writes out_exr_path with reflcheck's channel names. */
+rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char *err, size_t errlen);
+
+/* The raw (Blender) channel name for one of reflcheck's layers: ("", 'R') -> "R",
+ * ("diffuse", 'G') -> "diffuse.G", ("coverage", 0) -> "coverage.V". Returns buf. */
+const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len);
+
+#endif

@@ -1,0 +1,628 @@
+"""cycles_render.py - render a reflcheck Cycles job (written by harness/cycles.c) in Blender 3.4.
+
+Usage:
+    blender -b --factory-startup [-t THREADS] -P harness/cycles_render.py -- JOB.json OUT.exr
+
+For every seed i in the job it renders once and writes the raw multilayer EXR OUT.cyc<i>.exr
+(32-bit float, ZIP) with these channels (harness/cycles.c renames them and averages the seeds):
+    R G B A              full image: surfaces + the environment seen by camera rays; A = coverage
+    diffuse.RGBA         (DiffDir + DiffInd) * DiffCol
+    specular.RGBA        glossy passes when the job routes glossy to "specular"
+    reflection.RGBA      glossy passes when routed to "reflection", plus the shader AOV "refl"
+    emission.RGBA        Emit
+    background.RGBA      Env (the environment seen by camera rays; in no other layer)
+    coverage.V           Alpha
+    object.V             IndexOB - 1 (pass_index is object index + 1; background -1)
+and OUT.timing.json with the build and render times in seconds.
+Any failure prints one line "cycles_render.py: error: ..." to stderr and exits with status 1.
+
+Frame: the job is in reflcheck's canonical frame (right-handed, +Y up); Blender is Z-up,
+so a canonical (x, y, z) becomes (x, -z, y), a proper rotation, which keeps triangle winding.
+"""
+import json
+import math
+import os
+import sys
+import time
+import traceback
+
+import bpy
+from mathutils import Matrix, Vector
+
+
+class JobError(Exception):
+    pass
+
+
+def to_blender(v):
+    return Vector((v[0], -v[2], v[1]))
+
+
+def need(d, key, where):
+    if key not in d:
+        raise JobError("%s: missing key '%s'; rewrite the job with reflcheck cycles-job" % (where, key))
+    return d[key]
+
+
+# ---------------------------------------------------------------- render settings
+
+
+def setup_render(job):
+    sc = bpy.context.scene
+    sc.render.engine = 'CYCLES'
+    cy = sc.cycles
+    cy.device = 'CPU'
+    cy.feature_set = 'SUPPORTED'
+    cy.samples = int(need(job, "samples", "job"))
+    # This Blender has no OpenImageDenoise: denoising on would fail the render.
+    cy.use_denoising = False
+    cy.use_adaptive_sampling = False
+    cy.use_animated_seed = False
+    cy.light_sampling_threshold = 0.0
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.blur_glossy = 0.0
+    cy.film_exposure = 1.0
+    cy.pixel_filter_type = 'BOX'
+    cy.filter_width = 1.0
+    # Scrambling distance < 1 correlates pixels; 1 keeps the sampler unbiased.
+    cy.auto_scrambling_distance = False
+    cy.scrambling_distance = 1.0
+    cy.use_guiding = False
+    # One bounce so that a mirror (SHARP) closure sees the environment and MIS keeps both
+    # halves of environment lighting; objects are invisible to secondary rays, so a bounce
+    # can only reach the world.
+    cy.max_bounces = 1
+    cy.diffuse_bounces = 1
+    cy.glossy_bounces = 1
+    cy.transmission_bounces = 0
+    cy.volume_bounces = 0
+    cy.transparent_max_bounces = 0
+    cy.caustics_reflective = True
+    cy.caustics_refractive = True
+    r = sc.render
+    r.resolution_x = int(need(job, "width", "job"))
+    r.resolution_y = int(need(job, "height", "job"))
+    r.resolution_percentage = 100
+    r.pixel_aspect_x = 1.0
+    r.pixel_aspect_y = 1.0
+    r.use_border = False
+    # Transparent film: Combined excludes the background, which goes to the Env pass, so
+    # coverage (alpha) and the environment are both available; R,G,B = Combined + Env.
+    r.film_transparent = True
+    r.use_persistent_data = False
+    sc.frame_current = 1
+    vs = sc.view_settings
+    vs.view_transform = 'Standard'
+    vs.look = 'None'
+    vs.exposure = 0.0
+    vs.gamma = 1.0
+    vs.use_curve_mapping = False
+    sc.sequencer_colorspace_settings.name = 'Linear'
+
+
+def setup_camera(job):
+    c = need(job, "camera", "job")
+    eye = to_blender(need(c, "eye", "camera"))
+    target = to_blender(need(c, "target", "camera"))
+    up = to_blender(need(c, "up", "camera"))
+    f = target - eye
+    if f.length == 0.0:
+        raise JobError("camera: eye equals target; move the camera target")
+    f.normalize()
+    r = f.cross(up)
+    if r.length < 1e-6:  # up parallel to the view direction: no roll is defined
+        raise JobError("camera: up is parallel to the view direction; change camera.up")
+    r.normalize()
+    u = r.cross(f)
+    # Blender cameras look down local -Z with local +Y up; for up = canonical +Y this equals
+    # (target - eye).to_track_quat('-Z', 'Y') and it honours any other up vector too.
+    rot = Matrix((r, u, -f)).transposed()
+    data = bpy.data.cameras.new("reflcheck_camera")
+    data.type = 'PERSP'
+    data.sensor_fit = 'HORIZONTAL'
+    data.angle_x = float(need(c, "hfov", "camera"))
+    data.shift_x = 0.0
+    data.shift_y = 0.0
+    data.clip_start = float(c.get("clip_start", 1e-3))
+    data.clip_end = float(c.get("clip_end", 1e6))
+    cam = bpy.data.objects.new("reflcheck_camera", data)
+    cam.matrix_world = Matrix.Translation(eye) @ rot.to_4x4()
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
+
+
+def setup_lights(job):
+    for i, l in enumerate(need(job, "lights", "job")):
+        where = "lights[%d]" % i
+        kind = need(l, "type", where)
+        if kind not in ("POINT", "SUN", "SPOT"):
+            raise JobError("%s: unknown type '%s'" % (where, kind))
+        data = bpy.data.lights.new("reflcheck_light_%d" % i, kind)
+        data.energy = float(need(l, "energy", where))
+        data.color = need(l, "color", where)
+        if hasattr(data, "use_shadow"):
+            data.use_shadow = False
+        data.cycles.cast_shadow = False
+        data.cycles.max_bounces = 1024
+        if kind == "SUN":
+            data.angle = 0.0
+        else:
+            data.shadow_soft_size = 0.0
+        if kind == "SPOT":
+            data.spot_size = float(need(l, "spot_size", where))
+            data.spot_blend = float(need(l, "spot_blend", where))
+        ob = bpy.data.objects.new("reflcheck_light_%d" % i, data)
+        if kind in ("POINT", "SPOT"):
+            ob.location = to_blender(need(l, "position", where))
+        if kind in ("SUN", "SPOT"):
+            d = to_blender(need(l, "direction", where))
+            ob.rotation_mode = 'QUATERNION'
+            ob.rotation_quaternion = d.to_track_quat('-Z', 'Y')
+        bpy.context.scene.collection.objects.link(ob)
+
+
+def setup_world(job):
+    env = need(job, "environment", "job")
+    w = bpy.data.worlds.new("reflcheck_world")
+    w.use_nodes = True
+    nt = w.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new('ShaderNodeOutputWorld')
+    bg = nt.nodes.new('ShaderNodeBackground')
+    bg.inputs['Strength'].default_value = 1.0
+    kind = need(env, "type", "environment")
+    if kind == "none":
+        bg.inputs['Color'].default_value = (0.0, 0.0, 0.0, 1.0)
+        bg.inputs['Strength'].default_value = 0.0
+    elif kind == "constant":
+        c = need(env, "radiance", "environment")
+        bg.inputs['Color'].default_value = (c[0], c[1], c[2], 1.0)
+    elif kind == "image":
+        path = need(env, "path", "environment")
+        try:
+            img = bpy.data.images.load(path, check_existing=False)
+        except RuntimeError as e:
+            raise JobError("environment.path '%s': %s; check the scene's environment file" % (path, e))
+        img.colorspace_settings.name = 'Linear'
+        tex = nt.nodes.new('ShaderNodeTexEnvironment')
+        tex.image = img
+        tex.interpolation = 'Linear'
+        tex.projection = 'EQUIRECTANGULAR'
+        scale = nt.nodes.new('ShaderNodeVectorMath')
+        scale.operation = 'MULTIPLY'
+        scale.inputs[1].default_value = need(env, "scale", "environment")
+        nt.links.new(tex.outputs['Color'], scale.inputs[0])
+        nt.links.new(scale.outputs['Vector'], bg.inputs['Color'])
+    else:
+        raise JobError("environment.type '%s' unknown; expected none, constant or image" % kind)
+    nt.links.new(bg.outputs['Background'], out.inputs['Surface'])
+    vis = need(job, "world_visibility", "job")
+    w.cycles_visibility.camera = True
+    w.cycles_visibility.diffuse = bool(need(vis, "diffuse", "world_visibility"))
+    w.cycles_visibility.glossy = bool(need(vis, "glossy", "world_visibility"))
+    w.cycles_visibility.transmission = False
+    w.cycles_visibility.scatter = False
+    if not vis.get("light_sampling", True):
+        # Nothing that samples lights can see the world (mirrors reach it by their bounce ray).
+        w.cycles.sampling_method = 'NONE'
+    elif kind == "image":
+        # One map texel per image texel; 'AUTOMATIC' builds a larger map at some cost.
+        w.cycles.sampling_method = 'MANUAL'
+        w.cycles.sample_map_resolution = max(64, min(4096, int(img.size[0])))
+    else:
+        w.cycles.sampling_method = 'MANUAL'
+        w.cycles.sample_map_resolution = 64
+    bpy.context.scene.world = w
+    return env
+
+
+# ---------------------------------------------------------------- shader node expressions
+
+
+class Expr:
+    """Builds Math / Vector Math nodes in a node tree; operands are floats or sockets."""
+
+    def __init__(self, nt):
+        self.nt = nt
+
+    def _in(self, sock, val):
+        if isinstance(val, (int, float)):
+            sock.default_value = float(val)
+        else:
+            self.nt.links.new(val, sock)
+
+    def op(self, operation, a, b=0.0):
+        n = self.nt.nodes.new('ShaderNodeMath')
+        n.operation = operation
+        n.use_clamp = False
+        self._in(n.inputs[0], a)
+        self._in(n.inputs[1], b)
+        return n.outputs[0]
+
+    def add(self, a, b): return self.op('ADD', a, b)
+    def sub(self, a, b): return self.op('SUBTRACT', a, b)
+    def mul(self, a, b): return self.op('MULTIPLY', a, b)
+    def div(self, a, b): return self.op('DIVIDE', a, b)
+    def pow(self, a, b): return self.op('POWER', a, b)
+    def max(self, a, b): return self.op('MAXIMUM', a, b)
+    def min(self, a, b): return self.op('MINIMUM', a, b)
+    def sqrt(self, a): return self.op('SQRT', a)
+
+    def geometry(self):
+        if not hasattr(self, "_geo"):
+            self._geo = self.nt.nodes.new('ShaderNodeNewGeometry')
+        return self._geo
+
+    def cos_nv(self):
+        """(N.V)+ with N the shading normal (Cycles flips it to the viewer's side) and
+        V = Geometry 'Incoming', the unit direction back along the incoming ray."""
+        if not hasattr(self, "_nv"):
+            g = self.geometry()
+            d = self.nt.nodes.new('ShaderNodeVectorMath')
+            d.operation = 'DOT_PRODUCT'
+            self.nt.links.new(g.outputs['Normal'], d.inputs[0])
+            self.nt.links.new(g.outputs['Incoming'], d.inputs[1])
+            self._nv = self.min(self.max(d.outputs['Value'], 0.0), 1.0)
+        return self._nv
+
+    def cos_n_dir(self, direction):
+        """(N.D)+ for a constant Blender-frame unit direction D."""
+        g = self.geometry()
+        d = self.nt.nodes.new('ShaderNodeVectorMath')
+        d.operation = 'DOT_PRODUCT'
+        self.nt.links.new(g.outputs['Normal'], d.inputs[0])
+        d.inputs[1].default_value = direction
+        return self.min(self.max(d.outputs['Value'], 0.0), 1.0)
+
+    def rgb(self, r, g, b):
+        n = self.nt.nodes.new('ShaderNodeCombineColor')
+        n.mode = 'RGB'
+        self._in(n.inputs[0], r)
+        self._in(n.inputs[1], g)
+        self._in(n.inputs[2], b)
+        return n.outputs[0]
+
+    def fresnel_dielectric(self, c, n):
+        """Exact unpolarised Fresnel reflectance, cos c of the incident angle, relative index n
+        (total internal reflection gives 1)."""
+        g2 = self.add(self.sub(n * n, 1.0), self.mul(c, c))
+        g = self.sqrt(self.max(g2, 0.0))
+        a = self.sub(g, c)
+        b = self.add(g, c)
+        t1 = self.div(self.mul(a, a), self.max(self.mul(b, b), 1e-30))
+        num = self.sub(self.mul(c, b), 1.0)
+        den = self.add(self.mul(c, a), 1.0)
+        t2 = self.add(1.0, self.div(self.mul(num, num), self.max(self.mul(den, den), 1e-30)))
+        f = self.mul(self.mul(0.5, t1), t2)
+        # g2 < 0 is total internal reflection: then F = 1 (reachable only for n < 1).
+        tir = self.op('LESS_THAN', g2, 0.0)
+        return self.add(self.mul(f, self.sub(1.0, tir)), tir)
+
+    def fresnel_conductor(self, c, eta, k):
+        """Exact unpolarised conductor Fresnel for complex index eta + ik (one channel)."""
+        c2 = self.mul(c, c)
+        s2 = self.sub(1.0, c2)
+        t0 = self.sub(eta * eta - k * k, s2)
+        a2b2 = self.sqrt(self.add(self.mul(t0, t0), 4.0 * eta * eta * k * k))
+        a = self.sqrt(self.max(self.mul(self.add(a2b2, t0), 0.5), 0.0))
+        t1 = self.add(a2b2, c2)
+        t2 = self.mul(self.mul(a, c), 2.0)
+        rs = self.div(self.sub(t1, t2), self.add(t1, t2))
+        t3 = self.add(self.mul(c2, a2b2), self.mul(s2, s2))
+        t4 = self.mul(t2, s2)
+        rp = self.mul(rs, self.div(self.sub(t3, t4), self.add(t3, t4)))
+        return self.mul(self.add(rs, rp), 0.5)
+
+
+def build_material(i, spec, env):
+    where = "materials[%d]" % i
+    mat = bpy.data.materials.new(spec.get("name", "reflcheck_material_%d" % i))
+    mat.use_nodes = True
+    # Emitters must not become lights: nothing in the contract is lit by an emissive surface.
+    mat.cycles.sample_as_light = False
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new('ShaderNodeOutputMaterial')
+    out.target = 'CYCLES'
+    e = Expr(nt)
+    shaders = []
+
+    def colour_times(base, factor):
+        """base (list of 3 floats) times a scalar socket, or per-channel sockets."""
+        if factor is None:
+            return (base[0], base[1], base[2], 1.0)
+        if isinstance(factor, list):
+            return e.rgb(*(e.mul(factor[c], base[c]) for c in range(3)))
+        return e.rgb(*(e.mul(factor, base[c]) for c in range(3)))
+
+    def set_colour(sock, val):
+        if isinstance(val, tuple):
+            sock.default_value = val
+        else:
+            nt.links.new(val, sock)
+
+    def fresnel_factor(fr, at):
+        """None (no factor), or one socket, or three sockets (per channel) of N.V."""
+        if fr is None or fr["kind"] == "one":
+            return None
+        if fr["kind"] == "dielectric":
+            return e.fresnel_dielectric(e.cos_nv(), float(fr["ior"]))
+        if fr["kind"] == "conductor":
+            return [e.fresnel_conductor(e.cos_nv(), fr["eta"][c], fr["k"][c]) for c in range(3)]
+        if fr["kind"] == "schlick":
+            w = e.pow(e.sub(1.0, e.cos_nv()), 5.0)
+            return [e.add(fr["f0"][c], e.mul(1.0 - fr["f0"][c], w)) for c in range(3)]
+        raise JobError("%s.kind '%s' unknown; expected one, schlick, dielectric or conductor" % (at, fr["kind"]))
+
+    d = spec.get("diffuse")
+    if d is not None:
+        factor = None
+        if d.get("sun_angle") is not None:  # D3D9Client eq. (8): [1 - R0 - m (1 - cos sigma)^p]
+            sa = d["sun_angle"]
+            cs = e.cos_n_dir(to_blender(sa["to_sun"]))
+            factor = e.sub(1.0 - sa["r0"], e.mul(sa["m"], e.pow(e.sub(1.0, cs), sa["p"])))
+        if d.get("fresnel_ior") is not None:  # validate: the light the coating does not reflect
+            t = e.sub(1.0, e.fresnel_dielectric(e.cos_nv(), float(d["fresnel_ior"])))
+            factor = t if factor is None else e.mul(factor, t)
+        n = nt.nodes.new('ShaderNodeBsdfDiffuse')
+        n.inputs['Roughness'].default_value = 0.0
+        set_colour(n.inputs['Color'], colour_times(need(d, "color", where + ".diffuse"), factor))
+        shaders.append(n.outputs[0])
+
+    g = spec.get("glossy")
+    if g is not None:
+        n = nt.nodes.new('ShaderNodeBsdfGlossy')
+        n.distribution = 'BECKMANN'
+        n.inputs['Roughness'].default_value = float(need(g, "roughness", where + ".glossy"))
+        factor = fresnel_factor(g.get("fresnel"), where + ".glossy.fresnel")
+        set_colour(n.inputs['Color'], colour_times(need(g, "color", where + ".glossy"), factor))
+        shaders.append(n.outputs[0])
+
+    m = spec.get("mirror")
+    if m is not None:
+        if m["kind"] == "d3d9client":  # eq. (5): lambda + (s - lambda) R, R = R0 + m (1 - N.V)^p
+            lam, s_col = need(m, "lambda", where + ".mirror"), need(m, "s", where + ".mirror")
+            r = e.add(m["r0"], e.mul(m["m"], e.pow(e.sub(1.0, e.cos_nv()), m["p"])))
+            col = e.rgb(*(e.add(lam[c], e.mul(s_col[c] - lam[c], r)) for c in range(3)))
+        else:
+            col = colour_times([1.0, 1.0, 1.0], fresnel_factor(m, where + ".mirror"))
+        n = nt.nodes.new('ShaderNodeBsdfGlossy')
+        n.distribution = 'SHARP'
+        n.inputs['Roughness'].default_value = 0.0
+        set_colour(n.inputs['Color'], col)
+        shaders.append(n.outputs[0])
+
+    rl = spec.get("reflection_lookup")
+    if rl is not None:  # Cook-Torrance reflection: env(reflect(-V, N)) * Fr(N.V)
+        fac = fresnel_factor(need(rl, "fresnel", where + ".reflection_lookup"),
+                             where + ".reflection_lookup.fresnel")
+        geo = e.geometry()
+        refl = nt.nodes.new('ShaderNodeVectorMath')
+        refl.operation = 'REFLECT'
+        neg = nt.nodes.new('ShaderNodeVectorMath')
+        neg.operation = 'SCALE'
+        nt.links.new(geo.outputs['Incoming'], neg.inputs[0])
+        neg.inputs['Scale'].default_value = -1.0
+        nt.links.new(neg.outputs[0], refl.inputs[0])
+        nt.links.new(geo.outputs['Normal'], refl.inputs[1])
+        if env["type"] == "image":
+            tex = nt.nodes.new('ShaderNodeTexEnvironment')
+            tex.image = bpy.data.images.load(env["path"], check_existing=True)
+            tex.image.colorspace_settings.name = 'Linear'
+            tex.interpolation = 'Linear'
+            tex.projection = 'EQUIRECTANGULAR'
+            nt.links.new(refl.outputs[0], tex.inputs['Vector'])
+            src = tex.outputs['Color']
+            scale = env["scale"]
+        else:
+            src = None
+            scale = env.get("radiance", [0.0, 0.0, 0.0])
+        chans = []
+        if src is not None:
+            sep = nt.nodes.new('ShaderNodeSeparateColor')
+            sep.mode = 'RGB'
+            nt.links.new(src, sep.inputs[0])
+        for c in range(3):
+            fr = 1.0 if fac is None else (fac[c] if isinstance(fac, list) else fac)
+            v = e.mul(fr, scale[c])
+            chans.append(e.mul(v, sep.outputs[c]) if src is not None else v)
+        aov = nt.nodes.new('ShaderNodeOutputAOV')
+        # In 3.4 the AOV name and the node name share the RNA identifier 'name'; setting it
+        # names the AOV (checked: the pass receives the colour).
+        aov.name = "refl"
+        nt.links.new(e.rgb(*chans), aov.inputs['Color'])
+
+    em = spec.get("emission")
+    if em is not None:
+        n = nt.nodes.new('ShaderNodeEmission')
+        n.inputs['Color'].default_value = (em[0], em[1], em[2], 1.0)
+        n.inputs['Strength'].default_value = 1.0
+        shaders.append(n.outputs[0])
+
+    if not shaders:
+        # Black diffuse, not a holdout: a holdout would cut the coverage.
+        n = nt.nodes.new('ShaderNodeBsdfDiffuse')
+        n.inputs['Color'].default_value = (0.0, 0.0, 0.0, 1.0)
+        shaders.append(n.outputs[0])
+    acc = shaders[0]
+    for sh in shaders[1:]:
+        a = nt.nodes.new('ShaderNodeAddShader')
+        nt.links.new(acc, a.inputs[0])
+        nt.links.new(sh, a.inputs[1])
+        acc = a.outputs[0]
+    nt.links.new(acc, out.inputs['Surface'])
+    return mat
+
+
+def setup_objects(job, materials):
+    for i, o in enumerate(need(job, "objects", "job")):
+        where = "objects[%d]" % i
+        v = need(o, "verts", where)
+        nrm = need(o, "normals", where)
+        t = need(o, "tris", where)
+        if len(v) % 3 or len(nrm) != len(v) or len(t) % 3:
+            raise JobError("%s: verts, normals and tris must hold whole triples of equal count" % where)
+        verts = [tuple(to_blender(v[j:j + 3])) for j in range(0, len(v), 3)]
+        normals = [tuple(to_blender(nrm[j:j + 3]).normalized()) for j in range(0, len(nrm), 3)]
+        faces = [tuple(t[j:j + 3]) for j in range(0, len(t), 3)]
+        me = bpy.data.meshes.new("reflcheck_mesh_%d" % i)
+        me.from_pydata(verts, [], faces)
+        me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
+        me.use_auto_smooth = True
+        me.auto_smooth_angle = math.pi
+        me.normals_split_custom_set_from_vertices(normals)
+        mi = int(need(o, "material", where))
+        if mi < 0 or mi >= len(materials):
+            raise JobError("%s: material %d out of range" % (where, mi))
+        me.materials.append(materials[mi])
+        ob = bpy.data.objects.new(o.get("name", "reflcheck_object_%d" % i), me)
+        ob.pass_index = int(need(o, "pass_index", where))
+        # The real-time models have no shadows and no inter-reflection (CONTRACT.md).
+        ob.visible_camera = True
+        ob.visible_shadow = False
+        ob.visible_glossy = False
+        ob.visible_diffuse = False
+        ob.visible_transmission = False
+        ob.visible_volume_scatter = False
+        bpy.context.scene.collection.objects.link(ob)
+
+
+# ---------------------------------------------------------------- passes and output
+
+
+def setup_compositor(job, base_path):
+    sc = bpy.context.scene
+    vl = sc.view_layers[0]
+    vl.use_pass_combined = True
+    vl.use_pass_z = False
+    vl.use_pass_diffuse_direct = True
+    vl.use_pass_diffuse_indirect = True
+    vl.use_pass_diffuse_color = True
+    vl.use_pass_glossy_direct = True
+    vl.use_pass_glossy_indirect = True
+    vl.use_pass_glossy_color = True
+    vl.use_pass_emit = True
+    vl.use_pass_environment = True
+    vl.use_pass_object_index = True
+    aov = vl.aovs.add()
+    aov.name = "refl"
+    aov.type = 'COLOR'
+    sc.use_nodes = True
+    nt = sc.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    rl = nt.nodes.new('CompositorNodeRLayers')
+    rl.layer = vl.name
+    o = rl.outputs
+
+    def mix(kind, a, b):
+        n = nt.nodes.new('CompositorNodeMixRGB')
+        n.blend_type = kind
+        n.use_clamp = False
+        n.use_alpha = False
+        n.inputs[0].default_value = 1.0
+        for sock, val in ((n.inputs[1], a), (n.inputs[2], b)):
+            if isinstance(val, tuple):
+                sock.default_value = val
+            else:
+                nt.links.new(val, sock)
+        return n.outputs[0]
+
+    black = (0.0, 0.0, 0.0, 1.0)
+    diffuse = mix('MULTIPLY', mix('ADD', o['DiffDir'], o['DiffInd']), o['DiffCol'])
+    glossy = mix('MULTIPLY', mix('ADD', o['GlossDir'], o['GlossInd']), o['GlossCol'])
+    route = need(job, "glossy_aov", "job")
+    if route not in ("specular", "reflection"):
+        raise JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
+    specular = glossy if route == "specular" else mix('MULTIPLY', glossy, black)
+    reflection = mix('ADD', o['refl'], glossy if route == "reflection" else black)
+    full = mix('ADD', o['Image'], o['Env'])
+    seta = nt.nodes.new('CompositorNodeSetAlpha')
+    seta.mode = 'REPLACE_ALPHA'
+    nt.links.new(full, seta.inputs['Image'])
+    nt.links.new(o['Alpha'], seta.inputs['Alpha'])
+    obj = nt.nodes.new('CompositorNodeMath')
+    obj.operation = 'SUBTRACT'
+    obj.use_clamp = False
+    nt.links.new(o['IndexOB'], obj.inputs[0])
+    obj.inputs[1].default_value = 1.0
+
+    fo = nt.nodes.new('CompositorNodeOutputFile')
+    fo.base_path = base_path
+    f = fo.format
+    f.file_format = 'OPEN_EXR_MULTILAYER'
+    f.color_depth = '32'
+    f.exr_codec = 'ZIP'
+    fo.layer_slots.clear()
+    layers = [("", seta.outputs[0]), ("diffuse", diffuse), ("specular", specular),
+              ("reflection", reflection), ("emission", o['Emit']), ("background", o['Env']),
+              ("coverage", o['Alpha']), ("object", obj.outputs[0])]
+    for name, src in layers:
+        fo.layer_slots.new(name)
+        nt.links.new(src, fo.inputs[len(fo.inputs) - 1])
+    # The compositor needs a Composite node to run in background mode.
+    comp = nt.nodes.new('CompositorNodeComposite')
+    nt.links.new(seta.outputs[0], comp.inputs['Image'])
+    return fo
+
+
+def main():
+    t0 = time.monotonic()
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    if len(argv) != 2:
+        raise JobError("usage: blender -b --factory-startup -P cycles_render.py -- JOB.json OUT.exr")
+    job_path, out_path = argv
+    try:
+        with open(job_path) as fh:
+            job = json.load(fh)
+    except (OSError, ValueError) as e:
+        raise JobError("%s: cannot read the job: %s; rewrite it with reflcheck cycles-job" % (job_path, e))
+    if job.get("format") != "reflcheck-cycles-job" or job.get("version") != 1:
+        raise JobError("%s: not a version 1 reflcheck Cycles job" % job_path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    setup_render(job)
+    setup_camera(job)
+    setup_lights(job)
+    env = setup_world(job)
+    mats = [build_material(i, m, env) for i, m in enumerate(need(job, "materials", "job"))]
+    setup_objects(job, mats)
+    stem = out_path[:-4] if out_path.lower().endswith(".exr") else out_path
+    tmp_base = "%s.tmp%d_" % (stem, os.getpid())
+    fo = setup_compositor(job, tmp_base)
+    t_build = time.monotonic() - t0
+    seeds = need(job, "seeds", "job")
+    if not seeds:
+        raise JobError("job: seeds is empty")
+    render_s = []
+    for i, seed in enumerate(seeds):
+        bpy.context.scene.cycles.seed = int(seed)
+        t1 = time.monotonic()
+        bpy.ops.render.render(write_still=False)
+        render_s.append(time.monotonic() - t1)
+        written = tmp_base + "%04d.exr" % bpy.context.scene.frame_current
+        if not os.path.isfile(written):
+            raise JobError("the compositor wrote no file %s; check disk space and permissions" % written)
+        os.replace(written, "%s.cyc%d.exr" % (stem, i))
+    timing = {"blender": bpy.app.version_string, "build_s": t_build, "render_s": render_s,
+              "samples": job["samples"], "seeds": seeds,
+              "threads": bpy.context.scene.render.threads}
+    with open(stem + ".timing.json", "w") as fh:
+        json.dump(timing, fh)
+    print("reflcheck-cycles: build %.3f s, render %s s" % (t_build, " ".join("%.3f" % r for r in render_s)))
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except JobError as e:
+        print("cycles_render.py: error: %s" % e, file=sys.stderr)
+        sys.stderr.flush()
+        sys.exit(1)
+    except Exception:
+        traceback.print_exc()
+        print("cycles_render.py: error: unexpected failure (traceback above)", file=sys.stderr)
+        sys.stderr.flush()
+        sys.exit(1)
