@@ -180,9 +180,30 @@ static void job_raster(job_ctx *c, job_record *r)
     snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
 }
 
-/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees).
- * Returns 0, or -1 with the record's status and message set. */
-static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, const char *tag, float *planes[3])
+/* The variance of each k x k block's mean (unbiased sample variance / k^2), as the rasterizer
+ * writes it: how far a pixel's k*k samples may be from its box integral. */
+static void job_block_variance(const float *src, int kw, int k, int w, int h, float *var)
+{
+    double n = (double)k * k;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double s = 0.0, sq = 0.0;
+            for (int t = 0; t < k; t++)
+                for (int u = 0; u < k; u++) {
+                    double v = src[(size_t)(y * k + t) * (size_t)kw + (size_t)(x * k + u)];
+                    s += v;
+                    sq += v * v;
+                }
+            double vv = k > 1 ? (sq - s * s / n) / (n * (n - 1.0)) : 0.0;
+            var[(size_t)y * (size_t)w + (size_t)x] = (float)(vv > 0.0 ? vv : 0.0);
+        }
+}
+
+/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees),
+ * and, if var is not NULL, the block variances. Returns 0, or -1 with the record's status and
+ * message set. */
+static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, const char *tag, float *planes[3],
+                           float *var[3])
 {
     char sdl[1100], raw[1100], err[1024];
     snprintf(sdl, sizeof sdl, "%s/%s.pov", c->dir, tag);
@@ -218,8 +239,18 @@ static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, c
         const float *src = exr_image_channel(&img, names[i]);
         planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
         ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
+        double scale = o->output_scale > 0 ? o->output_scale : 1.0;
         for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
-            planes[i][p] = (float)(planes[i][p] / (o->output_scale > 0 ? o->output_scale : 1.0));
+            planes[i][p] = (float)(planes[i][p] / scale);
+        if (ok && var != NULL) {
+            var[i] = malloc((size_t)w * (size_t)h * sizeof(float));
+            ok = var[i] != NULL;
+            if (ok) {
+                job_block_variance(src, img.width, k, w, h, var[i]);
+                for (size_t p = 0; p < (size_t)w * (size_t)h; p++)
+                    var[i][p] = (float)(var[i][p] / (scale * scale));
+            }
+        }
     }
     exr_image_free(&img);
     if (!ok) {
@@ -233,21 +264,24 @@ static void job_povray(job_ctx *c, job_record *r)
 {
     povray_options o = {.role = c->j->role, .threads = c->j->threads};
     povray_options geo = {.role = c->j->role, .threads = c->j->threads, .coverage = 1};
-    float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL};
-    if (job_povray_pass(c, r, &o, "scene", rgb) == 0 && job_povray_pass(c, r, &geo, "coverage", cov) == 0) {
+    float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL}, *var[3] = {NULL, NULL, NULL};
+    if (job_povray_pass(c, r, &o, "scene", rgb, var) == 0 && job_povray_pass(c, r, &geo, "coverage", cov, NULL) == 0) {
         /* Coverage pass: R is the covered share, G/R the object index + 1 (box-filtered). */
         size_t np = (size_t)c->s->width * (size_t)c->s->height;
         for (size_t p = 0; p < np; p++)
             cov[1][p] = cov[0][p] > 0.5f ? floorf(cov[1][p] / cov[0][p] + 0.5f) - 1.0f : -1.0f;
-        exr_channel ch[5] = {{"R", rgb[0]}, {"G", rgb[1]}, {"B", rgb[2]}, {"coverage", cov[0]}, {"object", cov[1]}};
+        exr_channel ch[8] = {{"R", rgb[0]},          {"G", rgb[1]},        {"B", rgb[2]},
+                             {"coverage", cov[0]},   {"object", cov[1]},   {"var.R", var[0]},
+                             {"var.G", var[1]},      {"var.B", var[2]}};
         exr_attr at[] = {{"reflcheck.renderer", c->version}};
         char err[1024];
-        if (exr_write(c->exr, c->s->width, c->s->height, ch, 5, at, 1, err, sizeof err) != RC_OK)
+        if (exr_write(c->exr, c->s->width, c->s->height, ch, 8, at, 1, err, sizeof err) != RC_OK)
             job_fail(r, RUNNER_ERROR, "%s", err);
     }
     for (int i = 0; i < 3; i++) {
         free(rgb[i]);
         free(cov[i]);
+        free(var[i]);
     }
 }
 

@@ -16,6 +16,7 @@ const char *const render_channel_names[RENDER_CHANNELS] = {
     "reflection.R", "reflection.G", "reflection.B",
     "emission.R", "emission.G", "emission.B",
     "coverage", "object", "ndotv", "ndotl",
+    "var.R", "var.G", "var.B",
 };
 
 void render_camera_make(const scene *s, int width, int height, render_camera *c)
@@ -120,6 +121,8 @@ static void render_tile(void *user, const raster_tile *tile)
         for (int px = tile->x0; px < tile->x0 + tile->w; px++) {
             shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
             vec3 background = v3s(0.0f);
+            /* Per-sample beauty, for the variance layers: sum and sum of squares. */
+            vec3 b_sum = v3s(0.0f), b_sq = v3s(0.0f);
             int covered = 0, object_id = -1;
             float centre_nv = 0.0f, centre_nl = 0.0f;
             for (int t = 0; t < k; t++) {
@@ -130,7 +133,10 @@ static void render_tile(void *user, const raster_tile *tile)
                     if (rs->tri < 0) {
                         vec3 dir = render_camera_ray(j->cam, (float)px + ((float)s + 0.5f) / (float)k,
                                                      (float)py + ((float)t + 0.5f) / (float)k);
-                        background = v3_add(background, env_lookup(j->sc.env, dir));
+                        vec3 bg = env_lookup(j->sc.env, dir);
+                        background = v3_add(background, bg);
+                        b_sum = v3_add(b_sum, bg);
+                        b_sq = v3_add(b_sq, v3_mul(bg, bg));
                         continue;
                     }
                     shade_terms st;
@@ -141,6 +147,9 @@ static void render_tile(void *user, const raster_tile *tile)
                     sum.reflection = v3_add(sum.reflection, st.reflection);
                     sum.emission = v3_add(sum.emission, st.emission);
                     sum.alpha += st.alpha;
+                    vec3 b = render_terms_sum(&st);
+                    b_sum = v3_add(b_sum, b);
+                    b_sq = v3_add(b_sq, v3_mul(b, b));
                     covered++;
                     if (centre) {
                         object_id = j->m->tri_object[rs->tri];
@@ -160,6 +169,14 @@ static void render_tile(void *user, const raster_tile *tile)
             o->chan[RENDER_OBJECT][i] = (float)object_id;
             o->chan[RENDER_NDOTV][i] = centre_nv;
             o->chan[RENDER_NDOTL][i] = centre_nl;
+            /* Unbiased sample variance over n = k*k samples, divided by n; 0 for k = 1.
+             * Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
+            float n = (float)(k * k);
+            vec3 var = k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
+                             : v3s(0.0f);
+            o->chan[RENDER_VAR_R][i] = fmaxf(var.x, 0.0f);
+            o->chan[RENDER_VAR_G][i] = fmaxf(var.y, 0.0f);
+            o->chan[RENDER_VAR_B][i] = fmaxf(var.z, 0.0f);
             const vec3 *aov[4] = {&sum.diffuse, &sum.specular, &sum.reflection, &sum.emission};
             for (int a = 0; a < 4; a++) {
                 float **c = &o->chan[RENDER_DIFFUSE_R + 3 * a];

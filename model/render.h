@@ -13,6 +13,9 @@
  * "object" is the index of the object at the sample nearest the pixel centre, -1 for none;
  * "ndotv" and "ndotl" are N.V and N.L (first light) there, 0 for none: the axes on which the
  * report plots error against angle.
+ * "var.R/G/B" bound the variance of each pixel's estimate of its box integral: the sample
+ * variance of its k x k samples divided by k^2 (stratified samples do no worse), so that a
+ * comparison with a path tracer's pixel integral can tell sampling error from model error.
  * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
  */
 #ifndef REFLCHECK_RENDER_H
@@ -31,6 +34,7 @@ typedef enum {
     RENDER_REFLECTION_R, RENDER_REFLECTION_G, RENDER_REFLECTION_B,
     RENDER_EMISSION_R, RENDER_EMISSION_G, RENDER_EMISSION_B,
     RENDER_COVERAGE, RENDER_OBJECT, RENDER_NDOTV, RENDER_NDOTL,
+    RENDER_VAR_R, RENDER_VAR_G, RENDER_VAR_B,
     RENDER_CHANNELS
 } render_channel;
 

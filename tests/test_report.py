@@ -1,0 +1,410 @@
+"""test_report.py - harness/report.py on a synthetic run folder (tests/fixtures/report/make_run.py).
+
+Run: /usr/bin/python3 -m pytest -q tests/test_report.py   (Debian python3-pytest; the browser
+tests need Debian's chromium and are skipped without it, the plot checks need gnuplot).
+Checks the pages, summary.json/csv, JUnit XML, the append-only history (with a simulated crash),
+corrupt inputs, threshold proposals, and that the pages render in headless Chromium from disk.
+"""
+
+import csv
+import hashlib
+import importlib.util
+import json
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPORT = os.path.join(ROOT, 'harness', 'report.py')
+sys.dont_write_bytecode = True   # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
+from make_run import make_run  # noqa: E402
+
+spec = importlib.util.spec_from_file_location('reflcheck_report', REPORT)
+report = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(report)
+
+RUN1 = '20250101-120000-abc1234'
+RUN2 = '20250102-120000-def5678'
+RUN3 = '20250103-120000-0a1b2c3'
+HAVE_CHROMIUM = report.chromium_exe() is not None
+HAVE_GNUPLOT = shutil.which('gnuplot') is not None
+
+
+def run_report(*args):
+    r = subprocess.run([sys.executable, REPORT] + list(args), capture_output=True, text=True, timeout=300)
+    return r
+
+
+def read(path):
+    with open(path, encoding='utf-8') as f:
+        return f.read()
+
+
+@pytest.fixture(scope='module')
+def built(tmp_path_factory):
+    """One report of the fixture run, with history and --latest; shared by the read-only tests."""
+    root = str(tmp_path_factory.mktemp('reports'))
+    run = make_run(root, RUN1)
+    hist = os.path.join(root, 'history.jsonl')
+    r = run_report('--run', run, '--history', hist, '--latest', os.path.join(root, 'latest'))
+    assert r.returncode == 0, r.stderr
+    return {'root': root, 'run': run, 'hist': hist, 'proc': r}
+
+
+def summary_rows(index_html):
+    body = index_html.split('<table id="summary"', 1)[1].split('</table>', 1)[0]
+    return re.findall(r'<tr data-role="([^"]*)" data-verdict="([^"]*)"[^>]*>.*?<div class="cid">([^<]*)</div>',
+                      body, re.S)
+
+
+# ------------------------------------------------------------------------------------ pages
+
+def test_index_lists_failures_first_and_has_filters(built):
+    html = read(os.path.join(built['run'], 'index.html'))
+    rows = summary_rows(html)
+    assert [(v, c) for _, v, c in rows] == [('fail', 'raster-vs-cycles-twin'), ('skipped', 'povray-vs-cycles-agree'),
+                                            ('pass', 'raster-vs-povray-twin')]
+    assert 'id="filter-text"' in html and 'id="filter-role"' in html and 'id="filter-verdict"' in html
+    for role in ('twin', 'agree'):
+        assert f'<option value="{role}">' in html
+    # every job record is in the renderer table, the skipped one with its message and a log link
+    assert html.count('<tr data-role=') == 3 + 6
+    assert 'blender not found on PATH' in html
+    assert '<a href="alpha/povray-twin.log">log</a>' in html
+    # legend of roles, relative assets only (no network)
+    assert 'the reference renderer is set up to compute exactly our model' in html
+    js = read(os.path.join(built['run'], 'report.js'))
+    assert 'http://' not in html and 'https://' not in html
+    assert 'fetch(' not in js and 'XMLHttpRequest' not in js
+    # optional sections: stability (NaN row flagged), timing table, figure 1
+    assert 'Numerical stability' in html and 'class="row-fail"' in html
+    assert 'cycles_convergence' in html and 'src="figure1.svg"' in html
+
+
+def test_scene_pages_reference_view_js(built):
+    for scene, n_images, n_heat in (('alpha', 3, 2), ('beta', 2, 0)):
+        html = read(os.path.join(built['run'], f'scene-{scene}.html'))
+        assert f'<script src="{scene}/view.js"></script>' in html
+        assert html.count('data-layer="img:') == n_images
+        assert html.count('data-layer="heat:') == n_heat
+        assert 'id="ev"' in html and 'id="flip-a"' in html and 'id="probe"' in html
+        assert 'href="index.html"' in html
+    beta = read(os.path.join(built['run'], 'scene-beta.html'))
+    assert 'povray-vs-cycles-agree (skipped: no reference image in view.js)' in beta
+
+
+@pytest.mark.skipif(not HAVE_GNUPLOT, reason='gnuplot not installed')
+def test_plots_are_svg(built):
+    plots = os.path.join(built['run'], 'plots')
+    for f in ('angle-alpha-ndotv.svg', 'angle-alpha-ndotl.svg', 'trend-alpha.svg', 'timing-cycles_convergence.svg'):
+        ET.parse(os.path.join(plots, f))  # well-formed SVG
+        assert f'plots/{f}' in read(os.path.join(built['run'], 'scene-alpha.html')) + \
+            read(os.path.join(built['run'], 'index.html'))
+    svg = read(os.path.join(plots, 'trend-alpha.svg'))
+    assert 'raster-vs-cycles-twin' in svg and 'raster-vs-povray-twin' in svg
+    # beta has no measured bins: no angle plot, and the page says so
+    assert not os.path.exists(os.path.join(plots, 'angle-beta-ndotv.svg'))
+    assert 'no angle bins in compare.json' in read(os.path.join(built['run'], 'scene-beta.html'))
+
+
+def test_latest_points_at_run(built):
+    latest = os.path.join(built['root'], 'latest')
+    assert os.path.islink(latest)
+    assert os.readlink(latest) == RUN1  # relative, so the reports folder can move
+    assert os.path.samefile(latest, built['run'])
+
+
+# ------------------------------------------------------------------------- machine-readable
+
+def test_summary_json(built):
+    with open(os.path.join(built['run'], 'summary.json'), encoding='utf-8') as f:
+        s = json.load(f)
+    assert s['run_id'] == RUN1 and s['commit'] == 'abc1234' and s['time'] == '2025-01-01T12:00:00Z'
+    assert s['counts'] == {'fail': 1, 'error': 0, 'warn': 0, 'skipped': 1, 'pass': 1}
+    assert [x['name'] for x in s['scenes']] == ['alpha', 'beta']
+    assert sum(len(x['comparisons']) for x in s['scenes']) == 3
+    assert s['renderer_versions'] == {'cycles': 'Blender 3.4.1', 'povray': 'POV-Ray 3.7.0.10.unofficial',
+                                      'raster': 'reflcheck-raster 0.1'}
+    assert s['machine']['cores'] == os.cpu_count() and s['machine']['uname']
+    c = s['scenes'][0]['comparisons'][1]
+    assert c['id'] == 'raster-vs-cycles-twin' and c['regions']['surface']['rel_rms'] == pytest.approx(3.4e-2)
+    assert c['test_image'] == 'raster-twin' and c['reference_image'] == 'cycles-twin'
+    assert s['scenes'][1]['comparisons'][0]['reference_image'] is None   # agree: cycles-validate was skipped
+    assert s['problems'] == []
+
+
+def test_summary_csv(built):
+    with open(os.path.join(built['run'], 'summary.csv'), encoding='utf-8', newline='') as f:
+        rows = list(csv.DictReader(f))
+    # alpha pass: 3 regions + 1 aov x 12 metrics; alpha fail: 2 regions x 12; each +coverage;
+    # noise 1 + 6 z-test figures; 5 thresholds in all; the skipped comparison has its threshold row
+    assert len(rows) == 4 * 12 + 2 * 12 + 2 + 1 + 6 + 5
+    th = [r for r in rows if r['group'] == 'threshold']
+    assert len(th) == 5
+    bad = [r for r in th if r['verdict'] == 'fail']
+    assert len(bad) == 1 and bad[0]['scene'] == 'alpha' and bad[0]['comparison'] == 'raster-vs-cycles-twin'
+    assert float(bad[0]['value']) == pytest.approx(3.4e-2) and float(bad[0]['fail']) == pytest.approx(1e-2)
+    surf = [r for r in rows if r['comparison'] == 'raster-vs-povray-twin' and r['group'] == 'region'
+            and r['name'] == 'surface' and r['metric'] == 'rel_rms']
+    assert len(surf) == 1 and float(surf[0]['value']) == pytest.approx(1.2e-4)
+
+
+def test_junit(built):
+    root = ET.parse(os.path.join(built['run'], 'junit.xml')).getroot()
+    assert root.tag == 'testsuites'
+    assert (root.get('tests'), root.get('failures'), root.get('errors'), root.get('skipped')) == ('5', '1', '0', '1')
+    suites = root.findall('testsuite')
+    assert [t.get('name') for t in suites] == ['alpha', 'beta']
+    assert len(suites[0].findall('testcase')) == 4
+    fails = root.findall('.//failure')
+    assert len(fails) == 1
+    msg = fails[0].get('message')
+    assert msg == 'alpha: raster-vs-cycles-twin: rel_rms 3.40e-2 > 1e-2 (Monte Carlo noise budget)'
+    assert len(root.findall('.//skipped')) == 1
+
+
+# --------------------------------------------------------------------------------- history
+
+def test_history_append_only_survives_crash(tmp_path):
+    root = str(tmp_path)
+    hist = os.path.join(root, 'history.jsonl')
+    r = run_report('--run', make_run(root, RUN1), '--history', hist)
+    assert r.returncode == 0, r.stderr
+    with open(hist, 'rb') as f:
+        one = f.read()
+    assert one.count(b'\n') == 1 and one.endswith(b'\n')
+
+    r = run_report('--run', make_run(root, RUN2, rel_scale=2.0), '--history', hist)
+    assert r.returncode == 0, r.stderr
+    with open(hist, 'rb') as f:
+        two = f.read()
+    assert two.startswith(one) and two.count(b'\n') == 2
+
+    # a run killed in the middle of its write: a partial line without a newline
+    with open(hist, 'ab') as f:
+        f.write(b'{"run_id":"20250102-130000-dead","commit":"dead","metrics":{"alpha":{"raster-vs')
+    r = run_report('--run', make_run(root, RUN3, rel_scale=0.5), '--history', hist)
+    assert r.returncode == 0, r.stderr
+    assert 'history.jsonl:3' in r.stderr and 'skipped' in r.stderr
+    with open(hist, 'rb') as f:
+        data = f.read()
+    assert data.startswith(two)                     # earlier records byte-for-byte intact
+    lines = data.split(b'\n')
+    assert len(lines) == 5 and lines[-1] == b''     # 2 good, 1 broken, 1 new, final newline
+    recs = report.read_history(hist)
+    assert [x['run_id'] for x in recs] == [RUN1, RUN2, RUN3]
+    assert recs[1]['metrics']['alpha']['raster-vs-povray-twin']['surface.rel_rms'] == pytest.approx(2.4e-4)
+    assert recs[2]['metrics']['alpha']['raster-vs-cycles-twin']['status'] == 'fail'
+
+    # the same run reported again adds nothing
+    r = run_report('--run', os.path.join(root, RUN3), '--history', hist)
+    assert r.returncode == 0 and 'not appended again' in r.stderr
+    with open(hist, 'rb') as f:
+        assert f.read() == data
+
+    # the trend plot now has the three good runs, and the broken line is listed on the page
+    if HAVE_GNUPLOT:
+        svg = read(os.path.join(root, RUN3, 'plots', 'trend-alpha.svg'))
+        for commit in ('abc1234', 'def5678', '0a1b2c3'):
+            assert commit in svg
+    assert 'history line skipped' in read(os.path.join(root, RUN3, 'index.html'))
+
+
+# ---------------------------------------------------------------------------- bad inputs
+
+def test_corrupt_compare_json_is_an_error_entry(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    with open(os.path.join(run, 'beta', 'compare.json'), 'w') as f:
+        f.write('{"scene": "beta", "comparisons": [{"id": "povray-vs')
+    os.remove(os.path.join(run, 'alpha', 'view.js'))
+    with open(os.path.join(run, 'alpha', 'povray-twin.json'), 'w') as f:
+        f.write('not json')
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    assert 'beta/compare.json: compare.json corrupt' in r.stderr
+    assert 'alpha/view.js: view.js missing' in r.stderr
+    assert 'alpha/povray-twin.json: job record corrupt' in r.stderr
+    with open(os.path.join(run, 'summary.json'), encoding='utf-8') as f:
+        s = json.load(f)
+    beta = s['scenes'][1]['comparisons']
+    assert len(beta) == 1 and beta[0]['status'] == 'error' and 'compare.json corrupt' in beta[0]['reason']
+    assert s['counts']['error'] == 1 and len(s['problems']) == 3
+    html = read(os.path.join(run, 'index.html'))
+    assert 'Input problems (3)' in html and summary_rows(html)[0][1] == 'fail'
+    assert summary_rows(html)[1][1:] == ('error', '(compare.json)')
+    root = ET.parse(os.path.join(run, 'junit.xml')).getroot()
+    assert root.get('errors') == '1'
+    assert 'view.js is missing or corrupt' in read(os.path.join(run, 'scene-alpha.html'))
+
+
+def test_view_js_with_wrong_image_size_is_reported(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    p = os.path.join(run, 'alpha', 'view.js')
+    text = read(p).replace('"width": 8', '"width": 9')
+    with open(p, 'w') as f:
+        f.write(text)
+    r = run_report('--run', run)
+    assert r.returncode == 0
+    assert 'view.js image "raster-twin" has 576 bytes, expected 9x6x3 float32 = 648' in r.stderr
+
+
+def test_missing_run_folder_is_usage_error(tmp_path):
+    r = run_report('--run', os.path.join(str(tmp_path), 'nope'))
+    assert r.returncode == 2 and 'no such run folder' in r.stderr
+
+
+# ------------------------------------------------------------------------- thresholds
+
+@pytest.mark.parametrize('v,want', [(2.4e-4, 3e-4), (3e-4, 3e-4), (4.8e-4, 5e-4), (9.5e-3, 1e-2), (0.136, 0.2),
+                                    (0.068, 0.07), (41.0, 50.0), (1.0, 1.0)])
+def test_round_up_1sig(v, want):
+    assert report.round_up_1sig(v) == pytest.approx(want, rel=1e-12)
+
+
+def test_propose_thresholds(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    digest = hashlib.sha256(read(os.path.join(run, 'alpha', 'compare.json')).encode()).hexdigest()
+    r = run_report('--propose-thresholds', '--run', run)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
+    assert '--- scenes/alpha.yaml' in out and '+++ scenes/alpha.yaml' in out
+    # 3.4e-2 measured: 2x = 6.8e-2 -> 7e-2, 4x = 0.136 -> 0.2
+    assert '-    - {metric: rel_rms, warn: 5e-3, fail: 1e-2, why: "Monte Carlo noise budget"}' in out
+    assert '+    - {metric: rel_rms, warn: 7e-2, fail: 0.2, why: "Monte Carlo noise budget"}' in out
+    # 2e-2 -> 4e-2 / 8e-2
+    assert '+    - {metric: z_fail_share, warn: 4e-2, fail: 8e-2' in out
+    # PSNR 78.4 dB: -6.02 dB -> 72, -12.04 dB -> 66
+    assert '+    - {metric: psnr, warn: 72, fail: 66' in out
+    # 1.2e-4 measured would give 3e-4 / 5e-4, but the precision floor 4.9e-4 raises warn to 5e-4
+    # and fail to 2 x 5e-4: equal to the current line, so it is unchanged (leading space)
+    assert re.search(r'^ {5}- \{metric: rel_rms, warn: 5e-4, fail: 1e-3.*raised to the precision floor', out, re.M)
+    # skipped comparison: no measurement, unchanged
+    assert re.search(r'^ {5}- \{metric: rel_rms, warn: 2e-2, fail: 5e-2.*no measurement', out, re.M)
+    page = read(os.path.join(run, 'thresholds-proposal.html'))
+    assert 'Threshold proposal' in page and 'class="d add"' in page
+    assert hashlib.sha256(read(os.path.join(run, 'alpha', 'compare.json')).encode()).hexdigest() == digest
+    assert not os.path.exists(os.path.join(run, 'index.html'))   # proposal mode writes nothing else
+
+
+# ------------------------------------------------------------------------ headless browser
+
+def body_attrs(dom):
+    m = re.search(r'<body([^>]*)>', dom)
+    assert m, dom[:500]
+    return dict(re.findall(r'([\w-]+)="([^"]*)"', m.group(1)))
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_index_renders_in_chromium(built):
+    page = os.path.join(built['run'], 'index.html')
+    n_img = read(page).count('<img ')
+    dom = report.dump_dom(page)
+    a = body_attrs(dom)
+    assert a.get('data-ready') == '1', a
+    assert a.get('data-loaded') == f'{n_img}/{n_img}' and a.get('data-failed') == '0', (a, re.findall(r'<li>[^<]*', dom))
+    assert len(summary_rows(dom)) == 3
+    assert '3 of 3 comparisons shown' in dom
+    assert re.search(r'<section id="load-status" class="problems" hidden', dom)
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_scene_page_renders_in_chromium(built):
+    page = os.path.join(built['run'], 'scene-alpha.html')
+    html = read(page)
+    n = html.count('class="view"') + html.count('<img ')
+    assert n == 3 + 1 + 2 + (3 if HAVE_GNUPLOT else 0)   # images, flip, heatmaps, plots
+    dom = report.dump_dom(page)
+    a = body_attrs(dom)
+    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
+        (a, re.findall(r'<li>[^<]*', dom))
+    # the probe shows the centre pixel (4, 3) of every image: raster R = 0.05 + 0.1 * 4
+    assert '(4, 3)' in dom and '<td>raster-twin</td><td>0.45000</td>' in dom
+    assert 'EV +0.00' in dom
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_missing_view_js_is_reported_by_the_page(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    assert run_report('--run', run).returncode == 0
+    os.remove(os.path.join(run, 'alpha', 'view.js'))          # removed after the page was written
+    dom = report.dump_dom(os.path.join(run, 'scene-alpha.html'))
+    a = body_attrs(dom)
+    assert a.get('data-ready') == '1' and a.get('data-failed') == '6', a
+    assert 'alpha/view.js did not load' in dom
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_screenshot_option(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    r = run_report('--run', run, '--screenshot')
+    assert r.returncode == 0, r.stderr
+    for name, size in (('screenshot.png', (1400, 1000)), ('screenshot-scene.png', (1400, 1400))):
+        with open(os.path.join(run, name), 'rb') as f:
+            head = f.read(24)
+        assert head[:8] == b'\x89PNG\r\n\x1a\n'
+        assert struct.unpack('>II', head[16:24]) == size
+
+
+INTERACT = r'''<script>
+(function () {
+  function px(cv, x, y) { return Array.prototype.slice.call(cv.getContext('2d').getImageData(x, y, 1, 1).data, 0, 3); }
+  function at(cv, type, ix, iy, extra) {
+    /* client position of the centre of display pixel (ix, iy) of the canvas */
+    var r = cv.getBoundingClientRect(), s = r.width / cv.width;
+    var o = Object.assign({ bubbles: true, cancelable: true, clientX: r.left + (ix + 0.5) * s,
+                            clientY: r.top + (iy + 0.5) * s }, extra || {});
+    cv.dispatchEvent(type === 'wheel' ? new WheelEvent(type, o) : new MouseEvent(type, o));
+  }
+  function run() {
+    var cvs = document.querySelectorAll('canvas.view'), raster = cvs[0], flip = document.querySelector('canvas[data-layer=flip]');
+    var out = {}, fit = raster.width / 8;
+    out.before = px(raster, 1, 1);
+    at(raster, 'mousemove', Math.floor(2.5 * fit), Math.floor(1.5 * fit));
+    out.probe = document.getElementById('probe-xy').textContent;
+    at(raster, 'wheel', 0, 0, { deltaY: -100 });  /* zoom x1.25 about the top-left corner */
+    at(raster, 'wheel', 0, 0, { deltaY: -100 });
+    out.zoomedEdge = [px(raster, Math.floor(fit * 1.5625) - 1, 5), px(raster, Math.floor(fit * 1.5625) + 1, 5)];
+    out.sameAsFlip = JSON.stringify(raster.getContext('2d').getImageData(0, 0, raster.width, raster.height).data.slice(0, 4000))
+      === JSON.stringify(flip.getContext('2d').getImageData(0, 0, flip.width, flip.height).data.slice(0, 4000));
+    var ev = document.getElementById('ev');
+    var dark = px(raster, 5, 5);
+    ev.value = '2'; ev.dispatchEvent(new Event('input'));
+    out.ev = [dark, px(raster, 5, 5), document.getElementById('ev-label').textContent];
+    document.dispatchEvent(new KeyboardEvent('keydown', { key: 'f', bubbles: true }));
+    out.flip = document.getElementById('flip-shown').textContent;
+    document.body.setAttribute('data-test', JSON.stringify(out));
+  }
+  function wait() { if (document.body.getAttribute('data-ready') === '1') run(); else setTimeout(wait, 20); }
+  wait();
+})();
+</script>
+'''
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_viewer_interactions_in_chromium(built):
+    """Synthetic events on the real page: probe, shared zoom, exposure, flip."""
+    src = read(os.path.join(built['run'], 'scene-alpha.html'))
+    test_page = os.path.join(built['run'], 'scene-alpha-interact.html')
+    with open(test_page, 'w', encoding='utf-8') as f:
+        f.write(src.replace('</body>', INTERACT + '</body>'))
+    dom = report.dump_dom(test_page)
+    os.remove(test_page)
+    m = re.search(r'data-test="([^"]*)"', dom)
+    assert m, body_attrs(dom)
+    out = json.loads(m.group(1).replace('&quot;', '"'))
+    assert out['probe'] == '(2, 1)'
+    # after two x1.25 zooms about the corner an image pixel spans 1.5625 fit pixels: the edge between
+    # image columns 0 and 1 moved from fit to 1.5625 fit, and both sides differ (R steps by 0.1)
+    assert out['zoomedEdge'][0] != out['zoomedEdge'][1]
+    assert out['sameAsFlip'] is True                  # the flip view (A = raster-twin) shares the zoom
+    dark, bright, label = out['ev']
+    assert label.startswith('EV +2.00') and all(b > d for b, d in zip(bright, dark))
+    assert out['flip'] == 'povray-twin (B)'
