@@ -12,7 +12,8 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 WARN    += -Wno-format-truncation
 STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
-SAN     := $(if $(SANITIZE),-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all
+SAN     := $(if $(SANITIZE),$(SANFLAGS))
 DEPFLAGS = -MMD -MP
 CFLAGS  ?=
 CFLAGS  += $(STD) $(OPT) $(WARN) $(SAN) -pthread -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
@@ -68,6 +69,27 @@ test-scenes: $(CLI)
 report: deps
 	$(MAKE) all
 	@bash harness/nightly.sh
+
+# Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
+# to tests/regress/ once fixed. FUZZ_TIME seconds per target.
+FUZZ_CC    ?= clang
+FUZZ_TIME  ?= 300
+FUZZ_FLAGS := -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(STD) -Imodel -Iharness
+FUZZ_DIR   := $(abspath $(BUILD))/fuzz
+
+$(FUZZ_DIR)/fuzz_scene: tests/fuzz/fuzz_scene.c harness/scene_file.c $(MODEL_SRC)
+	@mkdir -p $(dir $@)
+	$(FUZZ_CC) $(FUZZ_FLAGS) $^ $(shell pkg-config --cflags --libs yaml-0.1) -lm -o $@
+$(FUZZ_DIR)/fuzz_exr: tests/fuzz/fuzz_exr.c harness/exr.c harness/runner.c
+	@mkdir -p $(dir $@)
+	$(FUZZ_CC) $(FUZZ_FLAGS) $^ $(shell pkg-config --cflags --libs OpenEXR) -lm -o $@
+
+fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
+	@mkdir -p $(FUZZ_DIR)/corpus_scene $(FUZZ_DIR)/corpus_exr $(FUZZ_DIR)/artifacts
+	cd scenes && $(FUZZ_DIR)/fuzz_scene -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
+	    -artifact_prefix=$(FUZZ_DIR)/artifacts/scene- $(FUZZ_DIR)/corpus_scene ../tests/fuzz/corpus/scene
+	$(FUZZ_DIR)/fuzz_exr -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
+	    -artifact_prefix=$(FUZZ_DIR)/artifacts/exr- $(FUZZ_DIR)/corpus_exr tests/fuzz/corpus/exr
 
 clean:
 	rm -rf build build-san build-dbg build-san-dbg

@@ -16,6 +16,7 @@ static const cli_command cli_commands[] = {
     {"run", cli_run},
     {"compare", cli_compare},
     {"plan", cli_plan},
+    {"stability", cli_stability},
 };
 
 const cli_command *cli_find(const char *name)

@@ -34,5 +34,6 @@ int cli_eval(int argc, char **argv);
 int cli_run(int argc, char **argv);
 int cli_compare(int argc, char **argv);
 int cli_plan(int argc, char **argv);
+int cli_stability(int argc, char **argv);
 
 #endif

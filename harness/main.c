@@ -3,6 +3,7 @@
  *   reflcheck render SCENE -o OUT.exr [--width W] [--height H] [--supersample K] [--threads N] [--aovs all|none]
  *   reflcheck eval fresnel|beckmann [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]
  *   reflcheck check SCENE                 parse and validate only
+ *   reflcheck run | plan | compare | stability   (see usage below)
  * Exit status: 0 ok, 1 a run failed (I/O, renderer), 2 bad input (command line, scene file).
  */
 #include <math.h>
@@ -18,9 +19,10 @@ static void usage(FILE *f)
           "  render SCENE -o OUT.exr [--width W] [--height H] [--supersample K] [--threads N] [--aovs all|none]\n"
           "  eval fresnel|beckmann|smith [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]\n"
           "  check SCENE\n"
-          "  povray SCENE -o OUT.pov [--role twin|validate] [--width W] [--height H] [--supersample K]\n"
-          "  cycles-job SCENE -o JOB.json [--role twin|validate] [--samples N] [--seed S] [--width W] [--height H]\n"
-          "  compare TEST.exr REF.exr [--mask-silhouette] [--json]\n",
+          "  run SCENE --renderer raster|povray|cycles [--role twin|validate|agree] [--small] [--out DIR]\n"
+          "  plan SCENE... --out RUNDIR [--small]      the render jobs as a Makefile\n"
+          "  compare SCENE... --run RUNDIR             metrics and thresholds -> compare.json\n"
+          "  stability [--json F] [--csv F]            float models vs long double over extremes\n",
           f);
 }
 

@@ -776,7 +776,7 @@ rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *second
     if (!ok) {
         char line[300];
         povray_log_error(log, line, sizeof line);
-        povray_err(err, errlen, "%s: POV-Ray %s (exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
+        povray_err(err, errlen, "%s: POV-Ray failed (%s, exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
                    runner_status_name(rr.status), rr.exit_code, rr.signal, line[0] ? ": " : "", line, log);
         return RC_ERR_RENDERER;
     }

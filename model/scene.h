@@ -141,7 +141,7 @@ typedef struct {
     /* The small variant `make test` renders (all renderers): 0 = derived from the full size
      * (width at most 96, aspect kept, supersample at most 2, samples at most 32). */
     struct { int width, height, supersample, samples; } small;
-    double timeout;              /* seconds one reference render may take, 0 = 600 */
+    float timeout;               /* seconds one reference render may take, 0 = 600 */
     struct { vec3 eye, target, up; float hfov; } camera; /* hfov [rad] */
     vec3 global_ambient;         /* D3D Ia, default 0 */
     environment env;

@@ -6,6 +6,7 @@
 #include "cooktorrance.h"
 #include "d3d.h"
 #include "d3d9client.h"
+#include "fresnel.h"
 
 #define SHADE_INV_PI 0.318309886183790671538f
 
@@ -25,13 +26,19 @@ int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, f
         *atten = 1.0f;
         return 1;
     }
-    vec3 d = v3_sub(l->position, x);
-    float dist = v3_len(d);
+    /* The distance in double: in float, d^2 underflows below 1e-19 m and overflows above
+     * 1.8e19 m, and the light would vanish at either end. */
+    dvec3 d = dv3_sub(dv3_from(l->position), dv3_from(x));
+    double dist = dv3_len(d);
+    *to_light = v3s(0.0f);
+    *e_perp = v3s(0.0f);
+    *atten = 0.0f;
     /* A light exactly at the shaded point has no direction; it lights nothing there. */
-    if (!(dist > 0.0f))
+    if (!(dist > 0.0))
         return 0;
-    *to_light = v3_scale(d, 1.0f / dist);
-    *atten = d3d_attenuation(l, dist) * d3d_spot(l, v3_neg(*to_light));
+    *to_light = v3_from_d(dv3_scale(d, 1.0 / dist));
+    float fd = dist < 3e38 ? (float)dist : 3e38f;
+    *atten = d3d_attenuation(l, fd) * d3d_spot(l, v3_neg(*to_light));
     *e_perp = v3_scale(l->intensity, *atten);
     return *atten > 0.0f;
 }
@@ -103,17 +110,24 @@ static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x
     const material *m = p->mat;
     shade_d3d_impl(c, m, x, n, v, out, 1, 1);
     vec3 phi = env_lookup(c->env, v3_reflect(v, n));
+    /* Equation (8) takes the sun's angle sigma from geometry alone: a main light that gives
+     * nothing here (outside its cone or range) still has a direction. */
     float n_sun = 0.0f;
     const light *sun = m->d9.sun_angle ? shade_main_light(c->s) : NULL;
     if (sun != NULL) {
         vec3 to_l, e_perp;
         float atten;
-        if (shade_light_incident(sun, x, &to_l, &e_perp, &atten))
-            n_sun = v3_dot(n, to_l);
+        shade_light_incident(sun, x, &to_l, &e_perp, &atten);
+        n_sun = v3_dot(n, to_l);
     }
     d3d9_result r;
     d3d9client_combine(&m->d9, out->diffuse, m->d9.alpha, phi, v3_dot(n, v), n_sun, &r);
-    out->diffuse = v3_sub(r.rgb, r.r_tot);
+    /* The diffuse layer from its own factors, not rgb - R_tot: that difference cancels to 0
+     * when an HDR environment makes R_tot much larger than d. */
+    float weight = r.diffuse_weight;
+    if (m->d9.sun_angle)
+        weight *= 1.0f - fresnel_d3d9(m->d9.r0, m->d9.m, m->d9.p, n_sun);
+    out->diffuse = v3_scale(out->diffuse, weight);
     out->reflection = r.r_tot;
     out->alpha = r.alpha;
 }

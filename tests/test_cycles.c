@@ -252,9 +252,9 @@ static int compare_floor_channel(const result *r, const cam *c, const char *name
             double pool = 0.0;
             int np = 0;
             for (int b = j - 2; b <= j + 2; b++)
-                for (int a = i - 2; a <= i + 2; a++) {
-                    if (a < 0 || b < 0 || a >= r->w || b >= r->h) continue;
-                    int q = b * r->w + a;
+                for (int ii = i - 2; ii <= i + 2; ii++) {
+                    if (ii < 0 || b < 0 || ii >= r->w || b >= r->h) continue;
+                    int q = b * r->w + ii;
                     if (cov[q] >= 1.0f && fabsf(v[q]) > 0.0f) { pool += var[q] / ((double)v[q] * v[q]); np++; }
                 }
             pool = np ? pool / np : 0.0;

@@ -46,7 +46,7 @@ static void add_vertex(mesh *m, vec3 p, vec3 n)
     m->n_verts++;
 }
 
-static void add_tri(mesh *m, uint32_t a, uint32_t b, uint32_t c, int object)
+static void add_tri(mesh *m, uint32_t a, uint32_t b, uint32_t c, int object_id)
 {
     if (m->n_tris == m->cap_tris) {
         m->cap_tris = m->cap_tris ? 2 * m->cap_tris : 64;
@@ -58,22 +58,22 @@ static void add_tri(mesh *m, uint32_t a, uint32_t b, uint32_t c, int object)
     m->idx[3 * m->n_tris] = a;
     m->idx[3 * m->n_tris + 1] = b;
     m->idx[3 * m->n_tris + 2] = c;
-    m->tri_object[m->n_tris] = object;
+    m->tri_object[m->n_tris] = object_id;
     m->n_tris++;
 }
 
 /* A flat quad (two triangles, all four normals = n) with corners c0..c3 in order. */
-static void add_quad(mesh *m, const vec3 c[4], vec3 n, int object)
+static void add_quad(mesh *m, const vec3 c[4], vec3 n, int object_id)
 {
     uint32_t b = (uint32_t)m->n_verts;
     for (int i = 0; i < 4; i++)
         add_vertex(m, c[i], n);
-    add_tri(m, b, b + 1, b + 2, object);
-    add_tri(m, b, b + 2, b + 3, object);
+    add_tri(m, b, b + 1, b + 2, object_id);
+    add_tri(m, b, b + 2, b + 3, object_id);
 }
 
 /* A square of half-size h centred at o in the plane with unit normal n. */
-static void add_plane(mesh *m, vec3 o, vec3 n, float h, int object)
+static void add_plane(mesh *m, vec3 o, vec3 n, float h, int object_id)
 {
     vec3 a = fabsf(n.x) < 0.9f ? v3(1, 0, 0) : v3(0, 1, 0);
     vec3 t1 = v3_norm(v3_cross(n, a)), t2 = v3_cross(n, t1);
@@ -83,7 +83,7 @@ static void add_plane(mesh *m, vec3 o, vec3 n, float h, int object)
         v3_add(o, v3_add(v3_scale(t1, h), v3_scale(t2, h))),
         v3_add(o, v3_add(v3_scale(t1, -h), v3_scale(t2, h))),
     };
-    add_quad(m, c, n, object);
+    add_quad(m, c, n, object_id);
 }
 
 static void mesh_release(mesh *m)

@@ -1,0 +1,1404 @@
+/* scene_file.c - YAML scene files (scenes/FORMAT.md) to a scene, with strict validation.
+ *
+ * Two passes over the text: libyaml's event parser first, only to refuse deep nesting (libyaml's
+ * scanner is quadratic in nesting depth: 40k '[' take seconds, 1M take minutes), then the document
+ * API, whose nodes carry line/column marks for the messages. Every map is read against a fixed key
+ * list, so unknown and duplicate keys are errors, and the walk is bounded by the schema (aliases
+ * cannot make it loop or explode).
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <yaml.h>
+
+#include "scene_file.h"
+
+#define SF_PI 3.14159265358979323846
+/* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
+#define SF_MAX_DEPTH 32
+#define SF_PATHLEN 256
+
+typedef struct {
+    yaml_document_t *doc;
+    const char *file;
+    char dir[SCENE_PATH_MAX];
+    char *err;
+    size_t errlen;
+} sf_ctx;
+
+typedef struct {
+    yaml_node_t *k, *v;
+} sf_kv;
+
+#if defined(__GNUC__)
+#define SF_PRINTF(f, a) __attribute__((format(printf, f, a)))
+#else
+#define SF_PRINTF(f, a)
+#endif
+
+uint64_t scene_file_hash(const void *bytes, size_t len)
+{
+    const unsigned char *p = bytes;
+    uint64_t h = 14695981039346656037ull;
+    for (size_t i = 0; i < len; i++) {
+        h ^= p[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+SF_PRINTF(5, 0)
+static void sf_vmsg(sf_ctx *c, unsigned long line, unsigned long col, const char *path,
+                    const char *fmt, va_list ap)
+{
+    char msg[512];
+    if (!c->err || c->errlen == 0)
+        return;
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    snprintf(c->err, c->errlen, "%s:%lu:%lu: %s: %s", c->file, line, col, path, msg);
+}
+
+SF_PRINTF(5, 6)
+static rc_status sf_fail(sf_ctx *c, rc_status rc, const yaml_node_t *n, const char *path,
+                         const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    sf_vmsg(c, n ? (unsigned long)n->start_mark.line + 1 : 1,
+            n ? (unsigned long)n->start_mark.column + 1 : 1, path, fmt, ap);
+    va_end(ap);
+    return rc;
+}
+
+SF_PRINTF(5, 6)
+static rc_status sf_fail_at(sf_ctx *c, rc_status rc, yaml_mark_t m, const char *path,
+                            const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    sf_vmsg(c, (unsigned long)m.line + 1, (unsigned long)m.column + 1, path, fmt, ap);
+    va_end(ap);
+    return rc;
+}
+
+/* Appends src to out (SF_PATHLEN bytes, holding `used`), truncating; returns the new length. */
+static size_t sf_append(char *out, size_t used, const char *src)
+{
+    while (*src && used + 1 < SF_PATHLEN)
+        out[used++] = *src++;
+    out[used] = '\0';
+    return used;
+}
+
+/* Key paths for messages: "materials.white.d3d.power"; a path that long is truncated. */
+static void sf_child(char *out, const char *path, const char *key)
+{
+    size_t used = sf_append(out, 0, path);
+    if (path[0])
+        used = sf_append(out, used, ".");
+    sf_append(out, used, key);
+}
+
+static void sf_index(char *out, const char *path, int i)
+{
+    char idx[16];
+    snprintf(idx, sizeof idx, "[%d]", i);
+    sf_append(out, sf_append(out, 0, path), idx);
+}
+
+static const char *sf_kind(const yaml_node_t *n)
+{
+    switch (n->type) {
+    case YAML_SEQUENCE_NODE: return "a list";
+    case YAML_MAPPING_NODE: return "a map";
+    default: return "a single value";
+    }
+}
+
+/* The scalar's text, or NULL for a non-scalar or a scalar holding a NUL byte (an escape). */
+static const char *sf_text(const yaml_node_t *n)
+{
+    if (n->type != YAML_SCALAR_NODE)
+        return NULL;
+    const char *s = (const char *)n->data.scalar.value;
+    if (strlen(s) != n->data.scalar.length)
+        return NULL;
+    return s;
+}
+
+/* A short printable copy of user text for messages. */
+static void sf_quote(char *out, size_t outlen, const char *s)
+{
+    size_t j = 0;
+    for (size_t i = 0; s[i] && j + 4 < outlen; i++)
+        out[j++] = isprint((unsigned char)s[i]) ? s[i] : '?';
+    if (s[0] && strlen(s) >= outlen - 4 && j + 3 < outlen) {
+        out[j++] = '.';
+        out[j++] = '.';
+    }
+    out[j] = '\0';
+}
+
+static void sf_join(char *out, size_t outlen, const char *const *names, int n)
+{
+    size_t used = 0;
+    out[0] = '\0';
+    for (int i = 0; i < n && used + 1 < outlen; i++) {
+        int w = snprintf(out + used, outlen - used, "%s%s", i ? ", " : "", names[i]);
+        if (w < 0)
+            break;
+        used += (size_t)w;
+    }
+}
+
+/* Reads a map whose keys must come from `keys`; found[i] gets key i's key and value nodes. */
+static rc_status sf_map(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *keys,
+                        int nkeys, sf_kv *found)
+{
+    char allowed[400], child[SF_PATHLEN], q[48];
+    sf_join(allowed, sizeof allowed, keys, nkeys);
+    memset(found, 0, sizeof(sf_kv) * (size_t)nkeys);
+    if (n->type != YAML_MAPPING_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, path[0] ? path : "(top level)",
+                       "expected a map {key: value, ...}, got %s; allowed keys: %s", sf_kind(n),
+                       allowed);
+    for (yaml_node_pair_t *p = n->data.mapping.pairs.start; p < n->data.mapping.pairs.top; p++) {
+        yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
+        yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
+        const char *kt = k ? sf_text(k) : NULL;
+        if (!k || !v || !kt)
+            return sf_fail(c, RC_ERR_PARSE, k, path[0] ? path : "(top level)",
+                           "a key is not a plain word; allowed keys: %s", allowed);
+        int idx = -1;
+        for (int i = 0; i < nkeys; i++)
+            if (strcmp(kt, keys[i]) == 0)
+                idx = i;
+        sf_quote(q, sizeof q, kt);
+        sf_child(child, path, q);
+        if (idx < 0)
+            return sf_fail(c, RC_ERR_PARSE, k, child, "unknown key; allowed: %s", allowed);
+        if (found[idx].k)
+            return sf_fail(c, RC_ERR_PARSE, k, child,
+                           "duplicate key (first at line %lu); allowed: each key once",
+                           (unsigned long)found[idx].k->start_mark.line + 1);
+        found[idx].k = k;
+        found[idx].v = v;
+    }
+    return RC_OK;
+}
+
+static rc_status sf_need(sf_ctx *c, yaml_node_t *map, const char *path, const sf_kv *f,
+                         const char *key)
+{
+    char child[SF_PATHLEN];
+    if (f->v)
+        return RC_OK;
+    sf_child(child, path, key);
+    return sf_fail(c, RC_ERR_PARSE, map, child, "missing required key in the map at this line; "
+                   "allowed: add %s: ...", key);
+}
+
+/* A key given where it does not apply (e.g. `radius` on a quad). */
+static rc_status sf_forbid(sf_ctx *c, const char *path, const sf_kv *f, const char *key,
+                           const char *what, const char *allowed)
+{
+    char child[SF_PATHLEN];
+    if (!f->k)
+        return RC_OK;
+    sf_child(child, path, key);
+    return sf_fail(c, RC_ERR_PARSE, f->k, child, "not used by %s; allowed: %s", what, allowed);
+}
+
+enum { SF_LO_OPEN = 1, SF_HI_OPEN = 2, SF_ALLOW_INF = 4 };
+
+static int sf_parse_double(const char *s, double *out)
+{
+    static const char *const inf[] = {".inf", ".Inf", ".INF", "+.inf", "+.Inf", "+.INF"};
+    static const char *const ninf[] = {"-.inf", "-.Inf", "-.INF"};
+    static const char *const nan[] = {".nan", ".NaN", ".NAN"};
+    for (size_t i = 0; i < sizeof inf / sizeof *inf; i++)
+        if (strcmp(s, inf[i]) == 0)
+            return *out = INFINITY, 1;
+    for (size_t i = 0; i < sizeof ninf / sizeof *ninf; i++)
+        if (strcmp(s, ninf[i]) == 0)
+            return *out = -INFINITY, 1;
+    for (size_t i = 0; i < sizeof nan / sizeof *nan; i++)
+        if (strcmp(s, nan[i]) == 0)
+            return *out = NAN, 1;
+    if (!s[0] || isspace((unsigned char)s[0]))
+        return 0;
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end)
+        return 0;
+    *out = v;
+    return 1;
+}
+
+static rc_status sf_number(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
+                           int flags, const char *allowed, double *out)
+{
+    const char *s = sf_text(n);
+    double v;
+    if (!s || !sf_parse_double(s, &v))
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a number, got %s; allowed: %s",
+                       s ? "text" : sf_kind(n), allowed);
+    if (isnan(v))
+        return sf_fail(c, RC_ERR_RANGE, n, path, "NaN is not a value; allowed: %s", allowed);
+    if (isinf(v) && !(flags & SF_ALLOW_INF))
+        return sf_fail(c, RC_ERR_RANGE, n, path, "%s is not finite; allowed: %s", s, allowed);
+    if (v < lo || v > hi || ((flags & SF_LO_OPEN) && v == lo) || ((flags & SF_HI_OPEN) && v == hi))
+        return sf_fail(c, RC_ERR_RANGE, n, path, "%s is out of range; allowed: %s", s, allowed);
+    *out = v;
+    return RC_OK;
+}
+
+static rc_status sf_float(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
+                          int flags, const char *allowed, float *out)
+{
+    double v;
+    rc_status rc = sf_number(c, n, path, lo, hi, flags, allowed, &v);
+    if (rc)
+        return rc;
+    if (isfinite(v) && fabs(v) > FLT_MAX)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "too large for single precision; allowed: %s",
+                       allowed);
+    *out = (float)v;
+    return RC_OK;
+}
+
+/* Degrees in the file, radians in the struct. */
+static rc_status sf_angle(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
+                          int flags, const char *allowed, float *out)
+{
+    double v;
+    rc_status rc = sf_number(c, n, path, lo, hi, flags, allowed, &v);
+    if (rc)
+        return rc;
+    *out = (float)(v * SF_PI / 180.0);
+    return RC_OK;
+}
+
+static rc_status sf_int(sf_ctx *c, yaml_node_t *n, const char *path, long lo, long hi, int *out)
+{
+    const char *s = sf_text(n);
+    char *end;
+    if (!s || !s[0] || isspace((unsigned char)s[0]))
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a whole number, got %s; allowed: %ld..%ld",
+                       s ? "empty text" : sf_kind(n), lo, hi);
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (*end) {
+        double d;
+        if (sf_parse_double(s, &d))
+            return sf_fail(c, RC_ERR_PARSE, n, path,
+                           "expected a whole number, got %s; allowed: %ld..%ld", s, lo, hi);
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got text; allowed: %ld..%ld",
+                       lo, hi);
+    }
+    if (errno == ERANGE || v < lo || v > hi)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "%s is out of range; allowed: %ld..%ld", s, lo, hi);
+    *out = (int)v;
+    return RC_OK;
+}
+
+static rc_status sf_bool(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
+{
+    static const char *const yes[] = {"true", "True", "TRUE", "yes", "Yes", "on", "On"};
+    static const char *const no[] = {"false", "False", "FALSE", "no", "No", "off", "Off"};
+    const char *s = sf_text(n);
+    for (size_t i = 0; s && i < sizeof yes / sizeof *yes; i++) {
+        if (strcmp(s, yes[i]) == 0)
+            return *out = 1, RC_OK;
+        if (strcmp(s, no[i]) == 0)
+            return *out = 0, RC_OK;
+    }
+    return sf_fail(c, RC_ERR_PARSE, n, path, "expected true or false, got %s; allowed: true, false",
+                   s ? "other text" : sf_kind(n));
+}
+
+static rc_status sf_enum(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *names,
+                         int count, int *out)
+{
+    char allowed[200], q[48];
+    const char *s = sf_text(n);
+    for (int i = 0; s && i < count; i++)
+        if (strcmp(s, names[i]) == 0)
+            return *out = i, RC_OK;
+    sf_join(allowed, sizeof allowed, names, count);
+    if (!s)
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a word, got %s; allowed: %s",
+                       sf_kind(n), allowed);
+    sf_quote(q, sizeof q, s);
+    return sf_fail(c, RC_ERR_PARSE, n, path, "unknown value '%s'; allowed: %s", q, allowed);
+}
+
+/* A list of exactly `count` numbers, each checked like sf_float. */
+static rc_status sf_floats(sf_ctx *c, yaml_node_t *n, const char *path, int count, double lo,
+                           double hi, int flags, const char *allowed, float *out)
+{
+    char child[SF_PATHLEN];
+    if (n->type != YAML_SEQUENCE_NODE ||
+        n->data.sequence.items.top - n->data.sequence.items.start != count)
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a list of %d numbers, got %s; allowed: %s",
+                       count, n->type == YAML_SEQUENCE_NODE ? "a list of another length" : sf_kind(n),
+                       allowed);
+    for (int i = 0; i < count; i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
+        sf_index(child, path, i);
+        if (!e)
+            return sf_fail(c, RC_ERR_PARSE, n, child, "missing list item; allowed: %s", allowed);
+        rc_status rc = sf_float(c, e, child, lo, hi, flags, allowed, &out[i]);
+        if (rc)
+            return rc;
+    }
+    return RC_OK;
+}
+
+static rc_status sf_vec3(sf_ctx *c, yaml_node_t *n, const char *path, double lo,
+                         const char *allowed, vec3 *out)
+{
+    float f[3];
+    rc_status rc = sf_floats(c, n, path, 3, lo, INFINITY, 0, allowed, f);
+    if (rc == RC_OK)
+        *out = v3(f[0], f[1], f[2]);
+    return rc;
+}
+
+static rc_status sf_point(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    return sf_vec3(c, n, path, -INFINITY, "[x, y, z], 3 finite numbers [m]", out);
+}
+
+static rc_status sf_colour(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    return sf_vec3(c, n, path, 0.0, "[r, g, b], 3 finite numbers >= 0", out);
+}
+
+static rc_status sf_unit01(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    float f[3];
+    rc_status rc = sf_floats(c, n, path, 3, 0.0, 1.0, 0, "[r, g, b], 3 numbers in [0, 1]", f);
+    if (rc == RC_OK)
+        *out = v3(f[0], f[1], f[2]);
+    return rc;
+}
+
+/* A direction, stored unit length. */
+static rc_status sf_direction(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    vec3 d;
+    rc_status rc = sf_point(c, n, path, &d);
+    if (rc)
+        return rc;
+    dvec3 dd = dv3_from(d);
+    if (dv3_len(dd) == 0.0)
+        return sf_fail(c, RC_ERR_RANGE, n, path,
+                       "zero-length direction; allowed: [x, y, z] with a nonzero length");
+    *out = v3_from_d(dv3_norm(dd));
+    return RC_OK;
+}
+
+static int sf_name_char(int ch) { return isalnum(ch) || ch == '_' || ch == '-' || ch == '.'; }
+
+static rc_status sf_name(sf_ctx *c, yaml_node_t *n, const char *path, char *out, size_t outlen)
+{
+    const char *s = sf_text(n);
+    if (!s)
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a name, got %s; allowed: letters, digits, _ - .", sf_kind(n));
+    size_t len = strlen(s);
+    if (len == 0 || len >= outlen)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "name length %zu; allowed: 1..%zu characters", len,
+                       outlen - 1);
+    for (size_t i = 0; i < len; i++)
+        if (!sf_name_char((unsigned char)s[i]))
+            return sf_fail(c, RC_ERR_RANGE, n, path,
+                           "character %zu is not allowed in a name; allowed: letters, digits, _ - .",
+                           i + 1);
+    memcpy(out, s, len + 1);
+    return RC_OK;
+}
+
+static int sf_ends_with(const char *s, const char *suffix)
+{
+    size_t a = strlen(s), b = strlen(suffix);
+    if (a < b)
+        return 0;
+    for (size_t i = 0; i < b; i++)
+        if (tolower((unsigned char)s[a - b + i]) != suffix[i])
+            return 0;
+    return 1;
+}
+
+/* A file path relative to the scene file's directory; the file must be readable now. */
+static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *exts,
+                         int nexts, const char *what, char *out)
+{
+    char q[80], allowed[80];
+    const char *s = sf_text(n);
+    sf_join(allowed, sizeof allowed, exts, nexts);
+    if (!s || !s[0])
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a file path, got %s; allowed: %s (%s)",
+                       s ? "empty text" : sf_kind(n), what, allowed);
+    int ok = 0;
+    for (int i = 0; i < nexts; i++)
+        ok |= sf_ends_with(s, exts[i]);
+    sf_quote(q, sizeof q, s);
+    if (!ok)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "'%s' has an unsupported extension; allowed: %s (%s)",
+                       q, what, allowed);
+    size_t need = (s[0] == '/' ? 0 : strlen(c->dir)) + strlen(s) + 1;
+    if (need > SCENE_PATH_MAX)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "path is %zu bytes long; allowed: at most %d", need,
+                       SCENE_PATH_MAX - 1);
+    snprintf(out, SCENE_PATH_MAX, "%s%s", s[0] == '/' ? "" : c->dir, s);
+    FILE *f = fopen(out, "rb");
+    if (!f)
+        return sf_fail(c, RC_ERR_IO, n, path,
+                       "cannot open '%s' (%s); allowed: a readable %s, path relative to the scene file",
+                       out, strerror(errno), what);
+    fclose(f);
+    return RC_OK;
+}
+
+/* --- sections ------------------------------------------------------------------------------ */
+
+static rc_status sf_image(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[] = {"width", "height", "supersample", "samples", "small", "timeout"};
+    sf_kv f[6];
+    rc_status rc;
+    if ((rc = sf_map(c, n, "image", keys, 6, f)))
+        return rc;
+    if ((rc = sf_need(c, n, "image", &f[0], "width")) || (rc = sf_need(c, n, "image", &f[1], "height")))
+        return rc;
+    if ((rc = sf_int(c, f[0].v, "image.width", 1, 16384, &s->width)) ||
+        (rc = sf_int(c, f[1].v, "image.height", 1, 16384, &s->height)))
+        return rc;
+    if (f[2].v && (rc = sf_int(c, f[2].v, "image.supersample", 1, 16, &s->supersample)))
+        return rc;
+    if (f[3].v && (rc = sf_int(c, f[3].v, "image.samples", 1, 1 << 20, &s->samples)))
+        return rc;
+    if (f[5].v && (rc = sf_float(c, f[5].v, "image.timeout", 1.0, 1e6, 0, "seconds from 1 to 1e6", &s->timeout)))
+        return rc;
+    if (f[4].v) {
+        /* The small variant `make test` renders; absent keys are derived (jobs.h). */
+        sf_kv g[4];
+        if ((rc = sf_map(c, f[4].v, "image.small", keys, 4, g)))
+            return rc;
+        if ((g[0].v && (rc = sf_int(c, g[0].v, "image.small.width", 4, 16384, &s->small.width))) ||
+            (g[1].v && (rc = sf_int(c, g[1].v, "image.small.height", 4, 16384, &s->small.height))) ||
+            (g[2].v && (rc = sf_int(c, g[2].v, "image.small.supersample", 1, 16, &s->small.supersample))) ||
+            (g[3].v && (rc = sf_int(c, g[3].v, "image.small.samples", 1, 1 << 20, &s->small.samples))))
+            return rc;
+    }
+    return RC_OK;
+}
+
+static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[] = {"eye", "target", "up", "hfov"};
+    sf_kv f[4];
+    rc_status rc;
+    if ((rc = sf_map(c, n, "camera", keys, 4, f)))
+        return rc;
+    if ((rc = sf_need(c, n, "camera", &f[0], "eye")) || (rc = sf_need(c, n, "camera", &f[1], "target")) ||
+        (rc = sf_need(c, n, "camera", &f[3], "hfov")))
+        return rc;
+    if ((rc = sf_point(c, f[0].v, "camera.eye", &s->camera.eye)) ||
+        (rc = sf_point(c, f[1].v, "camera.target", &s->camera.target)))
+        return rc;
+    if (f[2].v && (rc = sf_direction(c, f[2].v, "camera.up", &s->camera.up)))
+        return rc;
+    if ((rc = sf_angle(c, f[3].v, "camera.hfov", 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN,
+                       "degrees in (0, 180)", &s->camera.hfov)))
+        return rc;
+    dvec3 view = dv3_sub(dv3_from(s->camera.target), dv3_from(s->camera.eye));
+    if (dv3_len(view) == 0.0)
+        return sf_fail(c, RC_ERR_RANGE, f[1].v, "camera.target",
+                       "equals camera.eye; allowed: a target point different from the eye");
+    /* Below sin(angle) = 1e-3 between up and the view axis, the normalised right vector
+     * cross(view, up) carries float rounding of order 1e-4 relative: refuse it. */
+    if (dv3_len(dv3_cross(dv3_norm(view), dv3_from(s->camera.up))) < 1e-3)
+        return sf_fail(c, RC_ERR_RANGE, f[2].v ? f[2].v : n, "camera.up",
+                       "parallel to the view direction target - eye; allowed: an up vector at an "
+                       "angle to the view direction");
+    return RC_OK;
+}
+
+static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[] = {"constant", "image", "scale"};
+    static const char *const exts[] = {".exr"};
+    sf_kv f[3];
+    rc_status rc;
+    if ((rc = sf_map(c, n, "environment", keys, 3, f)))
+        return rc;
+    if (!!f[0].v == !!f[1].v)
+        return sf_fail(c, RC_ERR_PARSE, n, "environment",
+                       "give exactly one of 'constant' and 'image'; allowed: {constant: [r, g, b]} "
+                       "or {image: file.exr, scale: s}, or omit environment for none");
+    if (f[0].v) {
+        if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment",
+                            "constant: [r, g, b] alone")))
+            return rc;
+        s->env.kind = ENV_CONSTANT;
+        return sf_colour(c, f[0].v, "environment.constant", &s->env.radiance);
+    }
+    s->env.kind = ENV_IMAGE;
+    s->env.radiance = v3s(1.0f);
+    if ((rc = sf_file(c, f[1].v, "environment.image", exts, 1,
+                      "equirectangular linear OpenEXR image", s->env.path)))
+        return rc;
+    if (f[2].v) {
+        if (f[2].v->type == YAML_SEQUENCE_NODE)
+            return sf_colour(c, f[2].v, "environment.scale", &s->env.radiance);
+        float k;
+        if ((rc = sf_float(c, f[2].v, "environment.scale", 0.0, INFINITY, 0,
+                           "a finite number >= 0 or [r, g, b]", &k)))
+            return rc;
+        s->env.radiance = v3s(k);
+    }
+    return RC_OK;
+}
+
+enum { LK_TYPE, LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_IRRADIANCE, LK_AMBIENT,
+       LK_ATTENUATION, LK_RANGE, LK_INNER, LK_OUTER, LK_FALLOFF, LK_PROFILE, LK_COUNT };
+
+static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
+{
+    static const char *const keys[LK_COUNT] = {"type", "position", "direction", "intensity",
+                                               "irradiance", "ambient", "attenuation", "range",
+                                               "inner", "outer", "falloff", "profile"};
+    static const char *const types[] = {"point", "sun", "spot"};
+    static const char *const profiles[] = {"d3d", "smooth"};
+    /* Keys each light type accepts, and the ones it requires. */
+    static const int point_ok[] = {LK_TYPE, LK_POSITION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION,
+                                   LK_RANGE, -1};
+    static const int sun_ok[] = {LK_TYPE, LK_DIRECTION, LK_IRRADIANCE, LK_AMBIENT, -1};
+    static const int spot_ok[] = {LK_TYPE, LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_AMBIENT,
+                                  LK_ATTENUATION, LK_RANGE, LK_INNER, LK_OUTER, LK_FALLOFF,
+                                  LK_PROFILE, -1};
+    static const int point_req[] = {LK_POSITION, LK_INTENSITY, -1};
+    static const int sun_req[] = {LK_DIRECTION, LK_IRRADIANCE, -1};
+    static const int spot_req[] = {LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_INNER, LK_OUTER, -1};
+    static const int *const ok_of[] = {point_ok, sun_ok, spot_ok};
+    static const int *const req_of[] = {point_req, sun_req, spot_req};
+    sf_kv f[LK_COUNT];
+    char child[SF_PATHLEN], allowed[300];
+    rc_status rc;
+    int type;
+
+    if ((rc = sf_map(c, n, path, keys, LK_COUNT, f)))
+        return rc;
+    if ((rc = sf_need(c, n, path, &f[LK_TYPE], "type")))
+        return rc;
+    sf_child(child, path, "type");
+    if ((rc = sf_enum(c, f[LK_TYPE].v, child, types, 3, &type)))
+        return rc;
+    light_init(l);
+    l->kind = (light_kind)type;
+
+    const char *names[LK_COUNT];
+    int nn = 0;
+    for (const int *k = ok_of[type]; *k >= 0; k++)
+        names[nn++] = keys[*k];
+    sf_join(allowed, sizeof allowed, names, nn);
+    for (int i = 0; i < LK_COUNT; i++) {
+        int ok = 0;
+        for (const int *k = ok_of[type]; *k >= 0; k++)
+            ok |= *k == i;
+        if (!ok) {
+            char what[32];
+            snprintf(what, sizeof what, "a %s light", types[type]);
+            if ((rc = sf_forbid(c, path, &f[i], keys[i], what, allowed)))
+                return rc;
+        }
+    }
+    for (const int *k = req_of[type]; *k >= 0; k++)
+        if ((rc = sf_need(c, n, path, &f[*k], keys[*k])))
+            return rc;
+
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[LK_POSITION].v && (rc = sf_point(c, f[LK_POSITION].v, SF_CHILD("position"), &l->position)))
+        return rc;
+    if (f[LK_DIRECTION].v &&
+        (rc = sf_direction(c, f[LK_DIRECTION].v, SF_CHILD("direction"), &l->direction)))
+        return rc;
+    if (f[LK_INTENSITY].v &&
+        (rc = sf_colour(c, f[LK_INTENSITY].v, SF_CHILD("intensity"), &l->intensity)))
+        return rc;
+    if (f[LK_IRRADIANCE].v &&
+        (rc = sf_colour(c, f[LK_IRRADIANCE].v, SF_CHILD("irradiance"), &l->intensity)))
+        return rc;
+    if (f[LK_AMBIENT].v && (rc = sf_colour(c, f[LK_AMBIENT].v, SF_CHILD("ambient"), &l->ambient)))
+        return rc;
+    if (f[LK_ATTENUATION].v) {
+        float a[3];
+        if ((rc = sf_floats(c, f[LK_ATTENUATION].v, SF_CHILD("attenuation"), 3, 0.0, INFINITY, 0,
+                            "[a0, a1, a2], finite numbers >= 0, not all 0", a)))
+            return rc;
+        if (a[0] == 0.0f && a[1] == 0.0f && a[2] == 0.0f)
+            return sf_fail(c, RC_ERR_RANGE, f[LK_ATTENUATION].v, child,
+                           "a0 = a1 = a2 = 0 divides by zero; allowed: [a0, a1, a2] >= 0, not all 0 "
+                           "(physical 1/d^2 is [0, 0, 1])");
+        l->a0 = a[0];
+        l->a1 = a[1];
+        l->a2 = a[2];
+    }
+    if (f[LK_RANGE].v && (rc = sf_float(c, f[LK_RANGE].v, SF_CHILD("range"), 0.0, INFINITY,
+                                        SF_LO_OPEN | SF_ALLOW_INF, "a number > 0 or .inf [m]",
+                                        &l->range)))
+        return rc;
+    if (type == LIGHT_SPOT) {
+        if ((rc = sf_angle(c, f[LK_INNER].v, SF_CHILD("inner"), 0.0, 180.0, SF_HI_OPEN,
+                           "full cone angle in degrees, 0 <= inner <= outer < 180", &l->inner)) ||
+            (rc = sf_angle(c, f[LK_OUTER].v, SF_CHILD("outer"), 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN,
+                           "full cone angle in degrees, 0 < outer < 180", &l->outer)))
+            return rc;
+        if (l->inner > l->outer)
+            return sf_fail(c, RC_ERR_RANGE, f[LK_INNER].v, SF_CHILD("inner"),
+                           "inner cone is wider than outer; allowed: inner <= outer");
+        if (f[LK_FALLOFF].v &&
+            (rc = sf_float(c, f[LK_FALLOFF].v, SF_CHILD("falloff"), 0.0, INFINITY, 0,
+                           "a finite exponent >= 0", &l->falloff)))
+            return rc;
+        if (f[LK_PROFILE].v) {
+            int p;
+            if ((rc = sf_enum(c, f[LK_PROFILE].v, SF_CHILD("profile"), profiles, 2, &p)))
+                return rc;
+            l->profile = p ? SPOT_SMOOTH : SPOT_D3D;
+        }
+    }
+#undef SF_CHILD
+    return RC_OK;
+}
+
+static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    char child[SF_PATHLEN];
+    if (n->type != YAML_SEQUENCE_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, "lights",
+                       "expected a list (- {type: ...} items), got %s; allowed: a list of lights",
+                       sf_kind(n));
+    long count = n->data.sequence.items.top - n->data.sequence.items.start;
+    if (count > SCENE_MAX_LIGHTS)
+        return sf_fail(c, RC_ERR_RANGE, n, "lights", "%ld lights; allowed: at most %d", count,
+                       SCENE_MAX_LIGHTS);
+    for (int i = 0; i < count; i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
+        sf_index(child, "lights", i);
+        rc_status rc = e ? sf_light(c, e, child, &s->lights[i])
+                         : sf_fail(c, RC_ERR_PARSE, n, child, "missing item; allowed: a light map");
+        if (rc)
+            return rc;
+    }
+    s->n_lights = (int)count;
+    return RC_OK;
+}
+
+enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_COUNT };
+
+static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given)
+{
+    static const char *const keys[] = {"ambient", "diffuse", "specular", "emissive", "power",
+                                       "local_viewer", "per_vertex", "clamp"};
+    sf_kv f[8];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, keys, 8, f)))
+        return rc;
+    vec3 *col[4] = {&d->ambient, &d->diffuse, &d->specular, &d->emissive};
+    for (int i = 0; i < 4; i++) {
+        sf_child(child, path, keys[i]);
+        if (f[i].v && (rc = sf_colour(c, f[i].v, child, col[i])))
+            return rc;
+    }
+    *diffuse_given = f[1].v != NULL;
+    sf_child(child, path, "power");
+    if (f[4].v && (rc = sf_float(c, f[4].v, child, 0.0, INFINITY, 0, "a finite exponent >= 0",
+                                 &d->power)))
+        return rc;
+    int *flag[3] = {&d->local_viewer, &d->per_vertex, &d->clamp};
+    for (int i = 0; i < 3; i++) {
+        sf_child(child, path, keys[5 + i]);
+        if (f[5 + i].v && (rc = sf_bool(c, f[5 + i].v, child, flag[i])))
+            return rc;
+    }
+    return RC_OK;
+}
+
+static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d,
+                       int *r0_given, int *m_given)
+{
+    static const char *const keys[] = {"p", "r0", "m", "reflect", "fresnel_colour", "norm",
+                                       "sun_angle", "alpha"};
+    static const char *const norms[] = {"max", "mean", "luminance", "euclid"};
+    sf_kv f[8];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    int e;
+    if ((rc = sf_map(c, n, path, keys, 8, f)))
+        return rc;
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("p"), 0.0, INFINITY, 0,
+                                 "a finite power >= 0", &d->p)))
+        return rc;
+    if (f[1].v && (rc = sf_float(c, f[1].v, SF_CHILD("r0"), 0.0, 1.0, 0, "R0 in [0, 1]", &d->r0)))
+        return rc;
+    if (f[2].v && (rc = sf_float(c, f[2].v, SF_CHILD("m"), 0.0, INFINITY, 0,
+                                 "a finite multiplier >= 0", &d->m)))
+        return rc;
+    if (f[3].v && (rc = sf_colour(c, f[3].v, SF_CHILD("reflect"), &d->reflect)))
+        return rc;
+    if (f[4].v && (rc = sf_colour(c, f[4].v, SF_CHILD("fresnel_colour"), &d->fresnel_colour)))
+        return rc;
+    if (f[5].v) {
+        if ((rc = sf_enum(c, f[5].v, SF_CHILD("norm"), norms, 4, &e)))
+            return rc;
+        d->norm = (colour_norm)e;
+    }
+    if (f[6].v && (rc = sf_bool(c, f[6].v, SF_CHILD("sun_angle"), &d->sun_angle)))
+        return rc;
+    if (f[7].v && (rc = sf_float(c, f[7].v, SF_CHILD("alpha"), 0.0, 1.0, 0, "an alpha in [0, 1]", &d->alpha)))
+        return rc;
+#undef SF_CHILD
+    *r0_given = f[1].v != NULL;
+    *m_given = f[2].v != NULL;
+    return RC_OK;
+}
+
+static rc_status sf_ct(sf_ctx *c, yaml_node_t *n, const char *path, ct_params *d, int *m_given,
+                       int *f0_given)
+{
+    static const char *const keys[] = {"m", "f0", "ks", "normalisation", "g", "f", "reflection"};
+    static const char *const norms[] = {"walter", "ct1982"};
+    static const char *const gs[] = {"vcavity", "smith_walter", "smith_exact"};
+    static const char *const fs[] = {"schlick", "one", "exact"};
+    sf_kv f[7];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    int e;
+    if ((rc = sf_map(c, n, path, keys, 7, f)))
+        return rc;
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("m"), 0.0, INFINITY, 0,
+                                 "a finite Beckmann roughness >= 0", &d->m)))
+        return rc;
+    if (f[1].v && (rc = sf_unit01(c, f[1].v, SF_CHILD("f0"), &d->f0)))
+        return rc;
+    if (f[2].v && (rc = sf_colour(c, f[2].v, SF_CHILD("ks"), &d->ks)))
+        return rc;
+    if (f[3].v) {
+        if ((rc = sf_enum(c, f[3].v, SF_CHILD("normalisation"), norms, 2, &e)))
+            return rc;
+        d->norm = (ct_normalisation)e;
+    }
+    if (f[4].v) {
+        if ((rc = sf_enum(c, f[4].v, SF_CHILD("g"), gs, 3, &e)))
+            return rc;
+        d->g = (ct_geometry)e;
+    }
+    if (f[5].v) {
+        if ((rc = sf_enum(c, f[5].v, SF_CHILD("f"), fs, 3, &e)))
+            return rc;
+        d->f = (ct_fresnel)e;
+    }
+    if (f[6].v && (rc = sf_bool(c, f[6].v, SF_CHILD("reflection"), &d->reflection)))
+        return rc;
+#undef SF_CHILD
+    *m_given = f[0].v != NULL;
+    *f0_given = f[1].v != NULL;
+    return RC_OK;
+}
+
+/* Fresnel reflectance at normal incidence: dielectric n in air, or conductor n + ik. */
+static float sf_f0(double eta, double k)
+{
+    return (float)(((eta - 1) * (eta - 1) + k * k) / ((eta + 1) * (eta + 1) + k * k));
+}
+
+static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
+{
+    static const char *const keys[MK_COUNT] = {"albedo", "ior", "conductor", "roughness", "model",
+                                               "d3d", "d3d9client", "cook_torrance"};
+    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
+    static const char *const ckeys[] = {"eta", "k"};
+    sf_kv f[MK_COUNT], cf[2];
+    char child[SF_PATHLEN], sub[SF_PATHLEN];
+    rc_status rc;
+    int diffuse_given = 0, r0_given = 0, d9m_given = 0, ctm_given = 0, f0_given = 0, e;
+    if ((rc = sf_map(c, n, path, keys, MK_COUNT, f)))
+        return rc;
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[MK_ALBEDO].v && (rc = sf_colour(c, f[MK_ALBEDO].v, SF_CHILD("albedo"), &m->albedo)))
+        return rc;
+    if (f[MK_IOR].v && f[MK_CONDUCTOR].v)
+        return sf_fail(c, RC_ERR_PARSE, f[MK_CONDUCTOR].k, SF_CHILD("conductor"),
+                       "both ior and conductor given; allowed: one of ior: n (dielectric) or "
+                       "conductor: {eta: [..], k: [..]}");
+    if (f[MK_IOR].v && (rc = sf_float(c, f[MK_IOR].v, SF_CHILD("ior"), 0.0, INFINITY, SF_LO_OPEN,
+                                      "a finite refractive index > 0", &m->ior)))
+        return rc;
+    if (f[MK_CONDUCTOR].v) {
+        SF_CHILD("conductor");
+        if ((rc = sf_map(c, f[MK_CONDUCTOR].v, child, ckeys, 2, cf)) ||
+            (rc = sf_need(c, f[MK_CONDUCTOR].v, child, &cf[0], "eta")) ||
+            (rc = sf_need(c, f[MK_CONDUCTOR].v, child, &cf[1], "k")))
+            return rc;
+        float eta[3], k[3];
+        sf_child(sub, child, "eta");
+        if ((rc = sf_floats(c, cf[0].v, sub, 3, 0.0, INFINITY, SF_LO_OPEN,
+                            "[r, g, b], 3 finite numbers > 0", eta)))
+            return rc;
+        sf_child(sub, child, "k");
+        if ((rc = sf_floats(c, cf[1].v, sub, 3, 0.0, INFINITY, 0, "[r, g, b], 3 finite numbers >= 0",
+                            k)))
+            return rc;
+        m->conductor = 1;
+        m->eta = v3(eta[0], eta[1], eta[2]);
+        m->k = v3(k[0], k[1], k[2]);
+    }
+    if (f[MK_ROUGHNESS].v &&
+        (rc = sf_float(c, f[MK_ROUGHNESS].v, SF_CHILD("roughness"), 0.0, INFINITY, 0,
+                       "a finite Beckmann roughness >= 0", &m->roughness)))
+        return rc;
+    if (f[MK_MODEL].v) {
+        if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 3, &e)))
+            return rc;
+        m->model = (model_kind)e;
+    }
+    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given)))
+        return rc;
+    if (f[MK_D9].v &&
+        (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
+        return rc;
+    if (f[MK_CT].v &&
+        (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
+        return rc;
+#undef SF_CHILD
+
+    /* Derived defaults, after the whole material, so key order in the file does not matter. */
+    if (!diffuse_given)
+        m->d3d.diffuse = m->albedo;
+    if (!r0_given)
+        m->d9.r0 = sf_f0(m->ior, 0.0);
+    if (!d9m_given)
+        m->d9.m = 1.0f - m->d9.r0;
+    if (!ctm_given)
+        m->ct.m = m->roughness;
+    if (!f0_given)
+        m->ct.f0 = m->conductor ? v3(sf_f0(m->eta.x, m->k.x), sf_f0(m->eta.y, m->k.y),
+                                     sf_f0(m->eta.z, m->k.z))
+                                : v3s(sf_f0(m->ior, 0.0));
+    return RC_OK;
+}
+
+static rc_status sf_materials(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    char child[SF_PATHLEN];
+    if (n->type != YAML_MAPPING_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, "materials",
+                       "expected a map of name: {material}, got %s; allowed: materials: {white: "
+                       "{albedo: [..]}, ...}",
+                       sf_kind(n));
+    long count = n->data.mapping.pairs.top - n->data.mapping.pairs.start;
+    if (count > SCENE_MAX_MATERIALS)
+        return sf_fail(c, RC_ERR_RANGE, n, "materials", "%ld materials; allowed: at most %d", count,
+                       SCENE_MAX_MATERIALS);
+    for (int i = 0; i < count; i++) {
+        yaml_node_pair_t *p = &n->data.mapping.pairs.start[i];
+        yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
+        yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
+        material *m = &s->materials[i];
+        rc_status rc;
+        if (!k || !v)
+            return sf_fail(c, RC_ERR_PARSE, n, "materials", "incomplete entry; allowed: name: {...}");
+        material_init(m);
+        if ((rc = sf_name(c, k, "materials", m->name, sizeof m->name)))
+            return rc;
+        sf_child(child, "materials", m->name);
+        for (int j = 0; j < i; j++)
+            if (strcmp(s->materials[j].name, m->name) == 0)
+                return sf_fail(c, RC_ERR_PARSE, k, child,
+                               "duplicate material name; allowed: each name once");
+        if ((rc = sf_material(c, v, child, m)))
+            return rc;
+    }
+    s->n_materials = (int)count;
+    return RC_OK;
+}
+
+enum { OK_SHAPE, OK_CENTER, OK_ROTATE, OK_RADIUS, OK_MAJOR, OK_SIZE, OK_TESS, OK_PATH, OK_MATERIAL,
+       OK_COUNT };
+
+static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
+{
+    static const char *const keys[OK_COUNT] = {"shape", "center", "rotate", "radius", "major",
+                                               "size", "tessellation", "path", "material"};
+    static const char *const shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
+    static const char *const mesh_exts[] = {".obj", ".ply"};
+    /* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
+    static const unsigned char use[5][OK_COUNT] = {
+        /*          shape center rotate radius major size tess path material */
+        /* sphere */ {2, 1, 1, 2, 0, 0, 1, 0, 2},
+        /* quad   */ {2, 1, 1, 0, 0, 2, 0, 0, 2},
+        /* box    */ {2, 1, 1, 1, 0, 2, 1, 0, 2},
+        /* torus  */ {2, 1, 1, 2, 2, 0, 1, 0, 2},
+        /* mesh   */ {2, 1, 1, 0, 0, 0, 0, 2, 2},
+    };
+    /* Tessellation limits: a sphere needs 2 rings (segments/2), a torus tube 3 segments. */
+    static const int tess_lo[5] = {4, 0, 1, 3, 0}, tess_hi[5] = {1024, 0, 256, 1024, 0};
+    sf_kv f[OK_COUNT];
+    char child[SF_PATHLEN], allowed[200], what[32];
+    rc_status rc;
+    int shape;
+
+    if ((rc = sf_map(c, n, path, keys, OK_COUNT, f)) || (rc = sf_need(c, n, path, &f[OK_SHAPE], "shape")))
+        return rc;
+    sf_child(child, path, "shape");
+    if ((rc = sf_enum(c, f[OK_SHAPE].v, child, shapes, 5, &shape)))
+        return rc;
+    object_init(o);
+    o->shape = (shape_kind)shape;
+    if (shape == SHAPE_BOX)
+        o->radius = 0.0f;
+
+    const char *names[OK_COUNT];
+    int nn = 0;
+    for (int i = 0; i < OK_COUNT; i++)
+        if (use[shape][i])
+            names[nn++] = keys[i];
+    sf_join(allowed, sizeof allowed, names, nn);
+    snprintf(what, sizeof what, "a %s", shapes[shape]);
+    for (int i = 0; i < OK_COUNT; i++) {
+        if (!use[shape][i] && (rc = sf_forbid(c, path, &f[i], keys[i], what, allowed)))
+            return rc;
+        if (use[shape][i] == 2 && (rc = sf_need(c, n, path, &f[i], keys[i])))
+            return rc;
+    }
+
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[OK_CENTER].v && (rc = sf_point(c, f[OK_CENTER].v, SF_CHILD("center"), &o->center)))
+        return rc;
+    if (f[OK_ROTATE].v) {
+        float r[3];
+        if ((rc = sf_floats(c, f[OK_ROTATE].v, SF_CHILD("rotate"), 3, -INFINITY, INFINITY, 0,
+                            "[x, y, z] Euler angles in degrees, applied X then Y then Z", r)))
+            return rc;
+        o->rotate = v3_scale(v3(r[0], r[1], r[2]), (float)(SF_PI / 180.0));
+    }
+    if (f[OK_MAJOR].v && (rc = sf_float(c, f[OK_MAJOR].v, SF_CHILD("major"), 0.0, INFINITY,
+                                        SF_LO_OPEN, "a finite ring radius > 0 [m]", &o->major)))
+        return rc;
+    if (f[OK_RADIUS].v) {
+        int box = shape == SHAPE_BOX;
+        if ((rc = sf_float(c, f[OK_RADIUS].v, SF_CHILD("radius"), 0.0, INFINITY,
+                           box ? 0 : SF_LO_OPEN,
+                           box ? "an edge rounding >= 0 [m]" : "a finite radius > 0 [m]", &o->radius)))
+            return rc;
+    }
+    if (f[OK_SIZE].v) {
+        float sz[3];
+        int quad = shape == SHAPE_QUAD;
+        if ((rc = sf_floats(c, f[OK_SIZE].v, SF_CHILD("size"), quad ? 2 : 3, 0.0, INFINITY,
+                            SF_LO_OPEN,
+                            quad ? "[x, z] extents > 0 [m]" : "[x, y, z] full extents > 0 [m]", sz)))
+            return rc;
+        o->size = quad ? v3(sz[0], 0.0f, sz[1]) : v3(sz[0], sz[1], sz[2]);
+    }
+    if (f[OK_TESS].v && (rc = sf_int(c, f[OK_TESS].v, SF_CHILD("tessellation"), tess_lo[shape],
+                                     tess_hi[shape], &o->tessellation)))
+        return rc;
+    if (shape == SHAPE_BOX) {
+        float half = 0.5f * fminf(o->size.x, fminf(o->size.y, o->size.z));
+        if (o->radius > half)
+            return sf_fail(c, RC_ERR_RANGE, f[OK_RADIUS].v, SF_CHILD("radius"),
+                           "rounding exceeds half the smallest size; allowed: 0 <= radius <= %g", half);
+    }
+    if (shape == SHAPE_TORUS && o->radius > o->major)
+        return sf_fail(c, RC_ERR_RANGE, f[OK_RADIUS].v, SF_CHILD("radius"),
+                       "tube radius exceeds the ring radius (self-intersecting); allowed: radius <= "
+                       "major = %g",
+                       o->major);
+    if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2,
+                                      "triangle mesh", o->path)))
+        return rc;
+
+    const char *mt = sf_text(f[OK_MATERIAL].v);
+    int mi = -1;
+    for (int i = 0; mt && i < s->n_materials; i++)
+        if (strcmp(mt, s->materials[i].name) == 0)
+            mi = i;
+    if (mi < 0) {
+        char q[48], known[300];
+        const char *mn[SCENE_MAX_MATERIALS];
+        for (int i = 0; i < s->n_materials; i++)
+            mn[i] = s->materials[i].name;
+        sf_join(known, sizeof known, mn, s->n_materials);
+        sf_quote(q, sizeof q, mt ? mt : "");
+        return sf_fail(c, mt ? RC_ERR_RANGE : RC_ERR_PARSE, f[OK_MATERIAL].v, SF_CHILD("material"),
+                       "unknown material '%s'; allowed: %s", q,
+                       s->n_materials ? known : "(none defined: add a materials: section)");
+    }
+    o->material = mi;
+#undef SF_CHILD
+    return RC_OK;
+}
+
+static rc_status sf_objects(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    char child[SF_PATHLEN];
+    if (n->type != YAML_SEQUENCE_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, "objects",
+                       "expected a list (- {shape: ...} items), got %s; allowed: a list of objects",
+                       sf_kind(n));
+    long count = n->data.sequence.items.top - n->data.sequence.items.start;
+    if (count > SCENE_MAX_OBJECTS)
+        return sf_fail(c, RC_ERR_RANGE, n, "objects", "%ld objects; allowed: at most %d", count,
+                       SCENE_MAX_OBJECTS);
+    for (int i = 0; i < count; i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
+        sf_index(child, "objects", i);
+        rc_status rc = e ? sf_object(c, e, child, s, &s->objects[i])
+                         : sf_fail(c, RC_ERR_PARSE, n, child, "missing item; allowed: an object map");
+        if (rc)
+            return rc;
+    }
+    s->n_objects = (int)count;
+    return RC_OK;
+}
+
+/* Metric names may be dotted paths into the comparison result, e.g. background.rel_rms. */
+static int sf_metric_char(int ch) { return islower(ch) || isdigit(ch) || ch == '_' || ch == '.'; }
+
+static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comparison *cmp)
+{
+    static const char *const keys[] = {"warn", "fail", "why"};
+    char child[SF_PATHLEN], sub[SF_PATHLEN];
+    rc_status rc;
+    if (n->type != YAML_MAPPING_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a map metric: {warn: x, fail: y, why: text}, got %s; allowed: "
+                       "rel_rms: {warn: 5e-4, fail: 1e-3}",
+                       sf_kind(n));
+    long count = n->data.mapping.pairs.top - n->data.mapping.pairs.start;
+    if (count > METRIC_MAX)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "%ld metrics; allowed: at most %d", count, METRIC_MAX);
+    for (int i = 0; i < count; i++) {
+        yaml_node_pair_t *p = &n->data.mapping.pairs.start[i];
+        yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
+        yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
+        threshold *t = &cmp->thresholds[i];
+        const char *name = k ? sf_text(k) : NULL;
+        sf_kv f[3];
+        memset(t, 0, sizeof *t);
+        if (!v || !name || !name[0] || strlen(name) >= sizeof t->metric)
+            return sf_fail(c, RC_ERR_PARSE, k ? k : n, path,
+                           "metric name missing or too long; allowed: a lower_snake_case name of at "
+                           "most %zu characters",
+                           sizeof t->metric - 1);
+        for (const char *q = name; *q; q++)
+            if (!sf_metric_char((unsigned char)*q))
+                return sf_fail(c, RC_ERR_PARSE, k, path,
+                               "metric name has a character outside a-z 0-9 _ .; allowed: e.g. "
+                               "rel_rms, psnr, background.rel_rms");
+        strcpy(t->metric, name);
+        sf_child(child, path, name);
+        for (int j = 0; j < i; j++)
+            if (strcmp(cmp->thresholds[j].metric, name) == 0)
+                return sf_fail(c, RC_ERR_PARSE, k, child, "duplicate metric; allowed: each once");
+        if ((rc = sf_map(c, v, child, keys, 3, f)) || (rc = sf_need(c, v, child, &f[0], "warn")) ||
+            (rc = sf_need(c, v, child, &f[1], "fail")))
+            return rc;
+        sf_child(sub, child, "warn");
+        if ((rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->warn)))
+            return rc;
+        sf_child(sub, child, "fail");
+        if ((rc = sf_number(c, f[1].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->fail)))
+            return rc;
+        if (f[2].v) {
+            const char *why = sf_text(f[2].v);
+            sf_child(sub, child, "why");
+            if (!why)
+                return sf_fail(c, RC_ERR_PARSE, f[2].v, sub, "expected text, got %s; allowed: a "
+                               "quoted sentence", sf_kind(f[2].v));
+            if (strlen(why) >= sizeof t->why)
+                return sf_fail(c, RC_ERR_RANGE, f[2].v, sub, "text too long; allowed: at most %zu "
+                               "characters", sizeof t->why - 1);
+            strcpy(t->why, why);
+        }
+    }
+    cmp->n_thresholds = (int)count;
+    return RC_OK;
+}
+
+static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[] = {"test", "reference", "role", "thresholds"};
+    static const char *const renderers[] = {"raster", "povray", "cycles"};
+    static const char *const roles[] = {"twin", "validate", "agree"};
+    char path[SF_PATHLEN], child[SF_PATHLEN];
+    if (n->type != YAML_SEQUENCE_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, "comparisons",
+                       "expected a list (- {reference: ...} items), got %s; allowed: a list of "
+                       "comparisons",
+                       sf_kind(n));
+    long count = n->data.sequence.items.top - n->data.sequence.items.start;
+    if (count > SCENE_MAX_COMPARISONS)
+        return sf_fail(c, RC_ERR_RANGE, n, "comparisons", "%ld comparisons; allowed: at most %d",
+                       count, SCENE_MAX_COMPARISONS);
+    for (int i = 0; i < count; i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
+        comparison *cmp = &s->comparisons[i];
+        sf_kv f[4];
+        rc_status rc;
+        int v;
+        sf_index(path, "comparisons", i);
+        if (!e)
+            return sf_fail(c, RC_ERR_PARSE, n, path, "missing item; allowed: a comparison map");
+        if ((rc = sf_map(c, e, path, keys, 4, f)) || (rc = sf_need(c, e, path, &f[1], "reference")))
+            return rc;
+        cmp->test = RENDERER_RASTER;
+        cmp->role = ROLE_TWIN;
+        cmp->n_thresholds = 0;
+        sf_child(child, path, "test");
+        if (f[0].v) {
+            if ((rc = sf_enum(c, f[0].v, child, renderers, 3, &v)))
+                return rc;
+            cmp->test = (renderer_id)v;
+        }
+        sf_child(child, path, "reference");
+        if ((rc = sf_enum(c, f[1].v, child, renderers, 3, &v)))
+            return rc;
+        cmp->reference = (renderer_id)v;
+        if (cmp->reference == cmp->test)
+            return sf_fail(c, RC_ERR_RANGE, f[1].v, child,
+                           "reference equals test; allowed: two different renderers");
+        sf_child(child, path, "role");
+        if (f[2].v) {
+            if ((rc = sf_enum(c, f[2].v, child, roles, 3, &v)))
+                return rc;
+            cmp->role = (comparison_role)v;
+        }
+        sf_child(child, path, "thresholds");
+        if (f[3].v && (rc = sf_thresholds(c, f[3].v, child, cmp)))
+            return rc;
+    }
+    s->n_comparisons = (int)count;
+    return RC_OK;
+}
+
+enum { TK_NAME, TK_IMAGE, TK_CAMERA, TK_AMBIENT, TK_ENV, TK_LIGHTS, TK_MATERIALS, TK_OBJECTS,
+       TK_COMPARISONS, TK_COUNT };
+
+static rc_status sf_top(sf_ctx *c, yaml_node_t *root, scene *s)
+{
+    static const char *const keys[TK_COUNT] = {"name", "image", "camera", "ambient", "environment",
+                                               "lights", "materials", "objects", "comparisons"};
+    sf_kv f[TK_COUNT];
+    rc_status rc;
+    if ((rc = sf_map(c, root, "", keys, TK_COUNT, f)) ||
+        (rc = sf_need(c, root, "", &f[TK_IMAGE], "image")) ||
+        (rc = sf_need(c, root, "", &f[TK_CAMERA], "camera")))
+        return rc;
+    if (f[TK_NAME].v && (rc = sf_name(c, f[TK_NAME].v, "name", s->name, sizeof s->name)))
+        return rc;
+    if ((rc = sf_image(c, f[TK_IMAGE].v, s)) || (rc = sf_camera(c, f[TK_CAMERA].v, s)))
+        return rc;
+    if (f[TK_AMBIENT].v && (rc = sf_colour(c, f[TK_AMBIENT].v, "ambient", &s->global_ambient)))
+        return rc;
+    if (f[TK_ENV].v && (rc = sf_environment(c, f[TK_ENV].v, s)))
+        return rc;
+    if (f[TK_LIGHTS].v && (rc = sf_lights(c, f[TK_LIGHTS].v, s)))
+        return rc;
+    /* Materials before objects, whatever the order in the file: objects refer to them by name. */
+    if (f[TK_MATERIALS].v && (rc = sf_materials(c, f[TK_MATERIALS].v, s)))
+        return rc;
+    if (f[TK_OBJECTS].v && (rc = sf_objects(c, f[TK_OBJECTS].v, s)))
+        return rc;
+    if (f[TK_COMPARISONS].v && (rc = sf_comparisons(c, f[TK_COMPARISONS].v, s)))
+        return rc;
+    return RC_OK;
+}
+
+static rc_status sf_yaml_error(sf_ctx *c, const yaml_parser_t *p)
+{
+    const char *problem = p->problem ? p->problem : "malformed YAML";
+    if (p->error == YAML_MEMORY_ERROR)
+        return sf_fail(c, RC_ERR_NOMEM, NULL, "(yaml)", "out of memory; allowed: a smaller file");
+    if (p->error == YAML_READER_ERROR)
+        return sf_fail_at(c, RC_ERR_PARSE, p->problem_mark, "(yaml)",
+                          "%s at byte %zu; allowed: UTF-8 text without control characters", problem,
+                          p->problem_offset);
+    return sf_fail_at(c, RC_ERR_PARSE, p->problem_mark, "(yaml)",
+                      "%s%s%s; allowed: valid YAML (check indentation, brackets, quotes, and that "
+                      "lists use '- ' or [a, b])",
+                      problem, p->context ? " " : "", p->context ? p->context : "");
+}
+
+/* Pass 1: refuse nesting deeper than SF_MAX_DEPTH before libyaml's quadratic scanner sees it. */
+static rc_status sf_depth_check(sf_ctx *c, const char *text, size_t len)
+{
+    yaml_parser_t p;
+    yaml_event_t e;
+    int depth = 0;
+    rc_status rc = RC_OK;
+    if (!yaml_parser_initialize(&p))
+        return sf_fail(c, RC_ERR_NOMEM, NULL, "(yaml)", "out of memory; allowed: a smaller file");
+    yaml_parser_set_input_string(&p, (const unsigned char *)text, len);
+    for (;;) {
+        if (!yaml_parser_parse(&p, &e)) {
+            rc = sf_yaml_error(c, &p);
+            break;
+        }
+        yaml_event_type_t t = e.type;
+        yaml_mark_t m = e.start_mark;
+        yaml_event_delete(&e);
+        if (t == YAML_SEQUENCE_START_EVENT || t == YAML_MAPPING_START_EVENT)
+            depth++;
+        else if (t == YAML_SEQUENCE_END_EVENT || t == YAML_MAPPING_END_EVENT)
+            depth--;
+        if (depth > SF_MAX_DEPTH) {
+            rc = sf_fail_at(c, RC_ERR_PARSE, m, "(yaml)",
+                            "nesting deeper than %d levels; allowed: the scene format's 4 levels",
+                            SF_MAX_DEPTH);
+            break;
+        }
+        if (t == YAML_STREAM_END_EVENT)
+            break;
+    }
+    yaml_parser_delete(&p);
+    return rc;
+}
+
+rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages, scene *out,
+                           char *err, size_t errlen)
+{
+    sf_ctx c;
+    memset(&c, 0, sizeof c);
+    c.file = path_for_messages ? path_for_messages : "<string>";
+    c.err = err;
+    c.errlen = errlen;
+    if (err && errlen)
+        err[0] = '\0';
+    if (!text && len)
+        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "no text given; allowed: a buffer");
+    if (len > SCENE_FILE_MAX_BYTES)
+        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
+                       "file is %zu bytes; allowed: at most %u bytes (scene files are hand-written)",
+                       len, SCENE_FILE_MAX_BYTES);
+    if (path_for_messages && strlen(path_for_messages) >= SCENE_PATH_MAX)
+        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
+                       "scene file path too long; allowed: at most %d bytes", SCENE_PATH_MAX - 1);
+    if (path_for_messages) {
+        const char *slash = strrchr(path_for_messages, '/');
+        if (slash)
+            snprintf(c.dir, sizeof c.dir, "%.*s", (int)(slash - path_for_messages + 1),
+                     path_for_messages);
+    }
+
+    rc_status rc = sf_depth_check(&c, text ? text : "", len);
+    if (rc)
+        return rc;
+
+    scene *s = malloc(sizeof *s);
+    yaml_parser_t p;
+    yaml_document_t doc, extra;
+    if (!s)
+        return sf_fail(&c, RC_ERR_NOMEM, NULL, "(file)", "out of memory; allowed: -");
+    if (!yaml_parser_initialize(&p)) {
+        free(s);
+        return sf_fail(&c, RC_ERR_NOMEM, NULL, "(yaml)", "out of memory; allowed: -");
+    }
+    yaml_parser_set_input_string(&p, (const unsigned char *)(text ? text : ""), len);
+    if (!yaml_parser_load(&p, &doc)) {
+        rc = sf_yaml_error(&c, &p);
+        yaml_parser_delete(&p);
+        free(s);
+        return rc;
+    }
+    c.doc = &doc;
+    scene_init(s);
+    s->hash = scene_file_hash(text ? text : "", len);
+    if (path_for_messages)
+        snprintf(s->path, sizeof s->path, "%s", path_for_messages);
+    {
+        /* Default name: the file's base name without its extension. */
+        const char *base = strrchr(c.file, '/');
+        base = base ? base + 1 : c.file;
+        size_t n = strcspn(base, ".");
+        if (path_for_messages && n > 0 && n < sizeof s->name)
+            snprintf(s->name, sizeof s->name, "%.*s", (int)n, base);
+    }
+
+    yaml_node_t *root = yaml_document_get_root_node(&doc);
+    if (!root)
+        rc = sf_fail(&c, RC_ERR_PARSE, NULL, "(top level)",
+                     "empty scene file; allowed: a map with at least image: and camera:");
+    else
+        rc = sf_top(&c, root, s);
+    yaml_document_delete(&doc);
+    if (rc == RC_OK) {
+        if (!yaml_parser_load(&p, &extra)) {
+            rc = sf_yaml_error(&c, &p);
+        } else {
+            yaml_node_t *r2 = yaml_document_get_root_node(&extra);
+            if (r2)
+                rc = sf_fail(&c, RC_ERR_PARSE, r2, "(file)",
+                             "a second YAML document ('---'); allowed: one document per file");
+            yaml_document_delete(&extra);
+        }
+    }
+    yaml_parser_delete(&p);
+    if (rc == RC_OK)
+        *out = *s;
+    free(s);
+    return rc;
+}
+
+rc_status scene_file_load(const char *path, scene *out, char *err, size_t errlen)
+{
+    sf_ctx c;
+    memset(&c, 0, sizeof c);
+    c.file = path ? path : "(null)";
+    c.err = err;
+    c.errlen = errlen;
+    if (!path)
+        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "no path given; allowed: a scene file path");
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "cannot open (%s); allowed: a readable file",
+                       strerror(errno));
+    /* Read one byte past the limit to know whether the file is too big without trusting seek. */
+    size_t cap = SCENE_FILE_MAX_BYTES + 1;
+    char *buf = malloc(cap);
+    if (!buf) {
+        fclose(f);
+        return sf_fail(&c, RC_ERR_NOMEM, NULL, "(file)", "out of memory; allowed: -");
+    }
+    size_t len = fread(buf, 1, cap, f);
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "read error; allowed: a readable file");
+    }
+    if (len > SCENE_FILE_MAX_BYTES) {
+        free(buf);
+        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
+                       "file is larger than %u bytes; allowed: a hand-written scene file",
+                       SCENE_FILE_MAX_BYTES);
+    }
+    rc_status rc = scene_file_parse(buf, len, path, out, err, errlen);
+    free(buf);
+    return rc;
+}

@@ -1,0 +1,36 @@
+/* scene_file.h - read a YAML scene file (format: scenes/FORMAT.md) into a scene.
+ *
+ * Usage:
+ *   scene s; char err[512];
+ *   if (scene_file_load("scenes/lambert.yaml", &s, err, sizeof err) != RC_OK) { puts(err); ... }
+ *
+ * Both functions fill *out completely (scene_init defaults, then the file) and only on RC_OK;
+ * on failure *out is left untouched and err holds one line
+ *   "FILE:LINE:COL: key.path: problem; allowed: ..."
+ * Returns RC_ERR_IO (file unreadable, or a referenced mesh/environment file missing),
+ * RC_ERR_PARSE (YAML syntax, unknown or duplicate key, wrong type, missing required key),
+ * RC_ERR_RANGE (NaN/Inf, a value outside its allowed range, unknown material name, file > 1 MiB),
+ * RC_ERR_NOMEM.
+ * Units in the file: degrees for angles (stored as radians), metres, W/sr, W/m^2.
+ * Relative paths inside the file (environment image, mesh) are resolved against the directory
+ * of `path` (scene_file_load) or `path_for_messages` (scene_file_parse; NULL means "<string>"
+ * and the current directory). out->hash is FNV-1a 64 of the bytes read.
+ */
+#ifndef REFLCHECK_SCENE_FILE_H
+#define REFLCHECK_SCENE_FILE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "scene.h"
+#include "status.h"
+
+/* Scene files are hand-written and small; anything larger is refused before parsing. */
+#define SCENE_FILE_MAX_BYTES (1u << 20)
+
+rc_status scene_file_load(const char *path, scene *out, char *err, size_t errlen);
+rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages,
+                           scene *out, char *err, size_t errlen);
+/* FNV-1a 64-bit hash of len bytes (the scene hash). */
+uint64_t scene_file_hash(const void *bytes, size_t len);
+
+#endif

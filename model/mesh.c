@@ -1,0 +1,1178 @@
+/* mesh.c - tessellation of scene objects and the OBJ/PLY readers (model/mesh.h).
+ *
+ * Shapes are built in object space in double precision, then rotated (Euler X, then Y, then Z)
+ * and translated by the object's center. Debian 12 ships no C library for OBJ or PLY
+ * (tinyobjloader is C++, rply is not packaged), so both readers are here: small, bounds-checked,
+ * and reading the whole file into memory first.
+ *
+ * Sphere: UV sphere, `tessellation` segments around Y, tessellation/2 rings, single pole vertices.
+ * Quad: two triangles in the object's XZ plane, normal +Y, size.x by size.z.
+ * Box: inner box (size/2 - radius) grown by `radius`: 6 flat faces, 12 quarter-cylinder edges of
+ *   `tessellation` segments, 8 octant corners with the same segments along each boundary arc;
+ *   radius 0 gives a sharp box with face normals.
+ * Torus: ring of radius `major` around Y in the XZ plane, tube radius `radius`;
+ *   `tessellation` segments around the ring, max(3, tessellation/2) around the tube.
+ * Generated triangles get their winding from the shape's outward vertex normals.
+ * On failure mesh_add_object leaves the mesh as it was; mesh_build frees it.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh.h"
+
+#define MESH_PI 3.14159265358979323846
+
+typedef struct {
+    double r[3][3];
+    dvec3 t;
+} mesh_xform;
+
+static mesh_xform mesh_make_xform(const object *o)
+{
+    double cx = cos(o->rotate.x), sx = sin(o->rotate.x);
+    double cy = cos(o->rotate.y), sy = sin(o->rotate.y);
+    double cz = cos(o->rotate.z), sz = sin(o->rotate.z);
+    /* R = Rz * Ry * Rx: X is applied first. */
+    mesh_xform x = {{{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
+                     {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
+                     {-sy, cy * sx, cy * cx}},
+                    dv3_from(o->center)};
+    return x;
+}
+
+static dvec3 mesh_rotate(const mesh_xform *x, dvec3 v)
+{
+    return dv3(x->r[0][0] * v.x + x->r[0][1] * v.y + x->r[0][2] * v.z,
+               x->r[1][0] * v.x + x->r[1][1] * v.y + x->r[1][2] * v.z,
+               x->r[2][0] * v.x + x->r[2][1] * v.y + x->r[2][2] * v.z);
+}
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 3, 4)))
+#endif
+static void mesh_msg(char *err, size_t errlen, const char *fmt, ...)
+{
+    va_list ap;
+    if (!err || !errlen)
+        return;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+static rc_status mesh_reserve(mesh *m, size_t add_verts, size_t add_tris)
+{
+    size_t nv = (size_t)m->n_verts + add_verts, nt = (size_t)m->n_tris + add_tris;
+    /* Indices are uint32 and counts int: stay below both. */
+    if (nv > (size_t)INT_MAX || nt > (size_t)INT_MAX / 3)
+        return RC_ERR_NOMEM;
+    if (nv > (size_t)m->cap_verts) {
+        size_t cap = m->cap_verts ? (size_t)m->cap_verts : 256;
+        while (cap < nv)
+            cap = cap * 2 > (size_t)INT_MAX ? (size_t)INT_MAX : cap * 2;
+        vec3 *p = realloc(m->pos, cap * sizeof *p);
+        if (!p)
+            return RC_ERR_NOMEM;
+        m->pos = p;
+        vec3 *n = realloc(m->nrm, cap * sizeof *n);
+        if (!n)
+            return RC_ERR_NOMEM;
+        m->nrm = n;
+        m->cap_verts = (int)cap;
+    }
+    if (nt > (size_t)m->cap_tris) {
+        size_t cap = m->cap_tris ? (size_t)m->cap_tris : 256;
+        while (cap < nt)
+            cap = cap * 2 > (size_t)INT_MAX / 3 ? (size_t)INT_MAX / 3 : cap * 2;
+        uint32_t *i = realloc(m->idx, cap * 3 * sizeof *i);
+        if (!i)
+            return RC_ERR_NOMEM;
+        m->idx = i;
+        int *o = realloc(m->tri_object, cap * sizeof *o);
+        if (!o)
+            return RC_ERR_NOMEM;
+        m->tri_object = o;
+        m->cap_tris = (int)cap;
+    }
+    return RC_OK;
+}
+
+/* Shape builder: object-space vertices go through the transform as they are added. */
+typedef struct {
+    mesh *m;
+    mesh_xform x;
+    int object;
+} mesh_builder;
+
+static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
+{
+    mesh *m = b->m;
+    m->pos[m->n_verts] = v3_from_d(dv3_add(mesh_rotate(&b->x, p), b->x.t));
+    m->nrm[m->n_verts] = v3_from_d(dv3_norm(mesh_rotate(&b->x, n)));
+    return (uint32_t)m->n_verts++;
+}
+
+static double mesh_tri_area2(const mesh *m, uint32_t a, uint32_t b, uint32_t c, dvec3 *cross)
+{
+    dvec3 pa = dv3_from(m->pos[a]);
+    *cross = dv3_cross(dv3_sub(dv3_from(m->pos[b]), pa), dv3_sub(dv3_from(m->pos[c]), pa));
+    return dv3_len(*cross);
+}
+
+static void mesh_tri(mesh *m, uint32_t a, uint32_t b, uint32_t c, int obj)
+{
+    uint32_t *t = &m->idx[3 * (size_t)m->n_tris];
+    t[0] = a;
+    t[1] = b;
+    t[2] = c;
+    m->tri_object[m->n_tris++] = obj;
+}
+
+/* A generated triangle, wound CCW around the outward direction its vertex normals give.
+ * Returns 0 for a zero-area triangle (the caller reports it). */
+static int mesh_tri_out(mesh_builder *b, uint32_t v0, uint32_t v1, uint32_t v2)
+{
+    mesh *m = b->m;
+    dvec3 cr;
+    if (mesh_tri_area2(m, v0, v1, v2, &cr) == 0.0)
+        return 0;
+    dvec3 n = dv3_add(dv3_add(dv3_from(m->nrm[v0]), dv3_from(m->nrm[v1])), dv3_from(m->nrm[v2]));
+    if (dv3_dot(cr, n) < 0.0)
+        mesh_tri(m, v0, v2, v1, b->object);
+    else
+        mesh_tri(m, v0, v1, v2, b->object);
+    return 1;
+}
+
+/* Two triangles of the quad a-b-c-d (in order around it). */
+static int mesh_quad_out(mesh_builder *b, uint32_t a, uint32_t bb, uint32_t c, uint32_t d)
+{
+    return mesh_tri_out(b, a, bb, c) && mesh_tri_out(b, a, c, d);
+}
+
+static int mesh_sphere(mesh_builder *b, const object *o)
+{
+    int seg = o->tessellation, rings = seg / 2;
+    double r = o->radius;
+    uint32_t top = mesh_vert(b, dv3(0, r, 0), dv3(0, 1, 0));
+    uint32_t first = (uint32_t)b->m->n_verts;
+    for (int i = 1; i < rings; i++) {
+        double th = MESH_PI * i / rings;
+        for (int j = 0; j < seg; j++) {
+            double ph = 2.0 * MESH_PI * j / seg;
+            dvec3 n = dv3(sin(th) * cos(ph), cos(th), sin(th) * sin(ph));
+            mesh_vert(b, dv3_scale(n, r), n);
+        }
+    }
+    uint32_t bottom = mesh_vert(b, dv3(0, -r, 0), dv3(0, -1, 0));
+#define RING(i, j) (first + (uint32_t)(((i) - 1) * seg + ((j) % seg)))
+    for (int j = 0; j < seg; j++) {
+        if (!mesh_tri_out(b, top, RING(1, j + 1), RING(1, j)))
+            return 0;
+        for (int i = 1; i + 1 < rings; i++)
+            if (!mesh_quad_out(b, RING(i, j), RING(i, j + 1), RING(i + 1, j + 1), RING(i + 1, j)))
+                return 0;
+        if (!mesh_tri_out(b, RING(rings - 1, j), RING(rings - 1, j + 1), bottom))
+            return 0;
+    }
+#undef RING
+    return 1;
+}
+
+static int mesh_quad(mesh_builder *b, const object *o)
+{
+    double hx = 0.5 * o->size.x, hz = 0.5 * o->size.z;
+    dvec3 up = dv3(0, 1, 0);
+    uint32_t a = mesh_vert(b, dv3(-hx, 0, -hz), up);
+    uint32_t bb = mesh_vert(b, dv3(-hx, 0, hz), up);
+    uint32_t c = mesh_vert(b, dv3(hx, 0, hz), up);
+    uint32_t d = mesh_vert(b, dv3(hx, 0, -hz), up);
+    return mesh_quad_out(b, a, bb, c, d);
+}
+
+static dvec3 mesh_axis(int a, double s)
+{
+    return dv3(a == 0 ? s : 0.0, a == 1 ? s : 0.0, a == 2 ? s : 0.0);
+}
+
+static int mesh_box(mesh_builder *b, const object *o)
+{
+    double r = o->radius;
+    double h[3] = {0.5 * o->size.x - r, 0.5 * o->size.y - r, 0.5 * o->size.z - r};
+    int seg = o->tessellation;
+    for (int a = 0; a < 3; a++)
+        if (h[a] < 0.0)
+            h[a] = 0.0; /* radius == half size up to rounding: that axis is all curve */
+
+    /* Faces: normal along axis a, spanning the inner extents of axes p and q. */
+    for (int a = 0; a < 3; a++) {
+        int p = (a + 1) % 3, q = (a + 2) % 3;
+        if (h[p] == 0.0 || h[q] == 0.0)
+            continue;
+        for (int s = -1; s <= 1; s += 2) {
+            dvec3 n = mesh_axis(a, s), c = mesh_axis(a, s * (h[a] + r));
+            uint32_t v[4];
+            for (int k = 0; k < 4; k++) {
+                double sp = (k == 0 || k == 3) ? -1.0 : 1.0, sq = (k < 2) ? -1.0 : 1.0;
+                dvec3 pos = dv3_add(c, dv3_add(mesh_axis(p, sp * h[p]), mesh_axis(q, sq * h[q])));
+                v[k] = mesh_vert(b, pos, n);
+            }
+            if (!mesh_quad_out(b, v[0], v[1], v[2], v[3]))
+                return 0;
+        }
+    }
+    if (r == 0.0)
+        return 1;
+
+    /* Edges: quarter cylinders along axis a, around the inner edge at signs (sp, sq). */
+    for (int a = 0; a < 3; a++) {
+        int p = (a + 1) % 3, q = (a + 2) % 3;
+        if (h[a] == 0.0)
+            continue;
+        for (int sp = -1; sp <= 1; sp += 2)
+            for (int sq = -1; sq <= 1; sq += 2) {
+                dvec3 c = dv3_add(mesh_axis(p, sp * h[p]), mesh_axis(q, sq * h[q]));
+                uint32_t start = (uint32_t)b->m->n_verts;
+                for (int k = 0; k <= seg; k++) {
+                    double al = 0.5 * MESH_PI * k / seg;
+                    dvec3 n = dv3_add(mesh_axis(p, sp * cos(al)), mesh_axis(q, sq * sin(al)));
+                    dvec3 rim = dv3_add(c, dv3_scale(n, r));
+                    mesh_vert(b, dv3_add(rim, mesh_axis(a, -h[a])), n);
+                    mesh_vert(b, dv3_add(rim, mesh_axis(a, h[a])), n);
+                }
+                for (int k = 0; k < seg; k++) {
+                    uint32_t v = start + 2u * (uint32_t)k;
+                    if (!mesh_quad_out(b, v, v + 1, v + 3, v + 2))
+                        return 0;
+                }
+            }
+    }
+
+    /* Corners: octant patches, row k (polar angle k/seg * 90 deg from the Y pole) has k + 1
+     * vertices, so each boundary arc has seg + 1 vertices like the edges it meets. */
+    for (int sx = -1; sx <= 1; sx += 2)
+        for (int sy = -1; sy <= 1; sy += 2)
+            for (int sz = -1; sz <= 1; sz += 2) {
+                dvec3 c = dv3(sx * h[0], sy * h[1], sz * h[2]);
+                uint32_t start = (uint32_t)b->m->n_verts;
+                for (int k = 0; k <= seg; k++) {
+                    double th = 0.5 * MESH_PI * k / seg;
+                    for (int j = 0; j <= k; j++) {
+                        double ph = k ? 0.5 * MESH_PI * j / k : 0.0;
+                        dvec3 n = dv3(sx * sin(th) * cos(ph), sy * cos(th), sz * sin(th) * sin(ph));
+                        mesh_vert(b, dv3_add(c, dv3_scale(n, r)), n);
+                    }
+                }
+#define ROW(k) (start + (uint32_t)((k) * ((k) + 1) / 2))
+                for (int k = 0; k < seg; k++) {
+                    for (int j = 0; j <= k; j++)
+                        if (!mesh_tri_out(b, ROW(k) + (uint32_t)j, ROW(k + 1) + (uint32_t)j,
+                                          ROW(k + 1) + (uint32_t)j + 1))
+                            return 0;
+                    for (int j = 0; j < k; j++)
+                        if (!mesh_tri_out(b, ROW(k) + (uint32_t)j, ROW(k + 1) + (uint32_t)j + 1,
+                                          ROW(k) + (uint32_t)j + 1))
+                            return 0;
+                }
+#undef ROW
+            }
+    return 1;
+}
+
+static int mesh_torus(mesh_builder *b, const object *o)
+{
+    int nu = o->tessellation, nv = o->tessellation / 2 < 3 ? 3 : o->tessellation / 2;
+    double big = o->major, r = o->radius;
+    uint32_t start = (uint32_t)b->m->n_verts;
+    for (int i = 0; i < nu; i++) {
+        double u = 2.0 * MESH_PI * i / nu;
+        dvec3 radial = dv3(cos(u), 0, sin(u));
+        for (int j = 0; j < nv; j++) {
+            double v = 2.0 * MESH_PI * j / nv;
+            dvec3 n = dv3_add(dv3_scale(radial, cos(v)), dv3(0, sin(v), 0));
+            mesh_vert(b, dv3_add(dv3_scale(radial, big), dv3_scale(n, r)), n);
+        }
+    }
+#define TV(i, j) (start + (uint32_t)(((i) % nu) * nv + ((j) % nv)))
+    for (int i = 0; i < nu; i++)
+        for (int j = 0; j < nv; j++)
+            if (!mesh_quad_out(b, TV(i, j), TV(i + 1, j), TV(i + 1, j + 1), TV(i, j + 1)))
+                return 0;
+#undef TV
+    return 1;
+}
+
+/* --- OBJ and PLY ------------------------------------------------------------------------- */
+
+/* A polygon soup as read from a file, before triangulation. */
+typedef struct {
+    double *pos;      /* 3 per position */
+    double *nrm;      /* 3 per file normal */
+    int n_pos, cap_pos, n_nrm, cap_nrm;
+    int *cv, *cn;     /* per face corner: position index, normal index or -1 */
+    int n_corner, cap_corner;
+    int *face_start;  /* n_face + 1 entries into the corner arrays */
+    int *face_line;   /* OBJ line or PLY face number, for messages */
+    int n_face, cap_face;
+} mesh_soup;
+
+static void mesh_soup_free(mesh_soup *s)
+{
+    free(s->pos);
+    free(s->nrm);
+    free(s->cv);
+    free(s->cn);
+    free(s->face_start);
+    free(s->face_line);
+}
+
+/* Grows *p (elem bytes each, capacity *cap) to hold need elements. */
+static int mesh_grow(void **p, int *cap, int need, size_t elem)
+{
+    if (need <= *cap)
+        return 1;
+    if (need > INT_MAX / 2)
+        return 0;
+    int c = *cap ? *cap : 64;
+    while (c < need)
+        c *= 2;
+    void *q = realloc(*p, (size_t)c * elem);
+    if (!q)
+        return 0;
+    *p = q;
+    *cap = c;
+    return 1;
+}
+
+static int mesh_soup_pos(mesh_soup *s, const double v[3])
+{
+    if (!mesh_grow((void **)&s->pos, &s->cap_pos, s->n_pos + 1, 3 * sizeof(double)))
+        return 0;
+    memcpy(&s->pos[3 * (size_t)s->n_pos++], v, 3 * sizeof(double));
+    return 1;
+}
+
+static int mesh_soup_nrm(mesh_soup *s, const double v[3])
+{
+    if (!mesh_grow((void **)&s->nrm, &s->cap_nrm, s->n_nrm + 1, 3 * sizeof(double)))
+        return 0;
+    memcpy(&s->nrm[3 * (size_t)s->n_nrm++], v, 3 * sizeof(double));
+    return 1;
+}
+
+static int mesh_soup_corner(mesh_soup *s, int v, int n)
+{
+    int cap = s->cap_corner;
+    if (!mesh_grow((void **)&s->cv, &cap, s->n_corner + 1, sizeof(int)))
+        return 0;
+    cap = s->cap_corner;
+    if (!mesh_grow((void **)&s->cn, &cap, s->n_corner + 1, sizeof(int)))
+        return 0;
+    s->cap_corner = cap;
+    s->cv[s->n_corner] = v;
+    s->cn[s->n_corner++] = n;
+    return 1;
+}
+
+/* Closes the face whose corners were added since the last call. */
+static int mesh_soup_face(mesh_soup *s, int line)
+{
+    int cap = s->cap_face;
+    if (!mesh_grow((void **)&s->face_start, &cap, s->n_face + 2, sizeof(int)))
+        return 0;
+    cap = s->cap_face;
+    if (!mesh_grow((void **)&s->face_line, &cap, s->n_face + 2, sizeof(int)))
+        return 0;
+    s->cap_face = cap;
+    if (s->n_face == 0)
+        s->face_start[0] = 0;
+    s->face_line[s->n_face] = line;
+    s->face_start[++s->n_face] = s->n_corner;
+    return 1;
+}
+
+static rc_status mesh_read_file(const char *path, char **out, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    size_t cap = 1 << 16, n = 0;
+    char *buf = NULL;
+    if (!f)
+        return RC_ERR_IO;
+    for (;;) {
+        char *nb = realloc(buf, cap + 1);
+        if (!nb) {
+            free(buf);
+            fclose(f);
+            return RC_ERR_NOMEM;
+        }
+        buf = nb;
+        n += fread(buf + n, 1, cap - n, f);
+        if (n < cap)
+            break;
+        if (cap > ((size_t)1 << 40)) {
+            free(buf);
+            fclose(f);
+            return RC_ERR_NOMEM;
+        }
+        cap *= 2;
+    }
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        return RC_ERR_IO;
+    }
+    buf[n] = '\0';
+    *out = buf;
+    *len = n;
+    return RC_OK;
+}
+
+/* OBJ index: 1-based, or negative relative to the count so far. -1 on error. */
+static int mesh_obj_index(long i, int count)
+{
+    if (i > 0 && i <= count)
+        return (int)(i - 1);
+    if (i < 0 && -i <= count)
+        return (int)(count + i);
+    return -1;
+}
+
+static int mesh_parse_doubles(char **cur, double *v, int max)
+{
+    int n = 0;
+    for (;;) {
+        char *s = *cur, *end;
+        while (*s == ' ' || *s == '\t')
+            s++;
+        if (!*s)
+            break;
+        if (n == max)
+            return -1;
+        errno = 0;
+        v[n] = strtod(s, &end);
+        if (end == s || (*end && *end != ' ' && *end != '\t'))
+            return -1;
+        n++;
+        *cur = end;
+    }
+    return n;
+}
+
+static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err,
+                                size_t errlen)
+{
+    int line = 0;
+    char *p = buf, *endbuf = buf + len;
+    while (p < endbuf) {
+        char *nl = memchr(p, '\n', (size_t)(endbuf - p));
+        char *le = nl ? nl : endbuf;
+        line++;
+        if (memchr(p, '\0', (size_t)(le - p))) {
+            mesh_msg(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ",
+                     label, line);
+            return RC_ERR_PARSE;
+        }
+        *le = '\0';
+        char *hash = strchr(p, '#');
+        if (hash)
+            *hash = '\0';
+        for (char *q = p; *q; q++)
+            if (*q == '\r')
+                *q = ' ';
+        char *cur = p;
+        while (*cur == ' ' || *cur == '\t')
+            cur++;
+        char *kw = cur;
+        while (*cur && *cur != ' ' && *cur != '\t')
+            cur++;
+        size_t kwlen = (size_t)(cur - kw);
+        double v[8];
+        if (kwlen == 1 && kw[0] == 'v') {
+            int n = mesh_parse_doubles(&cur, v, 7);
+            if (n < 3) {
+                mesh_msg(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label,
+                         line);
+                return RC_ERR_PARSE;
+            }
+            if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 ||
+                fabs(v[1]) > 1e30 || fabs(v[2]) > 1e30) {
+                mesh_msg(err, errlen, "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
+                         "finite coordinates", label, line);
+                return RC_ERR_RANGE;
+            }
+            if (!mesh_soup_pos(s, v))
+                return RC_ERR_NOMEM;
+        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
+            int n = mesh_parse_doubles(&cur, v, 3);
+            if (n != 3) {
+                mesh_msg(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label,
+                         line);
+                return RC_ERR_PARSE;
+            }
+            double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            if (!isfinite(l) || l == 0.0) {
+                mesh_msg(err, errlen, "%s:%d: normal is zero or not finite; fix: a nonzero finite "
+                         "'vn', or drop normals to have them computed", label, line);
+                return RC_ERR_RANGE;
+            }
+            if (!mesh_soup_nrm(s, v))
+                return RC_ERR_NOMEM;
+        } else if (kwlen == 1 && kw[0] == 'f') {
+            int corners = 0;
+            for (;;) {
+                while (*cur == ' ' || *cur == '\t')
+                    cur++;
+                if (!*cur)
+                    break;
+                char *e;
+                long vi = strtol(cur, &e, 10), ni = 0;
+                int ok = e != cur;
+                if (ok && *e == '/') {
+                    cur = e + 1;
+                    if (*cur != '/') { /* texture index: checked for syntax, not used */
+                        strtol(cur, &e, 10);
+                        ok = e != cur;
+                    } else {
+                        e = cur;
+                    }
+                    if (ok && *e == '/') {
+                        cur = e + 1;
+                        ni = strtol(cur, &e, 10);
+                        ok = e != cur;
+                    }
+                }
+                if (!ok || (*e && *e != ' ' && *e != '\t')) {
+                    mesh_msg(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn",
+                             label, line);
+                    return RC_ERR_PARSE;
+                }
+                cur = e;
+                int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
+                if (pv < 0) {
+                    mesh_msg(err, errlen, "%s:%d: vertex index %ld out of range (%d vertices so far); "
+                             "fix: indices 1..%d or negative", label, line, vi, s->n_pos, s->n_pos);
+                    return RC_ERR_RANGE;
+                }
+                if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
+                    mesh_msg(err, errlen, "%s:%d: normal index %ld out of range (%d normals so far); "
+                             "fix: indices 1..%d or negative", label, line, ni, s->n_nrm, s->n_nrm);
+                    return RC_ERR_RANGE;
+                }
+                if (!mesh_soup_corner(s, pv, pn))
+                    return RC_ERR_NOMEM;
+                corners++;
+            }
+            if (corners < 3) {
+                mesh_msg(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line,
+                         corners);
+                return RC_ERR_PARSE;
+            }
+            if (!mesh_soup_face(s, line))
+                return RC_ERR_NOMEM;
+        }
+        /* Everything else (vt, o, g, s, usemtl, mtllib, l, ...) carries nothing we shade with. */
+        p = le + 1;
+    }
+    return RC_OK;
+}
+
+/* --- PLY --------------------------------------------------------------------------------- */
+
+typedef enum { PLY_I8, PLY_U8, PLY_I16, PLY_U16, PLY_I32, PLY_U32, PLY_F32, PLY_F64, PLY_BAD } ply_type;
+
+#define PLY_MAX_ELEMENTS 16
+#define PLY_MAX_PROPS 32
+
+typedef struct {
+    char name[40];
+    ply_type type;
+    int is_list;
+    ply_type count_type;
+} ply_prop;
+
+typedef struct {
+    char name[40];
+    long count;
+    int n_props;
+    ply_prop props[PLY_MAX_PROPS];
+} ply_element;
+
+static ply_type ply_type_of(const char *s)
+{
+    static const char *const names[][2] = {{"char", "int8"},     {"uchar", "uint8"},
+                                           {"short", "int16"},   {"ushort", "uint16"},
+                                           {"int", "int32"},     {"uint", "uint32"},
+                                           {"float", "float32"}, {"double", "float64"}};
+    for (int i = 0; i < 8; i++)
+        if (strcmp(s, names[i][0]) == 0 || strcmp(s, names[i][1]) == 0)
+            return (ply_type)i;
+    return PLY_BAD;
+}
+
+static size_t ply_size(ply_type t)
+{
+    static const size_t sz[] = {1, 1, 2, 2, 4, 4, 4, 8};
+    return sz[t];
+}
+
+typedef struct {
+    const unsigned char *p, *end;
+    int binary;
+} ply_reader;
+
+/* One value as double; 0 at end of data or on a malformed token. */
+static int ply_read(ply_reader *r, ply_type t, double *out)
+{
+    if (r->binary) {
+        size_t n = ply_size(t);
+        if ((size_t)(r->end - r->p) < n)
+            return 0;
+        uint64_t u = 0;
+        for (size_t i = 0; i < n; i++)
+            u |= (uint64_t)r->p[i] << (8 * i);
+        r->p += n;
+        switch (t) {
+        case PLY_I8: *out = (int8_t)u; break;
+        case PLY_U8: *out = (uint8_t)u; break;
+        case PLY_I16: *out = (int16_t)u; break;
+        case PLY_U16: *out = (uint16_t)u; break;
+        case PLY_I32: *out = (int32_t)u; break;
+        case PLY_U32: *out = (uint32_t)u; break;
+        case PLY_F32: {
+            uint32_t w = (uint32_t)u;
+            float f;
+            memcpy(&f, &w, sizeof f);
+            *out = f;
+            break;
+        }
+        default: {
+            double d;
+            memcpy(&d, &u, sizeof d);
+            *out = d;
+        }
+        }
+        return 1;
+    }
+    while (r->p < r->end && (*r->p == ' ' || *r->p == '\t' || *r->p == '\n' || *r->p == '\r'))
+        r->p++;
+    if (r->p >= r->end)
+        return 0;
+    char tok[64];
+    size_t n = 0;
+    while (r->p < r->end && *r->p != ' ' && *r->p != '\t' && *r->p != '\n' && *r->p != '\r') {
+        if (n + 1 >= sizeof tok)
+            return 0;
+        tok[n++] = (char)*r->p++;
+    }
+    tok[n] = '\0';
+    char *e;
+    *out = strtod(tok, &e);
+    return *e == '\0';
+}
+
+static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, mesh_soup *s,
+                                char *err, size_t errlen)
+{
+    ply_element el[PLY_MAX_ELEMENTS];
+    int n_el = 0, binary = -1, line = 0;
+    const char *p = buf, *end = buf + len;
+    char text[256];
+
+    for (;;) {
+        const char *nl = memchr(p, '\n', (size_t)(end - p));
+        line++;
+        if (!nl) {
+            mesh_msg(err, errlen, "%s:%d: PLY header has no end_header line; fix: a complete PLY "
+                     "file", label, line);
+            return RC_ERR_PARSE;
+        }
+        size_t n = (size_t)(nl - p);
+        if (n >= sizeof text || memchr(p, '\0', n)) {
+            mesh_msg(err, errlen, "%s:%d: PLY header line too long or holding a NUL byte; fix: a "
+                     "valid PLY header", label, line);
+            return RC_ERR_PARSE;
+        }
+        memcpy(text, p, n);
+        text[n] = '\0';
+        if (n && text[n - 1] == '\r')
+            text[n - 1] = '\0';
+        p = nl + 1;
+        char w[6][40];
+        int nw = 0, long_word = 0;
+        for (char *tk = strtok(text, " \t"); tk; tk = strtok(NULL, " \t")) {
+            if (nw == 6 || strlen(tk) >= sizeof w[0]) {
+                long_word = 1;
+                break;
+            }
+            strcpy(w[nw++], tk);
+        }
+        if (long_word && !(nw > 0 && (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0))) {
+            mesh_msg(err, errlen, "%s:%d: PLY header line has too many or too long words; fix: a "
+                     "valid PLY header", label, line);
+            return RC_ERR_PARSE;
+        }
+        if (line == 1) {
+            if (nw != 1 || strcmp(w[0], "ply") != 0) {
+                mesh_msg(err, errlen, "%s:1: not a PLY file (first line must be 'ply'); fix: export "
+                         "as PLY", label);
+                return RC_ERR_PARSE;
+            }
+            continue;
+        }
+        if (nw == 0 || strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0)
+            continue;
+        if (strcmp(w[0], "end_header") == 0)
+            break;
+        if (strcmp(w[0], "format") == 0 && nw == 3) {
+            if (strcmp(w[1], "ascii") == 0)
+                binary = 0;
+            else if (strcmp(w[1], "binary_little_endian") == 0)
+                binary = 1;
+            else {
+                mesh_msg(err, errlen, "%s:%d: PLY format '%s' not supported; fix: ascii or "
+                         "binary_little_endian", label, line, w[1]);
+                return RC_ERR_PARSE;
+            }
+        } else if (strcmp(w[0], "element") == 0 && nw == 3) {
+            char *e;
+            long count = strtol(w[2], &e, 10);
+            if (*e || count < 0 || (size_t)count > len || n_el == PLY_MAX_ELEMENTS) {
+                mesh_msg(err, errlen, "%s:%d: bad element line (count %s, %d elements so far); fix: "
+                         "'element name count' with a count the file can hold, at most %d elements",
+                         label, line, w[2], n_el, PLY_MAX_ELEMENTS);
+                return RC_ERR_PARSE;
+            }
+            ply_element *x = &el[n_el++];
+            memset(x, 0, sizeof *x);
+            snprintf(x->name, sizeof x->name, "%s", w[1]);
+            x->count = count;
+        } else if (strcmp(w[0], "property") == 0 && n_el > 0 && el[n_el - 1].n_props < PLY_MAX_PROPS &&
+                   (nw == 3 || (nw == 5 && strcmp(w[1], "list") == 0))) {
+            /* "property <type> <name>" or "property list <count type> <item type> <name>" */
+            ply_element *x = &el[n_el - 1];
+            ply_prop *pr = &x->props[x->n_props++];
+            memset(pr, 0, sizeof *pr);
+            pr->is_list = nw == 5;
+            pr->type = ply_type_of(w[nw - 2]);
+            pr->count_type = pr->is_list ? ply_type_of(w[2]) : PLY_U8;
+            snprintf(pr->name, sizeof pr->name, "%s", w[nw - 1]);
+            if (pr->type == PLY_BAD || pr->count_type == PLY_BAD ||
+                (pr->is_list && (pr->count_type == PLY_F32 || pr->count_type == PLY_F64))) {
+                mesh_msg(err, errlen, "%s:%d: unknown PLY property type; fix: char uchar short ushort "
+                         "int uint float double (or int8 ... float64), integer list counts", label,
+                         line);
+                return RC_ERR_PARSE;
+            }
+        } else {
+            mesh_msg(err, errlen, "%s:%d: unexpected PLY header line '%s'; fix: format, element, "
+                     "property, comment, end_header", label, line, w[0]);
+            return RC_ERR_PARSE;
+        }
+    }
+    if (binary < 0) {
+        mesh_msg(err, errlen, "%s: PLY header has no format line; fix: 'format ascii 1.0'", label);
+        return RC_ERR_PARSE;
+    }
+
+    ply_reader r = {(const unsigned char *)p, (const unsigned char *)end, binary};
+    int have_vertex = 0, have_face = 0;
+    for (int e = 0; e < n_el; e++) {
+        ply_element *x = &el[e];
+        int is_vertex = strcmp(x->name, "vertex") == 0, is_face = strcmp(x->name, "face") == 0;
+        int ix[6] = {-1, -1, -1, -1, -1, -1}, iface = -1;
+        static const char *const vn[6] = {"x", "y", "z", "nx", "ny", "nz"};
+        if (x->n_props == 0 && x->count > 0) {
+            mesh_msg(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header",
+                     label, x->name);
+            return RC_ERR_PARSE;
+        }
+        for (int k = 0; k < x->n_props; k++) {
+            for (int c = 0; c < 6; c++)
+                if (!x->props[k].is_list && strcmp(x->props[k].name, vn[c]) == 0)
+                    ix[c] = k;
+            if (x->props[k].is_list &&
+                (strcmp(x->props[k].name, "vertex_indices") == 0 ||
+                 strcmp(x->props[k].name, "vertex_index") == 0))
+                iface = k;
+        }
+        if (is_vertex) {
+            if (have_vertex || ix[0] < 0 || ix[1] < 0 || ix[2] < 0) {
+                mesh_msg(err, errlen, "%s: vertex element %s; fix: one vertex element with x, y, z",
+                         label, have_vertex ? "given twice" : "lacks x, y or z");
+                return RC_ERR_PARSE;
+            }
+            int nn = (ix[3] >= 0) + (ix[4] >= 0) + (ix[5] >= 0);
+            if (nn != 0 && nn != 3) {
+                mesh_msg(err, errlen, "%s: vertex has only some of nx, ny, nz; fix: all three or none",
+                         label);
+                return RC_ERR_PARSE;
+            }
+            have_vertex = 1 + (nn == 3);
+        }
+        if (is_face) {
+            if (!have_vertex || have_face || iface < 0) {
+                mesh_msg(err, errlen, "%s: face element %s; fix: vertex element first, then one "
+                         "face element with a vertex_indices list", label,
+                         !have_vertex ? "before the vertex element" : have_face ? "given twice"
+                                                                                : "lacks vertex_indices");
+                return RC_ERR_PARSE;
+            }
+            have_face = 1;
+        }
+        for (long i = 0; i < x->count; i++) {
+            double vals[6] = {0, 0, 0, 0, 0, 0};
+            for (int k = 0; k < x->n_props; k++) {
+                ply_prop *pr = &x->props[k];
+                double d;
+                if (!pr->is_list) {
+                    if (!ply_read(&r, pr->type, &d))
+                        goto truncated;
+                    for (int c = 0; c < 6; c++)
+                        if (ix[c] == k)
+                            vals[c] = d;
+                    continue;
+                }
+                double cnt;
+                if (!ply_read(&r, pr->count_type, &cnt))
+                    goto truncated;
+                if (!(cnt >= 0 && cnt <= 65535 && cnt == floor(cnt))) {
+                    mesh_msg(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name,
+                             i, cnt);
+                    return RC_ERR_PARSE;
+                }
+                if (is_face && k == iface && cnt < 3) {
+                    mesh_msg(err, errlen, "%s: face %ld has %g corners; fix: at least 3", label, i, cnt);
+                    return RC_ERR_PARSE;
+                }
+                for (int j = 0; j < (int)cnt; j++) {
+                    if (!ply_read(&r, pr->type, &d))
+                        goto truncated;
+                    if (is_face && k == iface) {
+                        if (!(d >= 0 && d < s->n_pos && d == floor(d))) {
+                            mesh_msg(err, errlen, "%s: face %ld: vertex index %g out of range; fix: "
+                                     "0..%d", label, i, d, s->n_pos - 1);
+                            return RC_ERR_RANGE;
+                        }
+                        int vi = (int)d;
+                        if (!mesh_soup_corner(s, vi, have_vertex == 2 ? vi : -1))
+                            return RC_ERR_NOMEM;
+                    }
+                }
+            }
+            if (is_vertex) {
+                for (int c = 0; c < 6; c++)
+                    if ((c < 3 || have_vertex == 2) && (!isfinite(vals[c]) || fabs(vals[c]) > 1e30)) {
+                        mesh_msg(err, errlen, "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
+                                 "finite values", label, i, vn[c]);
+                        return RC_ERR_RANGE;
+                    }
+                if (!mesh_soup_pos(s, vals))
+                    return RC_ERR_NOMEM;
+                if (have_vertex == 2) {
+                    if (vals[3] == 0.0 && vals[4] == 0.0 && vals[5] == 0.0) {
+                        mesh_msg(err, errlen, "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
+                                 "drop them to have normals computed", label, i);
+                        return RC_ERR_RANGE;
+                    }
+                    if (!mesh_soup_nrm(s, vals + 3))
+                        return RC_ERR_NOMEM;
+                }
+            }
+            if (is_face && !mesh_soup_face(s, (int)(i < INT_MAX ? i : INT_MAX)))
+                return RC_ERR_NOMEM;
+        }
+    }
+    if (!have_vertex || !have_face) {
+        mesh_msg(err, errlen, "%s: PLY has no %s element; fix: vertex and face elements", label,
+                 have_vertex ? "face" : "vertex");
+        return RC_ERR_PARSE;
+    }
+    return RC_OK;
+truncated:
+    mesh_msg(err, errlen, "%s: PLY data ends early or holds a malformed number; fix: a complete "
+             "file matching its header", label);
+    return RC_ERR_PARSE;
+}
+
+/* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
+ * Vertices are shared per (position, normal) pair. */
+static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj,
+                                char *err, size_t errlen)
+{
+    mesh *m = b->m;
+    size_t ntri = 0;
+    for (int f = 0; f < s->n_face; f++)
+        ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
+    if (ntri == 0) {
+        mesh_msg(err, errlen, "%s: no triangles; fix: a mesh with at least one face", label);
+        return RC_ERR_RANGE;
+    }
+    dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
+    /* Output vertex per (position, file normal or computed): two slots per position for the
+     * common cases, a linear probe table otherwise. */
+    size_t tcap = 16;
+    while (tcap < 2 * (size_t)s->n_corner)
+        tcap *= 2;
+    int64_t *tkey = malloc(tcap * sizeof *tkey);
+    uint32_t *tval = malloc(tcap * sizeof *tval);
+    rc_status rc = RC_OK;
+    if (!acc || !tkey || !tval) {
+        rc = RC_ERR_NOMEM;
+        goto done;
+    }
+    for (size_t i = 0; i < tcap; i++)
+        tkey[i] = -1;
+
+    for (int f = 0; f < s->n_face; f++)
+        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1]; k++) {
+            int c[3] = {s->face_start[f], k, k + 1};
+            dvec3 pv[3];
+            for (int q = 0; q < 3; q++) {
+                const double *pp = &s->pos[3 * (size_t)s->cv[c[q]]];
+                pv[q] = dv3(pp[0], pp[1], pp[2]);
+            }
+            dvec3 cr = dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
+            if (dv3_len(cr) == 0.0) {
+                if (is_obj)
+                    mesh_msg(err, errlen, "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
+                             "coincide or are collinear); fix: remove the degenerate face", label,
+                             s->face_line[f], s->cv[c[0]] + 1, s->cv[c[1]] + 1, s->cv[c[2]] + 1);
+                else
+                    mesh_msg(err, errlen, "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
+                             "coincide or are collinear); fix: remove the degenerate face", label,
+                             s->face_line[f], s->cv[c[0]], s->cv[c[1]], s->cv[c[2]]);
+                rc = RC_ERR_RANGE;
+                goto done;
+            }
+            /* |cross| is twice the area: summing it weights normals by area. */
+            for (int q = 0; q < 3; q++)
+                acc[s->cv[c[q]]] = dv3_add(acc[s->cv[c[q]]], cr);
+        }
+
+    if ((rc = mesh_reserve(m, (size_t)s->n_corner, ntri)) != RC_OK)
+        goto done;
+    uint32_t *corner_vert = malloc((size_t)s->n_corner * sizeof *corner_vert);
+    if (!corner_vert) {
+        rc = RC_ERR_NOMEM;
+        goto done;
+    }
+    for (int i = 0; i < s->n_corner; i++) {
+        int vi = s->cv[i], ni = s->cn[i];
+        int64_t key = (int64_t)vi * ((int64_t)s->n_nrm + 1) + (ni + 1);
+        size_t h = (size_t)((uint64_t)key * 0x9E3779B97F4A7C15ull >> 20) & (tcap - 1);
+        while (tkey[h] != -1 && tkey[h] != key)
+            h = (h + 1) & (tcap - 1);
+        if (tkey[h] == -1) {
+            const double *pp = &s->pos[3 * (size_t)vi];
+            dvec3 n;
+            if (ni >= 0) {
+                const double *nn = &s->nrm[3 * (size_t)ni];
+                n = dv3_norm(dv3(nn[0], nn[1], nn[2]));
+            } else {
+                n = acc[vi];
+                if (dv3_len(n) == 0.0) {
+                    mesh_msg(err, errlen, "%s: vertex %d: its triangles' normals cancel, so no "
+                             "normal can be computed; fix: give normals or remove back-to-back "
+                             "faces", label, vi + is_obj);
+                    free(corner_vert);
+                    rc = RC_ERR_RANGE;
+                    goto done;
+                }
+                n = dv3_norm(n);
+            }
+            tkey[h] = key;
+            tval[h] = mesh_vert(b, dv3(pp[0], pp[1], pp[2]), n);
+        }
+        corner_vert[i] = tval[h];
+    }
+    for (int f = 0; f < s->n_face && rc == RC_OK; f++)
+        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1]; k++) {
+            uint32_t a = corner_vert[s->face_start[f]], bb = corner_vert[k], c = corner_vert[k + 1];
+            dvec3 cr;
+            /* Nonzero in the file's precision can still collapse once stored as float. */
+            if (mesh_tri_area2(m, a, bb, c, &cr) == 0.0) {
+                mesh_msg(err, errlen, "%s%s%d: face has a zero-area triangle in single precision "
+                         "(tiny or huge coordinates); fix: rescale the mesh or remove the face",
+                         label, is_obj ? ":" : ": face ", s->face_line[f]);
+                rc = RC_ERR_RANGE;
+                break;
+            }
+            mesh_tri(m, a, bb, c, b->object);
+        }
+    free(corner_vert);
+done:
+    free(acc);
+    free(tkey);
+    free(tval);
+    return rc;
+}
+
+static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *err, size_t errlen)
+{
+    char label[SCENE_PATH_MAX + 32];
+    char *buf = NULL;
+    size_t len = 0;
+    mesh_soup s;
+    memset(&s, 0, sizeof s);
+    snprintf(label, sizeof label, "%s", o->path);
+    size_t pl = strlen(o->path);
+    int is_obj = pl >= 4 && (strcmp(o->path + pl - 4, ".obj") == 0 || strcmp(o->path + pl - 4, ".OBJ") == 0);
+    int is_ply = pl >= 4 && (strcmp(o->path + pl - 4, ".ply") == 0 || strcmp(o->path + pl - 4, ".PLY") == 0);
+    if (!is_obj && !is_ply) {
+        mesh_msg(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file",
+                 o->path, index);
+        return RC_ERR_PARSE;
+    }
+    rc_status rc = mesh_read_file(o->path, &buf, &len);
+    if (rc != RC_OK) {
+        mesh_msg(err, errlen, "%s: objects[%d]: cannot read mesh (%s); fix: check the path", o->path,
+                 index, rc == RC_ERR_NOMEM ? "out of memory" : strerror(errno));
+        return rc;
+    }
+    rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen)
+                : mesh_ply_parse(buf, len, label, &s, err, errlen);
+    if (rc == RC_OK)
+        rc = mesh_soup_emit(&s, b, label, is_obj, err, errlen);
+    if (rc == RC_ERR_NOMEM)
+        mesh_msg(err, errlen, "%s: objects[%d]: out of memory reading the mesh; fix: a smaller mesh",
+                 o->path, index);
+    mesh_soup_free(&s);
+    free(buf);
+    return rc;
+}
+
+/* Upper bounds of vertices and triangles a generated shape adds (reserved up front). */
+static void mesh_counts(const object *o, size_t *nv, size_t *nt)
+{
+    size_t s = (size_t)o->tessellation;
+    switch (o->shape) {
+    case SHAPE_SPHERE: *nv = 2 + s * (s / 2); *nt = 2 * s * (s / 2); break;
+    case SHAPE_QUAD: *nv = 4; *nt = 2; break;
+    case SHAPE_BOX: *nv = 24 + 12 * 2 * (s + 1) + 8 * (s + 1) * (s + 2) / 2; *nt = 12 + 24 * s + 8 * s * s; break;
+    case SHAPE_TORUS: *nv = s * (s / 2 < 3 ? 3 : s / 2); *nt = 2 * *nv; break;
+    default: *nv = *nt = 0;
+    }
+}
+
+static const char *mesh_shape_name(shape_kind k)
+{
+    static const char *const n[] = {"sphere", "quad", "box", "torus", "mesh"};
+    return (unsigned)k < 5 ? n[k] : "?";
+}
+
+/* Geometry the scene file already validates; checked again for scenes built in code. */
+static int mesh_valid(const object *o, char *why, size_t whylen)
+{
+    const float big = 1e30f; /* coordinates beyond this overflow float products in the shaders */
+    float sz = fminf(o->size.x, fminf(o->size.y, o->size.z));
+    if (!(fabsf(o->center.x) < big && fabsf(o->center.y) < big && fabsf(o->center.z) < big) ||
+        !(isfinite(o->rotate.x) && isfinite(o->rotate.y) && isfinite(o->rotate.z)))
+        return snprintf(why, whylen, "center and rotate must be finite"), 0;
+    switch (o->shape) {
+    case SHAPE_SPHERE:
+        if (!(o->radius > 0 && o->radius < big) || o->tessellation < 4 || o->tessellation > 1024)
+            return snprintf(why, whylen, "needs radius > 0 and tessellation 4..1024"), 0;
+        break;
+    case SHAPE_QUAD:
+        if (!(o->size.x > 0 && o->size.z > 0 && o->size.x < big && o->size.z < big))
+            return snprintf(why, whylen, "needs size x, z > 0"), 0;
+        break;
+    case SHAPE_BOX:
+        if (!(sz > 0 && fmaxf(o->size.x, fmaxf(o->size.y, o->size.z)) < big) ||
+            !(o->radius >= 0 && o->radius <= 0.5f * sz) || o->tessellation < 1 ||
+            o->tessellation > 256)
+            return snprintf(why, whylen,
+                            "needs size > 0, 0 <= radius <= min(size)/2, tessellation 1..256"), 0;
+        break;
+    case SHAPE_TORUS:
+        if (!(o->major > 0 && o->major < big && o->radius > 0 && o->radius <= o->major) ||
+            o->tessellation < 3 || o->tessellation > 1024)
+            return snprintf(why, whylen, "needs 0 < radius <= major and tessellation 3..1024"), 0;
+        break;
+    case SHAPE_MESH:
+        if (!o->path[0])
+            return snprintf(why, whylen, "needs a path"), 0;
+        break;
+    default:
+        return snprintf(why, whylen, "unknown shape"), 0;
+    }
+    return 1;
+}
+
+rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err, size_t errlen)
+{
+    if (!s || !out || object_index < 0 || object_index >= s->n_objects) {
+        mesh_msg(err, errlen, "%s: objects[%d]: no such object; fix: an index below %d",
+                 s ? s->path : "(scene)", object_index, s ? s->n_objects : 0);
+        return RC_ERR_RANGE;
+    }
+    const object *o = &s->objects[object_index];
+    char why[128];
+    if (!mesh_valid(o, why, sizeof why)) {
+        mesh_msg(err, errlen, "%s: objects[%d] (%s): %s", s->path, object_index,
+                 mesh_shape_name(o->shape), why);
+        return RC_ERR_RANGE;
+    }
+    int nv0 = out->n_verts, nt0 = out->n_tris;
+    mesh_builder b = {out, mesh_make_xform(o), object_index};
+    rc_status rc;
+    if (o->shape == SHAPE_MESH) {
+        rc = mesh_file(&b, o, object_index, err, errlen);
+    } else {
+        size_t nv, nt;
+        mesh_counts(o, &nv, &nt);
+        rc = mesh_reserve(out, nv, nt);
+        if (rc != RC_OK) {
+            mesh_msg(err, errlen, "%s: objects[%d] (%s): out of memory; fix: lower tessellation",
+                     s->path, object_index, mesh_shape_name(o->shape));
+        } else {
+            int ok = 0;
+            switch (o->shape) {
+            case SHAPE_SPHERE: ok = mesh_sphere(&b, o); break;
+            case SHAPE_QUAD: ok = mesh_quad(&b, o); break;
+            case SHAPE_BOX: ok = mesh_box(&b, o); break;
+            default: ok = mesh_torus(&b, o); break;
+            }
+            if (!ok) {
+                mesh_msg(err, errlen, "%s: objects[%d] (%s): a triangle has zero area in float "
+                         "precision; fix: a larger size or lower tessellation", s->path,
+                         object_index, mesh_shape_name(o->shape));
+                rc = RC_ERR_RANGE;
+            }
+        }
+    }
+    if (rc != RC_OK) {
+        out->n_verts = nv0;
+        out->n_tris = nt0;
+    }
+    return rc;
+}
+
+rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen)
+{
+    out->n_verts = 0;
+    out->n_tris = 0;
+    for (int i = 0; i < s->n_objects; i++) {
+        rc_status rc = mesh_add_object(s, i, out, err, errlen);
+        if (rc != RC_OK) {
+            mesh_free(out);
+            return rc;
+        }
+    }
+    return RC_OK;
+}
+
+void mesh_free(mesh *m)
+{
+    free(m->pos);
+    free(m->nrm);
+    free(m->idx);
+    free(m->tri_object);
+    memset(m, 0, sizeof *m);
+}

@@ -1,0 +1,94 @@
+/* scene.c - the defaults stated in scene.h, in one place.
+ *
+ * Derived defaults (d3d.diffuse = albedo, d9.r0 from ior, d9.m = 1 - r0, ct.m = roughness,
+ * ct.f0 from ior) are filled here for the default material; a scene file that changes albedo,
+ * ior or roughness re-derives them after the whole material is read (harness/scene_file.c).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "scene.h"
+
+/* Degrees to radians for the few defaults that are angles. */
+static float scene_deg(double d) { return (float)(d * 3.14159265358979323846 / 180.0); }
+
+void light_init(light *l)
+{
+    memset(l, 0, sizeof *l);
+    l->kind = LIGHT_POINT;
+    l->direction = v3(0.0f, -1.0f, 0.0f);
+    l->a0 = 0.0f;
+    l->a1 = 0.0f;
+    l->a2 = 1.0f;
+    l->range = INFINITY;
+    l->inner = scene_deg(30.0);
+    l->outer = scene_deg(40.0);
+    l->falloff = 1.0f;
+    /* The references can only reproduce the smooth profile, so it is the default. */
+    l->profile = SPOT_SMOOTH;
+}
+
+void material_init(material *m)
+{
+    memset(m, 0, sizeof *m);
+    m->albedo = v3s(0.8f);
+    m->ior = 1.5f;
+    m->roughness = 0.3f;
+    m->model = MODEL_D3D;
+
+    m->d3d.diffuse = m->albedo;
+    m->d3d.local_viewer = 1;
+
+    float r = (1.0f - m->ior) / (1.0f + m->ior);
+    m->d9.p = 3.0f;
+    m->d9.r0 = r * r;
+    m->d9.m = 1.0f - m->d9.r0;
+    m->d9.fresnel_colour = v3s(1.0f);
+    m->d9.norm = NORM_MAX;
+    m->d9.alpha = 1.0f;
+
+    m->ct.m = m->roughness;
+    m->ct.f0 = v3s(r * r);
+    m->ct.ks = v3s(1.0f);
+    m->ct.norm = CT_WALTER;
+    m->ct.g = G_VCAVITY;
+    m->ct.f = F_SCHLICK;
+    m->ct.reflection = 1;
+}
+
+void object_init(object *o)
+{
+    memset(o, 0, sizeof *o);
+    o->shape = SHAPE_SPHERE;
+    o->radius = 0.5f;
+    o->major = 1.0f;
+    o->size = v3s(1.0f);
+    o->tessellation = 32;
+}
+
+void scene_init(scene *s)
+{
+    memset(s, 0, sizeof *s);
+    strcpy(s->name, "scene");
+    s->width = 64;
+    s->height = 64;
+    s->supersample = 1;
+    s->samples = 64;
+    s->camera.eye = v3(0.0f, 0.0f, 4.0f);
+    s->camera.target = v3(0.0f, 0.0f, 0.0f);
+    s->camera.up = v3(0.0f, 1.0f, 0.0f);
+    s->camera.hfov = scene_deg(40.0);
+    s->env.kind = ENV_NONE;
+    s->env.radiance = v3s(1.0f); /* the image scale default; unused while kind is ENV_NONE */
+    for (int i = 0; i < SCENE_MAX_LIGHTS; i++)
+        light_init(&s->lights[i]);
+    for (int i = 0; i < SCENE_MAX_MATERIALS; i++)
+        material_init(&s->materials[i]);
+    for (int i = 0; i < SCENE_MAX_OBJECTS; i++)
+        object_init(&s->objects[i]);
+    for (int i = 0; i < SCENE_MAX_COMPARISONS; i++) {
+        s->comparisons[i].test = RENDERER_RASTER;
+        s->comparisons[i].reference = RENDERER_POVRAY;
+        s->comparisons[i].role = ROLE_TWIN;
+    }
+}

@@ -1,0 +1,573 @@
+/* test_scene_file.c - YAML scene files: values, defaults, derived defaults, every bad fixture's
+ * status and message place, and inputs that must not crash (run it under ASan/UBSan too).
+ * Expected numbers are worked out by hand in the comments beside them.
+ * Runs from the repository root (fixtures in tests/fixtures/scenes).
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "scene_file.h"
+
+#define FIX "tests/fixtures/scenes/"
+#define DEG (3.14159265358979323846 / 180.0)
+/* Values pass through float: 1e-6 relative covers one rounding of numbers of order 1..100. */
+#define TOL 1e-6
+
+static void assert_v3(vec3 v, double x, double y, double z)
+{
+    assert_float_equal(v.x, x, TOL * (1 + fabs(x)));
+    assert_float_equal(v.y, y, TOL * (1 + fabs(y)));
+    assert_float_equal(v.z, z, TOL * (1 + fabs(z)));
+}
+
+static scene *load_ok(const char *path)
+{
+    scene *s = calloc(1, sizeof *s);
+    char err[600] = "";
+    assert_non_null(s);
+    rc_status rc = scene_file_load(path, s, err, sizeof err);
+    if (rc != RC_OK)
+        print_error("%s\n", err);
+    assert_int_equal(rc, RC_OK);
+    return s;
+}
+
+static char *read_all(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    char *buf = malloc(1 << 20);
+    assert_non_null(buf);
+    *len = fread(buf, 1, 1 << 20, f);
+    fclose(f);
+    return buf;
+}
+
+static int find_material(const scene *s, const char *name)
+{
+    for (int i = 0; i < s->n_materials; i++)
+        if (strcmp(s->materials[i].name, name) == 0)
+            return i;
+    fail_msg("material %s not found", name);
+    return -1;
+}
+
+static void test_hash_vectors(void **state)
+{
+    (void)state;
+    /* Published FNV-1a 64 test vectors. */
+    assert_true(scene_file_hash("", 0) == 0xcbf29ce484222325ull);
+    assert_true(scene_file_hash("a", 1) == 0xaf63dc4c8601ec8cull);
+    assert_true(scene_file_hash("foobar", 6) == 0x85944171f73967e8ull);
+}
+
+static void test_good_full(void **state)
+{
+    (void)state;
+    scene *s = load_ok(FIX "good_full.yaml");
+    assert_string_equal(s->name, "full_example");
+    assert_string_equal(s->path, FIX "good_full.yaml");
+    assert_int_equal(s->width, 96);
+    assert_int_equal(s->height, 64);
+    assert_int_equal(s->supersample, 4);
+    assert_int_equal(s->samples, 128);
+    assert_v3(s->camera.eye, 0, 1.2, 4);
+    assert_v3(s->camera.target, 0, 0.5, 0);
+    assert_v3(s->camera.up, 0, 1, 0);
+    assert_float_equal(s->camera.hfov, 40 * DEG, TOL);
+    assert_v3(s->global_ambient, 0.01, 0.02, 0.03);
+    assert_int_equal(s->env.kind, ENV_CONSTANT);
+    assert_v3(s->env.radiance, 0.1, 0.2, 0.3);
+
+    assert_int_equal(s->n_lights, 3);
+    const light *l = s->lights;
+    assert_int_equal(l[0].kind, LIGHT_POINT);
+    assert_v3(l[0].position, 2, 4, 3);
+    assert_v3(l[0].intensity, 30, 31, 32);
+    assert_true(l[0].a0 == 0 && l[0].a1 == 0 && l[0].a2 == 1 && isinf(l[0].range));
+    assert_int_equal(l[1].kind, LIGHT_SUN);
+    assert_v3(l[1].direction, 0, -1, 0); /* [0, -2, 0] normalised */
+    assert_v3(l[1].intensity, 3, 3.5, 4);
+    assert_int_equal(l[2].kind, LIGHT_SPOT);
+    assert_v3(l[2].position, 1, 3, 1);
+    assert_float_equal(l[2].inner, 30 * DEG, TOL);
+    assert_float_equal(l[2].outer, 40 * DEG, TOL);
+    assert_float_equal(l[2].falloff, 2, TOL);
+    assert_int_equal(l[2].profile, SPOT_D3D);
+    assert_v3(v3(l[2].a0, l[2].a1, l[2].a2), 0.5, 0.25, 1);
+    assert_float_equal(l[2].range, 100, TOL);
+    assert_v3(l[2].ambient, 0.1, 0, 0);
+
+    assert_int_equal(s->n_materials, 3);
+    const material *w = &s->materials[find_material(s, "white")];
+    assert_v3(w->albedo, 0.8, 0.7, 0.6);
+    assert_int_equal(w->model, MODEL_D3D);
+    assert_v3(w->d3d.specular, 0.2, 0.2, 0.2);
+    assert_float_equal(w->d3d.power, 40, TOL);
+    assert_int_equal(w->d3d.local_viewer, 0);
+    assert_int_equal(w->d3d.per_vertex, 1);
+    assert_int_equal(w->d3d.clamp, 1);
+    assert_v3(w->d3d.ambient, 0.1, 0.1, 0.1);
+    assert_v3(w->d3d.emissive, 0.01, 0, 0);
+    assert_v3(w->d3d.diffuse, 0.5, 0.5, 0.5); /* given, so not the albedo */
+    assert_float_equal(w->d9.r0, 0.04, TOL);  /* ((1 - 1.5)/(1 + 1.5))^2 */
+    assert_float_equal(w->d9.m, 0.96, TOL);
+    assert_float_equal(w->ct.m, 0.3, TOL);
+
+    const material *c = &s->materials[find_material(s, "chrome")];
+    assert_int_equal(c->model, MODEL_D3D9CLIENT);
+    assert_float_equal(c->d9.p, 2.5, TOL);
+    assert_float_equal(c->d9.r0, 0.2, TOL);
+    assert_float_equal(c->d9.m, 0.5, TOL);
+    assert_v3(c->d9.reflect, 0.9, 0.8, 0.7);
+    assert_v3(c->d9.fresnel_colour, 1, 0.9, 0.8);
+    assert_int_equal(c->d9.norm, NORM_EUCLID);
+    assert_int_equal(c->d9.sun_angle, 1);
+    assert_v3(c->d3d.diffuse, 0.8, 0.8, 0.8); /* default albedo */
+
+    const material *g = &s->materials[find_material(s, "gold")];
+    assert_int_equal(g->conductor, 1);
+    assert_v3(g->eta, 0.2, 0.4, 1.4);
+    assert_v3(g->k, 3.5, 2.4, 1.8);
+    /* F0 = ((eta-1)^2 + k^2)/((eta+1)^2 + k^2): 12.89/13.69, 6.12/7.72, 3.4/9 */
+    assert_v3(g->ct.f0, 0.9415632, 0.7927461, 0.3777778);
+    assert_float_equal(g->ct.m, 0.25, TOL);
+    assert_float_equal(g->roughness, 0.15, TOL);
+    assert_v3(g->ct.ks, 1, 0.9, 0.8);
+    assert_int_equal(g->ct.norm, CT_CT1982);
+    assert_int_equal(g->ct.g, G_SMITH_EXACT);
+    assert_int_equal(g->ct.f, F_EXACT);
+    assert_int_equal(g->ct.reflection, 0);
+
+    assert_int_equal(s->n_objects, 5);
+    const object *o = s->objects;
+    assert_int_equal(o[0].shape, SHAPE_SPHERE);
+    assert_float_equal(o[0].radius, 0.5, TOL);
+    assert_int_equal(o[0].tessellation, 48);
+    assert_int_equal(o[0].material, find_material(s, "white"));
+    assert_int_equal(o[1].shape, SHAPE_QUAD);
+    assert_v3(o[1].size, 4, 0, 3);
+    assert_v3(o[1].rotate, 0, 90 * DEG, 0);
+    assert_int_equal(o[1].material, find_material(s, "chrome"));
+    assert_int_equal(o[2].shape, SHAPE_BOX);
+    assert_v3(o[2].size, 0.6, 0.6, 1.2);
+    assert_float_equal(o[2].radius, 0.1, TOL);
+    assert_int_equal(o[2].tessellation, 8);
+    assert_int_equal(o[3].shape, SHAPE_TORUS);
+    assert_float_equal(o[3].major, 0.5, TOL);
+    assert_float_equal(o[3].radius, 0.125, TOL);
+    assert_int_equal(o[4].shape, SHAPE_MESH);
+    assert_string_equal(o[4].path, FIX "../meshes/tetra.obj");
+    assert_int_equal(o[4].material, find_material(s, "gold"));
+
+    assert_int_equal(s->n_comparisons, 2);
+    const comparison *k = s->comparisons;
+    assert_int_equal(k[0].test, RENDERER_RASTER);
+    assert_int_equal(k[0].reference, RENDERER_POVRAY);
+    assert_int_equal(k[0].role, ROLE_TWIN);
+    assert_int_equal(k[0].n_thresholds, 2);
+    assert_string_equal(k[0].thresholds[0].metric, "rel_rms");
+    assert_float_equal(k[0].thresholds[0].warn, 5e-4, 1e-15);
+    assert_float_equal(k[0].thresholds[0].fail, 1e-3, 1e-15);
+    assert_non_null(strstr(k[0].thresholds[0].why, "half float"));
+    assert_string_equal(k[0].thresholds[1].metric, "psnr");
+    assert_float_equal(k[0].thresholds[1].warn, 60, 0);
+    assert_int_equal(k[1].test, RENDERER_CYCLES);
+    assert_int_equal(k[1].role, ROLE_AGREE);
+
+    size_t len;
+    char *bytes = read_all(FIX "good_full.yaml", &len);
+    assert_true(s->hash == scene_file_hash(bytes, len));
+    bytes[len / 2] ^= 1; /* one flipped bit changes the hash */
+    assert_true(s->hash != scene_file_hash(bytes, len));
+    free(bytes);
+    free(s);
+}
+
+static void test_good_minimal_defaults(void **state)
+{
+    (void)state;
+    scene *s = load_ok(FIX "good_minimal.yaml");
+    assert_string_equal(s->name, "good_minimal"); /* file base name */
+    assert_int_equal(s->width, 32);
+    assert_int_equal(s->height, 24);
+    assert_int_equal(s->supersample, 1);
+    assert_int_equal(s->samples, 64);
+    assert_v3(s->camera.up, 0, 1, 0);
+    assert_float_equal(s->camera.hfov, 60 * DEG, TOL);
+    assert_v3(s->global_ambient, 0, 0, 0);
+    assert_int_equal(s->env.kind, ENV_NONE);
+    assert_int_equal(s->n_lights + s->n_materials + s->n_objects + s->n_comparisons, 0);
+    free(s);
+}
+
+static void test_derived_defaults(void **state)
+{
+    (void)state;
+    scene *s = load_ok(FIX "good_derived.yaml");
+    const material *m = &s->materials[find_material(s, "glass2")];
+    /* ior 2 given after the d3d9client block: r0 = (1/3)^2 = 1/9, m = 8/9. */
+    assert_float_equal(m->d9.r0, 1.0 / 9.0, TOL);
+    assert_float_equal(m->d9.m, 8.0 / 9.0, TOL);
+    assert_float_equal(m->d9.p, 2, TOL);
+    assert_v3(m->ct.f0, 1.0 / 9.0, 1.0 / 9.0, 1.0 / 9.0);
+    assert_float_equal(m->ct.m, 0.05, TOL); /* = roughness */
+    assert_v3(m->ct.ks, 0.5, 0.5, 0.5);
+    assert_v3(m->d3d.diffuse, 0.2, 0.4, 0.6); /* = albedo */
+
+    m = &s->materials[find_material(s, "given_r0")];
+    assert_float_equal(m->d9.r0, 0.25, TOL);  /* given wins over ior 4 */
+    assert_float_equal(m->d9.m, 0.75, TOL);   /* 1 - the given r0 */
+    assert_v3(m->ct.f0, 0.36, 0.36, 0.36);    /* ((1-4)/(1+4))^2, ct.f0 still follows ior */
+
+    m = &s->materials[find_material(s, "metal")];
+    assert_int_equal(m->conductor, 1);
+    assert_v3(m->ct.f0, 0.9, 0.8, 0.7);       /* given */
+    assert_v3(m->d3d.diffuse, 0.1, 0.1, 0.1); /* given */
+    assert_float_equal(m->d9.r0, 0.04, TOL);  /* from the default ior 1.5 */
+
+    m = &s->materials[find_material(s, "plain")];
+    assert_v3(m->albedo, 0.8, 0.8, 0.8);
+    assert_float_equal(m->ior, 1.5, TOL);
+    assert_float_equal(m->roughness, 0.3, TOL);
+    assert_int_equal(m->model, MODEL_D3D);
+    assert_v3(m->d3d.diffuse, 0.8, 0.8, 0.8);
+    assert_v3(m->d3d.specular, 0, 0, 0);
+    assert_float_equal(m->d3d.power, 0, 0);
+    assert_int_equal(m->d3d.local_viewer, 1);
+    assert_int_equal(m->d3d.per_vertex, 0);
+    assert_float_equal(m->d9.p, 3, TOL);
+    assert_float_equal(m->d9.r0, 0.04, TOL);
+    assert_float_equal(m->d9.m, 0.96, TOL);
+    assert_v3(m->d9.reflect, 0, 0, 0);
+    assert_v3(m->d9.fresnel_colour, 1, 1, 1);
+    assert_int_equal(m->d9.norm, NORM_MAX);
+    assert_float_equal(m->ct.m, 0.3, TOL);
+    assert_v3(m->ct.f0, 0.04, 0.04, 0.04);
+    assert_v3(m->ct.ks, 1, 1, 1);
+    assert_int_equal(m->ct.norm, CT_WALTER);
+    assert_int_equal(m->ct.g, G_VCAVITY);
+    assert_int_equal(m->ct.f, F_SCHLICK);
+    assert_int_equal(m->ct.reflection, 1);
+
+    assert_int_equal(s->objects[0].shape, SHAPE_BOX);
+    assert_float_equal(s->objects[0].radius, 0, 0); /* a box is sharp unless rounded */
+    assert_int_equal(s->objects[0].tessellation, 32);
+    assert_v3(s->objects[0].center, 0, 0, 0);
+    assert_v3(s->objects[0].rotate, 0, 0, 0);
+    const light *l = &s->lights[0];
+    assert_int_equal(l->profile, SPOT_SMOOTH);
+    assert_float_equal(l->falloff, 1, 0);
+    assert_true(l->a0 == 0 && l->a1 == 0 && l->a2 == 1 && isinf(l->range));
+    assert_v3(l->ambient, 0, 0, 0);
+    assert_float_equal(l->inner, 20 * DEG, TOL);
+    free(s);
+}
+
+typedef struct {
+    const char *file;
+    rc_status rc;
+    const char *place; /* "LINE:COL: key.path" */
+    const char *words; /* a piece of the problem or the allowed list */
+} bad_case;
+
+static const bad_case bad_cases[] = {
+    {"bad_attenuation.yaml", RC_ERR_RANGE, "4:75: lights[0].attenuation", "not all 0"},
+    {"bad_box_radius.yaml", RC_ERR_RANGE, "5:45: objects[0].radius", "radius <= 0.2"},
+    {"bad_comparison.yaml", RC_ERR_RANGE, "4:17: comparisons[0].reference", "different"},
+    {"bad_deep.yaml", RC_ERR_PARSE, "3:", "nesting"},
+    {"bad_direction.yaml", RC_ERR_RANGE, "4:28: lights[0].direction", "zero-length"},
+    {"bad_duplicate.yaml", RC_ERR_PARSE, "3:1: image", "duplicate key (first at line 1)"},
+    {"bad_empty.yaml", RC_ERR_PARSE, "1:1:", "empty"},
+    {"bad_enum.yaml", RC_ERR_PARSE, "4:14: materials.m.model", "allowed: d3d, d3d9client, cook_torrance"},
+    {"bad_env_both.yaml", RC_ERR_PARSE, "3:14: environment", "exactly one"},
+    {"bad_eye_target.yaml", RC_ERR_RANGE, "2:34: camera.target", "equals camera.eye"},
+    {"bad_float_int.yaml", RC_ERR_PARSE, "1:16: image.width", "whole number"},
+    {"bad_height_big.yaml", RC_ERR_RANGE, "1:28: image.height", "allowed: 1..16384"},
+    {"bad_hfov.yaml", RC_ERR_RANGE, "2:51: camera.hfov", "(0, 180)"},
+    {"bad_inf.yaml", RC_ERR_RANGE, "4:55: lights[0].intensity[1]", "not finite"},
+    {"bad_ior_conductor.yaml", RC_ERR_PARSE, "6:5: materials.m.conductor", "both"},
+    {"bad_light_key.yaml", RC_ERR_PARSE, "5:63: lights[1].position", "sun"},
+    {"bad_list_for_map.yaml", RC_ERR_PARSE, "1:8: image", "got a list"},
+    {"bad_m_negative.yaml", RC_ERR_RANGE, "5:27: materials.m.d3d9client.m", ">= 0"},
+    {"bad_material_name.yaml", RC_ERR_RANGE, "7:42: objects[1].material", "'whit'; allowed: white"},
+    {"bad_mesh_missing.yaml", RC_ERR_IO, "5:25: objects[0].path", "does_not_exist.obj"},
+    {"bad_missing_camera.yaml", RC_ERR_PARSE, "1:1: camera", "missing required key"},
+    {"bad_nan.yaml", RC_ERR_RANGE, "4:20: materials.white.albedo[0]", "NaN"},
+    {"bad_neg_albedo.yaml", RC_ERR_RANGE, "4:21: materials.a.albedo[1]", ">= 0"},
+    {"bad_neg_intensity.yaml", RC_ERR_RANGE, "4:55: lights[0].intensity[1]", ">= 0"},
+    {"bad_neg_roughness.yaml", RC_ERR_RANGE, "5:16: materials.rough.roughness", ">= 0"},
+    {"bad_quad_radius.yaml", RC_ERR_PARSE, "5:33: objects[0].radius", "not used by a quad"},
+    {"bad_r0.yaml", RC_ERR_RANGE, "5:22: materials.m.d3d9client.r0", "[0, 1]"},
+    {"bad_spot_cone.yaml", RC_ERR_RANGE, "4:91: lights[0].inner", "inner <= outer"},
+    {"bad_supersample.yaml", RC_ERR_RANGE, "1:45: image.supersample", "1..16"},
+    {"bad_syntax.yaml", RC_ERR_PARSE, "4:59:", "flow sequence"},
+    {"bad_tessellation.yaml", RC_ERR_RANGE, "5:46: objects[0].tessellation", "4..1024"},
+    {"bad_top_list.yaml", RC_ERR_PARSE, "1:1:", "expected a map"},
+    /* libyaml puts the end of a file without a final newline at the start of the next line. */
+    {"bad_truncated.yaml", RC_ERR_PARSE, "3:1:", "flow mapping"},
+    {"bad_two_docs.yaml", RC_ERR_PARSE, "4:1:", "one document"},
+    {"bad_type.yaml", RC_ERR_PARSE, "1:16: image.width", "whole number"},
+    {"bad_unknown_key.yaml", RC_ERR_PARSE, "5:3: camera.fov", "allowed: eye, target, up, hfov"},
+    {"bad_up_parallel.yaml", RC_ERR_RANGE, "2:9: camera.up", "parallel"},
+    {"bad_width.yaml", RC_ERR_RANGE, "1:16: image.width", "1..16384"},
+};
+
+static void test_bad_fixtures(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s), *before = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_non_null(before);
+    memset(before, 0xA5, sizeof *before);
+    for (size_t i = 0; i < sizeof bad_cases / sizeof *bad_cases; i++) {
+        const bad_case *b = &bad_cases[i];
+        char path[256], want[400], err[600] = "";
+        snprintf(path, sizeof path, FIX "%s", b->file);
+        memcpy(s, before, sizeof *s);
+        rc_status rc = scene_file_load(path, s, err, sizeof err);
+        snprintf(want, sizeof want, "%s:%s", path, b->place);
+        if (rc != b->rc || strncmp(err, want, strlen(want)) != 0 || !strstr(err, b->words) ||
+            !strstr(err, "allowed") || strchr(err, '\n'))
+            fail_msg("%s: rc %d (want %d), message:\n  %s\nwant prefix '%s' and '%s'", b->file, rc,
+                     b->rc, err, want, b->words);
+        assert_memory_equal(s, before, sizeof *s); /* untouched on failure */
+    }
+    free(s);
+    free(before);
+}
+
+/* Every good fixture is also listed here, so a new bad_*.yaml without a case is caught. */
+static void test_fixture_list_complete(void **state)
+{
+    (void)state;
+    FILE *p = popen("ls tests/fixtures/scenes/bad_*.yaml", "r");
+    char line[300];
+    int n = 0;
+    assert_non_null(p);
+    while (fgets(line, sizeof line, p)) {
+        int found = 0;
+        line[strcspn(line, "\n")] = '\0';
+        for (size_t i = 0; i < sizeof bad_cases / sizeof *bad_cases; i++)
+            found |= strcmp(strrchr(line, '/') + 1, bad_cases[i].file) == 0;
+        if (!found)
+            fail_msg("%s has no expectation in bad_cases", line);
+        n++;
+    }
+    pclose(p);
+    assert_int_equal(n, (int)(sizeof bad_cases / sizeof *bad_cases));
+}
+
+static rc_status parse_text(const char *text, size_t len, scene *s, char *err, size_t errlen)
+{
+    return scene_file_parse(text, len, "mem.yaml", s, err, errlen);
+}
+
+static void expect_fail(const char *text, size_t len, rc_status want)
+{
+    scene *s = malloc(sizeof *s);
+    char err[600] = "";
+    assert_non_null(s);
+    rc_status rc = parse_text(text, len, s, err, sizeof err);
+    if (rc != want || strncmp(err, "mem.yaml:", 9) != 0)
+        fail_msg("rc %d (want %d): %s", rc, want, err);
+    free(s);
+}
+
+static void test_hostile_inputs(void **state)
+{
+    (void)state;
+    /* 10 MB of garbage: refused by size before parsing. */
+    size_t big = 10u << 20;
+    char *buf = malloc(big);
+    assert_non_null(buf);
+    srand(12345);
+    for (size_t i = 0; i < big; i++)
+        buf[i] = (char)(rand() & 0xff);
+    expect_fail(buf, big, RC_ERR_RANGE);
+    /* Just under the limit: random bytes reach libyaml and are rejected, not crashed on. */
+    expect_fail(buf, SCENE_FILE_MAX_BYTES - 1, RC_ERR_PARSE);
+    /* Printable garbage. */
+    for (size_t i = 0; i < SCENE_FILE_MAX_BYTES; i++)
+        buf[i] = (char)(' ' + rand() % 95);
+    {
+        scene *s = malloc(sizeof *s);
+        char err[600] = "";
+        rc_status rc = parse_text(buf, SCENE_FILE_MAX_BYTES, s, err, sizeof err);
+        assert_true(rc == RC_ERR_PARSE || rc == RC_ERR_RANGE);
+        free(s);
+    }
+    /* Deep nesting, which libyaml alone parses in quadratic time: must fail fast. */
+    clock_t t0 = clock();
+    memset(buf, '[', 500000);
+    expect_fail(buf, 500000, RC_ERR_PARSE);
+    for (size_t i = 0; i < 200000; i++)
+        buf[i] = i % 2 ? ':' : 'a'; /* a:a:a:... one long plain scalar */
+    expect_fail(buf, 200000, RC_ERR_PARSE);
+    /* Block nesting: "a:\n a:\n  a:\n..." 200 levels. */
+    size_t n = 0;
+    for (int d = 0; d < 200; d++) {
+        for (int k = 0; k < d; k++)
+            buf[n++] = ' ';
+        memcpy(buf + n, "a:\n", 3);
+        n += 3;
+    }
+    expect_fail(buf, n, RC_ERR_PARSE);
+    assert_true((double)(clock() - t0) / CLOCKS_PER_SEC < 10.0);
+    free(buf);
+
+    expect_fail("", 0, RC_ERR_PARSE);
+    expect_fail(NULL, 0, RC_ERR_PARSE);
+    expect_fail("---\n...\n", 8, RC_ERR_PARSE);
+    expect_fail("[1, 2, 3]\n", 10, RC_ERR_PARSE);
+    expect_fail("just text\n", 10, RC_ERR_PARSE);
+    expect_fail("? [a, b]\n: 1\n", 13, RC_ERR_PARSE);            /* a list as a key */
+    expect_fail("image: {width: \"\\0\", height: 1}\n", 32, RC_ERR_PARSE); /* NUL in a scalar */
+    const char *hdr = "image: {width: 8, height: 8}\ncamera: {eye: [0,0,1], target: [0,0,0], hfov: 30}\n";
+    char text[4096];
+    /* Alias bomb: the walk is bounded by the schema, so it ends at once. */
+    snprintf(text, sizeof text, "%sa: &a [1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a]\n"
+             "c: &c [*b,*b,*b,*b,*b,*b,*b,*b]\nd: [*c,*c,*c,*c,*c,*c,*c,*c]\n", hdr);
+    expect_fail(text, strlen(text), RC_ERR_PARSE);
+    snprintf(text, sizeof text, "%sambient: &x [1, 1, 1]\nlights: [{type: point, position: *x, intensity: *x}]\n", hdr);
+    {
+        scene *s = malloc(sizeof *s);
+        char err[600] = "";
+        assert_int_equal(parse_text(text, strlen(text), s, err, sizeof err), RC_OK);
+        assert_v3(s->lights[0].position, 1, 1, 1); /* aliases are plain YAML and work */
+        free(s);
+    }
+    /* Too many lights, a list where a map is expected at each level. */
+    snprintf(text, sizeof text, "%slights: [%s]\n", hdr,
+             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]}");
+    expect_fail(text, strlen(text), RC_ERR_RANGE);
+    static const char *const lists[] = {
+        "lights: {type: point}\n", "lights: [[1, 2]]\n", "materials: [a, b]\n", "materials: {a: [1]}\n",
+        "materials: {a: {d3d: [1]}}\n", "objects: [[sphere]]\n", "objects: {a: 1}\n",
+        "comparisons: [[povray]]\n", "comparisons: [{reference: povray, thresholds: [1]}]\n",
+        "comparisons: [{reference: povray, thresholds: {rel_rms: [1, 2]}}]\n", "environment: [1, 1, 1]\n",
+        "ambient: {r: 1}\n", "ambient: [1, 1]\n", "ambient: 1\n", "name: [a]\n", "name: \"a b\"\n",
+        "materials: {a: {albedo: [1, 1, [1]]}}\n", "lights: [{type: [point]}]\n", "lights: [{}]\n",
+        "materials: {a: {d3d: {local_viewer: maybe}}}\n", "materials: {a: {d3d9client: {norm: 2}}}\n",
+        "comparisons: [{reference: povray, thresholds: {Bad-Name: {warn: 1, fail: 2}}}]\n",
+        "comparisons: [{reference: povray, thresholds: {rel_rms: {warn: 1}}}]\n",
+        "materials: {a: {}, a: {}}\n", "environment: {image: nothing_here.exr}\n",
+        "environment: {image: sky.png}\n", "objects: [{shape: cone, material: a}]\n",
+    };
+    for (size_t i = 0; i < sizeof lists / sizeof *lists; i++) {
+        scene *s = malloc(sizeof *s);
+        char err[600] = "";
+        snprintf(text, sizeof text, "%s%s", hdr, lists[i]);
+        rc_status rc = parse_text(text, strlen(text), s, err, sizeof err);
+        if (rc == RC_OK || strncmp(err, "mem.yaml:", 9) != 0 || !strstr(err, "allowed"))
+            fail_msg("accepted or bad message for '%s': rc %d, %s", lists[i], rc, err);
+        free(s);
+    }
+}
+
+/* Every prefix of the full fixture, and random byte edits of it: any status, never a crash,
+ * and a failure always comes with a one-line message naming the file. */
+static void test_truncations_and_mutations(void **state)
+{
+    (void)state;
+    size_t len;
+    char *orig = read_all(FIX "good_full.yaml", &len);
+    char *buf = malloc(len + 1);
+    scene *s = malloc(sizeof *s);
+    char err[600];
+    int ok = 0, failed = 0;
+    assert_non_null(buf);
+    assert_non_null(s);
+    for (size_t cut = 0; cut <= len; cut++) {
+        err[0] = '\0';
+        rc_status rc = scene_file_parse(orig, cut, FIX "good_full.yaml", s, err, sizeof err);
+        if (rc == RC_OK) {
+            ok++;
+        } else {
+            failed++;
+            assert_true(strncmp(err, FIX "good_full.yaml:", strlen(FIX "good_full.yaml:")) == 0);
+            assert_null(strchr(err, '\n'));
+        }
+    }
+    assert_true(ok >= 1); /* at least the whole file */
+    assert_true(failed > (int)len / 2);
+    srand(777);
+    static const char pool[] = "[]{}:,-#&*!|>'\"%@`\n \t0123456789.eE+naNINF";
+    for (int it = 0; it < 4000; it++) {
+        memcpy(buf, orig, len);
+        int edits = 1 + rand() % 4;
+        for (int e = 0; e < edits; e++) {
+            size_t at = (size_t)rand() % len;
+            buf[at] = rand() % 4 ? pool[rand() % (int)(sizeof pool - 1)] : (char)(rand() & 0xff);
+        }
+        err[0] = '\0';
+        rc_status rc = scene_file_parse(buf, len, FIX "good_full.yaml", s, err, sizeof err);
+        if (rc != RC_OK)
+            assert_true(err[0] != '\0' && !strchr(err, '\n'));
+    }
+    free(orig);
+    free(buf);
+    free(s);
+}
+
+static void test_environment_image_paths(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/reflcheck_scene_XXXXXX", path[600], sub[600], exr[600], err[600] = "";
+    assert_non_null(mkdtemp(dir));
+    snprintf(sub, sizeof sub, "%s/envs", dir);
+    assert_int_equal(mkdir(sub, 0700), 0);
+    snprintf(exr, sizeof exr, "%s/envs/sky.exr", dir);
+    FILE *f = fopen(exr, "wb");
+    assert_non_null(f);
+    fputs("not checked here", f);
+    fclose(f);
+    snprintf(path, sizeof path, "%s/scene.yaml", dir);
+    const char *text = "image: {width: 8, height: 8}\ncamera: {eye: [0,0,1], target: [0,0,0], hfov: 30}\n"
+                       "environment: {image: envs/sky.exr, scale: 2}\n";
+    scene *s = malloc(sizeof *s);
+    assert_int_equal(scene_file_parse(text, strlen(text), path, s, err, sizeof err), RC_OK);
+    assert_int_equal(s->env.kind, ENV_IMAGE);
+    assert_string_equal(s->env.path, exr);
+    assert_v3(s->env.radiance, 2, 2, 2);
+    assert_string_equal(s->name, "scene");
+    /* Relative to the scene file, not the working directory. */
+    assert_int_equal(scene_file_parse(text, strlen(text), "elsewhere/scene.yaml", s, err, sizeof err),
+                     RC_ERR_IO);
+    assert_non_null(strstr(err, "elsewhere/scene.yaml:3:"));
+    assert_non_null(strstr(err, "environment.image"));
+    remove(exr);
+    rmdir(sub);
+    rmdir(dir);
+    free(s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_hash_vectors),
+        cmocka_unit_test(test_good_full),
+        cmocka_unit_test(test_good_minimal_defaults),
+        cmocka_unit_test(test_derived_defaults),
+        cmocka_unit_test(test_bad_fixtures),
+        cmocka_unit_test(test_fixture_list_complete),
+        cmocka_unit_test(test_hostile_inputs),
+        cmocka_unit_test(test_truncations_and_mutations),
+        cmocka_unit_test(test_environment_image_paths),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
