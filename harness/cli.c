@@ -38,8 +38,13 @@ int cli_load_scene(const char *path, scene *s, mesh *m)
 {
     char err[1024];
     rc_status st = scene_file_load(path, s, err, sizeof err);
-    if (st == RC_OK && m != NULL)
-        st = mesh_build(s, m, err, sizeof err);
+    if (st == RC_OK && m != NULL) {
+        char why[900];
+        st = mesh_build(s, m, why, sizeof why);
+        /* The mesh error names the mesh file and line; say which scene asked for it too. */
+        if (st != RC_OK)
+            snprintf(err, sizeof err, "%s: objects: %s", path, why);
+    }
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: %s\n", err);
         if (st == RC_ERR_IO)
