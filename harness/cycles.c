@@ -241,10 +241,11 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
 
     if (!c->twin) {
         /* Physical intent (validate): a dielectric coating over Lambert, or a bare conductor. */
-        if (!(mat->roughness > 0.0f && mat->roughness <= 1.0f) && used) {
+        /* Roughness 0 is a mirror (the glossy closure becomes SHARP). */
+        if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f) && used) {
             cycles_err(c->err, c->errlen,
-                       "%s: materials[%d] '%s': roughness %g outside (0, 1]; Cycles clamps Beckmann alpha "
-                       "to 1, so use a roughness in (0, 1]", s->path, mi, mat->name, (double)mat->roughness);
+                       "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
+                       "to 1, so use a roughness in [0, 1]", s->path, mi, mat->name, (double)mat->roughness);
             return RC_ERR_RANGE;
         }
         if (!mat->conductor) {

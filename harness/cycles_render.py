@@ -375,8 +375,10 @@ def build_material(i, spec, env):
     g = spec.get("glossy")
     if g is not None:
         n = nt.nodes.new('ShaderNodeBsdfGlossy')
-        n.distribution = 'BECKMANN'
-        n.inputs['Roughness'].default_value = float(need(g, "roughness", where + ".glossy"))
+        rough = float(need(g, "roughness", where + ".glossy"))
+        # Roughness 0 is a perfect mirror: SHARP, which Beckmann cannot reach (alpha > 0).
+        n.distribution = 'SHARP' if rough == 0.0 else 'BECKMANN'
+        n.inputs['Roughness'].default_value = rough
         factor = fresnel_factor(g.get("fresnel"), where + ".glossy.fresnel")
         set_colour(n.inputs['Color'], colour_times(need(g, "color", where + ".glossy"), factor))
         shaders.append(n.outputs[0])
