@@ -30,7 +30,7 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all test test-unit test-scenes bench report fuzz deps clean
+.PHONY: all test test-unit test-scenes test-mutant test-kill test-report bench report fuzz deps clean
 all: $(CLI) $(TEST_BIN)
 
 deps:
@@ -60,6 +60,19 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
+	$(MAKE) test-mutant test-kill test-report
+
+# A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
+test-mutant: $(CLI)
+	@bash tests/mutant_fresnel.sh $(BUILD)
+
+# Killing the nightly run at random points loses no history record.
+test-kill: $(CLI)
+	@bash tests/kill_nightly.sh $(BUILD)
+
+# The report generator, and the report opened in headless Chromium.
+test-report:
+	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds.
 test-scenes: $(CLI)

@@ -15,6 +15,7 @@ static const cli_command cli_commands[] = {
     {"eval", cli_eval},
     {"run", cli_run},
     {"compare", cli_compare},
+    {"diff", cli_diff},
     {"plan", cli_plan},
     {"stability", cli_stability},
 };

@@ -33,6 +33,7 @@ int cli_check(int argc, char **argv);
 int cli_eval(int argc, char **argv);
 int cli_run(int argc, char **argv);
 int cli_compare(int argc, char **argv);
+int cli_diff(int argc, char **argv);
 int cli_plan(int argc, char **argv);
 int cli_stability(int argc, char **argv);
 

@@ -44,3 +44,32 @@ int cli_compare(int argc, char **argv)
     }
     return worst != CLI_OK ? worst : (failed ? CLI_FAILED : CLI_OK);
 }
+
+/* reflcheck diff TEST.exr REF.exr [--mask GEO.exr]: the metrics of one image pair as JSON. */
+int cli_diff(int argc, char **argv)
+{
+    static const struct option longopts[] = {{"mask", required_argument, NULL, 'm'}, {NULL, 0, NULL, 0}};
+    const char *mask = NULL;
+    int c;
+    optind = 1;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        if (c != 'm') {
+            fprintf(stderr, "reflcheck: diff: unknown option '%s'; usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n",
+                    argv[optind - 1]);
+            return CLI_BAD_INPUT;
+        }
+        mask = optarg;
+    }
+    if (optind != argc - 2) {
+        fprintf(stderr, "reflcheck: usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n");
+        return CLI_BAD_INPUT;
+    }
+    char err[1024];
+    rc_status st = compare_images(argv[optind], argv[optind + 1], mask, stdout, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        return st == RC_ERR_IO ? CLI_BAD_INPUT : cli_exit_status(st);
+    }
+    return CLI_OK;
+}

@@ -13,7 +13,10 @@ int cli_run(int argc, char **argv)
         {"small", no_argument, NULL, 's'},          {"out", required_argument, NULL, 'o'},
         {"cache", required_argument, NULL, 'c'},    {"no-cache", no_argument, NULL, 'n'},
         {"timeout", required_argument, NULL, 'T'},  {"threads", required_argument, NULL, 't'},
-        {"seeds", required_argument, NULL, 'S'},    {NULL, 0, NULL, 0},
+        {"seeds", required_argument, NULL, 'S'},    {"supersample", required_argument, NULL, 'k'},
+        {"samples", required_argument, NULL, 'N'},  {"tessellation", required_argument, NULL, 'e'},
+        {"per-vertex", no_argument, NULL, 'v'},     {"tag", required_argument, NULL, 'g'},
+        {NULL, 0, NULL, 0},
     };
     job_spec j = {.renderer = RENDERER_RASTER, .role = ROLE_VALIDATE, .variant = JOB_FULL,
                   .out_dir = "reports/runs/manual", .cache_dir = "reports/cache"};
@@ -48,6 +51,17 @@ int cli_run(int argc, char **argv)
         }
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &j.threads); break;
         case 'S': rc = cli_parse_int("--seeds", optarg, 1, 64, &j.seeds); break;
+        case 'k': rc = cli_parse_int("--supersample", optarg, 1, 16, &j.supersample); break;
+        case 'N': rc = cli_parse_int("--samples", optarg, 1, 1 << 20, &j.samples); break;
+        case 'e': rc = cli_parse_int("--tessellation", optarg, 3, 4096, &j.tessellation); break;
+        case 'v': j.per_vertex = 1; break;
+        case 'g':
+            if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
+                fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            j.tag = optarg;
+            break;
         default:
             fprintf(stderr, "reflcheck: run: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
             rc = CLI_BAD_INPUT;

@@ -19,6 +19,7 @@
 #define REFLCHECK_COMPARE_H
 
 #include <stddef.h>
+#include <stdio.h>
 #include "status.h"
 
 typedef struct {
@@ -28,6 +29,11 @@ typedef struct {
 
 rc_status compare_scene(const char *scene_path, const char *run_dir, compare_summary *sum, char *err,
                         size_t errlen);
+
+/* Metrics between two EXR images (regions from mask_exr's, else test's, coverage and object
+ * layers; z-test where ref has var.* layers), printed as one JSON object to out. */
+rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, char *err,
+                         size_t errlen);
 
 /* Relative error denominators r^2 + COMPARE_REL_EPS: below 1e-4 radiance a pixel is dark
  * enough that half-float and noise floors dominate; above it the error is truly relative. */

@@ -116,6 +116,18 @@ static int job_copy(const char *from, const char *to)
     return 0;
 }
 
+void job_apply_overrides(scene *s, const job_spec *j)
+{
+    if (j->supersample > 0)
+        s->supersample = j->supersample;
+    if (j->samples > 0)
+        s->samples = j->samples;
+    for (int i = 0; i < s->n_objects && j->tessellation > 0; i++)
+        s->objects[i].tessellation = j->tessellation;
+    for (int i = 0; i < s->n_materials && j->per_vertex; i++)
+        s->materials[i].d3d.per_vertex = 1;
+}
+
 /* Twin role: the rasterizer switches Cook-Torrance to what Cycles' Glossy Beckmann computes
  * (separable Smith G in Walter's form, F = 1), on our side and in the job we hand Cycles. */
 static void job_twin_switches(scene *s)
@@ -358,6 +370,10 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddNumberToObject(o, "height", s->height);
     cJSON_AddNumberToObject(o, "supersample", s->supersample);
     cJSON_AddNumberToObject(o, "samples", c->j->renderer == RENDERER_CYCLES ? s->samples : 0);
+    cJSON_AddNumberToObject(o, "seeds", c->j->renderer == RENDERER_CYCLES ? (c->j->seeds > 0 ? c->j->seeds : 2) : 0);
+    cJSON_AddNumberToObject(o, "tessellation", s->n_objects > 0 ? s->objects[0].tessellation : 0);
+    cJSON_AddBoolToObject(o, "per_vertex", c->j->per_vertex);
+    cJSON_AddStringToObject(o, "tag", c->j->tag ? c->j->tag : "");
     cJSON_AddStringToObject(o, "key", keyhex);
     cJSON_AddStringToObject(o, "exr", r->exr);
     cJSON_AddStringToObject(o, "log", r->log);
@@ -375,13 +391,15 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     if (s == NULL)
         return RC_ERR_NOMEM;
     rc_status st = scene_file_load(j->scene_path, s, err, errlen);
-    if (st == RC_OK)
+    if (st == RC_OK) {
+        job_apply_variant(s, j->variant);
+        job_apply_overrides(s, j);
         st = mesh_build(s, &m, err, errlen);
+    }
     if (st != RC_OK) {
         free(s);
         return st;
     }
-    job_apply_variant(s, j->variant);
     if (j->role == ROLE_TWIN)
         job_twin_switches(s);
 
@@ -400,9 +418,9 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     /* The cache key: everything that can change the image. */
     uint64_t key = s->hash;
     char settings[512];
-    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d|%s", job_renderer_names[j->renderer],
-             job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full", s->width, s->height,
-             s->supersample, s->samples, j->seeds, c.version);
+    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d|tess%d|pv%d|%s",
+             job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
+             s->width, s->height, s->supersample, s->samples, j->seeds, j->tessellation, j->per_vertex, c.version);
     key ^= scene_file_hash(settings, strlen(settings)) * 31u;
     key = job_hash_file("/proc/self/exe", key);
     if (j->renderer == RENDERER_CYCLES)
@@ -410,11 +428,14 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     if (s->env.kind == ENV_IMAGE)
         key = job_hash_file(s->env.path, key);
 
-    char dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024];
+    char dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024], stem[160];
     snprintf(dest_dir, sizeof dest_dir, "%s/%s", j->out_dir, s->name);
-    job_output_path(j->out_dir, s->name, j->renderer, j->role, "exr", dest_exr, sizeof dest_exr);
-    job_output_path(j->out_dir, s->name, j->renderer, j->role, "json", dest_json, sizeof dest_json);
-    job_output_path(j->out_dir, s->name, j->renderer, j->role, "log", dest_log, sizeof dest_log);
+    snprintf(stem, sizeof stem, "%s%s%s", s->name, j->tag ? "/" : "", j->tag ? j->tag : "");
+    job_output_path(j->out_dir, stem, j->renderer, j->role, "exr", dest_exr, sizeof dest_exr);
+    job_output_path(j->out_dir, stem, j->renderer, j->role, "json", dest_json, sizeof dest_json);
+    job_output_path(j->out_dir, stem, j->renderer, j->role, "log", dest_log, sizeof dest_log);
+    if (j->tag)
+        snprintf(dest_dir, sizeof dest_dir, "%s/%s/%s", j->out_dir, s->name, j->tag);
     if (j->cache_dir != NULL)
         snprintf(c.dir, sizeof c.dir, "%s/%016" PRIx64, j->cache_dir, key);
     else

@@ -34,6 +34,10 @@ typedef struct {
     double timeout_s;         /* 0 = the scene's timeout */
     int threads;              /* 0 = all cores */
     int seeds;                /* Cycles seeds, 0 = 2 */
+    /* Quality overrides for error-against-time sweeps (0 = the scene's or variant's). With any
+     * set, outputs are named <renderer>-<role>-<tag> so sweeps do not overwrite each other. */
+    int supersample, samples, tessellation, per_vertex;
+    const char *tag;
 } job_spec;
 
 typedef struct {
@@ -54,6 +58,9 @@ void job_apply_variant(scene *s, job_variant v);
 /* The files of a job: OUT/<scene>/<renderer>-<role>.<ext>. */
 void job_output_path(const char *out_dir, const char *scene_name, renderer_id r, comparison_role role,
                      const char *ext, char *buf, size_t len);
+/* Applies a spec's quality overrides to s (tessellation of every object, per-vertex shading
+ * of every D3D material, supersample, samples). */
+void job_apply_overrides(scene *s, const job_spec *j);
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen);
 
 #endif

@@ -20,8 +20,10 @@ static void usage(FILE *f)
           "  eval fresnel|beckmann|smith [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]\n"
           "  check SCENE\n"
           "  run SCENE --renderer raster|povray|cycles [--role twin|validate|agree] [--small] [--out DIR]\n"
+          "      [--supersample K] [--samples N] [--tessellation N] [--per-vertex] [--tag NAME] [--seeds N]\n"
           "  plan SCENE... --out RUNDIR [--small]      the render jobs as a Makefile\n"
           "  compare SCENE... --run RUNDIR             metrics and thresholds -> compare.json\n"
+          "  diff TEST.exr REF.exr [--mask GEO.exr]    metrics of one image pair as JSON\n"
           "  stability [--json F] [--csv F]            float models vs long double over extremes\n",
           f);
 }

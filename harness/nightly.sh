@@ -5,18 +5,23 @@
 # history gets one appended line, so a run killed midway leaves both as they were.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-bin=build/reflcheck
+bin=${BIN:-build/reflcheck}
 jobs=${JOBS:-2}
+runs=${RUNS:-reports/runs}              # where run folders go
+history=${HISTORY:-reports/history.jsonl}
+latest=${LATEST:-reports/latest}
+cache=${CACHE:-reports/cache}
+small=${SMALL:+--small}                 # SMALL=1: the test-size renders (used by the kill test)
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo nogit)
 id=${RUN_ID:-$(date -u +%Y%m%d-%H%M%S)-$commit}
-run=reports/runs/$id
+run=$runs/$id
 scenes=${SCENES:-$(ls scenes/*.yaml)}
 mkdir -p "$run"
 echo "reflcheck nightly: run $id -> $run"
 
 t0=$(date +%s)
 # shellcheck disable=SC2086
-"$bin" plan $scenes --out "$run" --cache reports/cache > "$run/jobs.mk" || exit 2
+"$bin" plan $scenes --out "$run" --cache "$cache" --bin "$bin" $small > "$run/jobs.mk" || exit 2
 make -k -j"$jobs" -f "$run/jobs.mk" all
 t1=$(date +%s)
 echo "$((t1 - t0))" > "$run/render_wall_s"
@@ -29,6 +34,6 @@ if [ -f harness/plots/figure1.gp ]; then
     "$bin" eval fresnel --ior 1.5 --p 5 > "$run/fresnel_p5.csv"
     gnuplot -e "dir='$run'" harness/plots/figure1.gp > /dev/null 2>&1 || echo "figure1 plot failed" >&2
 fi
-/usr/bin/python3 harness/report.py --run "$run" --history reports/history.jsonl --commit "$commit" \
-    --latest reports/latest --screenshot
-echo "reflcheck nightly: report at $run/index.html (reports/latest/index.html)"
+/usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" \
+    --latest "$latest" ${NO_SCREENSHOT:---screenshot}
+echo "reflcheck nightly: report at $run/index.html ($latest/index.html)"
