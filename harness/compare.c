@@ -310,8 +310,9 @@ static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
                 cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ztest"), "share_fail_pixels");
     } else if (strcmp(metric, "noise_rel_rms") == 0) {
         x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ref_rel_rms");
-    } else if (strcmp(metric, "coverage_agreement") == 0) {
-        x = cJSON_GetObjectItemCaseSensitive(cmp, "coverage_agreement");
+    } else if (strcmp(metric, "coverage_agreement") == 0 || strcmp(metric, "test_nonfinite") == 0 ||
+               strcmp(metric, "ref_nonfinite") == 0) {
+        x = cJSON_GetObjectItemCaseSensitive(cmp, metric);
     } else if (dot != NULL && (size_t)(dot - metric) < sizeof head) {
         memcpy(head, metric, (size_t)(dot - metric));
         head[dot - metric] = '\0';
@@ -511,6 +512,27 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     size_t np = (size_t)w * (size_t)h;
     unsigned char *cls = malloc(np), *mask[3] = {malloc(np), malloc(np), malloc(np)};
     metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
+    /* How each side copes with extremes: NaN/Inf values (a half-float EXR overflows to Inf
+     * above 65504) and the largest finite value, over the whole image. */
+    const metrics_image *sides[2] = {&tm, &rm};
+    const char *side_names[2] = {"test", "ref"};
+    for (int sd = 0; sd < 2; sd++) {
+        long nonfinite = 0;
+        double vmax = 0.0;
+        for (size_t i = 0; i < np; i++)
+            for (int ch = 0; ch < 3; ch++) {
+                double v = sides[sd]->c[ch][i];
+                if (!isfinite(v))
+                    nonfinite++;
+                else if (v > vmax)
+                    vmax = v;
+            }
+        char key[32];
+        snprintf(key, sizeof key, "%s_nonfinite", side_names[sd]);
+        cJSON_AddNumberToObject(o, key, (double)nonfinite);
+        snprintf(key, sizeof key, "%s_max", side_names[sd]);
+        cJSON_AddNumberToObject(o, key, vmax);
+    }
     const char *region_names[3] = {"surface", "edges", "background"};
     const int region_class[3] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND};
     cJSON *regions = cJSON_AddObjectToObject(o, "regions");

@@ -10,7 +10,7 @@
  * an object boundary, from the rasterizer's coverage and object layers) and background.
  * Thresholds (from the scene file) are judged on the surface unless the metric names a
  * region or layer: "rel_rms", "edges.rel_rms", "reflection.rel_rms", "z_fail_share",
- * "coverage_agreement". psnr, ssim and coverage_agreement fail below the threshold, every
+ * "coverage_agreement", "test_nonfinite" (NaN/Inf values in the test image). psnr, ssim and coverage_agreement fail below the threshold, every
  * other metric above it.
  * summary counts verdicts; returns RC_OK unless the scene or our own files cannot be read or
  * written.
