@@ -104,6 +104,22 @@ fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
 	$(FUZZ_DIR)/fuzz_exr -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/exr- $(FUZZ_DIR)/corpus_exr tests/fuzz/corpus/exr
 
+# Benchmarks: the rasterizer across sizes, threads and triangle counts, llvmpipe (OSMesa) on
+# the same frame, POV-Ray and Cycles beside them. Targets live here, never in timed tests.
+BENCH_SRC := $(wildcard tests/bench/*.c)
+BENCH_BIN := $(BUILD)/bench/bench_raster $(BUILD)/bench/bench_llvmpipe
+$(BUILD)/tests/bench/%.o: CFLAGS += -Itests/bench $(shell pkg-config --cflags osmesa 2>/dev/null)
+$(BUILD)/bench/bench_raster: $(BUILD)/tests/bench/bench_raster.o $(BUILD)/tests/bench/bench_scene.o $(LIBS)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
+$(BUILD)/bench/bench_llvmpipe: $(BUILD)/tests/bench/bench_llvmpipe.o $(BUILD)/tests/bench/bench_scene.o $(LIBS)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) $(shell pkg-config --libs osmesa 2>/dev/null) -o $@
+bench: deps
+	$(MAKE) $(CLI) $(BENCH_BIN)
+	@bash tests/bench/run.sh $(BUILD)
+-include $(BENCH_SRC:%.c=$(BUILD)/%.d)
+
 clean:
 	rm -rf build build-san build-dbg build-san-dbg
 

@@ -57,9 +57,10 @@ float d3d_blinn(float n_h, float power)
 {
     if (isnan(n_h) || isnan(power)) return NAN;
     if (n_h <= 0.0f) return 0.0f;
-    double x = n_h > 1.0f ? 1.0 : (double)n_h;
-    double e = power < 0.0f ? 0.0 : (double)power;
-    return (float)pow(x, e);
+    float x = n_h > 1.0f ? 1.0f : n_h;
+    /* powf is within 1 ulp of the exact power (glibc); double pow rounded to float gave
+     * the correctly rounded value at three times the cost. */
+    return powf(x, power < 0.0f ? 0.0f : power);
 }
 
 /* Below this |L + V| the half vector's direction is float rounding noise (see d3d.h). */
@@ -67,8 +68,19 @@ float d3d_blinn(float n_h, float power)
 
 vec3 d3d_half_vector(vec3 l, vec3 v_local, vec3 e_infinite, int local_viewer)
 {
+    vec3 v = local_viewer ? v_local : e_infinite;
+    float ll = v3_dot(l, l), vv = v3_dot(v, v);
+    /* Unit-length-ish inputs (the shading loop's) stay in float; anything whose squared
+     * length could under- or overflow takes the double path. */
+    if (ll > 1e-20f && ll < 1e20f && vv > 1e-20f && vv < 1e20f) {
+        vec3 s = v3_add(v3_scale(l, 1.0f / sqrtf(ll)), v3_scale(v, 1.0f / sqrtf(vv)));
+        float len = v3_len(s);
+        if (isnan(len)) return v3s(NAN);
+        if (len < (float)D3D_HALF_MIN) return v3s(0.0f);
+        return v3_scale(s, 1.0f / len);
+    }
     dvec3 ld = dv3_norm(dv3_from(l));
-    dvec3 vd = dv3_norm(dv3_from(local_viewer ? v_local : e_infinite));
+    dvec3 vd = dv3_norm(dv3_from(v));
     dvec3 s = dv3_add(ld, vd);
     double len = dv3_len(s);
     if (isnan(len)) return v3s(NAN);

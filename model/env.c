@@ -18,9 +18,6 @@ void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty)
 
 static vec3 env_texel(const env_map *e, int x, int y)
 {
-    x %= e->width;
-    if (x < 0)
-        x += e->width;
     y = y < 0 ? 0 : (y >= e->height ? e->height - 1 : y);
     const float *p = e->rgb + 3 * ((size_t)y * (size_t)e->width + (size_t)x);
     return v3(p[0], p[1], p[2]);
@@ -40,7 +37,11 @@ vec3 env_lookup(const env_map *e, vec3 dir)
     float x0f = floorf(fx), y0f = floorf(fy);
     float ax = fx - x0f, ay = fy - y0f;
     int x0 = (int)x0f, y0 = (int)y0f;
-    vec3 top = v3_lerp(env_texel(e, x0, y0), env_texel(e, x0 + 1, y0), ax);
-    vec3 bottom = v3_lerp(env_texel(e, x0, y0 + 1), env_texel(e, x0 + 1, y0 + 1), ax);
+    /* tx lies in [0, W], so x0 is in [-1, W]: wrap with compares instead of a division per texel. */
+    x0 = x0 < 0 ? x0 + e->width : (x0 >= e->width ? x0 - e->width : x0);
+    int x1 = x0 + 1 >= e->width ? x0 + 1 - e->width : x0 + 1;
+    if (x0 < 0 || x0 >= e->width) x0 = 0, x1 = e->width > 1 ? 1 : 0;
+    vec3 top = v3_lerp(env_texel(e, x0, y0), env_texel(e, x1, y0), ax);
+    vec3 bottom = v3_lerp(env_texel(e, x0, y0 + 1), env_texel(e, x1, y0 + 1), ax);
     return v3_mul(v3_lerp(top, bottom, ay), e->scale);
 }
