@@ -201,7 +201,9 @@ static void test_ulp_bounds(void **state)
     assert_ulp_at_most("microfacet_beckmann_d[walter]", once);
     assert_ulp_at_most("microfacet_beckmann_d[ct1982]", once);
     assert_ulp_at_most("microfacet_smith_g1_walter", once);
-    assert_ulp_at_most("d3d_blinn", once);
+    /* Blinn is a float powf, as a shader computes it; glibc bounds powf below 1 ulp (its
+     * libm error table lists 0.82), with exact inputs clamped to [0, 1] first. */
+    assert_ulp_at_most("d3d_blinn", 1.0);
     assert_ulp_at_most("d3d_attenuation", once);
     assert_ulp_at_most("cooktorrance_reflection_weight", once);
     /* The erf form in double: erf, exp and ~6 operations of <= 0.5 ulp each add up to a
