@@ -44,8 +44,17 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta)
 {
     double c = fresnel_clampd(cos_theta, 0.0, 1.0);
     double e = p < 0.0f ? 0.0 : (double)p;
-    /* pow(x, e) with x in [0, 1] and e >= 0 lies in [0, 1]: no overflow here. */
-    return fresnel_sat((double)r0 + (double)m * pow(1.0 - c, e));
+    double x = 1.0 - c, xe;
+    /* Small whole powers (the seed's p = 2..5 and Schlick's 5) by repeated multiplication:
+     * at most 7 double roundings, far below float resolution, and no libm pow per pixel. */
+    if (e == floor(e) && e <= 8.0) {
+        xe = 1.0;
+        for (int i = 0; i < (int)e; i++)
+            xe *= x;
+    } else
+        xe = pow(x, e);
+    /* x^e with x in [0, 1] and e >= 0 lies in [0, 1]: no overflow here. */
+    return fresnel_sat((double)r0 + (double)m * xe);
 }
 
 /* Beyond this ratio eta^2 (or 1/eta^2) leaves the double range, while the reflectance

@@ -64,8 +64,9 @@ static vec3 render_terms_sum(const shade_terms *t)
     return v3_add(v3_add(t->diffuse, t->specular), v3_add(t->reflection, t->emission));
 }
 
-/* Shades one sample; *n_v and *n_l get N.V and N.L (first light) for the angle channels. */
-static void render_shade_hit(const render_job *j, const raster_sample *rs, shade_terms *t, float *n_v, float *n_l)
+/* Shades one sample; for the centre sample (angles != NULL) angles[0], angles[1] get N.V and
+ * N.L (first light) for the angle channels. */
+static void render_shade_hit(const render_job *j, const raster_sample *rs, shade_terms *t, float *angles)
 {
     const mesh *m = j->m;
     const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
@@ -82,7 +83,8 @@ static void render_shade_hit(const render_job *j, const raster_sample *rs, shade
 #undef RENDER_BLEND
         t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
         /* Gouraud shading has no per-sample normal; the angle channels stay 0 there. */
-        *n_v = *n_l = 0.0f;
+        if (angles != NULL)
+            angles[0] = angles[1] = 0.0f;
         return;
     }
 
@@ -98,13 +100,15 @@ static void render_shade_hit(const render_job *j, const raster_sample *rs, shade
     /* Two-sided, as POV-Ray and Cycles shade: the normal faces the viewer. */
     if (v3_dot(n, v) < 0.0f)
         n = v3_neg(n);
-    *n_v = v3_dot(n, v);
-    *n_l = 0.0f;
-    if (j->s->n_lights > 0) {
-        vec3 to_l, e_perp;
-        float atten;
-        if (shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten) || j->s->lights[0].kind == LIGHT_SUN)
-            *n_l = v3_dot(n, to_l);
+    if (angles != NULL) {
+        angles[0] = v3_dot(n, v);
+        angles[1] = 0.0f;
+        if (j->s->n_lights > 0) {
+            vec3 to_l, e_perp;
+            float atten;
+            shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+            angles[1] = v3_dot(n, to_l);
+        }
     }
     shade_eval(&j->sc, &j->plans[obj], x, n, v, t);
 }
@@ -140,8 +144,8 @@ static void render_tile(void *user, const raster_tile *tile)
                         continue;
                     }
                     shade_terms st;
-                    float n_v, n_l;
-                    render_shade_hit(j, rs, &st, &n_v, &n_l);
+                    float angles[2];
+                    render_shade_hit(j, rs, &st, centre ? angles : NULL);
                     sum.diffuse = v3_add(sum.diffuse, st.diffuse);
                     sum.specular = v3_add(sum.specular, st.specular);
                     sum.reflection = v3_add(sum.reflection, st.reflection);
@@ -153,8 +157,8 @@ static void render_tile(void *user, const raster_tile *tile)
                     covered++;
                     if (centre) {
                         object_id = j->m->tri_object[rs->tri];
-                        centre_nv = n_v;
-                        centre_nl = n_l;
+                        centre_nv = angles[0];
+                        centre_nl = angles[1];
                     }
                 }
             }

@@ -26,18 +26,26 @@ int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, f
         *atten = 1.0f;
         return 1;
     }
-    /* The distance in double: in float, d^2 underflows below 1e-19 m and overflows above
-     * 1.8e19 m, and the light would vanish at either end. */
-    dvec3 d = dv3_sub(dv3_from(l->position), dv3_from(x));
-    double dist = dv3_len(d);
+    vec3 d = v3_sub(l->position, x);
+    float d2 = v3_dot(d, d);
+    float fd;
     *to_light = v3s(0.0f);
     *e_perp = v3s(0.0f);
     *atten = 0.0f;
-    /* A light exactly at the shaded point has no direction; it lights nothing there. */
-    if (!(dist > 0.0))
-        return 0;
-    *to_light = v3_from_d(dv3_scale(d, 1.0 / dist));
-    float fd = dist < 3e38 ? (float)dist : 3e38f;
+    /* In float, d^2 underflows below about 1e-19 m and overflows above 1.8e19 m, and the
+     * light would vanish at either end: there (only) the distance is taken in double. */
+    if (d2 > 1e-30f && d2 < 1e30f) {
+        fd = sqrtf(d2);
+        *to_light = v3_scale(d, 1.0f / fd);
+    } else {
+        dvec3 dd = dv3_sub(dv3_from(l->position), dv3_from(x));
+        double dist = dv3_len(dd);
+        /* A light exactly at the shaded point has no direction; it lights nothing there. */
+        if (!(dist > 0.0))
+            return 0;
+        *to_light = v3_from_d(dv3_scale(dd, 1.0 / dist));
+        fd = dist < 3e38 ? (float)dist : 3e38f;
+    }
     *atten = d3d_attenuation(l, fd) * d3d_spot(l, v3_neg(*to_light));
     *e_perp = v3_scale(l->intensity, *atten);
     return *atten > 0.0f;
