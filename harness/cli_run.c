@@ -16,6 +16,7 @@ int cli_run(int argc, char **argv)
         {"seeds", required_argument, NULL, 'S'},    {"supersample", required_argument, NULL, 'k'},
         {"samples", required_argument, NULL, 'N'},  {"tessellation", required_argument, NULL, 'e'},
         {"per-vertex", no_argument, NULL, 'v'},     {"tag", required_argument, NULL, 'g'},
+        {"seed", required_argument, NULL, 'E'},
         {NULL, 0, NULL, 0},
     };
     job_spec j = {.renderer = RENDERER_RASTER, .role = ROLE_VALIDATE, .variant = JOB_FULL,
@@ -55,6 +56,7 @@ int cli_run(int argc, char **argv)
         case 'N': rc = cli_parse_int("--samples", optarg, 1, 1 << 20, &j.samples); break;
         case 'e': rc = cli_parse_int("--tessellation", optarg, 3, 4096, &j.tessellation); break;
         case 'v': j.per_vertex = 1; break;
+        case 'E': rc = cli_parse_int("--seed", optarg, 0, 1 << 20, &j.seed); break;
         case 'g':
             if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
                 fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);

@@ -10,6 +10,7 @@
 #include <cJSON.h>
 
 #include "exr.h"
+#include "fileio.h"
 #include "jobs.h"
 #include "metrics.h"
 #include "scene_file.h"
@@ -29,32 +30,9 @@ typedef struct {
 
 static cJSON *compare_read_json(const char *path)
 {
-    FILE *f = fopen(path, "rb");
-    if (f == NULL)
-        return NULL;
-    char *buf = NULL;
-    size_t len = 0, cap = 0, n;
-    char chunk[8192];
-    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0) {
-        if (len + n + 1 > cap) {
-            cap = (len + n + 1) * 2;
-            char *nb = realloc(buf, cap);
-            if (nb == NULL) {
-                free(buf);
-                fclose(f);
-                return NULL;
-            }
-            buf = nb;
-        }
-        memcpy(buf + len, chunk, n);
-        len += n;
-    }
-    fclose(f);
-    if (buf == NULL)
-        return NULL;
-    buf[len] = '\0';
-    cJSON *j = cJSON_Parse(buf);
-    free(buf);
+    char *text = fileio_read_all(path, NULL);
+    cJSON *j = text != NULL ? cJSON_Parse(text) : NULL;
+    free(text);
     return j;
 }
 
@@ -62,22 +40,6 @@ static const char *compare_json_str(const cJSON *o, const char *key)
 {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
     return cJSON_IsString(v) ? v->valuestring : "";
-}
-
-static rc_status compare_write_file(const char *path, const char *text, char *err, size_t errlen)
-{
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    int ok = f != NULL && fputs(text, f) >= 0;
-    if (f != NULL)
-        ok &= fclose(f) == 0;
-    if (!ok || rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-        unlink(tmp);
-        return RC_ERR_IO;
-    }
-    return RC_OK;
 }
 
 /* Loads a side; returns a reason string (static or in buf) when it cannot be compared. */
@@ -400,7 +362,7 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
 {
     char path[1024], tmp[1100];
     snprintf(path, sizeof path, "%s/%s/view.js", run, s->name);
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
+    fileio_temp_name(path, tmp, sizeof tmp);
     FILE *f = fopen(tmp, "w");
     if (f == NULL) {
         snprintf(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
@@ -618,7 +580,7 @@ rc_status compare_scene(const char *scene_path, const char *run_dir, compare_sum
     char path[1024];
     snprintf(path, sizeof path, "%s/%s/compare.json", run_dir, s->name);
     char *text = cJSON_Print(root);
-    st = text ? compare_write_file(path, text, err, errlen) : RC_ERR_NOMEM;
+    st = text ? fileio_write_atomic(path, text, err, errlen) : RC_ERR_NOMEM;
     cJSON_free(text);
     cJSON_Delete(root);
     if (st == RC_OK)

@@ -16,6 +16,7 @@
 #include "cycles.h"
 #include "envfile.h"
 #include "exr.h"
+#include "fileio.h"
 #include "mesh.h"
 #include "povray.h"
 #include "render.h"
@@ -88,32 +89,6 @@ static uint64_t job_hash_file(const char *path, uint64_t h)
         h ^= scene_file_hash(buf, n) + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
     fclose(f);
     return h;
-}
-
-static int job_copy(const char *from, const char *to)
-{
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", to, (long)getpid());
-    FILE *in = fopen(from, "rb");
-    if (in == NULL)
-        return -1;
-    FILE *out = fopen(tmp, "wb");
-    if (out == NULL) {
-        fclose(in);
-        return -1;
-    }
-    char buf[65536];
-    size_t n;
-    int ok = 1;
-    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
-        ok &= fwrite(buf, 1, n, out) == n;
-    fclose(in);
-    ok &= fclose(out) == 0;
-    if (!ok || rename(tmp, to) != 0) {
-        unlink(tmp);
-        return -1;
-    }
-    return 0;
 }
 
 void job_apply_overrides(scene *s, const job_spec *j)
@@ -302,7 +277,7 @@ static void job_cycles(job_ctx *c, job_record *r)
     char job[1100], err[1024];
     snprintf(job, sizeof job, "%s/job.json", c->dir);
     cycles_options o = {.role = c->j->role, .n_seeds = c->j->seeds > 0 ? c->j->seeds : 2,
-                        .threads = c->j->threads, .partial = 1};
+                        .seed = (unsigned)c->j->seed, .threads = c->j->threads, .partial = 1};
     rc_status st = cycles_write_job(c->s, c->m, &o, job, err, sizeof err);
     cycles_argv a;
     if (st == RC_OK)
@@ -329,20 +304,22 @@ static void job_cycles(job_ctx *c, job_record *r)
 /* Writes a cJSON document to path through a temporary file and a rename. */
 static rc_status job_write_json(cJSON *doc, const char *path, char *err, size_t errlen)
 {
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
     char *text = cJSON_Print(doc);
-    FILE *f = text != NULL ? fopen(tmp, "w") : NULL;
-    int ok = f != NULL && fputs(text, f) >= 0 && fputc('\n', f) != EOF;
-    if (f != NULL)
-        ok &= fclose(f) == 0;
-    cJSON_free(text);
-    if (!ok || rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-        unlink(tmp);
-        return RC_ERR_IO;
+    if (text == NULL) {
+        snprintf(err, errlen, "%s: out of memory for the job record", path);
+        return RC_ERR_NOMEM;
     }
-    return RC_OK;
+    size_t n = strlen(text);
+    char *line = realloc(text, n + 2);
+    if (line == NULL) {
+        cJSON_free(text);
+        snprintf(err, errlen, "%s: out of memory for the job record", path);
+        return RC_ERR_NOMEM;
+    }
+    memcpy(line + n, "\n", 2);
+    rc_status st = fileio_write_atomic(path, line, err, errlen);
+    free(line);
+    return st;
 }
 
 static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key,
@@ -371,6 +348,7 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddNumberToObject(o, "supersample", s->supersample);
     cJSON_AddNumberToObject(o, "samples", c->j->renderer == RENDERER_CYCLES ? s->samples : 0);
     cJSON_AddNumberToObject(o, "seeds", c->j->renderer == RENDERER_CYCLES ? (c->j->seeds > 0 ? c->j->seeds : 2) : 0);
+    cJSON_AddNumberToObject(o, "seed", c->j->renderer == RENDERER_CYCLES ? c->j->seed : 0);
     cJSON_AddNumberToObject(o, "tessellation", s->n_objects > 0 ? s->objects[0].tessellation : 0);
     cJSON_AddBoolToObject(o, "per_vertex", c->j->per_vertex);
     cJSON_AddStringToObject(o, "tag", c->j->tag ? c->j->tag : "");
@@ -418,9 +396,9 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     /* The cache key: everything that can change the image. */
     uint64_t key = s->hash;
     char settings[512];
-    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d|tess%d|pv%d|%s",
+    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d|%s",
              job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
-             s->width, s->height, s->supersample, s->samples, j->seeds, j->tessellation, j->per_vertex, c.version);
+             s->width, s->height, s->supersample, s->samples, j->seeds, j->seed, j->tessellation, j->per_vertex, c.version);
     key ^= scene_file_hash(settings, strlen(settings)) * 31u;
     key = job_hash_file("/proc/self/exe", key);
     if (j->renderer == RENDERER_CYCLES)
@@ -478,12 +456,12 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
             }
         }
     }
-    if (rec->status == RUNNER_OK && job_copy(c.exr, dest_exr) != 0) {
+    if (rec->status == RUNNER_OK && fileio_copy(c.exr, dest_exr) != 0) {
         rec->status = RUNNER_ERROR;
         snprintf(rec->message, sizeof rec->message, "cannot copy %s to %s", c.exr, dest_exr);
     }
     if (access(c.log, R_OK) == 0)
-        job_copy(c.log, dest_log);
+        fileio_copy(c.log, dest_log);
     snprintf(rec->exr, sizeof rec->exr, "%s", rec->status == RUNNER_OK ? dest_exr : "");
     snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
     snprintf(rec->record, sizeof rec->record, "%s", dest_json);

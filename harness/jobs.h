@@ -34,6 +34,8 @@ typedef struct {
     double timeout_s;         /* 0 = the scene's timeout */
     int threads;              /* 0 = all cores */
     int seeds;                /* Cycles seeds, 0 = 2 */
+    int seed;                 /* Cycles first seed, default 0: sweeps use seeds disjoint from
+                                 their reference's */
     /* Quality overrides for error-against-time sweeps (0 = the scene's or variant's). With any
      * set, outputs are named <renderer>-<role>-<tag> so sweeps do not overwrite each other. */
     int supersample, samples, tessellation, per_vertex;

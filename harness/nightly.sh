@@ -25,6 +25,13 @@ t0=$(date +%s)
 make -k -j"$jobs" -f "$run/jobs.mk" all
 t1=$(date +%s)
 echo "$((t1 - t0))" > "$run/render_wall_s"
+# Error against time (harness/sweep.py): quality knobs of every renderer on the scenes that list
+# cycles validate, small size, one thread per job, $jobs jobs at a time.
+if [ -z "${NO_SWEEP:-}" ]; then
+    # shellcheck disable=SC2086
+    /usr/bin/python3 harness/sweep.py --run "$run" --cache "$cache/sweep" --bin "$bin" --jobs "$jobs" \
+        --scenes $scenes ${SMALL:+--quick} > "$run/sweep.txt" 2>&1 || echo "sweep failed; see $run/sweep.txt" >&2
+fi
 # shellcheck disable=SC2086
 "$bin" compare $scenes --run "$run" | tee "$run/compare.txt"
 "$bin" stability --json "$run/stability.json" > "$run/stability.txt" || true

@@ -752,6 +752,11 @@ def plot_trends(R, history, tmpdir, problems):
 
 TIME_KEYS = ('time_s', 'wall_s', 'seconds', 'time')
 ERR_KEYS = ('rel_rms', 'error', 'rmse', 'mae')
+SWEEP_FORMAT = 'reflcheck-sweep-1'   # harness/sweep.py's timing/<scene>.json
+
+
+def is_sweep(t):
+    return isinstance(t, dict) and t.get('format') == SWEEP_FORMAT and isinstance(t.get('series'), list)
 
 
 def timing_points(t):
@@ -773,29 +778,85 @@ def timing_points(t):
     return series
 
 
+def timing_xy(t, pts):
+    """(time, error) pairs of points, both > 0: the file's error_key if it names one. Sorted by
+    time, except a sweep's, which keeps its knob order."""
+    ek = t.get('error_key') if isinstance(t, dict) and isinstance(t.get('error_key'), str) else None
+    xy = []
+    for p in pts:
+        x = next((p[k] for k in TIME_KEYS if finite(p.get(k))), None)
+        y = p.get(ek) if ek else next((p[k] for k in ERR_KEYS if finite(p.get(k))), None)
+        if finite(x) and finite(y) and x > 0 and y > 0:
+            xy.append((x, y))
+    return xy if is_sweep(t) else sorted(xy)
+
+
+def sweep_fit_text(sr):
+    """The slope in a legend: error ~ t^b, and for Cycles also ~ spp^b."""
+    parts = []
+    for key, var in (('fit_spp', 'spp'), ('fit', 't')):
+        f = sr.get(key)
+        if isinstance(f, dict) and finite(f.get('slope')):
+            parts.append(f'{var}^{f["slope"]:.2f}')
+    return ', '.join(parts)
+
+
 def plot_timing(R, tmpdir, problems):
     out = {}
     for name, t in R['optional']['timing']:
         series = timing_points(t)
         blocks, titles = [], []
-        for label, pts in series:
-            xy = []
-            for p in pts:
-                x = next((p[k] for k in TIME_KEYS if finite(p.get(k))), None)
-                y = next((p[k] for k in ERR_KEYS if finite(p.get(k))), None)
-                if x and y and x > 0 and y > 0:
-                    xy.append((x, y))
+        srs = [sr for sr in t['series'] if isinstance(sr, dict) and isinstance(sr.get('points'), list)] \
+            if is_sweep(t) else []
+        refs = []
+        for i, (label, pts) in enumerate(series):
+            if is_sweep(t):
+                # The reference's point is its own noise estimate, not a sweep level: drawn apart.
+                refs += [p for p in pts if p.get('is_reference')]
+                pts = [p for p in pts if not p.get('is_reference')]
+            xy = timing_xy(t, pts)
             if xy:
-                blocks.append(sorted(xy))
-                titles.append(plot_id(label))
+                blocks.append(xy)
+                if is_sweep(t):
+                    fit = sweep_fit_text(srs[i]) if i < len(srs) else ''
+                    titles.append(re.sub(r"['\"]", '', f'{label} ({fit})' if fit else label))
+                else:
+                    titles.append(plot_id(label))
+        if refs and timing_xy(t, refs):
+            blocks.append(timing_xy(t, refs))
+            titles.append('reference: own noise (est.)')
         if not blocks:
             continue
         dat = os.path.join(tmpdir, f'timing-{safe_name(name)}.dat')
-        with open(dat, 'w', encoding='utf-8') as f:
-            f.write('\n\n'.join('\n'.join(f'{x!r} {y!r}' for x, y in b) for b in blocks) + '\n')
         svg = os.path.join(R['dir'], 'plots', f'timing-{safe_name(name)}.svg')
-        if run_gnuplot('time.gp', {'datafile': dat, 'nseries': len(blocks), 'titles': ' '.join(titles),
-                                   'ptitle': f'{name}: error vs time'}, svg, problems):
+        if is_sweep(t):
+            front = sorted((p['time_s'], p['error']) for p in t.get('pareto') or []
+                           if isinstance(p, dict) and finite(p.get('time_s')) and finite(p.get('error'))
+                           and p['time_s'] > 0 and p['error'] > 0)
+            blocks.insert(0, front or [(1.0, None)])
+            with open(dat, 'w', encoding='utf-8') as f:
+                f.write('\n\n\n'.join('\n'.join(f'{x!r} {"?" if y is None else repr(y)}' for x, y in b)
+                                         for b in blocks) + '\n')
+            asis = t.get('as_is') if isinstance(t.get('as_is'), dict) else {}
+            cross = t.get('crossover') if isinstance(t.get('crossover'), dict) else {}
+            hline = asis.get(t.get('error_key') or 'error')
+            xcross = cross.get('time_s') if not cross.get('extrapolated') else cross.get('upper_bound_s')
+            params = {'datafile': dat, 'nseries': len(blocks) - 1, 'titles': ' '.join(f'"{x}"' for x in titles),
+                      'ptitle': f'{name}: error vs time ({"x".join(str(v) for v in t.get("size") or [])} px, '
+                                f'one thread per render)',
+                      'ylab': 'error: NRMSE vs noise-free (est.)' if t.get('error_key') == 'error'
+                      else str(t.get('error_key')),
+                      'xlab': f'{"CPU" if t.get("clock") == "cpu_s" else "wall"} time per render, 1 thread (s)',
+                      'hline': float(hline) if finite(hline) and hline > 0 else 0.0,
+                      'xcross': float(xcross) if finite(xcross) and xcross > 0 else 0.0}
+            ok = run_gnuplot('sweep.gp', params, svg, problems)
+        else:
+            with open(dat, 'w', encoding='utf-8') as f:
+                # Two blank lines end a gnuplot data set (`index`); one would only end a block.
+                f.write('\n\n\n'.join('\n'.join(f'{x!r} {y!r}' for x, y in b) for b in blocks) + '\n')
+            ok = run_gnuplot('time.gp', {'datafile': dat, 'nseries': len(blocks), 'titles': ' '.join(titles),
+                                         'ptitle': f'{name}: error vs time'}, svg, problems)
+        if ok:
             out[name] = os.path.relpath(svg, R['dir'])
     return out
 
@@ -996,27 +1057,151 @@ def stability_html(opt):
             '</section>')
 
 
+def fsec(v):
+    """Seconds: 3 significant digits, '—' when absent."""
+    return '—' if not finite(v) else (f'{v:.3g}' if v >= 1e-3 else fexp(v))
+
+
+def timing_generic_html(name, t, plots):
+    series = timing_points(t)
+    keys = []
+    for _, pts in series:
+        for p in pts:
+            for k in p:
+                if k not in keys:
+                    keys.append(k)
+    rows = ''.join('<tr><td>' + esc(label) + '</td>' + ''.join(
+        f'<td class="num">{fmt_metric(k, p.get(k)) if is_num(p.get(k)) else esc(p.get(k, ""))}</td>' for k in keys)
+        + '</tr>' for label, pts in series for p in pts)
+    out = (f'<h3>{esc(name)}</h3><div class="flexrow"><table class="grid"><thead><tr><th>series</th>'
+           + ''.join(f'<th>{esc(k)}</th>' for k in keys) + f'</tr></thead><tbody>{rows}</tbody></table>')
+    if name in plots:
+        out += f'<img class="plot" src="{esc(plots[name])}" alt="error vs time, {esc(name)}">'
+    return out + '</div>'
+
+
+def crossover_text(c):
+    if not isinstance(c, dict) or not finite(c.get('spp')):
+        return '— (Cycles\' fit does not fall)'
+    if c.get('extrapolated') == 'below':
+        return (f'&le; {fsec(c.get("upper_bound_s"))} s (Cycles\' fewest samples already beat it; fit: '
+                f'{c["spp"]:.2g} spp)')
+    txt = f'{fsec(c.get("time_s"))} s at {c["spp"]:.3g} spp'
+    if finite(c.get('render_s')):
+        txt += f' ({fsec(c["render_s"])} s inside Blender)'
+    if c.get('extrapolated') == 'above':
+        txt += ' extrapolated'
+    return txt
+
+
+def sweep_overview_html(sweeps):
+    """One row per scene: the headline numbers of every sweep."""
+    rows = []
+    for name, t in sweeps:
+        cyc = next((sr for sr in t['series'] if isinstance(sr, dict) and sr.get('renderer') == 'cycles'), {})
+        fs = cyc.get('fit_spp') if isinstance(cyc.get('fit_spp'), dict) else {}
+        ft = cyc.get('fit') if isinstance(cyc.get('fit'), dict) else {}
+        asis = t.get('as_is') if isinstance(t.get('as_is'), dict) else {}
+        ref = t.get('reference') if isinstance(t.get('reference'), dict) else {}
+        cb = t.get('crossover_best_raster') if isinstance(t.get('crossover_best_raster'), dict) else None
+        off = finite(fs.get('slope')) and abs(fs['slope'] + 0.5) > 0.1
+        rows.append(
+            f'<tr><td><a href="#timing-{esc(safe_name(name))}">{esc(name)}</a></td>'
+            f'<td class="num">{fexp(asis.get("error"))}</td><td class="num">{fsec(asis.get("time_s"))}</td>'
+            f'<td class="num">{fexp(ref.get("noise_nrmse"))}</td>'
+            f'<td class="num{" v-warn" if off else ""}">{fs.get("slope", float("nan")):.2f}</td>'
+            f'<td class="num">{ft.get("slope", float("nan")):.2f}</td>'
+            f'<td>{esc(cyc.get("slope_note", ""))}</td>'
+            f'<td>{crossover_text(t.get("crossover"))}</td>'
+            f'<td>{crossover_text(cb)}{" vs " + esc(cb.get("raster_label")) if cb else ""}</td></tr>')
+    return ('<table class="grid"><thead><tr><th>scene</th><th>raster as-is error</th><th>its time (s)</th>'
+            '<th>reference noise</th><th>Cycles slope / spp</th><th>Cycles slope / time</th><th>where not spp^-0.5</th>'
+            '<th>crossover (vs raster as-is)</th><th>crossover (vs raster best)</th></tr></thead><tbody>'
+            + ''.join(rows) + '</tbody></table>')
+
+
+def sweep_scene_html(name, t, plots):
+    ek = t.get('error_key') if isinstance(t.get('error_key'), str) else 'error'
+    parts = [f'<h3 id="timing-{esc(safe_name(name))}">{esc(name)} <span class="dim small">'
+             f'{esc("x".join(str(v) for v in t.get("size") or []))}, reference: Cycles validate '
+             f'{esc((t.get("reference") or {}).get("samples"))} spp</span></h3><div class="flexrow">']
+    if name in plots:
+        parts.append(f'<img class="plot wide" src="{esc(plots[name])}" alt="error vs time, {esc(name)}">')
+    fits = []
+    for sr in t['series']:
+        if not isinstance(sr, dict):
+            continue
+        cells = []
+        for key in ('fit', 'fit_spp'):
+            f = sr.get(key) if isinstance(sr.get(key), dict) else {}
+            cells.append(f'<td class="num">{f["slope"]:.3f}</td><td class="num">{f.get("r2", float("nan")):.3f}</td>'
+                         if finite(f.get('slope')) else '<td>—</td><td>—</td>')
+        tm = sr.get('time_model') if isinstance(sr.get('time_model'), dict) else None
+        tmt = f'{fsec(tm.get("t0_s"))} s + {fexp(tm.get("s_per_spp"))} s/spp' if tm else ''
+        fits.append(f'<tr><td>{esc(sr.get("label"))}</td>{"".join(cells)}<td>{esc(tmt)}</td>'
+                    f'<td>{esc(sr.get("slope_note", ""))}</td></tr>')
+    parts.append('<div><table class="grid"><thead><tr><th>series</th><th>slope / time</th><th>r²</th>'
+                 '<th>slope / spp</th><th>r²</th><th>time model</th><th>note</th></tr></thead><tbody>'
+                 + ''.join(fits) + '</tbody></table>')
+    eq = []
+    for e in t.get('equal_time') or []:
+        if not isinstance(e, dict):
+            continue
+        best = e.get('best') if isinstance(e.get('best'), dict) else {}
+        cells = ''.join(
+            f'<td class="num">{fexp(b.get("error"))} <span class="dim">{esc(b.get("label"))}, {fsec(b.get("time_s"))} s</span></td>'
+            if isinstance(b, dict) else '<td class="dim">none within budget</td>'
+            for b in (best.get(r) for r in ('raster', 'povray', 'cycles')))
+        bname = esc(e.get('budget'))
+        if not str(e.get('budget', '')).endswith(' s'):
+            bname += f' ({fsec(e.get("budget_s"))} s)'
+        eq.append(f'<tr><td>{bname}</td>{cells}'
+                  f'<td class="num">{fexp(e.get("cycles_fit_error"))}</td></tr>')
+    parts.append('<p class="small"><b>Equal time</b>: the lowest error each renderer reaches within the budget.</p>'
+                 '<table class="grid"><thead><tr><th>budget</th><th>raster</th><th>POV-Ray</th><th>Cycles</th>'
+                 '<th>Cycles (fit)</th></tr></thead><tbody>' + ''.join(eq) + '</tbody></table>')
+    front = ', '.join(f'{esc(p.get("renderer"))} {esc(p.get("label"))}' for p in t.get('pareto') or []
+                      if isinstance(p, dict))
+    parts.append(f'<p class="small"><b>Pareto frontier</b> (fastest first): {front or "—"}</p>')
+    parts.append(f'<p class="small"><b>Crossover</b> (Cycles\' noise below the raster as-is error): '
+                 f'{crossover_text(t.get("crossover"))}</p>')
+    skipped = t.get('skipped') or []
+    if skipped:
+        parts.append('<p class="small dim">Not measured: ' + '; '.join(
+            f'{esc(k.get("label"))}: {esc(k.get("message"))}' for k in skipped if isinstance(k, dict)) + '</p>')
+    parts.append('</div></div>')
+    rows = []
+    for sr in t['series']:
+        for p in sr.get('points') or [] if isinstance(sr, dict) else []:
+            if isinstance(p, dict):
+                rows.append(f'<tr><td>{esc(sr.get("label"))}</td><td>{esc(p.get("label"))}</td>'
+                            f'<td class="num">{fsec(p.get("time_s"))}</td><td class="num">{fsec(p.get("render_s"))}</td>'
+                            + ''.join(f'<td class="num">{fexp(p.get(k))}</td>'
+                                      for k in (ek, 'nrmse', 'rmse', 'rel_rms', 'noise_nrmse'))
+                            + f'<td>{"cached" if p.get("cached") else ""}</td></tr>')
+    parts.append('<details><summary class="small">every point</summary><table class="grid"><thead><tr>'
+                 '<th>series</th><th>point</th><th>time (s)</th><th>in Blender (s)</th>'
+                 f'<th>{esc(ek)}</th><th>nrmse</th><th>rmse</th><th>rel_rms</th><th>own noise</th><th></th>'
+                 '</tr></thead><tbody>' + ''.join(rows) + '</tbody></table></details>')
+    return ''.join(parts)
+
+
 def timing_html(R, plots):
     tm = R['optional']['timing']
     if not tm:
         return ''
     parts = ['<section id="timing"><h2>Error vs time <span class="dim small">timing/*.json</span></h2>']
+    sweeps = [(n, t) for n, t in tm if is_sweep(t)]
+    if sweeps:
+        doc = sweeps[0][1].get('error_doc')
+        clock = 'CPU' if sweeps[0][1].get('clock') == 'cpu_s' else 'wall'
+        parts.append('<p class="small">Every renderer\'s quality knobs, role validate, against Cycles at the highest '
+                     f'spp (harness/sweep.py). Time: one job\'s {clock} time on one thread (POV-Ray and Cycles '
+                     'include their start-up). Error: ' + esc(doc or 'see harness/sweep.py') + '. A Cycles slope '
+                     'more than 0.1 from -0.5 is marked.</p>')
+        parts.append(sweep_overview_html(sweeps))
     for name, t in tm:
-        series = timing_points(t)
-        keys = []
-        for _, pts in series:
-            for p in pts:
-                for k in p:
-                    if k not in keys:
-                        keys.append(k)
-        rows = ''.join('<tr><td>' + esc(label) + '</td>' + ''.join(
-            f'<td class="num">{fmt_metric(k, p.get(k)) if is_num(p.get(k)) else esc(p.get(k, ""))}</td>' for k in keys)
-            + '</tr>' for label, pts in series for p in pts)
-        parts.append(f'<h3>{esc(name)}</h3><div class="flexrow"><table class="grid"><thead><tr><th>series</th>'
-                     + ''.join(f'<th>{esc(k)}</th>' for k in keys) + f'</tr></thead><tbody>{rows}</tbody></table>')
-        if name in plots:
-            parts.append(f'<img class="plot" src="{esc(plots[name])}" alt="error vs time, {esc(name)}">')
-        parts.append('</div>')
+        parts.append(sweep_scene_html(name, t, plots) if is_sweep(t) else timing_generic_html(name, t, plots))
     parts.append('</section>')
     return ''.join(parts)
 

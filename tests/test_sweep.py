@@ -1,0 +1,269 @@
+"""test_sweep.py - harness/sweep.py's maths on synthetic data, and report.py showing its output.
+
+Run: /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_sweep.py   (no renderer needed;
+the plot check needs gnuplot). Expected values are worked by hand in the comments, or checked
+by a seeded Monte Carlo simulation (the nested-reference correction).
+"""
+
+import importlib.util
+import json
+import math
+import os
+import random
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True   # no __pycache__ in the source tree
+spec = importlib.util.spec_from_file_location('reflcheck_sweep', os.path.join(ROOT, 'harness', 'sweep.py'))
+sweep = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(sweep)
+REPORT = os.path.join(ROOT, 'harness', 'report.py')
+L2 = math.log(2.0)
+
+
+# ------------------------------------------------------------------------------------ fits
+
+def test_fit_exact_power_law():
+    # y = 8 x^-0.5 through (1, 8), (4, 4), (16, 2): slope -0.5, intercept ln 8, r2 1
+    f = sweep.fit_loglog([1, 4, 16], [8, 4, 2])
+    assert f['slope'] == pytest.approx(-0.5, abs=1e-12)
+    assert f['intercept'] == pytest.approx(math.log(8), abs=1e-12)
+    assert f['r2'] == pytest.approx(1.0, abs=1e-12) and f['n'] == 3
+
+
+def test_fit_least_squares_by_hand():
+    # ln x = 0, L, 2L (L = ln 2); ln y = 0, -1, -1. dx = (-L, 0, L), dy = (2/3, -1/3, -1/3):
+    # sum dx dy = -L, sum dx^2 = 2L^2 -> slope -1/(2L); intercept -2/3 - slope L = -1/6;
+    # r2 = L^2 / (2L^2 * 2/3) = 3/4
+    f = sweep.fit_loglog([1, 2, 4], [1, math.exp(-1), math.exp(-1)])
+    assert f['slope'] == pytest.approx(-1 / (2 * L2), rel=1e-12)
+    assert f['intercept'] == pytest.approx(-1 / 6, abs=1e-12)
+    assert f['r2'] == pytest.approx(0.75, rel=1e-12)
+
+
+def test_fit_ignores_non_positive_and_needs_two_x():
+    f = sweep.fit_loglog([1, 4, 16, 5, None], [8, 4, 2, 0, 3])   # (5, 0) and (None, 3) dropped
+    assert f['n'] == 3 and f['slope'] == pytest.approx(-0.5)
+    assert sweep.fit_loglog([2, 2], [1, 3]) is None
+    assert sweep.fit_loglog([2], [1]) is None
+
+
+def test_fit_solve_and_eval():
+    f = {'slope': -0.5, 'intercept': math.log(8)}
+    assert sweep.fit_solve(f, 1.0) == pytest.approx(64.0)        # 8 / sqrt(64) = 1
+    assert sweep.fit_eval(f, 16) == pytest.approx(2.0)
+    assert sweep.fit_solve({'slope': 0.1, 'intercept': 0.0}, 0.5) is None   # rising: never
+    assert sweep.fit_solve({'slope': 0.0, 'intercept': 0.0}, 0.5) is None   # flat: never
+    assert sweep.fit_solve(None, 0.5) is None
+
+
+def test_local_slopes_show_the_bend():
+    # 8 -> 4 over x 1 -> 4: -0.5; 4 -> 1 over 4 -> 16: -1 (unsorted input)
+    ls = sweep.local_slopes([16, 1, 4], [1, 8, 4])
+    assert [(l['from'], l['to']) for l in ls] == [(1, 4), (4, 16)]
+    assert ls[0]['slope'] == pytest.approx(-0.5) and ls[1]['slope'] == pytest.approx(-1.0)
+
+
+def test_fit_linear_by_hand():
+    # x = 16, 64, 256; y = 2, 3, 6: mx 112, my 11/3, dx (-96, -48, 144), dy (-5/3, -2/3, 7/3);
+    # sum dx dy = 160 + 32 + 336 = 528, sum dx^2 = 32256 -> b = 11/672, a = 11/3 - 112 b = 11/6
+    a, b = sweep.fit_linear([16, 64, 256], [2, 3, 6])
+    assert b == pytest.approx(11 / 672, rel=1e-12) and a == pytest.approx(11 / 6, rel=1e-12)
+    assert sweep.fit_linear([3, 3], [1, 2]) is None
+
+
+# ------------------------------------------------------------------------------------ frontier
+
+PTS = [{'label': 'A', 'time_s': 1.0, 'error': 0.5},
+       {'label': 'B', 'time_s': 2.0, 'error': 0.6},    # slower and worse than A
+       {'label': 'C', 'time_s': 2.0, 'error': 0.3},
+       {'label': 'D', 'time_s': 0.5, 'error': 0.9},
+       {'label': 'E', 'time_s': 3.0, 'error': 0.3},    # same error as C, slower
+       {'label': 'F', 'time_s': 10.0, 'error': 0.01},
+       {'label': 'G', 'time_s': 0.7, 'error': None}]   # no error: never on the frontier
+
+
+def test_pareto_frontier():
+    assert [p['label'] for p in sweep.pareto(PTS)] == ['D', 'A', 'C', 'F']
+
+
+def test_best_within_budget():
+    assert sweep.best_within(PTS, 2.0)['label'] == 'C'
+    assert sweep.best_within(PTS, 2.5)['label'] == 'C'
+    assert sweep.best_within(PTS, 0.9)['label'] == 'D'
+    assert sweep.best_within(PTS, 0.4) is None
+    assert sweep.best_within(PTS, 100)['label'] == 'F'
+
+
+# ------------------------------------------------------------------------------------ noise
+
+def test_nested_and_independent_error_by_hand():
+    assert sweep.nested_error(0.03, 1024, 4096) == pytest.approx(0.03 / math.sqrt(0.75))
+    assert sweep.nested_error(0.03, 4096, 4096) is None
+    assert sweep.independent_error(0.05, 0.03) == pytest.approx(0.04)   # 3-4-5
+    assert sweep.independent_error(0.02, 0.03) is None                   # all reference noise
+    assert sweep.independent_error(0.02, None) == 0.02
+
+
+def test_nested_correction_matches_simulation():
+    """The mean of the first n of N iid samples against the mean of all N: MSE = s^2/n (1 - n/N).
+    Seeded simulation, n = 4 of N = 16, s = 1: expected 0.25 * 0.75 = 0.1875; with 20000 trials
+    the estimate's relative standard error is sqrt(2/20000) = 1%, so 5% is a safe bound."""
+    rng = random.Random(12345)
+    n, big, trials = 4, 16, 20000
+    acc = 0.0
+    for _ in range(trials):
+        xs = [rng.gauss(0.0, 1.0) for _ in range(big)]
+        acc += (sum(xs[:n]) / n - sum(xs) / big) ** 2
+    measured_rms = math.sqrt(acc / trials)
+    truth_rms = 1.0 / math.sqrt(n)
+    assert sweep.nested_error(measured_rms, n, big) == pytest.approx(truth_rms, rel=0.05)
+
+
+# ------------------------------------------------------------------------------------ crossover
+
+LEVELS = [(16, 2.16), (64, 2.64), (256, 4.56), (1024, 12.24)]          # 2 + 0.01 spp
+RENDER = [(16, 0.26), (64, 0.74), (256, 2.66), (1024, 10.34)]          # 0.1 + 0.01 spp
+
+
+def test_interp_time():
+    assert sweep.interp_time(LEVELS, 256) == pytest.approx(4.56)       # a level
+    assert sweep.interp_time(LEVELS, 160) == pytest.approx(2.64 + (4.56 - 2.64) * 96 / 192)   # 3.6
+    assert sweep.interp_time(LEVELS, 8) == pytest.approx(2.16)         # below: the first level
+    assert sweep.interp_time(LEVELS, 2048) == pytest.approx(12.24 + 7.68 * 1024 / 768)   # 22.48
+    assert sweep.interp_time([], 5) is None
+
+
+def test_crossover_interpolated():
+    # error 0.8 / sqrt(spp); raster 0.05 -> spp (0.8/0.05)^2 = 256 -> 4.56 s (2.66 in Blender);
+    # raster 0.08 -> 100 spp -> 2.64 + 1.92 * 36/192 = 3.0 s; the ln-time fit 0.1/t -> 2 s
+    fs = {'slope': -0.5, 'intercept': math.log(0.8)}
+    ft = {'slope': -1.0, 'intercept': math.log(0.1)}
+    c = sweep.crossover(fs, LEVELS, RENDER, ft, 0.05)
+    assert c['spp'] == pytest.approx(256.0)
+    assert c['time_s'] == pytest.approx(4.56) and c['render_s'] == pytest.approx(2.66)
+    assert c['loglog_time_s'] == pytest.approx(2.0)
+    assert c['extrapolated'] is None
+    assert sweep.crossover(fs, LEVELS, RENDER, ft, 0.08)['time_s'] == pytest.approx(3.0)
+
+
+def test_crossover_out_of_range_and_none():
+    fs = {'slope': -0.5, 'intercept': math.log(0.8)}
+    below = sweep.crossover(fs, LEVELS, [], None, 0.5)     # spp 2.56 < 16
+    assert below['spp'] == pytest.approx(2.56) and below['extrapolated'] == 'below'
+    assert below['upper_bound_s'] == pytest.approx(2.16)   # the 16-spp level
+    assert below['render_s'] is None and below['loglog_time_s'] is None
+    above = sweep.crossover(fs, LEVELS, [], None, 0.001)   # spp 640000
+    assert above['spp'] == pytest.approx(640000.0) and above['extrapolated'] == 'above'
+    assert above['time_s'] == pytest.approx(12.24 + 0.01 * (640000 - 1024))
+    assert sweep.crossover({'slope': 0.2, 'intercept': 0.0}, LEVELS, [], None, 0.05) is None
+
+
+def test_slope_note():
+    on = {'slope': -0.52}
+    assert 'Monte Carlo rate' in sweep.slope_note(on, [{'from': 16, 'to': 64, 'slope': -0.55}])
+    steep = sweep.slope_note({'slope': -0.96}, [{'from': 16, 'to': 64, 'slope': -0.99}])
+    assert 'faster' in steep and '16->64 spp: -0.99' in steep
+    flat = sweep.slope_note({'slope': -0.37}, [{'from': 64, 'to': 256, 'slope': -0.24},
+                                               {'from': 256, 'to': 1024, 'slope': -0.5}])
+    assert 'slower' in flat and '64->256' in flat and '256->1024' not in flat
+    # on average -0.5 but bent: still says where
+    assert 'off -0.5 at 16->64' in sweep.slope_note(on, [{'from': 16, 'to': 64, 'slope': -0.8}])
+
+
+# ------------------------------------------------------------------------------------ scenes
+
+def test_lists_cycles_validate(tmp_path):
+    yes = tmp_path / 'yes.yaml'
+    yes.write_text('name: yes\ncomparisons:\n  - reference: povray\n    role: twin\n'
+                   '  - reference: cycles\n    role: validate\n    thresholds:\n      nrmse: {warn: 1, fail: 2}\n')
+    agree = tmp_path / 'agree.yaml'
+    agree.write_text('name: agree\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+                     '  - test: povray\n    reference: cycles\n    role: validate\n')
+    mixed = tmp_path / 'mixed.yaml'   # cycles twin + povray validate: no cycles validate item
+    mixed.write_text('name: mixed\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+                     '  - reference: povray\n    role: validate\n')
+    assert sweep.lists_cycles_validate(str(yes))
+    assert not sweep.lists_cycles_validate(str(agree))
+    assert not sweep.lists_cycles_validate(str(mixed))
+    assert sweep.scene_name(str(yes)) == 'yes'
+
+
+# ------------------------------------------------------------------------------------ analyse
+
+def synthetic(nested=True):
+    """A quick plan with made-up records: Cycles error 0.8/sqrt(spp) against the truth, wall
+    2 + 0.01 spp; raster as-is NRMSE 0.1 with reference noise 0.06 -> error 0.08 (6-8-10)."""
+    jobs, ref = sweep.plan(quick=True, seed_opt=not nested)
+    recs, diffs, noises = {}, {}, {'reference': 0.06}
+    for j in jobs:
+        if j['renderer'] == 'cycles':
+            n = j['samples']
+            t = 2.0 + 0.01 * n
+            nr = 0.0 if j['key'] == 'reference' else 0.8 / math.sqrt(n) * math.sqrt(1 - n / ref)
+            recs[j['key']] = {'status': 'ok', 'wall_s': t, 'render_s': t - 1.9, 'samples': n, 'seeds': 2}
+        elif j['renderer'] == 'raster':
+            recs[j['key']] = {'status': 'ok', 'wall_s': 0.01, 'supersample': 2}
+            nr = 0.1
+        else:
+            recs[j['key']] = {'status': 'skipped', 'message': 'povray cannot represent this'}
+            continue
+        diffs[j['key']] = {'surface': {'nrmse': nr, 'rmse': nr / 10, 'rel_rms': nr * 2}}
+    recs['rk1']['wall_s'] = 0.005
+    diffs['rk1']['surface']['nrmse'] = 0.2            # k = 1: faster, worse
+    return sweep.analyse('synth', jobs, recs, diffs, noises, ref, True, [96, 72])
+
+
+def test_analyse_end_to_end():
+    t = synthetic()
+    json.dumps(t, allow_nan=False)
+    cyc = next(s for s in t['series'] if s['label'] == 'cycles spp')
+    assert cyc['fit_spp']['slope'] == pytest.approx(-0.5, abs=1e-9)       # the correction undid 1 - n/N
+    assert cyc['time_model']['t0_s'] == pytest.approx(2.0) and cyc['time_model']['s_per_spp'] == pytest.approx(0.01)
+    ref_pt = next(p for p in cyc['points'] if p['is_reference'])
+    assert ref_pt['error'] == 0.06 and cyc['fit_spp']['n'] == 3             # the reference is not fitted
+    assert t['as_is']['error'] == pytest.approx(0.08)
+    # crossover: (0.8 / 0.08)^2 = 100 spp -> 2 + 1 = 3 s, inside 16..256
+    assert t['crossover']['spp'] == pytest.approx(100.0)
+    assert t['crossover']['time_s'] == pytest.approx(3.0)
+    assert t['crossover']['extrapolated'] is None
+    # equal time at the raster's 0.01 s: only the raster; at 10 s: Cycles 256 spp, 0.8/16 = 0.05
+    eq = {e['budget']: e for e in t['equal_time']}
+    assert eq['raster as-is']['best']['cycles'] is None and eq['raster as-is']['best']['raster']['error'] == \
+        pytest.approx(0.08)
+    assert eq['10 s']['best']['cycles']['label'] == '256 spp'
+    assert eq['10 s']['best']['cycles']['error'] == pytest.approx(0.05)
+    assert eq['10 s']['cycles_fit_error'] == pytest.approx(0.8 / math.sqrt(800))   # (10 - 2)/0.01 spp
+    assert eq['1 s']['cycles_fit_error'] is None                                   # inside start-up
+    assert [s['label'] for s in t['skipped']] == ['povray k k=1', 'povray k k=2']
+    # frontier: raster k=1 (0.005 s, 0.2), a raster 0.01 s point (0.08); Cycles 16 and 64 spp
+    # (0.2, 0.1) lose to it, 256 spp (0.05) wins, the reference (its noise 0.06) loses to 256
+    front = [(p['renderer'], p['label']) for p in t['pareto']]
+    assert front[0] == ('raster', 'k=1') and front[1][0] == 'raster'
+    assert front[2:] == [('cycles', '256 spp')]
+
+
+# ------------------------------------------------------------------------------------ report
+
+def test_report_shows_sweep(tmp_path):
+    run = tmp_path / '20250101-120000-abc1234'
+    (run / 'timing').mkdir(parents=True)
+    (run / 'timing' / 'synth.json').write_text(json.dumps(sweep.clean_nan(synthetic())))
+    r = subprocess.run([sys.executable, REPORT, '--run', str(run)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    html = (run / 'index.html').read_text(encoding='utf-8')
+    assert 'id="timing-synth"' in html
+    assert '3 s at 100 spp' in html                         # the crossover
+    assert 'Pareto frontier' in html and 'none within budget' in html
+    assert '-0.50' in html                                   # the spp slope in the overview
+    if shutil.which('gnuplot'):
+        svg = run / 'plots' / 'timing-synth.svg'
+        ET.parse(str(svg))
+        text = svg.read_text(encoding='utf-8')
+        assert 'Pareto frontier' in text and 'spp^-0.50' in text and 'raster as-is error' in text
+        assert 'plots/timing-synth.svg' in html
