@@ -1459,8 +1459,9 @@ def propose(c, t):
 
 
 def yaml_line(t, warn, fail):
+    """One threshold as the scene files write it (scenes/FORMAT.md): metric: {warn, fail, why}."""
     extra = f', why: "{t["why"]}"' if t.get('why') else ''
-    return f'    - {{metric: {t["metric"]}, warn: {yaml_num(warn)}, fail: {yaml_num(fail)}{extra}}}'
+    return f'      {t["metric"]}: {{warn: {yaml_num(warn)}, fail: {yaml_num(fail)}{extra}}}'
 
 
 def proposal(R):
@@ -1476,7 +1477,8 @@ def proposal(R):
                 lines.append(f'@@ {c["id"]}: {c["reason"]} @@')
                 continue
             lines.append(f'@@ {c["id"]} ({c["role"]}, {c["status"]}) @@')
-            lines.append(f'   - id: {c["id"]}')
+            test = '' if c.get('test', 'raster') == 'raster' else f'test: {c["test"]}, '
+            lines.append(f'   - {{{test}reference: {c.get("reference", "?")}, role: {c["role"]}}}')
             lines.append('     thresholds:')
             if not c['thresholds']:
                 lines.append('     # no thresholds in compare.json')

@@ -276,17 +276,17 @@ def test_propose_thresholds(tmp_path):
     out = r.stdout
     assert '--- scenes/alpha.yaml' in out and '+++ scenes/alpha.yaml' in out
     # 3.4e-2 measured: 2x = 6.8e-2 -> 7e-2, 4x = 0.136 -> 0.2
-    assert '-    - {metric: rel_rms, warn: 5e-3, fail: 1e-2, why: "Monte Carlo noise budget"}' in out
-    assert '+    - {metric: rel_rms, warn: 7e-2, fail: 0.2, why: "Monte Carlo noise budget"}' in out
+    assert '-      rel_rms: {warn: 5e-3, fail: 1e-2, why: "Monte Carlo noise budget"}' in out
+    assert '+      rel_rms: {warn: 7e-2, fail: 0.2, why: "Monte Carlo noise budget"}' in out
     # 2e-2 -> 4e-2 / 8e-2
-    assert '+    - {metric: z_fail_share, warn: 4e-2, fail: 8e-2' in out
+    assert '+      z_fail_share: {warn: 4e-2, fail: 8e-2' in out
     # PSNR 78.4 dB: -6.02 dB -> 72, -12.04 dB -> 66
-    assert '+    - {metric: psnr, warn: 72, fail: 66' in out
+    assert '+      psnr: {warn: 72, fail: 66' in out
     # 1.2e-4 measured would give 3e-4 / 5e-4, but the precision floor 4.9e-4 raises warn to 5e-4
     # and fail to 2 x 5e-4: equal to the current line, so it is unchanged (leading space)
-    assert re.search(r'^ {5}- \{metric: rel_rms, warn: 5e-4, fail: 1e-3.*raised to the precision floor', out, re.M)
+    assert re.search(r'^ {7}rel_rms: \{warn: 5e-4, fail: 1e-3.*raised to the precision floor', out, re.M)
     # skipped comparison: no measurement, unchanged
-    assert re.search(r'^ {5}- \{metric: rel_rms, warn: 2e-2, fail: 5e-2.*no measurement', out, re.M)
+    assert re.search(r'^ {7}rel_rms: \{warn: 2e-2, fail: 5e-2.*no measurement', out, re.M)
     page = read(os.path.join(run, 'thresholds-proposal.html'))
     assert 'Threshold proposal' in page and 'class="d add"' in page
     assert hashlib.sha256(read(os.path.join(run, 'alpha', 'compare.json')).encode()).hexdigest() == digest
