@@ -508,6 +508,23 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
             if (m != NULL)
                 cJSON_AddItemToObject(regions, region_names[i], m);
         }
+        /* Per object (and so per material): surface pixels whose centre sample is that object. */
+        const float *obj_layer = geo ? exr_image_channel(geo, "object") : NULL;
+        if (obj_layer != NULL && s->n_objects > 1) {
+            cJSON *objs = cJSON_AddArrayToObject(o, "objects");
+            unsigned char *om = malloc(np);
+            for (int ob = 0; om != NULL && ob < s->n_objects; ob++) {
+                if (metrics_mask_from_class(w, h, cls, METRICS_PX_INTERIOR, obj_layer, (float)ob, om) == 0)
+                    continue;
+                cJSON *m = compare_region(&rm, &tm, om);
+                if (m == NULL)
+                    continue;
+                cJSON_AddNumberToObject(m, "object", ob);
+                cJSON_AddStringToObject(m, "material", s->materials[s->objects[ob].material].name);
+                cJSON_AddItemToArray(objs, m);
+            }
+            free(om);
+        }
         /* Layers line up only in twins: a physical reference splits its light differently
          * (Cycles files an environment mirror under glossy, our model under reflection). */
         cJSON *aovs = cJSON_AddObjectToObject(o, "aovs");

@@ -1252,6 +1252,10 @@ Verdicts: <b>pass</b> within every threshold · <b>warn</b> over a warn threshol
 
 def metrics_table(c):
     groups = [('region', k, v) for k, v in c['regions'].items()] + [('aov', k, v) for k, v in c['aovs'].items()]
+    objs = c.get('objects') if isinstance(c.get('objects'), list) else []
+    groups += [('object', f'{o.get("object")} {o.get("material", "")}',
+                {k: v for k, v in o.items() if k not in ('object', 'material')})
+               for o in objs if isinstance(o, dict)]
     if not groups:
         return '<p class="dim">no metrics (comparison not measured)</p>'
     keys = []
