@@ -6,17 +6,19 @@ Usage (Python 3 standard library only; run from the project root after `make bui
                                     [--scenes scenes/a.yaml ...] [--quick] [--full-size]
                                     [--jobs 2] [--threads 1] [--clock wall|cpu] [--bin build/reflcheck]
 
-What it renders (all role `validate`, through `reflcheck run --small --tag T --threads 1`, two jobs
-at a time; outputs in RUN/timing/renders/<scene>/<tag>/):
-  reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the physical reference.
+What it renders (in the scene's sweep role, below, through `reflcheck run --small --tag T
+--threads 1`, two jobs at a time; outputs in RUN/timing/renders/<scene>/<tag>/):
+  reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the best reference the scene has.
   cycles     Cycles at 16, 64, 256, 1024 spp (--quick 16, 64, 256), 2 seeds each.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),
              k = 1, 2, 4, 8; tessellation 8, 16, 32, 64, 128 (every object); per-vertex shading.
              Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times without the
              cache and the fastest time is kept (the usual benchmark minimum: noise only adds).
   povray     k = 1, 2, 4 where POV-Ray can express the validate scene (a skipped job is listed).
-Scenes: those of --scenes (default scenes/*.yaml) whose comparisons list `reference: cycles,
-role: validate`; the others are named and left out (they have no physical reference).
+Scenes: those of --scenes (default scenes/*.yaml). The role is `validate` where the comparisons
+list `reference: cycles, role: validate` (the physical reference: raster error is the
+approximation's), else `twin` where they list Cycles twin (the converged render of our own
+model: raster error is sampling and harness error); scenes with neither are left out.
 Size: the scene's small variant (`reflcheck run --small`; 96 pixels wide unless the scene says
 otherwise), or the full size with --full-size (`reflcheck run` has no width/height option).
 Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region.
@@ -28,7 +30,7 @@ timing/<scene>.json:
   {"format": "reflcheck-sweep-1", "scene": NAME, "size": [W, H], "error_key": "error",
    "clock": "wall_s"|"cpu_s" (what time_s holds),
    "error_doc": what "error" means (below),
-   "reference": {"renderer": "cycles", "role": "validate", "samples": N, "seeds": [0, 1],
+   "reference": {"renderer": "cycles", "role": "validate"|"twin", "samples": N, "seeds": [0, 1],
                  "noise_nrmse": its own noise (from its var.* layers), "nested": true|false,
                  "note": how the sweep's seeds relate to the reference's},
    "series": [{"label": "cycles spp", "renderer": "cycles", "knob": "samples",
@@ -257,8 +259,8 @@ def scene_name(path):
     return os.path.splitext(os.path.basename(path))[0]
 
 
-def lists_cycles_validate(path):
-    """True if the scene's comparisons hold {reference: cycles, role: validate} with the
+def lists_cycles(path, role):
+    """True if the scene's comparisons hold {reference: cycles, role: ROLE} with the
     rasterizer (the default test). A line-level read of the list items: scenes/FORMAT.md keeps
     each comparison a `- ` item with plain keys."""
     with open(path, encoding='utf-8') as f:
@@ -267,10 +269,24 @@ def lists_cycles_validate(path):
     if not m:
         return False
     for item in re.split(r'\n\s*-\s', '\n' + m.group(1)):
-        if re.search(r'\breference:\s*cycles\b', item) and re.search(r'\brole:\s*validate\b', item) \
+        if re.search(r'\breference:\s*cycles\b', item) and re.search(r'\brole:\s*' + role + r'\b', item) \
                 and not re.search(r'\btest:\s*(povray|cycles)\b', item):
             return True
     return False
+
+
+def lists_cycles_validate(path):
+    return lists_cycles(path, 'validate')
+
+
+def sweep_role(path):
+    """The best reference a scene offers: Cycles validate (the physics), else Cycles twin (the
+    converged render of our own model: then the errors are sampling and harness error), else
+    None (the scene is left out)."""
+    for role in ('validate', 'twin'):
+        if lists_cycles(path, role):
+            return role
+    return None
 
 
 # ---------------------------------------------------------------------------------- jobs
@@ -283,6 +299,7 @@ class Runner:
         self.small = not args.full_size
         self.renders = os.path.join(args.run, 'timing', 'renders')
         self.seed_opt = self.cli_has_seed()
+        self.roles = {}   # scene name -> 'validate' or 'twin' (sweep_role)
 
     def cli_has_seed(self):
         """`reflcheck run --seed N` (first Cycles seed): lets sweep points avoid the reference's
@@ -295,11 +312,12 @@ class Runner:
         return "--seeds '0'" not in r.stderr and 'unknown option' not in r.stderr
 
     def out(self, scene, tag, renderer):
-        return os.path.join(self.renders, scene, tag, f'{renderer}-validate')
+        return os.path.join(self.renders, scene, tag, f'{renderer}-{self.roles.get(scene, "validate")}')
 
     def run(self, scene_path, scene, renderer, tag, opts, repeats=1):
         """One job; returns the record dict (with 'wall_s' the fastest of the repeats)."""
-        cmd = [self.bin, 'run', scene_path, '--renderer', renderer, '--role', 'validate', '--out', self.renders,
+        cmd = [self.bin, 'run', scene_path, '--renderer', renderer, '--role', self.roles.get(scene, 'validate'),
+               '--out', self.renders,
                '--tag', tag, '--threads', str(self.threads)] + (['--small'] if self.small else []) + opts
         cmd += ['--no-cache'] if repeats > 1 else ['--cache', self.cache]
         best, t0 = None, time.monotonic()
@@ -424,7 +442,7 @@ def point_of(job, rec, d, noise, err, clock='wall_s'):
             'error': err, 'noise_nrmse': noise, 'is_reference': job['key'] == 'reference'}
 
 
-def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s'):
+def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate'):
     """Everything but the rendering: points, fits, Pareto frontier, equal time, crossover."""
     noise_ref = noises.get('reference')
     series, skipped, all_pts = {}, [], []
@@ -518,7 +536,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
             'error_doc': 'estimated NRMSE (surface RMSE over the reference mean) against the noise-free '
                          'image: the measured NRMSE against the reference with the reference noise taken '
                          'out (see harness/sweep.py)',
-            'reference': {'renderer': 'cycles', 'role': 'validate', 'samples': ref_spp,
+            'reference': {'renderer': 'cycles', 'role': role, 'samples': ref_spp,
                           'seeds': list(range(SEEDS)), 'noise_nrmse': noise_ref, 'nested': nested,
                           'note': ('sweep points use seeds 0..1 too: they are the first n samples of the '
                                    'reference (PMJ is nested); error corrects the measured NRMSE by '
@@ -578,13 +596,15 @@ def main(argv=None):
         if not os.path.isfile(s):
             print(f'sweep.py: --scenes {s}: no such scene file; list scenes/*.yaml', file=sys.stderr)
             return 2
-    # Only scenes with a physical reference: the sweep measures against Cycles validate.
-    left_out = [s for s in scenes if not lists_cycles_validate(s)]
+    # The best reference each scene has: Cycles validate, else Cycles twin (sweep_role).
+    left_out = [s for s in scenes if sweep_role(s) is None]
     scenes = [s for s in scenes if s not in left_out]
     if left_out:
-        print(f'sweep: left out (no cycles validate comparison): {" ".join(left_out)}')
+        print(f'sweep: left out (no cycles comparison): {" ".join(left_out)}')
 
     runner = Runner(args)
+    for sp in scenes:
+        runner.roles[scene_name(sp)] = sweep_role(sp)
     nested = not runner.seed_opt
     t_start = time.monotonic()
     plans = {}
@@ -636,7 +656,7 @@ def main(argv=None):
                 noises[j['key']] = noise_nrmse(runner, r[j['key']]['exr'], mask, zero)
         rec0 = r['as_is']
         t = analyse(name, jobs, r, diffs, noises, ref_spp, nested, [rec0.get('width'), rec0.get('height')],
-                    args.clock + '_s')
+                    args.clock + '_s', runner.roles.get(name, 'validate'))
         t['sweep'] = {'jobs': len(jobs), 'cached': sum(1 for v in r.values() if v.get('cached')),
                       'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
                       'threads_per_job': args.threads}

@@ -192,6 +192,13 @@ def test_lists_cycles_validate(tmp_path):
     assert not sweep.lists_cycles_validate(str(agree))
     assert not sweep.lists_cycles_validate(str(mixed))
     assert sweep.scene_name(str(yes)) == 'yes'
+    # The sweep's role: the physical reference where there is one, else the Cycles twin.
+    assert sweep.sweep_role(str(yes)) == 'validate'
+    assert sweep.sweep_role(str(agree)) == 'twin'
+    assert sweep.sweep_role(str(mixed)) == 'twin'
+    none = tmp_path / 'none.yaml'
+    none.write_text('name: none\ncomparisons:\n  - reference: povray\n    role: twin\n')
+    assert sweep.sweep_role(str(none)) is None
 
 
 # ------------------------------------------------------------------------------------ analyse
