@@ -36,9 +36,7 @@ fi
 "$bin" compare $scenes --run "$run" | tee "$run/compare.txt"
 "$bin" stability --json "$run/stability.json" > "$run/stability.txt" || true
 if [ -f harness/plots/figure1.gp ]; then
-    "$bin" eval fresnel --ior 1.5 --p 2 > "$run/fresnel_p2.csv"
-    "$bin" eval fresnel --ior 1.5 --p 4 > "$run/fresnel_p4.csv"
-    "$bin" eval fresnel --ior 1.5 --p 5 > "$run/fresnel_p5.csv"
+    for p in 2 4 5; do "$bin" eval fresnel --ior 1.5 --p $p --steps 900 > "$run/p$p.csv"; done
     gnuplot -e "dir='$run'" harness/plots/figure1.gp > /dev/null 2>&1 || echo "figure1 plot failed" >&2
 fi
 /usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" \
