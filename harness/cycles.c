@@ -19,14 +19,6 @@
 
 #define CYCLES_PI 3.14159265358979323846
 
-static void cycles_err(char *err, size_t errlen, const char *fmt, ...)
-{
-    if (err == NULL || errlen == 0) return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 /* ------------------------------------------------------------------ JSON writing */
 
@@ -93,7 +85,7 @@ typedef struct {
 static rc_status cycles_cannot(cycles_ctx *c, const char *what, const char *fix)
 {
     if (!c->o->partial) {
-        cycles_err(c->err, c->errlen, "%s: %s; %s, or render with cycles partial terms", c->s->path, what, fix);
+        status_message(c->err, c->errlen, "%s: %s; %s, or render with cycles partial terms", c->s->path, what, fix);
         return RC_ERR_RANGE;
     }
     if (c->n_missing < (int)(sizeof c->missing / sizeof c->missing[0]))
@@ -121,19 +113,19 @@ static rc_status cycles_check_light(cycles_ctx *c, int i)
 {
     const light *l = &c->s->lights[i];
     if (!cycles_finite3(l->intensity) || l->intensity.x < 0.0f || l->intensity.y < 0.0f || l->intensity.z < 0.0f) {
-        cycles_err(c->err, c->errlen, "%s: lights[%d]: intensity must be finite and >= 0", c->s->path, i);
+        status_message(c->err, c->errlen, "%s: lights[%d]: intensity must be finite and >= 0", c->s->path, i);
         return RC_ERR_RANGE;
     }
     if (l->kind == LIGHT_SUN) return RC_OK;
     if (l->a0 != 0.0f || l->a1 != 0.0f || !(l->a2 > 0.0f)) {
-        cycles_err(c->err, c->errlen,
+        status_message(c->err, c->errlen,
                    "%s: lights[%d]: Cycles lights fall off as 1/d^2 only (a0 = %g, a1 = %g, a2 = %g); "
                    "set a0 = a1 = 0 and a2 > 0 for a Cycles comparison", c->s->path, i,
                    (double)l->a0, (double)l->a1, (double)l->a2);
         return RC_ERR_RANGE;
     }
     if (isfinite(l->range) && (double)l->range < cycles_max_dist(c->m, l->position)) {
-        cycles_err(c->err, c->errlen,
+        status_message(c->err, c->errlen,
                    "%s: lights[%d]: range %g cuts through the geometry and Cycles lights have no range; "
                    "raise the range beyond %g or remove it", c->s->path, i, (double)l->range,
                    cycles_max_dist(c->m, l->position));
@@ -141,13 +133,13 @@ static rc_status cycles_check_light(cycles_ctx *c, int i)
     }
     if (l->kind == LIGHT_SPOT) {
         if (l->profile != SPOT_SMOOTH) {
-            cycles_err(c->err, c->errlen,
+            status_message(c->err, c->errlen,
                        "%s: lights[%d]: the D3D spot power law has no Cycles equivalent; use profile smooth",
                        c->s->path, i);
             return RC_ERR_RANGE;
         }
         if (!(l->outer > 0.0f && l->outer <= (float)CYCLES_PI && l->inner >= 0.0f && l->inner <= l->outer)) {
-            cycles_err(c->err, c->errlen,
+            status_message(c->err, c->errlen,
                        "%s: lights[%d]: spot cones need 0 <= inner <= outer <= 180 degrees, outer > 0", c->s->path, i);
             return RC_ERR_RANGE;
         }
@@ -243,7 +235,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
         /* Physical intent (validate): a dielectric coating over Lambert, or a bare conductor. */
         /* Roughness 0 is a mirror (the glossy closure becomes SHARP). */
         if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f) && used) {
-            cycles_err(c->err, c->errlen,
+            status_message(c->err, c->errlen,
                        "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
                        "to 1, so use a roughness in [0, 1]", s->path, mi, mat->name, (double)mat->roughness);
             return RC_ERR_RANGE;
@@ -376,7 +368,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
             lobe = 0;
         }
         if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
-            cycles_err(c->err, c->errlen,
+            status_message(c->err, c->errlen,
                        "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
                        "so use m in (0, 1]", s->path, mi, mat->name, (double)p->m);
             return RC_ERR_RANGE;
@@ -482,7 +474,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     c.agree = o->role == ROLE_AGREE;
     c.twin = o->role == ROLE_TWIN || c.agree;
     if (o->role != ROLE_TWIN && o->role != ROLE_VALIDATE && o->role != ROLE_AGREE) {
-        cycles_err(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
+        status_message(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
         return RC_ERR_RANGE;
     }
     int width = o->width > 0 ? o->width : s->width;
@@ -491,28 +483,28 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     int n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
     /* Blender refuses images smaller than 4 pixels (CONVENTIONS.md). */
     if (width < 4 || height < 4 || width > 65536 || height > 65536) {
-        cycles_err(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
+        status_message(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
                    s->path, width, height);
         return RC_ERR_RANGE;
     }
     if (samples < 1 || n_seeds > 64) {
-        cycles_err(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path, samples,
+        status_message(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path, samples,
                    n_seeds);
         return RC_ERR_RANGE;
     }
     if (m->n_tris > 0 && (m->tri_object == NULL || m->idx == NULL || m->pos == NULL || m->nrm == NULL)) {
-        cycles_err(err, errlen, "%s: mesh arrays missing; build the mesh with mesh_build", s->path);
+        status_message(err, errlen, "%s: mesh arrays missing; build the mesh with mesh_build", s->path);
         return RC_ERR_RANGE;
     }
     for (int t = 0; t < m->n_tris; t++) {
         if (m->tri_object[t] < 0 || m->tri_object[t] >= s->n_objects) {
-            cycles_err(err, errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path, t,
+            status_message(err, errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path, t,
                        m->tri_object[t], s->n_objects);
             return RC_ERR_RANGE;
         }
         for (int k = 0; k < 3; k++)
             if (m->idx[3 * t + k] >= (uint32_t)m->n_verts) {
-                cycles_err(err, errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path, t,
+                status_message(err, errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path, t,
                            m->idx[3 * t + k], m->n_verts);
                 return RC_ERR_RANGE;
             }
@@ -538,7 +530,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     if (s->env.kind == ENV_IMAGE) {
         /* Blender resolves relative paths against its own idea of the .blend directory. */
         if (realpath(s->env.path, env_path) == NULL) {
-            cycles_err(err, errlen, "%s: environment '%s': %s; check the path (relative to the working directory)",
+            status_message(err, errlen, "%s: environment '%s': %s; check the path (relative to the working directory)",
                        s->path, s->env.path, strerror(errno));
             return RC_ERR_IO;
         }
@@ -546,7 +538,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
 
     FILE *fp = fopen(job_json_path, "w");
     if (fp == NULL) {
-        cycles_err(err, errlen, "%s: cannot write the Cycles job: %s; check the output directory", job_json_path,
+        status_message(err, errlen, "%s: cannot write the Cycles job: %s; check the output directory", job_json_path,
                    strerror(errno));
         return RC_ERR_IO;
     }
@@ -615,7 +607,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     if (c.twin && !c.agree && u.mirror && u.glossy) {
         fclose(fp);
         remove(job_json_path);
-        cycles_err(err, errlen,
+        status_message(err, errlen,
                    "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
                    "(reflection) under one environment; put them in separate scenes", s->path);
         return RC_ERR_RANGE;
@@ -639,7 +631,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     if (remap == NULL) {
         fclose(fp);
         remove(job_json_path);
-        cycles_err(err, errlen, "%s: out of memory for the vertex map", job_json_path);
+        status_message(err, errlen, "%s: out of memory for the vertex map", job_json_path);
         return RC_ERR_NOMEM;
     }
     for (int i = 0; i < m->n_verts; i++) remap[i] = -1;
@@ -649,12 +641,12 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     int werr = ferror(fp);
     if (fclose(fp) != 0 || werr) {
         remove(job_json_path);
-        cycles_err(err, errlen, "%s: write failed; check disk space", job_json_path);
+        status_message(err, errlen, "%s: write failed; check disk space", job_json_path);
         return RC_ERR_IO;
     }
     if (w.bad) {
         remove(job_json_path);
-        cycles_err(err, errlen, "%s: %s is NaN or infinite; fix the scene value", s->path, w.bad_key);
+        status_message(err, errlen, "%s: %s is NaN or infinite; fix the scene value", s->path, w.bad_key);
         return RC_ERR_RANGE;
     }
     return RC_OK;
@@ -690,7 +682,7 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
                           o->script ? o->script : "harness/cycles_render.py", "--", job_json_path, out_exr_path};
     for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
         if (cycles_put(out, &used, list[i]) == NULL) {
-            cycles_err(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
+            status_message(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
             return RC_ERR_RANGE;
         }
     return RC_OK;
@@ -715,7 +707,7 @@ rc_status cycles_run(const cycles_argv *a, const char *log_path, double *seconds
             }
         fclose(fp);
     }
-    cycles_err(err, errlen, "%s: %s (exit %d)%s%s; see %s", a->argv[0], runner_status_name(r.status), r.exit_code,
+    status_message(err, errlen, "%s: %s (exit %d)%s%s; see %s", a->argv[0], runner_status_name(r.status), r.exit_code,
                line[0] ? ": " : "", line, log_path ? log_path : "the log (none kept)");
     return RC_ERR_RENDERER;
 }
@@ -785,7 +777,7 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
     if (o == NULL) o = &defaults;
     int n = o->n_seeds > 0 ? o->n_seeds : 1;
     if (n > 64) {
-        cycles_err(err, errlen, "cycles: %d seeds; at most 64", n);
+        status_message(err, errlen, "cycles: %d seeds; at most 64", n);
         return RC_ERR_RANGE;
     }
     exr_image img[64];
@@ -796,7 +788,7 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
     float *data = NULL;
     for (int i = 0; i < n && rc == RC_OK; i++) {
         if (cycles_raw_path(out_exr_path, i, path, sizeof path) != RC_OK) {
-            cycles_err(err, errlen, "%s: path too long", out_exr_path);
+            status_message(err, errlen, "%s: path too long", out_exr_path);
             rc = RC_ERR_RANGE;
             break;
         }
@@ -804,7 +796,7 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
         if (rc != RC_OK) break;
         loaded++;
         if (img[i].width != img[0].width || img[i].height != img[0].height) {
-            cycles_err(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
+            status_message(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
                        img[i].height, img[0].width, img[0].height);
             rc = RC_ERR_PARSE;
         }
@@ -817,14 +809,14 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
             src[i][k] = exr_image_channel(&img[i], raw);
             if (src[i][k] == NULL) {
                 cycles_raw_path(out_exr_path, i, path, sizeof path);
-                cycles_err(err, errlen, "%s: channel %s missing; the file is not from cycles_render.py", path, raw);
+                status_message(err, errlen, "%s: channel %s missing; the file is not from cycles_render.py", path, raw);
                 rc = RC_ERR_PARSE;
             }
         }
     int nch = n > 1 ? 2 * CYCLES_LAYOUT_N : CYCLES_LAYOUT_N;
     size_t npix = rc == RC_OK ? (size_t)img[0].width * (size_t)img[0].height : 0;
     if (rc == RC_OK && (data = malloc(sizeof(float) * npix * (size_t)nch)) == NULL) {
-        cycles_err(err, errlen, "%s: out of memory", out_exr_path);
+        status_message(err, errlen, "%s: out of memory", out_exr_path);
         rc = RC_ERR_NOMEM;
     }
     if (rc == RC_OK) {

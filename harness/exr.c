@@ -47,19 +47,6 @@ static void exr_on_error(exr_const_context_t ctxt, exr_result_t code, const char
     }
 }
 
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-{
-    if (!err || errlen == 0)
-        return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-    /* Keep the message on one line even if the library's text had a newline. */
-    for (char *p = err; *p; p++)
-        if (*p == '\n' || *p == '\r')
-            *p = ' ';
-}
 
 /* The library's own message when it gave one, else its generic text for the code. */
 static const char *lib_msg(const exr_errctx *e, exr_result_t rv)
@@ -90,25 +77,25 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
                     const exr_attr *attrs, int n_attrs, char *err, size_t errlen)
 {
     if (!path || width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
-        set_err(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side",
+        status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side",
                 path ? path : "(null)", width, height, EXR_MAX_SIDE);
         return RC_ERR_RANGE;
     }
     if (n_channels <= 0 || !ch) {
-        set_err(err, errlen, "%s: no channels to write; pass at least one exr_channel", path);
+        status_message(err, errlen, "%s: no channels to write; pass at least one exr_channel", path);
         return RC_ERR_RANGE;
     }
     if (n_attrs < 0 || (n_attrs > 0 && !attrs)) {
-        set_err(err, errlen, "%s: attribute list is NULL but n_attrs = %d", path, n_attrs);
+        status_message(err, errlen, "%s: attribute list is NULL but n_attrs = %d", path, n_attrs);
         return RC_ERR_RANGE;
     }
     for (int i = 0; i < n_channels; i++) {
         if (!ch[i].name || !ch[i].name[0] || !ch[i].data) {
-            set_err(err, errlen, "%s: channel %d has no name or no data; fill both", path, i);
+            status_message(err, errlen, "%s: channel %d has no name or no data; fill both", path, i);
             return RC_ERR_RANGE;
         }
         if (strlen(ch[i].name) >= EXR_NAME_MAX) {
-            set_err(err, errlen, "%s: channel name '%s' is longer than %d characters; shorten it",
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; shorten it",
                     path, ch[i].name, EXR_NAME_MAX - 1);
             return RC_ERR_RANGE;
         }
@@ -118,14 +105,14 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
      * which the format cannot store. */
     exr_channel *sorted = malloc((size_t)n_channels * sizeof *sorted);
     if (!sorted) {
-        set_err(err, errlen, "%s: out of memory", path);
+        status_message(err, errlen, "%s: out of memory", path);
         return RC_ERR_NOMEM;
     }
     memcpy(sorted, ch, (size_t)n_channels * sizeof *sorted);
     qsort(sorted, (size_t)n_channels, sizeof *sorted, cmp_channel_name);
     for (int i = 1; i < n_channels; i++)
         if (strcmp(sorted[i - 1].name, sorted[i].name) == 0) {
-            set_err(err, errlen, "%s: channel '%s' given twice; channel names must be unique",
+            status_message(err, errlen, "%s: channel '%s' given twice; channel names must be unique",
                     path, sorted[i].name);
             free(sorted);
             return RC_ERR_RANGE;
@@ -140,7 +127,7 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
     rc_status st = RC_OK;
     exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv != EXR_ERR_SUCCESS) {
-        set_err(err, errlen, "%s: cannot open for writing (%s); check the directory exists and is writable",
+        status_message(err, errlen, "%s: cannot open for writing (%s); check the directory exists and is writable",
                 path, lib_msg(&ec, rv));
         free(sorted);
         if (ctxt)
@@ -162,13 +149,13 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
     for (int i = 0; rv == EXR_ERR_SUCCESS && i < n_attrs; i++) {
         stage = "string attribute";
         if (!attrs[i].name || !attrs[i].name[0] || !attrs[i].value) {
-            set_err(err, errlen, "%s: attribute %d has no name or value; fill both", path, i);
+            status_message(err, errlen, "%s: attribute %d has no name or value; fill both", path, i);
             st = RC_ERR_RANGE;
             goto done;
         }
         rv = exr_attr_set_string(ctxt, part, attrs[i].name, attrs[i].value);
         if (rv != EXR_ERR_SUCCESS) {
-            set_err(err, errlen, "%s: cannot set string attribute '%s' (%s); use a name that is not a "
+            status_message(err, errlen, "%s: cannot set string attribute '%s' (%s); use a name that is not a "
                     "standard EXR attribute", path, attrs[i].name, lib_msg(&ec, rv));
             st = RC_ERR_RANGE;
             goto done;
@@ -212,7 +199,7 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
         exr_encoding_destroy(ctxt, &enc);
     }
     if (rv != EXR_ERR_SUCCESS && st == RC_OK) {
-        set_err(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions",
+        status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions",
                 path, stage, lib_msg(&ec, rv));
         st = rv == EXR_ERR_OUT_OF_MEMORY ? RC_ERR_NOMEM : RC_ERR_IO;
     }
@@ -222,7 +209,7 @@ done:
     {
         exr_result_t frv = exr_finish(&ctxt);
         if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
-            set_err(err, errlen, "%s: EXR write failed while closing (%s); check disk space",
+            status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space",
                     path, lib_msg(&ec, frv));
             st = RC_ERR_IO;
         }
@@ -392,7 +379,7 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
 {
     char dir[] = "/tmp/reflcheck_exr_XXXXXX";
     if (!mkdtemp(dir)) {
-        set_err(err, errlen, "%s: DWA-compressed EXR needs a temporary directory (%s); check /tmp",
+        status_message(err, errlen, "%s: DWA-compressed EXR needs a temporary directory (%s); check /tmp",
                 path, strerror(errno));
         return RC_ERR_IO;
     }
@@ -400,14 +387,14 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
     snprintf(tmp, sizeof tmp, "%s/conv.exr", dir);
     rc_status st;
     if (run_oiiotool_convert(path, tmp) != 0) {
-        set_err(err, errlen, "%s: DWA-compressed EXR could not be converted by oiiotool; install "
+        status_message(err, errlen, "%s: DWA-compressed EXR could not be converted by oiiotool; install "
                 "openimageio-tools or re-save the file with ZIP compression", path);
         st = RC_ERR_PARSE;
     } else {
         char sub[256];
         st = exr_read(tmp, img, sub, sizeof sub);
         if (st != RC_OK) {
-            set_err(err, errlen, "%s: DWA-compressed EXR unreadable after conversion (%s); re-save it "
+            status_message(err, errlen, "%s: DWA-compressed EXR unreadable after conversion (%s); re-save it "
                     "with ZIP compression", path, sub);
         } else {
             free(img->attr_names);
@@ -417,7 +404,7 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
             img->n_attrs = 0;
             st = read_attrs(ctxt, 0, img);
             if (st != RC_OK) {
-                set_err(err, errlen, "%s: out of memory reading EXR attributes", path);
+                status_message(err, errlen, "%s: out of memory reading EXR attributes", path);
                 exr_image_free(img);
             }
         }
@@ -430,18 +417,18 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
 rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
 {
     if (!img) {
-        set_err(err, errlen, "%s: exr_read needs an exr_image to fill", path ? path : "(null)");
+        status_message(err, errlen, "%s: exr_read needs an exr_image to fill", path ? path : "(null)");
         return RC_ERR_RANGE;
     }
     memset(img, 0, sizeof *img);
     if (!path) {
-        set_err(err, errlen, "(null): no file name given to exr_read");
+        status_message(err, errlen, "(null): no file name given to exr_read");
         return RC_ERR_IO;
     }
     /* Open it ourselves first so a missing file gives the system's reason, not a generic one. */
     FILE *f = fopen(path, "rb");
     if (!f) {
-        set_err(err, errlen, "%s: cannot open EXR (%s); check the path", path, strerror(errno));
+        status_message(err, errlen, "%s: cannot open EXR (%s); check the path", path, strerror(errno));
         return RC_ERR_IO;
     }
     fclose(f);
@@ -459,7 +446,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     exr_result_t rv = exr_start_read(&ctxt, path, &init);
     if (rv != EXR_ERR_SUCCESS) {
         rc_status st = status_of(rv);
-        set_err(err, errlen, "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
+        status_message(err, errlen, "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
                 "re-render or re-export it", path, lib_msg(&ec, rv));
         if (ctxt)
             exr_finish(&ctxt);
@@ -475,7 +462,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
 
     rv = exr_get_storage(ctxt, part, &storage);
     if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
-        set_err(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
+        status_message(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
                 path);
         st = RC_ERR_PARSE;
         goto out;
@@ -494,7 +481,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_channels(ctxt, part, &chl);
     if (rv != EXR_ERR_SUCCESS || !chl) {
-        set_err(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file",
+        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file",
                 path, lib_msg(&ec, rv));
         st = RC_ERR_PARSE;
         goto out;
@@ -502,7 +489,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     {
         int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
         if (w <= 0 || h <= 0 || w > EXR_MAX_SIDE || h > EXR_MAX_SIDE || (size_t)(w * h) > EXR_MAX_PIXELS) {
-            set_err(err, errlen, "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
+            status_message(err, errlen, "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
                     "corrupt", path, dw.min.x, dw.min.y, dw.max.x, dw.max.y);
             st = RC_ERR_PARSE;
             goto out;
@@ -511,20 +498,20 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
         img->height = (int)h;
     }
     if (chl->num_channels <= 0) {
-        set_err(err, errlen, "%s: EXR has no channels; write at least R, G, B", path);
+        status_message(err, errlen, "%s: EXR has no channels; write at least R, G, B", path);
         st = RC_ERR_PARSE;
         goto out;
     }
     for (int c = 0; c < chl->num_channels; c++) {
         const exr_attr_chlist_entry_t *e = &chl->entries[c];
         if (e->x_sampling != 1 || e->y_sampling != 1) {
-            set_err(err, errlen, "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
+            status_message(err, errlen, "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
                     "are supported", path, e->name.str, e->x_sampling, e->y_sampling);
             st = RC_ERR_PARSE;
             goto out;
         }
         if (e->name.length >= EXR_NAME_MAX) {
-            set_err(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer",
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer",
                     path, e->name.str, EXR_NAME_MAX - 1);
             st = RC_ERR_PARSE;
             goto out;
@@ -536,7 +523,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     img->data = calloc((size_t)img->n_channels, sizeof *img->data);
     if (!img->names || !img->data) {
         st = RC_ERR_NOMEM;
-        set_err(err, errlen, "%s: out of memory reading EXR", path);
+        status_message(err, errlen, "%s: out of memory reading EXR", path);
         goto out;
     }
     for (int c = 0; c < img->n_channels; c++) {
@@ -544,20 +531,20 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
         img->data[c] = calloc((size_t)img->width * (size_t)img->height, sizeof(float));
         if (!img->data[c]) {
             st = RC_ERR_NOMEM;
-            set_err(err, errlen, "%s: out of memory for a %dx%d channel", path, img->width, img->height);
+            status_message(err, errlen, "%s: out of memory for a %dx%d channel", path, img->width, img->height);
             goto out;
         }
     }
 
     st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
     if (st != RC_OK) {
-        set_err(err, errlen, "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
+        status_message(err, errlen, "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
                 "re-render it", path, stage, lib_msg(&ec, rv));
         goto out;
     }
     st = read_attrs(ctxt, part, img);
     if (st != RC_OK)
-        set_err(err, errlen, "%s: out of memory reading EXR attributes", path);
+        status_message(err, errlen, "%s: out of memory reading EXR attributes", path);
 
 out:
     exr_finish(&ctxt);

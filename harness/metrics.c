@@ -25,30 +25,21 @@
 #define ZTEST_VAR_FLOOR 1e-10
 #define ZTEST_ALPHA 0.01
 
-static void set_err(char *err, size_t errlen, const char *fmt, ...)
-{
-    if (!err || errlen == 0)
-        return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 static int check_image(const metrics_image *im, const char *what, int w, int h, char *err, size_t errlen)
 {
     if (!im) {
-        set_err(err, errlen, "metrics: %s image is NULL; pass a metrics_image", what);
+        status_message(err, errlen, "metrics: %s image is NULL; pass a metrics_image", what);
         return 0;
     }
     if (im->width <= 0 || im->height <= 0 || (w > 0 && (im->width != w || im->height != h))) {
-        set_err(err, errlen, "metrics: %s image is %dx%d but %dx%d was expected; compare images of one size",
+        status_message(err, errlen, "metrics: %s image is %dx%d but %dx%d was expected; compare images of one size",
                 what, im->width, im->height, w, h);
         return 0;
     }
     for (int c = 0; c < 3; c++)
         if (!im->c[c]) {
-            set_err(err, errlen, "metrics: %s image channel %c is NULL; fill all of R, G, B", what, "RGB"[c]);
+            status_message(err, errlen, "metrics: %s image channel %c is NULL; fill all of R, G, B", what, "RGB"[c]);
             return 0;
         }
     return 1;
@@ -94,11 +85,11 @@ rc_status metrics_ssim_map(int width, int height, const float *ref, const float 
                            double *mean, char *err, size_t errlen)
 {
     if (width <= 0 || height <= 0 || !ref || !test) {
-        set_err(err, errlen, "metrics_ssim_map: need positive size and two planes (got %dx%d)", width, height);
+        status_message(err, errlen, "metrics_ssim_map: need positive size and two planes (got %dx%d)", width, height);
         return RC_ERR_RANGE;
     }
     if (opt && opt->ssim_window != METRICS_SSIM_BOX8 && opt->ssim_window != METRICS_SSIM_GAUSS11) {
-        set_err(err, errlen, "metrics: ssim_window %d unknown; use METRICS_SSIM_GAUSS11 or METRICS_SSIM_BOX8",
+        status_message(err, errlen, "metrics: ssim_window %d unknown; use METRICS_SSIM_GAUSS11 or METRICS_SSIM_BOX8",
                 opt->ssim_window);
         return RC_ERR_RANGE;
     }
@@ -116,7 +107,7 @@ rc_status metrics_ssim_map(int width, int height, const float *ref, const float 
     enum { PW, PX, PY, PXX, PYY, PXY, NPL };
     double *buf = malloc(np * (NPL + 2) * sizeof *buf);
     if (!buf) {
-        set_err(err, errlen, "metrics_ssim_map: out of memory for a %dx%d image", width, height);
+        status_message(err, errlen, "metrics_ssim_map: out of memory for a %dx%d image", width, height);
         return RC_ERR_NOMEM;
     }
     double *in = buf + NPL * np, *tmp = in + np;
@@ -177,7 +168,7 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
                           const metrics_options *opt, metrics_result *out, char *err, size_t errlen)
 {
     if (!out) {
-        set_err(err, errlen, "metrics_compare: result pointer is NULL; pass a metrics_result");
+        status_message(err, errlen, "metrics_compare: result pointer is NULL; pass a metrics_result");
         return RC_ERR_RANGE;
     }
     memset(out, 0, sizeof *out);
@@ -188,7 +179,7 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
     double thr = opt && opt->threshold > 0 ? opt->threshold : METRICS_THRESHOLD;
     double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
     if (opt && (opt->threshold < 0 || opt->rel_eps < 0 || opt->psnr_peak < 0 || opt->ssim_range < 0)) {
-        set_err(err, errlen, "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
+        status_message(err, errlen, "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
                 "ssim_range %g); use 0 for the default", opt->threshold, opt->rel_eps, opt->psnr_peak,
                 opt->ssim_range);
         return RC_ERR_RANGE;
@@ -202,7 +193,7 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
         free(use);
         free(yr);
         free(yt);
-        set_err(err, errlen, "metrics_compare: out of memory for a %dx%d image", w, h);
+        status_message(err, errlen, "metrics_compare: out of memory for a %dx%d image", w, h);
         return RC_ERR_NOMEM;
     }
 
@@ -408,7 +399,7 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
                         metrics_ztest_result *out, char *err, size_t errlen)
 {
     if (!out) {
-        set_err(err, errlen, "metrics_ztest: result pointer is NULL; pass a metrics_ztest_result");
+        status_message(err, errlen, "metrics_ztest: result pointer is NULL; pass a metrics_ztest_result");
         return RC_ERR_RANGE;
     }
     memset(out, 0, sizeof *out);
@@ -426,7 +417,7 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
     double floor_rel = opt ? opt->rel_floor : 0.0;
     int corr = opt ? opt->correction : METRICS_BONFERRONI;
     if (alpha >= 1 || floor_rel < 0 || (corr != METRICS_BONFERRONI && corr != METRICS_HOLM && corr != METRICS_SIDAK)) {
-        set_err(err, errlen, "metrics_ztest: bad option (alpha %g must be in (0,1), rel_floor %g >= 0, "
+        status_message(err, errlen, "metrics_ztest: bad option (alpha %g must be in (0,1), rel_floor %g >= 0, "
                 "correction %d one of BONFERRONI/HOLM/SIDAK)", alpha, floor_rel, corr);
         return RC_ERR_RANGE;
     }
@@ -434,7 +425,7 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
     size_t np = (size_t)w * (size_t)h;
     unsigned char *use = malloc(np);
     if (!use) {
-        set_err(err, errlen, "metrics_ztest: out of memory");
+        status_message(err, errlen, "metrics_ztest: out of memory");
         return RC_ERR_NOMEM;
     }
     /* First pass: which pixels are testable (all three channels), and m. */
@@ -465,7 +456,7 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
         if (corr == METRICS_HOLM) {
             double *ps = malloc((size_t)m * sizeof *ps);
             if (!ps) {
-                set_err(err, errlen, "metrics_ztest: out of memory for %ld p-values", m);
+                status_message(err, errlen, "metrics_ztest: out of memory for %ld p-values", m);
                 st = RC_ERR_NOMEM;
                 goto done;
             }
@@ -519,7 +510,7 @@ rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mea
                              char *err, size_t errlen)
 {
     if (!seeds || k < 2 || !mean || !var) {
-        set_err(err, errlen, "metrics_seed_stats: need at least 2 seed images (got %d) and output planes", k);
+        status_message(err, errlen, "metrics_seed_stats: need at least 2 seed images (got %d) and output planes", k);
         return RC_ERR_RANGE;
     }
     if (!check_image(&seeds[0], "seed 0", 0, 0, err, errlen))
@@ -532,7 +523,7 @@ rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mea
     }
     for (int c = 0; c < 3; c++)
         if (!mean[c] || !var[c]) {
-            set_err(err, errlen, "metrics_seed_stats: output plane %c is NULL; pass w*h floats", "RGB"[c]);
+            status_message(err, errlen, "metrics_seed_stats: output plane %c is NULL; pass w*h floats", "RGB"[c]);
             return RC_ERR_RANGE;
         }
     size_t np = (size_t)seeds[0].width * (size_t)seeds[0].height;

@@ -25,15 +25,6 @@
 
 #define POVRAY_PI 3.14159265358979323846
 
-static void povray_err(char *err, size_t errlen, const char *fmt, ...)
-{
-    if (!err || errlen == 0)
-        return;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 /* ---- resolved options ---------------------------------------------------------------- */
 
@@ -61,7 +52,7 @@ static rc_status povray_resolve(const scene *s, const povray_options *o, povray_
     if ((r->term & ~(unsigned)POVRAY_TERM_ALL) || o->supersample < 0 || o->threads < 0 ||
         o->max_trace_level < 0 || !(o->fade_ratio >= 0.0 && o->fade_ratio < 1.0) ||
         !(o->output_scale >= 0.0 && isfinite(o->output_scale))) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: povray_options: term must be a POVRAY_TERM_* mask, supersample/threads/"
                    "max_trace_level >= 0, fade_ratio in [0, 1), output_scale finite >= 0",
                    where);
@@ -173,7 +164,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
     if (!povray_finite3(l->intensity) || !povray_finite3(l->position) ||
         !povray_finite3(l->direction) || (needs_dir && v3_len(l->direction) == 0.0f) ||
         (l->kind == LIGHT_SPOT && !(l->inner >= 0.0f && l->inner <= l->outer && (double)l->outer < POVRAY_PI))) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: lights[%d]: intensity/position/direction must be finite, a sun or spot "
                    "direction non-zero, and a spot's 0 <= inner <= outer < 180 degrees", s->path, i);
         return RC_ERR_RANGE;
@@ -186,7 +177,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
         return RC_OK;
     }
     if (l->kind == LIGHT_SPOT && l->profile != SPOT_SMOOTH) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: lights[%d]: a spot with profile d3d (power law) has no POV-Ray equivalent; "
                    "use profile smooth", s->path, i);
         return RC_ERR_RANGE;
@@ -199,7 +190,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
             return RC_OK;
         }
         if (dmax > l->range) {
-            povray_err(err, errlen,
+            status_message(err, errlen,
                        "%s: lights[%d]: range %g m cuts through the geometry (%g..%g m away) and "
                        "POV-Ray has no light range; set range to infinity or beyond %g m",
                        s->path, i, (double)l->range, dmin, dmax, dmax);
@@ -210,7 +201,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
     /* The nearest geometry sets the fade distance when a0 = 0: (D/d)^2 <= fade_ratio^2. */
     double dfade = r->fade_ratio * (dmin > 0.0 ? dmin : 1.0);
     if (a0 < 0.0 || a1 < 0.0 || a2 < 0.0 || !(a0 + a1 + a2 > 0.0)) {
-        povray_err(err, errlen, "%s: lights[%d]: attenuation a0, a1, a2 must be >= 0 and not all 0",
+        status_message(err, errlen, "%s: lights[%d]: attenuation a0, a1, a2 must be >= 0 and not all 0",
                    s->path, i);
         return RC_ERR_RANGE;
     }
@@ -229,7 +220,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
         pl->constant_atten = 1;
         pl->atten = 1.0 / a0;
     } else {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: lights[%d]: attenuation with both a1 and a2 non-zero has no POV-Ray "
                    "fade law; set a1 = 0 or a2 = 0", s->path, i);
         return RC_ERR_RANGE;
@@ -272,20 +263,20 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     const d3d_params *d = &mat->d3d;
     const char *name = mat->name[0] ? mat->name : "(unnamed)";
     if (mat->model == MODEL_COOK_TORRANCE) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: materials[%d] '%s': model cook_torrance has no POV-Ray twin (no Beckmann "
                    "lobe); compare it against cycles, or use role validate", s->path, mi, name);
         return RC_ERR_RANGE;
     }
     if (d->per_vertex || d->clamp) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: materials[%d] '%s': d3d.per_vertex and d3d.clamp have no POV-Ray twin; "
                    "set both to false for a twin comparison", s->path, mi, name);
         return RC_ERR_RANGE;
     }
     int d9 = mat->model == MODEL_D3D9CLIENT;
     if (d9 && mat->d9.sun_angle) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
                    "set it to false", s->path, mi, name);
         return RC_ERR_RANGE;
@@ -301,7 +292,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
         if (povray_is_zero(s->lights[i].ambient) || povray_is_zero(d->ambient) || lights[i].skip)
             continue;
         if (!lights[i].constant_atten) {
-            povray_err(err, errlen,
+            status_message(err, errlen,
                        "%s: materials[%d] '%s' with lights[%d]: the D3D ambient term Va*La*A(d) "
                        "varies with distance and POV-Ray cannot express it; set the light's ambient "
                        "or the material's d3d.ambient to 0", s->path, mi, name, i);
@@ -322,7 +313,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
         else if (p != 0.0)
             e[c] = k / p;
         else {
-            povray_err(err, errlen,
+            status_message(err, errlen,
                        "%s: materials[%d] '%s': emissive/ambient colour on channel %d where the "
                        "POV-Ray pigment (d3d.diffuse%s) is 0; POV-Ray multiplies emission by the "
                        "pigment, so give that channel a non-zero diffuse", s->path, mi, name, c,
@@ -336,7 +327,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     f->roughness = 1.0;
     if ((r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
         if (!(d->specular.x == d->specular.y && d->specular.y == d->specular.z)) {
-            povray_err(err, errlen,
+            status_message(err, errlen,
                        "%s: materials[%d] '%s': d3d.specular (%g, %g, %g) is not grey, and POV-Ray's "
                        "specular is a scalar times the light colour: this scene cannot be twinned; "
                        "use a grey specular", s->path, mi, name, (double)d->specular.x,
@@ -344,7 +335,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
             return RC_ERR_RANGE;
         }
         if (!d->local_viewer) {
-            povray_err(err, errlen,
+            status_message(err, errlen,
                        "%s: materials[%d] '%s': d3d.local_viewer false (infinite viewer) has no "
                        "POV-Ray twin; set it to true", s->path, mi, name);
             return RC_ERR_RANGE;
@@ -373,7 +364,7 @@ static rc_status povray_material_physical(const scene *s, int mi, const povray_r
 {
     const material *mat = &s->materials[mi];
     if (mat->conductor) {
-        povray_err(err, errlen,
+        status_message(err, errlen,
                    "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
                    "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
                    "against cycles or the exact reference instead",
@@ -393,7 +384,7 @@ static rc_status povray_material_physical(const scene *s, int mi, const povray_r
     f->falloff = 1.0;
     f->ior = mat->ior;
     if (f->reflection && !(mat->ior >= 1.0f && isfinite(mat->ior))) {
-        povray_err(err, errlen, "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
+        status_message(err, errlen, "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
                    "fresnel reflection", s->path, mi, (double)mat->ior);
         return RC_ERR_RANGE;
     }
@@ -412,7 +403,7 @@ static void povray_put_fvec(FILE *fp, vec3 v)
 static rc_status povray_check_path(const char *p, const char *what, char *err, size_t errlen)
 {
     if (strchr(p, '"') || strchr(p, '\\')) {
-        povray_err(err, errlen, "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
+        status_message(err, errlen, "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
                    "hold unescaped; rename the file", what, p);
         return RC_ERR_RANGE;
     }
@@ -456,20 +447,20 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < POVRAY_PI) ||
         !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) ||
         !povray_finite3(s->camera.up)) {
-        povray_err(err, errlen, "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
+        status_message(err, errlen, "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
                    "eye/target/up finite", s->path);
         return RC_ERR_RANGE;
     }
     if (s->n_lights < 0 || s->n_lights > SCENE_MAX_LIGHTS || s->n_materials < 0 ||
         s->n_materials > SCENE_MAX_MATERIALS || s->n_objects < 0 || s->n_objects > SCENE_MAX_OBJECTS) {
-        povray_err(err, errlen, "%s: scene counts out of range", s->path);
+        status_message(err, errlen, "%s: scene counts out of range", s->path);
         return RC_ERR_RANGE;
     }
     for (int t = 0; t < m->n_tris; t++) {
         int ob = m->tri_object[t];
         if (ob < 0 || ob >= s->n_objects || s->objects[ob].material < 0 ||
             s->objects[ob].material >= s->n_materials) {
-            povray_err(err, errlen, "%s: mesh triangle %d: object %d or its material is out of range; "
+            status_message(err, errlen, "%s: mesh triangle %d: object %d or its material is out of range; "
                        "build the mesh from this scene", s->path, t, ob);
             return RC_ERR_RANGE;
         }
@@ -504,14 +495,14 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     if (!remap || !local) {
         free(remap);
         free(local);
-        povray_err(err, errlen, "%s: out of memory for the vertex map", sdl_path);
+        status_message(err, errlen, "%s: out of memory for the vertex map", sdl_path);
         return RC_ERR_NOMEM;
     }
     FILE *fp = fopen(sdl_path, "w");
     if (!fp) {
         free(remap);
         free(local);
-        povray_err(err, errlen, "%s: cannot write: %s; check the output directory", sdl_path,
+        status_message(err, errlen, "%s: cannot write: %s; check the output directory", sdl_path,
                    strerror(errno));
         return RC_ERR_IO;
     }
@@ -633,7 +624,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     free(local);
     int bad = ferror(fp);
     if (fclose(fp) != 0 || bad) {
-        povray_err(err, errlen, "%s: write failed (disk full?)", sdl_path);
+        status_message(err, errlen, "%s: write failed (disk full?)", sdl_path);
         return RC_ERR_IO;
     }
     return RC_OK;
@@ -651,13 +642,13 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
     int k = supersample > 0 ? supersample : 1;
     if (width_px <= 0 || height_px <= 0 || supersample < 0 || o->threads < 0 ||
         width_px > 65536 / k || height_px > 65536 / k) {
-        povray_err(err, errlen, "povray_command: size %dx%d with supersample %d is out of range "
+        status_message(err, errlen, "povray_command: size %dx%d with supersample %d is out of range "
                    "(positive, k*size <= 65536)", width_px, height_px, supersample);
         return RC_ERR_RANGE;
     }
     size_t n = strlen(exr_out);
     if (n < 4 || strcmp(exr_out + n - 4, ".exr") != 0) {
-        povray_err(err, errlen, "povray_command: output '%s' must end in .exr (POV-Ray would "
+        status_message(err, errlen, "povray_command: output '%s' must end in .exr (POV-Ray would "
                    "append its own extension)", exr_out);
         return RC_ERR_RANGE;
     }
@@ -689,7 +680,7 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
         const char *tail = i == 1 ? sdl_path : (i == 2 ? exr_out : "");
         size_t len = strlen(args[i]) + strlen(tail) + 1;
         if (used + len > sizeof cmd->buf) {
-            povray_err(err, errlen, "povray_command: paths too long (over %d bytes in all)",
+            status_message(err, errlen, "povray_command: paths too long (over %d bytes in all)",
                        POVRAY_ARGV_BUF);
             return RC_ERR_NOMEM;
         }
@@ -764,7 +755,7 @@ rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *second
     snprintf(log, sizeof log, "%s.log", exr_out);
     /* A stale image from an earlier run must not pass for this one. */
     if (unlink(exr_out) != 0 && errno != ENOENT) {
-        povray_err(err, errlen, "%s: cannot remove the old image: %s", exr_out, strerror(errno));
+        status_message(err, errlen, "%s: cannot remove the old image: %s", exr_out, strerror(errno));
         return RC_ERR_IO;
     }
     runner_result rr;
@@ -776,7 +767,7 @@ rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *second
     if (!ok) {
         char line[300];
         povray_log_error(log, line, sizeof line);
-        povray_err(err, errlen, "%s: POV-Ray failed (%s, exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
+        status_message(err, errlen, "%s: POV-Ray failed (%s, exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
                    runner_status_name(rr.status), rr.exit_code, rr.signal, line[0] ? ": " : "", line, log);
         return RC_ERR_RENDERER;
     }
@@ -838,7 +829,7 @@ rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
         return st;
     int kw = s->width * r.k, kh = s->height * r.k;
     if (img.width != kw || img.height != kh) {
-        povray_err(err, errlen, "%s: POV-Ray wrote %dx%d, expected %dx%d", exr_out, img.width,
+        status_message(err, errlen, "%s: POV-Ray wrote %dx%d, expected %dx%d", exr_out, img.width,
                    img.height, kw, kh);
         exr_image_free(&img);
         return RC_ERR_RENDERER;
@@ -848,13 +839,13 @@ rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
     for (int c = 0; c < 3 && st == RC_OK; c++) {
         const float *src = exr_image_channel(&img, names[c]);
         if (!src) {
-            povray_err(err, errlen, "%s: no channel %s in POV-Ray's output", exr_out, names[c]);
+            status_message(err, errlen, "%s: no channel %s in POV-Ray's output", exr_out, names[c]);
             st = RC_ERR_RENDERER;
             break;
         }
         out->rgb[c] = malloc(n * sizeof(float));
         if (!out->rgb[c]) {
-            povray_err(err, errlen, "%s: out of memory", exr_out);
+            status_message(err, errlen, "%s: out of memory", exr_out);
             st = RC_ERR_NOMEM;
             break;
         }

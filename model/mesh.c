@@ -52,18 +52,6 @@ static dvec3 mesh_rotate(const mesh_xform *x, dvec3 v)
                x->r[2][0] * v.x + x->r[2][1] * v.y + x->r[2][2] * v.z);
 }
 
-#if defined(__GNUC__)
-__attribute__((format(printf, 3, 4)))
-#endif
-static void mesh_msg(char *err, size_t errlen, const char *fmt, ...)
-{
-    va_list ap;
-    if (!err || !errlen)
-        return;
-    va_start(ap, fmt);
-    vsnprintf(err, errlen, fmt, ap);
-    va_end(ap);
-}
 
 static rc_status mesh_reserve(mesh *m, size_t add_verts, size_t add_tris)
 {
@@ -474,7 +462,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         char *le = nl ? nl : endbuf;
         line++;
         if (memchr(p, '\0', (size_t)(le - p))) {
-            mesh_msg(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ",
+            status_message(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ",
                      label, line);
             return RC_ERR_PARSE;
         }
@@ -496,13 +484,13 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         if (kwlen == 1 && kw[0] == 'v') {
             int n = mesh_parse_doubles(&cur, v, 7);
             if (n < 3) {
-                mesh_msg(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label,
+                status_message(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label,
                          line);
                 return RC_ERR_PARSE;
             }
             if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 ||
                 fabs(v[1]) > 1e30 || fabs(v[2]) > 1e30) {
-                mesh_msg(err, errlen, "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
+                status_message(err, errlen, "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
                          "finite coordinates", label, line);
                 return RC_ERR_RANGE;
             }
@@ -511,13 +499,13 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
             int n = mesh_parse_doubles(&cur, v, 3);
             if (n != 3) {
-                mesh_msg(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label,
+                status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label,
                          line);
                 return RC_ERR_PARSE;
             }
             double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             if (!isfinite(l) || l == 0.0) {
-                mesh_msg(err, errlen, "%s:%d: normal is zero or not finite; fix: a nonzero finite "
+                status_message(err, errlen, "%s:%d: normal is zero or not finite; fix: a nonzero finite "
                          "'vn', or drop normals to have them computed", label, line);
                 return RC_ERR_RANGE;
             }
@@ -548,19 +536,19 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                     }
                 }
                 if (!ok || (*e && *e != ' ' && *e != '\t')) {
-                    mesh_msg(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn",
+                    status_message(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn",
                              label, line);
                     return RC_ERR_PARSE;
                 }
                 cur = e;
                 int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
                 if (pv < 0) {
-                    mesh_msg(err, errlen, "%s:%d: vertex index %ld out of range (%d vertices so far); "
+                    status_message(err, errlen, "%s:%d: vertex index %ld out of range (%d vertices so far); "
                              "fix: indices 1..%d or negative", label, line, vi, s->n_pos, s->n_pos);
                     return RC_ERR_RANGE;
                 }
                 if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
-                    mesh_msg(err, errlen, "%s:%d: normal index %ld out of range (%d normals so far); "
+                    status_message(err, errlen, "%s:%d: normal index %ld out of range (%d normals so far); "
                              "fix: indices 1..%d or negative", label, line, ni, s->n_nrm, s->n_nrm);
                     return RC_ERR_RANGE;
                 }
@@ -569,7 +557,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                 corners++;
             }
             if (corners < 3) {
-                mesh_msg(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line,
+                status_message(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line,
                          corners);
                 return RC_ERR_PARSE;
             }
@@ -688,13 +676,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         const char *nl = memchr(p, '\n', (size_t)(end - p));
         line++;
         if (!nl) {
-            mesh_msg(err, errlen, "%s:%d: PLY header has no end_header line; fix: a complete PLY "
+            status_message(err, errlen, "%s:%d: PLY header has no end_header line; fix: a complete PLY "
                      "file", label, line);
             return RC_ERR_PARSE;
         }
         size_t n = (size_t)(nl - p);
         if (n >= sizeof text || memchr(p, '\0', n)) {
-            mesh_msg(err, errlen, "%s:%d: PLY header line too long or holding a NUL byte; fix: a "
+            status_message(err, errlen, "%s:%d: PLY header line too long or holding a NUL byte; fix: a "
                      "valid PLY header", label, line);
             return RC_ERR_PARSE;
         }
@@ -713,13 +701,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             strcpy(w[nw++], tk);
         }
         if (long_word && !(nw > 0 && (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0))) {
-            mesh_msg(err, errlen, "%s:%d: PLY header line has too many or too long words; fix: a "
+            status_message(err, errlen, "%s:%d: PLY header line has too many or too long words; fix: a "
                      "valid PLY header", label, line);
             return RC_ERR_PARSE;
         }
         if (line == 1) {
             if (nw != 1 || strcmp(w[0], "ply") != 0) {
-                mesh_msg(err, errlen, "%s:1: not a PLY file (first line must be 'ply'); fix: export "
+                status_message(err, errlen, "%s:1: not a PLY file (first line must be 'ply'); fix: export "
                          "as PLY", label);
                 return RC_ERR_PARSE;
             }
@@ -735,7 +723,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             else if (strcmp(w[1], "binary_little_endian") == 0)
                 binary = 1;
             else {
-                mesh_msg(err, errlen, "%s:%d: PLY format '%s' not supported; fix: ascii or "
+                status_message(err, errlen, "%s:%d: PLY format '%s' not supported; fix: ascii or "
                          "binary_little_endian", label, line, w[1]);
                 return RC_ERR_PARSE;
             }
@@ -743,7 +731,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             char *e;
             long count = strtol(w[2], &e, 10);
             if (*e || count < 0 || (size_t)count > len || n_el == PLY_MAX_ELEMENTS) {
-                mesh_msg(err, errlen, "%s:%d: bad element line (count %s, %d elements so far); fix: "
+                status_message(err, errlen, "%s:%d: bad element line (count %s, %d elements so far); fix: "
                          "'element name count' with a count the file can hold, at most %d elements",
                          label, line, w[2], n_el, PLY_MAX_ELEMENTS);
                 return RC_ERR_PARSE;
@@ -764,19 +752,19 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             snprintf(pr->name, sizeof pr->name, "%s", w[nw - 1]);
             if (pr->type == PLY_BAD || pr->count_type == PLY_BAD ||
                 (pr->is_list && (pr->count_type == PLY_F32 || pr->count_type == PLY_F64))) {
-                mesh_msg(err, errlen, "%s:%d: unknown PLY property type; fix: char uchar short ushort "
+                status_message(err, errlen, "%s:%d: unknown PLY property type; fix: char uchar short ushort "
                          "int uint float double (or int8 ... float64), integer list counts", label,
                          line);
                 return RC_ERR_PARSE;
             }
         } else {
-            mesh_msg(err, errlen, "%s:%d: unexpected PLY header line '%s'; fix: format, element, "
+            status_message(err, errlen, "%s:%d: unexpected PLY header line '%s'; fix: format, element, "
                      "property, comment, end_header", label, line, w[0]);
             return RC_ERR_PARSE;
         }
     }
     if (binary < 0) {
-        mesh_msg(err, errlen, "%s: PLY header has no format line; fix: 'format ascii 1.0'", label);
+        status_message(err, errlen, "%s: PLY header has no format line; fix: 'format ascii 1.0'", label);
         return RC_ERR_PARSE;
     }
 
@@ -788,7 +776,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         int ix[6] = {-1, -1, -1, -1, -1, -1}, iface = -1;
         static const char *const vn[6] = {"x", "y", "z", "nx", "ny", "nz"};
         if (x->n_props == 0 && x->count > 0) {
-            mesh_msg(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header",
+            status_message(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header",
                      label, x->name);
             return RC_ERR_PARSE;
         }
@@ -803,13 +791,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         }
         if (is_vertex) {
             if (have_vertex || ix[0] < 0 || ix[1] < 0 || ix[2] < 0) {
-                mesh_msg(err, errlen, "%s: vertex element %s; fix: one vertex element with x, y, z",
+                status_message(err, errlen, "%s: vertex element %s; fix: one vertex element with x, y, z",
                          label, have_vertex ? "given twice" : "lacks x, y or z");
                 return RC_ERR_PARSE;
             }
             int nn = (ix[3] >= 0) + (ix[4] >= 0) + (ix[5] >= 0);
             if (nn != 0 && nn != 3) {
-                mesh_msg(err, errlen, "%s: vertex has only some of nx, ny, nz; fix: all three or none",
+                status_message(err, errlen, "%s: vertex has only some of nx, ny, nz; fix: all three or none",
                          label);
                 return RC_ERR_PARSE;
             }
@@ -817,7 +805,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         }
         if (is_face) {
             if (!have_vertex || have_face || iface < 0) {
-                mesh_msg(err, errlen, "%s: face element %s; fix: vertex element first, then one "
+                status_message(err, errlen, "%s: face element %s; fix: vertex element first, then one "
                          "face element with a vertex_indices list", label,
                          !have_vertex ? "before the vertex element" : have_face ? "given twice"
                                                                                 : "lacks vertex_indices");
@@ -842,12 +830,12 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 if (!ply_read(&r, pr->count_type, &cnt))
                     goto truncated;
                 if (!(cnt >= 0 && cnt <= 65535 && cnt == floor(cnt))) {
-                    mesh_msg(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name,
+                    status_message(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name,
                              i, cnt);
                     return RC_ERR_PARSE;
                 }
                 if (is_face && k == iface && cnt < 3) {
-                    mesh_msg(err, errlen, "%s: face %ld has %g corners; fix: at least 3", label, i, cnt);
+                    status_message(err, errlen, "%s: face %ld has %g corners; fix: at least 3", label, i, cnt);
                     return RC_ERR_PARSE;
                 }
                 for (int j = 0; j < (int)cnt; j++) {
@@ -855,7 +843,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                         goto truncated;
                     if (is_face && k == iface) {
                         if (!(d >= 0 && d < s->n_pos && d == floor(d))) {
-                            mesh_msg(err, errlen, "%s: face %ld: vertex index %g out of range; fix: "
+                            status_message(err, errlen, "%s: face %ld: vertex index %g out of range; fix: "
                                      "0..%d", label, i, d, s->n_pos - 1);
                             return RC_ERR_RANGE;
                         }
@@ -868,7 +856,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             if (is_vertex) {
                 for (int c = 0; c < 6; c++)
                     if ((c < 3 || have_vertex == 2) && (!isfinite(vals[c]) || fabs(vals[c]) > 1e30)) {
-                        mesh_msg(err, errlen, "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
+                        status_message(err, errlen, "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
                                  "finite values", label, i, vn[c]);
                         return RC_ERR_RANGE;
                     }
@@ -876,7 +864,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                     return RC_ERR_NOMEM;
                 if (have_vertex == 2) {
                     if (vals[3] == 0.0 && vals[4] == 0.0 && vals[5] == 0.0) {
-                        mesh_msg(err, errlen, "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
+                        status_message(err, errlen, "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
                                  "drop them to have normals computed", label, i);
                         return RC_ERR_RANGE;
                     }
@@ -889,13 +877,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         }
     }
     if (!have_vertex || !have_face) {
-        mesh_msg(err, errlen, "%s: PLY has no %s element; fix: vertex and face elements", label,
+        status_message(err, errlen, "%s: PLY has no %s element; fix: vertex and face elements", label,
                  have_vertex ? "face" : "vertex");
         return RC_ERR_PARSE;
     }
     return RC_OK;
 truncated:
-    mesh_msg(err, errlen, "%s: PLY data ends early or holds a malformed number; fix: a complete "
+    status_message(err, errlen, "%s: PLY data ends early or holds a malformed number; fix: a complete "
              "file matching its header", label);
     return RC_ERR_PARSE;
 }
@@ -910,7 +898,7 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
     for (int f = 0; f < s->n_face; f++)
         ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
     if (ntri == 0) {
-        mesh_msg(err, errlen, "%s: no triangles; fix: a mesh with at least one face", label);
+        status_message(err, errlen, "%s: no triangles; fix: a mesh with at least one face", label);
         return RC_ERR_RANGE;
     }
     dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
@@ -940,11 +928,11 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             dvec3 cr = dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
             if (dv3_len(cr) == 0.0) {
                 if (is_obj)
-                    mesh_msg(err, errlen, "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
+                    status_message(err, errlen, "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
                              "coincide or are collinear); fix: remove the degenerate face", label,
                              s->face_line[f], s->cv[c[0]] + 1, s->cv[c[1]] + 1, s->cv[c[2]] + 1);
                 else
-                    mesh_msg(err, errlen, "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
+                    status_message(err, errlen, "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
                              "coincide or are collinear); fix: remove the degenerate face", label,
                              s->face_line[f], s->cv[c[0]], s->cv[c[1]], s->cv[c[2]]);
                 rc = RC_ERR_RANGE;
@@ -977,7 +965,7 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             } else {
                 n = acc[vi];
                 if (dv3_len(n) == 0.0) {
-                    mesh_msg(err, errlen, "%s: vertex %d: its triangles' normals cancel, so no "
+                    status_message(err, errlen, "%s: vertex %d: its triangles' normals cancel, so no "
                              "normal can be computed; fix: give normals or remove back-to-back "
                              "faces", label, vi + is_obj);
                     free(corner_vert);
@@ -997,7 +985,7 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             dvec3 cr;
             /* Nonzero in the file's precision can still collapse once stored as float. */
             if (mesh_tri_area2(m, a, bb, c, &cr) == 0.0) {
-                mesh_msg(err, errlen, "%s%s%d: face has a zero-area triangle in single precision "
+                status_message(err, errlen, "%s%s%d: face has a zero-area triangle in single precision "
                          "(tiny or huge coordinates); fix: rescale the mesh or remove the face",
                          label, is_obj ? ":" : ": face ", s->face_line[f]);
                 rc = RC_ERR_RANGE;
@@ -1025,13 +1013,13 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
     int is_obj = pl >= 4 && (strcmp(o->path + pl - 4, ".obj") == 0 || strcmp(o->path + pl - 4, ".OBJ") == 0);
     int is_ply = pl >= 4 && (strcmp(o->path + pl - 4, ".ply") == 0 || strcmp(o->path + pl - 4, ".PLY") == 0);
     if (!is_obj && !is_ply) {
-        mesh_msg(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file",
+        status_message(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file",
                  o->path, index);
         return RC_ERR_PARSE;
     }
     rc_status rc = mesh_read_file(o->path, &buf, &len);
     if (rc != RC_OK) {
-        mesh_msg(err, errlen, "%s: objects[%d]: cannot read mesh (%s); fix: check the path", o->path,
+        status_message(err, errlen, "%s: objects[%d]: cannot read mesh (%s); fix: check the path", o->path,
                  index, rc == RC_ERR_NOMEM ? "out of memory" : strerror(errno));
         return rc;
     }
@@ -1040,7 +1028,7 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
     if (rc == RC_OK)
         rc = mesh_soup_emit(&s, b, label, is_obj, err, errlen);
     if (rc == RC_ERR_NOMEM)
-        mesh_msg(err, errlen, "%s: objects[%d]: out of memory reading the mesh; fix: a smaller mesh",
+        status_message(err, errlen, "%s: objects[%d]: out of memory reading the mesh; fix: a smaller mesh",
                  o->path, index);
     mesh_soup_free(&s);
     free(buf);
@@ -1108,14 +1096,14 @@ static int mesh_valid(const object *o, char *why, size_t whylen)
 rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err, size_t errlen)
 {
     if (!s || !out || object_index < 0 || object_index >= s->n_objects) {
-        mesh_msg(err, errlen, "%s: objects[%d]: no such object; fix: an index below %d",
+        status_message(err, errlen, "%s: objects[%d]: no such object; fix: an index below %d",
                  s ? s->path : "(scene)", object_index, s ? s->n_objects : 0);
         return RC_ERR_RANGE;
     }
     const object *o = &s->objects[object_index];
     char why[128];
     if (!mesh_valid(o, why, sizeof why)) {
-        mesh_msg(err, errlen, "%s: objects[%d] (%s): %s", s->path, object_index,
+        status_message(err, errlen, "%s: objects[%d] (%s): %s", s->path, object_index,
                  mesh_shape_name(o->shape), why);
         return RC_ERR_RANGE;
     }
@@ -1129,7 +1117,7 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
         mesh_counts(o, &nv, &nt);
         rc = mesh_reserve(out, nv, nt);
         if (rc != RC_OK) {
-            mesh_msg(err, errlen, "%s: objects[%d] (%s): out of memory; fix: lower tessellation",
+            status_message(err, errlen, "%s: objects[%d] (%s): out of memory; fix: lower tessellation",
                      s->path, object_index, mesh_shape_name(o->shape));
         } else {
             int ok = 0;
@@ -1140,7 +1128,7 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
             default: ok = mesh_torus(&b, o); break;
             }
             if (!ok) {
-                mesh_msg(err, errlen, "%s: objects[%d] (%s): a triangle has zero area in float "
+                status_message(err, errlen, "%s: objects[%d] (%s): a triangle has zero area in float "
                          "precision; fix: a larger size or lower tessellation", s->path,
                          object_index, mesh_shape_name(o->shape));
                 rc = RC_ERR_RANGE;
