@@ -38,6 +38,20 @@ static void jw_num(jw *w, const char *key, double x)
     fprintf(w->fp, "%.9g", x);
 }
 
+/* The vectors v[order[0..n-1]] as one flat list x, y, z, x, y, z, ... (no brackets). */
+static void jw_flat(jw *w, const char *key, const vec3 *v, const int *order, int n)
+{
+    for (int i = 0; i < n; i++) {
+        vec3 p = v[order[i]];
+        fputs(i ? ", " : "", w->fp);
+        jw_num(w, key, p.x);
+        fputs(", ", w->fp);
+        jw_num(w, key, p.y);
+        fputs(", ", w->fp);
+        jw_num(w, key, p.z);
+    }
+}
+
 static void jw_vec(jw *w, const char *key, vec3 v)
 {
     fputc('[', w->fp);
@@ -432,25 +446,9 @@ static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *rema
         snprintf(name, sizeof name, "object_%d", oi);
         jw_str(w, name);
         fprintf(fp, ", \"material\": %d, \"pass_index\": %d,\n     \"verts\": [", s->objects[oi].material, oi + 1);
-        for (int i = 0; i < n_verts; i++) {
-            vec3 p = m->pos[order[i]];
-            fputs(i ? ", " : "", fp);
-            jw_num(w, "mesh.pos", p.x);
-            fputs(", ", fp);
-            jw_num(w, "mesh.pos", p.y);
-            fputs(", ", fp);
-            jw_num(w, "mesh.pos", p.z);
-        }
+        jw_flat(w, "mesh.pos", m->pos, order, n_verts);
         fputs("],\n     \"normals\": [", fp);
-        for (int i = 0; i < n_verts; i++) {
-            vec3 n = m->nrm[order[i]];
-            fputs(i ? ", " : "", fp);
-            jw_num(w, "mesh.nrm", n.x);
-            fputs(", ", fp);
-            jw_num(w, "mesh.nrm", n.y);
-            fputs(", ", fp);
-            jw_num(w, "mesh.nrm", n.z);
-        }
+        jw_flat(w, "mesh.nrm", m->nrm, order, n_verts);
         fputs("],\n     \"tris\": [", fp);
         int first = 1;
         for (int t = 0; t < m->n_tris; t++) {
