@@ -115,6 +115,32 @@ static void job_twin_switches(scene *s)
     }
 }
 
+/* The code a render depends on. A reference render depends on the scene pipeline and its
+ * translator only, so a change to our shading does not re-render POV-Ray or Cycles; those
+ * sources are hashed when the run starts in the source tree. Elsewhere (or for our own
+ * rasterizer) the whole reflcheck binary stands in for them. */
+static uint64_t job_key_code(renderer_id r, uint64_t key)
+{
+    static const char *const common[] = {"harness/jobs.c", "harness/scene_file.c", "model/scene.c", "model/mesh.c",
+                                         "harness/exr.c"};
+    static const char *const povray[] = {"harness/povray.c"};
+    static const char *const cycles[] = {"harness/cycles.c", "harness/cycles_render.py"};
+    const char *const *own = r == RENDERER_POVRAY ? povray : cycles;
+    size_t n_own = r == RENDERER_POVRAY ? 1 : 2;
+    int have = r != RENDERER_RASTER;
+    for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
+        have = access(common[i], R_OK) == 0;
+    for (size_t i = 0; have && i < n_own; i++)
+        have = access(own[i], R_OK) == 0;
+    if (!have)
+        return job_hash_file("/proc/self/exe", key);
+    for (size_t i = 0; i < sizeof common / sizeof common[0]; i++)
+        key = job_hash_file(common[i], key);
+    for (size_t i = 0; i < n_own; i++)
+        key = job_hash_file(own[i], key);
+    return key;
+}
+
 typedef struct {
     const job_spec *j;
     scene *s;
@@ -400,9 +426,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
              job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
              s->width, s->height, s->supersample, s->samples, j->seeds, j->seed, j->tessellation, j->per_vertex, c.version);
     key ^= scene_file_hash(settings, strlen(settings)) * 31u;
-    key = job_hash_file("/proc/self/exe", key);
-    if (j->renderer == RENDERER_CYCLES)
-        key = job_hash_file("harness/cycles_render.py", key);
+    key = job_key_code(j->renderer, key);
     if (s->env.kind == ENV_IMAGE)
         key = job_hash_file(s->env.path, key);
 

@@ -7,8 +7,9 @@
  *   job_run(&j, &r, err, sizeof err);
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
  * time, renderer version, command, cache key) and the renderer's .log. The work is keyed by a
- * hash of (scene bytes, renderer, version, role, size, samples, reflcheck's own binary and
- * scripts), so an unchanged job is copied from the cache instead of rendered again.
+ * hash of (scene bytes, environment image, renderer, version, role, size, samples, and the code
+ * the render depends on: translator and scene-pipeline sources for POV-Ray and Cycles, the
+ * reflcheck binary for our rasterizer), so an unchanged job is copied from the cache.
  * A renderer that is missing, fails, crashes, times out or writes an unreadable image is a
  * record with that status, not an error: job_run returns RC_OK after writing the record.
  * Only bad input (scene file, options) and I/O on our own files return an error.
