@@ -41,4 +41,6 @@ if [ -f harness/plots/figure1.gp ]; then
 fi
 /usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" \
     --latest "$latest" ${NO_SCREENSHOT:---screenshot}
+rc=$?
 echo "reflcheck nightly: report at $run/index.html ($latest/index.html)"
+exit $rc

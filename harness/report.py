@@ -1292,6 +1292,12 @@ def comparison_block(s, c):
     if z:
         extra.append('z-test ' + ' · '.join(f'{esc(k)} <span class="mono">{fmt_metric(k, v)}</span>'
                                             for k, v in z.items()))
+    if finite(c.get('test_max')) and finite(c.get('ref_max')):
+        # How each side copes with extremes: a half-float EXR (POV-Ray) turns values above
+        # 65504 into Inf; Cycles' fireflies show as a reference maximum far above ours.
+        extra.append(f'extremes: test max <span class="mono">{fexp(c["test_max"])}</span> '
+                     f'({int(c.get("test_nonfinite") or 0)} NaN/Inf) · reference max '
+                     f'<span class="mono">{fexp(c["ref_max"])}</span> ({int(c.get("ref_nonfinite") or 0)} NaN/Inf)')
     t = c.get('times') or {}
     if t:
         extra.append('times ' + ' · '.join(f'{esc(k)} <span class="mono">{v:.2f}</span>' for k, v in t.items()
@@ -1561,6 +1567,22 @@ def dump_dom(page_path):
     return chromium(['--dump-dom'], page_path).stdout
 
 
+def check_pages(run, pages):
+    """[(page, why)] for every page whose DOM in headless Chromium does not show all of its
+    images loaded (data-loaded="n/n", data-failed="0") or, for the index, no table rows."""
+    bad = []
+    for name in pages:
+        dom = dump_dom(os.path.join(run, name))
+        m = re.search(r'data-loaded="(\d+)/(\d+)"', dom)
+        failed = re.search(r'data-failed="(\d+)"', dom)
+        if not m or m.group(1) != m.group(2) or (failed and failed.group(1) != '0'):
+            bad.append((name, f'images loaded {m.group(0) if m else "marker missing"}, '
+                              f'failed {failed.group(1) if failed else "?"}'))
+        elif name == 'index.html' and '<tr' not in dom:
+            bad.append((name, 'the comparisons table has no rows'))
+    return bad
+
+
 # ---------------------------------------------------------------------------------------------
 
 def copy_assets(run):
@@ -1606,6 +1628,15 @@ def make_report(args):
             if R['scenes']:
                 screenshot(os.path.join(args.run, R['scenes'][0]['page']),
                            os.path.join(args.run, 'screenshot-scene.png'), '1400,1400')
+            # The report as a person opens it: every page in headless Chromium, every table row
+            # and image loaded (report.js's markers); a page that fails is named, not ignored.
+            bad = check_pages(args.run, ['index.html'] + [sc['page'] for sc in R['scenes']])
+            for page_name, why in bad:
+                print(f'report: {page_name}: {why}', file=sys.stderr)
+            print(f'report: opened {1 + len(R["scenes"]) - len(bad)} of {1 + len(R["scenes"])} pages in '
+                  f'headless Chromium with every image loaded')
+            if bad:
+                return 1
         except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
             print(f'report: screenshot failed: {e}', file=sys.stderr)
     n = verdict_counts(R)
