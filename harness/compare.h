@@ -3,7 +3,7 @@
  * Usage:
  *   compare_scene("scenes/x.yaml", "reports/runs/r1", &summary, err, sizeof err);
  * Reads RUN/<scene>/<renderer>-<role>.exr and .json (harness/jobs.h), writes
- * RUN/<scene>/compare.json (format: .notes/REPORT_DATA.md) and RUN/<scene>/view.js (the
+ * RUN/<scene>/compare.json (format: reports/FORMAT.md) and RUN/<scene>/view.js (the
  * linear images for the report's viewer). A comparison whose render is missing or failed is
  * recorded as skipped with the renderer's message; it is not an error.
  * Regions are kept apart: surface (interior pixels), edges (silhouettes: partial coverage or

@@ -294,7 +294,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
         return RC_OK;
     }
 
-    /* Twin: the rasterizer's own terms (CONTRACT.md). */
+    /* Twin: the rasterizer's own terms (harness/CONTRACT.md). */
     const d3d_params *d = &mat->d3d;
     if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT)) {
         int amb_light = 0;

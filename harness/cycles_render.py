@@ -482,7 +482,7 @@ def setup_objects(job, materials):
         me.materials.append(materials[mi])
         ob = bpy.data.objects.new(o.get("name", "reflcheck_object_%d" % i), me)
         ob.pass_index = int(need(o, "pass_index", where))
-        # The real-time models have no shadows and no inter-reflection (CONTRACT.md).
+        # The real-time models have no shadows and no inter-reflection (harness/CONTRACT.md).
         ob.visible_camera = True
         ob.visible_shadow = False
         ob.visible_glossy = False

@@ -9,7 +9,7 @@
  * or by hand: povray_command(&o, sdl, exr, W, H, &cmd, ...) gives argv for execvp (the image is
  * rendered at k*W x k*H with antialiasing off), then povray_box_downsample per channel.
  *
- * What the SDL reproduces (see .notes/CONTRACT.md):
+ * What the SDL reproduces (see harness/CONTRACT.md):
  * - role ROLE_TWIN: the rasterizer's model per material (d3d, d3d9client); cook_torrance and
  *   anything POV-Ray cannot express (coloured Vs, infinite viewer, Gouraud, clamping, eq. 8,
  *   D3D spot profile, D3D ambient La on a distance-attenuated light, a range that cuts through

@@ -6,7 +6,7 @@ Usage (Python 3 standard library only; plots need the `gnuplot` program, screens
                             [--commit SHA] [--latest reports/latest] [--screenshot]
   python3 harness/report.py --propose-thresholds --run reports/runs/<id>
 
-Reads what the C harness wrote into the run folder (format: .notes/REPORT_DATA.md):
+Reads what the C harness wrote into the run folder (format: reports/FORMAT.md):
 <scene>/compare.json, <scene>/<renderer>-<role>.json job records, <scene>/view.js, and the
 optional stability.json, timing/*.json and figure1.svg. It never renders or measures.
 Writes into the run folder (each file through a temporary name, then rename): index.html,

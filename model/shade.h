@@ -7,7 +7,7 @@
  * x is the world point, n the unit shading normal (already facing the viewer), v the unit
  * direction to the viewer; all directions point away from the surface. Terms are outgoing
  * radiance (they include every cosine), linear RGB, in the scene's radiometric units, exactly
- * as .notes/CONTRACT.md and the README state. The plan picks, once, a specialised function for
+ * as harness/CONTRACT.md and the README state. The plan picks, once, a specialised function for
  * the terms the material can produce in this scene (no specular, no environment, ... are not
  * computed at all), so the per-sample path has no branches on unused features.
  * Finite input never yields NaN or Inf.
