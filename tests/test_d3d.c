@@ -7,21 +7,15 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "check.h"
+
 #include <float.h>
 #include <math.h>
 
 #include "d3d.h"
 
-#define TEST_PI 3.14159265358979323846
 
-static double deg(double d) { return d * TEST_PI / 180.0; }
 
-static void close_rel(double got, double want, double rel)
-{
-    double tol = rel * fmax(fabs(want), 1e-300);
-    if (!(fabs(got - want) <= tol))
-        fail_msg("got %.17g, want %.17g (relative tolerance %g)", got, want, rel);
-}
 
 /* Written out here rather than through scene.c, so the test depends on d3d.c alone. */
 static light point_light(float a0, float a1, float a2, float range)

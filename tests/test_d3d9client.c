@@ -7,17 +7,13 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "check.h"
+
 #include <float.h>
 #include <math.h>
 
 #include "d3d9client.h"
 
-static void close_rel(double got, double want, double rel)
-{
-    double tol = rel * fmax(fabs(want), 1e-300);
-    if (!(fabs(got - want) <= tol))
-        fail_msg("got %.17g, want %.17g (relative tolerance %g)", got, want, rel);
-}
 
 static void close_v3(vec3 got, double x, double y, double z, double rel)
 {

@@ -7,22 +7,16 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "check.h"
+
 #include <complex.h>
 #include <float.h>
 #include <math.h>
 
 #include "fresnel.h"
 
-#define TEST_PI 3.14159265358979323846
 
-static double deg(double d) { return d * TEST_PI / 180.0; }
 
-static void close_rel(double got, double want, double rel)
-{
-    double tol = rel * fmax(fabs(want), 1e-300);
-    if (!(fabs(got - want) <= tol))
-        fail_msg("got %.17g, want %.17g (relative tolerance %g)", got, want, rel);
-}
 
 /* (2): R0 = ((1 - n)/(1 + n))^2. 1.5: (-0.5/2.5)^2 = 0.04; 2: (1/3)^2 = 0.111111;
  * 1.33: (0.33/2.33)^2 = 0.1416309^2 = 0.0200593. */

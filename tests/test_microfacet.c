@@ -8,19 +8,14 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "check.h"
+
 #include <float.h>
 #include <math.h>
 
 #include "microfacet.h"
 
-#define TEST_PI 3.14159265358979323846
 
-static void close_rel(double got, double want, double rel)
-{
-    double tol = rel * fmax(fabs(want), 1e-300);
-    if (!(fabs(got - want) <= tol))
-        fail_msg("got %.17g, want %.17g (relative tolerance %g)", got, want, rel);
-}
 
 /* (4.12) walter. m = 0.5, cos = 1: 1/(pi 0.25) = 1.2732395.
  * m = 0.5, cos = 0.8: tan^2 = 0.36/0.64 = 0.5625, /m^2 = 2.25, exp(-2.25) = 0.1053992;

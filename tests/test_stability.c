@@ -8,6 +8,8 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include "check.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,7 +18,6 @@
 #include "cooktorrance.h"
 #include "stability.h"
 
-#define TEST_PI 3.14159265358979323846
 
 static stability_table *table;
 
