@@ -682,17 +682,27 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
     return RC_OK;
 }
 
+/* The head every list section shares: a YAML sequence of at most max items (the scene's fixed
+ * arrays). name is the section ("lights"), first_key the key its items start with ("type"). */
+static rc_status sf_list(sf_ctx *c, yaml_node_t *n, const char *name, const char *first_key, long max,
+                         long *count)
+{
+    if (n->type != YAML_SEQUENCE_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, name, "expected a list (- {%s: ...} items), got %s; allowed: a list of %s",
+                       first_key, sf_kind(n), name);
+    *count = n->data.sequence.items.top - n->data.sequence.items.start;
+    if (*count > max)
+        return sf_fail(c, RC_ERR_RANGE, n, name, "%ld %s; allowed: at most %ld", *count, name, max);
+    return RC_OK;
+}
+
 static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     char child[SF_PATHLEN];
-    if (n->type != YAML_SEQUENCE_NODE)
-        return sf_fail(c, RC_ERR_PARSE, n, "lights",
-                       "expected a list (- {type: ...} items), got %s; allowed: a list of lights",
-                       sf_kind(n));
-    long count = n->data.sequence.items.top - n->data.sequence.items.start;
-    if (count > SCENE_MAX_LIGHTS)
-        return sf_fail(c, RC_ERR_RANGE, n, "lights", "%ld lights; allowed: at most %d", count,
-                       SCENE_MAX_LIGHTS);
+    long count;
+    rc_status lrc = sf_list(c, n, "lights", "type", SCENE_MAX_LIGHTS, &count);
+    if (lrc)
+        return lrc;
     for (int i = 0; i < count; i++) {
         yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
         sf_index(child, "lights", i);
@@ -1057,14 +1067,10 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
 static rc_status sf_objects(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     char child[SF_PATHLEN];
-    if (n->type != YAML_SEQUENCE_NODE)
-        return sf_fail(c, RC_ERR_PARSE, n, "objects",
-                       "expected a list (- {shape: ...} items), got %s; allowed: a list of objects",
-                       sf_kind(n));
-    long count = n->data.sequence.items.top - n->data.sequence.items.start;
-    if (count > SCENE_MAX_OBJECTS)
-        return sf_fail(c, RC_ERR_RANGE, n, "objects", "%ld objects; allowed: at most %d", count,
-                       SCENE_MAX_OBJECTS);
+    long count;
+    rc_status lrc = sf_list(c, n, "objects", "shape", SCENE_MAX_OBJECTS, &count);
+    if (lrc)
+        return lrc;
     for (int i = 0; i < count; i++) {
         yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
         sf_index(child, "objects", i);
@@ -1147,15 +1153,10 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
     static const char *const renderers[] = {"raster", "povray", "cycles"};
     static const char *const roles[] = {"twin", "validate", "agree"};
     char path[SF_PATHLEN], child[SF_PATHLEN];
-    if (n->type != YAML_SEQUENCE_NODE)
-        return sf_fail(c, RC_ERR_PARSE, n, "comparisons",
-                       "expected a list (- {reference: ...} items), got %s; allowed: a list of "
-                       "comparisons",
-                       sf_kind(n));
-    long count = n->data.sequence.items.top - n->data.sequence.items.start;
-    if (count > SCENE_MAX_COMPARISONS)
-        return sf_fail(c, RC_ERR_RANGE, n, "comparisons", "%ld comparisons; allowed: at most %d",
-                       count, SCENE_MAX_COMPARISONS);
+    long count;
+    rc_status lrc = sf_list(c, n, "comparisons", "reference", SCENE_MAX_COMPARISONS, &count);
+    if (lrc)
+        return lrc;
     for (int i = 0; i < count; i++) {
         yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
         comparison *cmp = &s->comparisons[i];
