@@ -1,42 +1,12 @@
 #include <getopt.h>
-#include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "envfile.h"
+#include "frame.h"
 #include "exr.h"
 #include "render.h"
-
-/* Writes every layer the render produced, with the scene hash and timing in the header. */
-static int cli_write_render(const char *path, const scene *s, const mesh *m, const render_image *img)
-{
-    exr_channel ch[RENDER_CHANNELS];
-    int n = 0;
-    for (int c = 0; c < RENDER_CHANNELS; c++)
-        if (img->chan[c] != NULL)
-            ch[n++] = (exr_channel){render_channel_names[c], img->chan[c]};
-    char hash[32], ms[32], k[16], tris[32], samples[32];
-    snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
-    snprintf(ms, sizeof ms, "%.3f", img->seconds * 1e3);
-    snprintf(k, sizeof k, "%d", img->supersample);
-    snprintf(tris, sizeof tris, "%d", m->n_tris);
-    snprintf(samples, sizeof samples, "%lld", img->shaded_samples);
-    exr_attr at[] = {
-        {"reflcheck.scene", s->name},       {"reflcheck.scene_hash", hash},
-        {"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms},
-        {"reflcheck.supersample", k},       {"reflcheck.triangles", tris},
-        {"reflcheck.shaded_samples", samples},
-    };
-    char err[1024];
-    rc_status st = exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, sizeof err);
-    if (st != RC_OK) {
-        fprintf(stderr, "reflcheck: %s\n", err);
-        return CLI_FAILED;
-    }
-    return CLI_OK;
-}
 
 int cli_render(int argc, char **argv)
 {
@@ -91,7 +61,7 @@ int cli_render(int argc, char **argv)
         return CLI_FAILED;
     rc = cli_load_scene(argv[optind], s, &m);
     if (rc == CLI_OK) {
-        rc_status st = envfile_load(s, &env, &env_pixels, err, sizeof err);
+        rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
         if (st == RC_OK)
             st = render_scene(s, &m, &env, &ro, &img, err, sizeof err);
         if (st != RC_OK) {
@@ -100,7 +70,10 @@ int cli_render(int argc, char **argv)
         }
     }
     if (rc == CLI_OK) {
-        rc = cli_write_render(out, s, &m, &img);
+        if (frame_write(out, s, &m, &img, err, sizeof err) != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = CLI_FAILED;
+        }
         if (rc == CLI_OK && !quiet)
             printf("%s: %dx%d k=%d, %d triangles, %.3f ms, %lld shaded samples -> %s\n", s->name, img.width,
                    img.height, img.supersample, m.n_tris, img.seconds * 1e3, img.shaded_samples, out);

@@ -14,7 +14,7 @@
 #include <cJSON.h>
 
 #include "cycles.h"
-#include "envfile.h"
+#include "frame.h"
 #include "exr.h"
 #include "fileio.h"
 #include "mesh.h"
@@ -168,7 +168,7 @@ static void job_raster(job_ctx *c, job_record *r)
     render_image img = {0};
     char err[1024];
     render_options ro = {.threads = c->j->threads};
-    rc_status st = envfile_load(c->s, &env, &pixels, err, sizeof err);
+    rc_status st = frame_env_load(c->s, &env, &pixels, err, sizeof err);
     if (st == RC_OK)
         st = render_scene(c->s, c->m, &env, &ro, &img, err, sizeof err);
     free(pixels);
@@ -176,15 +176,7 @@ static void job_raster(job_ctx *c, job_record *r)
         job_fail(r, RUNNER_FAILED, "%s", err);
         return;
     }
-    exr_channel ch[RENDER_CHANNELS];
-    int n = 0;
-    for (int i = 0; i < RENDER_CHANNELS; i++)
-        if (img.chan[i] != NULL)
-            ch[n++] = (exr_channel){render_channel_names[i], img.chan[i]};
-    char ms[32];
-    snprintf(ms, sizeof ms, "%.3f", img.seconds * 1e3);
-    exr_attr at[] = {{"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms}};
-    st = exr_write(c->exr, img.width, img.height, ch, n, at, 2, err, sizeof err);
+    st = frame_write(c->exr, c->s, c->m, &img, err, sizeof err);
     r->wall_s = img.seconds;
     r->cpu_s = img.seconds;
     render_image_free(&img);

@@ -27,7 +27,7 @@
 
 #include "bench_image.h"
 #include "bench_scene.h"
-#include "envfile.h"
+#include "frame.h"
 #include "exr.h"
 #include "raster.h"
 #include "render.h"
@@ -137,7 +137,7 @@ static void bench_raster_child(const void *varg, bench_result *r)
     float *env_px = NULL;
     mesh m;
     if (bench_scene_load(g_scene, BENCH_SCENE_REFLECT, &s, r->err, sizeof r->err) != RC_OK ||
-        envfile_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
+        frame_env_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
         bench_mesh_make(&s, a->c.tris, &m, r->err, sizeof r->err) != RC_OK)
         return;
     r->n_tris = m.n_tris;
@@ -378,7 +378,7 @@ static void bench_spec_child(const void *varg, bench_result *r)
     float *env_px = NULL;
     mesh m;
     if (bench_scene_load(g_scene, BENCH_SCENE_DIFFUSE, &s, r->err, sizeof r->err) != RC_OK ||
-        envfile_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
+        frame_env_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
         bench_mesh_make(&s, c->tris, &m, r->err, sizeof r->err) != RC_OK)
         return;
     render_camera cam;

@@ -1,11 +1,13 @@
-#include "envfile.h"
+#include "frame.h"
+
+#include <inttypes.h>
 
 #include <stdio.h>
 #include <stdlib.h>
 
 #include "exr.h"
 
-rc_status envfile_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
+rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
 {
     *pixels = NULL;
     e->kind = s->env.kind;
@@ -46,4 +48,27 @@ rc_status envfile_load(const scene *s, env_map *e, float **pixels, char *err, si
     *pixels = p;
     exr_image_free(&img);
     return RC_OK;
+}
+
+rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
+                      size_t errlen)
+{
+    exr_channel ch[RENDER_CHANNELS];
+    int n = 0;
+    for (int c = 0; c < RENDER_CHANNELS; c++)
+        if (img->chan[c] != NULL)
+            ch[n++] = (exr_channel){render_channel_names[c], img->chan[c]};
+    char hash[32], ms[32], k[16], tris[32], samples[32];
+    snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
+    snprintf(ms, sizeof ms, "%.3f", img->seconds * 1e3);
+    snprintf(k, sizeof k, "%d", img->supersample);
+    snprintf(tris, sizeof tris, "%d", m->n_tris);
+    snprintf(samples, sizeof samples, "%lld", img->shaded_samples);
+    exr_attr at[] = {
+        {"reflcheck.scene", s->name},       {"reflcheck.scene_hash", hash},
+        {"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms},
+        {"reflcheck.supersample", k},       {"reflcheck.triangles", tris},
+        {"reflcheck.shaded_samples", samples},
+    };
+    return exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);
 }

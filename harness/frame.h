@@ -1,0 +1,27 @@
+/* frame.h - a rasterizer frame's files: its environment image in, its layers out.
+ *
+ * Usage:
+ *   env_map e; float *pixels = NULL;
+ *   if (frame_env_load(&scn, &e, &pixels, err, sizeof err) != RC_OK) ...;
+ *   ... env_lookup(&e, dir), render_scene(&scn, &msh, &e, ...) ...
+ *   free(pixels);                       the caller owns the interleaved RGB pixels
+ *   frame_write("out.exr", &scn, &msh, &img, err, sizeof err);
+ * An environment image must have R, G and B channels; errors name the file and the scene.
+ * frame_write stores every layer the render produced as 32-bit float, with the scene's name
+ * and hash, the renderer, the render time, k, the triangle and shaded-sample counts in the
+ * header.
+ */
+#ifndef REFLCHECK_FRAME_H
+#define REFLCHECK_FRAME_H
+
+#include <stddef.h>
+#include "env.h"
+#include "mesh.h"
+#include "render.h"
+#include "status.h"
+
+rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
+rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
+                      size_t errlen);
+
+#endif
