@@ -12,6 +12,12 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 WARN    += -Wno-format-truncation
 STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
+# The shading kernels' lane loops are `#pragma omp simd` (model/shade_batch.c): the pragma only,
+# no OpenMP runtime.
+OPT     += -fopenmp-simd
+# Value-safe (no reassociation, no FMA contraction in ISO C): math functions need not set errno
+# and operations may run when their result is discarded, so branches in lane loops become selects.
+OPT     += -fno-math-errno -fno-trapping-math
 SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all
 SAN     := $(if $(SANITIZE),$(SANFLAGS))
 DEPFLAGS = -MMD -MP

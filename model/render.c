@@ -47,6 +47,24 @@ static raster_vertex render_project(const render_camera *c, vec3 p)
     return r;
 }
 
+/* Samples shaded per span (a rectangle of a tile's pixels, the whole tile when it fits): a
+ * span's per-sample results, batches and queues are a worker's scratch (about 350 KiB), small
+ * enough to stay in L2 while the span is shaded. */
+#define RENDER_SPAN 4096
+/* The widest SIMD vector in floats (AVX-512); SHADE_BATCH is a multiple of it. */
+#define RENDER_LANES 16
+
+typedef struct {
+    shade_terms terms[RENDER_SPAN];          /* per slot: a span's samples, k*k per pixel in order */
+    vec3 bg[RENDER_SPAN];                     /* per slot: the environment where no triangle is */
+    shade_batch_in pending[SCENE_MAX_OBJECTS];/* per object: samples waiting for shade_eval_n */
+    uint16_t pending_slot[SCENE_MAX_OBJECTS][SHADE_BATCH];
+    shade_vec3_n bg_dir, bg_rad;              /* background rays waiting for env_lookup_n */
+    uint16_t bg_slot[SHADE_BATCH];
+    int bg_n;
+    shade_batch_out res;
+} render_scratch;
+
 typedef struct {
     const scene *s;
     const mesh *m;
@@ -57,6 +75,7 @@ typedef struct {
     const unsigned char *per_vertex; /* per object */
     render_image *out;
     long long *shaded;             /* per worker */
+    render_scratch *scratch;       /* per worker */
 } render_job;
 
 static vec3 render_terms_sum(const shade_terms *t)
@@ -64,131 +83,229 @@ static vec3 render_terms_sum(const shade_terms *t)
     return v3_add(v3_add(t->diffuse, t->specular), v3_add(t->reflection, t->emission));
 }
 
-/* Shades one sample; for the centre sample (angles != NULL) angles[0], angles[1] get N.V and
- * N.L (first light) for the angle channels. */
-static void render_shade_hit(const render_job *j, const raster_sample *rs, shade_terms *t, float *angles)
+/* Interpolated world point, unit normal facing the viewer and unit direction to the viewer of
+ * a per-pixel sample. */
+static void render_geometry(const render_job *j, const raster_sample *rs, vec3 *x, vec3 *n, vec3 *v)
 {
     const mesh *m = j->m;
     const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
-    int obj = m->tri_object[rs->tri];
     float b0 = 1.0f - rs->b1 - rs->b2;
-
-    if (j->per_vertex[obj]) {
-        const shade_terms *a = &j->vertex_terms[tri[0]], *b = &j->vertex_terms[tri[1]], *c = &j->vertex_terms[tri[2]];
-#define RENDER_BLEND(f) v3_add(v3_add(v3_scale(a->f, b0), v3_scale(b->f, rs->b1)), v3_scale(c->f, rs->b2))
-        t->diffuse = RENDER_BLEND(diffuse);
-        t->specular = RENDER_BLEND(specular);
-        t->reflection = RENDER_BLEND(reflection);
-        t->emission = RENDER_BLEND(emission);
-#undef RENDER_BLEND
-        t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
-        /* Gouraud shading has no per-sample normal; the angle channels stay 0 there. */
-        if (angles != NULL)
-            angles[0] = angles[1] = 0.0f;
-        return;
-    }
-
     vec3 p0 = m->pos[tri[0]], p1 = m->pos[tri[1]], p2 = m->pos[tri[2]];
-    vec3 x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, rs->b1)), v3_scale(p2, rs->b2));
-    vec3 n = v3_add(v3_add(v3_scale(m->nrm[tri[0]], b0), v3_scale(m->nrm[tri[1]], rs->b1)),
-                    v3_scale(m->nrm[tri[2]], rs->b2));
+    *x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, rs->b1)), v3_scale(p2, rs->b2));
+    vec3 nn = v3_add(v3_add(v3_scale(m->nrm[tri[0]], b0), v3_scale(m->nrm[tri[1]], rs->b1)),
+                     v3_scale(m->nrm[tri[2]], rs->b2));
     /* Opposite vertex normals can cancel; the face normal is the only direction left. */
-    if (v3_dot(n, n) < 1e-12f)
-        n = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
-    n = v3_norm(n);
-    vec3 v = v3_norm(v3_sub(j->cam->eye, x));
+    if (v3_dot(nn, nn) < 1e-12f)
+        nn = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
+    nn = v3_norm(nn);
+    *v = v3_norm(v3_sub(j->cam->eye, *x));
     /* Two-sided, as POV-Ray and Cycles shade: the normal faces the viewer. */
-    if (v3_dot(n, v) < 0.0f)
-        n = v3_neg(n);
-    if (angles != NULL) {
-        angles[0] = v3_dot(n, v);
-        angles[1] = 0.0f;
-        if (j->s->n_lights > 0) {
-            vec3 to_l, e_perp;
-            float atten;
-            shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-            angles[1] = v3_dot(n, to_l);
+    *n = v3_dot(nn, *v) < 0.0f ? v3_neg(nn) : nn;
+}
+
+/* Gouraud: D3D's per-vertex terms blended with the sample's barycentric weights. */
+static void render_blend_vertex(const render_job *j, const raster_sample *rs, shade_terms *t)
+{
+    const uint32_t *tri = j->m->idx + 3 * (size_t)rs->tri;
+    const shade_terms *a = &j->vertex_terms[tri[0]], *b = &j->vertex_terms[tri[1]], *c = &j->vertex_terms[tri[2]];
+    float b0 = 1.0f - rs->b1 - rs->b2;
+#define RENDER_BLEND(f) v3_add(v3_add(v3_scale(a->f, b0), v3_scale(b->f, rs->b1)), v3_scale(c->f, rs->b2))
+    t->diffuse = RENDER_BLEND(diffuse);
+    t->specular = RENDER_BLEND(specular);
+    t->reflection = RENDER_BLEND(reflection);
+    t->emission = RENDER_BLEND(emission);
+#undef RENDER_BLEND
+    t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
+}
+
+/* N.V and N.L (first light) of the sample nearest the pixel centre, for the angle channels;
+ * Gouraud shading has no per-sample normal, and the channels stay 0 there. */
+static void render_angles(const render_job *j, const raster_sample *rs, float *nv, float *nl)
+{
+    *nv = *nl = 0.0f;
+    if (j->per_vertex[j->m->tri_object[rs->tri]])
+        return;
+    vec3 x, n, v;
+    render_geometry(j, rs, &x, &n, &v);
+    *nv = v3_dot(n, v);
+    if (j->s->n_lights > 0) {
+        vec3 to_l, e_perp;
+        float atten;
+        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+        *nl = v3_dot(n, to_l);
+    }
+}
+
+static void render_flush_object(const render_job *j, render_scratch *w, int obj)
+{
+    shade_batch_in *in = &w->pending[obj];
+    shade_batch_out *r = &w->res;
+    const int n = in->n;
+    if (n == 0)
+        return;
+    /* Pad to whole SIMD vectors with copies of the last lane: a lane loop then never runs its
+     * scalar remainder, and the copies' results are not read. */
+    in->n = (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES;
+    for (int i = n; i < in->n; i++) {
+        in->x.x[i] = in->x.x[n - 1], in->x.y[i] = in->x.y[n - 1], in->x.z[i] = in->x.z[n - 1];
+        in->nrm.x[i] = in->nrm.x[n - 1], in->nrm.y[i] = in->nrm.y[n - 1], in->nrm.z[i] = in->nrm.z[n - 1];
+        in->v.x[i] = in->v.x[n - 1], in->v.y[i] = in->v.y[n - 1], in->v.z[i] = in->v.z[n - 1];
+    }
+    shade_eval_n(&j->sc, &j->plans[obj], in, r);
+    for (int i = 0; i < n; i++) {
+        shade_terms *t = &w->terms[w->pending_slot[obj][i]];
+        t->diffuse = v3(r->diffuse.x[i], r->diffuse.y[i], r->diffuse.z[i]);
+        t->specular = v3(r->specular.x[i], r->specular.y[i], r->specular.z[i]);
+        t->reflection = v3(r->reflection.x[i], r->reflection.y[i], r->reflection.z[i]);
+        t->emission = v3(r->emission.x[i], r->emission.y[i], r->emission.z[i]);
+        t->alpha = r->alpha[i];
+    }
+    in->n = 0;
+}
+
+static void render_flush_background(const render_job *j, render_scratch *w)
+{
+    if (w->bg_n == 0)
+        return;
+    for (int i = w->bg_n; i % RENDER_LANES != 0; i++)
+        w->bg_dir.x[i] = w->bg_dir.x[0], w->bg_dir.y[i] = w->bg_dir.y[0], w->bg_dir.z[i] = w->bg_dir.z[0];
+    env_lookup_n(j->sc.env, (w->bg_n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
+    for (int i = 0; i < w->bg_n; i++)
+        w->bg[w->bg_slot[i]] = v3(w->bg_rad.x[i], w->bg_rad.y[i], w->bg_rad.z[i]);
+    w->bg_n = 0;
+}
+
+/* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch slots, k*k per pixel
+ * in row-major pixel order: per-pixel samples queued per object and shaded a batch at a
+ * time, background rays likewise. */
+static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
+                              int px0, int px1)
+{
+    const int k = tile->k, stride = tile->w * k;
+    int q = 0;
+    for (int py = py0; py < py1; py++)
+    for (int px = px0; px < px1; px++) {
+        for (int t = 0; t < k; t++) {
+            const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
+            for (int s = 0; s < k; s++, q++) {
+                const raster_sample *rs = &row[(px - tile->x0) * k + s];
+                if (rs->tri < 0) {
+                    /* The camera ray through the sample; env_lookup_n needs no unit vector. */
+                    float nx = 2.0f * ((float)px + ((float)s + 0.5f) / (float)k) / (float)j->cam->width - 1.0f;
+                    float ny = 1.0f - 2.0f * ((float)py + ((float)t + 0.5f) / (float)k) / (float)j->cam->height;
+                    vec3 d = v3_madd(v3_madd(j->cam->forward, j->cam->right, nx * j->cam->tan_half_x), j->cam->up,
+                                     ny * j->cam->tan_half_y);
+                    w->bg_dir.x[w->bg_n] = d.x;
+                    w->bg_dir.y[w->bg_n] = d.y;
+                    w->bg_dir.z[w->bg_n] = d.z;
+                    w->bg_slot[w->bg_n++] = (uint16_t)q;
+                    if (w->bg_n == SHADE_BATCH)
+                        render_flush_background(j, w);
+                    continue;
+                }
+                int obj = j->m->tri_object[rs->tri];
+                if (j->per_vertex[obj]) {
+                    render_blend_vertex(j, rs, &w->terms[q]);
+                    continue;
+                }
+                shade_batch_in *in = &w->pending[obj];
+                vec3 x, n, v;
+                render_geometry(j, rs, &x, &n, &v);
+                in->x.x[in->n] = x.x, in->x.y[in->n] = x.y, in->x.z[in->n] = x.z;
+                in->nrm.x[in->n] = n.x, in->nrm.y[in->n] = n.y, in->nrm.z[in->n] = n.z;
+                in->v.x[in->n] = v.x, in->v.y[in->n] = v.y, in->v.z[in->n] = v.z;
+                w->pending_slot[obj][in->n++] = (uint16_t)q;
+                if (in->n == SHADE_BATCH)
+                    render_flush_object(j, w, obj);
+            }
         }
     }
-    shade_eval(&j->sc, &j->plans[obj], x, n, v, t);
+    for (int o = 0; o < j->s->n_objects; o++)
+        render_flush_object(j, w, o);
+    render_flush_background(j, w);
 }
 
 static void render_tile(void *user, const raster_tile *tile)
 {
     const render_job *j = user;
     render_image *o = j->out;
+    render_scratch *w = &j->scratch[tile->thread];
     const int k = tile->k, stride = tile->w * k;
     const float inv = 1.0f / (float)(k * k);
+    const int per_px = k * k;
+    const int cols = tile->w * per_px <= RENDER_SPAN ? tile->w : RENDER_SPAN / per_px;
+    const int rows = cols == tile->w ? RENDER_SPAN / (tile->w * per_px) : 1;
     long long shaded = 0;
 
-    for (int py = tile->y0; py < tile->y0 + tile->h; py++) {
-        for (int px = tile->x0; px < tile->x0 + tile->w; px++) {
-            shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
-            vec3 background = v3s(0.0f);
-            /* Per-sample beauty, for the variance layers: sum and sum of squares. */
-            vec3 b_sum = v3s(0.0f), b_sq = v3s(0.0f);
-            int covered = 0, object_id = -1;
-            float centre_nv = 0.0f, centre_nl = 0.0f;
-            for (int t = 0; t < k; t++) {
-                const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
-                for (int s = 0; s < k; s++) {
-                    const raster_sample *rs = &row[(px - tile->x0) * k + s];
-                    int centre = (s == k / 2 && t == k / 2);
-                    if (rs->tri < 0) {
-                        vec3 dir = render_camera_ray(j->cam, (float)px + ((float)s + 0.5f) / (float)k,
-                                                     (float)py + ((float)t + 0.5f) / (float)k);
-                        vec3 bg = env_lookup(j->sc.env, dir);
-                        background = v3_add(background, bg);
-                        b_sum = v3_add(b_sum, bg);
-                        b_sq = v3_add(b_sq, v3_mul(bg, bg));
-                        continue;
-                    }
-                    shade_terms st;
-                    float angles[2];
-                    render_shade_hit(j, rs, &st, centre ? angles : NULL);
-                    sum.diffuse = v3_add(sum.diffuse, st.diffuse);
-                    sum.specular = v3_add(sum.specular, st.specular);
-                    sum.reflection = v3_add(sum.reflection, st.reflection);
-                    sum.emission = v3_add(sum.emission, st.emission);
-                    sum.alpha += st.alpha;
-                    vec3 b = render_terms_sum(&st);
-                    b_sum = v3_add(b_sum, b);
-                    b_sq = v3_add(b_sq, v3_mul(b, b));
-                    covered++;
-                    if (centre) {
-                        object_id = j->m->tri_object[rs->tri];
-                        centre_nv = angles[0];
-                        centre_nl = angles[1];
+    for (int py0 = tile->y0; py0 < tile->y0 + tile->h; py0 += rows) {
+        int py1 = py0 + rows < tile->y0 + tile->h ? py0 + rows : tile->y0 + tile->h;
+        for (int px0 = tile->x0; px0 < tile->x0 + tile->w; px0 += cols) {
+            int px1 = px0 + cols < tile->x0 + tile->w ? px0 + cols : tile->x0 + tile->w;
+            render_span_shade(j, tile, w, py0, py1, px0, px1);
+            for (int py = py0; py < py1; py++)
+            for (int px = px0; px < px1; px++) {
+                shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
+                vec3 background = v3s(0.0f);
+                /* Per-sample beauty, for the variance layers: sum and sum of squares. */
+                vec3 b_sum = v3s(0.0f), b_sq = v3s(0.0f);
+                int covered = 0, object_id = -1;
+                float centre_nv = 0.0f, centre_nl = 0.0f;
+                int q = ((py - py0) * (px1 - px0) + (px - px0)) * per_px;
+                for (int t = 0; t < k; t++) {
+                    const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
+                    for (int s = 0; s < k; s++, q++) {
+                        const raster_sample *rs = &row[(px - tile->x0) * k + s];
+                        if (rs->tri < 0) {
+                            vec3 bg = w->bg[q];
+                            background = v3_add(background, bg);
+                            b_sum = v3_add(b_sum, bg);
+                            b_sq = v3_add(b_sq, v3_mul(bg, bg));
+                            continue;
+                        }
+                        const shade_terms *st = &w->terms[q];
+                        sum.diffuse = v3_add(sum.diffuse, st->diffuse);
+                        sum.specular = v3_add(sum.specular, st->specular);
+                        sum.reflection = v3_add(sum.reflection, st->reflection);
+                        sum.emission = v3_add(sum.emission, st->emission);
+                        sum.alpha += st->alpha;
+                        vec3 b = render_terms_sum(st);
+                        b_sum = v3_add(b_sum, b);
+                        b_sq = v3_add(b_sq, v3_mul(b, b));
+                        covered++;
+                        if (s == k / 2 && t == k / 2) {
+                            object_id = j->m->tri_object[rs->tri];
+                            render_angles(j, rs, &centre_nv, &centre_nl);
+                        }
                     }
                 }
-            }
-            shaded += covered;
-            size_t i = (size_t)py * (size_t)o->width + (size_t)px;
-            vec3 beauty = v3_scale(v3_add(render_terms_sum(&sum), background), inv);
-            o->chan[RENDER_R][i] = beauty.x;
-            o->chan[RENDER_G][i] = beauty.y;
-            o->chan[RENDER_B][i] = beauty.z;
-            o->chan[RENDER_A][i] = sum.alpha * inv;
-            o->chan[RENDER_COVERAGE][i] = (float)covered * inv;
-            o->chan[RENDER_OBJECT][i] = (float)object_id;
-            o->chan[RENDER_NDOTV][i] = centre_nv;
-            o->chan[RENDER_NDOTL][i] = centre_nl;
-            /* Unbiased sample variance over n = k*k samples, divided by n; 0 for k = 1.
-             * Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
-            float n = (float)(k * k);
-            vec3 var = k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
-                             : v3s(0.0f);
-            o->chan[RENDER_VAR_R][i] = fmaxf(var.x, 0.0f);
-            o->chan[RENDER_VAR_G][i] = fmaxf(var.y, 0.0f);
-            o->chan[RENDER_VAR_B][i] = fmaxf(var.z, 0.0f);
-            const vec3 *aov[4] = {&sum.diffuse, &sum.specular, &sum.reflection, &sum.emission};
-            for (int a = 0; a < 4; a++) {
-                float **c = &o->chan[RENDER_DIFFUSE_R + 3 * a];
-                if (c[0] == NULL)
-                    continue;
-                c[0][i] = aov[a]->x * inv;
-                c[1][i] = aov[a]->y * inv;
-                c[2][i] = aov[a]->z * inv;
+                shaded += covered;
+                size_t i = (size_t)py * (size_t)o->width + (size_t)px;
+                vec3 beauty = v3_scale(v3_add(render_terms_sum(&sum), background), inv);
+                o->chan[RENDER_R][i] = beauty.x;
+                o->chan[RENDER_G][i] = beauty.y;
+                o->chan[RENDER_B][i] = beauty.z;
+                o->chan[RENDER_A][i] = sum.alpha * inv;
+                o->chan[RENDER_COVERAGE][i] = (float)covered * inv;
+                o->chan[RENDER_OBJECT][i] = (float)object_id;
+                o->chan[RENDER_NDOTV][i] = centre_nv;
+                o->chan[RENDER_NDOTL][i] = centre_nl;
+                /* Unbiased sample variance over n = k*k samples, divided by n; 0 for k = 1.
+                 * Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
+                float n = (float)(k * k);
+                vec3 var = k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
+                                 : v3s(0.0f);
+                o->chan[RENDER_VAR_R][i] = fmaxf(var.x, 0.0f);
+                o->chan[RENDER_VAR_G][i] = fmaxf(var.y, 0.0f);
+                o->chan[RENDER_VAR_B][i] = fmaxf(var.z, 0.0f);
+                const vec3 *aov[4] = {&sum.diffuse, &sum.specular, &sum.reflection, &sum.emission};
+                for (int a = 0; a < 4; a++) {
+                    float **c = &o->chan[RENDER_DIFFUSE_R + 3 * a];
+                    if (c[0] == NULL)
+                        continue;
+                    c[0][i] = aov[a]->x * inv;
+                    c[1][i] = aov[a]->y * inv;
+                    c[2][i] = aov[a]->z * inv;
+                }
             }
         }
     }
@@ -270,10 +387,12 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     raster_options ro = {.width = out->width, .height = out->height, .supersample = out->supersample,
                          .threads = opt->threads, .tile = opt->tile};
     long long *shaded = calloc((size_t)raster_thread_count(&ro), sizeof *shaded);
-    if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL) {
+    render_scratch *scratch = calloc((size_t)raster_thread_count(&ro), sizeof *scratch);
+    if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL || scratch == NULL) {
         free(rv);
         free(vt);
         free(shaded);
+        free(scratch);
         render_image_free(out);
         snprintf(err, errlen, "render: out of memory for %d vertices", m->n_verts);
         return RC_ERR_NOMEM;
@@ -301,6 +420,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     }
     j.vertex_terms = vt;
     j.shaded = shaded;
+    j.scratch = scratch;
 
     st = raster_draw(rv, m->n_verts, m->idx, m->n_tris, &ro, render_tile, &j);
     for (int i = 0; i < raster_thread_count(&ro); i++)
@@ -308,6 +428,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     free(rv);
     free(vt);
     free(shaded);
+    free(scratch);
     if (st != RC_OK) {
         render_image_free(out);
         snprintf(err, errlen, "%s: the rasterizer refused the frame (status %d)", s->path, (int)st);

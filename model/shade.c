@@ -193,18 +193,21 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         int plain = !spec && !amb && !m->d3d.clamp;
         p->terms |= spec ? SHADE_TERM_SPECULAR : 0u;
         p->fn = plain ? shade_d3d_diffuse : shade_d3d_full;
+        p->batch = plain ? shade_batch_d3d_diffuse : shade_batch_d3d_full;
         p->path = plain ? "d3d-diffuse" : "d3d-full";
         break;
     }
     case MODEL_D3D9CLIENT:
         p->terms |= SHADE_TERM_SPECULAR | (has_env ? SHADE_TERM_REFLECTION : 0u);
         p->fn = shade_d3d9client;
+        p->batch = shade_batch_d3d9client;
         p->path = "d3d9client";
         break;
     case MODEL_COOK_TORRANCE: {
         int refl = m->ct.reflection && has_env;
         p->terms |= SHADE_TERM_SPECULAR | (refl ? SHADE_TERM_REFLECTION : 0u);
         p->fn = refl ? shade_ct_full : shade_ct_lights;
+        p->batch = shade_batch_scalar;
         p->path = refl ? "cook-torrance-env" : "cook-torrance-lights";
         break;
     }
@@ -216,6 +219,7 @@ void shade_plan_make_general(const shade_context *c, const material *m, shade_pl
     shade_plan_make(c, m, p);
     if (m->model == MODEL_D3D) {
         p->fn = shade_d3d_full;
+        p->batch = shade_batch_d3d_full;
         p->path = "d3d-full";
     } else if (m->model == MODEL_COOK_TORRANCE) {
         p->fn = shade_ct_full;

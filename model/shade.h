@@ -11,6 +11,11 @@
  * the terms the material can produce in this scene (no specular, no environment, ... are not
  * computed at all), so the per-sample path has no branches on unused features.
  * Finite input never yields NaN or Inf.
+ * shade_eval_n is the shading loop's form: the same models over a structure-of-arrays batch,
+ * one SIMD lane per sample (shade_batch.c), with smath's pow and atan2 in place of libm's, so
+ * lanes agree with shade_eval to ~1e-6 relative (tests/test_shade_batch.c). Lanes outside the
+ * kernels' safe range (a point light within 1e-15 m or beyond 1e15 m) and models without a
+ * kernel (Cook-Torrance) go through shade_eval lane by lane.
  */
 #ifndef REFLCHECK_SHADE_H
 #define REFLCHECK_SHADE_H
@@ -29,12 +34,28 @@ typedef struct {
 
 enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 4, SHADE_TERM_EMISSION = 8 };
 
+/* Samples per batch: enough lanes to amortise the per-light set-up, few enough that a batch's
+ * inputs and outputs (22 floats a lane) stay in the L1 cache. */
+#define SHADE_BATCH 64
+typedef struct { float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH]; } shade_vec3_n;
+typedef struct {
+    int n;                          /* lanes in use, 0..SHADE_BATCH */
+    shade_vec3_n x, nrm, v;         /* as shade_eval's x, n, v */
+} shade_batch_in;
+typedef struct {
+    shade_vec3_n diffuse, specular, reflection, emission;
+    float alpha[SHADE_BATCH];
+} shade_batch_out;
+
 typedef struct shade_plan shade_plan;
 typedef void (*shade_fn)(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+typedef void (*shade_batch_fn)(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                               shade_batch_out *out);
 struct shade_plan {
     const material *mat;
     unsigned terms;       /* SHADE_TERM_* this material can make non-zero here */
     shade_fn fn;
+    shade_batch_fn batch; /* the same path over a batch */
     const char *path;     /* the specialised path's name, for reports and benchmarks */
 };
 
@@ -48,6 +69,19 @@ static inline void shade_eval(const shade_context *c, const shade_plan *p, vec3 
 {
     p->fn(c, p, x, n, v, out);
 }
+
+static inline void shade_eval_n(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                                shade_batch_out *out)
+{
+    p->batch(c, p, in, out);
+}
+
+/* The batch kernels (shade_batch.c), one per specialised path, that shade_plan_make installs;
+ * shade_batch_scalar is shade_eval lane by lane (models without a kernel, unsafe lanes). */
+void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 
 /* Incident light i at x: unit direction to the light and the irradiance it would give at
  * normal incidence (I*A*spot for point/spot, E for a sun). Returns 0 when it gives nothing. */

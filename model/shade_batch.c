@@ -1,0 +1,376 @@
+/* shade_batch.c - shade.c's D3D and D3D9Client paths over structure-of-arrays batches.
+ *
+ * Each kernel runs the light loop outside and the lanes inside, so a lane loop has no branch
+ * that depends on the light or the material (those are chosen before it starts) and compiles
+ * to straight SIMD code: one sample per lane, selects for the per-sample conditions that
+ * shade.c writes as `if`/`continue`, smath for pow and atan2. The formulas and their order of
+ * guards are shade.c's and the formula layers' (d3d.c, fresnel.c, d3d9client.c); what differs
+ * is float for the few sums the scalar path forms in double (attenuation, spot factor, the
+ * D3D9Client combination), and smath's pow, which is why lanes match shade_eval to ~1e-6
+ * rather than bit for bit (tests/test_shade_batch.c states the bounds).
+ *
+ * A lane outside the float-safe range of the point-light distance (the scalar path switches
+ * to double there) marks the batch, and the whole batch is redone by shade_batch_scalar.
+ */
+#include "shade.h"
+
+#include <float.h>
+#include <math.h>
+
+#include "d3d9client.h"
+#include "smath.h"
+
+/* The lane loops must be inlined into each SMATH_CLONES kernel to be compiled for its ISA,
+ * and their constant arguments must reach them to remove the branches they select. */
+#if defined(__GNUC__)
+#define SB_INLINE static inline __attribute__((always_inline))
+#else
+#define SB_INLINE static inline
+#endif
+#define SB_INV_PI 0.318309886183790671538f
+/* The float-safe band of a squared light distance (shade_light_incident's own band). */
+#define SB_D2_MIN 1e-30f
+#define SB_D2_MAX 1e30f
+/* d3d.c's D3D_HALF_MIN and D3D_ATTEN_DENOM_MIN, for the same reasons (d3d.h). */
+#define SB_HALF_MIN 1e-6f
+#define SB_DENOM_MIN 1e-12f
+
+static inline vec3 sb_get(const shade_vec3_n *a, int i) { return v3(a->x[i], a->y[i], a->z[i]); }
+static inline void sb_set(shade_vec3_n *a, int i, vec3 v) { a->x[i] = v.x; a->y[i] = v.y; a->z[i] = v.z; }
+static inline vec3 sb_min(vec3 a, vec3 b)
+{
+    return v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
+}
+/* Lane flags are gathered in an array and or-ed after the lane loop: an `omp simd reduction`
+ * of an int kept GCC 12 from vectorising the float work around it. */
+SB_INLINE int sb_any(const int *flag, int n)
+{
+    int any = 0;
+    for (int i = 0; i < n; i++)
+        any |= flag[i];
+    return any;
+}
+static inline float sb_max(float a, float b) { return a > b ? a : b; }
+static inline float sb_sat(float x) { return x > FLT_MAX ? FLT_MAX : (x < -FLT_MAX ? -FLT_MAX : x); }
+
+void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    for (int i = 0; i < in->n; i++) {
+        shade_terms t;
+        p->fn(c, p, sb_get(&in->x, i), sb_get(&in->nrm, i), sb_get(&in->v, i), &t);
+        sb_set(&out->diffuse, i, t.diffuse);
+        sb_set(&out->specular, i, t.specular);
+        sb_set(&out->reflection, i, t.reflection);
+        sb_set(&out->emission, i, t.emission);
+        out->alpha[i] = t.alpha;
+    }
+}
+
+/* What a light's lane loop reads, fixed before the loop (d3d_spot's normalised axis and cone
+ * cosines, which d3d.c recomputes per call). */
+typedef struct {
+    vec3 to_sun;            /* sun: unit direction to the light */
+    vec3 axis;              /* spot: unit direction the light travels */
+    float cos_in, cos_out, falloff;
+    float cone;             /* cos_in - cos_out, 1 where the cones coincide (no division then) */
+} sb_light;
+
+static sb_light sb_light_make(const light *l)
+{
+    sb_light b = {v3s(0.0f), v3s(0.0f), 0.0f, 0.0f, 0.0f, 1.0f};
+    b.to_sun = v3_neg(v3_norm(l->direction));
+    b.axis = v3_from_d(dv3_norm(dv3_from(l->direction)));
+    b.cos_in = (float)cos(0.5 * (double)l->inner);
+    b.cos_out = (float)cos(0.5 * (double)l->outer);
+    b.falloff = l->falloff < 0.0f ? 0.0f : l->falloff;
+    b.cone = b.cos_in > b.cos_out ? b.cos_in - b.cos_out : 1.0f;
+    return b;
+}
+
+/* shade_light_incident for one lane: unit direction to the light and the attenuation
+ * A * spot; bad when d^2 left the float-safe band. kind is a constant at every call, so the
+ * light's type is decided before the lane loop, not in it. Returned by value: nothing in a
+ * lane loop has its address taken. */
+enum { SB_SUN, SB_POINT, SB_SPOT_D3D, SB_SPOT_SMOOTH };
+typedef struct { vec3 to_l; float atten; int bad; } sb_incidence;
+
+SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, const int kind)
+{
+    sb_incidence r = {b->to_sun, 1.0f, 0};
+    if (kind == SB_SUN)
+        return r;
+    vec3 d = v3_sub(l->position, x);
+    float d2 = v3_dot(d, d);
+    int safe = (d2 > SB_D2_MIN) & (d2 < SB_D2_MAX);
+    r.bad = !safe;
+    float inv = 1.0f / sqrtf(safe ? d2 : 1.0f);
+    r.to_l = v3_scale(d, inv);
+    float dist = d2 * inv;
+    float den = l->a0 + l->a1 * dist + l->a2 * d2;
+    den = den < SB_DENOM_MIN ? SB_DENOM_MIN : den;
+    r.atten = dist > l->range ? 0.0f : 1.0f / den;
+    if (kind == SB_POINT)
+        return r;
+    float rho = -v3_dot(b->axis, r.to_l);
+    float t = (rho - b->cos_out) / b->cone;
+    float spot;
+    if (kind == SB_SPOT_SMOOTH) {
+        spot = (rho <= 0.0f) | (rho <= b->cos_out) ? 0.0f : (rho >= b->cos_in ? rho : rho * t * t * (3.0f - 2.0f * t));
+    } else {
+        t = t > 1.0f ? 1.0f : (t < 0.0f ? 0.0f : t);
+        spot = rho > b->cos_in ? 1.0f : (rho <= b->cos_out ? 0.0f : smath_pow(t, b->falloff));
+    }
+    r.atten *= spot;
+    return r;
+}
+
+static int sb_kind(const light *l)
+{
+    if (l->kind == LIGHT_SUN)
+        return SB_SUN;
+    if (l->kind == LIGHT_POINT)
+        return SB_POINT;
+    return l->profile == SPOT_SMOOTH ? SB_SPOT_SMOOTH : SB_SPOT_D3D;
+}
+
+/* One light's D3D terms added to every lane (shade.c's shade_d3d_impl loop body). */
+SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const light *l, const shade_batch_in *restrict in,
+                           shade_batch_out *restrict out, const int kind, const int specular, const int ambient)
+{
+    const sb_light b = sb_light_make(l);
+    /* The D3D light colour is E/pi (CONVENTIONS.md); Vd, Vs, Va folded in once here. */
+    const vec3 kd = v3_scale(v3_mul(d->diffuse, l->intensity), SB_INV_PI);
+    const vec3 ks = v3_scale(v3_mul(d->specular, l->intensity), SB_INV_PI);
+    const vec3 ka = v3_mul(d->ambient, l->ambient);
+    const float power = d->power < 0.0f ? 0.0f : d->power;
+    const vec3 e_inf = c->e_inf;
+    const int local = d->local_viewer, n = in->n;
+    int bad[SHADE_BATCH];
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        vec3 nn = sb_get(&in->nrm, i), v = sb_get(&in->v, i);
+        sb_incidence inc = sb_incident(l, &b, sb_get(&in->x, i), kind);
+        bad[i] = inc.bad;
+        float n_l = v3_dot(nn, inc.to_l), atten = inc.atten;
+        /* atten >= 0 (a clamped positive denominator times a spot factor in [0, 1]), so where
+         * the light gives nothing its products are 0 without a test. D3D lights nothing, not
+         * even the highlight, from behind the surface. */
+        vec3 dif = sb_get(&out->diffuse, i);
+        if (ambient)
+            dif = v3_add(dif, v3_scale(ka, atten));
+        float lambert = n_l > 0.0f ? (n_l > 1.0f ? 1.0f : n_l) : 0.0f;
+        sb_set(&out->diffuse, i, v3_add(dif, v3_scale(kd, atten * lambert)));
+        if (specular) {
+            vec3 h = v3_add(inc.to_l, local ? v : e_inf);
+            float len = v3_len(h);
+            h = v3_scale(h, len >= SB_HALF_MIN ? 1.0f / len : 0.0f);
+            float n_h = v3_dot(nn, h);
+            float rs = n_l > 0.0f ? (n_h > 0.0f ? smath_pow(n_h > 1.0f ? 1.0f : n_h, power) : 0.0f) : 0.0f;
+            sb_set(&out->specular, i, v3_add(sb_get(&out->specular, i), v3_scale(ks, atten * rs)));
+        }
+    }
+    return sb_any(bad, n);
+}
+
+/* shade.c's shade_d3d_impl (MODELS.md 1) over a batch; returns non-zero when a lane was
+ * outside the float-safe band. specular and ambient are constants in each caller. */
+SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batch_in *restrict in,
+                     shade_batch_out *restrict out, const int specular, const int ambient)
+{
+    const d3d_params *d = &m->d3d;
+    const scene *s = c->s;
+    const int n = in->n;
+    const vec3 amb0 = ambient ? v3_mul(d->ambient, s->global_ambient) : v3s(0.0f);
+    int bad = 0;
+
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        sb_set(&out->diffuse, i, amb0);
+        sb_set(&out->specular, i, v3s(0.0f));
+    }
+    for (int li = 0; li < s->n_lights; li++) {
+        const light *l = &s->lights[li];
+        switch (sb_kind(l)) {
+        case SB_SUN: bad |= sb_d3d_light(c, d, l, in, out, SB_SUN, specular, ambient); break;
+        case SB_POINT: bad |= sb_d3d_light(c, d, l, in, out, SB_POINT, specular, ambient); break;
+        case SB_SPOT_D3D: bad |= sb_d3d_light(c, d, l, in, out, SB_SPOT_D3D, specular, ambient); break;
+        default: bad |= sb_d3d_light(c, d, l, in, out, SB_SPOT_SMOOTH, specular, ambient); break;
+        }
+    }
+    /* D3D saturates Dv (which holds the emissive colour) and Sv to [0, 1] separately. */
+    vec3 emission = d->emissive;
+    if (d->clamp) {
+        emission = sb_min(emission, v3s(1.0f));
+        const vec3 room = v3_sub(v3s(1.0f), emission);
+#pragma omp simd
+        for (int i = 0; i < n; i++) {
+            sb_set(&out->diffuse, i, sb_min(sb_get(&out->diffuse, i), room));
+            sb_set(&out->specular, i, sb_min(sb_get(&out->specular, i), v3s(1.0f)));
+        }
+    }
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        sb_set(&out->reflection, i, v3s(0.0f));
+        sb_set(&out->emission, i, emission);
+        out->alpha[i] = 1.0f;
+    }
+    return bad;
+}
+
+SMATH_CLONES
+void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    if (sb_d3d(c, p->mat, in, out, 0, 0))
+        shade_batch_scalar(c, p, in, out);
+}
+
+SMATH_CLONES
+void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    if (sb_d3d(c, p->mat, in, out, 1, 1))
+        shade_batch_scalar(c, p, in, out);
+}
+
+/* fresnel_d3d9 (MODELS.md 2, eq. 3): R0 + m (1 - cos)^p, cos clamped to [0, 1], p >= 0. A whole
+ * p up to 8 (a constant `whole` at each call) by multiplication, as fresnel.c, else smath_pow. */
+SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole, float cos_theta)
+{
+    float cc = cos_theta < 0.0f ? 0.0f : (cos_theta > 1.0f ? 1.0f : cos_theta);
+    float x = 1.0f - cc, xe;
+    if (whole) {
+        int ip = (int)p;
+        float x2 = x * x, x4 = x2 * x2;
+        xe = ((ip & 1) ? x : 1.0f) * ((ip & 2) ? x2 : 1.0f) * ((ip & 4) ? x4 : 1.0f) * ((ip & 8) ? x4 * x4 : 1.0f);
+    } else {
+        xe = smath_pow(x, p);
+    }
+    return sb_sat(d9->r0 + d9->m * xe);
+}
+
+/* d3d9_colour_norm as weights fixed before the lane loop: |c| = w_max max(c) + w_dot . c +
+ * w_euclid |c|_2, one of them non-zero (a select on the norm kind inside the loop would not
+ * vectorise). */
+typedef struct { float w_max, w_euclid; vec3 w_dot; } sb_norm_weights;
+
+static sb_norm_weights sb_norm_make(colour_norm norm)
+{
+    sb_norm_weights w = {0.0f, 0.0f, v3s(0.0f)};
+    switch (norm) {
+    case NORM_MEAN: w.w_dot = v3s(1.0f / 3.0f); break;
+    case NORM_LUMINANCE: w.w_dot = v3(0.2126f, 0.7152f, 0.0722f); break;
+    case NORM_EUCLID: w.w_euclid = 1.0f; break;
+    case NORM_MAX:
+    default: w.w_max = 1.0f; break;
+    }
+    return w;
+}
+
+SB_INLINE float sb_norm(vec3 c, const sb_norm_weights *w)
+{
+    float mx = sb_max(c.x, sb_max(c.y, c.z));
+    /* Scaled by the largest magnitude, so squares of HDR values cannot overflow. */
+    vec3 m = v3(c.x < 0.0f ? -c.x : c.x, c.y < 0.0f ? -c.y : c.y, c.z < 0.0f ? -c.z : c.z);
+    float a = sb_max(m.x, sb_max(m.y, m.z));
+    vec3 u = v3_scale(c, a > 0.0f ? 1.0f / a : 0.0f);
+    float euclid = a * sqrtf(v3_dot(u, u));
+    return w->w_max * mx + v3_dot(w->w_dot, c) + w->w_euclid * euclid;
+}
+
+/* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
+ * alone (shade.c's shade_main_light: it counts even where the light gives nothing). */
+SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const shade_batch_in *restrict in, float *restrict f,
+                        const int kind, const int whole)
+{
+    const sb_light b = sb_light_make(sun);
+    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const int n = in->n;
+    int bad[SHADE_BATCH];
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        sb_incidence inc = sb_incident(sun, &b, sb_get(&in->x, i), kind);
+        bad[i] = inc.bad;
+        f[i] = 1.0f - sb_fresnel(d9, fp, whole, v3_dot(sb_get(&in->nrm, i), inc.to_l));
+    }
+    return sb_any(bad, n);
+}
+
+/* Equations (3)-(7) on the D3D terms already in out; sun_f holds (8)'s factor per lane. */
+SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *restrict in, const shade_vec3_n *restrict phi,
+                             const float *restrict sun_f, shade_batch_out *restrict out, const int whole)
+{
+    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
+    const float w = sb_sat(1.0f - d3d9_colour_norm(d9->reflect, d9->norm));
+    const sb_norm_weights norm = sb_norm_make(d9->norm);
+    const float d_alpha = d9->alpha;
+    const int n = in->n;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        float R = sb_fresnel(d9, fp, whole, v3_dot(sb_get(&in->nrm, i), sb_get(&in->v, i)));
+        /* (5): (lambda (1 - R) + s R) phi. */
+        vec3 k = v3_add(v3_scale(lambda, 1.0f - R), v3_scale(s, R));
+        vec3 r_tot = v3_mul(k, sb_get(phi, i));
+        r_tot = v3(sb_sat(r_tot.x), sb_sat(r_tot.y), sb_sat(r_tot.z));
+        sb_set(&out->diffuse, i, v3_scale(sb_get(&out->diffuse, i), w * sun_f[i]));
+        sb_set(&out->reflection, i, r_tot);
+        /* (7) */
+        float rn = sb_norm(r_tot, &norm);
+        out->alpha[i] = d_alpha > rn ? d_alpha : rn;
+    }
+}
+
+/* shade.c's shade_d3d9client (MODELS.md 2, eqs. 3-8) over a batch. */
+SMATH_CLONES
+void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    const d3d9client_params *d9 = &p->mat->d9;
+    const int n = in->n;
+    if (sb_d3d(c, p->mat, in, out, 1, 1)) {
+        shade_batch_scalar(c, p, in, out);
+        return;
+    }
+    shade_vec3_n dir, phi;
+#pragma omp simd
+    for (int i = 0; i < n; i++)
+        sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
+    env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi.x, phi.y, phi.z);
+
+    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const int whole = fp == floorf(fp) && fp <= 8.0f;
+    const light *sun = NULL;
+    if (d9->sun_angle) {
+        for (int i = 0; i < c->s->n_lights && sun == NULL; i++)
+            if (c->s->lights[i].kind == LIGHT_SUN)
+                sun = &c->s->lights[i];
+        if (sun == NULL && c->s->n_lights > 0)
+            sun = &c->s->lights[0];
+    }
+    float sun_f[SHADE_BATCH];
+    int bad = 0;
+    if (sun == NULL) {
+        for (int i = 0; i < n; i++)
+            sun_f[i] = 1.0f;
+    } else if (whole) {
+        switch (sb_kind(sun)) {
+        case SB_SUN: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SUN, 1); break;
+        case SB_POINT: bad = sb_d9_sun(d9, sun, in, sun_f, SB_POINT, 1); break;
+        case SB_SPOT_D3D: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_D3D, 1); break;
+        default: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_SMOOTH, 1); break;
+        }
+    } else {
+        switch (sb_kind(sun)) {
+        case SB_SUN: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SUN, 0); break;
+        case SB_POINT: bad = sb_d9_sun(d9, sun, in, sun_f, SB_POINT, 0); break;
+        case SB_SPOT_D3D: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_D3D, 0); break;
+        default: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_SMOOTH, 0); break;
+        }
+    }
+    if (bad) {
+        shade_batch_scalar(c, p, in, out);
+        return;
+    }
+    if (whole)
+        sb_d9_combine(d9, in, &phi, sun_f, out, 1);
+    else
+        sb_d9_combine(d9, in, &phi, sun_f, out, 0);
+}
