@@ -908,6 +908,23 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
     o->alpha = r.alpha;
 }
 
+/* shade_eval_n on a batch of one lane: the batch kernel's answer for one input. */
+static void shade_eval_one_lane(const shade_context *ctx, const shade_plan *plan, vec3 x, vec3 n, vec3 v, shade_terms *t)
+{
+    shade_batch_in in;
+    shade_batch_out out;
+    in.n = 1;
+    in.x.x[0] = x.x, in.x.y[0] = x.y, in.x.z[0] = x.z;
+    in.nrm.x[0] = n.x, in.nrm.y[0] = n.y, in.nrm.z[0] = n.z;
+    in.v.x[0] = v.x, in.v.y[0] = v.y, in.v.z[0] = v.z;
+    shade_eval_n(ctx, plan, &in, &out);
+    t->diffuse = v3(out.diffuse.x[0], out.diffuse.y[0], out.diffuse.z[0]);
+    t->specular = v3(out.specular.x[0], out.specular.y[0], out.specular.z[0]);
+    t->reflection = v3(out.reflection.x[0], out.reflection.y[0], out.reflection.z[0]);
+    t->emission = v3(out.emission.x[0], out.emission.y[0], out.emission.z[0]);
+    t->alpha = out.alpha[0];
+}
+
 static void shade_material(int model, material *m)
 {
     material_init(m);
@@ -939,6 +956,8 @@ static void sweep_shade(sweep *s)
     int n = s->n;
     static const char *mname[4] = {"shade_eval[d3d]", "shade_eval[d3d9client]", "shade_eval[ct walter smith F-exact]",
                                    "shade_eval[ct ct1982 vcavity schlick]"};
+    /* The SIMD batch kernels the shading loop runs (shade_batch.c), on the same inputs. */
+    static const char *bname[2] = {"shade_eval_n[d3d]", "shade_eval_n[d3d9client]"};
     static const char *tname[5] = {"diffuse", "specular", "reflection", "emission", "alpha"};
     struct { const char *name; int mode; } cc[] = {
         {"grazing view (N.V denormal..0.1)", 0}, {"grazing light (N.L->0)", 1}, {"N.L < 0", 2},
@@ -951,6 +970,7 @@ static void sweep_shade(sweep *s)
     for (int model = 0; model < 4; model++) {
         for (size_t k = 0; k < sizeof cc / sizeof cc[0]; k++) {
             stability_row *row = row_begin(s, mname[model], cc[k].name, STABILITY_ROUNDING, 24);
+            stability_row *brow = model < 2 ? row_begin(s, bname[model], cc[k].name, STABILITY_ROUNDING, 24) : NULL;
             for (int i = 0; i < n; i++) {
                 scene_init(sc);
                 sc->camera.eye = v3(0.3f, 1.7f, 4.1f);
@@ -1010,23 +1030,30 @@ static void sweep_shade(sweep *s)
                 shade_context_make(sc, &env, &ctx);
                 shade_plan plan;
                 shade_plan_make(&ctx, m, &plan);
-                shade_terms t;
-                shade_eval(&ctx, &plan, x, nn, v, &t);
+                shade_terms t[2];
+                shade_eval(&ctx, &plan, x, nn, v, &t[0]);
+                if (brow != NULL)
+                    shade_eval_one_lane(&ctx, &plan, x, nn, v, &t[1]);
                 ref_terms e;
                 ref_shade(sc, env_c, m, x, nn, v, &e);
-                const vec3 gv[4] = {t.diffuse, t.specular, t.reflection, t.emission};
                 const ld3 ev[4] = {e.diffuse, e.specular, e.reflection, e.emission};
-                for (int j = 0; j < 4; j++) {
-                    const float g3[3] = {gv[j].x, gv[j].y, gv[j].z};
-                    const ld w3[3] = {ev[j].x, ev[j].y, ev[j].z};
-                    for (int c = 0; c < 3; c++)
-                        ADD(row, g3[c], w3[c], "%s.%c N.V=%.6g N.L=%.6g d=%.6g I=%.3g env=%.3g m=%.3g P=%.3g",
-                            tname[j], "rgb"[c], v3_dot(nn, v), v3_dot(nn, ldir), dist, l->intensity.x, env_c.x,
-                            m->ct.m, m->d3d.power);
+                for (int b = 0; b < (brow != NULL ? 2 : 1); b++) {
+                    stability_row *r = b ? brow : row;
+                    const vec3 gv[4] = {t[b].diffuse, t[b].specular, t[b].reflection, t[b].emission};
+                    for (int j = 0; j < 4; j++) {
+                        const float g3[3] = {gv[j].x, gv[j].y, gv[j].z};
+                        const ld w3[3] = {ev[j].x, ev[j].y, ev[j].z};
+                        for (int c = 0; c < 3; c++)
+                            ADD(r, g3[c], w3[c], "%s.%c N.V=%.6g N.L=%.6g d=%.6g I=%.3g env=%.3g m=%.3g P=%.3g",
+                                tname[j], "rgb"[c], v3_dot(nn, v), v3_dot(nn, ldir), dist, l->intensity.x, env_c.x,
+                                m->ct.m, m->d3d.power);
+                    }
+                    ADD(r, t[b].alpha, e.alpha, "alpha N.V=%.6g", v3_dot(nn, v));
                 }
-                ADD(row, t.alpha, e.alpha, "alpha N.V=%.6g", v3_dot(nn, v));
             }
             row_end(row);
+            if (brow != NULL)
+                row_end(brow);
         }
     }
     free(sc);

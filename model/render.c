@@ -8,6 +8,7 @@
 
 #include "raster.h"
 #include "shade.h"
+#include "smath.h"
 
 const char *const render_channel_names[RENDER_CHANNELS] = {
     "R", "G", "B", "A",
@@ -54,11 +55,20 @@ static raster_vertex render_project(const render_camera *c, vec3 p)
 /* The widest SIMD vector in floats (AVX-512); SHADE_BATCH is a multiple of it. */
 #define RENDER_LANES 16
 
+/* An object's samples waiting to be shaded: where they are (triangle and barycentrics) and
+ * which slot gets the result. */
+typedef struct {
+    int n;
+    int32_t tri[SHADE_BATCH];
+    float b1[SHADE_BATCH], b2[SHADE_BATCH];
+    uint16_t slot[SHADE_BATCH];
+} render_queue;
+
 typedef struct {
     shade_terms terms[RENDER_SPAN];          /* per slot: a span's samples, k*k per pixel in order */
     vec3 bg[RENDER_SPAN];                     /* per slot: the environment where no triangle is */
-    shade_batch_in pending[SCENE_MAX_OBJECTS];/* per object: samples waiting for shade_eval_n */
-    uint16_t pending_slot[SCENE_MAX_OBJECTS][SHADE_BATCH];
+    render_queue queue[SCENE_MAX_OBJECTS];    /* per object: samples waiting for shading */
+    shade_batch_in in;
     shade_vec3_n bg_dir, bg_rad;              /* background rays waiting for env_lookup_n */
     uint16_t bg_slot[SHADE_BATCH];
     int bg_n;
@@ -136,31 +146,64 @@ static void render_angles(const render_job *j, const raster_sample *rs, float *n
     }
 }
 
+/* render_geometry for a queue's samples, one per SIMD lane: the same operations in the same
+ * order, so a lane's x, n, v equal render_geometry's bit for bit. */
+SMATH_CLONES
+static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n, shade_batch_in *restrict in)
+{
+    /* Vertex arrays as flat floats (vec3 is three packed floats): a gather takes an element
+     * index times 4 bytes, not a 12-byte struct stride. */
+    const float *pos = &m->pos[0].x, *nrm = &m->nrm[0].x;
+    const uint32_t *idx = m->idx;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        int t = qu->tri[i];
+        int i0 = 3 * (int)idx[3 * t], i1 = 3 * (int)idx[3 * t + 1], i2 = 3 * (int)idx[3 * t + 2];
+        float b1 = qu->b1[i], b2 = qu->b2[i], b0 = 1.0f - b1 - b2;
+        vec3 p0 = v3(pos[i0], pos[i0 + 1], pos[i0 + 2]);
+        vec3 p1 = v3(pos[i1], pos[i1 + 1], pos[i1 + 2]);
+        vec3 p2 = v3(pos[i2], pos[i2 + 1], pos[i2 + 2]);
+        vec3 n0 = v3(nrm[i0], nrm[i0 + 1], nrm[i0 + 2]);
+        vec3 n1 = v3(nrm[i1], nrm[i1 + 1], nrm[i1 + 2]);
+        vec3 n2 = v3(nrm[i2], nrm[i2 + 1], nrm[i2 + 2]);
+        vec3 x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, b1)), v3_scale(p2, b2));
+        vec3 nn = v3_add(v3_add(v3_scale(n0, b0), v3_scale(n1, b1)), v3_scale(n2, b2));
+        vec3 face = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
+        nn = v3_norm(v3_dot(nn, nn) < 1e-12f ? face : nn);
+        vec3 v = v3_norm(v3_sub(eye, x));
+        nn = v3_dot(nn, v) < 0.0f ? v3_neg(nn) : nn;
+        in->x.x[i] = x.x, in->x.y[i] = x.y, in->x.z[i] = x.z;
+        in->nrm.x[i] = nn.x, in->nrm.y[i] = nn.y, in->nrm.z[i] = nn.z;
+        in->v.x[i] = v.x, in->v.y[i] = v.y, in->v.z[i] = v.z;
+    }
+}
+
 static void render_flush_object(const render_job *j, render_scratch *w, int obj)
 {
-    shade_batch_in *in = &w->pending[obj];
+    render_queue *qu = &w->queue[obj];
     shade_batch_out *r = &w->res;
-    const int n = in->n;
+    const int n = qu->n;
     if (n == 0)
         return;
-    /* Pad to whole SIMD vectors with copies of the last lane: a lane loop then never runs its
-     * scalar remainder, and the copies' results are not read. */
-    in->n = (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES;
-    for (int i = n; i < in->n; i++) {
-        in->x.x[i] = in->x.x[n - 1], in->x.y[i] = in->x.y[n - 1], in->x.z[i] = in->x.z[n - 1];
-        in->nrm.x[i] = in->nrm.x[n - 1], in->nrm.y[i] = in->nrm.y[n - 1], in->nrm.z[i] = in->nrm.z[n - 1];
-        in->v.x[i] = in->v.x[n - 1], in->v.y[i] = in->v.y[n - 1], in->v.z[i] = in->v.z[n - 1];
+    /* Pad to whole SIMD vectors with copies of the last sample: a lane loop then never runs
+     * its scalar remainder, and the copies' results are not read. */
+    w->in.n = (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES;
+    for (int i = n; i < w->in.n; i++) {
+        qu->tri[i] = qu->tri[n - 1];
+        qu->b1[i] = qu->b1[n - 1];
+        qu->b2[i] = qu->b2[n - 1];
     }
-    shade_eval_n(&j->sc, &j->plans[obj], in, r);
+    render_interpolate(j->m, j->cam->eye, qu, w->in.n, &w->in);
+    shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
     for (int i = 0; i < n; i++) {
-        shade_terms *t = &w->terms[w->pending_slot[obj][i]];
+        shade_terms *t = &w->terms[qu->slot[i]];
         t->diffuse = v3(r->diffuse.x[i], r->diffuse.y[i], r->diffuse.z[i]);
         t->specular = v3(r->specular.x[i], r->specular.y[i], r->specular.z[i]);
         t->reflection = v3(r->reflection.x[i], r->reflection.y[i], r->reflection.z[i]);
         t->emission = v3(r->emission.x[i], r->emission.y[i], r->emission.z[i]);
         t->alpha = r->alpha[i];
     }
-    in->n = 0;
+    qu->n = 0;
 }
 
 static void render_flush_background(const render_job *j, render_scratch *w)
@@ -208,14 +251,12 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                     render_blend_vertex(j, rs, &w->terms[q]);
                     continue;
                 }
-                shade_batch_in *in = &w->pending[obj];
-                vec3 x, n, v;
-                render_geometry(j, rs, &x, &n, &v);
-                in->x.x[in->n] = x.x, in->x.y[in->n] = x.y, in->x.z[in->n] = x.z;
-                in->nrm.x[in->n] = n.x, in->nrm.y[in->n] = n.y, in->nrm.z[in->n] = n.z;
-                in->v.x[in->n] = v.x, in->v.y[in->n] = v.y, in->v.z[in->n] = v.z;
-                w->pending_slot[obj][in->n++] = (uint16_t)q;
-                if (in->n == SHADE_BATCH)
+                render_queue *qu = &w->queue[obj];
+                qu->tri[qu->n] = rs->tri;
+                qu->b1[qu->n] = rs->b1;
+                qu->b2[qu->n] = rs->b2;
+                qu->slot[qu->n++] = (uint16_t)q;
+                if (qu->n == SHADE_BATCH)
                     render_flush_object(j, w, obj);
             }
         }
@@ -375,7 +416,10 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
         const material *mat = &s->materials[s->objects[i].material];
-        shade_plan_make(&j.sc, mat, &plans[i]);
+        if (opt->general)
+            shade_plan_make_general(&j.sc, mat, &plans[i]);
+        else
+            shade_plan_make(&j.sc, mat, &plans[i]);
         per_vertex[i] = (unsigned char)(mat->d3d.per_vertex != 0);
         any_per_vertex |= per_vertex[i];
     }

@@ -48,6 +48,8 @@ typedef struct {
     unsigned aovs;        /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
     int width, height;    /* 0 = the scene's */
     int supersample;      /* 0 = the scene's */
+    int general;          /* 1 = every object through shade_plan_make_general: the unspecialised
+                             path, for the specialisation benchmark; same output */
 } render_options;
 
 typedef struct {

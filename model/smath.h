@@ -7,7 +7,7 @@
  * integer bit tricks and selects, so one SIMD lane evaluates one sample. Accuracy against
  * glibc (tests/test_smath.c): log and exp within 2e-7 relative, pow within 1e-6 relative for
  * p up to 1e4 wherever the result exceeds 1e-30 (the exponent's own rounding, p*ln x, sets that
- * bound), atan2 within 2.5e-7 rad. Arguments outside the stated domains are the caller's
+ * bound) and subnormal results to within a few of their ulps, atan2 within 2.5e-7 rad. Arguments outside the stated domains are the caller's
  * business (the shading kernels guard them and fall back to the scalar models).
  *
  * SMATH_CLONES marks a kernel for runtime dispatch to AVX-512, AVX2 or baseline code (GCC's
@@ -27,6 +27,14 @@
 #define SMATH_CLONES
 #endif
 
+/* Every function must be inlined into the lane loop that calls it: a call would stop the
+ * loop from vectorising, and GCC's size heuristics alone do not always inline them. */
+#if defined(__GNUC__)
+#define SMATH_INLINE static inline __attribute__((always_inline))
+#else
+#define SMATH_INLINE static inline
+#endif
+
 #define SMATH_PI 3.14159265358979323846f
 #define SMATH_PI_2 1.57079632679489661923f
 /* ln 2 split so that n * SMATH_LN2_HI is exact for |n| < 2^15 (Cody and Waite). */
@@ -34,11 +42,11 @@
 #define SMATH_LN2_LO (-2.12194440e-4f)
 #define SMATH_LOG2E 1.44269504088896340736f
 
-static inline int32_t smath_bits(float f) { int32_t i; memcpy(&i, &f, sizeof i); return i; }
-static inline float smath_float(int32_t i) { float f; memcpy(&f, &i, sizeof f); return f; }
+SMATH_INLINE int32_t smath_bits(float f) { int32_t i; memcpy(&i, &f, sizeof i); return i; }
+SMATH_INLINE float smath_float(int32_t i) { float f; memcpy(&f, &i, sizeof f); return f; }
 
 /* Natural log of a positive finite x. */
-static inline float smath_log(float x)
+SMATH_INLINE float smath_log(float x)
 {
     /* Subnormals carry no implicit bit: scale them into the normal range first. */
     int tiny = x < FLT_MIN;
@@ -57,31 +65,34 @@ static inline float smath_log(float x)
     return ef * SMATH_LN2_HI + (s + ef * SMATH_LN2_LO);
 }
 
-/* e^y for finite y; below -87 (where e^y would be subnormal) it returns 0, above 88 FLT_MAX. */
-static inline float smath_exp(float y)
+/* e^y for finite y, subnormal results included; below -104 (under half the smallest
+ * subnormal) it returns 0, above 88.7 (beyond FLT_MAX) FLT_MAX. */
+SMATH_INLINE float smath_exp(float y)
 {
-    int under = y < -87.0f, over = y > 88.0f;
-    y = under ? -87.0f : (over ? 88.0f : y);
+    int under = y < -104.0f, over = y > 88.72f;
+    y = under ? -104.0f : (over ? 88.72f : y);
     /* Adding and subtracting 1.5 * 2^23 rounds to the nearest integer without a libm call. */
     float nf = (y * SMATH_LOG2E + 12582912.0f) - 12582912.0f;
     float r = (y - nf * SMATH_LN2_HI) - nf * SMATH_LN2_LO;
     /* Minimax on |r| <= ln2/2: relative error 1.9e-9 before float rounding. */
     float p = 1.000000001f + r * (1.000000036f + r * (0.4999999208f + r * (0.1666642020f +
               r * (0.04166822580f + r * (0.008374813388f + r * 0.001383682195f)))));
-    float y2n = smath_float(((int32_t)nf + 127) << 23);
-    float v = p * y2n;
+    /* 2^n as two normal powers of two (n in [-150, 128] does not fit one float exponent), so
+     * that results between FLT_MIN and the smallest subnormal round once, at the end. */
+    int32_t n = (int32_t)nf, h = n / 2;
+    float v = p * smath_float((h + 127) << 23) * smath_float((n - h + 127) << 23);
     return under ? 0.0f : (over ? FLT_MAX : v);
 }
 
 /* x^p for x in [0, 1] and p >= 0, with 0^0 = 1 (the limit from above) and 0^p = 0. */
-static inline float smath_pow(float x, float p)
+SMATH_INLINE float smath_pow(float x, float p)
 {
     float v = smath_exp(p * smath_log(x > 0.0f ? x : 1.0f));
     return x > 0.0f ? v : (p == 0.0f ? 1.0f : 0.0f);
 }
 
 /* atan2(y, x) in [-pi, pi]. */
-static inline float smath_atan2(float y, float x)
+SMATH_INLINE float smath_atan2(float y, float x)
 {
     float ax = x < 0.0f ? -x : x, ay = y < 0.0f ? -y : y;
     float hi = ax > ay ? ax : ay, lo = ax > ay ? ay : ax;

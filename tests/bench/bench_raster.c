@@ -316,15 +316,11 @@ static int bench_diff_files(const char *ours, const char *theirs, double *rel_rm
     return 0;
 }
 
-/* ---- specialisation: the same frame shaded through shade_plan_make and _general ---- */
+/* ---- specialisation: the same frame through shade_plan_make and _general ---- */
 
+/* The raster cost alone: every sample visited, nothing shaded. */
 typedef struct {
-    const mesh *m;
-    vec3 eye;
-    shade_context sc;
-    const shade_plan *plans;
-    int shade;              /* 0: visit the samples only (raster cost) */
-    float *acc;             /* per pixel, the sum of all terms' R+G+B */
+    float *acc;             /* per pixel, the sum of its samples' b1 (keeps the visit alive) */
     int width;
 } bench_spec_job;
 
@@ -338,23 +334,7 @@ static void bench_spec_tile(void *user, const raster_tile *tile)
             for (int t = 0; t < k; t++)
                 for (int s = 0; s < k; s++) {
                     const raster_sample *rs = &tile->samples[(size_t)(py * k + t) * stride + (size_t)(px * k + s)];
-                    if (rs->tri < 0) continue;
-                    if (!j->shade) {
-                        sum += rs->b1;
-                        continue;
-                    }
-                    /* The interpolation render.c does before shade_eval. */
-                    const uint32_t *tri = j->m->idx + 3 * (size_t)rs->tri;
-                    float b0 = 1.0f - rs->b1 - rs->b2;
-                    vec3 x = v3_add(v3_add(v3_scale(j->m->pos[tri[0]], b0), v3_scale(j->m->pos[tri[1]], rs->b1)),
-                                    v3_scale(j->m->pos[tri[2]], rs->b2));
-                    vec3 n = v3_norm(v3_add(v3_add(v3_scale(j->m->nrm[tri[0]], b0), v3_scale(j->m->nrm[tri[1]], rs->b1)),
-                                            v3_scale(j->m->nrm[tri[2]], rs->b2)));
-                    vec3 v = v3_norm(v3_sub(j->eye, x));
-                    if (v3_dot(n, v) < 0.0f) n = v3_neg(n);
-                    shade_terms st;
-                    shade_eval(&j->sc, &j->plans[j->m->tri_object[rs->tri]], x, n, v, &st);
-                    sum += v3_sum(st.diffuse) + v3_sum(st.specular) + v3_sum(st.reflection) + v3_sum(st.emission);
+                    if (rs->tri >= 0) sum += rs->b1;
                 }
             j->acc[(size_t)(tile->y0 + py) * j->width + (size_t)(tile->x0 + px)] = sum;
         }
@@ -370,6 +350,15 @@ typedef struct {
 
 static bench_spec_result g_spec;
 
+/* render_scene's beauty layers of two frames, byte for byte. */
+static int bench_same_beauty(const render_image *a, const render_image *b)
+{
+    size_t n = (size_t)a->width * (size_t)a->height * sizeof(float);
+    for (int c = RENDER_R; c <= RENDER_A; c++)
+        if (memcmp(a->chan[c], b->chan[c], n) != 0) return 0;
+    return 1;
+}
+
 static void bench_spec_child(const void *varg, bench_result *r)
 {
     const bench_cfg *c = varg;
@@ -384,8 +373,8 @@ static void bench_spec_child(const void *varg, bench_result *r)
     render_camera cam;
     render_camera_make(&s, c->size, c->size, &cam);
     raster_vertex *rv = malloc((size_t)m.n_verts * sizeof *rv);
-    float *acc[2] = {calloc((size_t)c->size * c->size, sizeof(float)), calloc((size_t)c->size * c->size, sizeof(float))};
-    if (!rv || !acc[0] || !acc[1]) {
+    float *acc = calloc((size_t)c->size * c->size, sizeof(float));
+    if (!rv || !acc) {
         snprintf(r->err, sizeof r->err, "out of memory");
         return;
     }
@@ -394,34 +383,48 @@ static void bench_spec_child(const void *varg, bench_result *r)
         rv[i] = (raster_vertex){v3_dot(d, cam.right) / cam.tan_half_x, v3_dot(d, cam.up) / cam.tan_half_y,
                                 v3_dot(d, cam.forward)};
     }
-    bench_spec_job j = {.m = &m, .eye = cam.eye, .width = c->size};
-    shade_context_make(&s, &env, &j.sc);
-    shade_plan plans[2][SCENE_MAX_OBJECTS];
-    for (int o = 0; o < s.n_objects; o++) {
-        shade_plan_make(&j.sc, &s.materials[s.objects[o].material], &plans[0][o]);
-        shade_plan_make_general(&j.sc, &s.materials[s.objects[o].material], &plans[1][o]);
-    }
+    bench_spec_job j = {.acc = acc, .width = c->size};
     bench_spec_result *out = &g_spec;
-    snprintf(out->path_special, sizeof out->path_special, "%s", plans[0][0].path);
-    snprintf(out->path_general, sizeof out->path_general, "%s", plans[1][0].path);
+    {
+        shade_context sc;
+        shade_plan ps, pg;
+        shade_context_make(&s, &env, &sc);
+        shade_plan_make(&sc, &s.materials[s.objects[0].material], &ps);
+        shade_plan_make_general(&sc, &s.materials[s.objects[0].material], &pg);
+        snprintf(out->path_special, sizeof out->path_special, "%s", ps.path);
+        snprintf(out->path_general, sizeof out->path_general, "%s", pg.path);
+    }
     raster_options ro = {.width = c->size, .height = c->size, .supersample = c->k, .threads = c->threads};
+    render_options o[2] = {
+        {.threads = c->threads, .aovs = RENDER_AOV_NONE, .width = c->size, .height = c->size, .supersample = c->k},
+        {.threads = c->threads, .aovs = RENDER_AOV_NONE, .width = c->size, .height = c->size, .supersample = c->k,
+         .general = 1}};
+    render_image img[2];
+    memset(img, 0, sizeof img);
     double t[3][16];
     int reps = c->reps < 1 ? 1 : c->reps > 15 ? 15 : c->reps;
-    /* Interleaved, after one untimed frame of each kind, so drift hits all three alike. */
+    char err[256];
+    /* Interleaved, after one untimed frame of each kind, so drift hits all three alike. The
+     * shaded frames go through render_scene: the shading loop the renders use. */
     for (int rep = -1; rep < reps; rep++)
         for (int kind = 0; kind < 3; kind++) {
-            j.shade = kind > 0;
-            j.plans = plans[kind == 2];
-            j.acc = acc[kind == 2];
             double t0 = bench_now();
-            if (raster_draw(rv, m.n_verts, m.idx, m.n_tris, &ro, bench_spec_tile, &j) != RC_OK) {
-                snprintf(r->err, sizeof r->err, "raster_draw failed");
-                return;
+            if (kind == 0) {
+                if (raster_draw(rv, m.n_verts, m.idx, m.n_tris, &ro, bench_spec_tile, &j) != RC_OK) {
+                    snprintf(r->err, sizeof r->err, "raster_draw failed");
+                    return;
+                }
+            } else {
+                render_image_free(&img[kind - 1]);
+                if (render_scene(&s, &m, &env, &o[kind - 1], &img[kind - 1], err, sizeof err) != RC_OK) {
+                    snprintf(r->err, sizeof r->err, "%s", err);
+                    return;
+                }
             }
             if (rep >= 0) t[kind][rep] = 1e3 * (bench_now() - t0);
         }
     for (int kind = 0; kind < 3; kind++) out->ms[kind] = bench_median(t[kind], reps);
-    out->equal = memcmp(acc[0], acc[1], (size_t)c->size * c->size * sizeof(float)) == 0;
+    out->equal = bench_same_beauty(&img[0], &img[1]);
     /* The reflect scene's path, for the report. */
     scene sr;
     if (bench_scene_load(g_scene, BENCH_SCENE_REFLECT, &sr, r->err, sizeof r->err) == RC_OK) {
@@ -438,9 +441,10 @@ static void bench_spec_child(const void *varg, bench_result *r)
     r->shaded = out->equal;
     snprintf(r->err, sizeof r->err, "%s|%s|%s", out->path_special, out->path_general, out->path_reflect);
     r->ok = 1;
+    render_image_free(&img[0]);
+    render_image_free(&img[1]);
     free(rv);
-    free(acc[0]);
-    free(acc[1]);
+    free(acc);
     mesh_free(&m);
     free(env_px);
 }
