@@ -93,7 +93,7 @@ report: deps
 # to tests/regress/ once fixed. FUZZ_TIME seconds per target.
 FUZZ_CC    ?= clang
 FUZZ_TIME  ?= 300
-FUZZ_FLAGS := -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(STD) -Imodel -Iharness
+FUZZ_FLAGS := -g -O1 -fopenmp-simd -Wno-pass-failed -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(STD) -Imodel -Iharness
 FUZZ_DIR   := $(abspath $(BUILD))/fuzz
 
 $(FUZZ_DIR)/fuzz_scene: tests/fuzz/fuzz_scene.c harness/scene_file.c $(MODEL_SRC)

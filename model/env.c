@@ -81,7 +81,7 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
         int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;
         float ax = fx - (float)x0, ay = fy - (float)y0;
         x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
-        x0 = (x0 >= 0) & (x0 < w) ? x0 : 0;
+        x0 = ((x0 >= 0) & (x0 < w)) ? x0 : 0;
         int x1 = x0 + 1 >= w ? 0 : x0 + 1;
         int y1 = y0 + 1;
         y0 = y0 < 0 ? 0 : (y0 >= h ? h - 1 : y0);

@@ -24,8 +24,9 @@ typedef struct {
 
 vec3 env_lookup(const env_map *e, vec3 dir);
 /* env_lookup for n directions at once, structure of arrays (dx[i], dy[i], dz[i] -> r[i],
- * g[i], b[i]); vectorised through smath_atan2, so the texel position differs from
- * env_lookup's by under 1e-4 texel. Directions need not be unit; a zero one gives 0. */
+ * g[i], b[i]); vectorised through smath_atan2, so the result differs from env_lookup's by
+ * under 1e-6 of a texel step (tests/test_shade_batch.c). Directions need not be unit (lengths
+ * 1e-15 to 1e15: beyond, squares leave float's range, as in env_lookup); a zero one gives 0. */
 void env_lookup_n(const env_map *e, int n, const float *dx, const float *dy, const float *dz,
                   float *r, float *g, float *b);
 /* The image coordinates (in texels, x right, y down from the top edge) of a direction. */

@@ -16,6 +16,8 @@
  * "var.R/G/B" bound the variance of each pixel's estimate of its box integral: the sample
  * variance of its k x k samples divided by k^2 (stratified samples do no worse), so that a
  * comparison with a path tracer's pixel integral can tell sampling error from model error.
+ * Per-pixel samples are queued per object and shaded SHADE_BATCH at a time through
+ * shade_eval_n (one SIMD lane per sample), the background through env_lookup_n.
  * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
  */
 #ifndef REFLCHECK_RENDER_H

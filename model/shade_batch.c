@@ -115,7 +115,7 @@ SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, co
     float t = (rho - b->cos_out) / b->cone;
     float spot;
     if (kind == SB_SPOT_SMOOTH) {
-        spot = (rho <= 0.0f) | (rho <= b->cos_out) ? 0.0f : (rho >= b->cos_in ? rho : rho * t * t * (3.0f - 2.0f * t));
+        spot = ((rho <= 0.0f) | (rho <= b->cos_out)) ? 0.0f : (rho >= b->cos_in ? rho : rho * t * t * (3.0f - 2.0f * t));
     } else {
         t = t > 1.0f ? 1.0f : (t < 0.0f ? 0.0f : t);
         spot = rho > b->cos_in ? 1.0f : (rho <= b->cos_out ? 0.0f : smath_pow(t, b->falloff));

@@ -2,7 +2,8 @@
  * accepts. The input is passed without a terminating NUL, so a read past len is caught by
  * AddressSanitizer. A scene the parser accepts is shaded at a few fixed points: MODELS.md
  * section 5 says bad input is rejected where it enters, so an accepted scene that makes
- * shade_eval produce NaN or Inf is a finding (the fuzzer aborts with the input). Relative
+ * shade_eval, or the SIMD batch form shade_eval_n the shading loop runs, produce NaN or Inf is
+ * a finding (the fuzzer aborts with the input). Relative
  * paths in the scene resolve against the current directory (run it from scenes/ so the
  * seed corpus's environment images are found). */
 #include <stdint.h>
@@ -17,6 +18,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static int fuzz_scene_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
+static void fuzz_scene_check(const scene *s, int m, const char *path, int i, const char *form, const shade_terms *t)
+{
+    if (fuzz_scene_finite(t->diffuse) && fuzz_scene_finite(t->specular) && fuzz_scene_finite(t->reflection) &&
+        fuzz_scene_finite(t->emission) && isfinite(t->alpha))
+        return;
+    fprintf(stderr, "fuzz_scene: accepted scene gives non-finite shading (%s): material %d (%s, path %s) "
+            "at point %d: diffuse %g %g %g specular %g %g %g reflection %g %g %g alpha %g\n",
+            form, m, s->materials[m].name, path, i, t->diffuse.x, t->diffuse.y, t->diffuse.z, t->specular.x,
+            t->specular.y, t->specular.z, t->reflection.x, t->reflection.y, t->reflection.z, t->alpha);
+    abort();
+}
+
 static void fuzz_scene_shade(const scene *s)
 {
     /* A constant environment stands in for any image: the models only see its radiance. */
@@ -29,6 +42,9 @@ static void fuzz_scene_shade(const scene *s)
     for (int m = 0; m < s->n_materials; m++) {
         shade_plan p;
         shade_plan_make(&c, &s->materials[m], &p);
+        static shade_batch_in in;
+        static shade_batch_out out;
+        in.n = 3;
         for (int i = 0; i < 3; i++) {
             vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
             vec3 n = v3(nrm[i][0], nrm[i][1], nrm[i][2]);
@@ -37,14 +53,18 @@ static void fuzz_scene_shade(const scene *s)
             if (v3_dot(n, v) < 0.0f) n = v3_neg(n);   /* shade_eval wants n facing the viewer */
             shade_terms t;
             shade_eval(&c, &p, x, n, v, &t);
-            if (!fuzz_scene_finite(t.diffuse) || !fuzz_scene_finite(t.specular) ||
-                !fuzz_scene_finite(t.reflection) || !fuzz_scene_finite(t.emission) || !isfinite(t.alpha)) {
-                fprintf(stderr, "fuzz_scene: accepted scene gives non-finite shading: material %d (%s, path %s) "
-                        "at point %d: diffuse %g %g %g specular %g %g %g reflection %g %g %g alpha %g\n",
-                        m, s->materials[m].name, p.path, i, t.diffuse.x, t.diffuse.y, t.diffuse.z, t.specular.x,
-                        t.specular.y, t.specular.z, t.reflection.x, t.reflection.y, t.reflection.z, t.alpha);
-                abort();
-            }
+            fuzz_scene_check(s, m, p.path, i, "shade_eval", &t);
+            in.x.x[i] = x.x, in.x.y[i] = x.y, in.x.z[i] = x.z;
+            in.nrm.x[i] = n.x, in.nrm.y[i] = n.y, in.nrm.z[i] = n.z;
+            in.v.x[i] = v.x, in.v.y[i] = v.y, in.v.z[i] = v.z;
+        }
+        shade_eval_n(&c, &p, &in, &out);
+        for (int i = 0; i < 3; i++) {
+            shade_terms t = {v3(out.diffuse.x[i], out.diffuse.y[i], out.diffuse.z[i]),
+                             v3(out.specular.x[i], out.specular.y[i], out.specular.z[i]),
+                             v3(out.reflection.x[i], out.reflection.y[i], out.reflection.z[i]),
+                             v3(out.emission.x[i], out.emission.y[i], out.emission.z[i]), out.alpha[i]};
+            fuzz_scene_check(s, m, p.path, i, "shade_eval_n", &t);
         }
     }
 }
