@@ -52,6 +52,7 @@ typedef struct {
     double first_ms, ms_median, ms_min, ms_max;
     long long shaded, samples;
     double peak_mib, fb_mib, input_mib;
+    double kernel_ns[2];   /* specialisation: ns per lane of shade_eval_n, specialised and general */
 } bench_result;
 
 typedef struct {
@@ -359,6 +360,64 @@ static int bench_same_beauty(const render_image *a, const render_image *b)
     return 1;
 }
 
+/* The shading kernels alone: shade_eval_n over full batches of points on the benchmark's
+ * sphere (the visible half) and floor, as the shading loop hands them over; ns per lane,
+ * medians of interleaved repetitions. */
+#define BENCH_KERNEL_BATCHES 256
+#define BENCH_KERNEL_PASSES 64
+
+static void bench_spec_kernels(const scene *s, const env_map *env, int reps, double ns[2])
+{
+    static shade_batch_in in[BENCH_KERNEL_BATCHES];
+    static shade_batch_out out;
+    shade_context sc;
+    shade_context_make(s, env, &sc);
+    shade_plan plan[2];
+    shade_plan_make(&sc, &s->materials[s->objects[0].material], &plan[0]);
+    shade_plan_make_general(&sc, &s->materials[s->objects[0].material], &plan[1]);
+    unsigned rng = 12345u;
+    for (int b = 0; b < BENCH_KERNEL_BATCHES; b++) {
+        in[b].n = SHADE_BATCH;
+        for (int i = 0; i < SHADE_BATCH; i++) {
+            rng = rng * 1664525u + 1013904223u;
+            float u = (float)(rng >> 8) / 16777216.0f;
+            rng = rng * 1664525u + 1013904223u;
+            float w = (float)(rng >> 8) / 16777216.0f;
+            vec3 x, n;
+            if (b % 2 == 0) {
+                /* A point on the unit sphere's half that faces the camera. */
+                float z = w, r = sqrtf(1.0f - z * z), ph = 6.2831853f * u;
+                n = v3_norm(v3_add(v3_scale(v3_norm(v3_sub(s->camera.eye, s->objects[0].center)), z),
+                                   v3(r * cosf(ph) * 0.5f, r * sinf(ph) * 0.5f, r * cosf(ph + 1.0f) * 0.5f)));
+                x = v3_add(s->objects[0].center, n);
+            } else {
+                x = v3(12.0f * u - 6.0f, -1.0f, 12.0f * w - 6.0f);
+                n = v3(0.0f, 1.0f, 0.0f);
+            }
+            vec3 v = v3_norm(v3_sub(s->camera.eye, x));
+            if (v3_dot(n, v) < 0.0f) n = v3_neg(n);
+            in[b].x.x[i] = x.x, in[b].x.y[i] = x.y, in[b].x.z[i] = x.z;
+            in[b].nrm.x[i] = n.x, in[b].nrm.y[i] = n.y, in[b].nrm.z[i] = n.z;
+            in[b].v.x[i] = v.x, in[b].v.y[i] = v.y, in[b].v.z[i] = v.z;
+        }
+    }
+    double t[2][16];
+    volatile float sink = 0.0f;
+    for (int rep = -1; rep < reps; rep++)
+        for (int k = 0; k < 2; k++) {
+            double t0 = bench_now();
+            for (int pass = 0; pass < BENCH_KERNEL_PASSES; pass++)
+                for (int b = 0; b < BENCH_KERNEL_BATCHES; b++) {
+                    shade_eval_n(&sc, &plan[k], &in[b], &out);
+                    sink += out.diffuse.x[b % SHADE_BATCH];
+                }
+            if (rep >= 0)
+                t[k][rep] = 1e9 * (bench_now() - t0) / ((double)BENCH_KERNEL_PASSES * BENCH_KERNEL_BATCHES * SHADE_BATCH);
+        }
+    (void)sink;
+    for (int k = 0; k < 2; k++) ns[k] = bench_median(t[k], reps);
+}
+
 static void bench_spec_child(const void *varg, bench_result *r)
 {
     const bench_cfg *c = varg;
@@ -425,6 +484,7 @@ static void bench_spec_child(const void *varg, bench_result *r)
         }
     for (int kind = 0; kind < 3; kind++) out->ms[kind] = bench_median(t[kind], reps);
     out->equal = bench_same_beauty(&img[0], &img[1]);
+    bench_spec_kernels(&s, &env, reps, r->kernel_ns);
     /* The reflect scene's path, for the report. */
     scene sr;
     if (bench_scene_load(g_scene, BENCH_SCENE_REFLECT, &sr, r->err, sizeof r->err) == RC_OK) {
@@ -698,7 +758,7 @@ int main(int argc, char **argv)
     }
 
     /* Specialisation: the diffuse-only scene through the specialised and the general path. */
-    bench_cfg spec_cfg = {ref_size, 4, ref_tris, 1, quick ? 2 : 3};
+    bench_cfg spec_cfg = {ref_size, 4, ref_tris, 1, quick ? 2 : 7};
     bench_result spec_r;
     bench_in_child(bench_spec_child, &spec_cfg, &spec_r);
     failures += !spec_r.ok;
@@ -785,6 +845,8 @@ int main(int argc, char **argv)
     printf("  raster only %.1f ms; specialised '%s' %.1f ms; general '%s' %.1f ms; frame speed-up %.2fx, shading speed-up %.2fx; "
            "outputs %s\n", spec_r.ms_min, p_special, spec_r.ms_median, p_general, spec_r.ms_max, sp_frame, sp_shade,
            spec_r.shaded ? "bit-identical" : "DIFFER");
+    printf("  kernels alone (shade_eval_n, full batches): specialised %.2f ns/lane, general %.2f ns/lane: speed-up %.2fx\n",
+           spec_r.kernel_ns[0], spec_r.kernel_ns[1], spec_r.kernel_ns[1] / spec_r.kernel_ns[0]);
 
     double target_ours = NAN, target_lp = NAN, achieved = NAN, frac = NAN, mem_over = NAN;
     int all_identical = 1, mem_ok = 1;
@@ -871,6 +933,9 @@ int main(int argc, char **argv)
     bench_json_num_or_null(f, "general_ms", spec_r.ms_max, ", ");
     bench_json_num_or_null(f, "frame_speedup", sp_frame, ", ");
     bench_json_num_or_null(f, "shading_speedup", sp_shade, ", ");
+    bench_json_num_or_null(f, "kernel_specialised_ns_per_lane", spec_r.kernel_ns[0], ", ");
+    bench_json_num_or_null(f, "kernel_general_ns_per_lane", spec_r.kernel_ns[1], ", ");
+    bench_json_num_or_null(f, "kernel_speedup", spec_r.kernel_ns[1] / spec_r.kernel_ns[0], ", ");
     fprintf(f, "\"identical\": %s},\n", spec_r.ok && spec_r.shaded ? "true" : "false");
     fprintf(f, "  \"references\": {");
     for (int i = 0; i < 2; i++) {
