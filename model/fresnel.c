@@ -43,7 +43,7 @@ vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta)
 float fresnel_d3d9(float r0, float m, float p, float cos_theta)
 {
     double c = fresnel_clampd(cos_theta, 0.0, 1.0);
-    double e = p < 0.0f ? 0.0 : (double)p;
+    double e = (double)fresnel_d3d9_power(p);
     double x = 1.0 - c, xe;
     /* Small whole powers (the seed's p = 2..5 and Schlick's 5) by repeated multiplication:
      * at most 7 double roundings, far below float resolution, and no libm pow per pixel. */

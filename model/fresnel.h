@@ -32,6 +32,10 @@ vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta);
  * 0, because (1 - c)^p would be unbounded at c = 1. The sum is formed in double and
  * saturated to +-FLT_MAX, so huge bad R0 and m cannot overflow to Inf. */
 float fresnel_d3d9(float r0, float m, float p, float cos_theta);
+/* The exponent fresnel_d3d9 applies: p, with p < 0 taken as 0 (a negative power is unbounded at
+ * normal incidence). One definition for fresnel_d3d9 and the SIMD kernels (shade_batch.c), so a
+ * change to the rule reaches every render. */
+static inline float fresnel_d3d9_power(float p) { return p < 0.0f ? 0.0f : p; }
 
 /* Exact unpolarised Fresnel reflectance of a smooth dielectric interface, (Rs + Rp)/2.
  * eta = n_t / n_i seen from the side the ray arrives on when cos_i >= 0; cos_i < 0 means

@@ -18,6 +18,7 @@
 #include <math.h>
 
 #include "d3d9client.h"
+#include "fresnel.h"
 #include "smath.h"
 
 /* The lane loops must be inlined into each SMATH_CLONES kernel to be compiled for its ISA,
@@ -282,7 +283,7 @@ SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const sha
                         const int kind, const int whole)
 {
     const sb_light b = sb_light_make(sun);
-    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const float fp = fresnel_d3d9_power(d9->p);
     const int n = in->n;
     int bad[SHADE_BATCH];
 #pragma omp simd
@@ -298,7 +299,7 @@ SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const sha
 SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *restrict in, const shade_vec3_n *restrict phi,
                              const float *restrict sun_f, shade_batch_out *restrict out, const int whole)
 {
-    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const float fp = fresnel_d3d9_power(d9->p);
     const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
     const float w = sb_sat(1.0f - d3d9_colour_norm(d9->reflect, d9->norm));
     const sb_norm_weights norm = sb_norm_make(d9->norm);
@@ -335,7 +336,7 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
         sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
     env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi.x, phi.y, phi.z);
 
-    const float fp = d9->p < 0.0f ? 0.0f : d9->p;
+    const float fp = fresnel_d3d9_power(d9->p);
     const int whole = fp == floorf(fp) && fp <= 8.0f;
     const light *sun = NULL;
     if (d9->sun_angle) {
