@@ -154,6 +154,14 @@ static light *add_spot(scene *s, spot_profile profile)
     return l;
 }
 
+/* A sun, a point light whose range cuts some lanes and a spot: every light kind at once. */
+static void add_three_lights(scene *s, spot_profile profile)
+{
+    add_sun(s);
+    add_point(s)->range = 2.5f;
+    add_spot(s, profile);
+}
+
 /* ---- inputs ---- */
 
 /* Lanes: x in [-1, 1] x [-0.5, 0.5] x [-1, 1]; v the unit vector to the eye; n random, or for a
@@ -359,6 +367,17 @@ static void plan_for(const scene *s, const env_map *env, shade_context *c, shade
     assert_true(p->batch == want);
 }
 
+
+/* run_case from its own seed, its statistics merged into *all; returns its failures. */
+static int run_seeded(const shade_context *c, const shade_plan *p, const check_spec *spec, uint64_t seed, int lanes,
+                      int batches, check_stat *all)
+{
+    check_stat st = {{0}, 0, 0, 0};
+    rng_seed(seed);
+    run_case(c, p, spec, lanes, batches, &st);
+    stat_merge(all, &st);
+    return (int)st.failures;
+}
 /* ---- D3D ---- */
 
 static void test_d3d_diffuse(void **state)
@@ -665,11 +684,7 @@ static void test_d3d9client(void **state)
                                      env_names[ei], (double)lambdas[li].x, (double)lambdas[li].y,
                                      (double)lambdas[li].z);
                             const check_spec spec = {name, REL, 0};
-                            check_stat st = {{0}, 0, 0, 0};
-                            rng_seed(seed++);
-                            run_case(&c, &p, &spec, SHADE_BATCH, 3, &st);
-                            failures += (int)st.failures;
-                            stat_merge(&all, &st);
+                            failures += run_seeded(&c, &p, &spec, seed++, SHADE_BATCH, 3, &all);
                         }
     stat_print("d3d9client (all 480 combinations)", &all);
     assert_int_equal(failures, 0);
@@ -687,9 +702,7 @@ static void test_cook_torrance_exact(void **state)
         for (int refl = 0; refl <= 1; refl++) {
             scene s;
             base_scene(&s);
-            add_sun(&s);
-            add_point(&s)->range = 2.5f;
-            add_spot(&s, SPOT_SMOOTH);
+            add_three_lights(&s, SPOT_SMOOTH);
             material *m = &s.materials[0];
             m->model = MODEL_COOK_TORRANCE;
             m->albedo = v3(0.3f, 0.4f, 0.5f);
@@ -701,11 +714,7 @@ static void test_cook_torrance_exact(void **state)
             shade_plan p;
             plan_for(&s, &envs[ei], &c, &p, shade_batch_scalar);
             const check_spec spec = {"cook-torrance", 0.0, 1};
-            check_stat st = {{0}, 0, 0, 0};
-            rng_seed(600 + (uint64_t)(ei * 2 + refl));
-            run_case(&c, &p, &spec, SHADE_BATCH, 4, &st);
-            failures += (int)st.failures;
-            stat_merge(&all, &st);
+            failures += run_seeded(&c, &p, &spec, 600 + (uint64_t)(ei * 2 + refl), SHADE_BATCH, 4, &all);
         }
     stat_print("cook-torrance (scalar, bit-identical)", &all);
     assert_int_equal(failures, 0);
@@ -723,9 +732,7 @@ static void test_partial_batches(void **state)
     for (int k = 0; k < 3; k++) {
         scene s;
         base_scene(&s);
-        add_sun(&s);
-        add_point(&s)->range = 2.5f;
-        add_spot(&s, SPOT_D3D);
+        add_three_lights(&s, SPOT_D3D);
         material *m = &s.materials[0];
         shade_batch_fn want = shade_batch_d3d_diffuse;
         if (k >= 1) {
@@ -747,11 +754,7 @@ static void test_partial_batches(void **state)
             char name[64];
             snprintf(name, sizeof name, "%s n = %d", p.path, ns[i]);
             const check_spec spec = {name, REL, 0};
-            check_stat st = {{0}, 0, 0, 0};
-            rng_seed(700 + (uint64_t)(k * 10) + i);
-            run_case(&c, &p, &spec, ns[i], 4, &st);
-            failures += (int)st.failures;
-            stat_merge(&all, &st);
+            failures += run_seeded(&c, &p, &spec, 700 + (uint64_t)(k * 10) + i, ns[i], 4, &all);
         }
     }
     stat_print("partial batches (n = 0, 1, 7, 16, 63, 64; lanes past n untouched)", &all);
