@@ -956,8 +956,10 @@ static void sweep_shade(sweep *s)
     int n = s->n;
     static const char *mname[4] = {"shade_eval[d3d]", "shade_eval[d3d9client]", "shade_eval[ct walter smith F-exact]",
                                    "shade_eval[ct ct1982 vcavity schlick]"};
-    /* The SIMD batch kernels the shading loop runs (shade_batch.c), on the same inputs. */
-    static const char *bname[2] = {"shade_eval_n[d3d]", "shade_eval_n[d3d9client]"};
+    /* The SIMD batch kernels the shading loop runs (shade_batch.c), on the same inputs; the
+     * exact Smith G and Fresnel have none (shade_batch_ct_supported). */
+    static const char *bname[4] = {"shade_eval_n[d3d]", "shade_eval_n[d3d9client]", NULL,
+                                   "shade_eval_n[ct ct1982 vcavity schlick]"};
     static const char *tname[5] = {"diffuse", "specular", "reflection", "emission", "alpha"};
     struct { const char *name; int mode; } cc[] = {
         {"grazing view (N.V denormal..0.1)", 0}, {"grazing light (N.L->0)", 1}, {"N.L < 0", 2},
@@ -970,7 +972,8 @@ static void sweep_shade(sweep *s)
     for (int model = 0; model < 4; model++) {
         for (size_t k = 0; k < sizeof cc / sizeof cc[0]; k++) {
             stability_row *row = row_begin(s, mname[model], cc[k].name, STABILITY_ROUNDING, 24);
-            stability_row *brow = model < 2 ? row_begin(s, bname[model], cc[k].name, STABILITY_ROUNDING, 24) : NULL;
+            stability_row *brow = bname[model] != NULL ? row_begin(s, bname[model], cc[k].name, STABILITY_ROUNDING, 24)
+                                                       : NULL;
             for (int i = 0; i < n; i++) {
                 scene_init(sc);
                 sc->camera.eye = v3(0.3f, 1.7f, 4.1f);

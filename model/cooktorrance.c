@@ -67,7 +67,7 @@ vec3 cooktorrance_specular(const ct_params *p, vec3 n, vec3 v, vec3 l, const mat
     double v_h = dv3_dot(vd, h);
     if (v_h < 0.0) v_h = 0.0;   /* V.H = |L+V|/2 >= 0 exactly; only rounding can dip below */
     if (v_h > 1.0) v_h = 1.0;
-    double d = microfacet_beckmann_d((float)n_h, p->m, p->norm);
+    double d = microfacet_beckmann_d(n_h, p->m, p->norm);
     double g = cooktorrance_g(p, n_h, n_v, n_l, v_h);
     double k = p->norm == CT_CT1982 ? COOKTORRANCE_PI : 4.0;
     dvec3 f = cooktorrance_fresnel(p, v_h, mat);

@@ -5,15 +5,18 @@
 
 #define MICROFACET_PI 3.14159265358979323846
 
-float microfacet_beckmann_d(float cos_h, float m, ct_normalisation norm)
+float microfacet_beckmann_d(double cos_h, float m, ct_normalisation norm)
 {
     if (isnan(cos_h) || isnan(m)) return NAN;
-    if (cos_h <= 0.0f) return 0.0f;
-    double c = cos_h > 1.0f ? 1.0 : (double)cos_h;
+    if (cos_h <= 0.0) return 0.0f;
+    double c = cos_h > 1.0 ? 1.0 : cos_h;
     if (m <= 0.0f) return c >= 1.0 ? MICROFACET_D_MAX : 0.0f;
     double md = m;
+    /* Below 1e-150, c^2 would underflow; tan^2/m^2 > 1e300/FLT_MAX^2 = 8e222 there, so D is 0
+     * for every float m. */
+    if (c < 1e-150) return 0.0f;
     double c2 = c * c;
-    double tan2 = (1.0 - c) * (1.0 + c) / c2;   /* c >= 1.4e-45, so c2 >= 2e-90: no 0 */
+    double tan2 = (1.0 - c) * (1.0 + c) / c2;
     /* log D = -tan^2/m^2 - log(pi) - 2 log m - 4 log c; each term is finite in double for
      * every positive finite float c and m, and the sum's exp underflows to 0 or is capped. */
     double log_d = -tan2 / (md * md) - 2.0 * log(md) - 2.0 * log(c2);

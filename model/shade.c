@@ -207,7 +207,9 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         int refl = m->ct.reflection && has_env;
         p->terms |= SHADE_TERM_SPECULAR | (refl ? SHADE_TERM_REFLECTION : 0u);
         p->fn = refl ? shade_ct_full : shade_ct_lights;
-        p->batch = shade_batch_scalar;
+        p->batch = !shade_batch_ct_supported(&m->ct) ? shade_batch_scalar
+                   : refl                            ? shade_batch_ct_env
+                                                     : shade_batch_ct_lights;
         p->path = refl ? "cook-torrance-env" : "cook-torrance-lights";
         break;
     }
@@ -223,6 +225,7 @@ void shade_plan_make_general(const shade_context *c, const material *m, shade_pl
         p->path = "d3d-full";
     } else if (m->model == MODEL_COOK_TORRANCE) {
         p->fn = shade_ct_full;
+        p->batch = shade_batch_ct_supported(&m->ct) ? shade_batch_ct_env : shade_batch_scalar;
         p->path = "cook-torrance-env";
     }
 }

@@ -17,8 +17,8 @@
  * for Blinn powers up to 40 (1.2e-3 at a power of 1e4, which multiplies the 2-ulp N.H
  * difference of the scalar path's renormalised half vector), and near a soft spot edge to
  * 5e-7 of the term's largest value (tests/test_shade_batch.c). Lanes outside the
- * kernels' safe range (a point light within 1e-15 m or beyond 1e15 m) and models without a
- * kernel (Cook-Torrance) go through shade_eval lane by lane.
+ * kernels' safe range (a point light within 1e-15 m or beyond 1e15 m) and materials without a
+ * kernel (see shade_batch_ct_supported) go through shade_eval lane by lane.
  */
 #ifndef REFLCHECK_SHADE_H
 #define REFLCHECK_SHADE_H
@@ -85,6 +85,12 @@ void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade
 void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_ct_lights(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+/* Whether the Cook-Torrance kernels cover a material: Beckmann D, V-cavity or Walter's Smith G,
+ * Schlick or unit Fresnel, m >= 1e-6. The exact Smith G (erf) and exact Fresnel (complex
+ * index) stay on shade_eval, lane by lane. */
+int shade_batch_ct_supported(const ct_params *ct);
 
 /* Incident light i at x: unit direction to the light and the irradiance it would give at
  * normal incidence (I*A*spot for point/spot, E for a sun). Returns 0 when it gives nothing. */

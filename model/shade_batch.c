@@ -17,8 +17,10 @@
 #include <float.h>
 #include <math.h>
 
+#include "cooktorrance.h"
 #include "d3d9client.h"
 #include "fresnel.h"
+#include "microfacet.h"
 #include "smath.h"
 
 /* The lane loops must be inlined into each SMATH_CLONES kernel to be compiled for its ISA,
@@ -35,6 +37,8 @@
 /* d3d.c's D3D_HALF_MIN and D3D_ATTEN_DENOM_MIN, for the same reasons (d3d.h). */
 #define SB_HALF_MIN 1e-6f
 #define SB_DENOM_MIN 1e-12f
+/* ln MICROFACET_D_MAX (1e12): where microfacet_beckmann_d caps D. */
+#define SB_LN_D_MAX 27.6310211f
 
 static inline vec3 sb_get(const shade_vec3_n *a, int i) { return v3(a->x[i], a->y[i], a->z[i]); }
 static inline void sb_set(shade_vec3_n *a, int i, vec3 v) { a->x[i] = v.x; a->y[i] = v.y; a->z[i] = v.z; }
@@ -54,17 +58,23 @@ SB_INLINE int sb_any(const int *flag, int n)
 static inline float sb_max(float a, float b) { return a > b ? a : b; }
 static inline float sb_sat(float x) { return x > FLT_MAX ? FLT_MAX : (x < -FLT_MAX ? -FLT_MAX : x); }
 
+/* Lane i from shade_eval. */
+static void sb_scalar_lane(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out,
+                           int i)
+{
+    shade_terms t;
+    p->fn(c, p, sb_get(&in->x, i), sb_get(&in->nrm, i), sb_get(&in->v, i), &t);
+    sb_set(&out->diffuse, i, t.diffuse);
+    sb_set(&out->specular, i, t.specular);
+    sb_set(&out->reflection, i, t.reflection);
+    sb_set(&out->emission, i, t.emission);
+    out->alpha[i] = t.alpha;
+}
+
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
 {
-    for (int i = 0; i < in->n; i++) {
-        shade_terms t;
-        p->fn(c, p, sb_get(&in->x, i), sb_get(&in->nrm, i), sb_get(&in->v, i), &t);
-        sb_set(&out->diffuse, i, t.diffuse);
-        sb_set(&out->specular, i, t.specular);
-        sb_set(&out->reflection, i, t.reflection);
-        sb_set(&out->emission, i, t.emission);
-        out->alpha[i] = t.alpha;
-    }
+    for (int i = 0; i < in->n; i++)
+        sb_scalar_lane(c, p, in, out, i);
 }
 
 /* What a light's lane loop reads, fixed before the loop (d3d_spot's normalised axis and cone
@@ -374,4 +384,186 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
         sb_d9_combine(d9, in, &phi, sun_f, out, 1);
     else
         sb_d9_combine(d9, in, &phi, sun_f, out, 0);
+}
+
+/* ---- Cook-Torrance (MODELS.md 3): cooktorrance.c's lobe and reflection weight in float ---- */
+
+/* Roughness below this goes through the scalar path: m^2 would leave float's normal range in
+ * the Beckmann exponent, where cooktorrance.c works in double. */
+#define SB_CT_M_MIN 1e-6f
+/* Lanes the kernel hands back to shade_eval. Below N.V = 0.01 the lobe's 1/N.V turns the float
+ * dot product's ~1e-7 absolute error into more than 1e-5 relative (cooktorrance.c forms N.V in
+ * double); such grazing lanes are a thin band at silhouettes. A normal whose squared length
+ * is off 1 by more than 1e-5 is one cooktorrance.c would renormalise in double. */
+#define SB_CT_NV_MIN 0.01f
+#define SB_CT_UNIT_TOL 1e-5f
+
+int shade_batch_ct_supported(const ct_params *ct)
+{
+    return ct->g != G_SMITH_EXACT && ct->f != F_EXACT && ct->m >= SB_CT_M_MIN;
+}
+
+/* Schlick (fresnel_schlick): F0 + (1 - F0)(1 - c)^5, c clamped to [0, 1]; or 1 (F_ONE). */
+SB_INLINE vec3 sb_ct_fresnel(vec3 f0, float c, const int f_one)
+{
+    if (f_one)
+        return v3s(1.0f);
+    float cc = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
+    float x = 1.0f - cc, x2 = x * x, x5 = x2 * x2 * x;
+    return v3_add(f0, v3_scale(v3_sub(v3s(1.0f), f0), x5));
+}
+
+/* Walter's rational Smith G1 (microfacet_smith_g1_walter). */
+SB_INLINE float sb_ct_g1_walter(float c, float m)
+{
+    float cc = c > 1.0f ? 1.0f : c;
+    float inv_a = m * (sqrtf((1.0f - cc) * (1.0f + cc)) / (c > 0.0f ? c : 1.0f));
+    float a = inv_a > 0.0f ? 1.0f / inv_a : 0.0f;
+    float g = ((2.181f * a + 3.535f) * a) / ((2.577f * a + 2.276f) * a + 1.0f);
+    g = inv_a < 0.625f ? 1.0f : g;
+    return c <= 0.0f ? 0.0f : (c >= 1.0f ? 1.0f : g);
+}
+
+/* The lobe ks F D G / (k N.V) for unit n, v, l, with cooktorrance_specular's guards in their
+ * order: hemisphere, zero cosines, zero-length half vector, then normalise. log_d0 is
+ * -2 ln m (- ln pi for Walter's normalisation), fixed per material. */
+SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float k_norm, vec3 n, vec3 v, vec3 l,
+                          const int smith, const int f_one)
+{
+    float n_l = v3_dot(n, l), n_v = v3_dot(n, v);
+    int front = (n_l > 0.0f) & (n_v > 0.0f);
+    n_l = n_l < (float)COOKTORRANCE_COS_MIN ? (float)COOKTORRANCE_COS_MIN : n_l;
+    n_v = n_v < (float)COOKTORRANCE_COS_MIN ? (float)COOKTORRANCE_COS_MIN : n_v;
+    vec3 hs = v3_add(l, v);
+    float hl = v3_len(hs);
+    front &= hl >= SB_HALF_MIN;
+    vec3 h = v3_scale(hs, hl >= SB_HALF_MIN ? 1.0f / hl : 0.0f);
+    float n_h = v3_dot(n, h), v_h = v3_dot(v, h);
+    v_h = v_h < 0.0f ? 0.0f : (v_h > 1.0f ? 1.0f : v_h);
+    /* microfacet_beckmann_d: log D = -tan^2/m^2 - 2 ln m [- ln pi] - 2 ln cos^2, capped. sin^2
+     * from |N x H|^2, not 1 - cos^2: near the peak of a sharp lobe 1 - cos cancels, and its
+     * rounding (6e-8) over m^2 would move log D by 0.12 at m = 0.001; the cross product keeps
+     * sin^2's relative precision, so the kernel is the more accurate of the two paths there. */
+    float c = n_h > 1.0f ? 1.0f : n_h, c2 = c * c;
+    vec3 nxh = v3_cross(n, h);
+    float s2 = v3_dot(nxh, nxh);
+    float tan2 = (s2 > 1.0f ? 1.0f : s2) / (c2 > 0.0f ? c2 : FLT_MIN);
+    float log_d = -tan2 * inv_m2 + log_d0 - 2.0f * smath_log(c2 > 0.0f ? c2 : FLT_MIN);
+    float d = log_d >= SB_LN_D_MAX ? MICROFACET_D_MAX : smath_exp(log_d);
+    d = n_h > 0.0f ? d : 0.0f;
+    float g;
+    if (smith) {
+        g = sb_ct_g1_walter(n_v, ct->m) * sb_ct_g1_walter(n_l, ct->m);
+    } else {
+        /* microfacet_vcavity_g: min(1, 2 N.H N.V / V.H, 2 N.H N.L / V.H). */
+        float tv = 2.0f * n_h * n_v, tl = 2.0f * n_h * n_l;
+        float iv = v_h > 0.0f ? 1.0f / v_h : 0.0f;
+        g = 1.0f;
+        g = tv < g * v_h ? tv * iv : g;
+        g = tl < g * v_h ? tl * iv : g;
+        g = n_h > 0.0f ? g : 0.0f;
+    }
+    vec3 f = sb_ct_fresnel(ct->f0, v_h, f_one);
+    float common = front ? d * g / (k_norm * n_v) : 0.0f;
+    vec3 r = v3_mul(v3_mul(ct->ks, f), v3s(common));
+    return sb_min(r, v3s(COOKTORRANCE_MAX));
+}
+
+/* One light's Cook-Torrance terms added to every lane (shade.c's shade_ct_impl loop body). */
+SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch_in *restrict in,
+                          shade_batch_out *restrict out, const int kind, const int smith, const int f_one)
+{
+    const ct_params *ct = &mat->ct;
+    const sb_light b = sb_light_make(l);
+    const vec3 kd = v3_scale(mat->albedo, SB_INV_PI);
+    const float k_norm = ct->norm == CT_CT1982 ? SMATH_PI : 4.0f;
+    const float log_d0 = (float)(-2.0 * log((double)ct->m) - (ct->norm == CT_CT1982 ? 0.0 : log(3.14159265358979323846)));
+    const float inv_m2 = 1.0f / (ct->m * ct->m);
+    const int n = in->n;
+    int bad[SHADE_BATCH];
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        vec3 nn = sb_get(&in->nrm, i), v = sb_get(&in->v, i);
+        sb_incidence inc = sb_incident(l, &b, sb_get(&in->x, i), kind);
+        bad[i] = inc.bad;
+        vec3 e = v3_scale(l->intensity, inc.atten);
+        float n_l = v3_dot(nn, inc.to_l);
+        float lit = n_l > 0.0f ? 1.0f : 0.0f;
+        sb_set(&out->diffuse, i, v3_add(sb_get(&out->diffuse, i), v3_scale(v3_mul(kd, e), n_l * lit)));
+        vec3 s = sb_ct_lobe(ct, log_d0, inv_m2, k_norm, nn, v, inc.to_l, smith, f_one);
+        sb_set(&out->specular, i, v3_add(sb_get(&out->specular, i), v3_scale(v3_mul(s, e), lit)));
+    }
+    return sb_any(bad, n);
+}
+
+SB_INLINE int sb_ct_lights_kind(const material *mat, const light *l, const shade_batch_in *in, shade_batch_out *out,
+                                const int smith, const int f_one)
+{
+    switch (sb_kind(l)) {
+    case SB_SUN: return sb_ct_light(mat, l, in, out, SB_SUN, smith, f_one);
+    case SB_POINT: return sb_ct_light(mat, l, in, out, SB_POINT, smith, f_one);
+    case SB_SPOT_D3D: return sb_ct_light(mat, l, in, out, SB_SPOT_D3D, smith, f_one);
+    default: return sb_ct_light(mat, l, in, out, SB_SPOT_SMOOTH, smith, f_one);
+    }
+}
+
+/* shade.c's shade_ct_impl over a batch; only for materials shade_batch_ct_supported accepts. */
+SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_batch_in *restrict in,
+                     shade_batch_out *restrict out, const int reflection)
+{
+    const material *mat = p->mat;
+    const int n = in->n, smith = mat->ct.g == G_SMITH_WALTER, f_one = mat->ct.f == F_ONE;
+    int bad = 0;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        sb_set(&out->diffuse, i, v3s(0.0f));
+        sb_set(&out->specular, i, v3s(0.0f));
+        sb_set(&out->emission, i, mat->d3d.emissive);
+        sb_set(&out->reflection, i, v3s(0.0f));
+        out->alpha[i] = 1.0f;
+    }
+    for (int li = 0; li < c->s->n_lights; li++) {
+        const light *l = &c->s->lights[li];
+        if (smith)
+            bad |= f_one ? sb_ct_lights_kind(mat, l, in, out, 1, 1) : sb_ct_lights_kind(mat, l, in, out, 1, 0);
+        else
+            bad |= f_one ? sb_ct_lights_kind(mat, l, in, out, 0, 1) : sb_ct_lights_kind(mat, l, in, out, 0, 0);
+    }
+    if (bad) {
+        shade_batch_scalar(c, p, in, out);
+        return;
+    }
+    if (reflection) {
+        shade_vec3_n dir, phi;
+#pragma omp simd
+        for (int i = 0; i < n; i++)
+            sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
+        env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi.x, phi.y, phi.z);
+        const vec3 f0 = mat->ct.f0;
+#pragma omp simd
+        for (int i = 0; i < n; i++) {
+            /* cooktorrance_reflection_weight: F at N.V, capped. */
+            vec3 w = sb_min(sb_ct_fresnel(f0, v3_dot(sb_get(&in->nrm, i), sb_get(&in->v, i)), f_one),
+                            v3s(COOKTORRANCE_MAX));
+            sb_set(&out->reflection, i, v3_mul(sb_get(&phi, i), w));
+        }
+    }
+    for (int i = 0; i < n; i++) {
+        vec3 nn = sb_get(&in->nrm, i);
+        float n_v = v3_dot(nn, sb_get(&in->v, i)), len2 = v3_dot(nn, nn);
+        if (n_v < SB_CT_NV_MIN || fabsf(len2 - 1.0f) > SB_CT_UNIT_TOL)
+            sb_scalar_lane(c, p, in, out, i);
+    }
+}
+
+SMATH_CLONES
+void shade_batch_ct_lights(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    sb_ct(c, p, in, out, 0);
+}
+
+SMATH_CLONES
+void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    sb_ct(c, p, in, out, 1);
 }

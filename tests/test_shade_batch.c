@@ -8,8 +8,9 @@
  * kernels (specular powers, local and infinite viewer, ambient, emissive, clamp), every light
  * kind and its variations (attenuation, range, spot profiles and hard edges), several lights at
  * once, the D3D9Client kernel (whole and non-whole p, sun_angle with a sun or a point main
- * light, every colour norm, constant, no and image environment), Cook-Torrance (no kernel:
- * shade_batch_scalar, so bit-identical), partial batches (lanes past n stay untouched), and
+ * light, every colour norm, constant, no and image environment), Cook-Torrance (the kernels
+ * for Beckmann D with V-cavity or Walter's Smith G and Schlick or unit Fresnel, m from 0.001;
+ * the exact G and Fresnel and m < 1e-6 on shade_batch_scalar, so bit-identical), partial batches (lanes past n stay untouched), and
  * batches with a light closer than 1e-15 m or farther than 1e15 m (the whole batch must be
  * redone by shade_eval: bit-identical). Every output must be finite.
  *
@@ -33,6 +34,8 @@
  * Specular: shade.c's half vector renormalises L and V (d3d_half_vector), the kernel uses them
  * as they are, so N.H differs by up to ~2 ulp (1.2e-7) and (N.H)^P by about P times that:
  * power 1e4 gets its own tolerance (2e-3; measured 1.19e-3), powers up to 40 stay within REL.
+ * Cook-Torrance's lobe: the same half-vector difference moves a Beckmann lobe's log D by about
+ * 2 tan(theta) dtheta / m^2, so its specular bound grows as 3e-7/m (test_cook_torrance).
  * The measured worst errors are printed, one "# shade_batch ..." line per case.
  *
  * test_env_lookup_n_pole_negative_zero: the exact poles with a -0 component, where the two
@@ -690,33 +693,68 @@ static void test_d3d9client(void **state)
     assert_int_equal(failures, 0);
 }
 
-/* ---- Cook-Torrance: no kernel, shade_eval lane by lane, so bit-identical ---- */
+/* ---- Cook-Torrance: the kernels, and shade_eval lane by lane where they do not apply ---- */
 
-static void test_cook_torrance_exact(void **state)
+/* Every normalisation, G and Fresnel, with and without the reflection term, under the three
+ * lights and every environment kind. Beckmann D, V-cavity and Walter's Smith G and Schlick or
+ * unit Fresnel run in the kernels (compared with the tolerances above); the exact Smith G, the
+ * exact Fresnel and m below 1e-6 stay on shade_eval, and there the batch must be bit-identical. */
+static void test_cook_torrance(void **state)
 {
     (void)state;
     env_map envs[3] = {{.kind = ENV_CONSTANT, .constant = {0.4f, 0.6f, 0.9f}}, {.kind = ENV_NONE}, make_env_image()};
+    const ct_normalisation norms[2] = {CT_WALTER, CT_CT1982};
+    const ct_geometry gs[3] = {G_VCAVITY, G_SMITH_WALTER, G_SMITH_EXACT};
+    const ct_fresnel fs[3] = {F_SCHLICK, F_ONE, F_EXACT};
+    const float ms[5] = {0.001f, 0.05f, 0.2f, 0.6f, 1e-7f};
     int failures = 0;
-    check_stat all = {{0}, 0, 0, 0};
-    for (int ei = 0; ei < 3; ei++)
-        for (int refl = 0; refl <= 1; refl++) {
-            scene s;
-            base_scene(&s);
-            add_three_lights(&s, SPOT_SMOOTH);
-            material *m = &s.materials[0];
-            m->model = MODEL_COOK_TORRANCE;
-            m->albedo = v3(0.3f, 0.4f, 0.5f);
-            m->ct.m = 0.2f;
-            m->ct.f0 = v3(0.9f, 0.6f, 0.3f);
-            m->ct.reflection = refl;
-            m->d3d.emissive = v3(0.1f, 0.0f, 0.0f);
-            shade_context c;
-            shade_plan p;
-            plan_for(&s, &envs[ei], &c, &p, shade_batch_scalar);
-            const check_spec spec = {"cook-torrance", 0.0, 1};
-            failures += run_seeded(&c, &p, &spec, 600 + (uint64_t)(ei * 2 + refl), SHADE_BATCH, 4, &all);
-        }
-    stat_print("cook-torrance (scalar, bit-identical)", &all);
+    uint64_t seed = 600;
+    check_stat kernel = {{0}, 0, 0, 0}, scalar = {{0}, 0, 0, 0};
+    for (int ni = 0; ni < 2; ni++)
+        for (int gi = 0; gi < 3; gi++)
+            for (int fi = 0; fi < 3; fi++)
+                for (int mi = 0; mi < 5; mi++)
+                    for (int refl = 0; refl <= 1; refl++) {
+                        int ei = (ni + gi + fi + mi + refl) % 3;
+                        scene s;
+                        base_scene(&s);
+                        add_three_lights(&s, SPOT_SMOOTH);
+                        material *m = &s.materials[0];
+                        m->model = MODEL_COOK_TORRANCE;
+                        m->albedo = v3(0.3f, 0.4f, 0.5f);
+                        m->conductor = mi % 2;
+                        m->eta = v3(1.66f, 0.88f, 0.52f);
+                        m->k = v3(9.22f, 6.27f, 4.84f);
+                        m->ct.norm = norms[ni];
+                        m->ct.g = gs[gi];
+                        m->ct.f = fs[fi];
+                        m->ct.m = ms[mi];
+                        m->ct.f0 = v3(0.9f, 0.6f, 0.3f);
+                        m->ct.ks = v3(1.0f, 0.9f, 0.8f);
+                        m->ct.reflection = refl;
+                        m->d3d.emissive = v3(0.1f, 0.0f, 0.0f);
+                        int kernel_ok = shade_batch_ct_supported(&m->ct);
+                        int with_env = refl && envs[ei].kind != ENV_NONE;
+                        shade_batch_fn want = !kernel_ok ? shade_batch_scalar
+                                              : with_env ? shade_batch_ct_env
+                                                         : shade_batch_ct_lights;
+                        shade_context c;
+                        shade_plan p;
+                        plan_for(&s, &envs[ei], &c, &p, want);
+                        char name[128];
+                        snprintf(name, sizeof name, "cook-torrance norm %d g %d f %d m %g refl %d env %d", ni, gi, fi,
+                                 (double)ms[mi], refl, ei);
+                        /* D = exp(-tan^2/m^2 ...): both paths keep tan^2's relative precision (the
+                         * kernel through |N x H|^2, the scalar path in double), but H's direction
+                         * differs by ~1e-8 rad between the kernel's float and the scalar path's double
+                         * normalisation, and log D moves by 2 tan(theta) dtheta / m^2 with tan(theta)
+                         * up to ~3m on the lobe: a bound of 3e-7/m (3e-4 at m = 0.001, where 1.5e-4 was
+                         * measured; REL from m = 0.015). */
+                        const check_spec spec = {name, fmax(REL, 3e-7 / (double)ms[mi]), !kernel_ok};
+                        failures += run_seeded(&c, &p, &spec, seed++, SHADE_BATCH, 4, kernel_ok ? &kernel : &scalar);
+                    }
+    stat_print("cook-torrance kernels (walter/ct1982, v-cavity/smith-walter, schlick/one)", &kernel);
+    stat_print("cook-torrance on shade_eval (smith exact, F exact, m < 1e-6: bit-identical)", &scalar);
     assert_int_equal(failures, 0);
 }
 
@@ -1058,7 +1096,7 @@ int main(void)
         cmocka_unit_test(test_light_kinds),
         cmocka_unit_test(test_multiple_lights),
         cmocka_unit_test(test_d3d9client),
-        cmocka_unit_test(test_cook_torrance_exact),
+        cmocka_unit_test(test_cook_torrance),
         cmocka_unit_test(test_partial_batches),
         cmocka_unit_test(test_unsafe_lane_fallback),
         cmocka_unit_test(test_env_lookup_n),
