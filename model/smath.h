@@ -14,8 +14,9 @@
  * the scalar models).
  *
  * SMATH_CLONES marks a kernel for runtime dispatch to AVX-512, AVX2 or baseline code (GCC's
- * target_clones, x86-64 Linux). ISO C mode does not contract a*b+c into an FMA, so every
- * clone performs the same IEEE operations and gives bit-identical results.
+ * target_clones, x86-64 Linux). ISO C mode does not contract a*b+c into an FMA and no kernel
+ * reduces floats across lanes, so every clone performs the same IEEE operations per sample;
+ * only one clone runs on a given machine, so that is argued, not tested.
  */
 #ifndef REFLCHECK_SMATH_H
 #define REFLCHECK_SMATH_H
