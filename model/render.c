@@ -225,9 +225,10 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                               int px0, int px1)
 {
     const int k = tile->k, stride = tile->w * k;
+    const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
     int q = 0;
-    for (int py = py0; py < py1; py++)
-    for (int px = px0; px < px1; px++) {
+    for (int pi = 0; pi < span_px; pi++) {
+        const int py = py0 + pi / span_w, px = px0 + pi % span_w;
         for (int t = 0; t < k; t++) {
             const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
             for (int s = 0; s < k; s++, q++) {
@@ -283,15 +284,16 @@ static void render_tile(void *user, const raster_tile *tile)
         for (int px0 = tile->x0; px0 < tile->x0 + tile->w; px0 += cols) {
             int px1 = px0 + cols < tile->x0 + tile->w ? px0 + cols : tile->x0 + tile->w;
             render_span_shade(j, tile, w, py0, py1, px0, px1);
-            for (int py = py0; py < py1; py++)
-            for (int px = px0; px < px1; px++) {
+            const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
+            for (int pi = 0; pi < span_px; pi++) {
+                const int py = py0 + pi / span_w, px = px0 + pi % span_w;
                 shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
                 vec3 background = v3s(0.0f);
                 /* Per-sample beauty, for the variance layers: sum and sum of squares. */
                 vec3 b_sum = v3s(0.0f), b_sq = v3s(0.0f);
                 int covered = 0, object_id = -1;
                 float centre_nv = 0.0f, centre_nl = 0.0f;
-                int q = ((py - py0) * (px1 - px0) + (px - px0)) * per_px;
+                int q = pi * per_px;
                 for (int t = 0; t < k; t++) {
                     const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
                     for (int s = 0; s < k; s++, q++) {
