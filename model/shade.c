@@ -104,8 +104,7 @@ static void shade_d3d_full(const shade_context *c, const shade_plan *p, vec3 x, 
     shade_d3d_impl(c, p->mat, x, n, v, out, 1, 1);
 }
 
-/* The main light of equation (8): the first sun, else the first light. */
-static const light *shade_main_light(const scene *s)
+const light *shade_main_light(const scene *s)
 {
     for (int i = 0; i < s->n_lights; i++)
         if (s->lights[i].kind == LIGHT_SUN)

@@ -1,17 +1,18 @@
-/* shade_batch.c - shade.c's D3D and D3D9Client paths over structure-of-arrays batches.
+/* shade_batch.c - shade.c's D3D, D3D9Client and Cook-Torrance paths over structure-of-arrays
+ * batches.
  *
  * Each kernel runs the light loop outside and the lanes inside, so a lane loop has no branch
  * that depends on the light or the material (those are chosen before it starts) and compiles
  * to straight SIMD code: one sample per lane, selects for the per-sample conditions that
- * shade.c writes as `if`/`continue`, smath for pow and atan2. The formulas and their order of
- * guards are shade.c's and the formula layers' (d3d.c, fresnel.c, d3d9client.c); what differs
- * is float for the few sums the scalar path forms in double (attenuation, spot factor, the
- * D3D9Client combination), and smath's pow, which is why lanes match shade_eval to ~1e-6
- * rather than bit for bit (tests/test_shade_batch.c states the bounds).
+ * shade.c writes as `if`/`continue`, smath for pow, log, exp and atan2. The formulas and their
+ * order of guards are shade.c's and the formula layers' (d3d.c, fresnel.c, d3d9client.c,
+ * cooktorrance.c, microfacet.c); what differs is float where the scalar path sums in double,
+ * and smath's approximations, which is why lanes match shade_eval within the bounds shade.h
+ * states rather than bit for bit (tests/test_shade_batch.c measures them).
  *
  * A lane outside the float-safe range of the point-light distance (the scalar path switches
- * to double there) marks the batch, and the whole batch is redone by shade_batch_scalar.
- */
+ * to double there) marks the batch, and the whole batch is redone by shade_batch_scalar;
+ * grazing or non-unit Cook-Torrance lanes are redone one by one. */
 #include "shade.h"
 
 #include <float.h>
@@ -75,6 +76,17 @@ void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade
 {
     for (int i = 0; i < in->n; i++)
         sb_scalar_lane(c, p, in, out, i);
+}
+
+/* phi: the environment's radiance along each lane's mirror direction reflect(V, N). */
+SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *restrict in, shade_vec3_n *restrict phi)
+{
+    shade_vec3_n dir;
+    const int n = in->n;
+#pragma omp simd
+    for (int i = 0; i < n; i++)
+        sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
+    env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
 }
 
 /* What a light's lane loop reads, fixed before the loop (d3d_spot's normalised axis and cone
@@ -144,6 +156,18 @@ static int sb_kind(const light *l)
     return l->profile == SPOT_SMOOTH ? SB_SPOT_SMOOTH : SB_SPOT_D3D;
 }
 
+/* Runs STMT with K a compile-time constant equal to light l's kind, so that each kind gets its
+ * own lane loop (sb_incident's `kind` tests fold away). */
+#define SB_WITH_KIND(l, STMT)                                                      \
+    do {                                                                           \
+        switch (sb_kind(l)) {                                                      \
+        case SB_SUN: { enum { K = SB_SUN }; STMT; } break;                         \
+        case SB_POINT: { enum { K = SB_POINT }; STMT; } break;                     \
+        case SB_SPOT_D3D: { enum { K = SB_SPOT_D3D }; STMT; } break;               \
+        default: { enum { K = SB_SPOT_SMOOTH }; STMT; } break;                     \
+        }                                                                          \
+    } while (0)
+
 /* One light's D3D terms added to every lane (shade.c's shade_d3d_impl loop body). */
 SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const light *l, const shade_batch_in *restrict in,
                            shade_batch_out *restrict out, const int kind, const int specular, const int ambient)
@@ -201,12 +225,7 @@ SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batc
     }
     for (int li = 0; li < s->n_lights; li++) {
         const light *l = &s->lights[li];
-        switch (sb_kind(l)) {
-        case SB_SUN: bad |= sb_d3d_light(c, d, l, in, out, SB_SUN, specular, ambient); break;
-        case SB_POINT: bad |= sb_d3d_light(c, d, l, in, out, SB_POINT, specular, ambient); break;
-        case SB_SPOT_D3D: bad |= sb_d3d_light(c, d, l, in, out, SB_SPOT_D3D, specular, ambient); break;
-        default: bad |= sb_d3d_light(c, d, l, in, out, SB_SPOT_SMOOTH, specular, ambient); break;
-        }
+        SB_WITH_KIND(l, bad |= sb_d3d_light(c, d, l, in, out, K, specular, ambient));
     }
     /* D3D saturates Dv (which holds the emissive colour) and Sv to [0, 1] separately. */
     vec3 emission = d->emissive;
@@ -340,41 +359,21 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
         shade_batch_scalar(c, p, in, out);
         return;
     }
-    shade_vec3_n dir, phi;
-#pragma omp simd
-    for (int i = 0; i < n; i++)
-        sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
-    env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi.x, phi.y, phi.z);
+    shade_vec3_n phi;
+    sb_env_reflected(c, in, &phi);
 
     const float fp = fresnel_d3d9_power(d9->p);
     const int whole = fp == floorf(fp) && fp <= 8.0f;
-    const light *sun = NULL;
-    if (d9->sun_angle) {
-        for (int i = 0; i < c->s->n_lights && sun == NULL; i++)
-            if (c->s->lights[i].kind == LIGHT_SUN)
-                sun = &c->s->lights[i];
-        if (sun == NULL && c->s->n_lights > 0)
-            sun = &c->s->lights[0];
-    }
+    const light *sun = d9->sun_angle ? shade_main_light(c->s) : NULL;
     float sun_f[SHADE_BATCH];
     int bad = 0;
     if (sun == NULL) {
         for (int i = 0; i < n; i++)
             sun_f[i] = 1.0f;
     } else if (whole) {
-        switch (sb_kind(sun)) {
-        case SB_SUN: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SUN, 1); break;
-        case SB_POINT: bad = sb_d9_sun(d9, sun, in, sun_f, SB_POINT, 1); break;
-        case SB_SPOT_D3D: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_D3D, 1); break;
-        default: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_SMOOTH, 1); break;
-        }
+        SB_WITH_KIND(sun, bad = sb_d9_sun(d9, sun, in, sun_f, K, 1));
     } else {
-        switch (sb_kind(sun)) {
-        case SB_SUN: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SUN, 0); break;
-        case SB_POINT: bad = sb_d9_sun(d9, sun, in, sun_f, SB_POINT, 0); break;
-        case SB_SPOT_D3D: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_D3D, 0); break;
-        default: bad = sb_d9_sun(d9, sun, in, sun_f, SB_SPOT_SMOOTH, 0); break;
-        }
+        SB_WITH_KIND(sun, bad = sb_d9_sun(d9, sun, in, sun_f, K, 0));
     }
     if (bad) {
         shade_batch_scalar(c, p, in, out);
@@ -496,16 +495,6 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
     return sb_any(bad, n);
 }
 
-SB_INLINE int sb_ct_lights_kind(const material *mat, const light *l, const shade_batch_in *in, shade_batch_out *out,
-                                const int smith, const int f_one)
-{
-    switch (sb_kind(l)) {
-    case SB_SUN: return sb_ct_light(mat, l, in, out, SB_SUN, smith, f_one);
-    case SB_POINT: return sb_ct_light(mat, l, in, out, SB_POINT, smith, f_one);
-    case SB_SPOT_D3D: return sb_ct_light(mat, l, in, out, SB_SPOT_D3D, smith, f_one);
-    default: return sb_ct_light(mat, l, in, out, SB_SPOT_SMOOTH, smith, f_one);
-    }
-}
 
 /* shade.c's shade_ct_impl over a batch; only for materials shade_batch_ct_supported accepts. */
 SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_batch_in *restrict in,
@@ -524,21 +513,22 @@ SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_ba
     }
     for (int li = 0; li < c->s->n_lights; li++) {
         const light *l = &c->s->lights[li];
-        if (smith)
-            bad |= f_one ? sb_ct_lights_kind(mat, l, in, out, 1, 1) : sb_ct_lights_kind(mat, l, in, out, 1, 0);
+        if (smith && f_one)
+            SB_WITH_KIND(l, bad |= sb_ct_light(mat, l, in, out, K, 1, 1));
+        else if (smith)
+            SB_WITH_KIND(l, bad |= sb_ct_light(mat, l, in, out, K, 1, 0));
+        else if (f_one)
+            SB_WITH_KIND(l, bad |= sb_ct_light(mat, l, in, out, K, 0, 1));
         else
-            bad |= f_one ? sb_ct_lights_kind(mat, l, in, out, 0, 1) : sb_ct_lights_kind(mat, l, in, out, 0, 0);
+            SB_WITH_KIND(l, bad |= sb_ct_light(mat, l, in, out, K, 0, 0));
     }
     if (bad) {
         shade_batch_scalar(c, p, in, out);
         return;
     }
     if (reflection) {
-        shade_vec3_n dir, phi;
-#pragma omp simd
-        for (int i = 0; i < n; i++)
-            sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
-        env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi.x, phi.y, phi.z);
+        shade_vec3_n phi;
+        sb_env_reflected(c, in, &phi);
         const vec3 f0 = mat->ct.f0;
 #pragma omp simd
         for (int i = 0; i < n; i++) {
