@@ -32,12 +32,18 @@ void render_camera_make(const scene *s, int width, int height, render_camera *c)
     c->height = height;
 }
 
-vec3 render_camera_ray(const render_camera *c, float sx, float sy)
+/* The ray's direction before normalisation: the environment lookup needs no unit vector. */
+static vec3 render_camera_dir(const render_camera *c, float sx, float sy)
 {
     float nx = 2.0f * sx / (float)c->width - 1.0f;
     float ny = 1.0f - 2.0f * sy / (float)c->height;
     vec3 d = v3_madd(c->forward, c->right, nx * c->tan_half_x);
-    return v3_norm(v3_madd(d, c->up, ny * c->tan_half_y));
+    return v3_madd(d, c->up, ny * c->tan_half_y);
+}
+
+vec3 render_camera_ray(const render_camera *c, float sx, float sy)
+{
+    return v3_norm(render_camera_dir(c, sx, sy));
 }
 
 static raster_vertex render_project(const render_camera *c, vec3 p)
@@ -54,6 +60,10 @@ static raster_vertex render_project(const render_camera *c, vec3 p)
 #define RENDER_SPAN 4096
 /* The widest SIMD vector in floats (AVX-512); SHADE_BATCH is a multiple of it. */
 #define RENDER_LANES 16
+
+/* n rounded up to whole SIMD vectors: a batch padded so, with copies of a real lane, never
+ * runs a lane loop's scalar remainder, and the copies' results are not read. */
+static int render_padded(int n) { return (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES; }
 
 /* An object's samples waiting to be shaded: where they are (triangle and barycentrics) and
  * which slot gets the result. */
@@ -73,6 +83,8 @@ typedef struct {
     uint16_t bg_slot[SHADE_BATCH];
     int bg_n;
     shade_batch_out res;
+    int per_px, centre;                       /* samples per pixel; the centre sample's index */
+    float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
 } render_scratch;
 
 typedef struct {
@@ -93,26 +105,6 @@ static vec3 render_terms_sum(const shade_terms *t)
     return v3_add(v3_add(t->diffuse, t->specular), v3_add(t->reflection, t->emission));
 }
 
-/* Interpolated world point, unit normal facing the viewer and unit direction to the viewer of
- * a per-pixel sample. */
-static void render_geometry(const render_job *j, const raster_sample *rs, vec3 *x, vec3 *n, vec3 *v)
-{
-    const mesh *m = j->m;
-    const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
-    float b0 = 1.0f - rs->b1 - rs->b2;
-    vec3 p0 = m->pos[tri[0]], p1 = m->pos[tri[1]], p2 = m->pos[tri[2]];
-    *x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, rs->b1)), v3_scale(p2, rs->b2));
-    vec3 nn = v3_add(v3_add(v3_scale(m->nrm[tri[0]], b0), v3_scale(m->nrm[tri[1]], rs->b1)),
-                     v3_scale(m->nrm[tri[2]], rs->b2));
-    /* Opposite vertex normals can cancel; the face normal is the only direction left. */
-    if (v3_dot(nn, nn) < 1e-12f)
-        nn = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
-    nn = v3_norm(nn);
-    *v = v3_norm(v3_sub(j->cam->eye, *x));
-    /* Two-sided, as POV-Ray and Cycles shade: the normal faces the viewer. */
-    *n = v3_dot(nn, *v) < 0.0f ? v3_neg(nn) : nn;
-}
-
 /* Gouraud: D3D's per-vertex terms blended with the sample's barycentric weights. */
 static void render_blend_vertex(const render_job *j, const raster_sample *rs, shade_terms *t)
 {
@@ -128,26 +120,9 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
     t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
 }
 
-/* N.V and N.L (first light) of the sample nearest the pixel centre, for the angle channels;
- * Gouraud shading has no per-sample normal, and the channels stay 0 there. */
-static void render_angles(const render_job *j, const raster_sample *rs, float *nv, float *nl)
-{
-    *nv = *nl = 0.0f;
-    if (j->per_vertex[j->m->tri_object[rs->tri]])
-        return;
-    vec3 x, n, v;
-    render_geometry(j, rs, &x, &n, &v);
-    *nv = v3_dot(n, v);
-    if (j->s->n_lights > 0) {
-        vec3 to_l, e_perp;
-        float atten;
-        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-        *nl = v3_dot(n, to_l);
-    }
-}
-
-/* render_geometry for a queue's samples, one per SIMD lane: the same operations in the same
- * order, so a lane's x, n, v equal render_geometry's bit for bit. */
+/* A queue's samples, one per SIMD lane: the interpolated world point, the unit normal facing
+ * the viewer (two-sided, as POV-Ray and Cycles shade; where opposite vertex normals cancel, the
+ * face normal, the only direction left) and the unit direction to the viewer. */
 SMATH_CLONES
 static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n, shade_batch_in *restrict in)
 {
@@ -185,9 +160,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     const int n = qu->n;
     if (n == 0)
         return;
-    /* Pad to whole SIMD vectors with copies of the last sample: a lane loop then never runs
-     * its scalar remainder, and the copies' results are not read. */
-    w->in.n = (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES;
+    w->in.n = render_padded(n);
     for (int i = n; i < w->in.n; i++) {
         qu->tri[i] = qu->tri[n - 1];
         qu->b1[i] = qu->b1[n - 1];
@@ -196,6 +169,20 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     render_interpolate(j->m, j->cam->eye, qu, w->in.n, &w->in);
     shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
     for (int i = 0; i < n; i++) {
+        /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
+        if (qu->slot[i] % w->per_px == w->centre) {
+            vec3 x = v3(w->in.x.x[i], w->in.x.y[i], w->in.x.z[i]);
+            vec3 nn = v3(w->in.nrm.x[i], w->in.nrm.y[i], w->in.nrm.z[i]);
+            int px = qu->slot[i] / w->per_px;
+            w->centre_nv[px] = v3_dot(nn, v3(w->in.v.x[i], w->in.v.y[i], w->in.v.z[i]));
+            w->centre_nl[px] = 0.0f;
+            if (j->s->n_lights > 0) {
+                vec3 to_l, e_perp;
+                float atten;
+                shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+                w->centre_nl[px] = v3_dot(nn, to_l);
+            }
+        }
         shade_terms *t = &w->terms[qu->slot[i]];
         t->diffuse = v3(r->diffuse.x[i], r->diffuse.y[i], r->diffuse.z[i]);
         t->specular = v3(r->specular.x[i], r->specular.y[i], r->specular.z[i]);
@@ -210,9 +197,10 @@ static void render_flush_background(const render_job *j, render_scratch *w)
 {
     if (w->bg_n == 0)
         return;
-    for (int i = w->bg_n; i % RENDER_LANES != 0; i++)
-        w->bg_dir.x[i] = w->bg_dir.x[0], w->bg_dir.y[i] = w->bg_dir.y[0], w->bg_dir.z[i] = w->bg_dir.z[0];
-    env_lookup_n(j->sc.env, (w->bg_n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
+    const int n = w->bg_n, padded = render_padded(n);
+    for (int i = n; i < padded; i++)
+        w->bg_dir.x[i] = w->bg_dir.x[n - 1], w->bg_dir.y[i] = w->bg_dir.y[n - 1], w->bg_dir.z[i] = w->bg_dir.z[n - 1];
+    env_lookup_n(j->sc.env, padded, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
     for (int i = 0; i < w->bg_n; i++)
         w->bg[w->bg_slot[i]] = v3(w->bg_rad.x[i], w->bg_rad.y[i], w->bg_rad.z[i]);
     w->bg_n = 0;
@@ -234,11 +222,8 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
             for (int s = 0; s < k; s++, q++) {
                 const raster_sample *rs = &row[(px - tile->x0) * k + s];
                 if (rs->tri < 0) {
-                    /* The camera ray through the sample; env_lookup_n needs no unit vector. */
-                    float nx = 2.0f * ((float)px + ((float)s + 0.5f) / (float)k) / (float)j->cam->width - 1.0f;
-                    float ny = 1.0f - 2.0f * ((float)py + ((float)t + 0.5f) / (float)k) / (float)j->cam->height;
-                    vec3 d = v3_madd(v3_madd(j->cam->forward, j->cam->right, nx * j->cam->tan_half_x), j->cam->up,
-                                     ny * j->cam->tan_half_y);
+                    vec3 d = render_camera_dir(j->cam, (float)px + ((float)s + 0.5f) / (float)k,
+                                               (float)py + ((float)t + 0.5f) / (float)k);
                     w->bg_dir.x[w->bg_n] = d.x;
                     w->bg_dir.y[w->bg_n] = d.y;
                     w->bg_dir.z[w->bg_n] = d.z;
@@ -275,6 +260,8 @@ static void render_tile(void *user, const raster_tile *tile)
     const int k = tile->k, stride = tile->w * k;
     const float inv = 1.0f / (float)(k * k);
     const int per_px = k * k;
+    w->per_px = per_px;
+    w->centre = (k / 2) * k + k / 2;
     const int cols = tile->w * per_px <= RENDER_SPAN ? tile->w : RENDER_SPAN / per_px;
     const int rows = cols == tile->w ? RENDER_SPAN / (tile->w * per_px) : 1;
     long long shaded = 0;
@@ -317,7 +304,11 @@ static void render_tile(void *user, const raster_tile *tile)
                         covered++;
                         if (s == k / 2 && t == k / 2) {
                             object_id = j->m->tri_object[rs->tri];
-                            render_angles(j, rs, &centre_nv, &centre_nl);
+                            /* Gouraud shading has no per-sample normal: its angles stay 0. */
+                            if (!j->per_vertex[object_id]) {
+                                centre_nv = w->centre_nv[pi];
+                                centre_nl = w->centre_nl[pi];
+                            }
                         }
                     }
                 }
