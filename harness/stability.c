@@ -914,15 +914,9 @@ static void shade_eval_one_lane(const shade_context *ctx, const shade_plan *plan
     shade_batch_in in;
     shade_batch_out out;
     in.n = 1;
-    in.x.x[0] = x.x, in.x.y[0] = x.y, in.x.z[0] = x.z;
-    in.nrm.x[0] = n.x, in.nrm.y[0] = n.y, in.nrm.z[0] = n.z;
-    in.v.x[0] = v.x, in.v.y[0] = v.y, in.v.z[0] = v.z;
+    shade_batch_set_input(&in, 0, x, n, v);
     shade_eval_n(ctx, plan, &in, &out);
-    t->diffuse = v3(out.diffuse.x[0], out.diffuse.y[0], out.diffuse.z[0]);
-    t->specular = v3(out.specular.x[0], out.specular.y[0], out.specular.z[0]);
-    t->reflection = v3(out.reflection.x[0], out.reflection.y[0], out.reflection.z[0]);
-    t->emission = v3(out.emission.x[0], out.emission.y[0], out.emission.z[0]);
-    t->alpha = out.alpha[0];
+    shade_batch_get_terms(&out, 0, t);
 }
 
 static void shade_material(int model, material *m)

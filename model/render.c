@@ -147,9 +147,7 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         nn = v3_norm(v3_dot(nn, nn) < 1e-12f ? face : nn);
         vec3 v = v3_norm(v3_sub(eye, x));
         nn = v3_dot(nn, v) < 0.0f ? v3_neg(nn) : nn;
-        in->x.x[i] = x.x, in->x.y[i] = x.y, in->x.z[i] = x.z;
-        in->nrm.x[i] = nn.x, in->nrm.y[i] = nn.y, in->nrm.z[i] = nn.z;
-        in->v.x[i] = v.x, in->v.y[i] = v.y, in->v.z[i] = v.z;
+        shade_batch_set_input(in, i, x, nn, v);
     }
 }
 
@@ -171,10 +169,9 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     for (int i = 0; i < n; i++) {
         /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
         if (qu->slot[i] % w->per_px == w->centre) {
-            vec3 x = v3(w->in.x.x[i], w->in.x.y[i], w->in.x.z[i]);
-            vec3 nn = v3(w->in.nrm.x[i], w->in.nrm.y[i], w->in.nrm.z[i]);
+            vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
             int px = qu->slot[i] / w->per_px;
-            w->centre_nv[px] = v3_dot(nn, v3(w->in.v.x[i], w->in.v.y[i], w->in.v.z[i]));
+            w->centre_nv[px] = v3_dot(nn, shade_lane_get(&w->in.v, i));
             w->centre_nl[px] = 0.0f;
             if (j->s->n_lights > 0) {
                 vec3 to_l, e_perp;
@@ -183,12 +180,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
                 w->centre_nl[px] = v3_dot(nn, to_l);
             }
         }
-        shade_terms *t = &w->terms[qu->slot[i]];
-        t->diffuse = v3(r->diffuse.x[i], r->diffuse.y[i], r->diffuse.z[i]);
-        t->specular = v3(r->specular.x[i], r->specular.y[i], r->specular.z[i]);
-        t->reflection = v3(r->reflection.x[i], r->reflection.y[i], r->reflection.z[i]);
-        t->emission = v3(r->emission.x[i], r->emission.y[i], r->emission.z[i]);
-        t->alpha = r->alpha[i];
+        shade_batch_get_terms(r, i, &w->terms[qu->slot[i]]);
     }
     qu->n = 0;
 }
@@ -199,10 +191,10 @@ static void render_flush_background(const render_job *j, render_scratch *w)
         return;
     const int n = w->bg_n, padded = render_padded(n);
     for (int i = n; i < padded; i++)
-        w->bg_dir.x[i] = w->bg_dir.x[n - 1], w->bg_dir.y[i] = w->bg_dir.y[n - 1], w->bg_dir.z[i] = w->bg_dir.z[n - 1];
+        shade_lane_set(&w->bg_dir, i, shade_lane_get(&w->bg_dir, n - 1));
     env_lookup_n(j->sc.env, padded, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
     for (int i = 0; i < w->bg_n; i++)
-        w->bg[w->bg_slot[i]] = v3(w->bg_rad.x[i], w->bg_rad.y[i], w->bg_rad.z[i]);
+        w->bg[w->bg_slot[i]] = shade_lane_get(&w->bg_rad, i);
     w->bg_n = 0;
 }
 
@@ -224,9 +216,7 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                 if (rs->tri < 0) {
                     vec3 d = render_camera_dir(j->cam, (float)px + ((float)s + 0.5f) / (float)k,
                                                (float)py + ((float)t + 0.5f) / (float)k);
-                    w->bg_dir.x[w->bg_n] = d.x;
-                    w->bg_dir.y[w->bg_n] = d.y;
-                    w->bg_dir.z[w->bg_n] = d.z;
+                    shade_lane_set(&w->bg_dir, w->bg_n, d);
                     w->bg_slot[w->bg_n++] = (uint16_t)q;
                     if (w->bg_n == SHADE_BATCH)
                         render_flush_background(j, w);

@@ -50,6 +50,37 @@ typedef struct {
     float alpha[SHADE_BATCH];
 } shade_batch_out;
 
+/* Lane i of a batch: one vector, one sample's input, one sample's terms. */
+static inline vec3 shade_lane_get(const shade_vec3_n *a, int i) { return v3(a->x[i], a->y[i], a->z[i]); }
+static inline void shade_lane_set(shade_vec3_n *a, int i, vec3 v)
+{
+    a->x[i] = v.x;
+    a->y[i] = v.y;
+    a->z[i] = v.z;
+}
+static inline void shade_batch_set_input(shade_batch_in *in, int i, vec3 x, vec3 n, vec3 v)
+{
+    shade_lane_set(&in->x, i, x);
+    shade_lane_set(&in->nrm, i, n);
+    shade_lane_set(&in->v, i, v);
+}
+static inline void shade_batch_get_terms(const shade_batch_out *o, int i, shade_terms *t)
+{
+    t->diffuse = shade_lane_get(&o->diffuse, i);
+    t->specular = shade_lane_get(&o->specular, i);
+    t->reflection = shade_lane_get(&o->reflection, i);
+    t->emission = shade_lane_get(&o->emission, i);
+    t->alpha = o->alpha[i];
+}
+static inline void shade_batch_set_terms(shade_batch_out *o, int i, const shade_terms *t)
+{
+    shade_lane_set(&o->diffuse, i, t->diffuse);
+    shade_lane_set(&o->specular, i, t->specular);
+    shade_lane_set(&o->reflection, i, t->reflection);
+    shade_lane_set(&o->emission, i, t->emission);
+    o->alpha[i] = t->alpha;
+}
+
 typedef struct shade_plan shade_plan;
 typedef void (*shade_fn)(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
 typedef void (*shade_batch_fn)(const shade_context *c, const shade_plan *p, const shade_batch_in *in,

@@ -41,8 +41,6 @@
 /* ln MICROFACET_D_MAX (1e12): where microfacet_beckmann_d caps D. */
 #define SB_LN_D_MAX 27.6310211f
 
-static inline vec3 sb_get(const shade_vec3_n *a, int i) { return v3(a->x[i], a->y[i], a->z[i]); }
-static inline void sb_set(shade_vec3_n *a, int i, vec3 v) { a->x[i] = v.x; a->y[i] = v.y; a->z[i] = v.z; }
 static inline vec3 sb_min(vec3 a, vec3 b)
 {
     return v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
@@ -64,12 +62,8 @@ static void sb_scalar_lane(const shade_context *c, const shade_plan *p, const sh
                            int i)
 {
     shade_terms t;
-    p->fn(c, p, sb_get(&in->x, i), sb_get(&in->nrm, i), sb_get(&in->v, i), &t);
-    sb_set(&out->diffuse, i, t.diffuse);
-    sb_set(&out->specular, i, t.specular);
-    sb_set(&out->reflection, i, t.reflection);
-    sb_set(&out->emission, i, t.emission);
-    out->alpha[i] = t.alpha;
+    p->fn(c, p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i), &t);
+    shade_batch_set_terms(out, i, &t);
 }
 
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
@@ -85,7 +79,7 @@ SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *re
     const int n = in->n;
 #pragma omp simd
     for (int i = 0; i < n; i++)
-        sb_set(&dir, i, v3_reflect(sb_get(&in->v, i), sb_get(&in->nrm, i)));
+        shade_lane_set(&dir, i, v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)));
     env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
 }
 
@@ -183,25 +177,25 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
     int bad[SHADE_BATCH];
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        vec3 nn = sb_get(&in->nrm, i), v = sb_get(&in->v, i);
-        sb_incidence inc = sb_incident(l, &b, sb_get(&in->x, i), kind);
+        vec3 nn = shade_lane_get(&in->nrm, i), v = shade_lane_get(&in->v, i);
+        sb_incidence inc = sb_incident(l, &b, shade_lane_get(&in->x, i), kind);
         bad[i] = inc.bad;
         float n_l = v3_dot(nn, inc.to_l), atten = inc.atten;
         /* atten >= 0 (a clamped positive denominator times a spot factor in [0, 1]), so where
          * the light gives nothing its products are 0 without a test. D3D lights nothing, not
          * even the highlight, from behind the surface. */
-        vec3 dif = sb_get(&out->diffuse, i);
+        vec3 dif = shade_lane_get(&out->diffuse, i);
         if (ambient)
             dif = v3_add(dif, v3_scale(ka, atten));
         float lambert = n_l > 0.0f ? (n_l > 1.0f ? 1.0f : n_l) : 0.0f;
-        sb_set(&out->diffuse, i, v3_add(dif, v3_scale(kd, atten * lambert)));
+        shade_lane_set(&out->diffuse, i, v3_add(dif, v3_scale(kd, atten * lambert)));
         if (specular) {
             vec3 h = v3_add(inc.to_l, local ? v : e_inf);
             float len = v3_len(h);
             h = v3_scale(h, len >= SB_HALF_MIN ? 1.0f / len : 0.0f);
             float n_h = v3_dot(nn, h);
             float rs = n_l > 0.0f ? (n_h > 0.0f ? smath_pow(n_h > 1.0f ? 1.0f : n_h, power) : 0.0f) : 0.0f;
-            sb_set(&out->specular, i, v3_add(sb_get(&out->specular, i), v3_scale(ks, atten * rs)));
+            shade_lane_set(&out->specular, i, v3_add(shade_lane_get(&out->specular, i), v3_scale(ks, atten * rs)));
         }
     }
     return sb_any(bad, n);
@@ -220,8 +214,8 @@ SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batc
 
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        sb_set(&out->diffuse, i, amb0);
-        sb_set(&out->specular, i, v3s(0.0f));
+        shade_lane_set(&out->diffuse, i, amb0);
+        shade_lane_set(&out->specular, i, v3s(0.0f));
     }
     for (int li = 0; li < s->n_lights; li++) {
         const light *l = &s->lights[li];
@@ -234,14 +228,14 @@ SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batc
         const vec3 room = v3_sub(v3s(1.0f), emission);
 #pragma omp simd
         for (int i = 0; i < n; i++) {
-            sb_set(&out->diffuse, i, sb_min(sb_get(&out->diffuse, i), room));
-            sb_set(&out->specular, i, sb_min(sb_get(&out->specular, i), v3s(1.0f)));
+            shade_lane_set(&out->diffuse, i, sb_min(shade_lane_get(&out->diffuse, i), room));
+            shade_lane_set(&out->specular, i, sb_min(shade_lane_get(&out->specular, i), v3s(1.0f)));
         }
     }
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        sb_set(&out->reflection, i, v3s(0.0f));
-        sb_set(&out->emission, i, emission);
+        shade_lane_set(&out->reflection, i, v3s(0.0f));
+        shade_lane_set(&out->emission, i, emission);
         out->alpha[i] = 1.0f;
     }
     return bad;
@@ -317,9 +311,9 @@ SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const sha
     int bad[SHADE_BATCH];
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        sb_incidence inc = sb_incident(sun, &b, sb_get(&in->x, i), kind);
+        sb_incidence inc = sb_incident(sun, &b, shade_lane_get(&in->x, i), kind);
         bad[i] = inc.bad;
-        f[i] = 1.0f - sb_fresnel(d9, fp, whole, v3_dot(sb_get(&in->nrm, i), inc.to_l));
+        f[i] = 1.0f - sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), inc.to_l));
     }
     return sb_any(bad, n);
 }
@@ -336,13 +330,13 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     const int n = in->n;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        float R = sb_fresnel(d9, fp, whole, v3_dot(sb_get(&in->nrm, i), sb_get(&in->v, i)));
+        float R = sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)));
         /* (5): (lambda (1 - R) + s R) phi. */
         vec3 k = v3_add(v3_scale(lambda, 1.0f - R), v3_scale(s, R));
-        vec3 r_tot = v3_mul(k, sb_get(phi, i));
+        vec3 r_tot = v3_mul(k, shade_lane_get(phi, i));
         r_tot = v3(sb_sat(r_tot.x), sb_sat(r_tot.y), sb_sat(r_tot.z));
-        sb_set(&out->diffuse, i, v3_scale(sb_get(&out->diffuse, i), w * sun_f[i]));
-        sb_set(&out->reflection, i, r_tot);
+        shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f[i]));
+        shade_lane_set(&out->reflection, i, r_tot);
         /* (7) */
         float rn = sb_norm(r_tot, &norm);
         out->alpha[i] = d_alpha > rn ? d_alpha : rn;
@@ -482,15 +476,15 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
     int bad[SHADE_BATCH];
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        vec3 nn = sb_get(&in->nrm, i), v = sb_get(&in->v, i);
-        sb_incidence inc = sb_incident(l, &b, sb_get(&in->x, i), kind);
+        vec3 nn = shade_lane_get(&in->nrm, i), v = shade_lane_get(&in->v, i);
+        sb_incidence inc = sb_incident(l, &b, shade_lane_get(&in->x, i), kind);
         bad[i] = inc.bad;
         vec3 e = v3_scale(l->intensity, inc.atten);
         float n_l = v3_dot(nn, inc.to_l);
         float lit = n_l > 0.0f ? 1.0f : 0.0f;
-        sb_set(&out->diffuse, i, v3_add(sb_get(&out->diffuse, i), v3_scale(v3_mul(kd, e), n_l * lit)));
+        shade_lane_set(&out->diffuse, i, v3_add(shade_lane_get(&out->diffuse, i), v3_scale(v3_mul(kd, e), n_l * lit)));
         vec3 s = sb_ct_lobe(ct, log_d0, inv_m2, k_norm, nn, v, inc.to_l, smith, f_one);
-        sb_set(&out->specular, i, v3_add(sb_get(&out->specular, i), v3_scale(v3_mul(s, e), lit)));
+        shade_lane_set(&out->specular, i, v3_add(shade_lane_get(&out->specular, i), v3_scale(v3_mul(s, e), lit)));
     }
     return sb_any(bad, n);
 }
@@ -505,10 +499,10 @@ SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_ba
     int bad = 0;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        sb_set(&out->diffuse, i, v3s(0.0f));
-        sb_set(&out->specular, i, v3s(0.0f));
-        sb_set(&out->emission, i, mat->d3d.emissive);
-        sb_set(&out->reflection, i, v3s(0.0f));
+        shade_lane_set(&out->diffuse, i, v3s(0.0f));
+        shade_lane_set(&out->specular, i, v3s(0.0f));
+        shade_lane_set(&out->emission, i, mat->d3d.emissive);
+        shade_lane_set(&out->reflection, i, v3s(0.0f));
         out->alpha[i] = 1.0f;
     }
     for (int li = 0; li < c->s->n_lights; li++) {
@@ -533,14 +527,14 @@ SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_ba
 #pragma omp simd
         for (int i = 0; i < n; i++) {
             /* cooktorrance_reflection_weight: F at N.V, capped. */
-            vec3 w = sb_min(sb_ct_fresnel(f0, v3_dot(sb_get(&in->nrm, i), sb_get(&in->v, i)), f_one),
+            vec3 w = sb_min(sb_ct_fresnel(f0, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)), f_one),
                             v3s(COOKTORRANCE_MAX));
-            sb_set(&out->reflection, i, v3_mul(sb_get(&phi, i), w));
+            shade_lane_set(&out->reflection, i, v3_mul(shade_lane_get(&phi, i), w));
         }
     }
     for (int i = 0; i < n; i++) {
-        vec3 nn = sb_get(&in->nrm, i);
-        float n_v = v3_dot(nn, sb_get(&in->v, i)), len2 = v3_dot(nn, nn);
+        vec3 nn = shade_lane_get(&in->nrm, i);
+        float n_v = v3_dot(nn, shade_lane_get(&in->v, i)), len2 = v3_dot(nn, nn);
         if (n_v < SB_CT_NV_MIN || fabsf(len2 - 1.0f) > SB_CT_UNIT_TOL)
             sb_scalar_lane(c, p, in, out, i);
     }

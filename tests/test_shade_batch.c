@@ -187,13 +187,10 @@ static void make_inputs(const shade_context *c, const material *m, int n, shade_
         }
         if (v3_dot(nn, v) < 0.0f)
             nn = v3_neg(nn);
-        in->x.x[i] = x.x, in->x.y[i] = x.y, in->x.z[i] = x.z;
-        in->nrm.x[i] = nn.x, in->nrm.y[i] = nn.y, in->nrm.z[i] = nn.z;
-        in->v.x[i] = v.x, in->v.y[i] = v.y, in->v.z[i] = v.z;
+        shade_batch_set_input(in, i, x, nn, v);
     }
 }
 
-static vec3 lane_vec(const shade_vec3_n *a, int i) { return v3(a->x[i], a->y[i], a->z[i]); }
 
 /* ---- comparison ---- */
 
@@ -214,13 +211,9 @@ static int term_values(const shade_terms *t, int term, float v[3])
 
 static int batch_values(const shade_batch_out *o, int i, int term, float v[3])
 {
-    const shade_vec3_n *src[] = {&o->diffuse, &o->specular, &o->reflection, &o->emission};
-    if (term == T_ALPHA) {
-        v[0] = o->alpha[i];
-        return 1;
-    }
-    v[0] = src[term]->x[i], v[1] = src[term]->y[i], v[2] = src[term]->z[i];
-    return 3;
+    shade_terms t;
+    shade_batch_get_terms(o, i, &t);
+    return term_values(&t, term, v);
 }
 
 typedef struct {
@@ -259,7 +252,7 @@ static void report_mismatch(check_stat *st, const check_spec *spec, const shade_
     st->failures++;
     if (st->failures > 6)
         return;
-    vec3 x = lane_vec(&in->x, lane), n = lane_vec(&in->nrm, lane), v = lane_vec(&in->v, lane);
+    vec3 x = shade_lane_get(&in->x, lane), n = shade_lane_get(&in->nrm, lane), v = shade_lane_get(&in->v, lane);
     print_error("%s: lane %d of %d, %s[%d]: batch %.9g (%a), scalar %.9g (%a), error %.3g\n"
                 "  x = (%a, %a, %a) n = (%a, %a, %a) v = (%a, %a, %a)\n",
                 spec->name, lane, in->n, term_names[term], comp, (double)got, (double)got, (double)want,
@@ -306,7 +299,7 @@ static void run_case(const shade_context *c, const shade_plan *p, const check_sp
         make_inputs(c, p->mat, lanes, &work.in[b]);
         for (int i = 0; i < lanes; i++) {
             shade_terms *t = &work.want[b][i];
-            shade_eval(c, p, lane_vec(&work.in[b].x, i), lane_vec(&work.in[b].nrm, i), lane_vec(&work.in[b].v, i), t);
+            shade_eval(c, p, shade_lane_get(&work.in[b].x, i), shade_lane_get(&work.in[b].nrm, i), shade_lane_get(&work.in[b].v, i), t);
             for (int term = 0; term < T_COUNT; term++) {
                 float w[3];
                 int k = term_values(t, term, w);
@@ -815,16 +808,13 @@ static void unsafe_case(const char *name, const scene *s, const env_map *env, sh
         /* The unsafe lane last, so every earlier lane was already computed by the kernel when
          * the batch is marked bad. */
         int u = lanes - 1;
-        in->x.x[u] = unsafe_x.x, in->x.y[u] = unsafe_x.y, in->x.z[u] = unsafe_x.z;
-        vec3 v = v3_norm(v3_sub(c.eye, unsafe_x));
-        in->v.x[u] = v.x, in->v.y[u] = v.y, in->v.z[u] = v.z;
-        in->nrm.x[u] = 0.0f, in->nrm.y[u] = 1.0f, in->nrm.z[u] = 0.0f;
+        shade_batch_set_input(in, u, unsafe_x, v3(0.0f, 1.0f, 0.0f), v3_norm(v3_sub(c.eye, unsafe_x)));
         shade_batch_out *o = &work.out[0];
         fill_sentinel(o);
         shade_eval_n(&c, &p, in, o);
         for (int i = 0; i < lanes; i++) {
             shade_terms t;
-            shade_eval(&c, &p, lane_vec(&in->x, i), lane_vec(&in->nrm, i), lane_vec(&in->v, i), &t);
+            shade_eval(&c, &p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i), &t);
             st.lanes++;
             st.lit += v3_sum(t.diffuse) != 0.0f;
             for (int term = 0; term < T_COUNT; term++) {
@@ -1069,9 +1059,7 @@ static void test_env_lookup_n_pole_negative_zero(void **state)
     plan_for(&s, &img, &c, &p, shade_batch_d3d9client);
     shade_batch_in *in = &work.in[0];
     in->n = 1;
-    in->x.x[0] = 0.0f, in->x.y[0] = 0.0f, in->x.z[0] = 0.0f;
-    in->nrm.x[0] = nz, in->nrm.y[0] = 1.0f, in->nrm.z[0] = 0.0f;
-    in->v.x[0] = 0.0f, in->v.y[0] = 1.0f, in->v.z[0] = 0.0f;
+    shade_batch_set_input(in, 0, v3(0.0f, 0.0f, 0.0f), v3(nz, 1.0f, 0.0f), v3(0.0f, 1.0f, 0.0f));
     shade_batch_out *o = &work.out[0];
     shade_eval_n(&c, &p, in, o);
     shade_terms t;

@@ -396,9 +396,7 @@ static void bench_spec_kernels(const scene *s, const env_map *env, int reps, dou
             }
             vec3 v = v3_norm(v3_sub(s->camera.eye, x));
             if (v3_dot(n, v) < 0.0f) n = v3_neg(n);
-            in[b].x.x[i] = x.x, in[b].x.y[i] = x.y, in[b].x.z[i] = x.z;
-            in[b].nrm.x[i] = n.x, in[b].nrm.y[i] = n.y, in[b].nrm.z[i] = n.z;
-            in[b].v.x[i] = v.x, in[b].v.y[i] = v.y, in[b].v.z[i] = v.z;
+            shade_batch_set_input(&in[b], i, x, n, v);
         }
     }
     double t[2][16];

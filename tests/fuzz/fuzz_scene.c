@@ -54,16 +54,12 @@ static void fuzz_scene_shade(const scene *s)
             shade_terms t;
             shade_eval(&c, &p, x, n, v, &t);
             fuzz_scene_check(s, m, p.path, i, "shade_eval", &t);
-            in.x.x[i] = x.x, in.x.y[i] = x.y, in.x.z[i] = x.z;
-            in.nrm.x[i] = n.x, in.nrm.y[i] = n.y, in.nrm.z[i] = n.z;
-            in.v.x[i] = v.x, in.v.y[i] = v.y, in.v.z[i] = v.z;
+            shade_batch_set_input(&in, i, x, n, v);
         }
         shade_eval_n(&c, &p, &in, &out);
         for (int i = 0; i < 3; i++) {
-            shade_terms t = {v3(out.diffuse.x[i], out.diffuse.y[i], out.diffuse.z[i]),
-                             v3(out.specular.x[i], out.specular.y[i], out.specular.z[i]),
-                             v3(out.reflection.x[i], out.reflection.y[i], out.reflection.z[i]),
-                             v3(out.emission.x[i], out.emission.y[i], out.emission.z[i]), out.alpha[i]};
+            shade_terms t;
+            shade_batch_get_terms(&out, i, &t);
             fuzz_scene_check(s, m, p.path, i, "shade_eval_n", &t);
         }
     }
