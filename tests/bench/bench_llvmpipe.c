@@ -27,7 +27,6 @@
 
 #include "bench_image.h"
 #include "bench_scene.h"
-#include "frame.h"
 #include "render.h"
 
 /* Shared by both shading programs: env_lookup's mapping (env.h). */
@@ -241,9 +240,7 @@ int main(int argc, char **argv)
     float *env_px = NULL;
     mesh m;
     char err[512];
-    if (bench_scene_load(scene_path, BENCH_SCENE_REFLECT, &s, err, sizeof err) != RC_OK ||
-        frame_env_load(&s, &env, &env_px, err, sizeof err) != RC_OK ||
-        bench_mesh_make(&s, tris, &m, err, sizeof err) != RC_OK) {
+    if (bench_frame_load(scene_path, BENCH_SCENE_REFLECT, tris, &s, &env, &env_px, &m, err, sizeof err) != RC_OK) {
         fprintf(stderr, "bench_llvmpipe: %s\n", err);
         bench_die("scene, environment or mesh not loaded; see stderr");
     }

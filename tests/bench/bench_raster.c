@@ -27,7 +27,6 @@
 
 #include "bench_image.h"
 #include "bench_scene.h"
-#include "frame.h"
 #include "exr.h"
 #include "raster.h"
 #include "render.h"
@@ -137,9 +136,7 @@ static void bench_raster_child(const void *varg, bench_result *r)
     env_map env;
     float *env_px = NULL;
     mesh m;
-    if (bench_scene_load(g_scene, BENCH_SCENE_REFLECT, &s, r->err, sizeof r->err) != RC_OK ||
-        frame_env_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
-        bench_mesh_make(&s, a->c.tris, &m, r->err, sizeof r->err) != RC_OK)
+    if (bench_frame_load(g_scene, BENCH_SCENE_REFLECT, a->c.tris, &s, &env, &env_px, &m, r->err, sizeof r->err) != RC_OK)
         return;
     r->n_tris = m.n_tris;
     r->input_mib = ((double)m.n_verts * 2 * sizeof(vec3) + (double)m.n_tris * (3 * sizeof(uint32_t) + sizeof(int)) +
@@ -423,9 +420,7 @@ static void bench_spec_child(const void *varg, bench_result *r)
     env_map env;
     float *env_px = NULL;
     mesh m;
-    if (bench_scene_load(g_scene, BENCH_SCENE_DIFFUSE, &s, r->err, sizeof r->err) != RC_OK ||
-        frame_env_load(&s, &env, &env_px, r->err, sizeof r->err) != RC_OK ||
-        bench_mesh_make(&s, c->tris, &m, r->err, sizeof r->err) != RC_OK)
+    if (bench_frame_load(g_scene, BENCH_SCENE_DIFFUSE, c->tris, &s, &env, &env_px, &m, r->err, sizeof r->err) != RC_OK)
         return;
     render_camera cam;
     render_camera_make(&s, c->size, c->size, &cam);

@@ -1,9 +1,11 @@
 #include "bench_scene.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#include "frame.h"
 #include "scene_file.h"
 
 double bench_now(void)
@@ -37,4 +39,20 @@ rc_status bench_mesh_make(scene *s, int target_tris, mesh *m, char *err, size_t 
     s->objects[0].tessellation = seg > 1024 ? 1024 : seg;
     memset(m, 0, sizeof *m);
     return mesh_build(s, m, err, errlen);
+}
+
+rc_status bench_frame_load(const char *path, bench_scene_kind kind, int target_tris, scene *s, env_map *env,
+                           float **env_px, mesh *m, char *err, size_t errlen)
+{
+    *env_px = NULL;
+    rc_status st = bench_scene_load(path, kind, s, err, errlen);
+    if (st == RC_OK)
+        st = frame_env_load(s, env, env_px, err, errlen);
+    if (st == RC_OK)
+        st = bench_mesh_make(s, target_tris, m, err, errlen);
+    if (st != RC_OK) {
+        free(*env_px);
+        *env_px = NULL;
+    }
+    return st;
 }

@@ -16,6 +16,7 @@
 #define REFLCHECK_BENCH_SCENE_H
 
 #include <stddef.h>
+#include "env.h"
 #include "mesh.h"
 #include "scene.h"
 #include "status.h"
@@ -24,6 +25,10 @@ typedef enum { BENCH_SCENE_REFLECT, BENCH_SCENE_DIFFUSE } bench_scene_kind;
 
 rc_status bench_scene_load(const char *path, bench_scene_kind kind, scene *s, char *err, size_t errlen);
 rc_status bench_mesh_make(scene *s, int target_tris, mesh *m, char *err, size_t errlen);
+/* Everything a benchmark frame needs: bench_scene_load, the environment (frame_env_load; the
+ * caller frees *env_px) and bench_mesh_make. On failure nothing stays allocated. */
+rc_status bench_frame_load(const char *path, bench_scene_kind kind, int target_tris, scene *s, env_map *env,
+                           float **env_px, mesh *m, char *err, size_t errlen);
 
 /* Wall clock in seconds (CLOCK_MONOTONIC). */
 double bench_now(void);
