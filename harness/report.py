@@ -145,8 +145,11 @@ def safe_name(name):
 
 
 def json_script(o):
-    """JSON for an inline <script>: '</' would end the script element early."""
-    return json.dumps(clean(o), separators=(',', ':')).replace('</', '<\\/')
+    """JSON for an inline <script>. No '<', '>' or '&' may appear raw: '</script' ends the element
+    early and '<!--' followed by '<script' makes the parser swallow the closing tag (a scene
+    named after a file such as '<!--<script>.yaml'), so all three become JSON \\u escapes."""
+    text = json.dumps(clean(o), separators=(',', ':'))
+    return text.replace('<', '\\u003c').replace('>', '\\u003e').replace('&', '\\u0026')
 
 
 def write_atomic(path, data):
@@ -430,6 +433,21 @@ def verdict_counts(R):
     return n
 
 
+JOB_BENIGN = ('ok', 'skipped')
+
+
+def run_status(R):
+    """'error' when anything could not be measured (a comparison errored, a job crashed, failed,
+    timed out or could not write, or the run compared nothing), else 'fail' when a comparison
+    failed, else 'ok'. Warnings and skips (a renderer not installed, or unable to represent the
+    scene) leave a run 'ok'."""
+    n = verdict_counts(R)
+    jobs_bad = any(str(j.get('status')) not in JOB_BENIGN for s in R['scenes'] for j in s['jobs'])
+    if n['error'] or jobs_bad or not any(True for _ in all_comparisons(R)):
+        return 'error'
+    return 'fail' if n['fail'] else 'ok'
+
+
 def flat_metrics(c):
     """One comparison's figures as flat keys ("surface.rel_rms", "aov.diffuse.psnr", ...)."""
     out = {}
@@ -476,7 +494,7 @@ def summary_object(R):
                        'comparisons': comps, 'jobs': jobs})
     opt = R['optional']
     return clean({'run_id': R['run_id'], 'commit': R['commit'], 'time': R['time'],
-                  'report_time': R['report_time'], 'machine': R['machine'],
+                  'report_time': R['report_time'], 'machine': R['machine'], 'status': run_status(R),
                   'renderer_versions': R['versions'], 'counts': verdict_counts(R), 'scenes': scenes,
                   'stability': opt['stability']['rows'] if opt['stability'] else None,
                   'problems': R['problems'].items})
@@ -583,7 +601,7 @@ def history_record(R):
         metrics.setdefault(s['name'], {})[c['id']] = m
     return clean({'run_id': R['run_id'], 'commit': R['commit'], 'time': R['time'],
                   'report_time': R['report_time'], 'versions': R['versions'], 'machine': R['machine'],
-                  'counts': verdict_counts(R), 'metrics': metrics})
+                  'status': run_status(R), 'counts': verdict_counts(R), 'metrics': metrics})
 
 
 def read_history(path, problems=None):
@@ -722,7 +740,9 @@ def plot_angles(R, s, tmpdir, problems):
 def plot_trends(R, history, tmpdir, problems):
     out = {}
     for s in R['scenes']:
-        runs = [h for h in history if s['name'] in (h.get('metrics') or {})][-TREND_RUNS:]
+        # A run that errored measured only part of the scene: its figures are no trend.
+        runs = [h for h in history if s['name'] in (h.get('metrics') or {})
+                and h.get('status') != 'error'][-TREND_RUNS:]
         ids = []
         for h in runs:
             for cid, m in h['metrics'][s['name']].items():
@@ -1224,7 +1244,8 @@ def index_html(R, trends, timing_plots, history_note):
     fig1 = ('<section id="figure1"><h2>Figure 1</h2><img class="plot wide" src="figure1.svg" alt="figure 1"></section>'
             if R['optional']['figure1'] else '')
     body = f'''
-<section class="overview"><div class="chips">{chips}</div><div class="chips">{vers}</div></section>
+<section class="overview"><p class="run-status">run status {badge(run_status(R))}</p>
+<div class="chips">{chips}</div><div class="chips">{vers}</div></section>
 {problems_html(R['problems'].items)}
 <section id="comparisons">
 <h2>Comparisons <span class="dim small">{sum(n.values())} rows · failures first</span></h2>
@@ -1238,7 +1259,9 @@ def index_html(R, trends, timing_plots, history_note):
 <div class="scroll">{summary_table(R)}</div>
 <p class="dim small">Metrics are on the surface region (interior pixels) unless a threshold names another region or layer.
 Verdicts: <b>pass</b> within every threshold · <b>warn</b> over a warn threshold · <b>fail</b> over a fail threshold
-· <b>skipped</b> a render is missing (see the renderer table) · <b>error</b> the comparison could not be read or computed.</p>
+· <b>skipped</b> a renderer is not installed or cannot represent the scene (see the renderer table)
+· <b>error</b> a render crashed, failed, timed out or could not be written or read, so the comparison could not be
+computed. Run status: <b>error</b> if anything errored, else <b>fail</b> if a comparison failed, else <b>ok</b>.</p>
 </section>
 <section id="renderers"><h2>Renderer jobs <span class="dim small">every job record; failures first</span></h2>
 <div class="scroll">{jobs_rows(R, R['scenes'])}</div></section>

@@ -408,3 +408,63 @@ def test_viewer_interactions_in_chromium(built):
     dark, bright, label = out['ev']
     assert label.startswith('EV +2.00') and all(b > d for b, d in zip(bright, dark))
     assert out['flip'] == 'povray-twin (B)'
+
+
+# ------------------------------------------------------------------ run status and hostile names
+
+def test_run_status_recorded(tmp_path):
+    """A run with a failing comparison is 'fail'; a crashed job makes the next run 'error', which is
+    recorded as such in the history and summary.json and left out of the trends."""
+    root = str(tmp_path)
+    hist = os.path.join(root, 'history.jsonl')
+    r = run_report('--run', make_run(root, RUN1), '--history', hist)
+    assert r.returncode == 0, r.stderr
+    run2 = make_run(root, RUN2, rel_scale=2.0)
+    rec_path = os.path.join(run2, 'alpha', 'povray-twin.json')
+    rec = json.loads(read(rec_path))
+    rec.update(status='crashed', message='povray crashed (signal 11)', exr='')
+    with open(rec_path, 'w', encoding='utf-8') as f:
+        json.dump(rec, f)
+    r = run_report('--run', run2, '--history', hist)
+    assert r.returncode == 0, r.stderr
+    recs = report.read_history(hist)
+    assert [h['status'] for h in recs] == ['fail', 'error']
+    assert json.loads(read(os.path.join(run2, 'summary.json')))['status'] == 'error'
+    assert re.search(r'run status <span class="badge v-error">error</span>', read(os.path.join(run2, 'index.html')))
+    R = report.load_run(run2)
+    assert report.run_status(R) == 'error'
+    # the errored run's figures are no trend: only RUN1 is eligible, and one point draws no trend line
+    history = report.read_history(hist)
+    assert [h['run_id'] for h in history if h.get('status') != 'error'] == [RUN1]
+
+
+def test_run_with_nothing_compared_is_error(tmp_path):
+    run = make_run(str(tmp_path), RUN1)
+    for scene in ('alpha', 'beta'):
+        with open(os.path.join(run, scene, 'compare.json'), 'w', encoding='utf-8') as f:
+            json.dump({'scene': scene, 'comparisons': []}, f)
+    assert report.run_status(report.load_run(run)) == 'error'
+
+
+def test_json_script_has_no_markup():
+    text = report.json_script({'scene': '<!--<script>', 'x': '</script><b>&amp;'})
+    assert not set('<>&') & set(text)
+    assert json.loads(text) == {'scene': '<!--<script>', 'x': '</script><b>&amp;'}
+
+
+@pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
+def test_hostile_scene_name_page_loads(tmp_path):
+    """A scene folder named after a file like '<!--<script>.yaml': its page still runs report.js
+    and loads every image (an unescaped '<!--<script>' in the inline JSON swallowed the page script)."""
+    run = make_run(str(tmp_path), RUN1)
+    hostile = '<!--<script>'
+    os.rename(os.path.join(run, 'alpha'), os.path.join(run, hostile))
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    page = os.path.join(run, f'scene-{report.safe_name(hostile)}.html')
+    html = read(page)
+    n = html.count('class="view"') + html.count('<img ')
+    dom = report.dump_dom(page)
+    a = body_attrs(dom)
+    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
+        (a, re.findall(r'<li>[^<]*', dom))
