@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/time.h>
@@ -25,10 +26,16 @@ static double runner_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-int runner_available(const char *program)
+int runner_which(const char *program, char *out, size_t outlen)
 {
-    if (strchr(program, '/') != NULL)
-        return access(program, X_OK) == 0;
+    if (outlen > 0)
+        out[0] = '\0';
+    if (strchr(program, '/') != NULL) {
+        if (access(program, X_OK) != 0)
+            return 0;
+        snprintf(out, outlen, "%s", program);
+        return 1;
+    }
     const char *path = getenv("PATH");
     if (path == NULL)
         return 0;
@@ -41,12 +48,20 @@ int runner_available(const char *program)
             dir[n] = '\0';
             snprintf(full, sizeof full, "%s/%s", dir, program);
             struct stat st;
-            if (stat(full, &st) == 0 && S_ISREG(st.st_mode) && access(full, X_OK) == 0)
+            if (stat(full, &st) == 0 && S_ISREG(st.st_mode) && access(full, X_OK) == 0) {
+                snprintf(out, outlen, "%s", full);
                 return 1;
+            }
         }
         path += n + (path[n] == ':');
     }
     return 0;
+}
+
+int runner_available(const char *program)
+{
+    char full[4352];
+    return runner_which(program, full, sizeof full);
 }
 
 const char *runner_status_name(runner_status s)
@@ -62,6 +77,101 @@ const char *runner_status_name(runner_status s)
     return "error";
 }
 
+/* The process group of the renderer runner_exec is waiting for (0: none). A signal handler
+ * reads it, hence sig_atomic_t (a pid_t fits: both are int on Linux). */
+static volatile sig_atomic_t runner_group;
+
+/* The grace a renderer gets after SIGTERM before its group gets SIGKILL, in 10 ms steps: the
+ * same 2 s a timeout gives, enough for Blender to remove its temporary files. */
+#define RUNNER_GRACE_STEPS 200
+
+/* Ends the running renderer's whole group, then lets the signal end us as it would have
+ * without the handler. Only async-signal-safe calls (kill, waitpid, nanosleep, sigaction,
+ * raise). */
+static void runner_on_signal(int sig)
+{
+    pid_t g = (pid_t)runner_group;
+    if (g > 0) {
+        kill(-g, SIGTERM);
+        for (int i = 0; i < RUNNER_GRACE_STEPS; i++) {
+            struct timespec nap = {0, 10 * 1000 * 1000};
+            nanosleep(&nap, NULL);
+            int st;
+            waitpid(g, &st, WNOHANG); /* a zombie leader would keep the group alive */
+            if (kill(-g, 0) != 0)
+                break;
+        }
+        kill(-g, SIGKILL);
+    }
+    struct sigaction dfl;
+    memset(&dfl, 0, sizeof dfl);
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    sigaction(sig, &dfl, NULL);
+    raise(sig); /* pending until the handler returns, then the default action ends us */
+}
+
+/* The signals that end a run from outside (Ctrl-C, kill, a closed terminal) and that the
+ * renderer, in its own process group, would not get. */
+static const int runner_forwarded[] = {SIGINT, SIGTERM, SIGHUP};
+#define RUNNER_N_FORWARDED (sizeof runner_forwarded / sizeof runner_forwarded[0])
+
+static void runner_forward_signals(struct sigaction old[RUNNER_N_FORWARDED])
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = runner_on_signal;
+    sigemptyset(&sa.sa_mask);
+    for (size_t i = 0; i < RUNNER_N_FORWARDED; i++)
+        sigaddset(&sa.sa_mask, runner_forwarded[i]);
+    for (size_t i = 0; i < RUNNER_N_FORWARDED; i++) {
+        sigaction(runner_forwarded[i], NULL, &old[i]);
+        /* An ignored signal (nohup's SIGHUP) stays ignored: it would not have ended us. */
+        if (old[i].sa_handler != SIG_IGN)
+            sigaction(runner_forwarded[i], &sa, NULL);
+    }
+}
+
+static void runner_restore_signals(const struct sigaction old[RUNNER_N_FORWARDED])
+{
+    for (size_t i = 0; i < RUNNER_N_FORWARDED; i++)
+        sigaction(runner_forwarded[i], &old[i], NULL);
+}
+
+/* Kills the group and reaps the leader, for the error paths that stop waiting early. */
+static void runner_kill_group(pid_t pid)
+{
+    kill(-pid, SIGKILL);
+    int st;
+    while (waitpid(pid, &st, 0) < 0 && errno == EINTR)
+        continue;
+}
+
+/* In the child: own process group, log as stdout and stderr, no stdin, killed when we die;
+ * then the program. An exec failure is reported through errfd (close-on-exec, so a
+ * successful exec closes it silently). */
+__attribute__((noreturn)) static void runner_child(const char *const argv[], int log, int errfd, pid_t parent)
+{
+    setpgid(0, 0);
+    /* SIGKILL with us even if we are killed with SIGKILL ourselves and cannot forward it. */
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    /* We may have died before prctl: then the child was already reparented. */
+    if (getppid() != parent)
+        _exit(127);
+    dup2(log, STDOUT_FILENO);
+    dup2(log, STDERR_FILENO);
+    int devnull = open("/dev/null", O_RDONLY);
+    if (devnull >= 0)
+        dup2(devnull, STDIN_FILENO);
+    /* execvp takes char *const[]; the strings are not modified. */
+    execvp(argv[0], (char *const *)(uintptr_t)argv);
+    int e = errno;
+    fprintf(stderr, "reflcheck: could not start %s: %s\n", argv[0], strerror(e));
+    ssize_t w = write(errfd, &e, sizeof e);
+    (void)w;
+    _exit(127);
+}
+
 runner_status runner_exec(const char *const argv[], double timeout_s, const char *log_path, runner_result *r)
 {
     memset(r, 0, sizeof *r);
@@ -70,27 +180,40 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
     int log = open(log_path ? log_path : "/dev/null", O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (log < 0)
         return r->status = RUNNER_ERROR;
-
-    double t0 = runner_now();
-    pid_t pid = fork();
-    if (pid < 0) {
+    int errpipe[2];
+    if (pipe(errpipe) != 0) {
         close(log);
         return r->status = RUNNER_ERROR;
     }
-    if (pid == 0) {
-        setpgid(0, 0);
-        dup2(log, STDOUT_FILENO);
-        dup2(log, STDERR_FILENO);
-        int devnull = open("/dev/null", O_RDONLY);
-        if (devnull >= 0)
-            dup2(devnull, STDIN_FILENO);
-        /* execvp takes char *const[]; the strings are not modified. */
-        execvp(argv[0], (char *const *)(uintptr_t)argv);
-        fprintf(stderr, "reflcheck: could not start %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
+    fcntl(errpipe[0], F_SETFD, FD_CLOEXEC);
+    fcntl(errpipe[1], F_SETFD, FD_CLOEXEC);
+
+    struct sigaction old[RUNNER_N_FORWARDED];
+    runner_forward_signals(old);
+    pid_t parent = getpid();
+    double t0 = runner_now();
+    pid_t pid = fork();
+    if (pid < 0) {
+        runner_restore_signals(old);
+        close(log);
+        close(errpipe[0]);
+        close(errpipe[1]);
+        return r->status = RUNNER_ERROR;
     }
+    if (pid == 0)
+        runner_child(argv, log, errpipe[1], parent);
     setpgid(pid, pid);
+    runner_group = pid;
     close(log);
+    close(errpipe[1]);
+    /* Blocks until the exec happened (EOF) or failed (its errno). */
+    int exec_errno = 0;
+    ssize_t got;
+    while ((got = read(errpipe[0], &exec_errno, sizeof exec_errno)) < 0 && errno == EINTR)
+        continue;
+    close(errpipe[0]);
+    if (got != (ssize_t)sizeof exec_errno)
+        exec_errno = 0;
 
     int status = 0, killed = 0;
     struct rusage ru;
@@ -101,8 +224,10 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
         if (w == pid)
             break;
         if (w < 0 && errno != EINTR) {
-            r->status = RUNNER_ERROR;
-            return r->status;
+            runner_kill_group(pid);
+            runner_group = 0;
+            runner_restore_signals(old);
+            return r->status = RUNNER_ERROR;
         }
         double now = runner_now();
         if (!killed && timeout_s > 0 && now - t0 > timeout_s) {
@@ -117,18 +242,30 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
         struct timespec nap = {0, 10 * 1000 * 1000};
         nanosleep(&nap, NULL);
     }
+    /* The leader is gone; what it started in its group goes with it. */
+    kill(-pid, SIGKILL);
+    runner_group = 0;
+    runner_restore_signals(old);
     r->wall_s = runner_now() - t0;
     r->cpu_s = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
                1e-6 * (double)ru.ru_stime.tv_usec;
     r->max_rss_kb = ru.ru_maxrss;
-    if (killed)
+    r->exec_errno = exec_errno;
+    if (exec_errno != 0) {
+        /* On PATH a moment ago: gone now is "not installed"; anything else (still there but
+         * its interpreter or loader missing, not executable) is an installed program that
+         * does not start. */
+        r->exit_code = 127;
+        r->status = exec_errno == ENOENT && !runner_available(argv[0]) ? RUNNER_MISSING : RUNNER_FAILED;
+    } else if (killed)
         r->status = RUNNER_TIMEOUT;
     else if (WIFSIGNALED(status)) {
         r->signal = WTERMSIG(status);
         r->status = RUNNER_CRASHED;
     } else {
         r->exit_code = WEXITSTATUS(status);
-        r->status = r->exit_code == 0 ? RUNNER_OK : (r->exit_code == 127 ? RUNNER_MISSING : RUNNER_FAILED);
+        /* 127 is the program's own exit status here (an exec failure came through the pipe). */
+        r->status = r->exit_code == 0 ? RUNNER_OK : RUNNER_FAILED;
     }
     return r->status;
 }

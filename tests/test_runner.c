@@ -1,9 +1,17 @@
 /* The renderer runner: every way a child process can end is recorded, none aborts us. */
+#include <errno.h>
 #include <setjmp.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 #include <cmocka.h>
 
 #include "runner.h"
@@ -74,12 +82,155 @@ static void test_cpu_time(void **state)
     assert_true(r.cpu_s <= r.wall_s * 1.5 + 0.05);
 }
 
+
+static void test_exit_127_is_a_failure_not_a_skip(void **state)
+{
+    (void)state;
+    /* The program ran and chose 127 (a wrapper script whose library is missing does this):
+     * that is a failed render, not an uninstalled renderer. */
+    const char *argv[] = {"sh", "-c", "exit 127", NULL};
+    runner_result r;
+    assert_int_equal(runner_exec(argv, 10.0, NULL, &r), RUNNER_FAILED);
+    assert_int_equal(r.exit_code, 127);
+    assert_int_equal(r.exec_errno, 0);
+    assert_string_equal(runner_status_name(r.status), "failed");
+}
+
+static void test_bad_interpreter_is_a_failure(void **state)
+{
+    (void)state;
+    /* Installed (on PATH, executable) but its interpreter is missing: exec fails with ENOENT. */
+    char path[128];
+    snprintf(path, sizeof path, "/tmp/reflcheck-test-runner-interp-%ld", (long)getpid());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("#!/nonexistent/reflcheck-interpreter\n", f);
+    fclose(f);
+    chmod(path, 0755);
+    const char *argv[] = {path, NULL};
+    runner_result r;
+    runner_status st = runner_exec(argv, 10.0, NULL, &r);
+    unlink(path);
+    assert_int_equal(st, RUNNER_FAILED);
+    assert_int_equal(r.exec_errno, ENOENT);
+}
+
+static void test_which(void **state)
+{
+    (void)state;
+    char path[4352];
+    assert_true(runner_which("sh", path, sizeof path));
+    assert_non_null(strstr(path, "/sh"));
+    assert_int_equal(access(path, X_OK), 0);
+    assert_false(runner_which("reflcheck-no-such-renderer", path, sizeof path));
+    assert_string_equal(path, "");
+}
+
+/* 1 while pid exists and is not a zombie (a zombie has ended; only its parent's wait is due). */
+static int alive(pid_t pid)
+{
+    char p[64], buf[512];
+    snprintf(p, sizeof p, "/proc/%ld/stat", (long)pid);
+    FILE *f = fopen(p, "r");
+    if (f == NULL)
+        return 0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    const char *close_paren = strrchr(buf, ')');
+    return close_paren != NULL && close_paren[1] == ' ' && close_paren[2] != 'Z';
+}
+
+/* Waits up to 20 s (generous: the grace is 2 s) for pid to end. */
+static int gone_within(pid_t pid)
+{
+    for (int i = 0; i < 2000 && alive(pid); i++) {
+        struct timespec nap = {0, 10 * 1000 * 1000};
+        nanosleep(&nap, NULL);
+    }
+    return !alive(pid);
+}
+
+/* Reads a pid a child wrote; waits up to 20 s for the file. */
+static pid_t read_pid(const char *path)
+{
+    for (int i = 0; i < 2000; i++) {
+        FILE *f = fopen(path, "r");
+        long v = 0;
+        int got = f != NULL && fscanf(f, "%ld", &v) == 1;
+        if (f != NULL)
+            fclose(f);
+        if (got && v > 0)
+            return (pid_t)v;
+        struct timespec nap = {0, 10 * 1000 * 1000};
+        nanosleep(&nap, NULL);
+    }
+    return -1;
+}
+
+/* A process of ours that waits in runner_exec on a renderer (and a grandchild it started), to
+ * be killed with sig: afterwards neither renderer process may be left. */
+static void kill_waiting_parent(int sig, int *parent_status, pid_t *renderer, pid_t *grandchild)
+{
+    char a[128], b[128], script[512];
+    snprintf(a, sizeof a, "/tmp/reflcheck-test-runner-%ld-a.pid", (long)getpid());
+    snprintf(b, sizeof b, "/tmp/reflcheck-test-runner-%ld-b.pid", (long)getpid());
+    unlink(a);
+    unlink(b);
+    snprintf(script, sizeof script, "sleep 60 & echo $! > %s; echo $$ > %s; wait", b, a);
+    pid_t parent = fork();
+    assert_true(parent >= 0);
+    if (parent == 0) {
+        const char *argv[] = {"sh", "-c", script, NULL};
+        runner_result r;
+        runner_exec(argv, 120.0, NULL, &r);
+        _exit(0);
+    }
+    *renderer = read_pid(a);
+    *grandchild = read_pid(b);
+    assert_true(*renderer > 0 && *grandchild > 0);
+    kill(parent, sig);
+    assert_int_equal(waitpid(parent, parent_status, 0), parent);
+    unlink(a);
+    unlink(b);
+}
+
+static void test_sigterm_is_forwarded_to_the_group(void **state)
+{
+    (void)state;
+    int st;
+    pid_t renderer, grandchild;
+    kill_waiting_parent(SIGTERM, &st, &renderer, &grandchild);
+    /* The parent still ends by the signal it got, after taking the renderer's group with it. */
+    assert_true(WIFSIGNALED(st));
+    assert_int_equal(WTERMSIG(st), SIGTERM);
+    assert_true(gone_within(renderer));
+    assert_true(gone_within(grandchild));
+}
+
+static void test_sigkill_takes_the_renderer(void **state)
+{
+    (void)state;
+    int st;
+    pid_t renderer, grandchild;
+    kill_waiting_parent(SIGKILL, &st, &renderer, &grandchild);
+    assert_true(WIFSIGNALED(st));
+    /* PR_SET_PDEATHSIG: the renderer itself dies with us; its own children are out of reach. */
+    assert_true(gone_within(renderer));
+    kill(grandchild, SIGKILL);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_ok_and_log),        cmocka_unit_test(test_failed_exit_code),
         cmocka_unit_test(test_crash_is_recorded), cmocka_unit_test(test_timeout_kills_the_group),
         cmocka_unit_test(test_missing_program),   cmocka_unit_test(test_cpu_time),
+        cmocka_unit_test(test_exit_127_is_a_failure_not_a_skip),
+        cmocka_unit_test(test_bad_interpreter_is_a_failure),
+        cmocka_unit_test(test_which),
+        cmocka_unit_test(test_sigterm_is_forwarded_to_the_group),
+        cmocka_unit_test(test_sigkill_takes_the_renderer),
     };
     return cmocka_run_group_tests_name("runner", tests, NULL, NULL);
 }
