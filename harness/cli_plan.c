@@ -6,8 +6,9 @@
  * Paths reach /bin/sh through make: every path in a recipe is single-quoted for the shell
  * and its `$` doubled for make, and comes after `--` so a name starting with `-` is not an
  * option. Targets cannot be quoted in make, so a target (OUT/<scene name>/...) must use only
- * letters, digits and _ . / + , @ -; other paths must not hold a newline. Every refusal is
- * exit status 2 and nothing is printed. */
+ * letters, digits and _ . / + , @ -; other paths must not hold a newline. Two scenes with one
+ * name would write the same files and are refused. Every refusal is exit status 2 and
+ * nothing is printed. */
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -56,7 +57,8 @@ typedef struct {
     unsigned char need[RENDERER_COUNT][3];
 } plan_scene;
 
-/* Loads one scene and works out its jobs; refuses names make cannot carry. */
+/* Loads one scene and works out its jobs; refuses names make cannot carry and names an
+ * earlier scene already has. */
 static int plan_load(char **paths, int i, int first, const char *out, plan_scene *all)
 {
     scene *s = malloc(sizeof *s);
@@ -83,6 +85,14 @@ static int plan_load(char **paths, int i, int first, const char *out, plan_scene
                 paths[i], s->name, plan_target_safe(s->name) ? "" : " (from the file name)", target);
         rc = CLI_BAD_INPUT;
     }
+    for (int k = 0; rc == CLI_OK && k < i - first; k++)
+        if (strcmp(all[k].name, p->name) == 0) {
+            fprintf(stderr,
+                    "reflcheck: plan: %s and %s both have the scene name '%s', so their jobs would write the same "
+                    "files; give one of them another name: (scene key name)\n",
+                    paths[first + k], paths[i], p->name);
+            rc = CLI_BAD_INPUT;
+        }
     memset(p->need, 0, sizeof p->need);
     for (int k = 0; rc == CLI_OK && k < s->n_comparisons; k++) {
         const comparison *cp = &s->comparisons[k];

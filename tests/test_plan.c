@@ -1,6 +1,6 @@
 /* reflcheck plan writes make recipes that /bin/sh runs: every path must arrive as exactly
- * one word, whatever it holds (; > $ ' spaces), and paths make cannot carry are refused. The
- * plans are run under make with a fake POV-Ray. */
+ * one word, whatever it holds (; > $ ' spaces), paths make cannot carry are refused, and two
+ * scenes with one name are refused. The plans are run under make with a fake POV-Ray. */
 #include <fcntl.h>
 #include <limits.h>
 #include <setjmp.h>
@@ -198,12 +198,36 @@ static void test_unsafe_names_refused(void **state)
     assert_non_null(strstr(err, "--bin"));
 }
 
+static void test_duplicate_names_refused(void **state)
+{
+    (void)state;
+    char a[512], b[512], c[512], out[256], err[2048], mk[256];
+    snprintf(out, sizeof out, "%s/run-dup", work);
+    snprintf(mk, sizeof mk, "%s/dup.mk", work);
+    scene_file("a.yaml", "same", a, sizeof a);
+    scene_file("b.yaml", "other", b, sizeof b);
+    scene_file("c.yaml", "same", c, sizeof c);
+    char *plan[] = {bin, "plan", a, b, c, "--out", out, NULL};
+    assert_int_equal(run_argv(NULL, mk, err, sizeof err, plan), 2);
+    assert_non_null(strstr(err, a));
+    assert_non_null(strstr(err, c));
+    assert_non_null(strstr(err, "'same'"));
+    char *text = fileio_read_all(mk, NULL);
+    assert_non_null(text);
+    assert_string_equal(text, "");
+    free(text);
+    /* Different names: planned. */
+    char *ok[] = {bin, "plan", a, b, "--out", out, NULL};
+    assert_int_equal(run_argv(NULL, mk, err, sizeof err, ok), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_scene_path_is_not_run),
         cmocka_unit_test(test_dollar_quote_and_space_arrive_intact),
         cmocka_unit_test(test_unsafe_names_refused),
+        cmocka_unit_test(test_duplicate_names_refused),
     };
     return cmocka_run_group_tests_name("plan", tests, setup, teardown);
 }
