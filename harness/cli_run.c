@@ -1,4 +1,6 @@
-/* reflcheck run: one scene in one renderer and role, cached and recorded (harness/jobs.h). */
+/* reflcheck run: one scene in one renderer and role, cached and recorded (harness/jobs.h).
+ * Exit status 0 when the job is ok or skipped, 1 when it failed, crashed, timed out or hit
+ * an error on our side, 2 for bad input (options, scene file, a file it references). */
 #include <getopt.h>
 #include <stdio.h>
 #include <string.h>
@@ -81,10 +83,15 @@ int cli_run(int argc, char **argv)
     rc_status st = job_run(&j, &r, err, sizeof err);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: %s\n", err);
-        return cli_exit_status(st) == CLI_OK ? CLI_FAILED : (st == RC_ERR_IO ? CLI_FAILED : CLI_BAD_INPUT);
+        return job_exit_status(st, &r);
     }
     printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, job_renderer_names[j.renderer],
            job_role_names[j.role], runner_status_name(r.status), r.wall_s, r.cached ? " (cached)" : "",
            r.status == RUNNER_OK ? r.exr : r.message);
-    return CLI_OK;
+    /* A job that is neither done nor skipped fails the run: make -k, the nightly and scripts
+     * see it in the exit status, not only in the record. */
+    if (r.status != RUNNER_OK && r.status != RUNNER_MISSING)
+        fprintf(stderr, "reflcheck: run: %s %s: %s: %s\n", j.scene_path, job_renderer_names[j.renderer],
+                runner_status_name(r.status), r.message);
+    return job_exit_status(st, &r);
 }

@@ -150,6 +150,8 @@ typedef struct {
     char version[256];
     char command[2048];
     double timeout;
+    const char *shown_log; /* the log messages point to: the copy in OUT, which stays */
+    env_map env;          /* loaded and checked once, before any renderer runs */
 } job_ctx;
 
 __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner_status st, const char *fmt, ...)
@@ -163,17 +165,14 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
 
 static void job_raster(job_ctx *c, job_record *r)
 {
-    env_map env;
-    float *pixels = NULL;
     render_image img = {0};
     char err[1024];
     render_options ro = {.threads = c->j->threads};
-    rc_status st = frame_env_load(c->s, &env, &pixels, err, sizeof err);
-    if (st == RC_OK)
-        st = render_scene(c->s, c->m, &env, &ro, &img, err, sizeof err);
-    free(pixels);
+    snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
+    rc_status st = render_scene(c->s, c->m, &c->env, &ro, &img, err, sizeof err);
     if (st != RC_OK) {
-        job_fail(r, RUNNER_FAILED, "%s", err);
+        /* Our side out of memory is an error; anything else the rasterizer refuses fails the job. */
+        job_fail(r, st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED, "%s", err);
         return;
     }
     st = frame_write(c->exr, c->s, c->m, &img, err, sizeof err);
@@ -182,7 +181,25 @@ static void job_raster(job_ctx *c, job_record *r)
     render_image_free(&img);
     if (st != RC_OK)
         job_fail(r, RUNNER_ERROR, "%s", err);
-    snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
+}
+
+/* A renderer that did not end well: the record's status, and a message that says which kind
+ * of skip it is when the program is not there. */
+static void job_fail_run(job_record *r, const runner_result *rr, const char *program, const char *package,
+                         const char *what, const char *log)
+{
+    if (rr->status == RUNNER_MISSING)
+        job_fail(r, RUNNER_MISSING, "%s is not installed; install it with: apt-get install %s", program, package);
+    else if (rr->status == RUNNER_ERROR)
+        job_fail(r, RUNNER_ERROR, "%s could not be run (log file, fork or wait failed%s); see %s", program, what, log);
+    else if (rr->exec_errno != 0)
+        job_fail(r, RUNNER_FAILED, "%s failed to start (%s%s); see %s", program, strerror(rr->exec_errno), what, log);
+    else if (rr->status == RUNNER_CRASHED)
+        job_fail(r, RUNNER_CRASHED, "%s crashed (signal %d%s); see %s", program, rr->signal, what, log);
+    else if (rr->status == RUNNER_TIMEOUT)
+        job_fail(r, RUNNER_TIMEOUT, "%s timeout (killed after %.1f s%s); see %s", program, rr->wall_s, what, log);
+    else
+        job_fail(r, RUNNER_FAILED, "%s failed (exit status %d%s); see %s", program, rr->exit_code, what, log);
 }
 
 /* The variance of each k x k block's mean (unbiased sample variance / k^2), as the rasterizer
@@ -218,7 +235,10 @@ static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, c
     if (st == RC_OK)
         st = povray_command(o, sdl, raw, c->s->width, c->s->height, c->s->supersample, &cmd, err, sizeof err);
     if (st != RC_OK) {
-        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "povray cannot represent this: %s", err);
+        if (st == RC_ERR_RANGE)
+            job_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
+        else
+            job_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
         return -1;
     }
     if (!o->coverage)
@@ -229,7 +249,9 @@ static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, c
     r->wall_s += rr.wall_s;
     r->cpu_s += rr.cpu_s;
     if (rr.status != RUNNER_OK) {
-        job_fail(r, rr.status, "povray %s (%s pass); see %s", runner_status_name(rr.status), tag, c->log);
+        char what[64];
+        snprintf(what, sizeof what, ", %s pass", tag);
+        job_fail_run(r, &rr, "povray", "povray", what, c->shown_log);
         return -1;
     }
     exr_image img;
@@ -290,6 +312,19 @@ static void job_povray(job_ctx *c, job_record *r)
     }
 }
 
+/* 1 if every seed image Blender wrote reads as an EXR. */
+static int job_cycles_raw_readable(const cycles_options *o, const char *exr)
+{
+    for (int i = 0; i < o->n_seeds; i++) {
+        char path[1200], err[512];
+        exr_image img;
+        if (cycles_raw_path(exr, i, path, sizeof path) != RC_OK || exr_read(path, &img, err, sizeof err) != RC_OK)
+            return 0;
+        exr_image_free(&img);
+    }
+    return 1;
+}
+
 static void job_cycles(job_ctx *c, job_record *r)
 {
     char job[1100], err[1024];
@@ -301,7 +336,10 @@ static void job_cycles(job_ctx *c, job_record *r)
     if (st == RC_OK)
         st = cycles_command(&o, job, c->exr, &a, err, sizeof err);
     if (st != RC_OK) {
-        job_fail(r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "cycles cannot represent this: %s", err);
+        if (st == RC_ERR_RANGE)
+            job_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
+        else
+            job_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
         return;
     }
     size_t used = 0;
@@ -312,11 +350,19 @@ static void job_cycles(job_ctx *c, job_record *r)
     r->wall_s = rr.wall_s;
     r->cpu_s = rr.cpu_s;
     if (rr.status != RUNNER_OK) {
-        job_fail(r, rr.status, "blender %s; see %s", runner_status_name(rr.status), c->log);
+        job_fail_run(r, &rr, "blender", "blender", "", c->shown_log);
         return;
     }
-    if (cycles_collect(&o, c->exr, err, sizeof err) != RC_OK)
-        job_fail(r, RUNNER_FAILED, "cycles output unreadable: %s", err);
+    st = cycles_collect(&o, c->exr, err, sizeof err);
+    if (st != RC_OK) {
+        /* Blender's images unreadable fail the job; readable ones that we could not merge and
+         * write (disk full) are our error. */
+        runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
+        if (st == RC_ERR_IO && job_cycles_raw_readable(&o, c->exr))
+            why = RUNNER_ERROR;
+        job_fail(r, why, "%s: %s", why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable",
+                 err);
+    }
 }
 
 /* Writes a cJSON document to path through a temporary file and a rename. */
@@ -384,22 +430,37 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     memset(rec, 0, sizeof *rec);
     scene *s = malloc(sizeof *s);
     mesh m = {0};
-    if (s == NULL)
+    if (s == NULL) {
+        snprintf(err, errlen, "%s: out of memory for the scene", j->scene_path);
         return RC_ERR_NOMEM;
+    }
+    job_ctx c = {.j = j, .s = s, .m = &m};
+    float *env_pixels = NULL;
     rc_status st = scene_file_load(j->scene_path, s, err, errlen);
     if (st == RC_OK) {
         job_apply_variant(s, j->variant);
         job_apply_overrides(s, j);
-        st = mesh_build(s, &m, err, errlen);
+        char why[900];
+        st = mesh_build(s, &m, why, sizeof why);
+        if (st != RC_OK)
+            snprintf(err, errlen, "%s: objects: %s", j->scene_path, why);
     }
+    /* The environment is checked here for every renderer, so POV-Ray and Cycles never get one
+     * the rasterizer would refuse. */
+    if (st == RC_OK)
+        st = frame_env_load(s, &c.env, &env_pixels, err, errlen);
     if (st != RC_OK) {
+        /* Nothing written: the scene or a file it references is bad. */
+        rec->bad_input = st != RC_ERR_NOMEM;
+        rec->status = RUNNER_ERROR;
+        free(env_pixels);
+        mesh_free(&m);
         free(s);
         return st;
     }
     if (j->role == ROLE_TWIN)
         job_twin_switches(s);
 
-    job_ctx c = {.j = j, .s = s, .m = &m};
     c.timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
     static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
     static const char *const packages[RENDERER_COUNT] = {NULL, "povray", "blender"};
@@ -437,10 +498,13 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
                  job_role_names[j->role]);
     if (job_mkdirs(dest_dir) != 0 || job_mkdirs(c.dir) != 0) {
         snprintf(err, errlen, "%s: cannot create the output folder: %s", dest_dir, strerror(errno));
+        rec->status = RUNNER_ERROR;
+        free(env_pixels);
         mesh_free(&m);
         free(s);
         return RC_ERR_IO;
     }
+    c.shown_log = dest_log;
     snprintf(c.exr, sizeof c.exr, "%s/out.exr", c.dir);
     snprintf(c.log, sizeof c.log, "%s/render.log", c.dir);
     char done[1100];
@@ -482,7 +546,15 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
     snprintf(rec->record, sizeof rec->record, "%s", dest_json);
     st = job_write_record(&c, rec, dest_json, key, err, errlen);
+    free(env_pixels);
     mesh_free(&m);
     free(s);
     return st;
+}
+
+int job_exit_status(rc_status st, const job_record *rec)
+{
+    if (st != RC_OK)
+        return rec->bad_input ? 2 : 1;
+    return rec->status == RUNNER_OK || rec->status == RUNNER_MISSING ? 0 : 1;
 }

@@ -4,15 +4,22 @@
  *   job_spec j = {.scene_path = "scenes/x.yaml", .renderer = RENDERER_POVRAY, .role = ROLE_TWIN,
  *                 .variant = JOB_SMALL, .out_dir = "reports/runs/r1", .cache_dir = "reports/cache"};
  *   job_record r;
- *   job_run(&j, &r, err, sizeof err);
+ *   rc_status st = job_run(&j, &r, err, sizeof err);
+ *   exit status: job_exit_status(st, &r)     0 ok or skipped, 1 anything else, 2 bad input
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
  * time, renderer version, command, cache key) and the renderer's .log. The work is keyed by a
  * hash of (scene bytes, environment image, renderer, version, role, size, samples, and the code
  * the render depends on: translator and scene-pipeline sources for POV-Ray and Cycles, the
  * reflcheck binary for our rasterizer), so an unchanged job is copied from the cache.
- * A renderer that is missing, fails, crashes, times out or writes an unreadable image is a
- * record with that status, not an error: job_run returns RC_OK after writing the record.
- * Only bad input (scene file, options) and I/O on our own files return an error.
+ * Returns RC_OK once the record is written, whatever the renderer did; r.status says what:
+ *   ok; skipped (RUNNER_MISSING) only when the renderer is not installed or cannot represent
+ *   the scene (the message says which, with the install command); failed (non-zero exit, an
+ *   output image that is unreadable or the wrong size); crashed; timeout; error (our side:
+ *   a file or folder we could not create or write, a full disk).
+ * Returns an error with nothing written when the input is bad (r.bad_input = 1: the scene
+ * file, a mesh or environment image it references, unreadable or invalid; the environment is
+ * checked here for every renderer) or when the output folder or record cannot be written
+ * (r.bad_input = 0).
  * Files are written under a temporary name and renamed, so a killed run leaves no half file.
  */
 #ifndef REFLCHECK_JOBS_H
@@ -49,6 +56,7 @@ typedef struct {
     char exr[1024], record[1024], log[1024];
     double wall_s, cpu_s;
     int cached;
+    int bad_input;   /* job_run failed on an input the user gave: exit status 2 */
 } job_record;
 
 extern const char *const job_renderer_names[RENDERER_COUNT];
@@ -65,5 +73,7 @@ void job_output_path(const char *out_dir, const char *scene_name, renderer_id r,
  * of every D3D material, supersample, samples). */
 void job_apply_overrides(scene *s, const job_spec *j);
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen);
+/* The exit status of `reflcheck run` for job_run's result (README "Exit status"). */
+int job_exit_status(rc_status st, const job_record *rec);
 
 #endif

@@ -1,22 +1,31 @@
 /* Render jobs when a renderer is missing, fails, crashes, hangs or writes garbage: each is a
- * record with that status and a message, never an abort, and results already written stay.
- * Broken renderers are small scripts put first on PATH in place of povray/blender. */
+ * record with that status and a message, never an abort, results already written stay, and
+ * `reflcheck run` exits 0 only for ok and skipped.
+ * Broken renderers are small scripts put first on PATH in place of povray/blender. Folders
+ * carry the test's pid, so test programs of other builds may run beside this one. */
 #include <setjmp.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 #include <cmocka.h>
 
+#include <cJSON.h>
+
+#include "cli_exec.h"
+#include "exr.h"
 #include "fileio.h"
 #include "jobs.h"
 
 static char saved_path[8192];
-static const char *bin_dir = "/tmp/reflcheck-test-jobs-bin";
-static const char *out_dir = "/tmp/reflcheck-test-jobs-out";
+static char bin_dir[128], out_dir[128], work[128];
 
 /* Installs a fake program NAME on PATH with the given shell body. */
 static void fake(const char *name, const char *body)
@@ -33,21 +42,39 @@ static void fake(const char *name, const char *body)
     chmod(path, 0755);
 }
 
+static void use_path(const char *p)
+{
+    setenv("PATH", p, 1);
+}
+
+static void use_fake_path(void)
+{
+    char p[8400];
+    snprintf(p, sizeof p, "%s:%s", bin_dir, saved_path);
+    use_path(p);
+}
+
 static int setup(void **state)
 {
     (void)state;
+    long pid = (long)getpid();
+    snprintf(bin_dir, sizeof bin_dir, "/tmp/reflcheck-test-jobs-%ld-bin", pid);
+    snprintf(out_dir, sizeof out_dir, "/tmp/reflcheck-test-jobs-%ld-out", pid);
+    snprintf(work, sizeof work, "/tmp/reflcheck-test-jobs-%ld", pid);
     snprintf(saved_path, sizeof saved_path, "%s", getenv("PATH") ? getenv("PATH") : "");
-    char p[8400];
-    snprintf(p, sizeof p, "%s:%s", bin_dir, saved_path);
-    setenv("PATH", p, 1);
-    return system("rm -rf /tmp/reflcheck-test-jobs-bin /tmp/reflcheck-test-jobs-out") == -1;
+    use_fake_path();
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf %s %s %s; mkdir -p %s", bin_dir, out_dir, work, work);
+    return system(cmd) != 0;
 }
 
 static int teardown(void **state)
 {
     (void)state;
     setenv("PATH", saved_path, 1);
-    return 0;
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf %s %s %s", bin_dir, out_dir, work);
+    return system(cmd) != 0;
 }
 
 static job_record run_job(renderer_id r, double timeout)
@@ -72,6 +99,7 @@ static void test_renderer_fails(void **state)
     job_record r = run_job(RENDERER_POVRAY, 30);
     assert_int_equal(r.status, RUNNER_FAILED);
     assert_non_null(strstr(r.message, "povray failed"));
+    assert_non_null(strstr(r.message, "exit status 3"));
     assert_non_null(strstr(r.message, ".log"));
 }
 
@@ -81,6 +109,7 @@ static void test_renderer_crashes(void **state)
     fake("povray", "kill -SEGV $$");
     job_record r = run_job(RENDERER_POVRAY, 30);
     assert_int_equal(r.status, RUNNER_CRASHED);
+    assert_non_null(strstr(r.message, "signal 11"));
 }
 
 static void test_renderer_hangs(void **state)
@@ -108,15 +137,168 @@ static void test_renderer_missing_and_results_kept(void **state)
     /* A result written before: the raster job. Then blender is missing from PATH entirely. */
     job_record ok = run_job(RENDERER_RASTER, 30);
     assert_int_equal(ok.status, RUNNER_OK);
-    setenv("PATH", "/usr/local/nonexistent", 1);
+    use_path("/usr/local/nonexistent");
     job_record r = run_job(RENDERER_CYCLES, 30);
-    char p[8400];
-    snprintf(p, sizeof p, "%s:%s", bin_dir, saved_path);
-    setenv("PATH", p, 1);
+    use_fake_path();
     assert_int_equal(r.status, RUNNER_MISSING);
     assert_string_equal(runner_status_name(r.status), "skipped");
+    assert_non_null(strstr(r.message, "is not installed"));
     assert_non_null(strstr(r.message, "apt-get install blender"));
     assert_int_equal(access(ok.exr, R_OK), 0);
+}
+
+/* ---- A tiny scene of our own (8 x 6 px, a triangle mesh, an environment image) ---- */
+
+static const char *tiny_obj = "v -1 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+
+/* An RGB image of w x h with every value v, written with our EXR writer. */
+static void write_exr(const char *path, int w, int h, float v)
+{
+    size_t n = (size_t)w * (size_t)h;
+    float *p = malloc(n * sizeof *p);
+    assert_non_null(p);
+    for (size_t i = 0; i < n; i++)
+        p[i] = v;
+    exr_channel ch[3] = {{"R", p}, {"G", p}, {"B", p}};
+    char err[512];
+    assert_int_equal(exr_write(path, w, h, ch, 3, NULL, 0, err, sizeof err), RC_OK);
+    free(p);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+/* work/NAME.yaml with tri.obj and env.exr beside it; returns the scene's path. */
+static const char *tiny_scene(const char *name)
+{
+    static char path[256];
+    char p[256], yaml[1024];
+    snprintf(p, sizeof p, "%s/tri.obj", work);
+    if (access(p, R_OK) != 0)
+        write_text(p, tiny_obj);
+    snprintf(p, sizeof p, "%s/env.exr", work);
+    if (access(p, R_OK) != 0)
+        write_exr(p, 8, 4, 0.25f);
+    snprintf(yaml, sizeof yaml,
+             "name: %s\n"
+             "image: {width: 8, height: 6, supersample: 1, timeout: 60}\n"
+             "camera: {eye: [0, 0.5, 4], target: [0, 0.5, 0], hfov: 40}\n"
+             "environment: {image: env.exr}\n"
+             "lights:\n  - {type: point, position: [2, 4, 3], intensity: [30, 30, 30]}\n"
+             "materials:\n  white: {albedo: [0.8, 0.8, 0.8]}\n"
+             "objects:\n  - {shape: mesh, path: tri.obj, material: white}\n"
+             "comparisons:\n  - reference: povray\n    role: twin\n"
+             "    thresholds: {rel_rms: {warn: 1e-3, fail: 2e-3, why: \"test\"}}\n",
+             name);
+    snprintf(path, sizeof path, "%s/%s.yaml", work, name);
+    write_text(path, yaml);
+    return path;
+}
+
+/* A fake POV-Ray that renders by copying an 8 x 6 image (what the tiny scene asks for). */
+static void fake_povray_ok(const char *extra)
+{
+    char img[256], body[1024];
+    snprintf(img, sizeof img, "%s/fake-render.exr", work);
+    if (access(img, R_OK) != 0)
+        write_exr(img, 8, 6, 0.5f);
+    snprintf(body, sizeof body, "%s\nfor a in \"$@\"; do case \"$a\" in +O*) cp %s \"${a#+O}\";; esac; done; exit 0",
+             extra, img);
+    fake("povray", body);
+}
+
+/* A field of the record OUT/tiny/<renderer>-twin.json: its string, or "true"/"false". */
+static void record_field(const char *out, const char *name, const char *renderer, const char *key, char *buf,
+                         size_t len)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s/%s-twin.json", out, name, renderer);
+    char *text = fileio_read_all(path, NULL);
+    buf[0] = '\0';
+    if (text == NULL)
+        return;
+    cJSON *doc = cJSON_Parse(text);
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(doc, key);
+    if (cJSON_IsString(v))
+        snprintf(buf, len, "%s", v->valuestring);
+    else if (cJSON_IsBool(v))
+        snprintf(buf, len, "%s", cJSON_IsTrue(v) ? "true" : "false");
+    cJSON_Delete(doc);
+    free(text);
+}
+
+typedef struct {
+    const char *body;    /* the fake povray; NULL: none on PATH */
+    const char *extra;   /* more options */
+    int exit_status;
+    const char *status;  /* the record's */
+} exit_case;
+
+static void test_run_exit_status(void **state)
+{
+    (void)state;
+    const char *yaml = tiny_scene("tiny");
+    char ok_body[1024];
+    fake_povray_ok("");
+    snprintf(ok_body, sizeof ok_body, "%s/povray", bin_dir);
+    char *ok_script = fileio_read_all(ok_body, NULL);
+    assert_non_null(ok_script);
+    /* The body after the --version line of fake(). */
+    const char *ok_render = strstr(ok_script, "esac\n") + 5;
+    const exit_case cases[] = {
+        {ok_render, "", 0, "ok"},
+        {"kill -SEGV $$", "", 1, "crashed"},
+        {"exit 3", "", 1, "failed"},
+        {"exit 127", "", 1, "failed"},
+        {"sleep 30", "--timeout 0.5", 1, "timeout"},
+        {"for a in \"$@\"; do case \"$a\" in +O*) echo garbage > \"${a#+O}\";; esac; done", "", 1, "failed"},
+        {NULL, "", 0, "skipped"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char out[256], err[1024], status[64];
+        snprintf(out, sizeof out, "%s/exit%zu", out_dir, i);
+        if (cases[i].body != NULL)
+            fake("povray", cases[i].body);
+        else
+            use_path("/usr/local/nonexistent");
+        int rc = cli_exec(err, sizeof err, "run %s --renderer povray --role twin --no-cache --out %s %s", yaml, out,
+                          cases[i].extra);
+        use_fake_path();
+        record_field(out, "tiny", "povray", "status", status, sizeof status);
+        print_message("case %zu (%s): exit %d, status %s, stderr %s\n", i, cases[i].status, rc, status, err);
+        assert_string_equal(status, cases[i].status);
+        assert_int_equal(rc, cases[i].exit_status);
+        if (rc == 1)
+            assert_non_null(strstr(err, cases[i].status));
+    }
+    free(ok_script);
+}
+
+static void test_run_bad_input_is_2(void **state)
+{
+    (void)state;
+    char err[1024], path[256];
+    snprintf(path, sizeof path, "%s/bad.yaml", work);
+    write_text(path, "image: {width: 8, height: 6}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\nbogus: 1\n");
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer raster --out %s", path, out_dir), 2);
+    assert_non_null(strstr(err, "bogus"));
+    /* An unreadable scene file is bad input too (it was 1, as if our side had failed). */
+    assert_int_equal(cli_exec(err, sizeof err, "run %s/missing.yaml --renderer raster --out %s", work, out_dir), 2);
+    assert_non_null(strstr(err, "missing.yaml"));
+    /* A mesh path that names a folder: refused before any render. */
+    snprintf(path, sizeof path, "%s/folder.obj", work);
+    mkdir(path, 0755);
+    snprintf(path, sizeof path, "%s/foldermesh.yaml", work);
+    write_text(path, "image: {width: 8, height: 6}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+                     "materials:\n  white: {}\nobjects:\n  - {shape: mesh, path: folder.obj, material: white}\n");
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer raster --out %s", path, out_dir), 2);
+    assert_non_null(strstr(err, "folder.obj"));
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer nosuch --out %s", tiny_scene("tiny"), out_dir), 2);
 }
 
 int main(void)
@@ -127,6 +309,8 @@ int main(void)
         cmocka_unit_test(test_renderer_hangs),
         cmocka_unit_test(test_renderer_writes_garbage),
         cmocka_unit_test(test_renderer_missing_and_results_kept),
+        cmocka_unit_test(test_run_exit_status),
+        cmocka_unit_test(test_run_bad_input_is_2),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
