@@ -1,6 +1,7 @@
 #include "jobs.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <inttypes.h>
 #include <stdarg.h>
@@ -78,19 +79,6 @@ static int job_mkdirs(const char *path)
     return (mkdir(tmp, 0755) != 0 && errno != EEXIST) ? -1 : 0;
 }
 
-static uint64_t job_hash_file(const char *path, uint64_t h)
-{
-    FILE *f = fopen(path, "rb");
-    if (f == NULL)
-        return h;
-    unsigned char buf[65536];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, f)) > 0)
-        h ^= scene_file_hash(buf, n) + 0x9e3779b97f4a7c15ull + (h << 6) + (h >> 2);
-    fclose(f);
-    return h;
-}
-
 void job_apply_overrides(scene *s, const job_spec *j)
 {
     if (j->supersample > 0)
@@ -115,30 +103,153 @@ static void job_twin_switches(scene *s)
     }
 }
 
+/* The cache key is FNV-1a 64 streamed over labelled fields (label, length, bytes), so two
+ * fields can never run into each other and every byte of every input counts. */
+#define JOB_FNV_BASIS 0xcbf29ce484222325ull
+#define JOB_FNV_PRIME 0x100000001b3ull
+
+static uint64_t job_fnv(uint64_t h, const void *bytes, size_t n)
+{
+    const unsigned char *p = bytes;
+    for (size_t i = 0; i < n; i++) {
+        h ^= p[i];
+        h *= JOB_FNV_PRIME;
+    }
+    return h;
+}
+
+static uint64_t job_key_field(uint64_t h, const char *label, const void *bytes, size_t n)
+{
+    uint64_t len = n;
+    h = job_fnv(h, label, strlen(label) + 1);
+    h = job_fnv(h, &len, sizeof len);
+    return job_fnv(h, bytes, n);
+}
+
+/* Hashes a file's bytes into *h. Regular files only, opened without blocking (a FIFO would
+ * wait for a writer forever) and read up to the size fstat gave (a device never ends). */
+static rc_status job_key_file(uint64_t *h, const char *label, const char *path, char *err, size_t errlen)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0) {
+        snprintf(err, errlen, "%s: %s: cannot read it for the cache key: %s; give a readable file", path, label,
+                 strerror(errno));
+        if (fd >= 0)
+            close(fd);
+        return RC_ERR_IO;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        close(fd);
+        snprintf(err, errlen, "%s: %s: not a regular file (a device, FIFO or folder); give a file", path, label);
+        return RC_ERR_IO;
+    }
+    uint64_t size = (uint64_t)st.st_size, done = 0;
+    *h = job_key_field(*h, label, &size, sizeof size);
+    unsigned char buf[65536];
+    while (done < size) {
+        size_t want = size - done < sizeof buf ? (size_t)(size - done) : sizeof buf;
+        ssize_t n = read(fd, buf, want);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {
+            snprintf(err, errlen, "%s: %s: %s while hashing it for the cache key; rerun once it is no longer changing",
+                     path, label, n < 0 ? strerror(errno) : "shorter than its size");
+            close(fd);
+            return RC_ERR_IO;
+        }
+        *h = job_fnv(*h, buf, (size_t)n);
+        done += (uint64_t)n;
+    }
+    close(fd);
+    return RC_OK;
+}
+
+/* Every file the scene references, in a fixed order. A new kind of referenced file (a
+ * texture) is one more job_key_file call here. */
+static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t errlen)
+{
+    rc_status st = RC_OK;
+    if (s->env.kind == ENV_IMAGE)
+        st = job_key_file(h, "environment.image", s->env.path, err, errlen);
+    for (int i = 0; st == RC_OK && i < s->n_objects; i++)
+        if (s->objects[i].shape == SHAPE_MESH)
+            st = job_key_file(h, "objects.path", s->objects[i].path, err, errlen);
+    return st;
+}
+
 /* The code a render depends on. A reference render depends on the scene pipeline and its
  * translator only, so a change to our shading does not re-render POV-Ray or Cycles; those
  * sources are hashed when the run starts in the source tree. Elsewhere (or for our own
  * rasterizer) the whole reflcheck binary stands in for them. */
-static uint64_t job_key_code(renderer_id r, uint64_t key)
+static void job_key_code(renderer_id r, uint64_t *key)
 {
-    static const char *const common[] = {"harness/jobs.c", "harness/scene_file.c", "model/scene.c", "model/mesh.c",
-                                         "harness/exr.c"};
-    static const char *const povray[] = {"harness/povray.c"};
-    static const char *const cycles[] = {"harness/cycles.c", "harness/cycles_render.py"};
+    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c", "model/scene.h",
+                                         "model/mesh.c",    "model/mesh.h",         "model/vec.h",   "harness/exr.c"};
+    static const char *const povray[] = {"harness/povray.c", "harness/povray.h"};
+    static const char *const cycles[] = {"harness/cycles.c", "harness/cycles.h", "harness/cycles_render.py"};
     const char *const *own = r == RENDERER_POVRAY ? povray : cycles;
-    size_t n_own = r == RENDERER_POVRAY ? 1 : 2;
+    size_t n_own = r == RENDERER_POVRAY ? sizeof povray / sizeof povray[0] : sizeof cycles / sizeof cycles[0];
     int have = r != RENDERER_RASTER;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
         have = access(common[i], R_OK) == 0;
     for (size_t i = 0; have && i < n_own; i++)
         have = access(own[i], R_OK) == 0;
-    if (!have)
-        return job_hash_file("/proc/self/exe", key);
-    for (size_t i = 0; i < sizeof common / sizeof common[0]; i++)
-        key = job_hash_file(common[i], key);
-    for (size_t i = 0; i < n_own; i++)
-        key = job_hash_file(own[i], key);
-    return key;
+    char err[1024];
+    uint64_t h = *key;
+    rc_status st = RC_OK;
+    for (size_t i = 0; have && st == RC_OK && i < sizeof common / sizeof common[0]; i++)
+        st = job_key_file(&h, common[i], common[i], err, sizeof err);
+    for (size_t i = 0; have && st == RC_OK && i < n_own; i++)
+        st = job_key_file(&h, own[i], own[i], err, sizeof err);
+    if (!have || st != RC_OK) {
+        h = *key;
+        /* Unreadable, the key still differs from any source-tree key: no false hit. */
+        if (job_key_file(&h, "binary", "/proc/self/exe", err, sizeof err) != RC_OK)
+            h = job_key_field(h, "binary", "unknown", 7);
+    }
+    *key = h;
+}
+
+/* The renderer as installed: its version line, and the executable's path, size and change
+ * time, so a rebuilt or reinstalled renderer with the same version line is a new key. */
+static void job_key_program(const char *program, const char *version, uint64_t *key)
+{
+    char path[4352];
+    struct stat st;
+    *key = job_key_field(*key, "version", version, strlen(version));
+    if (program == NULL || !runner_which(program, path, sizeof path) || stat(path, &st) != 0)
+        return;
+    long long id[3] = {(long long)st.st_size, (long long)st.st_mtime, (long long)st.st_ctime};
+    *key = job_key_field(*key, "program", path, strlen(path));
+    *key = job_key_field(*key, "program.stat", id, sizeof id);
+}
+
+/* Everything that can change the image: the scene's bytes, the files it references, the
+ * code and renderer, and the job's options after the variant and overrides are applied.
+ * Threads and the timeout are not in it: every renderer's output is the same for any thread
+ * count (our rasterizer bit for bit, POV-Ray without antialiasing jitter, Cycles per seed),
+ * and a job that times out is never cached. The tag only names the outputs. */
+static rc_status job_key(const job_spec *j, const scene *s, const char *version, uint64_t *key, char *err,
+                         size_t errlen)
+{
+    static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
+    uint64_t h = JOB_FNV_BASIS;
+    rc_status st = job_key_file(&h, "scene", j->scene_path, err, errlen);
+    if (st == RC_OK)
+        st = job_key_inputs(s, &h, err, errlen);
+    if (st != RC_OK)
+        return st;
+    char settings[512];
+    int seeds = j->renderer == RENDERER_CYCLES ? (j->seeds > 0 ? j->seeds : 2) : 0;
+    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d",
+             job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
+             s->width, s->height, s->supersample, s->samples, seeds, j->seed, j->tessellation, j->per_vertex);
+    h = job_key_field(h, "options", settings, strlen(settings));
+    job_key_program(programs[j->renderer], version, &h);
+    job_key_code(j->renderer, &h);
+    *key = h;
+    return RC_OK;
 }
 
 typedef struct {
@@ -472,16 +583,17 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
                  programs[j->renderer], packages[j->renderer]);
     }
 
-    /* The cache key: everything that can change the image. */
-    uint64_t key = s->hash;
-    char settings[512];
-    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d|%s",
-             job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
-             s->width, s->height, s->supersample, s->samples, j->seeds, j->seed, j->tessellation, j->per_vertex, c.version);
-    key ^= scene_file_hash(settings, strlen(settings)) * 31u;
-    key = job_key_code(j->renderer, key);
-    if (s->env.kind == ENV_IMAGE)
-        key = job_hash_file(s->env.path, key);
+    uint64_t key = 0;
+    st = job_key(j, s, c.version, &key, err, errlen);
+    if (st != RC_OK) {
+        /* Nothing written: a file the scene references cannot be read. */
+        rec->bad_input = st != RC_ERR_NOMEM;
+        rec->status = RUNNER_ERROR;
+        free(env_pixels);
+        mesh_free(&m);
+        free(s);
+        return st;
+    }
 
     char dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024], stem[160];
     snprintf(dest_dir, sizeof dest_dir, "%s/%s", j->out_dir, s->name);

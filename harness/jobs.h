@@ -7,10 +7,8 @@
  *   rc_status st = job_run(&j, &r, err, sizeof err);
  *   exit status: job_exit_status(st, &r)     0 ok or skipped, 1 anything else, 2 bad input
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
- * time, renderer version, command, cache key) and the renderer's .log. The work is keyed by a
- * hash of (scene bytes, environment image, renderer, version, role, size, samples, and the code
- * the render depends on: translator and scene-pipeline sources for POV-Ray and Cycles, the
- * reflcheck binary for our rasterizer), so an unchanged job is copied from the cache.
+ * time, renderer version, command, cache key) and the renderer's .log.
+ *
  * Returns RC_OK once the record is written, whatever the renderer did; r.status says what:
  *   ok; skipped (RUNNER_MISSING) only when the renderer is not installed or cannot represent
  *   the scene (the message says which, with the install command); failed (non-zero exit, an
@@ -20,6 +18,14 @@
  * file, a mesh or environment image it references, unreadable or invalid; the environment is
  * checked here for every renderer) or when the output folder or record cannot be written
  * (r.bad_input = 0).
+ *
+ * Cache: an entry CACHE/<key>/ is keyed by FNV-1a 64 over the scene file's bytes, the bytes of
+ * every file it references (meshes, environment image), the options that reach the image
+ * (renderer, role, variant, size, k, samples, seeds, seed, tessellation, per-vertex), the
+ * renderer's version line and executable (path, size, times), and the code the render depends
+ * on (translator and scene-pipeline sources for POV-Ray and Cycles when run in the source
+ * tree, else and for our rasterizer the reflcheck binary). Threads, timeout and tag are not
+ * in it. An unchanged job is copied from the cache.
  * Files are written under a temporary name and renamed, so a killed run leaves no half file.
  */
 #ifndef REFLCHECK_JOBS_H

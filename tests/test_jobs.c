@@ -1,6 +1,7 @@
 /* Render jobs when a renderer is missing, fails, crashes, hangs or writes garbage: each is a
  * record with that status and a message, never an abort, results already written stay, and
- * `reflcheck run` exits 0 only for ok and skipped.
+ * `reflcheck run` exits 0 only for ok and skipped. The cache key covers the bytes of every
+ * file a scene references.
  * Broken renderers are small scripts put first on PATH in place of povray/blender. Folders
  * carry the test's pid, so test programs of other builds may run beside this one. */
 #include <setjmp.h>
@@ -301,6 +302,40 @@ static void test_run_bad_input_is_2(void **state)
     assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer nosuch --out %s", tiny_scene("tiny"), out_dir), 2);
 }
 
+/* Runs the tiny scene's raster job on a cache; returns the record's "cached". */
+static int cached_run(const char *yaml, const char *cache)
+{
+    char err[1024], cached[16], out[256];
+    snprintf(out, sizeof out, "%s/keyed", out_dir);
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer raster --role twin --out %s --cache %s", yaml, out,
+                              cache),
+                     0);
+    record_field(out, "tiny", "raster", "cached", cached, sizeof cached);
+    assert_true(strcmp(cached, "true") == 0 || strcmp(cached, "false") == 0);
+    return strcmp(cached, "true") == 0;
+}
+
+static void test_cache_key_covers_referenced_files(void **state)
+{
+    (void)state;
+    const char *yaml = tiny_scene("tiny");
+    char cache[256], obj[256], env[256];
+    snprintf(cache, sizeof cache, "%s/cache", work);
+    snprintf(obj, sizeof obj, "%s/tri.obj", work);
+    snprintf(env, sizeof env, "%s/env.exr", work);
+    assert_false(cached_run(yaml, cache));
+    assert_true(cached_run(yaml, cache));
+    /* One byte of the mesh: 1 0 0 -> 1 0 1 (the scene file itself unchanged). */
+    write_text(obj, "v -1 0 0\nv 1 0 1\nv 0 1 0\nf 1 2 3\n");
+    assert_false(cached_run(yaml, cache));
+    assert_true(cached_run(yaml, cache));
+    /* The environment image: every texel 0.25 -> 0.5. */
+    write_exr(env, 8, 4, 0.5f);
+    assert_false(cached_run(yaml, cache));
+    assert_true(cached_run(yaml, cache));
+    write_text(obj, tiny_obj);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -311,6 +346,7 @@ int main(void)
         cmocka_unit_test(test_renderer_missing_and_results_kept),
         cmocka_unit_test(test_run_exit_status),
         cmocka_unit_test(test_run_bad_input_is_2),
+        cmocka_unit_test(test_cache_key_covers_referenced_files),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
