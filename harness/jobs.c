@@ -1,5 +1,6 @@
 #include "jobs.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -8,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -536,6 +538,174 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     return st;
 }
 
+/* Removes a work folder and what is in it. Our work folders are flat; the depth limit only
+ * stops a pathological tree (symbolic links are removed, never followed). */
+static void job_remove_tree(const char *path, int depth)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return;
+    if (!S_ISDIR(st.st_mode) || depth > 8) {
+        unlink(path);
+        return;
+    }
+    DIR *d = opendir(path);
+    struct dirent *e;
+    while (d != NULL && (e = readdir(d)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
+            continue;
+        char sub[2048];
+        /* A cut path could name another file: leave such an entry alone. */
+        if ((size_t)snprintf(sub, sizeof sub, "%s/%s", path, e->d_name) < sizeof sub)
+            job_remove_tree(sub, depth + 1);
+    }
+    if (d != NULL)
+        closedir(d);
+    rmdir(path);
+}
+
+static int job_lock_fd(const char *cache_dir, const char *keyhex)
+{
+    char path[1100];
+    snprintf(path, sizeof path, "%s/%s.lock", cache_dir, keyhex);
+    return open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+}
+
+/* Takes the entry's lock: an exclusive flock on CACHE/<key>.lock, waited for. The kernel
+ * drops it when we exit or are killed, and it is close-on-exec so no renderer inherits it.
+ * Returns the descriptor, or -1 with errno set. */
+static int job_lock(const char *cache_dir, const char *keyhex)
+{
+    int fd = job_lock_fd(cache_dir, keyhex);
+    if (fd < 0)
+        return -1;
+    while (flock(fd, LOCK_EX) != 0) {
+        if (errno != EINTR) {
+            int e = errno;
+            close(fd);
+            errno = e;
+            return -1;
+        }
+    }
+    return fd;
+}
+
+/* Removes work folders killed runs left in the cache: ours (we hold its lock) and any other
+ * whose key's lock is free, so nobody is rendering it. Never waits for a lock. */
+static void job_clean_stale(const char *cache_dir, const char *own_keyhex)
+{
+    DIR *d = opendir(cache_dir);
+    struct dirent *e;
+    while (d != NULL && (e = readdir(d)) != NULL) {
+        char keyhex[32];
+        /* tmp-<16 hex digits>-XXXXXX, as job_cached names them */
+        if (strncmp(e->d_name, "tmp-", 4) != 0 || strlen(e->d_name) != 4 + 16 + 7 || e->d_name[20] != '-')
+            continue;
+        snprintf(keyhex, sizeof keyhex, "%.16s", e->d_name + 4);
+        char sub[2048];
+        if ((size_t)snprintf(sub, sizeof sub, "%s/%s", cache_dir, e->d_name) >= sizeof sub)
+            continue;
+        if (strcmp(keyhex, own_keyhex) == 0) {
+            job_remove_tree(sub, 0);
+            continue;
+        }
+        int fd = job_lock_fd(cache_dir, keyhex);
+        if (fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) == 0)
+            job_remove_tree(sub, 0);
+        if (fd >= 0)
+            close(fd);
+    }
+    if (d != NULL)
+        closedir(d);
+}
+
+/* A published entry: its marker (wall and CPU seconds of the render) and image. */
+static int job_entry_complete(const char *entry, job_record *rec)
+{
+    char done[1100], exr[1100];
+    snprintf(done, sizeof done, "%s/ok", entry);
+    snprintf(exr, sizeof exr, "%s/out.exr", entry);
+    if (access(exr, R_OK) != 0)
+        return 0;
+    FILE *f = fopen(done, "r");
+    if (f == NULL)
+        return 0;
+    int ok = fscanf(f, "%lf %lf", &rec->wall_s, &rec->cpu_s) == 2;
+    fclose(f);
+    return ok;
+}
+
+static void job_render(job_ctx *c, job_record *rec)
+{
+    switch (c->j->renderer) {
+    case RENDERER_RASTER: job_raster(c, rec); break;
+    case RENDERER_POVRAY: job_povray(c, rec); break;
+    default: job_cycles(c, rec); break;
+    }
+}
+
+/* Renders into a private work folder c->dir (created here) under parent. */
+static int job_make_work(job_ctx *c, const char *parent, const char *prefix)
+{
+    snprintf(c->dir, sizeof c->dir, "%s/%s-XXXXXX", parent, prefix);
+    if (mkdtemp(c->dir) == NULL)
+        return -1;
+    snprintf(c->exr, sizeof c->exr, "%s/out.exr", c->dir);
+    snprintf(c->log, sizeof c->log, "%s/render.log", c->dir);
+    return 0;
+}
+
+/* The cached way: under the entry's lock, use the published entry or render into a private
+ * folder and publish it by rename; the second of two runs waits and then uses the first's
+ * result. On return c->exr and c->log name the image and log to copy; *work is the folder to
+ * remove afterwards ("" if none). The lock is held until *lock_fd is closed. */
+static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *lock_fd, char *work, size_t worklen)
+{
+    const char *cache = c->j->cache_dir;
+    char entry[1100];
+    snprintf(entry, sizeof entry, "%s/%s", cache, keyhex);
+    work[0] = '\0';
+    if (job_mkdirs(cache) != 0 || (*lock_fd = job_lock(cache, keyhex)) < 0) {
+        job_fail(rec, RUNNER_ERROR, "%s: cannot create or lock the cache: %s; check the folder and its space", cache,
+                 strerror(errno));
+        return;
+    }
+    job_clean_stale(cache, keyhex);
+    snprintf(c->exr, sizeof c->exr, "%s/out.exr", entry);
+    snprintf(c->log, sizeof c->log, "%s/render.log", entry);
+    if (job_entry_complete(entry, rec)) {
+        rec->cached = 1;
+        snprintf(c->command, sizeof c->command, "(cached %s)", keyhex);
+        return;
+    }
+    rec->wall_s = rec->cpu_s = 0.0;
+    job_remove_tree(entry, 0); /* an entry without its marker or image is not a result */
+    char prefix[64];
+    snprintf(prefix, sizeof prefix, "tmp-%s", keyhex);
+    if (job_make_work(c, cache, prefix) != 0) {
+        job_fail(rec, RUNNER_ERROR, "%s: cannot create a work folder in the cache: %s", cache, strerror(errno));
+        return;
+    }
+    snprintf(work, worklen, "%s", c->dir);
+    job_render(c, rec);
+    if (rec->status != RUNNER_OK)
+        return;
+    char done[1200];
+    snprintf(done, sizeof done, "%s/ok", c->dir);
+    FILE *f = fopen(done, "w");
+    int ok = f != NULL && fprintf(f, "%.6f %.6f\n", rec->wall_s, rec->cpu_s) > 0;
+    if (f != NULL)
+        ok &= fclose(f) == 0;
+    if (!ok || rename(c->dir, entry) != 0) {
+        job_fail(rec, RUNNER_ERROR, "%s: cannot publish the cache entry: %s; check the folder and its space", entry,
+                 strerror(errno));
+        return;
+    }
+    work[0] = '\0';
+    snprintf(c->exr, sizeof c->exr, "%s/out.exr", entry);
+    snprintf(c->log, sizeof c->log, "%s/render.log", entry);
+}
+
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
 {
     memset(rec, 0, sizeof *rec);
@@ -547,6 +717,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     }
     job_ctx c = {.j = j, .s = s, .m = &m};
     float *env_pixels = NULL;
+    uint64_t key = 0;
     rc_status st = scene_file_load(j->scene_path, s, err, errlen);
     if (st == RC_OK) {
         job_apply_variant(s, j->variant);
@@ -560,33 +731,23 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
      * the rasterizer would refuse. */
     if (st == RC_OK)
         st = frame_env_load(s, &c.env, &env_pixels, err, errlen);
-    if (st != RC_OK) {
-        /* Nothing written: the scene or a file it references is bad. */
-        rec->bad_input = st != RC_ERR_NOMEM;
-        rec->status = RUNNER_ERROR;
-        free(env_pixels);
-        mesh_free(&m);
-        free(s);
-        return st;
-    }
-    if (j->role == ROLE_TWIN)
+    if (st == RC_OK && j->role == ROLE_TWIN)
         job_twin_switches(s);
 
     c.timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
     static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
-    static const char *const packages[RENDERER_COUNT] = {NULL, "povray", "blender"};
-    if (j->renderer == RENDERER_RASTER)
-        snprintf(c.version, sizeof c.version, "reflcheck-raster");
-    else if (!runner_version(programs[j->renderer], c.version, sizeof c.version)) {
-        rec->status = RUNNER_MISSING;
-        snprintf(rec->message, sizeof rec->message, "%s is not installed; install it with: apt-get install %s",
-                 programs[j->renderer], packages[j->renderer]);
+    if (st == RC_OK) {
+        if (j->renderer == RENDERER_RASTER)
+            snprintf(c.version, sizeof c.version, "reflcheck-raster");
+        else if (!runner_version(programs[j->renderer], c.version, sizeof c.version))
+            snprintf(rec->message, sizeof rec->message, "%s is not installed; install it with: apt-get install %s",
+                     programs[j->renderer], programs[j->renderer]);
+        if (rec->message[0] != '\0')
+            rec->status = RUNNER_MISSING;
+        st = job_key(j, s, c.version, &key, err, errlen);
     }
-
-    uint64_t key = 0;
-    st = job_key(j, s, c.version, &key, err, errlen);
     if (st != RC_OK) {
-        /* Nothing written: a file the scene references cannot be read. */
+        /* Nothing written: the scene, a file it references or an option is bad. */
         rec->bad_input = st != RC_ERR_NOMEM;
         rec->status = RUNNER_ERROR;
         free(env_pixels);
@@ -595,7 +756,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         return st;
     }
 
-    char dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024], stem[160];
+    char keyhex[32], dest_dir[1024], dest_exr[1024], dest_json[1024], dest_log[1024], stem[160];
+    snprintf(keyhex, sizeof keyhex, "%016" PRIx64, key);
     snprintf(dest_dir, sizeof dest_dir, "%s/%s", j->out_dir, s->name);
     snprintf(stem, sizeof stem, "%s%s%s", s->name, j->tag ? "/" : "", j->tag ? j->tag : "");
     job_output_path(j->out_dir, stem, j->renderer, j->role, "exr", dest_exr, sizeof dest_exr);
@@ -603,57 +765,43 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     job_output_path(j->out_dir, stem, j->renderer, j->role, "log", dest_log, sizeof dest_log);
     if (j->tag)
         snprintf(dest_dir, sizeof dest_dir, "%s/%s/%s", j->out_dir, s->name, j->tag);
-    if (j->cache_dir != NULL)
-        snprintf(c.dir, sizeof c.dir, "%s/%016" PRIx64, j->cache_dir, key);
-    else
-        snprintf(c.dir, sizeof c.dir, "%s/work-%s-%s", dest_dir, job_renderer_names[j->renderer],
-                 job_role_names[j->role]);
-    if (job_mkdirs(dest_dir) != 0 || job_mkdirs(c.dir) != 0) {
-        snprintf(err, errlen, "%s: cannot create the output folder: %s", dest_dir, strerror(errno));
+    if (job_mkdirs(dest_dir) != 0) {
+        snprintf(err, errlen, "%s: cannot create the output folder: %s; check --out and its space", dest_dir,
+                 strerror(errno));
         rec->status = RUNNER_ERROR;
         free(env_pixels);
         mesh_free(&m);
         free(s);
         return RC_ERR_IO;
     }
-    c.shown_log = dest_log;
-    snprintf(c.exr, sizeof c.exr, "%s/out.exr", c.dir);
-    snprintf(c.log, sizeof c.log, "%s/render.log", c.dir);
-    char done[1100];
-    snprintf(done, sizeof done, "%s/ok", c.dir);
 
-    if (rec->status == RUNNER_OK) {
-        if (j->cache_dir != NULL && access(done, F_OK) == 0 && access(c.exr, R_OK) == 0) {
-            rec->cached = 1;
-            FILE *f = fopen(done, "r");
-            if (f != NULL) {
-                if (fscanf(f, "%lf %lf", &rec->wall_s, &rec->cpu_s) != 2)
-                    rec->wall_s = rec->cpu_s = 0.0;
-                fclose(f);
-            }
-            snprintf(c.command, sizeof c.command, "(cached %016" PRIx64 ")", key);
-        } else {
-            unlink(done);
-            switch (j->renderer) {
-            case RENDERER_RASTER: job_raster(&c, rec); break;
-            case RENDERER_POVRAY: job_povray(&c, rec); break;
-            default: job_cycles(&c, rec); break;
-            }
-            if (rec->status == RUNNER_OK) {
-                FILE *f = fopen(done, "w");
-                if (f != NULL) {
-                    fprintf(f, "%.6f %.6f\n", rec->wall_s, rec->cpu_s);
-                    fclose(f);
-                }
-            }
+    c.shown_log = dest_log;
+    int lock_fd = -1;
+    char work[1100] = "";
+    if (rec->status == RUNNER_OK && j->cache_dir != NULL)
+        job_cached(&c, rec, keyhex, &lock_fd, work, sizeof work);
+    else if (rec->status == RUNNER_OK) {
+        char prefix[64];
+        snprintf(prefix, sizeof prefix, "tmp-%s-%s", job_renderer_names[j->renderer], job_role_names[j->role]);
+        if (job_make_work(&c, dest_dir, prefix) != 0)
+            job_fail(rec, RUNNER_ERROR, "%s: cannot create a work folder: %s; check --out and its space", dest_dir,
+                     strerror(errno));
+        else {
+            snprintf(work, sizeof work, "%s", c.dir);
+            job_render(&c, rec);
         }
     }
-    if (rec->status == RUNNER_OK && fileio_copy(c.exr, dest_exr) != 0) {
-        rec->status = RUNNER_ERROR;
-        snprintf(rec->message, sizeof rec->message, "cannot copy %s to %s", c.exr, dest_exr);
-    }
-    if (access(c.log, R_OK) == 0)
+    if (rec->status == RUNNER_OK && fileio_copy(c.exr, dest_exr) != 0)
+        job_fail(rec, RUNNER_ERROR, "cannot copy %s to %s: %s; check the output folder and its space", c.exr,
+                 dest_exr, strerror(errno));
+    /* This job's log or none: an older run's must not pass for this one's. */
+    unlink(dest_log);
+    if (c.log[0] != '\0' && access(c.log, R_OK) == 0)
         fileio_copy(c.log, dest_log);
+    if (work[0] != '\0')
+        job_remove_tree(work, 0);
+    if (lock_fd >= 0)
+        close(lock_fd);
     snprintf(rec->exr, sizeof rec->exr, "%s", rec->status == RUNNER_OK ? dest_exr : "");
     snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
     snprintf(rec->record, sizeof rec->record, "%s", dest_json);

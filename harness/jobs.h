@@ -13,7 +13,7 @@
  *   ok; skipped (RUNNER_MISSING) only when the renderer is not installed or cannot represent
  *   the scene (the message says which, with the install command); failed (non-zero exit, an
  *   output image that is unreadable or the wrong size); crashed; timeout; error (our side:
- *   a file or folder we could not create or write, a full disk).
+ *   a file or folder we could not create or write, a full disk, the cache lock).
  * Returns an error with nothing written when the input is bad (r.bad_input = 1: the scene
  * file, a mesh or environment image it references, unreadable or invalid; the environment is
  * checked here for every renderer) or when the output folder or record cannot be written
@@ -25,8 +25,13 @@
  * renderer's version line and executable (path, size, times), and the code the render depends
  * on (translator and scene-pipeline sources for POV-Ray and Cycles when run in the source
  * tree, else and for our rasterizer the reflcheck binary). Threads, timeout and tag are not
- * in it. An unchanged job is copied from the cache.
- * Files are written under a temporary name and renamed, so a killed run leaves no half file.
+ * in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
+ * publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes it by rename, so runs
+ * sharing a cache render each key once and never see a half entry; a killed run's lock goes
+ * with it and its work folder is removed by the next job on that key. Only ok renders are
+ * cached. Without a cache the work folder is private too and removed afterwards.
+ * Files in OUT are written under a temporary name and renamed, so a killed run leaves no half
+ * file.
  */
 #ifndef REFLCHECK_JOBS_H
 #define REFLCHECK_JOBS_H

@@ -1,7 +1,8 @@
 /* Render jobs when a renderer is missing, fails, crashes, hangs or writes garbage: each is a
  * record with that status and a message, never an abort, results already written stay, and
  * `reflcheck run` exits 0 only for ok and skipped. The cache key covers the bytes of every
- * file a scene references.
+ * file a scene references; runs sharing a cache render a job once; a killed run leaves no
+ * renderer and no lock behind.
  * Broken renderers are small scripts put first on PATH in place of povray/blender. Folders
  * carry the test's pid, so test programs of other builds may run beside this one. */
 #include <setjmp.h>
@@ -302,6 +303,22 @@ static void test_run_bad_input_is_2(void **state)
     assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer nosuch --out %s", tiny_scene("tiny"), out_dir), 2);
 }
 
+static void test_cache_folder_error_is_recorded(void **state)
+{
+    (void)state;
+    /* A cache under a regular file cannot be created: our side's error, in the record, exit 1. */
+    const char *yaml = tiny_scene("tiny");
+    char err[1024], status[64], msg[600], out[256];
+    snprintf(out, sizeof out, "%s/cacheerr", out_dir);
+    int rc = cli_exec(err, sizeof err, "run %s --renderer raster --role twin --out %s --cache %s/tri.obj/cache", yaml,
+                      out, work);
+    record_field(out, "tiny", "raster", "status", status, sizeof status);
+    record_field(out, "tiny", "raster", "message", msg, sizeof msg);
+    assert_int_equal(rc, 1);
+    assert_string_equal(status, "error");
+    assert_non_null(strstr(msg, "cache"));
+}
+
 /* Runs the tiny scene's raster job on a cache; returns the record's "cached". */
 static int cached_run(const char *yaml, const char *cache)
 {
@@ -336,6 +353,170 @@ static void test_cache_key_covers_referenced_files(void **state)
     write_text(obj, tiny_obj);
 }
 
+static int files_equal(const char *a, const char *b)
+{
+    size_t na, nb;
+    char *ta = fileio_read_all(a, &na), *tb = fileio_read_all(b, &nb);
+    int eq = ta != NULL && tb != NULL && na == nb && memcmp(ta, tb, na) == 0;
+    free(ta);
+    free(tb);
+    return eq;
+}
+
+static int count_lines(const char *path)
+{
+    char *t = fileio_read_all(path, NULL);
+    int n = 0;
+    for (const char *p = t; p != NULL && *p; p++)
+        n += *p == '\n';
+    free(t);
+    return n;
+}
+
+static void test_two_runs_share_a_cache(void **state)
+{
+    (void)state;
+    const char *yaml = tiny_scene("tiny");
+    char count[256], extra[512], cmd[4096];
+    snprintf(count, sizeof count, "%s/invocations", work);
+    unlink(count);
+    /* Each render takes a second, so the second run arrives while the first renders. */
+    snprintf(extra, sizeof extra, "echo run >> %s; sleep 1", count);
+    fake_povray_ok(extra);
+    snprintf(cmd, sizeof cmd,
+             "for i in 1 2; do (%s run %s --renderer povray --role twin --out %s/share$i --cache %s/sharedcache "
+             ">/dev/null 2>&1; echo $? > %s/share$i.rc) & done; wait",
+             cli_bin(), yaml, work, work, work);
+    assert_int_equal(system(cmd), 0);
+    char a[256], b[256], status[64];
+    for (int i = 1; i <= 2; i++) {
+        char rc[256], out[256];
+        snprintf(rc, sizeof rc, "%s/share%d.rc", work, i);
+        char *t = fileio_read_all(rc, NULL);
+        assert_non_null(t);
+        assert_int_equal(atoi(t), 0);
+        free(t);
+        snprintf(out, sizeof out, "%s/share%d", work, i);
+        record_field(out, "tiny", "povray", "status", status, sizeof status);
+        assert_string_equal(status, "ok");
+    }
+    /* One job is two POV-Ray passes (image, coverage): the renderer ran for one job only. */
+    assert_int_equal(count_lines(count), 2);
+    snprintf(a, sizeof a, "%s/share1/tiny/povray-twin.exr", work);
+    snprintf(b, sizeof b, "%s/share2/tiny/povray-twin.exr", work);
+    assert_true(files_equal(a, b));
+}
+
+/* 1 while pid exists and is not a zombie (a zombie has ended). */
+static int alive(pid_t pid)
+{
+    char p[64], buf[512];
+    snprintf(p, sizeof p, "/proc/%ld/stat", (long)pid);
+    FILE *f = fopen(p, "r");
+    if (f == NULL)
+        return 0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    const char *close_paren = strrchr(buf, ')');
+    return close_paren != NULL && close_paren[1] == ' ' && close_paren[2] != 'Z';
+}
+
+static void nap_10ms(void)
+{
+    struct timespec t = {0, 10 * 1000 * 1000};
+    nanosleep(&t, NULL);
+}
+
+/* Waits up to 20 s (generous: the grace after SIGTERM is 2 s) for pid to end. */
+static int gone_within(pid_t pid)
+{
+    for (int i = 0; i < 2000 && alive(pid); i++)
+        nap_10ms();
+    return !alive(pid);
+}
+
+static pid_t read_pid(const char *path)
+{
+    for (int i = 0; i < 3000; i++) {
+        FILE *f = fopen(path, "r");
+        long v = 0;
+        int got = f != NULL && fscanf(f, "%ld", &v) == 1;
+        if (f != NULL)
+            fclose(f);
+        if (got && v > 0)
+            return (pid_t)v;
+        nap_10ms();
+    }
+    return -1;
+}
+
+/* Starts `reflcheck run` on the tiny scene with a POV-Ray that writes its pid and sleeps, kills
+ * the run with sig once the renderer is up, and checks the renderer is gone. Then a second run
+ * on the same cache is not blocked by the killed run's lock and leaves no work folder. */
+static void kill_run(int sig)
+{
+    const char *yaml = tiny_scene("tiny");
+    char pidfile[256], body[768], cache[256], out[256];
+    snprintf(pidfile, sizeof pidfile, "%s/renderer.pid", work);
+    snprintf(cache, sizeof cache, "%s/killcache%d", work, sig);
+    snprintf(out, sizeof out, "%s/kill%d", out_dir, sig);
+    char flag[256];
+    snprintf(flag, sizeof flag, "%s/hang", work);
+    unlink(pidfile);
+    write_text(flag, "");
+    /* One script for both runs (the renderer's executable is part of the cache key): it hangs
+     * while the flag file exists, and renders once it is gone. */
+    snprintf(body, sizeof body, "if [ -f %s ]; then echo $$ > %s; exec sleep 60; fi", flag, pidfile);
+    fake_povray_ok(body);
+    pid_t run = fork();
+    assert_true(run >= 0);
+    if (run == 0) {
+        freopen("/dev/null", "w", stdout);
+        freopen("/dev/null", "w", stderr);
+        execl(cli_bin(), "reflcheck", "run", yaml, "--renderer", "povray", "--role", "twin", "--out", out, "--cache",
+              cache, (char *)NULL);
+        _exit(127);
+    }
+    pid_t renderer = read_pid(pidfile);
+    assert_true(renderer > 0);
+    kill(run, sig);
+    int st;
+    assert_int_equal(waitpid(run, &st, 0), run);
+    assert_true(WIFSIGNALED(st));
+    assert_int_equal(WTERMSIG(st), sig);
+    int gone = gone_within(renderer);
+    if (!gone)
+        kill(renderer, SIGKILL);
+    assert_true(gone);
+
+    /* The lock died with the run: the next run is not blocked and renders, and the killed
+     * run's work folder is gone. */
+    unlink(flag);
+    char err[1024], cmd[1200];
+    snprintf(cmd, sizeof cmd, "run %s --renderer povray --role twin --out %s --cache %s", yaml, out, cache);
+    assert_int_equal(cli_exec(err, sizeof err, "%s", cmd), 0);
+    snprintf(cmd, sizeof cmd, "ls %s | grep -c '^tmp-' > %s/tmpcount", cache, work);
+    assert_true(system(cmd) != -1);
+    snprintf(cmd, sizeof cmd, "%s/tmpcount", work);
+    char *n = fileio_read_all(cmd, NULL);
+    assert_non_null(n);
+    assert_int_equal(atoi(n), 0);
+    free(n);
+}
+
+static void test_killed_run_sigkill(void **state)
+{
+    (void)state;
+    kill_run(SIGKILL);
+}
+
+static void test_killed_run_sigterm(void **state)
+{
+    (void)state;
+    kill_run(SIGTERM);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -346,7 +527,11 @@ int main(void)
         cmocka_unit_test(test_renderer_missing_and_results_kept),
         cmocka_unit_test(test_run_exit_status),
         cmocka_unit_test(test_run_bad_input_is_2),
+        cmocka_unit_test(test_cache_folder_error_is_recorded),
         cmocka_unit_test(test_cache_key_covers_referenced_files),
+        cmocka_unit_test(test_two_runs_share_a_cache),
+        cmocka_unit_test(test_killed_run_sigkill),
+        cmocka_unit_test(test_killed_run_sigterm),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
