@@ -45,8 +45,25 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
     e->width = img.width;
     e->height = img.height;
     e->rgb = p;
-    *pixels = p;
     exr_image_free(&img);
+    /* A NaN, Inf or negative texel has no radiance meaning and the bilinear lookup spreads it
+     * into every pixel that sees it; none of the canonical environments has one, so refuse
+     * them rather than clamp (the fix is one oiiotool call). */
+    env_texel_check chk;
+    if (env_check(e, &chk) != RC_OK) {
+        const env_texel *t = chk.n_nonfinite > 0 ? &chk.first_nonfinite : &chk.first_negative;
+        snprintf(err, errlen,
+                 "%s: environment.image: %s: %ld non-finite and %ld negative texel values, the first at texel "
+                 "(x %d, y %d) channel %c = %g; give an image whose texels are finite and >= 0, e.g. "
+                 "oiiotool %s --fixnan black --clamp:min=0 -o fixed.exr",
+                 s->path, s->env.path, chk.n_nonfinite, chk.n_negative, t->x, t->y, "RGB"[t->channel],
+                 (double)t->value, s->env.path);
+        free(p);
+        e->rgb = NULL;
+        e->width = e->height = 0;
+        return RC_ERR_RANGE;
+    }
+    *pixels = p;
     return RC_OK;
 }
 

@@ -6,7 +6,9 @@
  *   ... env_lookup(&e, dir), render_scene(&scn, &msh, &e, ...) ...
  *   free(pixels);                       the caller owns the interleaved RGB pixels
  *   frame_write("out.exr", &scn, &msh, &img, err, sizeof err);
- * An environment image must have R, G and B channels; errors name the file and the scene.
+ * An environment image must have R, G and B channels and finite texels >= 0 (RC_ERR_RANGE
+ * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
+ * On error nothing is allocated (*pixels is NULL).
  * frame_write stores every layer the render produced as 32-bit float, with the scene's name
  * and hash, the renderer, the render time, k, the triangle and shaded-sample counts in the
  * header.

@@ -18,7 +18,27 @@ void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty)
     *ty = (1.0f - v) * (float)e->height;
 }
 
-static vec3 env_texel(const env_map *e, int x, int y)
+rc_status env_check(const env_map *e, env_texel_check *out)
+{
+    const env_texel none = {-1, -1, -1, 0.0f};
+    *out = (env_texel_check){0, 0, none, none};
+    if (e == NULL || e->kind != ENV_IMAGE || e->rgb == NULL || e->width <= 0 || e->height <= 0)
+        return RC_OK;
+    for (int y = 0; y < e->height; y++)
+        for (int x = 0; x < e->width; x++)
+            for (int c = 0; c < 3; c++) {
+                float v = e->rgb[3 * ((size_t)y * (size_t)e->width + (size_t)x) + (size_t)c];
+                if (!isfinite(v)) {
+                    if (out->n_nonfinite++ == 0)
+                        out->first_nonfinite = (env_texel){x, y, c, v};
+                } else if (v < 0.0f && out->n_negative++ == 0) {
+                    out->first_negative = (env_texel){x, y, c, v};
+                }
+            }
+    return out->n_nonfinite > 0 || out->n_negative > 0 ? RC_ERR_RANGE : RC_OK;
+}
+
+static vec3 env_texel_rgb(const env_map *e, int x, int y)
 {
     y = y < 0 ? 0 : (y >= e->height ? e->height - 1 : y);
     const float *p = e->rgb + 3 * ((size_t)y * (size_t)e->width + (size_t)x);
@@ -43,8 +63,8 @@ vec3 env_lookup(const env_map *e, vec3 dir)
     x0 = x0 < 0 ? x0 + e->width : (x0 >= e->width ? x0 - e->width : x0);
     int x1 = x0 + 1 >= e->width ? x0 + 1 - e->width : x0 + 1;
     if (x0 < 0 || x0 >= e->width) x0 = 0, x1 = e->width > 1 ? 1 : 0;
-    vec3 top = v3_lerp(env_texel(e, x0, y0), env_texel(e, x1, y0), ax);
-    vec3 bottom = v3_lerp(env_texel(e, x0, y0 + 1), env_texel(e, x1, y0 + 1), ax);
+    vec3 top = v3_lerp(env_texel_rgb(e, x0, y0), env_texel_rgb(e, x1, y0), ax);
+    vec3 bottom = v3_lerp(env_texel_rgb(e, x0, y0 + 1), env_texel_rgb(e, x1, y0 + 1), ax);
     return v3_mul(v3_lerp(top, bottom, ay), e->scale);
 }
 

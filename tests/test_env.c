@@ -1,12 +1,20 @@
 /* Environment lookup: orientation (CONVENTIONS.md) and bilinear filtering with texel
- * centres at +0.5, on a small asymmetric image whose texels are all different. */
+ * centres at +0.5, on a small asymmetric image whose texels are all different; texels checked
+ * on load (env_check, and through the CLI: render and check refuse NaN, Inf and negative
+ * texels naming the first one). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <cmocka.h>
 
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli_exec.h"
 #include "env.h"
+#include "exr.h"
 
 enum { W = 8, H = 4 };
 static float img[W * H * 3];
@@ -96,6 +104,114 @@ static void test_constant_and_none(void **state)
     assert_float_equal(r.x, 0.0f, 0.0);
 }
 
+/* env_check: every texel value, counted; the first non-finite and the first negative one in
+ * row-major, then R, G, B order, with its column, row and channel. */
+static void test_check_texels(void **state)
+{
+    (void)state;
+    env_map e = make_env();
+    env_texel_check chk;
+    assert_int_equal(env_check(&e, &chk), RC_OK);
+    assert_int_equal(chk.n_nonfinite + chk.n_negative, 0);
+    assert_int_equal(chk.first_nonfinite.x, -1);
+
+    img[3 * (2 * W + 5) + 1] = NAN;       /* (x 5, y 2) G */
+    img[3 * (3 * W + 7) + 2] = INFINITY;  /* (x 7, y 3) B */
+    img[3 * (1 * W + 6) + 0] = -0.5f;     /* (x 6, y 1) R */
+    img[3 * (3 * W + 0) + 0] = -1e-30f;   /* (x 0, y 3) R: tiny, still negative */
+    img[3 * (0 * W + 2) + 1] = -0.0f;     /* (x 2, y 0) G: -0 is not negative */
+    assert_int_equal(env_check(&e, &chk), RC_ERR_RANGE);
+    assert_int_equal(chk.n_nonfinite, 2);
+    assert_int_equal(chk.n_negative, 2);
+    assert_int_equal(chk.first_nonfinite.x, 5);
+    assert_int_equal(chk.first_nonfinite.y, 2);
+    assert_int_equal(chk.first_nonfinite.channel, 1);
+    assert_true(isnan(chk.first_nonfinite.value));
+    assert_int_equal(chk.first_negative.x, 6);
+    assert_int_equal(chk.first_negative.y, 1);
+    assert_int_equal(chk.first_negative.channel, 0);
+    assert_float_equal(chk.first_negative.value, -0.5f, 0.0);
+
+    /* Only images hold texels: constant and none are the parser's business. */
+    env_map c = {.kind = ENV_CONSTANT, .constant = {1, 1, 1}};
+    assert_int_equal(env_check(&c, &chk), RC_OK);
+    env_map n = {.kind = ENV_NONE};
+    assert_int_equal(env_check(&n, &chk), RC_OK);
+}
+
+/* An environment image for a scene: 8x4 texels of 0.25, one of them (bad_x, bad_y, bad_c)
+ * set to bad_value unless bad_x < 0. */
+static void put_env(const char *path, float bad_value, int bad_x, int bad_y, int bad_c)
+{
+    static float ch[3][8 * 4];
+    for (int c = 0; c < 3; c++)
+        for (int i = 0; i < 32; i++)
+            ch[c][i] = 0.25f;
+    if (bad_x >= 0)
+        ch[bad_c][bad_y * 8 + bad_x] = bad_value;
+    exr_channel e[3] = {{"R", ch[0]}, {"G", ch[1]}, {"B", ch[2]}};
+    char err[512];
+    assert_int_equal(exr_write(path, 8, 4, e, 3, NULL, 0, err, sizeof err), RC_OK);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    assert_int_equal(fclose(f), 0);
+}
+
+/* A scene whose mirror-like sphere reflects env.exr beside it; its folder in dir. */
+static void env_scene(char *dir, size_t dirlen, char *scn, size_t scnlen)
+{
+    snprintf(dir, dirlen, "/tmp/reflcheck-env-%ld", (long)getpid());
+    snprintf(scn, scnlen, "%s/env.yaml", dir);
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "mkdir -p %s", dir);
+    assert_int_equal(system(cmd), 0);
+    write_text(scn, "image: {width: 8, height: 4}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+                    "environment: {image: env.exr}\n"
+                    "materials:\n  m: {model: d3d9client, d3d9client: {reflect: [1, 1, 1]}}\n"
+                    "objects:\n  - {shape: sphere, radius: 1, material: m}\n");
+}
+
+static void env_scene_remove(const char *dir)
+{
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+/* render refuses an environment with a NaN, Inf or negative texel (it used to put NaN into
+ * the image), exit 2, naming the scene, the file, the first texel and the counts. */
+static void test_render_refuses_bad_texels(void **state)
+{
+    (void)state;
+    char dir[200], scn[300], env[300], out[300], err[2048];
+    env_scene(dir, sizeof dir, scn, sizeof scn);
+    snprintf(env, sizeof env, "%s/env.exr", dir);
+    snprintf(out, sizeof out, "%s/out.exr", dir);
+    put_env(env, 0.0f, -1, 0, 0);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 0);
+
+    put_env(env, NAN, 3, 1, 1);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    assert_non_null(strstr(err, "env.yaml: environment.image: "));
+    assert_non_null(strstr(err, "env.exr: 1 non-finite and 0 negative texel values, the first at texel (x 3, y 1) "
+                                "channel G = nan; "));
+    assert_non_null(strstr(err, "oiiotool"));
+
+    put_env(env, -INFINITY, 7, 3, 2);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    assert_non_null(strstr(err, "(x 7, y 3) channel B = -inf"));
+
+    put_env(env, -0.5f, 0, 2, 0);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    assert_non_null(strstr(err, "0 non-finite and 1 negative texel values, the first at texel (x 0, y 2) channel R = -0.5"));
+    env_scene_remove(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -103,6 +219,8 @@ int main(void)
         cmocka_unit_test(test_bilinear),
         cmocka_unit_test(test_wrap_and_scale),
         cmocka_unit_test(test_constant_and_none),
+        cmocka_unit_test(test_check_texels),
+        cmocka_unit_test(test_render_refuses_bad_texels),
     };
     return cmocka_run_group_tests_name("env", tests, NULL, NULL);
 }
