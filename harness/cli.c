@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "frame.h"
 #include "scene_file.h"
 #include "status.h"
 
@@ -81,18 +82,42 @@ int cli_parse_double(const char *opt, const char *text, double lo, double hi, do
     return CLI_OK;
 }
 
+/* Loads everything `render` loads (the scene, its meshes, its environment image with its
+ * texels checked) without rendering, so a scene that passes check does not fail render on
+ * its inputs. Everything here is the user's input: a failure is bad input (2), except
+ * running out of memory (1). */
 int cli_check(int argc, char **argv)
 {
     if (argc != 2) {
         fprintf(stderr, "reflcheck: usage: reflcheck check SCENE\n");
         return CLI_BAD_INPUT;
     }
-    scene s;
+    scene *s = malloc(sizeof *s);
+    if (s == NULL) {
+        fprintf(stderr, "reflcheck: check: out of memory for a scene\n");
+        return CLI_FAILED;
+    }
     mesh m = {0};
-    int rc = cli_load_scene(argv[1], &s, &m);
-    if (rc == CLI_OK)
-        printf("%s: ok: %d objects, %d triangles, %d lights, %d materials\n", argv[1], s.n_objects, m.n_tris,
-               s.n_lights, s.n_materials);
+    env_map env;
+    float *env_pixels = NULL;
+    int rc = cli_load_scene(argv[1], s, &m);
+    if (rc == CLI_OK) {
+        char err[1024];
+        rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
+        if (st != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+        }
+    }
+    if (rc == CLI_OK) {
+        char envs[64] = "";
+        if (s->env.kind == ENV_IMAGE)
+            snprintf(envs, sizeof envs, ", environment %dx%d", env.width, env.height);
+        printf("%s: ok: %d objects, %d triangles, %d lights, %d materials%s\n", argv[1], s->n_objects, m.n_tris,
+               s->n_lights, s->n_materials, envs);
+    }
+    free(env_pixels);
     mesh_free(&m);
+    free(s);
     return rc;
 }

@@ -212,6 +212,34 @@ static void test_render_refuses_bad_texels(void **state)
     env_scene_remove(dir);
 }
 
+/* check loads what render loads: a scene whose environment render refuses (bad texels, a
+ * corrupt image) fails check too, with exit 2, and a good one passes without rendering. */
+static void test_check_loads_environment(void **state)
+{
+    (void)state;
+    char dir[200], scn[300], env[300], err[2048];
+    env_scene(dir, sizeof dir, scn, sizeof scn);
+    snprintf(env, sizeof env, "%s/env.exr", dir);
+    put_env(env, 0.0f, -1, 0, 0);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 0);
+
+    put_env(env, NAN, 3, 1, 1);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
+    assert_non_null(strstr(err, "env.exr: 1 non-finite and 0 negative texel values, the first at texel (x 3, y 1) "
+                                "channel G = nan; "));
+    put_env(env, -0.5f, 0, 2, 0);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
+    assert_non_null(strstr(err, "(x 0, y 2) channel R = -0.5"));
+
+    write_text(env, "this is not an EXR file\n");
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
+    assert_non_null(strstr(err, "env.yaml: environment.image: "));
+    /* The rest of check's exit statuses: a missing scene, and a command line, are bad input. */
+    assert_int_equal(cli_exec(err, sizeof err, "check %s/missing.yaml", dir), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s %s", scn, scn), 2);
+    env_scene_remove(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -221,6 +249,7 @@ int main(void)
         cmocka_unit_test(test_constant_and_none),
         cmocka_unit_test(test_check_texels),
         cmocka_unit_test(test_render_refuses_bad_texels),
+        cmocka_unit_test(test_check_loads_environment),
     };
     return cmocka_run_group_tests_name("env", tests, NULL, NULL);
 }
