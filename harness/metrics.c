@@ -331,6 +331,27 @@ long metrics_mask_from_class(int width, int height, const unsigned char *cls, in
     return n;
 }
 
+/* ---------------------------------------------------------------- value integrity */
+
+void metrics_scan_values(const float *v, size_t n, metrics_value_scan *out)
+{
+    *out = (metrics_value_scan){.first_nonfinite = -1, .first_negative = -1};
+    if (v == NULL)
+        return;
+    out->n_values = (long)n;
+    for (size_t i = 0; i < n; i++) {
+        if (!isfinite(v[i])) {
+            if (out->n_nonfinite++ == 0) {
+                out->first_nonfinite = (long)i;
+                out->nonfinite_value = v[i];
+            }
+        } else if (v[i] < 0.0f && out->n_negative++ == 0) {
+            out->first_negative = (long)i;
+            out->negative_value = v[i];
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- statistics */
 
 /* Acklam's rational approximation of the normal quantile (P. J. Acklam, "An algorithm for

@@ -13,6 +13,9 @@
  *   metrics_seed_stats(seeds, k, mean, var, err, sizeof err);   reference mean, variance of the mean
  *   metrics_ztest(&mean, &var, &tst, NULL, mask, NULL, &z, err, sizeof err);
  *
+ *   metrics_value_scan sc;
+ *   metrics_scan_values(plane, w * h, &sc);     NaN/Inf and negative values of one plane, the first of each
+ *
  * Units: whatever the images hold (linear radiance); every metric is over R, G, B only.
  * Masks are w*h bytes, 0 = pixel excluded, anything else = included. The caller owns every
  * array; nothing here allocates memory that outlives a call. Options structs may be NULL,
@@ -20,7 +23,9 @@
  * Return: RC_OK, or RC_ERR_RANGE (size mismatch, NULL plane, bad option) with a one-line
  * message in err naming the argument and the fix; RC_ERR_NOMEM when scratch memory fails.
  * A pixel where either image holds a NaN or Inf in any channel is left out of every sum and
- * counted in n_nonfinite (idiff instead scores such values as matching or as an infinite max).
+ * counted in n_nonfinite (idiff instead scores such values as matching or as an infinite max):
+ * report n_pixels beside every metric, and gate on metrics_scan_values over the whole image,
+ * so a mostly-NaN image cannot pass on its few finite pixels.
  */
 #ifndef REFLCHECK_METRICS_H
 #define REFLCHECK_METRICS_H
@@ -124,6 +129,20 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
  * different seeds, into caller planes mean[3] and var[3] (w*h floats each). */
 rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3],
                              char *err, size_t errlen);
+
+/* ---- value integrity ---- */
+typedef struct {
+    long n_values;          /* values scanned */
+    long n_nonfinite;       /* NaN, +Inf or -Inf */
+    long n_negative;        /* finite and < 0 (-0.0 is not negative) */
+    long first_nonfinite;   /* index of the first such value, -1 if none */
+    long first_negative;
+    float nonfinite_value;  /* the value there (0 if none) */
+    float negative_value;
+} metrics_value_scan;
+
+/* Counts the non-finite and negative values among v[0..n-1] into out (overwritten). */
+void metrics_scan_values(const float *v, size_t n, metrics_value_scan *out);
 
 /* Standard normal quantile: x with Phi(x) = p, for 0 < p < 1 (returns -inf/+inf at 0/1, NaN
  * outside). Accurate to about 1e-15 relative, also for p near 1e-300. */

@@ -581,6 +581,33 @@ static void test_idiff_crosscheck(void **state)
     }
 }
 
+/* The value gate's scan: NaN, +Inf, -Inf counted as non-finite, finite values below 0 as
+ * negative (-0.0 is not), and the first of each with its value, in index order. */
+static void test_scan_values(void **state)
+{
+    (void)state;
+    const float v[10] = {0.5f, -0.0f, 1.0f, -0.25f, NAN, 2.0f, INFINITY, -3.0f, -INFINITY, 0.0f};
+    metrics_value_scan sc;
+    metrics_scan_values(v, 10, &sc);
+    assert_int_equal(sc.n_values, 10);
+    assert_int_equal(sc.n_nonfinite, 3);
+    assert_int_equal(sc.n_negative, 2);
+    assert_int_equal(sc.first_nonfinite, 4);
+    assert_true(isnan(sc.nonfinite_value));
+    assert_int_equal(sc.first_negative, 3);
+    assert_float_equal(sc.negative_value, -0.25f, 0.0);
+
+    metrics_scan_values(v, 3, &sc); /* only the first three: clean */
+    assert_int_equal(sc.n_values, 3);
+    assert_int_equal(sc.n_nonfinite + sc.n_negative, 0);
+    assert_int_equal(sc.first_nonfinite, -1);
+    assert_int_equal(sc.first_negative, -1);
+
+    metrics_scan_values(NULL, 5, &sc); /* an absent plane scans nothing */
+    assert_int_equal(sc.n_values, 0);
+    assert_int_equal(sc.first_nonfinite, -1);
+}
+
 int main(void)
 {
     snprintf(g_dir, sizeof g_dir, "/tmp/test_metrics_XXXXXX");
@@ -598,6 +625,7 @@ int main(void)
         cmocka_unit_test(test_ztest),
         cmocka_unit_test(test_seed_stats),
         cmocka_unit_test(test_idiff_crosscheck),
+        cmocka_unit_test(test_scan_values),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     char cmd[128];
