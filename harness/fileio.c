@@ -1,9 +1,13 @@
+/* realpath() is an XSI function in glibc's headers. */
+#define _XOPEN_SOURCE 700
 #include "fileio.h"
 
-#include <errno.h>
+#include <limits.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 void fileio_temp_name(const char *path, char *buf, size_t len)
@@ -11,20 +15,144 @@ void fileio_temp_name(const char *path, char *buf, size_t len)
     snprintf(buf, len, "%s.tmp%ld", path, (long)getpid());
 }
 
-rc_status fileio_write_atomic(const char *path, const char *text, char *err, size_t errlen)
+int fileio_same_file(const char *a, const char *b)
 {
-    char tmp[1100];
-    fileio_temp_name(path, tmp, sizeof tmp);
-    FILE *f = fopen(tmp, "w");
-    int ok = f != NULL && fputs(text, f) >= 0;
-    if (f != NULL)
-        ok &= fclose(f) == 0;
-    if (!ok || rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    struct stat sa, sb;
+    if (a == NULL || b == NULL || stat(a, &sa) != 0 || stat(b, &sb) != 0)
+        return 0;
+    return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+rc_status fileio_output_target(const char *path, char *target, size_t len, char *err, size_t errlen)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0) {
+        if (errno != ENOENT) {
+            status_message(err, errlen, "%s: cannot check the output (%s); give a writable path", path,
+                           strerror(errno));
+            return RC_ERR_IO;
+        }
+        if (snprintf(target, len, "%s", path) >= (int)len) {
+            status_message(err, errlen, "%s: output path is too long; give a shorter one", path);
+            return RC_ERR_RANGE;
+        }
+        return RC_OK;
+    }
+    if (S_ISLNK(st.st_mode)) {
+        /* Write the file the link points to, so the link stays a link. */
+        char resolved[PATH_MAX];
+        if (realpath(path, resolved) == NULL) {
+            status_message(err, errlen, "%s: the output is a symlink that cannot be followed (%s); give a "
+                           "regular file or a new name", path, strerror(errno));
+            return RC_ERR_RANGE;
+        }
+        if (stat(resolved, &st) != 0) {
+            status_message(err, errlen, "%s: cannot check the output (%s); give a writable path", path,
+                           strerror(errno));
+            return RC_ERR_IO;
+        }
+        if (!S_ISREG(st.st_mode)) {
+            status_message(err, errlen, "%s: the output is not a regular file (%s); give a regular file or a "
+                           "new name", path, fileio_kind(st.st_mode));
+            return RC_ERR_RANGE;
+        }
+        if (snprintf(target, len, "%s", resolved) >= (int)len) {
+            status_message(err, errlen, "%s: output path is too long; give a shorter one", path);
+            return RC_ERR_RANGE;
+        }
+        return RC_OK;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        status_message(err, errlen, "%s: the output is not a regular file (%s); give a regular file or a new name",
+                       path, fileio_kind(st.st_mode));
+        return RC_ERR_RANGE;
+    }
+    /* An existing file we may not write stays as it is: renaming over it would bypass its mode. */
+    if (access(path, W_OK) != 0) {
+        status_message(err, errlen, "%s: the output exists and is not writable (%s); make it writable or give "
+                       "another path", path, strerror(errno));
+        return RC_ERR_IO;
+    }
+    if (snprintf(target, len, "%s", path) >= (int)len) {
+        status_message(err, errlen, "%s: output path is too long; give a shorter one", path);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+rc_status fileio_temp_open(const char *target, char *tmp, size_t tmplen, int *fd, char *err, size_t errlen)
+{
+    /* pid keeps processes apart, the counter threads of one process; O_EXCL makes a stale
+     * name from a killed run with a recycled pid a retry instead of a shared file. */
+    static atomic_uint counter;
+    *fd = -1;
+    for (int tries = 0; tries < 100; tries++) {
+        unsigned n = atomic_fetch_add(&counter, 1u);
+        if (snprintf(tmp, tmplen, "%s.tmp%ld.%u", target, (long)getpid(), n) >= (int)tmplen) {
+            status_message(err, errlen, "%s: output path is too long; give a shorter one", target);
+            return RC_ERR_RANGE;
+        }
+        *fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (*fd >= 0)
+            return RC_OK;
+        if (errno != EEXIST)
+            break;
+    }
+    status_message(err, errlen, "%s: cannot create a temporary file next to it (%s); check the folder exists "
+                   "and is writable", target, strerror(errno));
+    return RC_ERR_IO;
+}
+
+rc_status fileio_temp_finish(int fd, const char *tmp, const char *target, int failed, char *err, size_t errlen)
+{
+    int e = 0;
+    if (fd >= 0 && close(fd) != 0 && !failed) {
+        e = errno;
+        failed = 1;
+        status_message(err, errlen, "%s: write failed on close (%s); check free space", target, strerror(e));
+    }
+    if (!failed && rename(tmp, target) != 0) {
+        e = errno;
+        failed = 1;
+        status_message(err, errlen, "%s: cannot rename the finished temporary file onto it (%s); check the "
+                       "folder is writable", target, strerror(e));
+    }
+    if (failed) {
         unlink(tmp);
         return RC_ERR_IO;
     }
     return RC_OK;
+}
+
+/* Writes n bytes in full; 0 on success, else errno is set. */
+static int fileio_write_full(int fd, const char *p, size_t n)
+{
+    while (n > 0) {
+        ssize_t w = write(fd, p, n);
+        if (w < 0) {
+            if (errno == EINTR)
+                continue;
+            return -1;
+        }
+        p += w;
+        n -= (size_t)w;
+    }
+    return 0;
+}
+
+rc_status fileio_write_atomic(const char *path, const char *text, char *err, size_t errlen)
+{
+    char target[FILEIO_PATH_MAX], tmp[FILEIO_PATH_MAX];
+    int fd;
+    rc_status st = fileio_output_target(path, target, sizeof target, err, errlen);
+    if (st == RC_OK)
+        st = fileio_temp_open(target, tmp, sizeof tmp, &fd, err, errlen);
+    if (st != RC_OK)
+        return st;
+    int failed = fileio_write_full(fd, text, strlen(text)) != 0;
+    if (failed)
+        status_message(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    return fileio_temp_finish(fd, tmp, target, failed, err, errlen);
 }
 
 char *fileio_read_all(const char *path, size_t *len)
@@ -65,27 +193,22 @@ char *fileio_read_all(const char *path, size_t *len)
 
 int fileio_copy(const char *from, const char *to)
 {
-    char tmp[1100];
-    fileio_temp_name(to, tmp, sizeof tmp);
+    char target[FILEIO_PATH_MAX], tmp[FILEIO_PATH_MAX], err[16];
+    int out;
     FILE *in = fopen(from, "rb");
     if (in == NULL)
         return -1;
-    FILE *out = fopen(tmp, "wb");
-    if (out == NULL) {
+    if (fileio_output_target(to, target, sizeof target, err, sizeof err) != RC_OK ||
+        fileio_temp_open(target, tmp, sizeof tmp, &out, err, sizeof err) != RC_OK) {
         fclose(in);
         return -1;
     }
     char buf[65536];
     size_t n;
-    int ok = 1;
-    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
-        ok &= fwrite(buf, 1, n, out) == n;
-    ok &= !ferror(in);
+    int failed = 0;
+    while (!failed && (n = fread(buf, 1, sizeof buf, in)) > 0)
+        failed = fileio_write_full(out, buf, n) != 0;
+    failed |= ferror(in) != 0;
     fclose(in);
-    ok &= fclose(out) == 0;
-    if (!ok || rename(tmp, to) != 0) {
-        unlink(tmp);
-        return -1;
-    }
-    return 0;
+    return fileio_temp_finish(out, tmp, target, failed, err, sizeof err) == RC_OK ? 0 : -1;
 }
