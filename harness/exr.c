@@ -7,13 +7,21 @@
  * 3.1.5), so such files are first converted to float ZIP by OpenImageIO's oiiotool (a project
  * dependency) in a private temporary directory; the attributes still come from the original.
  * The library reports details through an error callback; we keep its last message and
- * fold it into our one-line error so a corrupt file says what the library found.
+ * fold it into our one-line error so a corrupt file says what the library found. The callback
+ * finds that message through a thread-local pointer, never through exr_get_user_data: the
+ * library calls it while holding the context's lock (e.g. inside exr_write_header on a full
+ * disk), and exr_get_user_data takes the same lock, which hung `render -o /dev/full` forever.
+ * Files go through our own descriptors (custom read and write streams): inputs are opened by
+ * fileio_open_input (regular files only, so a FIFO never blocks), outputs are a temporary file
+ * next to the destination, renamed over it only when complete.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "exr.h"
 
 #include <errno.h>
 #include <fcntl.h>
+#include <inttypes.h>
+#include <limits.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -23,6 +31,7 @@
 
 #include <openexr.h>
 
+#include "fileio.h"
 #include "runner.h"
 
 extern char **environ;
@@ -37,14 +46,67 @@ typedef struct {
     char msg[256];
 } exr_errctx;
 
+/* The message buffer of the exr_read or exr_write running on this thread (NULL outside). */
+static _Thread_local exr_errctx *exr_sink;
+
 static void exr_on_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
 {
-    void *ud = NULL;
+    (void)ctxt;
     (void)code;
-    if (exr_get_user_data(ctxt, &ud) == EXR_ERR_SUCCESS && ud) {
-        exr_errctx *e = ud;
-        snprintf(e->msg, sizeof e->msg, "%s", msg ? msg : "");
+    if (exr_sink != NULL)
+        snprintf(exr_sink->msg, sizeof exr_sink->msg, "%s", msg ? msg : "");
+}
+
+/* The open file behind a custom stream. */
+typedef struct {
+    int fd;
+    int64_t size;
+} exr_stream;
+
+static int64_t exr_stream_read(exr_const_context_t ctxt, void *ud, void *buffer, uint64_t sz, uint64_t offset,
+                               exr_stream_error_func_ptr_t error_cb)
+{
+    const exr_stream *f = ud;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t n = pread(f->fd, (char *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0) {
+            error_cb(ctxt, EXR_ERR_READ_IO, "read of %" PRIu64 " bytes at %" PRIu64 " failed: %s", sz, offset,
+                     strerror(errno));
+            return -1;
+        }
+        if (n == 0)
+            break;
+        done += (uint64_t)n;
     }
+    return (int64_t)done;
+}
+
+static int64_t exr_stream_size(exr_const_context_t ctxt, void *ud)
+{
+    (void)ctxt;
+    return ((const exr_stream *)ud)->size;
+}
+
+static int64_t exr_stream_write(exr_const_context_t ctxt, void *ud, const void *buffer, uint64_t sz,
+                                uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+{
+    const exr_stream *f = ud;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t n = pwrite(f->fd, (const char *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {
+            error_cb(ctxt, EXR_ERR_WRITE_IO, "write of %" PRIu64 " bytes failed: %s", sz,
+                     n < 0 ? strerror(errno) : "nothing written");
+            return -1;
+        }
+        done += (uint64_t)n;
+    }
+    return (int64_t)done;
 }
 
 
@@ -73,12 +135,14 @@ static int cmp_channel_name(const void *a, const void *b)
     return strcmp(((const exr_channel *)a)->name, ((const exr_channel *)b)->name);
 }
 
-rc_status exr_write(const char *path, int width, int height, const exr_channel *ch, int n_channels,
-                    const exr_attr *attrs, int n_attrs, char *err, size_t errlen)
+/* Writes the image into the open stream out; path names it in messages. */
+static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx *ec, int width, int height,
+                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs,
+                                  char *err, size_t errlen)
 {
-    if (!path || width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
+    if (width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
         status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side",
-                path ? path : "(null)", width, height, EXR_MAX_SIDE);
+                path, width, height, EXR_MAX_SIDE);
         return RC_ERR_RANGE;
     }
     if (n_channels <= 0 || !ch) {
@@ -118,17 +182,16 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
             return RC_ERR_RANGE;
         }
 
-    exr_errctx ec = {{0}};
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = exr_on_error;
-    init.user_data = &ec;
+    init.user_data = out;
+    init.write_fn = exr_stream_write;
 
     exr_context_t ctxt = NULL;
     rc_status st = RC_OK;
     exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv != EXR_ERR_SUCCESS) {
-        status_message(err, errlen, "%s: cannot open for writing (%s); check the directory exists and is writable",
-                path, lib_msg(&ec, rv));
+        status_message(err, errlen, "%s: cannot start the EXR (%s); check free memory", path, lib_msg(ec, rv));
         free(sorted);
         if (ctxt)
             exr_finish(&ctxt);
@@ -156,7 +219,7 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
         rv = exr_attr_set_string(ctxt, part, attrs[i].name, attrs[i].value);
         if (rv != EXR_ERR_SUCCESS) {
             status_message(err, errlen, "%s: cannot set string attribute '%s' (%s); use a name that is not a "
-                    "standard EXR attribute", path, attrs[i].name, lib_msg(&ec, rv));
+                    "standard EXR attribute", path, attrs[i].name, lib_msg(ec, rv));
             st = RC_ERR_RANGE;
             goto done;
         }
@@ -200,7 +263,7 @@ rc_status exr_write(const char *path, int width, int height, const exr_channel *
     }
     if (rv != EXR_ERR_SUCCESS && st == RC_OK) {
         status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions",
-                path, stage, lib_msg(&ec, rv));
+                path, stage, lib_msg(ec, rv));
         st = rv == EXR_ERR_OUT_OF_MEMORY ? RC_ERR_NOMEM : RC_ERR_IO;
     }
 
@@ -210,12 +273,39 @@ done:
         exr_result_t frv = exr_finish(&ctxt);
         if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
             status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space",
-                    path, lib_msg(&ec, frv));
+                    path, lib_msg(ec, frv));
             st = RC_ERR_IO;
         }
     }
+    return st;
+}
+
+rc_status exr_write(const char *path, int width, int height, const exr_channel *ch, int n_channels,
+                    const exr_attr *attrs, int n_attrs, char *err, size_t errlen)
+{
+    if (!path) {
+        status_message(err, errlen, "(null): no file name given to exr_write");
+        return RC_ERR_RANGE;
+    }
+    char target[FILEIO_PATH_MAX], tmp[FILEIO_PATH_MAX];
+    int fd = -1;
+    rc_status st = fileio_output_target(path, target, sizeof target, err, errlen);
+    if (st == RC_OK)
+        st = fileio_temp_open(target, tmp, sizeof tmp, &fd, err, errlen);
     if (st != RC_OK)
-        remove(path);
+        return st;
+    exr_errctx ec = {{0}};
+    exr_errctx *outer = exr_sink;
+    exr_sink = &ec;
+    exr_stream out = {fd, 0};
+    st = exr_write_stream(path, &out, &ec, width, height, ch, n_channels, attrs, n_attrs, err, errlen);
+    exr_sink = outer;
+    char why[512];
+    rc_status fst = fileio_temp_finish(fd, tmp, target, st != RC_OK, why, sizeof why);
+    if (st == RC_OK && fst != RC_OK) {
+        status_message(err, errlen, "%s", why);
+        st = fst;
+    }
     return st;
 }
 
@@ -414,29 +504,15 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
     return st;
 }
 
-rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
+/* Reads the EXR open on in (path names it in messages) into img. */
+static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *ec, exr_image *img, char *err,
+                                 size_t errlen)
 {
-    if (!img) {
-        status_message(err, errlen, "%s: exr_read needs an exr_image to fill", path ? path : "(null)");
-        return RC_ERR_RANGE;
-    }
-    memset(img, 0, sizeof *img);
-    if (!path) {
-        status_message(err, errlen, "(null): no file name given to exr_read");
-        return RC_ERR_IO;
-    }
-    /* Open it ourselves first so a missing file gives the system's reason, not a generic one. */
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        status_message(err, errlen, "%s: cannot open EXR (%s); check the path", path, strerror(errno));
-        return RC_ERR_IO;
-    }
-    fclose(f);
-
-    exr_errctx ec = {{0}};
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = exr_on_error;
-    init.user_data = &ec;
+    init.user_data = in;
+    init.read_fn = exr_stream_read;
+    init.size_fn = exr_stream_size;
     init.max_image_width = EXR_MAX_SIDE;
     init.max_image_height = EXR_MAX_SIDE;
     init.max_tile_width = EXR_MAX_SIDE;
@@ -447,7 +523,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     if (rv != EXR_ERR_SUCCESS) {
         rc_status st = status_of(rv);
         status_message(err, errlen, "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
-                "re-render or re-export it", path, lib_msg(&ec, rv));
+                "re-render or re-export it", path, lib_msg(ec, rv));
         if (ctxt)
             exr_finish(&ctxt);
         return st;
@@ -482,7 +558,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
         rv = exr_get_channels(ctxt, part, &chl);
     if (rv != EXR_ERR_SUCCESS || !chl) {
         status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file",
-                path, lib_msg(&ec, rv));
+                path, lib_msg(ec, rv));
         st = RC_ERR_PARSE;
         goto out;
     }
@@ -518,6 +594,23 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
         }
     }
 
+    {
+        size_t limit = 0;
+        char why[256];
+        if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
+            status_message(err, errlen, "%s: %s", path, why);
+            st = RC_ERR_RANGE;
+            goto out;
+        }
+        double need = (double)img->width * img->height * chl->num_channels * sizeof(float);
+        if (need > (double)limit) {
+            status_message(err, errlen, "%s: %dx%d with %d channels needs %.1f MiB as floats, over the memory limit "
+                    "of %.1f MiB; set REFLCHECK_MEMORY_LIMIT higher or give a smaller image", path, img->width,
+                    img->height, chl->num_channels, need / 1048576.0, (double)limit / 1048576.0);
+            st = RC_ERR_RANGE;
+            goto out;
+        }
+    }
     img->n_channels = chl->num_channels;
     img->names = calloc((size_t)img->n_channels, sizeof *img->names);
     img->data = calloc((size_t)img->n_channels, sizeof *img->data);
@@ -539,7 +632,7 @@ rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
     st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
     if (st != RC_OK) {
         status_message(err, errlen, "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
-                "re-render it", path, stage, lib_msg(&ec, rv));
+                "re-render it", path, stage, lib_msg(ec, rv));
         goto out;
     }
     st = read_attrs(ctxt, part, img);
@@ -550,5 +643,33 @@ out:
     exr_finish(&ctxt);
     if (st != RC_OK)
         exr_image_free(img);
+    return st;
+}
+
+rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
+{
+    if (!img) {
+        status_message(err, errlen, "%s: exr_read needs an exr_image to fill", path ? path : "(null)");
+        return RC_ERR_RANGE;
+    }
+    memset(img, 0, sizeof *img);
+    if (!path) {
+        status_message(err, errlen, "(null): no file name given to exr_read");
+        return RC_ERR_IO;
+    }
+    /* No byte limit on the file: chunks are read by offset, never the whole file, and what
+     * is allocated is bounded by the header (EXR_MAX_SIDE, EXR_MAX_PIXELS, memory limit). */
+    exr_stream in;
+    long long size = 0;
+    rc_status st = fileio_open_input(path, LLONG_MAX, "an OpenEXR image", &in.fd, &size, err, errlen);
+    if (st != RC_OK)
+        return st;
+    in.size = (int64_t)size;
+    exr_errctx ec = {{0}};
+    exr_errctx *outer = exr_sink;
+    exr_sink = &ec;
+    st = exr_read_stream(path, &in, &ec, img, err, errlen);
+    exr_sink = outer;
+    close(in.fd);
     return st;
 }

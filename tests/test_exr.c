@@ -11,6 +11,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "exr.h"
@@ -350,6 +354,116 @@ static void test_errors(void **state)
     assert_int_equal(exr_write(path, 0, 1, ch, 1, NULL, 0, err, sizeof err), RC_ERR_RANGE);
 }
 
+/* Runs exr_write of a 64x64 RGB image to path in a child whose file size limit is limit bytes
+ * (SIGXFSZ ignored, so writes fail with EFBIG as on a full disk); returns the child's exit
+ * status: the rc_status, 100 + the first bytes of err matching want, or 128 + a signal. The
+ * child's alarm turns the old error-callback deadlock into SIGALRM instead of a hang. */
+static int write_limited(const char *path, long limit, const char *want)
+{
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        alarm(30);
+        signal(SIGXFSZ, SIG_IGN);
+        struct rlimit rl = {.rlim_cur = (rlim_t)limit, .rlim_max = (rlim_t)limit};
+        setrlimit(RLIMIT_FSIZE, &rl);
+        static float px[64 * 64];
+        for (int i = 0; i < 64 * 64; i++)
+            px[i] = (float)i * 0.37f;
+        exr_channel ch[] = {{"R", px}, {"G", px}, {"B", px}};
+        char err[512] = "";
+        rc_status st = exr_write(path, 64, 64, ch, 3, NULL, 0, err, sizeof err);
+        _exit(st != RC_OK && strstr(err, want) == NULL ? 100 : (int)st);
+    }
+    int ws = 0;
+    assert_int_equal(waitpid(pid, &ws, 0), pid);
+    return WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + (WIFSIGNALED(ws) ? WTERMSIG(ws) : 0);
+}
+
+/* A write that fails (in the header, or in the pixels) returns RC_ERR_IO with the system's
+ * reason, never hangs (the error callback used to wait on a lock the header write held),
+ * never truncates or deletes an existing destination and leaves no temporary file. A device
+ * is refused as a destination before anything is written. */
+static void test_failed_writes(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    tmp_path(path, sizeof path, "kept.exr");
+    const char *precious = "the user's file";
+    /* 16 bytes: inside the header; 2 KiB: past the header, inside the pixel chunks. */
+    const long limits[] = {16, 2048};
+    for (int i = 0; i < 2; i++) {
+        spit(path, (const unsigned char *)precious, (long)strlen(precious));
+        int rc = write_limited(path, limits[i], "File too large");
+        if (rc != RC_ERR_IO)
+            fail_msg("limit %ld: child exit %d, want %d (RC_ERR_IO with the reason)", limits[i], rc, RC_ERR_IO);
+        assert_int_equal(file_size(path), (long)strlen(precious));
+        FILE *f = fopen(path, "rb");
+        char back[64] = "";
+        assert_non_null(f);
+        assert_int_equal(fread(back, 1, sizeof back, f), strlen(precious));
+        fclose(f);
+        assert_memory_equal(back, precious, strlen(precious));
+        char cmd[400];
+        snprintf(cmd, sizeof cmd, "ls %s | grep -q 'kept.exr.tmp'", g_dir);
+        assert_int_not_equal(system(cmd), 0);
+    }
+    /* Without a limit the same write replaces the file with the image. */
+    assert_int_equal(write_limited(path, (long)RLIM_INFINITY, ""), RC_OK);
+    exr_image img;
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_OK);
+    assert_int_equal(img.width, 64);
+    exr_image_free(&img);
+
+    /* A FIFO of our own as the non-regular destination, never /dev/full: a regression that
+     * removes its failed output (as exr_write did) would delete the system's device. */
+    tmp_path(path, sizeof path, "out.fifo");
+    assert_int_equal(mkfifo(path, 0600), 0);
+    assert_int_equal(write_limited(path, (long)RLIM_INFINITY, "(a FIFO)"), RC_ERR_RANGE);
+    struct stat st;
+    assert_int_equal(lstat(path, &st), 0);
+    assert_true(S_ISFIFO(st.st_mode));
+}
+
+/* Inputs are opened as regular files only: a device or a FIFO is refused at once (a FIFO
+ * open used to block forever), and a header whose planes exceed the memory limit is refused
+ * before they are allocated. */
+static void test_bounded_reads(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    exr_image img;
+    assert_int_equal(exr_read("/dev/zero", &img, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "(a character device)"));
+    assert_int_equal(exr_read(g_dir, &img, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "(a directory)"));
+    tmp_path(path, sizeof path, "in.fifo");
+    assert_int_equal(mkfifo(path, 0600), 0);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        alarm(20);
+        char e[512];
+        exr_image im;
+        _exit(exr_read(path, &im, e, sizeof e) == RC_ERR_RANGE && strstr(e, "(a FIFO)") != NULL ? 0 : 1);
+    }
+    int ws = 0;
+    assert_int_equal(waitpid(pid, &ws, 0), pid);
+    assert_true(WIFEXITED(ws));
+    assert_int_equal(WEXITSTATUS(ws), 0);
+
+    /* 64x64 with 3 float channels decodes to 48 KiB: refused under 40K, read under 64K. */
+    tmp_path(path, sizeof path, "mem.exr");
+    assert_int_equal(write_limited(path, (long)RLIM_INFINITY, ""), RC_OK);
+    setenv("REFLCHECK_MEMORY_LIMIT", "40K", 1);
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "memory limit"));
+    setenv("REFLCHECK_MEMORY_LIMIT", "64K", 1);
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_OK);
+    exr_image_free(&img);
+    unsetenv("REFLCHECK_MEMORY_LIMIT");
+}
+
 /* Truncate a valid file at every length and flip every byte: each read must either fail
  * with a message naming the file, or succeed with the right size. Run under ASan to prove
  * no out-of-bounds access. */
@@ -535,6 +649,8 @@ int main(void)
         cmocka_unit_test(test_written_file_read_by_oiio),
         cmocka_unit_test(test_foreign_variants),
         cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_failed_writes),
+        cmocka_unit_test(test_bounded_reads),
         cmocka_unit_test(test_corrupt_files),
         cmocka_unit_test(test_renderer_povray_half_exr),
         cmocka_unit_test(test_renderer_blender_float_exr),
