@@ -9,6 +9,7 @@
 #include <ctype.h>
 #include <errno.h>
 #include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -16,6 +17,7 @@
 #include <string.h>
 #include <yaml.h>
 
+#include "fileio.h"
 #include "scene_file.h"
 
 #define SF_PI 3.14159265358979323846
@@ -438,9 +440,10 @@ static int sf_ends_with(const char *s, const char *suffix)
     return 1;
 }
 
-/* A file path relative to the scene file's directory; the file must be readable now. */
+/* A file path relative to the scene file's directory; the file must be a readable regular
+ * file of at most max_bytes now (checked without reading it, so a FIFO cannot block). */
 static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *exts,
-                         int nexts, const char *what, char *out)
+                         int nexts, const char *what, long long max_bytes, char *out)
 {
     char q[80], allowed[80];
     const char *s = sf_text(n);
@@ -460,12 +463,13 @@ static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char
         return sf_fail(c, RC_ERR_RANGE, n, path, "path is %zu bytes long; allowed: at most %d", need,
                        SCENE_PATH_MAX - 1);
     snprintf(out, SCENE_PATH_MAX, "%s%s", s[0] == '/' ? "" : c->dir, s);
-    FILE *f = fopen(out, "rb");
-    if (!f)
-        return sf_fail(c, RC_ERR_IO, n, path,
-                       "cannot open '%s' (%s); allowed: a readable %s, path relative to the scene file",
-                       out, strerror(errno), what);
-    fclose(f);
+    int fd;
+    char why[SCENE_PATH_MAX + 300], kind[120];
+    snprintf(kind, sizeof kind, "a %s", what);
+    rc_status rc = fileio_open_input(out, max_bytes, kind, &fd, NULL, why, sizeof why);
+    if (rc != RC_OK)
+        return sf_fail(c, rc, n, path, "%s; allowed: a regular file, path relative to the scene file", why);
+    close(fd);
     return RC_OK;
 }
 
@@ -556,7 +560,7 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
     s->env.kind = ENV_IMAGE;
     s->env.radiance = v3s(1.0f);
     if ((rc = sf_file(c, f[1].v, "environment.image", exts, 1,
-                      "equirectangular linear OpenEXR image", s->env.path)))
+                      "equirectangular linear OpenEXR image", LLONG_MAX, s->env.path)))
         return rc;
     if (f[2].v) {
         if (f[2].v->type == YAML_SEQUENCE_NODE)
@@ -1040,7 +1044,7 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        "major = %g",
                        o->major);
     if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2,
-                                      "triangle mesh", o->path)))
+                                      "triangle mesh", FILEIO_MESH_MAX_BYTES, o->path)))
         return rc;
 
     const char *mt = sf_text(f[OK_MATERIAL].v);
@@ -1375,30 +1379,37 @@ rc_status scene_file_load(const char *path, scene *out, char *err, size_t errlen
     c.errlen = errlen;
     if (!path)
         return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "no path given; allowed: a scene file path");
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "cannot open (%s); allowed: a readable file",
-                       strerror(errno));
-    /* Read one byte past the limit to know whether the file is too big without trusting seek. */
-    size_t cap = SCENE_FILE_MAX_BYTES + 1;
-    char *buf = malloc(cap);
+    /* A regular file of at most the limit, checked before reading: /dev/zero, a FIFO or a
+     * directory is refused by kind, never read or waited on. */
+    int fd;
+    long long size = 0;
+    char why[SCENE_PATH_MAX + 200];
+    rc_status orc = fileio_open_input(path, SCENE_FILE_MAX_BYTES, "a YAML scene file", &fd, &size, why, sizeof why);
+    if (orc != RC_OK)
+        return sf_fail(&c, orc, NULL, "(file)", "%s; allowed: a hand-written scene file (regular, at most %u bytes)",
+                       why, SCENE_FILE_MAX_BYTES);
+    char *buf = malloc((size_t)size + 1);
     if (!buf) {
-        fclose(f);
+        close(fd);
         return sf_fail(&c, RC_ERR_NOMEM, NULL, "(file)", "out of memory; allowed: -");
     }
-    size_t len = fread(buf, 1, cap, f);
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(buf);
-        return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "read error; allowed: a readable file");
+    /* At most the size fstat gave: a file growing meanwhile is cut there, never read without end. */
+    size_t len = 0;
+    while (len < (size_t)size) {
+        ssize_t r = read(fd, buf + len, (size_t)size - len);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0) {
+            int e = errno;
+            close(fd);
+            free(buf);
+            return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "read error (%s); allowed: a readable file", strerror(e));
+        }
+        if (r == 0)
+            break;
+        len += (size_t)r;
     }
-    if (len > SCENE_FILE_MAX_BYTES) {
-        free(buf);
-        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
-                       "file is larger than %u bytes; allowed: a hand-written scene file",
-                       SCENE_FILE_MAX_BYTES);
-    }
+    close(fd);
     rc_status rc = scene_file_parse(buf, len, path, out, err, errlen);
     free(buf);
     return rc;

@@ -3,7 +3,8 @@
  * Shapes are built in object space in double precision, then rotated (Euler X, then Y, then Z)
  * and translated by the object's center. Debian 12 ships no C library for OBJ or PLY
  * (tinyobjloader is C++, rply is not packaged), so both readers are here: small, bounds-checked,
- * and reading the whole file into memory first.
+ * and reading the whole file into memory first (a regular file of at most FILEIO_MESH_MAX_BYTES,
+ * checked before reading: harness/fileio.h).
  *
  * Sphere: UV sphere, `tessellation` segments around Y, tessellation/2 rings, single pole vertices.
  * Quad: two triangles in the object's XZ plane, normal +Y, size.x by size.z.
@@ -22,7 +23,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "fileio.h"
 #include "mesh.h"
 
 #define MESH_PI 3.14159265358979323846
@@ -384,37 +387,40 @@ static int mesh_soup_face(mesh_soup *s, int line)
     return 1;
 }
 
-static rc_status mesh_read_file(const char *path, char **out, size_t *len)
+/* Reads the whole mesh file; only a regular file of at most FILEIO_MESH_MAX_BYTES is read, so
+ * /dev/zero, a FIFO or a runaway file is refused before the first byte (message in err). */
+static rc_status mesh_read_file(const char *path, char **out, size_t *len, char *err, size_t errlen)
 {
-    FILE *f = fopen(path, "rb");
-    size_t cap = 1 << 16, n = 0;
-    char *buf = NULL;
-    if (!f)
-        return RC_ERR_IO;
-    for (;;) {
-        char *nb = realloc(buf, cap + 1);
-        if (!nb) {
+    int fd;
+    long long size = 0;
+    rc_status rc = fileio_open_input(path, FILEIO_MESH_MAX_BYTES, "an OBJ or PLY mesh file", &fd, &size, err,
+                                     errlen);
+    if (rc != RC_OK)
+        return rc;
+    char *buf = malloc((size_t)size + 1);
+    if (!buf) {
+        close(fd);
+        status_message(err, errlen, "%s: out of memory for %lld bytes; fix: a smaller mesh", path, size);
+        return RC_ERR_NOMEM;
+    }
+    /* Read at most the size fstat gave: a file that grows meanwhile is cut there, never
+     * read without bound. */
+    size_t n = 0;
+    while (n < (size_t)size) {
+        ssize_t r = read(fd, buf + n, (size_t)size - n);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0) {
+            status_message(err, errlen, "%s: read error (%s); fix: check the file", path, strerror(errno));
             free(buf);
-            fclose(f);
-            return RC_ERR_NOMEM;
+            close(fd);
+            return RC_ERR_IO;
         }
-        buf = nb;
-        n += fread(buf + n, 1, cap - n, f);
-        if (n < cap)
+        if (r == 0)
             break;
-        if (cap > ((size_t)1 << 40)) {
-            free(buf);
-            fclose(f);
-            return RC_ERR_NOMEM;
-        }
-        cap *= 2;
+        n += (size_t)r;
     }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(buf);
-        return RC_ERR_IO;
-    }
+    close(fd);
     buf[n] = '\0';
     *out = buf;
     *len = n;
@@ -1017,10 +1023,10 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
                  o->path, index);
         return RC_ERR_PARSE;
     }
-    rc_status rc = mesh_read_file(o->path, &buf, &len);
+    char why[SCENE_PATH_MAX + 200];
+    rc_status rc = mesh_read_file(o->path, &buf, &len, why, sizeof why);
     if (rc != RC_OK) {
-        status_message(err, errlen, "%s: objects[%d]: cannot read mesh (%s); fix: check the path", o->path,
-                 index, rc == RC_ERR_NOMEM ? "out of memory" : strerror(errno));
+        status_message(err, errlen, "objects[%d]: cannot read mesh: %s", index, why);
         return rc;
     }
     rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen)

@@ -13,6 +13,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <cmocka.h>
 
@@ -519,6 +523,62 @@ static void test_mesh_errors(void **state)
     free(s);
 }
 
+/* mesh_build on path in a child: exit 0 when it returns RC_ERR_RANGE with want in the
+ * message. The alarm turns a blocking open (FIFO) into a failure instead of a hang; the
+ * address-space cap turns an unbounded read (/dev/zero) into one instead of the OOM killer
+ * (not under ASan, which reserves terabytes of shadow address space). */
+static int build_in_child(const char *path, const char *want)
+{
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        alarm(20);
+#ifndef __SANITIZE_ADDRESS__
+        struct rlimit rl = {.rlim_cur = (rlim_t)3 << 30, .rlim_max = (rlim_t)3 << 30};
+        setrlimit(RLIMIT_AS, &rl);
+#endif
+        scene *s = mesh_scene(path, v3(0, 0, 0), v3(0, 0, 0));
+        mesh m = {0};
+        char err[600] = "";
+        rc_status rc = mesh_build(s, &m, err, sizeof err);
+        if (rc != RC_ERR_RANGE || strstr(err, want) == NULL || strstr(err, "objects[0]") == NULL) {
+            fprintf(stderr, "%s: rc %d: %s\n", path, rc, err);
+            _exit(1);
+        }
+        _exit(0);
+    }
+    int ws = 0;
+    assert_int_equal(waitpid(pid, &ws, 0), pid);
+    return WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + (WIFSIGNALED(ws) ? WTERMSIG(ws) : 0);
+}
+
+/* A mesh path to /dev/zero used to be read without bound (24 GB, the OOM killer), a FIFO
+ * blocked forever and a 2 GB file was read whole before being refused; now all three are
+ * refused by kind or size before the first byte, even when mesh_build is called directly. */
+static void test_mesh_file_limits(void **state)
+{
+    (void)state;
+    char dir[64], zero[128], fifo[128], big[128];
+    snprintf(dir, sizeof dir, "/tmp/reflcheck-mesh-%ld", (long)getpid());
+    assert_int_equal(mkdir(dir, 0755), 0);
+    snprintf(zero, sizeof zero, "%s/zero.obj", dir);
+    snprintf(fifo, sizeof fifo, "%s/fifo.ply", dir);
+    snprintf(big, sizeof big, "%s/big.obj", dir);
+    assert_int_equal(symlink("/dev/zero", zero), 0);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    int fd = open(big, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    assert_true(fd >= 0);
+    assert_int_equal(ftruncate(fd, (off_t)2 << 30), 0); /* sparse: no data blocks */
+    close(fd);
+    assert_int_equal(build_in_child(zero, "not a regular file (a character device)"), 0);
+    assert_int_equal(build_in_child(fifo, "not a regular file (a FIFO)"), 0);
+    assert_int_equal(build_in_child(big, "2147483648 bytes is over the limit of 1073741824 bytes"), 0);
+    unlink(zero);
+    unlink(fifo);
+    unlink(big);
+    rmdir(dir);
+}
+
 static void test_scene_files(void **state)
 {
     (void)state;
@@ -603,6 +663,7 @@ int main(void)
         cmocka_unit_test(test_torus),        cmocka_unit_test(test_obj_tetra),
         cmocka_unit_test(test_obj_pentagon), cmocka_unit_test(test_ply_ascii),
         cmocka_unit_test(test_ply_binary),   cmocka_unit_test(test_mesh_errors),
+        cmocka_unit_test(test_mesh_file_limits),
         cmocka_unit_test(test_scene_files),  cmocka_unit_test(test_mesh_mutations),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
