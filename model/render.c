@@ -6,6 +6,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "fileio.h"
 #include "raster.h"
 #include "shade.h"
 #include "smath.h"
@@ -368,6 +369,55 @@ static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_
     return RC_OK;
 }
 
+/* Layers render_alloc makes for these AOV bits: the 11 always there, 3 per AOV term. */
+static int render_layer_count(unsigned aovs)
+{
+    int n = RENDER_CHANNELS - 12;
+    for (int a = 0; a < 4; a++)
+        n += (aovs & (1u << a)) ? 3 : 0;
+    return n;
+}
+
+static unsigned render_aov_bits(const render_options *o)
+{
+    return o->aovs == 0 ? RENDER_AOV_ALL : (o->aovs & RENDER_AOV_ALL);
+}
+
+void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *opt,
+                            double *bytes, int *layers)
+{
+    static const render_options defaults = {0};
+    if (opt == NULL)
+        opt = &defaults;
+    double w = opt->width > 0 ? opt->width : s->width, h = opt->height > 0 ? opt->height : s->height;
+    double k = opt->supersample > 0 ? opt->supersample : s->supersample;
+    int n_layers = render_layer_count(render_aov_bits(opt));
+    double total = (double)n_layers * w * h * sizeof(float);
+    /* Per worker: the shading scratch and the tile's sample, depth and row buffers
+     * (raster.c: tile edge 16 by default, times k per axis). */
+    raster_options ro = {.threads = opt->threads};
+    double tsn = (double)(opt->tile > 0 ? opt->tile : 16) * k;
+    double per_thread = sizeof(render_scratch) + tsn * tsn * (sizeof(raster_sample) + sizeof(double)) +
+                        2.0 * tsn * sizeof(double);
+    total += raster_thread_count(&ro) * per_thread;
+    /* The inputs stay resident: the mesh and the environment's float RGB. */
+    double nv = m->n_verts, nt = m->n_tris;
+    total += nv * (2.0 * sizeof(vec3)) + nt * (3.0 * sizeof(uint32_t) + sizeof(int));
+    if (env != NULL && env->kind == ENV_IMAGE)
+        total += (double)env->width * env->height * 3.0 * sizeof(float);
+    /* Projected vertices (and Gouraud terms at most one per vertex); the rasterizer's tile
+     * range per triangle and its bins, counting each triangle in one tile (small triangles,
+     * the common case; a large one adds 4 bytes per further tile); its chunk bookkeeping is
+     * bounded by raster.c's RASTER_MAX_CHUNK_CELLS (1 << 22 cells of 12 bytes). */
+    total += nv * (sizeof(raster_vertex) + sizeof(shade_terms));
+    total += nt * (4.0 * sizeof(uint16_t) + sizeof(uint32_t));
+    double tiles = ceil(w / 16.0) * ceil(h / 16.0);
+    total += fmin(tiles * 16.0 * raster_thread_count(&ro), (double)(1 << 22)) * 12.0 + tiles * sizeof(size_t);
+    *bytes = total;
+    if (layers != NULL)
+        *layers = n_layers;
+}
+
 rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt,
                        render_image *out, char *err, size_t errlen)
 {
@@ -384,7 +434,26 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                  s->path, out->width, out->height, out->supersample);
         return RC_ERR_RANGE;
     }
-    unsigned aovs = opt->aovs == 0 ? RENDER_AOV_ALL : (opt->aovs & RENDER_AOV_ALL);
+    /* Refuse up front what would not fit, instead of mapping tens of GiB and meeting the
+     * kernel's OOM killer halfway through. */
+    size_t limit = 0;
+    char why[256];
+    if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
+        snprintf(err, errlen, "%s: %s", s->path, why);
+        return RC_ERR_RANGE;
+    }
+    double need = 0.0;
+    int layers = 0;
+    render_memory_estimate(s, m, env, opt, &need, &layers);
+    if (need > (double)limit) {
+        snprintf(err, errlen, "%s: a %dx%d render at supersample %d with %d layers needs about %.2f GiB, over the "
+                 "memory limit of %.2f GiB (half the physical memory unless REFLCHECK_MEMORY_LIMIT is set); render "
+                 "smaller (--width, --height), with fewer layers (--aovs none) or raise REFLCHECK_MEMORY_LIMIT",
+                 s->path, out->width, out->height, out->supersample, layers, need / 1073741824.0,
+                 (double)limit / 1073741824.0);
+        return RC_ERR_RANGE;
+    }
+    unsigned aovs = render_aov_bits(opt);
     rc_status st = render_alloc(out, aovs, err, errlen);
     if (st != RC_OK)
         return st;

@@ -19,6 +19,11 @@
  * Per-pixel samples are queued per object and shaded SHADE_BATCH at a time through
  * shade_eval_n (one SIMD lane per sample), the background through env_lookup_n.
  * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
+ * Memory: render_scene first estimates what the frame needs (render_memory_estimate: layers,
+ * per-thread buffers, mesh, environment, rasterizer bins) and refuses with RC_ERR_RANGE, before
+ * allocating, beyond the limit of harness/fileio.h's fileio_memory_limit (half the physical
+ * memory, or REFLCHECK_MEMORY_LIMIT, e.g. 8G); the message gives the estimate and the fix.
+ *   double bytes; int layers; render_memory_estimate(&scn, &msh, &env, &o, &bytes, &layers);
  */
 #ifndef REFLCHECK_RENDER_H
 #define REFLCHECK_RENDER_H
@@ -66,6 +71,9 @@ extern const char *const render_channel_names[RENDER_CHANNELS];
 rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *o,
                        render_image *out, char *err, size_t errlen);
 void render_image_free(render_image *img);
+/* Bytes render_scene would hold for this frame (env may be NULL), and its layer count. */
+void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *o,
+                            double *bytes, int *layers);
 
 /* Camera: world point to raster clip coordinates; and the world ray through a screen point
  * (pixel units, row 0 at the top). Exposed for tests and the translators. */
