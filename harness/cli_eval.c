@@ -1,5 +1,7 @@
 /* reflcheck eval: a model's values over an angle sweep, as CSV, float approximation beside
- * the double-precision exact reference. */
+ * the double-precision exact reference. Exit 0, 1 when standard output cannot take the table
+ * (e.g. a full disk), 2 for bad options. */
+#include <errno.h>
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
@@ -94,6 +96,12 @@ int cli_eval(int argc, char **argv)
     else {
         fprintf(stderr, "reflcheck: eval: unknown model '%s'; use fresnel, beckmann or smith\n", what);
         return CLI_BAD_INPUT;
+    }
+    /* printf reports nothing; a table cut short by a full disk must not look complete. */
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        fprintf(stderr, "reflcheck: eval: cannot write the table to standard output (%s); check where it goes\n",
+                strerror(errno));
+        return CLI_FAILED;
     }
     return CLI_OK;
 }

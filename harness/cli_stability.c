@@ -1,28 +1,39 @@
 /* reflcheck stability: the numerical stability table (harness/stability.h) on the terminal,
  * optionally as JSON and CSV. Exit 1 when any gate fails (NaN, Inf or a negative value for
- * finite input, or a gating physics check), 2 for bad options. */
+ * finite input, or a gating physics check) or an output cannot be written (the files are
+ * written to a temporary name and renamed, so a failed write leaves the old file), 2 for bad
+ * options or an output that is not a regular file (a device, FIFO or directory). */
 #include <errno.h>
 #include <getopt.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "fileio.h"
 #include "stability.h"
 
 static int cli_stability_write(const char *path, const stability_table *t, int json)
 {
-    FILE *f = fopen(path, "w");
+    char *text = NULL, err[1200];
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
     if (!f) {
-        fprintf(stderr, "reflcheck: stability: cannot write '%s' (%s); check the directory exists\n", path,
-                strerror(errno));
+        fprintf(stderr, "reflcheck: stability: out of memory for '%s'\n", path);
         return CLI_FAILED;
     }
     int bad = json ? stability_write_json(f, t) : stability_write_csv(f, t);
-    if (fclose(f) != 0) bad = -1;
-    if (bad) {
-        fprintf(stderr, "reflcheck: stability: write error on '%s'; check free space\n", path);
+    if (fclose(f) != 0 || bad || text == NULL) {
+        free(text);
+        fprintf(stderr, "reflcheck: stability: cannot format '%s'; out of memory\n", path);
         return CLI_FAILED;
+    }
+    rc_status st = fileio_write_atomic(path, text, err, sizeof err);
+    free(text);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: stability: %s\n", err);
+        return st == RC_ERR_RANGE ? CLI_BAD_INPUT : CLI_FAILED;
     }
     return CLI_OK;
 }
@@ -64,6 +75,8 @@ int cli_stability(int argc, char **argv)
                 "[--json FILE] [--csv FILE] [--samples N]\n", argv[optind]);
         return CLI_BAD_INPUT;
     }
+    /* Past a file size limit (ulimit -f) a write must fail and be reported, not kill the process. */
+    signal(SIGXFSZ, SIG_IGN);
     stability_table *t = malloc(sizeof *t);
     if (!t) {
         fprintf(stderr, "reflcheck: stability: out of memory for the table\n");
@@ -75,8 +88,11 @@ int cli_stability(int argc, char **argv)
         free(t);
         return cli_exit_status(st);
     }
-    if (!quiet)
-        stability_write_text(stdout, t);
+    if (!quiet && (stability_write_text(stdout, t) != 0 || fflush(stdout) != 0 || ferror(stdout))) {
+        fprintf(stderr, "reflcheck: stability: cannot write the table to standard output (%s); check where it "
+                "goes\n", strerror(errno));
+        rc = CLI_FAILED;
+    }
     if (json && rc == CLI_OK) rc = cli_stability_write(json, t, 1);
     if (csv && rc == CLI_OK) rc = cli_stability_write(csv, t, 0);
     int fails = stability_failures(t);
