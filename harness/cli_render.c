@@ -1,12 +1,42 @@
+/* reflcheck render: one scene through the rasterizer into a layered EXR.
+ * Exit 2 before any rendering when the output could not be a result file: a device, FIFO or
+ * directory, or the scene file or a file it references (compared by device and inode, so a
+ * symlink or a second name is caught too). Exit 1 when the image cannot be written; the
+ * destination is then as it was (exr_write writes a temporary file and renames it). */
 #include <getopt.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "frame.h"
 #include "exr.h"
+#include "fileio.h"
+#include "frame.h"
 #include "render.h"
+
+/* Refuses an output that names one of the scene's inputs; prints the error. */
+static int cli_render_check_inputs(const char *out, const scene *s)
+{
+    const char *what = NULL, *input = NULL;
+    if (fileio_same_file(out, s->path)) {
+        what = "the scene file";
+        input = s->path;
+    } else if (s->env.kind == ENV_IMAGE && fileio_same_file(out, s->env.path)) {
+        what = "the environment image";
+        input = s->env.path;
+    }
+    for (int i = 0; what == NULL && i < s->n_objects; i++)
+        if (s->objects[i].shape == SHAPE_MESH && fileio_same_file(out, s->objects[i].path)) {
+            what = "a mesh of the scene";
+            input = s->objects[i].path;
+        }
+    if (what == NULL)
+        return CLI_OK;
+    fprintf(stderr, "reflcheck: %s: the output is %s %s, which would be overwritten; give another -o path\n", out,
+            what, input);
+    return CLI_BAD_INPUT;
+}
 
 int cli_render(int argc, char **argv)
 {
@@ -51,15 +81,26 @@ int cli_render(int argc, char **argv)
         return CLI_BAD_INPUT;
     }
 
+    char target[FILEIO_PATH_MAX], err[1024];
+    rc_status ost = fileio_output_target(out, target, sizeof target, err, sizeof err);
+    if (ost != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        return cli_exit_status(ost);
+    }
+    /* Past a file size limit (ulimit -f) a write must fail with EFBIG and be reported, not kill
+     * the process with SIGXFSZ and leave its temporary file behind. */
+    signal(SIGXFSZ, SIG_IGN);
+
     scene *s = malloc(sizeof *s);
     mesh m = {0};
     env_map env;
     float *env_pixels = NULL;
     render_image img = {0};
-    char err[1024];
     if (s == NULL)
         return CLI_FAILED;
     rc = cli_load_scene(argv[optind], s, &m);
+    if (rc == CLI_OK)
+        rc = cli_render_check_inputs(out, s);
     if (rc == CLI_OK) {
         rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
         if (st == RC_OK)
@@ -74,9 +115,14 @@ int cli_render(int argc, char **argv)
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = CLI_FAILED;
         }
-        if (rc == CLI_OK && !quiet)
-            printf("%s: %dx%d k=%d, %d triangles, %.3f ms, %lld shaded samples -> %s\n", s->name, img.width,
-                   img.height, img.supersample, m.n_tris, img.seconds * 1e3, img.shaded_samples, out);
+        if (rc == CLI_OK && !quiet &&
+            (printf("%s: %dx%d k=%d, %d triangles, %.3f ms, %lld shaded samples -> %s\n", s->name, img.width,
+                    img.height, img.supersample, m.n_tris, img.seconds * 1e3, img.shaded_samples, out) < 0 ||
+             fflush(stdout) != 0)) {
+            fprintf(stderr, "reflcheck: render: %s was written, but the summary could not be printed; check "
+                    "where standard output goes\n", out);
+            rc = CLI_FAILED;
+        }
     }
     render_image_free(&img);
     free(env_pixels);
