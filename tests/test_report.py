@@ -1,4 +1,5 @@
-"""test_report.py - harness/report.py on a synthetic run folder (tests/fixtures/report/make_run.py).
+"""test_report.py - harness/report.py and its package harness/report/ on a synthetic run folder
+(tests/fixtures/report/make_run.py).
 
 Run: /usr/bin/python3 -m pytest -q tests/test_report.py   (Debian python3-pytest; the browser
 tests need Debian's chromium and are skipped without it, the plot checks need gnuplot).
@@ -8,7 +9,6 @@ corrupt inputs, threshold proposals, and that the pages render in headless Chrom
 
 import csv
 import hashlib
-import importlib.util
 import json
 import os
 import re
@@ -26,14 +26,13 @@ sys.dont_write_bytecode = True   # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
 from make_run import make_run  # noqa: E402
 
-spec = importlib.util.spec_from_file_location('reflcheck_report', REPORT)
-report = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(report)
+sys.path.insert(0, os.path.join(ROOT, 'harness'))
+from report import browser, history, load, proposal, util  # noqa: E402  (the package harness/report/)
 
 RUN1 = '20250101-120000-abc1234'
 RUN2 = '20250102-120000-def5678'
 RUN3 = '20250103-120000-0a1b2c3'
-HAVE_CHROMIUM = report.chromium_exe() is not None
+HAVE_CHROMIUM = browser.chromium_exe() is not None
 HAVE_GNUPLOT = shutil.which('gnuplot') is not None
 
 
@@ -198,7 +197,7 @@ def test_history_append_only_survives_crash(tmp_path):
     assert data.startswith(two)                     # earlier records byte-for-byte intact
     lines = data.split(b'\n')
     assert len(lines) == 5 and lines[-1] == b''     # 2 good, 1 broken, 1 new, final newline
-    recs = report.read_history(hist)
+    recs = history.read_history(hist)
     assert [x['run_id'] for x in recs] == [RUN1, RUN2, RUN3]
     assert recs[1]['metrics']['alpha']['raster-vs-povray-twin']['surface.rel_rms'] == pytest.approx(2.4e-4)
     assert recs[2]['metrics']['alpha']['raster-vs-cycles-twin']['status'] == 'fail'
@@ -265,7 +264,7 @@ def test_missing_run_folder_is_usage_error(tmp_path):
 @pytest.mark.parametrize('v,want', [(2.4e-4, 3e-4), (3e-4, 3e-4), (4.8e-4, 5e-4), (9.5e-3, 1e-2), (0.136, 0.2),
                                     (0.068, 0.07), (41.0, 50.0), (1.0, 1.0)])
 def test_round_up_1sig(v, want):
-    assert report.round_up_1sig(v) == pytest.approx(want, rel=1e-12)
+    assert proposal.round_up_1sig(v) == pytest.approx(want, rel=1e-12)
 
 
 def test_propose_thresholds(tmp_path):
@@ -305,7 +304,7 @@ def body_attrs(dom):
 def test_index_renders_in_chromium(built):
     page = os.path.join(built['run'], 'index.html')
     n_img = read(page).count('<img ')
-    dom = report.dump_dom(page)
+    dom = browser.dump_dom(page)
     a = body_attrs(dom)
     assert a.get('data-ready') == '1', a
     assert a.get('data-loaded') == f'{n_img}/{n_img}' and a.get('data-failed') == '0', (a, re.findall(r'<li>[^<]*', dom))
@@ -320,7 +319,7 @@ def test_scene_page_renders_in_chromium(built):
     html = read(page)
     n = html.count('class="view"') + html.count('<img ')
     assert n == 3 + 1 + 2 + (3 if HAVE_GNUPLOT else 0)   # images, flip, heatmaps, plots
-    dom = report.dump_dom(page)
+    dom = browser.dump_dom(page)
     a = body_attrs(dom)
     assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
         (a, re.findall(r'<li>[^<]*', dom))
@@ -334,7 +333,7 @@ def test_missing_view_js_is_reported_by_the_page(tmp_path):
     run = make_run(str(tmp_path), RUN1)
     assert run_report('--run', run).returncode == 0
     os.remove(os.path.join(run, 'alpha', 'view.js'))          # removed after the page was written
-    dom = report.dump_dom(os.path.join(run, 'scene-alpha.html'))
+    dom = browser.dump_dom(os.path.join(run, 'scene-alpha.html'))
     a = body_attrs(dom)
     assert a.get('data-ready') == '1' and a.get('data-failed') == '6', a
     assert 'alpha/view.js did not load' in dom
@@ -395,7 +394,7 @@ def test_viewer_interactions_in_chromium(built):
     test_page = os.path.join(built['run'], 'scene-alpha-interact.html')
     with open(test_page, 'w', encoding='utf-8') as f:
         f.write(src.replace('</body>', INTERACT + '</body>'))
-    dom = report.dump_dom(test_page)
+    dom = browser.dump_dom(test_page)
     os.remove(test_page)
     m = re.search(r'data-test="([^"]*)"', dom)
     assert m, body_attrs(dom)
@@ -427,15 +426,15 @@ def test_run_status_recorded(tmp_path):
         json.dump(rec, f)
     r = run_report('--run', run2, '--history', hist)
     assert r.returncode == 0, r.stderr
-    recs = report.read_history(hist)
+    recs = history.read_history(hist)
     assert [h['status'] for h in recs] == ['fail', 'error']
     assert json.loads(read(os.path.join(run2, 'summary.json')))['status'] == 'error'
     assert re.search(r'run status <span class="badge v-error">error</span>', read(os.path.join(run2, 'index.html')))
-    R = report.load_run(run2)
-    assert report.run_status(R) == 'error'
+    R = load.load_run(run2)
+    assert load.run_status(R) == 'error'
     # the errored run's figures are no trend: only RUN1 is eligible, and one point draws no trend line
-    history = report.read_history(hist)
-    assert [h['run_id'] for h in history if h.get('status') != 'error'] == [RUN1]
+    recs = history.read_history(hist)
+    assert [h['run_id'] for h in recs if h.get('status') != 'error'] == [RUN1]
 
 
 def test_run_with_nothing_compared_is_error(tmp_path):
@@ -443,11 +442,11 @@ def test_run_with_nothing_compared_is_error(tmp_path):
     for scene in ('alpha', 'beta'):
         with open(os.path.join(run, scene, 'compare.json'), 'w', encoding='utf-8') as f:
             json.dump({'scene': scene, 'comparisons': []}, f)
-    assert report.run_status(report.load_run(run)) == 'error'
+    assert load.run_status(load.load_run(run)) == 'error'
 
 
 def test_json_script_has_no_markup():
-    text = report.json_script({'scene': '<!--<script>', 'x': '</script><b>&amp;'})
+    text = util.json_script({'scene': '<!--<script>', 'x': '</script><b>&amp;'})
     assert not set('<>&') & set(text)
     assert json.loads(text) == {'scene': '<!--<script>', 'x': '</script><b>&amp;'}
 
@@ -461,10 +460,68 @@ def test_hostile_scene_name_page_loads(tmp_path):
     os.rename(os.path.join(run, 'alpha'), os.path.join(run, hostile))
     r = run_report('--run', run)
     assert r.returncode == 0, r.stderr
-    page = os.path.join(run, f'scene-{report.safe_name(hostile)}.html')
+    page = os.path.join(run, f'scene-{util.safe_name(hostile)}.html')
     html = read(page)
     n = html.count('class="view"') + html.count('<img ')
-    dom = report.dump_dom(page)
+    dom = browser.dump_dom(page)
     a = body_attrs(dom)
     assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
         (a, re.findall(r'<li>[^<]*', dom))
+
+
+# ------------------------------------------------------------------ templates and shared names
+
+HARNESS = os.path.join(ROOT, 'harness')
+
+
+def test_no_hand_escaping_in_the_package():
+    """Pages come from Jinja2 templates with autoescape on: no Python module escapes HTML by hand,
+    and no template switches escaping off. json_script (inline <script> JSON) is the one exception."""
+    for d, _, files in os.walk(os.path.join(HARNESS, 'report')):
+        for f in files:
+            text = read(os.path.join(d, f))
+            assert 'html.escape' not in text and 'esc(' not in text, f
+            assert '|safe' not in text and 'autoescape false' not in text, f
+    assert 'import report' not in ''.join(read(os.path.join(HARNESS, 'report', f))
+                                          for f in os.listdir(os.path.join(HARNESS, 'report')) if f.endswith('.py'))
+
+
+def test_hostile_text_is_escaped(tmp_path):
+    """Text from the run's files lands escaped in element text and attributes."""
+    run = make_run(str(tmp_path), RUN1)
+    p = os.path.join(run, 'alpha', 'compare.json')
+    comp = json.loads(read(p))
+    comp['title'] = '<b>bold</b> & "quoted"'
+    comp['comparisons'][1]['reason'] = '<img src=x onerror=alert(1)>'
+    comp['comparisons'][1]['thresholds'][0]['why'] = '"><script>alert(2)</script>'
+    with open(p, 'w', encoding='utf-8') as f:
+        json.dump(comp, f)
+    assert run_report('--run', run).returncode == 0
+    for page in ('index.html', 'scene-alpha.html'):
+        html = read(os.path.join(run, page))
+        assert '<img src=x' not in html and '<script>alert' not in html, page
+        assert '&lt;img src=x onerror=alert(1)&gt;' in html
+    scene = read(os.path.join(run, 'scene-alpha.html'))
+    assert '&lt;b&gt;bold&lt;/b&gt; &amp; &#34;quoted&#34;' in scene
+    assert 'title="&#34;&gt;&lt;script&gt;alert(2)&lt;/script&gt;"' in read(os.path.join(run, 'index.html'))
+
+
+def test_ids_come_from_one_file(built):
+    """report.js spells no element id or data attribute: it takes them from window.REFLCHECK_IDS,
+    which every page embeds from report_assets/ids.json, the file the templates use."""
+    with open(os.path.join(HARNESS, 'report_assets', 'ids.json'), encoding='utf-8') as f:
+        ids = json.load(f)
+    ids.pop('_doc')
+    js = read(os.path.join(HARNESS, 'report_assets', 'report.js'))
+    code = re.sub(r'/\*.*?\*/', '', js, flags=re.S)
+    assert 'getElementById(\'' not in code and not re.search(r"'data-[a-z]", code)
+    for key in re.findall(r"\bel\('(\w+)'\)", code):
+        assert key in ids['id'], key
+    for page in ['index.html', 'scene-alpha.html', 'scene-beta.html']:
+        html = read(os.path.join(built['run'], page))
+        m = re.search(r'<script>window\.REFLCHECK_IDS = (.*?);</script>', html)
+        assert m and json.loads(m.group(1)) == ids, page
+    # every element id report.js looks up is on a page that needs it
+    index, scene = (read(os.path.join(built['run'], p)) for p in ('index.html', 'scene-alpha.html'))
+    for key, name in ids['id'].items():
+        assert f'id="{name}"' in index + scene, key

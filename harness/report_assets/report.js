@@ -1,5 +1,7 @@
 /* report.js - interactivity of the reflcheck report pages; plain JS, no network, no fetch API:
  * pages opened from disk (file://) get their data from script files only:
+ *   window.REFLCHECK_IDS   (inline, every page: report_assets/ids.json, the element ids, data
+ *                           attributes and layer names the pages use; none is spelled here)
  *   window.REFLCHECK_VIEW  (<scene>/view.js: linear float32 RGB images, base64)
  *   window.REFLCHECK_PAGE  (inline: comparisons and which view.js images they compare)
  * Load markers for headless tests, on <body>: data-loaded="n/total" (every <img> and every
@@ -9,14 +11,18 @@
 (function () {
   'use strict';
 
+  var NAMES = window.REFLCHECK_IDS, ID = NAMES.id, AT = NAMES.attr, LAYER = NAMES.layer;
+  function el(key) { return document.getElementById(ID[key]); }
+  function layerOf(cv) { return cv.getAttribute(AT.layer); }
+
   var load = { total: 0, loaded: 0, failed: 0, errors: [] };
 
   function markers() {
     var b = document.body;
-    b.setAttribute('data-loaded', load.loaded + '/' + load.total);
-    b.setAttribute('data-failed', String(load.failed));
-    if (load.loaded + load.failed >= load.total) b.setAttribute('data-ready', '1');
-    var ul = document.getElementById('load-errors');
+    b.setAttribute(AT.loaded, load.loaded + '/' + load.total);
+    b.setAttribute(AT.failed, String(load.failed));
+    if (load.loaded + load.failed >= load.total) b.setAttribute(AT.ready, '1');
+    var ul = el('loadErrors');
     if (!ul) return;
     ul.textContent = '';
     load.errors.forEach(function (m) {
@@ -24,7 +30,7 @@
       li.textContent = m;
       ul.appendChild(li);
     });
-    document.getElementById('load-status').hidden = load.errors.length === 0;
+    el('loadStatus').hidden = load.errors.length === 0;
   }
   function expect(n) { load.total += n; markers(); }
   function ok() { load.loaded++; markers(); }
@@ -44,18 +50,18 @@
 
   /* ---------------------------------------------------------------- index: filters */
   function initFilters() {
-    var q = document.getElementById('filter-text');
+    var q = el('filterText');
     if (!q) return;
-    var role = document.getElementById('filter-role');
-    var verdict = document.getElementById('filter-verdict');
-    var count = document.getElementById('filter-count');
-    var summary = Array.prototype.slice.call(document.querySelectorAll('#summary tbody tr'));
-    var others = Array.prototype.slice.call(document.querySelectorAll('table.filterable:not(#summary) tbody tr'));
+    var role = el('filterRole');
+    var verdict = el('filterVerdict');
+    var count = el('filterCount');
+    var summary = Array.prototype.slice.call(document.querySelectorAll('#' + ID.summary + ' tbody tr'));
+    var others = Array.prototype.slice.call(document.querySelectorAll('table.' + NAMES.cls.filterable + ':not(#' + ID.summary + ') tbody tr'));
     function apply() {
       var t = q.value.trim().toLowerCase(), r = role.value, v = verdict.value, shown = 0;
       summary.forEach(function (tr) {
         var vis = (!t || tr.textContent.toLowerCase().indexOf(t) >= 0) &&
-          (!r || tr.getAttribute('data-role') === r) && (!v || tr.getAttribute('data-verdict') === v);
+          (!r || tr.getAttribute(AT.role) === r) && (!v || tr.getAttribute(AT.verdict) === v);
         tr.hidden = !vis;
         if (vis) shown++;
       });
@@ -128,7 +134,7 @@
   }
 
   function drawLegend() {
-    var cv = document.getElementById('heat-legend');
+    var cv = el('heatLegend');
     if (!cv) return;
     var ctx = cv.getContext('2d'), x0 = 10, w = cv.width - 20, h = 14;
     for (var x = 0; x < w; x++) {
@@ -153,12 +159,12 @@
 
   function initScene() {
     var P = window.REFLCHECK_PAGE, V = window.REFLCHECK_VIEW;
-    var views = Array.prototype.slice.call(document.querySelectorAll('canvas.view'));
+    var views = Array.prototype.slice.call(document.querySelectorAll('canvas.' + NAMES.cls.view));
     expect(views.length);
     drawLegend();
     if (!P) { views.forEach(function () { fail('page data (REFLCHECK_PAGE) missing'); }); return; }
     if (!V) {
-      views.forEach(function (cv) { fail(cv.getAttribute('data-layer') + ': ' + P.view_src + ' did not load'); });
+      views.forEach(function (cv) { fail(layerOf(cv) + ': ' + P.view_src + ' did not load'); });
       return;
     }
     var W = V.width, H = V.height, N = W * H, img = {}, decodeErr = {};
@@ -178,7 +184,7 @@
       if (img[c.testKey] && img[c.refKey]) { rel[c.id] = relError(img[c.testKey], img[c.refKey], N); offHeat[c.id] = offscreen(); }
     });
 
-    var evInput = document.getElementById('ev'), evLabel = document.getElementById('ev-label');
+    var evInput = el('ev'), evLabel = el('evLabel');
     function renderImages() {
       var ev = parseFloat(evInput.value), k = Math.pow(2, ev);
       evLabel.textContent = 'EV ' + (ev >= 0 ? '+' : '') + ev.toFixed(2) + ' (×' + k.toPrecision(3) + ')';
@@ -193,7 +199,7 @@
         ctx.putImageData(id, 0, 0);
       });
     }
-    var maskInput = document.getElementById('mask-bg');
+    var maskInput = el('maskBg');
     function renderHeat() {
       var mask = maskInput && maskInput.checked && coverage;
       Object.keys(offHeat).forEach(function (cid) {
@@ -211,8 +217,8 @@
 
     var cw = views.length ? views[0].width : 360;
     var st = { fit: cw / W, s: cw / W, ox: 0, oy: 0, px: -1, py: -1, hover: false, toggled: false, drag: null };
-    var selA = document.getElementById('flip-a'), selB = document.getElementById('flip-b');
-    var flipMode = document.getElementById('flip-mode'), flipShown = document.getElementById('flip-shown');
+    var selA = el('flipA'), selB = el('flipB');
+    var flipMode = el('flipMode'), flipShown = el('flipShown');
     if (selB && selB.options.length > 1) selB.selectedIndex = 1;
     function flipImage() {
       if (!selA) return null;
@@ -220,10 +226,10 @@
       return showB ? selB.value : selA.value;
     }
     function source(cv) {
-      var l = cv.getAttribute('data-layer');
-      if (l === 'flip') return offImg[flipImage()] || null;
-      if (l.indexOf('img:') === 0) return offImg[l.slice(4)] || null;
-      if (l.indexOf('heat:') === 0) return offHeat[l.slice(5)] || null;
+      var l = layerOf(cv);
+      if (l === LAYER.flip) return offImg[flipImage()] || null;
+      if (l.indexOf(LAYER.image) === 0) return offImg[l.slice(LAYER.image.length)] || null;
+      if (l.indexOf(LAYER.heat) === 0) return offHeat[l.slice(LAYER.heat.length)] || null;
       return null;
     }
     function draw(cv) {
@@ -251,24 +257,35 @@
       if (flipShown) flipShown.textContent = (flipImage() || '') + (flipImage() === (selB && selB.value) ? ' (B)' : ' (A)');
     }
 
-    var probe = document.getElementById('probe'), probeXY = document.getElementById('probe-xy');
+    var probe = el('probe'), probeXY = el('probeXY');
     function updateProbe() {
       if (!probe) return;
-      var x = st.px, y = st.py, rows = [];
-      if (x < 0) { probe.innerHTML = ''; probeXY.textContent = ''; return; }
+      var x = st.px, y = st.py;
+      probe.textContent = '';
+      if (x < 0) { probeXY.textContent = ''; return; }
       var i = y * W + x;
       probeXY.textContent = '(' + x + ', ' + y + ')';
-      rows.push('<tr><th>image</th><th>R</th><th>G</th><th>B</th></tr>');
+      /* cells as text, never markup: image names and comparison ids come from the run's files */
+      function row(tag, cells, span) {
+        var tr = document.createElement('tr');
+        cells.forEach(function (t, k) {
+          var td = document.createElement(tag);
+          td.textContent = t;
+          if (span && k === 1) td.colSpan = 3;
+          tr.appendChild(td);
+        });
+        probe.appendChild(tr);
+      }
+      row('th', ['image', 'R', 'G', 'B']);
       Object.keys(img).forEach(function (k) {
         var a = img[k];
-        rows.push('<tr><td>' + k + '</td><td>' + fmt(a[3 * i]) + '</td><td>' + fmt(a[3 * i + 1]) + '</td><td>' + fmt(a[3 * i + 2]) + '</td></tr>');
+        row('td', [k, fmt(a[3 * i]), fmt(a[3 * i + 1]), fmt(a[3 * i + 2])]);
       });
-      rows.push('<tr><td>N·V</td><td colspan="3">' + (ndotv ? fmt(ndotv[i]) : '—') + '</td></tr>');
-      rows.push('<tr><td>coverage</td><td colspan="3">' + (coverage ? fmt(coverage[i]) : '—') + '</td></tr>');
+      row('td', ['N·V', ndotv ? fmt(ndotv[i]) : '—'], true);
+      row('td', ['coverage', coverage ? fmt(coverage[i]) : '—'], true);
       P.comparisons.forEach(function (c) {
-        if (rel[c.id]) rows.push('<tr><td>rel err ' + c.id + '</td><td colspan="3">' + fmt(rel[c.id][i]) + '</td></tr>');
+        if (rel[c.id]) row('td', ['rel err ' + c.id, fmt(rel[c.id][i])], true);
       });
-      probe.innerHTML = rows.join('');
     }
     function pixelAt(cv, ev) {
       var r = cv.getBoundingClientRect();
@@ -297,7 +314,7 @@
         drawAll();
       });
       cv.addEventListener('dblclick', reset);
-      if (cv.getAttribute('data-layer') === 'flip') {
+      if (layerOf(cv) === LAYER.flip) {
         cv.addEventListener('mouseenter', function () { st.hover = true; drawAll(); });
         cv.addEventListener('mouseleave', function () { st.hover = false; drawAll(); });
       }
@@ -308,11 +325,11 @@
       if (ev.key === 'f' || ev.key === 'F') { st.toggled = !st.toggled; if (flipMode) flipMode.value = 'toggle'; drawAll(); }
     });
     evInput.addEventListener('input', function () { renderImages(); drawAll(); });
-    document.getElementById('ev-reset').addEventListener('click', function () { evInput.value = '0'; renderImages(); drawAll(); });
-    document.getElementById('view-reset').addEventListener('click', reset);
+    el('evReset').addEventListener('click', function () { evInput.value = '0'; renderImages(); drawAll(); });
+    el('viewReset').addEventListener('click', reset);
     if (maskInput) maskInput.addEventListener('change', function () { renderHeat(); drawAll(); });
     [selA, selB, flipMode].forEach(function (s) { if (s) s.addEventListener('change', drawAll); });
-    var tog = document.getElementById('flip-toggle');
+    var tog = el('flipToggle');
     if (tog) tog.addEventListener('click', function () { st.toggled = !st.toggled; flipMode.value = 'toggle'; drawAll(); });
 
     renderImages();
@@ -321,7 +338,7 @@
     st.px = Math.floor(W / 2); st.py = Math.floor(H / 2);
     updateProbe();
     views.forEach(function (cv) {
-      var l = cv.getAttribute('data-layer');
+      var l = layerOf(cv);
       if (draw(cv)) { ok(); return; }
       var name = l.indexOf(':') > 0 ? l.slice(l.indexOf(':') + 1) : l;
       fail(l + ': no data' + (decodeErr[name] ? ' (' + decodeErr[name] + ')' : ' in ' + P.view_src));
@@ -330,11 +347,11 @@
   }
 
   function init() {
-    var kind = document.body.getAttribute('data-page');
+    var kind = document.body.getAttribute(AT.page);
     markers();
     trackImages();
-    if (kind === 'index') initFilters();
-    if (kind === 'scene') {
+    if (kind === NAMES.page.index) initFilters();
+    if (kind === NAMES.page.scene) {
       try { initScene(); } catch (e) { fail('viewer: ' + e.message); }
     }
   }

@@ -1,0 +1,13 @@
+"""The reflcheck report as a package (harness/report.py is its command line).
+
+  util      constants, number formatting, JSON helpers, atomic writes, the problem list (bottom)
+  load      run folder -> data (scenes, comparisons, job records, view.js, optional inputs)
+  outputs   summary.json, summary.csv, JUnit XML
+  history   the append-only history.jsonl
+  plots     gnuplot SVGs
+  pages     the HTML pages from templates/ (Jinja2, autoescape)
+  proposal  threshold proposals
+  browser   headless Chromium: screenshots and page checks
+
+Imports point down only: nothing here imports harness/report.py.
+"""
