@@ -564,19 +564,19 @@ static void job_remove_tree(const char *path, int depth)
     rmdir(path);
 }
 
-static int job_lock_fd(const char *cache_dir, const char *keyhex)
+static int job_lock_fd(const char *dir, const char *name)
 {
     char path[1100];
-    snprintf(path, sizeof path, "%s/%s.lock", cache_dir, keyhex);
+    snprintf(path, sizeof path, "%s/%s", dir, name);
     return open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
 }
 
-/* Takes the entry's lock: an exclusive flock on CACHE/<key>.lock, waited for. The kernel
- * drops it when we exit or are killed, and it is close-on-exec so no renderer inherits it.
- * Returns the descriptor, or -1 with errno set. */
-static int job_lock(const char *cache_dir, const char *keyhex)
+/* Takes a job's lock: an exclusive flock on DIR/NAME, waited for. The kernel drops it when
+ * we exit or are killed, and it is close-on-exec so no renderer inherits it. Returns the
+ * descriptor, or -1 with errno set. */
+static int job_lock(const char *dir, const char *name)
 {
-    int fd = job_lock_fd(cache_dir, keyhex);
+    int fd = job_lock_fd(dir, name);
     if (fd < 0)
         return -1;
     while (flock(fd, LOCK_EX) != 0) {
@@ -590,26 +590,46 @@ static int job_lock(const char *cache_dir, const char *keyhex)
     return fd;
 }
 
+/* 1 if name is PREFIX-XXXXXX, a work folder job_make_work named. */
+static int job_is_work(const char *name, const char *prefix)
+{
+    size_t n = strlen(prefix);
+    return strncmp(name, prefix, n) == 0 && name[n] == '-' && strlen(name) == n + 7;
+}
+
+/* Under the lock that work folders PREFIX-XXXXXX are made under, those left in dir by a
+ * killed run (nobody else can be making one) are removed. */
+static void job_clean_own(const char *dir, const char *prefix)
+{
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    while (d != NULL && (e = readdir(d)) != NULL) {
+        char sub[2048];
+        if (job_is_work(e->d_name, prefix) && (size_t)snprintf(sub, sizeof sub, "%s/%s", dir, e->d_name) < sizeof sub)
+            job_remove_tree(sub, 0);
+    }
+    if (d != NULL)
+        closedir(d);
+}
+
 /* Removes work folders killed runs left in the cache: ours (we hold its lock) and any other
  * whose key's lock is free, so nobody is rendering it. Never waits for a lock. */
 static void job_clean_stale(const char *cache_dir, const char *own_keyhex)
 {
+    char own[32];
+    snprintf(own, sizeof own, "tmp-%s", own_keyhex);
+    job_clean_own(cache_dir, own);
     DIR *d = opendir(cache_dir);
     struct dirent *e;
     while (d != NULL && (e = readdir(d)) != NULL) {
-        char keyhex[32];
         /* tmp-<16 hex digits>-XXXXXX, as job_cached names them */
-        if (strncmp(e->d_name, "tmp-", 4) != 0 || strlen(e->d_name) != 4 + 16 + 7 || e->d_name[20] != '-')
+        char prefix[32], lockname[32], sub[2048];
+        snprintf(prefix, sizeof prefix, "%.20s", e->d_name);
+        if (strncmp(prefix, "tmp-", 4) != 0 || !job_is_work(e->d_name, prefix) || strcmp(prefix, own) == 0 ||
+            (size_t)snprintf(sub, sizeof sub, "%s/%s", cache_dir, e->d_name) >= sizeof sub)
             continue;
-        snprintf(keyhex, sizeof keyhex, "%.16s", e->d_name + 4);
-        char sub[2048];
-        if ((size_t)snprintf(sub, sizeof sub, "%s/%s", cache_dir, e->d_name) >= sizeof sub)
-            continue;
-        if (strcmp(keyhex, own_keyhex) == 0) {
-            job_remove_tree(sub, 0);
-            continue;
-        }
-        int fd = job_lock_fd(cache_dir, keyhex);
+        snprintf(lockname, sizeof lockname, "%s.lock", prefix + 4);
+        int fd = job_lock_fd(cache_dir, lockname);
         if (fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) == 0)
             job_remove_tree(sub, 0);
         if (fd >= 0)
@@ -665,7 +685,9 @@ static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *loc
     char entry[1100];
     snprintf(entry, sizeof entry, "%s/%s", cache, keyhex);
     work[0] = '\0';
-    if (job_mkdirs(cache) != 0 || (*lock_fd = job_lock(cache, keyhex)) < 0) {
+    char lockname[40];
+    snprintf(lockname, sizeof lockname, "%s.lock", keyhex);
+    if (job_mkdirs(cache) != 0 || (*lock_fd = job_lock(cache, lockname)) < 0) {
         job_fail(rec, RUNNER_ERROR, "%s: cannot create or lock the cache: %s; check the folder and its space", cache,
                  strerror(errno));
         return;
@@ -781,9 +803,15 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     if (rec->status == RUNNER_OK && j->cache_dir != NULL)
         job_cached(&c, rec, keyhex, &lock_fd, work, sizeof work);
     else if (rec->status == RUNNER_OK) {
-        char prefix[64];
+        /* Without a cache the job still locks itself (in OUT), so that the work folders a
+         * killed run left can be told from a running one's and removed. */
+        char prefix[64], lockname[80];
         snprintf(prefix, sizeof prefix, "tmp-%s-%s", job_renderer_names[j->renderer], job_role_names[j->role]);
-        if (job_make_work(&c, dest_dir, prefix) != 0)
+        snprintf(lockname, sizeof lockname, ".%s.lock", prefix);
+        lock_fd = job_lock(dest_dir, lockname);
+        if (lock_fd >= 0)
+            job_clean_own(dest_dir, prefix);
+        if (lock_fd < 0 || job_make_work(&c, dest_dir, prefix) != 0)
             job_fail(rec, RUNNER_ERROR, "%s: cannot create a work folder: %s; check --out and its space", dest_dir,
                      strerror(errno));
         else {

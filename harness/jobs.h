@@ -29,7 +29,9 @@
  * publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes it by rename, so runs
  * sharing a cache render each key once and never see a half entry; a killed run's lock goes
  * with it and its work folder is removed by the next job on that key. Only ok renders are
- * cached. Without a cache the work folder is private too and removed afterwards.
+ * cached. Without a cache the work folder is private too (OUT/<scene>/tmp-<renderer>-<role>-
+ * XXXXXX, under a lock OUT/<scene>/.tmp-<renderer>-<role>.lock) and removed afterwards, or by
+ * the next run of the job if this one was killed.
  * Files in OUT are written under a temporary name and renamed, so a killed run leaves no half
  * file.
  */

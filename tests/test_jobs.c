@@ -454,13 +454,35 @@ static pid_t read_pid(const char *path)
 /* Starts `reflcheck run` on the tiny scene with a POV-Ray that writes its pid and sleeps, kills
  * the run with sig once the renderer is up, and checks the renderer is gone. Then a second run
  * on the same cache is not blocked by the killed run's lock and leaves no work folder. */
-static void kill_run(int sig)
+/* Counts the work folders (tmp-*) in dir. */
+static int work_folders(const char *dir)
+{
+    char cmd[1200], path[256];
+    snprintf(path, sizeof path, "%s/tmpcount", work);
+    snprintf(cmd, sizeof cmd, "ls %s | grep -c '^tmp-' > %s", dir, path);
+    assert_true(system(cmd) != -1);
+    char *n = fileio_read_all(path, NULL);
+    assert_non_null(n);
+    int count = atoi(n);
+    free(n);
+    return count;
+}
+
+/* Starts `reflcheck run` on the tiny scene with a POV-Ray that writes its pid and sleeps, kills
+ * the run with sig once the renderer is up, and checks the renderer is gone. Then a second run
+ * (on the same cache, or none) is not blocked by the killed run's lock, and no work folder is
+ * left where the job works (the cache, or the output folder). */
+static void kill_run(int sig, int cached)
 {
     const char *yaml = tiny_scene("tiny");
-    char pidfile[256], body[768], cache[256], out[256];
+    char pidfile[256], body[768], cache[256], out[256], where[300], cache_opt[300];
     snprintf(pidfile, sizeof pidfile, "%s/renderer.pid", work);
     snprintf(cache, sizeof cache, "%s/killcache%d", work, sig);
-    snprintf(out, sizeof out, "%s/kill%d", out_dir, sig);
+    snprintf(out, sizeof out, "%s/kill%d-%d", out_dir, sig, cached);
+    snprintf(where, sizeof where, "%s/tiny", out);
+    if (cached)
+        snprintf(where, sizeof where, "%s", cache);
+    snprintf(cache_opt, sizeof cache_opt, "%s", cached ? cache : "");
     char flag[256];
     snprintf(flag, sizeof flag, "%s/hang", work);
     unlink(pidfile);
@@ -472,10 +494,10 @@ static void kill_run(int sig)
     pid_t run = fork();
     assert_true(run >= 0);
     if (run == 0) {
-        freopen("/dev/null", "w", stdout);
-        freopen("/dev/null", "w", stderr);
-        execl(cli_bin(), "reflcheck", "run", yaml, "--renderer", "povray", "--role", "twin", "--out", out, "--cache",
-              cache, (char *)NULL);
+        if (freopen("/dev/null", "w", stdout) == NULL || freopen("/dev/null", "w", stderr) == NULL)
+            _exit(126);
+        execl(cli_bin(), "reflcheck", "run", yaml, "--renderer", "povray", "--role", "twin", "--out", out,
+              cached ? "--cache" : "--no-cache", cached ? cache : NULL, (char *)NULL);
         _exit(127);
     }
     pid_t renderer = read_pid(pidfile);
@@ -489,32 +511,34 @@ static void kill_run(int sig)
     if (!gone)
         kill(renderer, SIGKILL);
     assert_true(gone);
+    assert_int_equal(work_folders(where), 1);
 
     /* The lock died with the run: the next run is not blocked and renders, and the killed
      * run's work folder is gone. */
     unlink(flag);
-    char err[1024], cmd[1200];
-    snprintf(cmd, sizeof cmd, "run %s --renderer povray --role twin --out %s --cache %s", yaml, out, cache);
-    assert_int_equal(cli_exec(err, sizeof err, "%s", cmd), 0);
-    snprintf(cmd, sizeof cmd, "ls %s | grep -c '^tmp-' > %s/tmpcount", cache, work);
-    assert_true(system(cmd) != -1);
-    snprintf(cmd, sizeof cmd, "%s/tmpcount", work);
-    char *n = fileio_read_all(cmd, NULL);
-    assert_non_null(n);
-    assert_int_equal(atoi(n), 0);
-    free(n);
+    char err[1024];
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer povray --role twin --out %s %s %s", yaml, out,
+                              cached ? "--cache" : "--no-cache", cache_opt),
+                     0);
+    assert_int_equal(work_folders(where), 0);
 }
 
 static void test_killed_run_sigkill(void **state)
 {
     (void)state;
-    kill_run(SIGKILL);
+    kill_run(SIGKILL, 1);
 }
 
 static void test_killed_run_sigterm(void **state)
 {
     (void)state;
-    kill_run(SIGTERM);
+    kill_run(SIGTERM, 1);
+}
+
+static void test_killed_run_without_cache(void **state)
+{
+    (void)state;
+    kill_run(SIGKILL, 0);
 }
 
 int main(void)
@@ -532,6 +556,7 @@ int main(void)
         cmocka_unit_test(test_two_runs_share_a_cache),
         cmocka_unit_test(test_killed_run_sigkill),
         cmocka_unit_test(test_killed_run_sigterm),
+        cmocka_unit_test(test_killed_run_without_cache),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
