@@ -42,34 +42,46 @@ static const char *compare_json_str(const cJSON *o, const char *key)
     return cJSON_IsString(v) ? v->valuestring : "";
 }
 
-/* Loads a side; returns a reason string (static or in buf) when it cannot be compared. */
-static const char *compare_load_side(const char *run, const char *scene_name, compare_side *s, char *buf, size_t len)
+/* What a side's job left: an image to compare, a job the vocabulary calls skipped (renderer
+ * not installed, or it cannot represent the scene), or an error (no record, any other
+ * status, an image that cannot be read). */
+typedef enum { COMPARE_SIDE_OK = 0, COMPARE_SIDE_SKIPPED, COMPARE_SIDE_ERROR } compare_side_state;
+
+/* Loads a side; the reason goes to buf unless the side is ok. */
+static compare_side_state compare_load_side(const char *run, const char *scene_name, compare_side *s, char *buf,
+                                            size_t len)
 {
     char rec[1024];
+    const char *rname = job_renderer_names[s->renderer], *role = job_role_names[s->role];
     job_output_path(run, scene_name, s->renderer, s->role, "json", rec, sizeof rec);
     job_output_path(run, scene_name, s->renderer, s->role, "exr", s->path, sizeof s->path);
     s->record = compare_read_json(rec);
     if (s->record == NULL) {
-        snprintf(buf, len, "no job record %s; render it with: reflcheck run SCENE --renderer %s --role %s", rec,
-                 job_renderer_names[s->renderer], job_role_names[s->role]);
-        return buf;
+        snprintf(buf, len, "%s %s: no job record %s (missing or not JSON); render it with: reflcheck run SCENE "
+                 "--renderer %s --role %s", rname, role, rec, rname, role);
+        return COMPARE_SIDE_ERROR;
     }
     const char *status = compare_json_str(s->record, "status");
+    if (strcmp(status, "skipped") == 0) {
+        snprintf(buf, len, "%s %s skipped: %s", rname, role, compare_json_str(s->record, "message"));
+        return COMPARE_SIDE_SKIPPED;
+    }
     if (strcmp(status, "ok") != 0) {
-        snprintf(buf, len, "%s %s: %s", job_renderer_names[s->renderer], status, compare_json_str(s->record, "message"));
-        return buf;
+        snprintf(buf, len, "%s %s job %s: %s", rname, role, status[0] ? status : "has no status",
+                 compare_json_str(s->record, "message"));
+        return COMPARE_SIDE_ERROR;
     }
     char e[512];
     if (exr_read(s->path, &s->img, e, sizeof e) != RC_OK) {
-        snprintf(buf, len, "%s", e);
-        return buf;
+        snprintf(buf, len, "%s %s job ok but its image cannot be read: %s", rname, role, e);
+        return COMPARE_SIDE_ERROR;
     }
     s->have_img = 1;
     if (!exr_image_channel(&s->img, "R") || !exr_image_channel(&s->img, "G") || !exr_image_channel(&s->img, "B")) {
-        snprintf(buf, len, "%s has no R, G, B channels", s->path);
-        return buf;
+        snprintf(buf, len, "%s %s: %s has no R, G, B channels", rname, role, s->path);
+        return COMPARE_SIDE_ERROR;
     }
-    return NULL;
+    return COMPARE_SIDE_OK;
 }
 
 static void compare_side_free(compare_side *s)
@@ -440,30 +452,40 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
 
     compare_side t = {.renderer = c->test, .role = rr}, r = {.renderer = c->reference, .role = rr};
     compare_side mask_src = {.renderer = RENDERER_RASTER, .role = rr};
-    const char *why = compare_load_side(run, s->name, &t, reason, sizeof reason);
-    if (why == NULL)
-        why = compare_load_side(run, s->name, &r, reason, sizeof reason);
-    if (why == NULL && (t.img.width != r.img.width || t.img.height != r.img.height)) {
+    char why_t[600] = "", why_r[600] = "";
+    compare_side_state ts = compare_load_side(run, s->name, &t, why_t, sizeof why_t);
+    compare_side_state rs = compare_load_side(run, s->name, &r, why_r, sizeof why_r);
+    const char *state = NULL;
+    if (ts == COMPARE_SIDE_ERROR || rs == COMPARE_SIDE_ERROR) {
+        state = "error";
+        snprintf(reason, sizeof reason, "%s%s%s", ts == COMPARE_SIDE_ERROR ? why_t : "",
+                 ts == COMPARE_SIDE_ERROR && rs == COMPARE_SIDE_ERROR ? "; " : "", rs == COMPARE_SIDE_ERROR ? why_r : "");
+    } else if (ts == COMPARE_SIDE_SKIPPED || rs == COMPARE_SIDE_SKIPPED) {
+        state = "skipped";
+        snprintf(reason, sizeof reason, "%s%s%s", why_t, why_t[0] && why_r[0] ? "; " : "", why_r);
+    } else if (t.img.width != r.img.width || t.img.height != r.img.height) {
+        state = "error";
         snprintf(reason, sizeof reason, "image sizes differ: %s is %dx%d, %s is %dx%d", t.path, t.img.width,
                  t.img.height, r.path, r.img.width, r.img.height);
-        why = reason;
     }
     const exr_image *geo = NULL;
-    if (why == NULL) {
-        char tmp[256];
+    if (state == NULL) {
+        char tmp[600];
         geo = c->test == RENDERER_RASTER ? &t.img : (c->reference == RENDERER_RASTER ? &r.img : NULL);
-        if (geo == NULL && compare_load_side(run, s->name, &mask_src, tmp, sizeof tmp) == NULL &&
+        if (geo == NULL && compare_load_side(run, s->name, &mask_src, tmp, sizeof tmp) == COMPARE_SIDE_OK &&
             mask_src.img.width == t.img.width && mask_src.img.height == t.img.height)
             geo = &mask_src.img;
     }
-    if (why != NULL) {
-        int is_skip = (t.record != NULL || c->test == RENDERER_RASTER) && strstr(reason, "no job record") == NULL;
-        cJSON_AddStringToObject(o, "status", is_skip ? "skipped" : "error");
-        cJSON_AddStringToObject(o, "reason", why);
-        if (is_skip)
+    if (state != NULL) {
+        cJSON_AddStringToObject(o, "status", state);
+        cJSON_AddStringToObject(o, "reason", reason);
+        if (state[0] == 's') {
             sum->skipped++;
-        else
+        } else {
             sum->error++;
+            if (sum->first_failure[0] == '\0')
+                snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: error: %s", s->name, id, reason);
+        }
         compare_side_free(&t);
         compare_side_free(&r);
         compare_side_free(&mask_src);

@@ -4,8 +4,12 @@
  *   compare_scene("scenes/x.yaml", "reports/runs/r1", &summary, err, sizeof err);
  * Reads RUN/<scene>/<renderer>-<role>.exr and .json (harness/jobs.h), writes
  * RUN/<scene>/compare.json (format: reports/FORMAT.md) and RUN/<scene>/view.js (the
- * linear images for the report's viewer). A comparison whose render is missing or failed is
- * recorded as skipped with the renderer's message; it is not an error.
+ * linear images for the report's viewer).
+ * Status of a comparison: "skipped" only when a side's job record says skipped (renderer not
+ * installed, or it cannot represent the scene); "error" when a record is missing or not JSON,
+ * says anything but ok or skipped (failed, crashed, timeout, error), or its image cannot be
+ * read, lacks R, G, B or differs in size; else "pass", "warn" or "fail" from the thresholds.
+ * "reason" says why for skipped and error.
  * Regions are kept apart: surface (interior pixels), edges (silhouettes: partial coverage or
  * an object boundary, from the rasterizer's coverage and object layers) and background.
  * Thresholds (from the scene file) are judged on the surface unless the metric names a
