@@ -525,3 +525,49 @@ def test_ids_come_from_one_file(built):
     index, scene = (read(os.path.join(built['run'], p)) for p in ('index.html', 'scene-alpha.html'))
     for key, name in ids['id'].items():
         assert f'id="{name}"' in index + scene, key
+
+
+def test_renderers_come_from_the_run(tmp_path):
+    """No renderer list in the report: a renderer it has never heard of ('eevee') is shown and
+    compared like the others, from its job record, its view.js image and the comparison."""
+    run = make_run(str(tmp_path), RUN1)
+    alpha = os.path.join(run, 'alpha')
+    rec = json.loads(read(os.path.join(alpha, 'cycles-twin.json')))
+    rec.update(renderer='eevee', version='Blender 3.4.1 EEVEE', wall_s=0.7)
+    with open(os.path.join(alpha, 'eevee-twin.json'), 'w', encoding='utf-8') as f:
+        json.dump(rec, f)
+    comp = json.loads(read(os.path.join(alpha, 'compare.json')))
+    c = dict(comp['comparisons'][0], id='raster-vs-eevee-twin', reference='eevee')
+    comp['comparisons'].append(c)
+    with open(os.path.join(alpha, 'compare.json'), 'w', encoding='utf-8') as f:
+        json.dump(comp, f)
+    view = read(os.path.join(alpha, 'view.js'))
+    m = re.search(r'"povray-twin": ("[^"]*")', view)
+    with open(os.path.join(alpha, 'view.js'), 'w', encoding='utf-8') as f:
+        f.write(view.replace('"images": {', '"images": {"eevee-twin": ' + m.group(1) + ', ', 1))
+    assert run_report('--run', run).returncode == 0
+    s = json.loads(read(os.path.join(run, 'summary.json')))
+    assert s['renderer_versions']['eevee'] == 'Blender 3.4.1 EEVEE'
+    c = next(x for x in s['scenes'][0]['comparisons'] if x['id'] == 'raster-vs-eevee-twin')
+    assert (c['test_image'], c['reference_image']) == ('raster-twin', 'eevee-twin')
+    index = read(os.path.join(run, 'index.html'))
+    assert '<td>eevee</td><td>twin</td>' in index and '<span class="mono">0.70</span>' in index
+    scene = read(os.path.join(run, 'scene-alpha.html'))
+    assert 'data-layer="heat:raster-vs-eevee-twin"' in scene and 'data-layer="img:eevee-twin"' in scene
+
+
+def test_sweep_columns_come_from_the_sweep(tmp_path):
+    """The equal-time table has a column per renderer the sweep file names, in its order."""
+    run = make_run(str(tmp_path), RUN1)
+    sweep = {'format': 'reflcheck-sweep-1', 'scene': 'alpha', 'size': [8, 6], 'error_key': 'error',
+             'reference': {'renderer': 'cycles', 'role': 'twin', 'samples': 4096},
+             'series': [{'label': 'eevee taa', 'renderer': 'eevee',
+                         'points': [{'label': '16 taa', 'time_s': 0.5, 'error': 0.01}]}],
+             'equal_time': [{'budget': '1 s', 'budget_s': 1.0, 'best': {
+                 'raster': None, 'eevee': {'label': '16 taa', 'time_s': 0.5, 'error': 0.01}}}]}
+    with open(os.path.join(run, 'timing', 'alpha.json'), 'w', encoding='utf-8') as f:
+        json.dump(sweep, f)
+    assert run_report('--run', run).returncode == 0
+    html = read(os.path.join(run, 'index.html'))
+    assert '<th>budget</th><th>raster</th><th>eevee</th><th>Cycles (fit)</th>' in html
+    assert 'reference: cycles twin 4096 spp' in html and '16 taa, 0.5 s' in html

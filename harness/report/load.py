@@ -11,14 +11,20 @@ import re
 
 from .util import VERDICT_ORDER, VERDICTS, Problems, finite, is_num, read_json, safe_name
 
-def image_candidates(renderer, role):
-    """view.js / job keys a comparison may use: agree uses validate renders, and the rasterizer
-    has one render (its twin) that a validate comparison measures."""
-    if role == 'agree':
-        return [f'{renderer}-agree', f'{renderer}-validate']
-    if role == 'validate':
-        return [f'{renderer}-validate', f'{renderer}-twin']
-    return [f'{renderer}-{role}']
+# A comparison side reads its renderer's render of the comparison's role (the C harness renders
+# every role separately). Run folders from before that name the render a role stood in for: an
+# agree comparison read the validate renders, and a validate comparison a renderer's twin render
+# when it had no other (the rasterizer's). Roles only: which renderers exist comes from the files.
+ROLE_STANDS_IN = {'agree': 'validate', 'validate': 'twin'}
+
+
+def pick_render(renders, renderer, role):
+    """The key '<renderer>-<role>' among `renders` (the scene's view.js images or job records)
+    that a comparison side of `renderer` in `role` reads, or None."""
+    for r in (role, ROLE_STANDS_IN.get(role)):
+        if r and f'{renderer}-{r}' in renders:
+            return f'{renderer}-{r}'
+    return None
 
 
 def read_view(path, problems, scene):
@@ -155,14 +161,15 @@ def load_scene(run, name, problems):
         sc['jobs'].append(rec)
     sc['view'] = read_view(os.path.join(d, 'view.js'), problems, name)
     images = sc['view']['images'] if sc['view'] else []
+    jobs = {}
+    for j in sc['jobs']:
+        jobs.setdefault(f'{j.get("renderer")}-{j.get("role")}', j)
     for c in sc['comparisons']:
         if c.get('pseudo'):
             continue
-        for side, key in (('test', 'test_key'), ('reference', 'ref_key')):
-            c[key] = next((k for k in image_candidates(c[side], c['role']) if k in images), None)
-        for side, key in (('test', 'test_job'), ('reference', 'ref_job')):
-            cands = image_candidates(c[side], c['role'])
-            c[key] = next((j for k in cands for j in sc['jobs'] if f'{j.get("renderer")}-{j.get("role")}' == k), None)
+        for side, image_key, job_key in (('test', 'test_key', 'test_job'), ('reference', 'ref_key', 'ref_job')):
+            c[image_key] = pick_render(images, c[side], c['role'])
+            c[job_key] = jobs.get(pick_render(jobs, c[side], c['role']))
     return sc
 
 

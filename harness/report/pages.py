@@ -20,8 +20,6 @@ from .util import (JOB_ORDER, ROLE_LEGEND, VERDICT_ORDER, VERDICTS, chan_name, f
 
 TEMPLATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'templates')
 IDS = load_ids()
-# Equal-time columns of a sweep, in this order.
-EQUAL_TIME_RENDERERS = (('raster', 'raster'), ('povray', 'POV-Ray'), ('cycles', 'Cycles'))
 
 
 def _plain(f):
@@ -119,11 +117,13 @@ def sweep_overview(sweeps):
     """One row per scene: the headline numbers of every sweep."""
     rows = []
     for name, t in sweeps:
-        cyc = next((sr for sr in t['series'] if isinstance(sr, dict) and sr.get('renderer') == 'cycles'), {})
+        ref = _dict(t.get('reference'))
+        # the reference renderer's own series (spp levels) carries the fits against samples
+        cyc = next((sr for sr in t['series'] if isinstance(sr, dict) and sr.get('renderer') == ref.get('renderer')), {})
         fs, ft = _dict(cyc.get('fit_spp')), _dict(cyc.get('fit'))
         cb = t.get('crossover_best_raster') if isinstance(t.get('crossover_best_raster'), dict) else None
         rows.append({'name': name, 'anchor': safe_name(name), 'asis': _dict(t.get('as_is')),
-                     'ref': _dict(t.get('reference')), 'off': finite(fs.get('slope')) and abs(fs['slope'] + 0.5) > 0.1,
+                     'ref': ref, 'off': finite(fs.get('slope')) and abs(fs['slope'] + 0.5) > 0.1,
                      'slope_spp': fs.get('slope', math.nan), 'slope_t': ft.get('slope', math.nan),
                      'note': cyc.get('slope_note', ''), 'crossover': t.get('crossover'), 'best': cb})
     return rows
@@ -142,23 +142,25 @@ def sweep_view(name, t, plots):
         tm = sr.get('time_model') if isinstance(sr.get('time_model'), dict) else None
         fits.append({'label': sr.get('label'), 'fits': pair, 'note': sr.get('slope_note', ''),
                      'time_model': f'{fsec(tm.get("t0_s"))} s + {fexp(tm.get("s_per_spp"))} s/spp' if tm else ''})
+    # one column per renderer the sweep names, in its order
+    equal_time = [e for e in t.get('equal_time') or [] if isinstance(e, dict)]
+    renderers = []
+    for e in equal_time:
+        renderers += [r for r in _dict(e.get('best')) if r not in renderers]
     equal = []
-    for e in t.get('equal_time') or []:
-        if not isinstance(e, dict):
-            continue
+    for e in equal_time:
         best = _dict(e.get('best'))
         budget = text(e.get('budget'))
         if not str(e.get('budget', '')).endswith(' s'):
             budget += f' ({fsec(e.get("budget_s"))} s)'
         equal.append({'budget': budget, 'fit_error': e.get('cycles_fit_error'),
-                      'best': [b if isinstance(b, dict) else None
-                               for b in (best.get(r) for r, _ in EQUAL_TIME_RENDERERS)]})
+                      'best': [b if isinstance(b, dict) else None for b in (best.get(r) for r in renderers)]})
     points = [(sr.get('label'), p) for sr in t['series'] if isinstance(sr, dict)
               for p in sr.get('points') or [] if isinstance(p, dict)]
     skipped = t.get('skipped') or []
     return {'sweep': True, 'name': name, 'anchor': safe_name(name), 'plot': plots.get(name),
             'size': 'x'.join(str(v) for v in t.get('size') or []), 'ref': t.get('reference') or {},
-            'fits': fits, 'eq_renderers': [label for _, label in EQUAL_TIME_RENDERERS], 'equal_time': equal,
+            'fits': fits, 'eq_renderers': renderers, 'equal_time': equal,
             'pareto': ', '.join(f'{text(p.get("renderer"))} {text(p.get("label"))}' for p in t.get('pareto') or []
                                 if isinstance(p, dict)),
             'crossover': t.get('crossover'), 'error_key': ek, 'points': points,

@@ -6,6 +6,9 @@ import math
 
 from .util import fexp, finite, is_num, yaml_num
 
+# A scene file's comparison leaves `test` out when it is this one (scenes/FORMAT.md).
+SCENE_DEFAULT_TEST = 'raster'
+
 def round_up_1sig(v):
     """Smallest 1-significant-digit number >= v (2.34e-4 -> 3e-4)."""
     if v <= 0:
@@ -87,7 +90,7 @@ def proposal(R):
                 lines.append(f'@@ {c["id"]}: {c["reason"]} @@')
                 continue
             lines.append(f'@@ {c["id"]} ({c["role"]}, {c["status"]}) @@')
-            test = '' if c.get('test', 'raster') == 'raster' else f'test: {c["test"]}, '
+            test = '' if c.get('test', SCENE_DEFAULT_TEST) == SCENE_DEFAULT_TEST else f'test: {c["test"]}, '
             lines.append(f'   - {{{test}reference: {c.get("reference", "?")}, role: {c["role"]}}}')
             lines.append('     thresholds:')
             if not c['thresholds']:
