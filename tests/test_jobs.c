@@ -175,8 +175,8 @@ static void write_text(const char *path, const char *text)
     fclose(f);
 }
 
-/* work/NAME.yaml with tri.obj and env.exr beside it; returns the scene's path. */
-static const char *tiny_scene(const char *name)
+/* work/NAME.yaml (w x h px) with tri.obj and env.exr beside it; returns the scene's path. */
+static const char *sized_scene(const char *name, int w, int h)
 {
     static char path[256];
     char p[256], yaml[1024];
@@ -188,7 +188,7 @@ static const char *tiny_scene(const char *name)
         write_exr(p, 8, 4, 0.25f);
     snprintf(yaml, sizeof yaml,
              "name: %s\n"
-             "image: {width: 8, height: 6, supersample: 1, timeout: 60}\n"
+             "image: {width: %d, height: %d, supersample: 1, timeout: 60}\n"
              "camera: {eye: [0, 0.5, 4], target: [0, 0.5, 0], hfov: 40}\n"
              "environment: {image: env.exr}\n"
              "lights:\n  - {type: point, position: [2, 4, 3], intensity: [30, 30, 30]}\n"
@@ -196,10 +196,15 @@ static const char *tiny_scene(const char *name)
              "objects:\n  - {shape: mesh, path: tri.obj, material: white}\n"
              "comparisons:\n  - reference: povray\n    role: twin\n"
              "    thresholds: {rel_rms: {warn: 1e-3, fail: 2e-3, why: \"test\"}}\n",
-             name);
+             name, w, h);
     snprintf(path, sizeof path, "%s/%s.yaml", work, name);
     write_text(path, yaml);
     return path;
+}
+
+static const char *tiny_scene(const char *name)
+{
+    return sized_scene(name, 8, 6);
 }
 
 /* A fake POV-Ray that renders by copying an 8 x 6 image (what the tiny scene asks for). */
@@ -317,6 +322,27 @@ static void test_cache_folder_error_is_recorded(void **state)
     assert_int_equal(rc, 1);
     assert_string_equal(status, "error");
     assert_non_null(strstr(msg, "cache"));
+}
+
+static void test_full_disk_is_an_error(void **state)
+{
+    (void)state;
+    /* A file size limit stands in for a full disk: the image (tens of KB at 64 x 48) cannot
+     * be written, the record (under 1 KB) can. Our side's error: exit 1, status error. */
+    const char *yaml = sized_scene("big", 64, 48);
+    char out[256], cmd[1200], status[64], msg[600];
+    snprintf(out, sizeof out, "%s/full", out_dir);
+    snprintf(cmd, sizeof cmd,
+             "sh -c 'ulimit -f 4; trap \"\" XFSZ; exec %s run %s --renderer raster --role twin --no-cache --out %s' "
+             ">/dev/null 2>&1",
+             cli_bin(), yaml, out);
+    int st = system(cmd);
+    assert_true(WIFEXITED(st));
+    record_field(out, "big", "raster", "status", status, sizeof status);
+    record_field(out, "big", "raster", "message", msg, sizeof msg);
+    assert_string_equal(status, "error");
+    assert_non_null(strstr(msg, "too large"));
+    assert_int_equal(WEXITSTATUS(st), 1);
 }
 
 /* Runs the tiny scene's raster job on a cache; returns the record's "cached". */
@@ -552,6 +578,7 @@ int main(void)
         cmocka_unit_test(test_run_exit_status),
         cmocka_unit_test(test_run_bad_input_is_2),
         cmocka_unit_test(test_cache_folder_error_is_recorded),
+        cmocka_unit_test(test_full_disk_is_an_error),
         cmocka_unit_test(test_cache_key_covers_referenced_files),
         cmocka_unit_test(test_two_runs_share_a_cache),
         cmocka_unit_test(test_killed_run_sigkill),
