@@ -1,6 +1,11 @@
-/* reflcheck compare: measure each listed comparison of the scenes on one run's renders. */
+/* reflcheck compare: measure each listed comparison of the scenes on one run's renders.
+ * reflcheck diff: the metrics of one image pair; exit 0 ok, 1 the value gate fails or the
+ * metrics cannot be written, 2 bad input (command line, an image that cannot be read or does
+ * not match). */
+#include <errno.h>
 #include <getopt.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "cli.h"
 #include "compare.h"
@@ -66,10 +71,21 @@ int cli_diff(int argc, char **argv)
         return CLI_BAD_INPUT;
     }
     char err[1024];
-    rc_status st = compare_images(argv[optind], argv[optind + 1], mask, stdout, err, sizeof err);
+    int gate_failed = 0;
+    rc_status st = compare_images(argv[optind], argv[optind + 1], mask, stdout, &gate_failed, err, sizeof err);
     if (st != RC_OK) {
+        /* Every image here is the user's input: one that cannot be read or does not match is
+         * bad input; only running out of memory is ours. */
         fprintf(stderr, "reflcheck: %s\n", err);
-        return st == RC_ERR_IO ? CLI_BAD_INPUT : cli_exit_status(st);
+        return st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+    }
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        fprintf(stderr, "reflcheck: diff: cannot write the metrics to standard output: %s\n", strerror(errno));
+        return CLI_FAILED;
+    }
+    if (gate_failed) {
+        fprintf(stderr, "reflcheck: diff %s %s: %s\n", argv[optind], argv[optind + 1], err);
+        return CLI_FAILED;
     }
     return CLI_OK;
 }

@@ -12,6 +12,7 @@
 #include "exr.h"
 #include "fileio.h"
 #include "jobs.h"
+#include "d3d9client.h"
 #include "metrics.h"
 #include "scene_file.h"
 
@@ -157,6 +158,7 @@ static cJSON *compare_region(const metrics_image *ref, const metrics_image *test
     }
     cJSON *o = compare_metrics_json(&r);
     cJSON_AddNumberToObject(o, "nrmse", n > 0 && sum > 0.0 ? r.rmse / (sum / (double)n) : 0.0);
+    cJSON_AddNumberToObject(o, "nrmse_mean_n", (double)n);
     return o;
 }
 
@@ -168,31 +170,39 @@ static cJSON *compare_angle_bins(const metrics_image *ref, const metrics_image *
     if (angle == NULL)
         return arr;
     double se[COMPARE_ANGLE_BINS] = {0}, sr[COMPARE_ANGLE_BINS] = {0};
-    long n[COMPARE_ANGLE_BINS] = {0};
+    long n[COMPARE_ANGLE_BINS] = {0}, bad[COMPARE_ANGLE_BINS] = {0};
     size_t np = (size_t)ref->width * (size_t)ref->height;
     for (size_t i = 0; i < np; i++) {
         if (!mask[i] || !(angle[i] > 0.0f))
             continue;
         int b = (int)(angle[i] * COMPARE_ANGLE_BINS);
         b = b >= COMPARE_ANGLE_BINS ? COMPARE_ANGLE_BINS - 1 : b;
+        int finite = 1;
+        for (int c = 0; c < 3; c++)
+            finite &= isfinite((double)test->c[c][i] - (double)ref->c[c][i]);
+        /* Counted apart, as metrics_compare does, so a bin says how many pixels it measured. */
+        if (!finite) {
+            bad[b]++;
+            continue;
+        }
         for (int c = 0; c < 3; c++) {
             double d = (double)test->c[c][i] - (double)ref->c[c][i];
-            if (!isfinite(d))
-                continue;
             se[b] += d * d / ((double)ref->c[c][i] * ref->c[c][i] + COMPARE_REL_EPS);
             sr[b] += fabs(d) / (fabs((double)ref->c[c][i]) + sqrt(COMPARE_REL_EPS));
         }
         n[b]++;
     }
     for (int b = 0; b < COMPARE_ANGLE_BINS; b++) {
-        if (n[b] == 0)
+        if (n[b] == 0 && bad[b] == 0)
             continue;
         cJSON *o = cJSON_CreateObject();
         cJSON_AddNumberToObject(o, "lo", (double)b / COMPARE_ANGLE_BINS);
         cJSON_AddNumberToObject(o, "hi", (double)(b + 1) / COMPARE_ANGLE_BINS);
         cJSON_AddNumberToObject(o, "n", (double)n[b]);
-        cJSON_AddNumberToObject(o, "rel_rms", sqrt(se[b] / (3.0 * (double)n[b])));
-        cJSON_AddNumberToObject(o, "mean_rel", sr[b] / (3.0 * (double)n[b]));
+        cJSON_AddNumberToObject(o, "n_nonfinite", (double)bad[b]);
+        /* A bin of only non-finite pixels measured nothing: NaN, which cJSON writes as null. */
+        cJSON_AddNumberToObject(o, "rel_rms", n[b] > 0 ? sqrt(se[b] / (3.0 * (double)n[b])) : NAN);
+        cJSON_AddNumberToObject(o, "mean_rel", n[b] > 0 ? sr[b] / (3.0 * (double)n[b]) : NAN);
         cJSON_AddItemToArray(arr, o);
     }
     return arr;
@@ -260,6 +270,7 @@ static cJSON *compare_noise(const exr_image *ref, const metrics_image *refm, con
         if (metrics_ztest(refm, &pv, testm, tvp, mask, &zo, &z, e, sizeof e) == RC_OK) {
             cJSON *zj = cJSON_AddObjectToObject(o, "ztest");
             cJSON_AddNumberToObject(zj, "n_tests", (double)z.n_tests);
+            cJSON_AddNumberToObject(zj, "n_nonfinite", (double)z.n_nonfinite);
             cJSON_AddNumberToObject(zj, "n_fail", (double)z.n_fail);
             cJSON_AddNumberToObject(zj, "n_fail_pixels", (double)z.n_fail_pixels);
             cJSON_AddNumberToObject(zj, "z_crit", z.z_crit);
@@ -285,7 +296,8 @@ static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
     } else if (strcmp(metric, "noise_rel_rms") == 0) {
         x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ref_rel_rms");
     } else if (strcmp(metric, "coverage_agreement") == 0 || strcmp(metric, "test_nonfinite") == 0 ||
-               strcmp(metric, "ref_nonfinite") == 0) {
+               strcmp(metric, "ref_nonfinite") == 0 || strcmp(metric, "test_negative") == 0 ||
+               strcmp(metric, "ref_negative") == 0) {
         x = cJSON_GetObjectItemCaseSensitive(cmp, metric);
     } else if (dot != NULL && (size_t)(dot - metric) < sizeof head) {
         memcpy(head, metric, (size_t)(dot - metric));
@@ -325,13 +337,15 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
         cJSON_AddStringToObject(o, "why", t->why);
         double v;
         const char *verdict;
-        if (!compare_metric_value(cmp, t->metric, &v)) {
+        /* A NaN compares false with both limits and would pass: it fails like a missing value. */
+        if (!compare_metric_value(cmp, t->metric, &v) || isnan(v)) {
             verdict = "fail";
             cJSON_AddNullToObject(o, "value");
             worst = 2;
             if (sum->first_failure[0] == '\0')
                 snprintf(sum->first_failure, sizeof sum->first_failure,
-                         "%s: %s: metric %s was not measured (threshold %g)", s->name, id, t->metric, t->fail);
+                         "%s: %s: metric %s was not measured or is NaN (threshold %g)", s->name, id, t->metric,
+                         t->fail);
         } else {
             int hib = compare_higher_is_better(t->metric);
             int fail = hib ? v < t->fail : v > t->fail;
@@ -438,6 +452,112 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
 }
 
 
+/* Non-finite and negative values of one image over the layers a comparison reads. */
+typedef struct {
+    long channels, values, nonfinite, negative;
+    int negative_allowed; /* radiance may be < 0: the scene's own parameters allow it */
+    long negative_gated;  /* negatives that fail: radiance unless allowed, variance always */
+    char first_nonfinite[128], first_negative[128];
+} compare_values;
+
+enum { COMPARE_CH_RADIANCE, COMPARE_CH_VARIANCE, COMPARE_CH_GEOMETRY };
+
+/* 1 when every material can only reflect radiance >= 0. Colours, lights and the environment
+ * are >= 0 (the scene parser and frame_env_load check), so only the D3D9Client weights can go
+ * below 0: the diffuse weight 1 - |lambda| when |lambda| > 1, and 1 - R in eq. 5 and 8 when
+ * R = r0 + m (1 - N.V)^p exceeds 1, which needs r0 + m > 1. The default m = 1 - r0 is
+ * rounded to float, so the sum may sit a few float ulps (6e-8 each) above 1: an excess below
+ * 1e-6 is that rounding, not a parameter choice, and is not taken as a promise broken. */
+#define COMPARE_R_SUM_TOL 1e-6
+static int compare_scene_nonnegative(const scene *s)
+{
+    for (int i = 0; i < s->n_materials; i++) {
+        const material *m = &s->materials[i];
+        if (m->model == MODEL_D3D9CLIENT && (!(d3d9_colour_norm(m->d9.reflect, m->d9.norm) <= 1.0f) ||
+                                             (double)m->d9.r0 + (double)m->d9.m > 1.0 + COMPARE_R_SUM_TOL))
+            return 0;
+    }
+    return 1;
+}
+
+/* Our rasterizer and a twin reference compute the scene's model, so they may go below 0
+ * where the model does; a physical reference (validate, agree) never reflects negative light. */
+static int compare_negative_allowed(int scene_nonnegative, renderer_id renderer, comparison_role role)
+{
+    return !scene_nonnegative && (renderer == RENDERER_RASTER || role == ROLE_TWIN);
+}
+
+static void compare_scan_channel(const exr_image *img, const char *name, int kind, compare_values *v)
+{
+    const float *p = exr_image_channel(img, name);
+    if (p == NULL)
+        return;
+    metrics_value_scan sc;
+    metrics_scan_values(p, (size_t)img->width * (size_t)img->height, &sc);
+    v->channels++;
+    v->values += sc.n_values;
+    v->nonfinite += sc.n_nonfinite;
+    if (sc.n_nonfinite > 0 && v->first_nonfinite[0] == '\0')
+        snprintf(v->first_nonfinite, sizeof v->first_nonfinite, "%s at (x %ld, y %ld) = %g", name,
+                 sc.first_nonfinite % img->width, sc.first_nonfinite / img->width, (double)sc.nonfinite_value);
+    /* Geometry may be negative: object is -1 on the background, N.L < 0 faces away from a light. */
+    if (kind == COMPARE_CH_GEOMETRY)
+        return;
+    v->negative += sc.n_negative;
+    if (kind == COMPARE_CH_RADIANCE && v->negative_allowed)
+        return;
+    v->negative_gated += sc.n_negative;
+    if (sc.n_negative > 0 && v->first_negative[0] == '\0')
+        snprintf(v->first_negative, sizeof v->first_negative, "%s at (x %ld, y %ld) = %g", name,
+                 sc.first_negative % img->width, sc.first_negative / img->width, (double)sc.negative_value);
+}
+
+/* Radiance (R, G, B; in a twin also the term layers), variance and geometry layers, where
+ * present; geometry_only for the raster image that only lends its masks. */
+static void compare_scan_image(const exr_image *img, int twin, int geometry_only, compare_values *v)
+{
+    static const char *const geometry[4] = {"coverage", "object", "ndotv", "ndotl"};
+    char name[64];
+    for (int c = 0; c < 3 && !geometry_only; c++) {
+        snprintf(name, sizeof name, "%c", "RGB"[c]);
+        compare_scan_channel(img, name, COMPARE_CH_RADIANCE, v);
+        for (int a = 0; a < 3 && twin; a++) {
+            snprintf(name, sizeof name, "%s.%c", compare_aovs[a], "RGB"[c]);
+            compare_scan_channel(img, name, COMPARE_CH_RADIANCE, v);
+        }
+        snprintf(name, sizeof name, "var.%c", "RGB"[c]);
+        compare_scan_channel(img, name, COMPARE_CH_VARIANCE, v);
+    }
+    for (int g = 0; g < 4; g++)
+        compare_scan_channel(img, geometry[g], COMPARE_CH_GEOMETRY, v);
+}
+
+/* Adds a side's counts to values[side] and, when they fail the gate, a clause to gate. */
+static void compare_values_report(const compare_values *v, const char *side, const char *renderer, cJSON *values,
+                                  char *gate, size_t len)
+{
+    cJSON *o = cJSON_AddObjectToObject(values, side);
+    cJSON_AddNumberToObject(o, "channels", (double)v->channels);
+    cJSON_AddNumberToObject(o, "values", (double)v->values);
+    cJSON_AddNumberToObject(o, "nonfinite", (double)v->nonfinite);
+    cJSON_AddNumberToObject(o, "negative", (double)v->negative);
+    cJSON_AddBoolToObject(o, "negative_allowed", v->negative_allowed);
+    if (v->first_nonfinite[0])
+        cJSON_AddStringToObject(o, "first_nonfinite", v->first_nonfinite);
+    if (v->first_negative[0])
+        cJSON_AddStringToObject(o, "first_negative", v->first_negative);
+    if (v->nonfinite == 0 && v->negative_gated == 0)
+        return;
+    size_t used = strlen(gate);
+    char nf[200] = "", ng[200] = "";
+    if (v->nonfinite > 0)
+        snprintf(nf, sizeof nf, "%ld non-finite (first %s)", v->nonfinite, v->first_nonfinite);
+    if (v->negative_gated > 0)
+        snprintf(ng, sizeof ng, "%ld negative (first %s)", v->negative_gated, v->first_negative);
+    snprintf(gate + used, len - used, "%s%s %s: %s%s%s of %ld values; its output must be finite and >= 0",
+             used ? "; " : "", side, renderer, nf, nf[0] && ng[0] ? " and " : "", ng, v->values);
+}
+
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
@@ -496,27 +616,41 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     size_t np = (size_t)w * (size_t)h;
     unsigned char *cls = malloc(np), *mask[3] = {malloc(np), malloc(np), malloc(np)};
     metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
-    /* How each side copes with extremes: NaN/Inf values (a half-float EXR overflows to Inf
-     * above 65504) and the largest finite value, over the whole image. */
+    /* The largest finite value of each side (a half-float EXR overflows to Inf above 65504). */
     const metrics_image *sides[2] = {&tm, &rm};
     const char *side_names[2] = {"test", "ref"};
     for (int sd = 0; sd < 2; sd++) {
-        long nonfinite = 0;
         double vmax = 0.0;
         for (size_t i = 0; i < np; i++)
             for (int ch = 0; ch < 3; ch++) {
                 double v = sides[sd]->c[ch][i];
-                if (!isfinite(v))
-                    nonfinite++;
-                else if (v > vmax)
+                if (isfinite(v) && v > vmax)
                     vmax = v;
             }
         char key[32];
-        snprintf(key, sizeof key, "%s_nonfinite", side_names[sd]);
-        cJSON_AddNumberToObject(o, key, (double)nonfinite);
         snprintf(key, sizeof key, "%s_max", side_names[sd]);
         cJSON_AddNumberToObject(o, key, vmax);
     }
+    /* The value gate: every layer either image holds that the comparison may read, all pixels,
+     * whatever the thresholds say. */
+    int promise = compare_scene_nonnegative(s);
+    compare_values vt = {.negative_allowed = compare_negative_allowed(promise, c->test, c->role)};
+    compare_values vr = {.negative_allowed = compare_negative_allowed(promise, c->reference, c->role)};
+    compare_values vm = {0};
+    compare_scan_image(&t.img, c->role == ROLE_TWIN, 0, &vt);
+    compare_scan_image(&r.img, c->role == ROLE_TWIN, 0, &vr);
+    if (geo == &mask_src.img)
+        compare_scan_image(&mask_src.img, 0, 1, &vm);
+    char gate[900] = "";
+    cJSON *values = cJSON_AddObjectToObject(o, "values");
+    compare_values_report(&vt, "test", job_renderer_names[c->test], values, gate, sizeof gate);
+    compare_values_report(&vr, "ref", job_renderer_names[c->reference], values, gate, sizeof gate);
+    if (geo == &mask_src.img)
+        compare_values_report(&vm, "mask", "raster geometry", values, gate, sizeof gate);
+    cJSON_AddNumberToObject(o, "test_nonfinite", (double)vt.nonfinite);
+    cJSON_AddNumberToObject(o, "ref_nonfinite", (double)vr.nonfinite);
+    cJSON_AddNumberToObject(o, "test_negative", (double)vt.negative);
+    cJSON_AddNumberToObject(o, "ref_negative", (double)vr.negative);
     const char *region_names[3] = {"surface", "edges", "background"};
     const int region_class[3] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND};
     cJSON *regions = cJSON_AddObjectToObject(o, "regions");
@@ -582,7 +716,14 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     cJSON_AddNumberToObject(times, "test_wall_s", cJSON_IsNumber(tw) ? tw->valuedouble : 0.0);
     cJSON_AddNumberToObject(times, "reference_wall_s", cJSON_IsNumber(rw) ? rw->valuedouble : 0.0);
 
+    if (gate[0] != '\0' && sum->first_failure[0] == '\0')
+        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: values: %s", s->name, id, gate);
     const char *verdict = compare_judge(s, c, o, id, sum);
+    if (gate[0] != '\0') {
+        verdict = "fail";
+        snprintf(reason, sizeof reason, "values: %s", gate);
+        cJSON_AddStringToObject(o, "reason", reason);
+    }
     cJSON_AddStringToObject(o, "status", verdict);
     if (strcmp(verdict, "fail") == 0)
         sum->fail++;
@@ -628,9 +769,10 @@ rc_status compare_scene(const char *scene_path, const char *run_dir, compare_sum
     return st;
 }
 
-rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, char *err,
-                         size_t errlen)
+rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, int *failed,
+                         char *err, size_t errlen)
 {
+    *failed = 0;
     exr_image t, r, g;
     int have_g = 0;
     rc_status st = exr_read(test_exr, &t, err, errlen);
@@ -671,6 +813,24 @@ rc_status compare_images(const char *test_exr, const char *ref_exr, const char *
             cJSON *noise = compare_noise(&r, &rm, &t, &tm, mask);
             if (noise != NULL)
                 cJSON_AddItemToObject(o, "noise", noise);
+            /* The same value gate as compare_scene's, for images of a model that promises
+             * radiance >= 0 (every model with physical parameters). */
+            compare_values vt = {0}, vr = {0}, vg = {0};
+            compare_scan_image(&t, 0, 0, &vt);
+            compare_scan_image(&r, 0, 0, &vr);
+            char gate[900] = "";
+            cJSON *values = cJSON_AddObjectToObject(o, "values");
+            compare_values_report(&vt, "test", test_exr, values, gate, sizeof gate);
+            compare_values_report(&vr, "ref", ref_exr, values, gate, sizeof gate);
+            if (have_g) {
+                compare_scan_image(&g, 0, 1, &vg);
+                compare_values_report(&vg, "mask", mask_exr, values, gate, sizeof gate);
+            }
+            cJSON_AddStringToObject(o, "status", gate[0] ? "fail" : "pass");
+            if (gate[0]) {
+                *failed = 1;
+                snprintf(err, errlen, "values: %s", gate);
+            }
             char *text = cJSON_Print(o);
             if (text != NULL) {
                 fprintf(out, "%s\n", text);

@@ -2,22 +2,38 @@
  *
  * Usage:
  *   compare_scene("scenes/x.yaml", "reports/runs/r1", &summary, err, sizeof err);
+ *   compare_images("t.exr", "r.exr", NULL, stdout, &failed, err, sizeof err);    reflcheck diff
  * Reads RUN/<scene>/<renderer>-<role>.exr and .json (harness/jobs.h), writes
  * RUN/<scene>/compare.json (format: reports/FORMAT.md) and RUN/<scene>/view.js (the
  * linear images for the report's viewer).
  * Status of a comparison: "skipped" only when a side's job record says skipped (renderer not
  * installed, or it cannot represent the scene); "error" when a record is missing or not JSON,
  * says anything but ok or skipped (failed, crashed, timeout, error), or its image cannot be
- * read, lacks R, G, B or differs in size; else "pass", "warn" or "fail" from the thresholds.
- * "reason" says why for skipped and error.
+ * read, lacks R, G, B or differs in size; else "pass", "warn" or "fail" from the thresholds
+ * and the value gate. "reason" says why for skipped, error and a gate failure.
+ * Value gate: every comparison counts, over all pixels of both images and every layer it may
+ * read (R, G, B; in a twin the diffuse, specular, reflection layers; var.*; coverage, object,
+ * ndotv, ndotl), the NaN/Inf values and the negative radiance and variance values, into
+ * "values" (per side: channels, values, nonfinite, negative, negative_allowed, the first of
+ * each) and test_nonfinite, ref_nonfinite, test_negative, ref_negative. Any non-finite value,
+ * and any negative one where the model promises radiance >= 0, fails the comparison by
+ * itself. Negative radiance is allowed only in our render and twin references of a scene with
+ * a D3D9Client material whose |reflect| > 1 or r0 + m > 1 (the model's weights go below 0).
  * Regions are kept apart: surface (interior pixels), edges (silhouettes: partial coverage or
  * an object boundary, from the rasterizer's coverage and object layers) and background.
+ * Every metric says how many pixels it used: n_pixels and n_nonfinite per region, nrmse_mean_n,
+ * n and n_nonfinite per angle bin, n_tests and n_nonfinite in the z-test.
  * Thresholds (from the scene file) are judged on the surface unless the metric names a
  * region or layer: "rel_rms", "edges.rel_rms", "reflection.rel_rms", "z_fail_share",
- * "coverage_agreement", "test_nonfinite" (NaN/Inf values in the test image). psnr, ssim and coverage_agreement fail below the threshold, every
- * other metric above it.
+ * "coverage_agreement", "test_nonfinite", "ref_nonfinite", "test_negative", "ref_negative".
+ * psnr, ssim and coverage_agreement fail below the threshold, every other metric above it; a
+ * metric that was not measured or is NaN fails.
  * summary counts verdicts; returns RC_OK unless the scene or our own files cannot be read or
  * written.
+ * compare_images prints the metrics of one pair and the same value gate (every image taken
+ * as radiance >= 0); *failed = 1 with the reason in err when the gate fails. Returns
+ * exr_read's status for an image that cannot be read, RC_ERR_RANGE for sizes or channels that
+ * do not match, RC_ERR_NOMEM.
  */
 #ifndef REFLCHECK_COMPARE_H
 #define REFLCHECK_COMPARE_H
@@ -35,9 +51,10 @@ rc_status compare_scene(const char *scene_path, const char *run_dir, compare_sum
                         size_t errlen);
 
 /* Metrics between two EXR images (regions from mask_exr's, else test's, coverage and object
- * layers; z-test where ref has var.* layers), printed as one JSON object to out. */
-rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, char *err,
-                         size_t errlen);
+ * layers; z-test where ref has var.* layers) and the value gate, printed as one JSON object
+ * to out. */
+rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, int *failed,
+                         char *err, size_t errlen);
 
 /* Relative error denominators r^2 + COMPARE_REL_EPS: below 1e-4 radiance a pixel is dark
  * enough that half-float and noise floors dominate; above it the error is truly relative. */

@@ -1,6 +1,6 @@
-/* test_gates.c - gates that count everything: job statuses mapped to comparison statuses
- * (only a skipped job skips; a crash, a timeout, a missing record or an unreadable image is
- * an error).
+/* test_gates.c - gates that count everything: the value gate of every comparison and of diff
+ * (NaN, Inf, negative values in any layer fail by themselves), job statuses mapped to
+ * comparison statuses (only a skipped job skips), and diff's exit status.
  * Run folders are built by hand (job records and EXRs written here), so every expected count
  * is known exactly: the images are 16x8, all covered by one object, so every pixel is surface. */
 #include <setjmp.h>
@@ -143,6 +143,14 @@ static const char *jstr(const cJSON *o, const char *key)
     return cJSON_IsString(v) ? v->valuestring : "";
 }
 
+static double jnum(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (!cJSON_IsNumber(v))
+        fail_msg("key %s is not a number", key);
+    return v->valuedouble;
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -157,6 +165,148 @@ static int teardown(void **state)
     char cmd[512];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
     return system(cmd) == 0 ? 0 : -1;
+}
+
+/* The issue's case: a test image 86 % NaN on the surface passed a twin rel_rms gate, because
+ * the metrics skip NaN pixels and the 14 % left agree exactly. */
+static void test_nan_surface_fails_twin(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048];
+    snprintf(scn, sizeof scn, "%s/nan.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-nan", dir);
+    put_scene(scn, "nan", "twin", "d3d", "");
+    static gate_image t, r;
+    image_flat(&t, 0.5f);
+    image_flat(&r, 0.5f);
+    for (int i = 0; i < 110; i++) /* 110 of 128 pixels: 86 % */
+        t.rgb[0][i] = NAN;
+    put_job(run, "nan", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "nan", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    assert_non_null(strstr(err, "110 non-finite (first R at (x 0, y 0) = nan)"));
+    cJSON *j = read_compare(run, "nan");
+    const cJSON *c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_non_null(strstr(jstr(c, "reason"), "test raster: 110 non-finite"));
+    assert_int_equal((long)jnum(c, "test_nonfinite"), 110);
+    assert_int_equal((long)jnum(c, "ref_nonfinite"), 0);
+    const cJSON *vt = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "values"), "test");
+    /* R, G, B, 9 term layers (a twin reads them), 3 var layers, coverage, object: 17 x 128. */
+    assert_int_equal((long)jnum(vt, "channels"), 17);
+    assert_int_equal((long)jnum(vt, "values"), 17 * NP);
+    /* The metrics say how many pixels they used: 18 finite of 128. */
+    const cJSON *surf = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "surface");
+    assert_int_equal((long)jnum(surf, "n_pixels"), 18);
+    assert_int_equal((long)jnum(surf, "n_nonfinite"), 110);
+    /* The rel_rms threshold itself still passes: the gate alone fails the comparison. */
+    const cJSON *th = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(c, "thresholds"), 0);
+    assert_string_equal(jstr(th, "verdict"), "pass");
+    cJSON_Delete(j);
+}
+
+/* An Inf in a layer the RGB metrics never look at (the reference's specular term in a twin),
+ * and negative radiance in the reference, each fail the comparison. */
+static void test_inf_layer_and_negative_fail(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048];
+    snprintf(scn, sizeof scn, "%s/inf.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-inf", dir);
+    put_scene(scn, "inf", "twin", "d3d", "");
+    static gate_image t, r;
+    image_flat(&t, 0.5f);
+    image_flat(&r, 0.5f);
+    r.terms[1][2][5 * W + 3] = INFINITY; /* specular.B at (x 3, y 5) */
+    put_job(run, "inf", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    cJSON *j = read_compare(run, "inf");
+    const cJSON *c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_int_equal((long)jnum(c, "ref_nonfinite"), 1);
+    assert_non_null(strstr(jstr(c, "reason"), "ref povray: 1 non-finite (first specular.B at (x 3, y 5) = inf)"));
+    cJSON_Delete(j);
+
+    image_flat(&r, 0.5f);
+    for (int i = 0; i < 3; i++)
+        r.rgb[1][W + i] = -1e-3f; /* G at (0..2, 1) */
+    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_compare(run, "inf");
+    c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_int_equal((long)jnum(c, "ref_negative"), 3);
+    assert_non_null(strstr(jstr(c, "reason"), "3 negative (first G at (x 0, y 1) = -0.001)"));
+    cJSON_Delete(j);
+
+    /* A negative variance is never allowed, and its NaN noise_rel_rms = sqrt(< 0) fails its
+     * threshold instead of passing it (NaN compares false with both limits). */
+    char text[1024];
+    snprintf(text, sizeof text,
+             "name: inf\nimage: {width: %d, height: %d}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  m: {model: d3d}\n"
+             "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+             "comparisons:\n  - reference: povray\n    thresholds:\n"
+             "      noise_rel_rms: {warn: 1, fail: 2, why: \"any finite noise passes\"}\n", W, H);
+    write_text(scn, text);
+    image_flat(&r, 0.5f);
+    for (int c3 = 0; c3 < 3; c3++)
+        for (int i = 0; i < NP; i++)
+            r.var[c3][i] = -1.0f;
+    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_compare(run, "inf");
+    c = first_comparison(j);
+    const cJSON *th = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(c, "thresholds"), 0);
+    assert_string_equal(jstr(th, "metric"), "noise_rel_rms");
+    assert_string_equal(jstr(th, "verdict"), "fail");
+    assert_true(cJSON_IsNull(cJSON_GetObjectItemCaseSensitive(th, "value")));
+    assert_int_equal((long)jnum(c, "ref_negative"), 3 * NP);
+    cJSON_Delete(j);
+}
+
+/* Negative radiance is the model's own where a D3D9Client |reflect| exceeds 1 (diffuse weight
+ * 1 - |lambda| < 0): counted, allowed in our render and the twin, still refused in a
+ * physical (validate) reference. */
+static void test_negative_allowed_only_where_model_allows(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048];
+    snprintf(scn, sizeof scn, "%s/neg.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-neg", dir);
+    put_scene(scn, "neg", "twin", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
+    static gate_image t;
+    image_flat(&t, 0.5f);
+    t.rgb[0][7] = -0.25f;
+    put_job(run, "neg", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "neg", RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
+    cJSON *j = read_compare(run, "neg");
+    const cJSON *c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "pass");
+    assert_int_equal((long)jnum(c, "test_negative"), 1);
+    assert_int_equal((long)jnum(c, "ref_negative"), 1);
+    cJSON_Delete(j);
+
+    put_scene(scn, "neg", "validate", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
+    put_job(run, "neg", RENDERER_RASTER, ROLE_VALIDATE, "ok", &t);
+    put_job(run, "neg", RENDERER_POVRAY, ROLE_VALIDATE, "ok", &t);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_compare(run, "neg");
+    c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_non_null(strstr(jstr(c, "reason"), "ref povray: 1 negative"));
+    assert_null(strstr(jstr(c, "reason"), "test raster"));
+    cJSON_Delete(j);
+
+    /* The same negative value in a scene whose model cannot go negative fails on both sides. */
+    put_scene(scn, "neg", "twin", "d3d", "");
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_compare(run, "neg");
+    c = first_comparison(j);
+    assert_non_null(strstr(jstr(c, "reason"), "test raster: 1 negative (first R at (x 7, y 0) = -0.25)"));
+    cJSON_Delete(j);
 }
 
 /* Only a job whose record says skipped skips; failed, crashed, timeout, error, a missing
@@ -220,10 +370,49 @@ static void test_job_status_vocabulary(void **state)
     cJSON_Delete(j);
 }
 
+/* diff: 0 ok, 1 the value gate fails or the output cannot be written, 2 bad input. */
+static void test_diff_exit_status(void **state)
+{
+    (void)state;
+    char a[512], b[512], c[512], small[512], err[2048], cmd[2048];
+    snprintf(a, sizeof a, "%s/d-a.exr", dir);
+    snprintf(b, sizeof b, "%s/d-b.exr", dir);
+    snprintf(c, sizeof c, "%s/d-c.exr", dir);
+    snprintf(small, sizeof small, "%s/d-small.exr", dir);
+    static gate_image im;
+    image_flat(&im, 0.5f);
+    image_write(a, &im);
+    im.rgb[2][W * H - 1] = NAN;
+    image_write(b, &im);
+    static float px[4] = {0.5f, 0.5f, 0.5f, 0.5f};
+    exr_channel tiny[3] = {{"R", px}, {"G", px}, {"B", px}};
+    assert_int_equal(exr_write(small, 2, 2, tiny, 3, NULL, 0, err, sizeof err), RC_OK);
+    snprintf(c, sizeof c, "%s/d-missing.exr", dir);
+
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s %s", a, a), 0);
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s %s", b, a), 1);
+    assert_non_null(strstr(err, "test "));
+    assert_non_null(strstr(err, "1 non-finite (first B at (x 15, y 7) = nan)"));
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s %s", a, c), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s %s", a, small), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s", a), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "diff %s %s --bogus", a, a), 2);
+
+    /* stdout on a full disk: the metrics are lost, so the command failed. */
+    snprintf(cmd, sizeof cmd, "%s diff %s %s >/dev/full 2>/dev/null", cli_bin(), a, a);
+    int st = system(cmd);
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_nan_surface_fails_twin),
+        cmocka_unit_test(test_inf_layer_and_negative_fail),
+        cmocka_unit_test(test_negative_allowed_only_where_model_allows),
         cmocka_unit_test(test_job_status_vocabulary),
+        cmocka_unit_test(test_diff_exit_status),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
 }
