@@ -10,6 +10,13 @@
  * Pixels are row-major, row 0 at the top, one float array (w*h) per channel.
  * Half and uint channels are converted to float on read. The image owns its arrays.
  * Errors name the file and what is wrong (missing file, not an EXR, truncated, ...).
+ * exr_write writes a temporary file beside path (beside its target for a symlink) and renames
+ * it over path only when complete: on any failure (full disk, ulimit -f: RC_ERR_IO) an existing
+ * file is left byte for byte and the temporary removed. A path that exists and is not a regular
+ * file (/dev/full, a FIFO, a directory) is refused with RC_ERR_RANGE before anything is written.
+ * exr_read reads regular files only (a device, FIFO or directory: RC_ERR_RANGE, at once, never
+ * blocking) and refuses a header whose float planes (width x height x channels x 4 bytes)
+ * exceed the memory limit (harness/fileio.h: half the physical memory or REFLCHECK_MEMORY_LIMIT).
  */
 #ifndef REFLCHECK_EXR_H
 #define REFLCHECK_EXR_H
