@@ -44,6 +44,7 @@ except ImportError as e:  # the one library outside the standard library: Jinja2
 
 # ---------------------------------------------------------------------------------------------
 
+
 def copy_assets(run):
     for f in ('report.css', 'report.js'):
         with open(os.path.join(ASSETS, f), 'rb') as src:
@@ -60,8 +61,11 @@ def make_report(args):
         rec = history_record(R)
         try:
             if not append_history(args.history, rec, problems):
-                print(f'report: {args.history}: run {R["run_id"]} already recorded with the same figures; '
-                      'not appended again', file=sys.stderr)
+                print(
+                    f'report: {args.history}: run {R["run_id"]} already recorded with the same figures; '
+                    'not appended again',
+                    file=sys.stderr,
+                )
         except OSError as e:
             problems.add(args.history, f'cannot append to history: {e.strerror}')
         history = read_history(args.history, problems)
@@ -73,9 +77,12 @@ def make_report(args):
         trends = plot_trends(R, history, tmp, problems) if history else {}
         timing = plot_timing(R, tmp, problems)
     for s in R['scenes']:
-        write_atomic(os.path.join(args.run, s['page']), pages.scene_html(R, s, angles[s['name']], trends.get(s['name'])))
-    write_atomic(os.path.join(args.run, 'summary.json'),
-                 json.dumps(summary_object(R), indent=1, allow_nan=False) + '\n')
+        write_atomic(
+            os.path.join(args.run, s['page']), pages.scene_html(R, s, angles[s['name']], trends.get(s['name']))
+        )
+    write_atomic(
+        os.path.join(args.run, 'summary.json'), json.dumps(summary_object(R), indent=1, allow_nan=False) + '\n'
+    )
     write_atomic(os.path.join(args.run, 'summary.csv'), summary_csv(R))
     write_atomic(os.path.join(args.run, 'junit.xml'), junit_xml(R))
     write_atomic(os.path.join(args.run, 'index.html'), pages.index_html(R, trends, timing, note))
@@ -85,22 +92,30 @@ def make_report(args):
         try:
             screenshot(os.path.join(args.run, 'index.html'), os.path.join(args.run, 'screenshot.png'))
             if R['scenes']:
-                screenshot(os.path.join(args.run, R['scenes'][0]['page']),
-                           os.path.join(args.run, 'screenshot-scene.png'), '1400,1400')
+                screenshot(
+                    os.path.join(args.run, R['scenes'][0]['page']),
+                    os.path.join(args.run, 'screenshot-scene.png'),
+                    '1400,1400',
+                )
             # The report as a person opens it: every page in headless Chromium, every table row
             # and image loaded (report.js's markers); a page that fails is named, not ignored.
             bad = check_pages(args.run, ['index.html'] + [sc['page'] for sc in R['scenes']])
             for page_name, why in bad:
                 print(f'report: {page_name}: {why}', file=sys.stderr)
-            print(f'report: opened {1 + len(R["scenes"]) - len(bad)} of {1 + len(R["scenes"])} pages in '
-                  f'headless Chromium with every image loaded')
+            print(
+                f'report: opened {1 + len(R["scenes"]) - len(bad)} of {1 + len(R["scenes"])} pages in '
+                f'headless Chromium with every image loaded'
+            )
             if bad:
                 return 1
         except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
             print(f'report: screenshot failed: {e}', file=sys.stderr)
     n = verdict_counts(R)
-    print(f'report: {os.path.join(args.run, "index.html")}: ' + ', '.join(f'{n[v]} {v}' for v in VERDICTS)
-          + f'; {len(problems.items)} input problems')
+    print(
+        f'report: {os.path.join(args.run, "index.html")}: '
+        + ', '.join(f'{n[v]} {v}' for v in VERDICTS)
+        + f'; {len(problems.items)} input problems'
+    )
     return 0
 
 
@@ -127,8 +142,9 @@ def propose_main(args):
     sys.stdout.write(text)
     copy_assets(args.run)
     write_atomic(os.path.join(args.run, 'thresholds-proposal.html'), pages.proposal_html(R, text, rows))
-    print(f'report: wrote {os.path.join(args.run, "thresholds-proposal.html")} (scene files unchanged)',
-          file=sys.stderr)
+    print(
+        f'report: wrote {os.path.join(args.run, "thresholds-proposal.html")} (scene files unchanged)', file=sys.stderr
+    )
     return 0
 
 
@@ -138,10 +154,16 @@ def main(argv=None):
     ap.add_argument('--history', help='append-only JSON-lines history, e.g. reports/history.jsonl')
     ap.add_argument('--commit', help='commit of the run (default: from the run id, else "unknown")')
     ap.add_argument('--latest', help='symlink to point at this run, e.g. reports/latest')
-    ap.add_argument('--screenshot', action='store_true',
-                    help='after writing, save screenshot.png (index) and screenshot-scene.png with headless chromium')
-    ap.add_argument('--propose-thresholds', action='store_true',
-                    help='print current and proposed thresholds, write thresholds-proposal.html, nothing else')
+    ap.add_argument(
+        '--screenshot',
+        action='store_true',
+        help='after writing, save screenshot.png (index) and screenshot-scene.png with headless chromium',
+    )
+    ap.add_argument(
+        '--propose-thresholds',
+        action='store_true',
+        help='print current and proposed thresholds, write thresholds-proposal.html, nothing else',
+    )
     args = ap.parse_args(argv)
     if not os.path.isdir(args.run):
         print(f'report: {args.run}: no such run folder; pass --run reports/runs/<id>', file=sys.stderr)

@@ -22,7 +22,7 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 REPORT = os.path.join(ROOT, 'harness', 'report.py')
-sys.dont_write_bytecode = True   # no __pycache__ in the source tree
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
 from make_run import make_run  # noqa: E402
 
@@ -59,17 +59,22 @@ def built(tmp_path_factory):
 
 def summary_rows(index_html):
     body = index_html.split('<table id="summary"', 1)[1].split('</table>', 1)[0]
-    return re.findall(r'<tr data-role="([^"]*)" data-verdict="([^"]*)"[^>]*>.*?<div class="cid">([^<]*)</div>',
-                      body, re.S)
+    return re.findall(
+        r'<tr data-role="([^"]*)" data-verdict="([^"]*)"[^>]*>.*?<div class="cid">([^<]*)</div>', body, re.S
+    )
 
 
 # ------------------------------------------------------------------------------------ pages
 
+
 def test_index_lists_failures_first_and_has_filters(built):
     html = read(os.path.join(built['run'], 'index.html'))
     rows = summary_rows(html)
-    assert [(v, c) for _, v, c in rows] == [('fail', 'raster-vs-cycles-twin'), ('skipped', 'povray-vs-cycles-agree'),
-                                            ('pass', 'raster-vs-povray-twin')]
+    assert [(v, c) for _, v, c in rows] == [
+        ('fail', 'raster-vs-cycles-twin'),
+        ('skipped', 'povray-vs-cycles-agree'),
+        ('pass', 'raster-vs-povray-twin'),
+    ]
     assert 'id="filter-text"' in html and 'id="filter-role"' in html and 'id="filter-verdict"' in html
     for role in ('twin', 'agree'):
         assert f'<option value="{role}">' in html
@@ -104,8 +109,9 @@ def test_plots_are_svg(built):
     plots = os.path.join(built['run'], 'plots')
     for f in ('angle-alpha-ndotv.svg', 'angle-alpha-ndotl.svg', 'trend-alpha.svg', 'timing-cycles_convergence.svg'):
         ET.parse(os.path.join(plots, f))  # well-formed SVG
-        assert f'plots/{f}' in read(os.path.join(built['run'], 'scene-alpha.html')) + \
-            read(os.path.join(built['run'], 'index.html'))
+        assert f'plots/{f}' in read(os.path.join(built['run'], 'scene-alpha.html')) + read(
+            os.path.join(built['run'], 'index.html')
+        )
     svg = read(os.path.join(plots, 'trend-alpha.svg'))
     assert 'raster-vs-cycles-twin' in svg and 'raster-vs-povray-twin' in svg
     # beta has no measured bins: no angle plot, and the page says so
@@ -122,6 +128,7 @@ def test_latest_points_at_run(built):
 
 # ------------------------------------------------------------------------- machine-readable
 
+
 def test_summary_json(built):
     with open(os.path.join(built['run'], 'summary.json'), encoding='utf-8') as f:
         s = json.load(f)
@@ -129,13 +136,16 @@ def test_summary_json(built):
     assert s['counts'] == {'fail': 1, 'error': 0, 'warn': 0, 'skipped': 1, 'pass': 1}
     assert [x['name'] for x in s['scenes']] == ['alpha', 'beta']
     assert sum(len(x['comparisons']) for x in s['scenes']) == 3
-    assert s['renderer_versions'] == {'cycles': 'Blender 3.4.1', 'povray': 'POV-Ray 3.7.0.10.unofficial',
-                                      'raster': 'reflcheck-raster 0.1'}
+    assert s['renderer_versions'] == {
+        'cycles': 'Blender 3.4.1',
+        'povray': 'POV-Ray 3.7.0.10.unofficial',
+        'raster': 'reflcheck-raster 0.1',
+    }
     assert s['machine']['cores'] == os.cpu_count() and s['machine']['uname']
     c = s['scenes'][0]['comparisons'][1]
     assert c['id'] == 'raster-vs-cycles-twin' and c['regions']['surface']['rel_rms'] == pytest.approx(3.4e-2)
     assert c['test_image'] == 'raster-twin' and c['reference_image'] == 'cycles-twin'
-    assert s['scenes'][1]['comparisons'][0]['reference_image'] is None   # agree: cycles-validate was skipped
+    assert s['scenes'][1]['comparisons'][0]['reference_image'] is None  # agree: cycles-validate was skipped
     assert s['problems'] == []
 
 
@@ -150,8 +160,14 @@ def test_summary_csv(built):
     bad = [r for r in th if r['verdict'] == 'fail']
     assert len(bad) == 1 and bad[0]['scene'] == 'alpha' and bad[0]['comparison'] == 'raster-vs-cycles-twin'
     assert float(bad[0]['value']) == pytest.approx(3.4e-2) and float(bad[0]['fail']) == pytest.approx(1e-2)
-    surf = [r for r in rows if r['comparison'] == 'raster-vs-povray-twin' and r['group'] == 'region'
-            and r['name'] == 'surface' and r['metric'] == 'rel_rms']
+    surf = [
+        r
+        for r in rows
+        if r['comparison'] == 'raster-vs-povray-twin'
+        and r['group'] == 'region'
+        and r['name'] == 'surface'
+        and r['metric'] == 'rel_rms'
+    ]
     assert len(surf) == 1 and float(surf[0]['value']) == pytest.approx(1.2e-4)
 
 
@@ -170,6 +186,7 @@ def test_junit(built):
 
 
 # --------------------------------------------------------------------------------- history
+
 
 def test_history_append_only_survives_crash(tmp_path):
     root = str(tmp_path)
@@ -194,9 +211,9 @@ def test_history_append_only_survives_crash(tmp_path):
     assert 'history.jsonl:3' in r.stderr and 'skipped' in r.stderr
     with open(hist, 'rb') as f:
         data = f.read()
-    assert data.startswith(two)                     # earlier records byte-for-byte intact
+    assert data.startswith(two)  # earlier records byte-for-byte intact
     lines = data.split(b'\n')
-    assert len(lines) == 5 and lines[-1] == b''     # 2 good, 1 broken, 1 new, final newline
+    assert len(lines) == 5 and lines[-1] == b''  # 2 good, 1 broken, 1 new, final newline
     recs = history.read_history(hist)
     assert [x['run_id'] for x in recs] == [RUN1, RUN2, RUN3]
     assert recs[1]['metrics']['alpha']['raster-vs-povray-twin']['surface.rel_rms'] == pytest.approx(2.4e-4)
@@ -217,6 +234,7 @@ def test_history_append_only_survives_crash(tmp_path):
 
 
 # ---------------------------------------------------------------------------- bad inputs
+
 
 def test_corrupt_compare_json_is_an_error_entry(tmp_path):
     run = make_run(str(tmp_path), RUN1)
@@ -261,8 +279,20 @@ def test_missing_run_folder_is_usage_error(tmp_path):
 
 # ------------------------------------------------------------------------- thresholds
 
-@pytest.mark.parametrize('v,want', [(2.4e-4, 3e-4), (3e-4, 3e-4), (4.8e-4, 5e-4), (9.5e-3, 1e-2), (0.136, 0.2),
-                                    (0.068, 0.07), (41.0, 50.0), (1.0, 1.0)])
+
+@pytest.mark.parametrize(
+    'v,want',
+    [
+        (2.4e-4, 3e-4),
+        (3e-4, 3e-4),
+        (4.8e-4, 5e-4),
+        (9.5e-3, 1e-2),
+        (0.136, 0.2),
+        (0.068, 0.07),
+        (41.0, 50.0),
+        (1.0, 1.0),
+    ],
+)
 def test_round_up_1sig(v, want):
     assert proposal.round_up_1sig(v) == pytest.approx(want, rel=1e-12)
 
@@ -289,10 +319,11 @@ def test_propose_thresholds(tmp_path):
     page = read(os.path.join(run, 'thresholds-proposal.html'))
     assert 'Threshold proposal' in page and 'class="d add"' in page
     assert hashlib.sha256(read(os.path.join(run, 'alpha', 'compare.json')).encode()).hexdigest() == digest
-    assert not os.path.exists(os.path.join(run, 'index.html'))   # proposal mode writes nothing else
+    assert not os.path.exists(os.path.join(run, 'index.html'))  # proposal mode writes nothing else
 
 
 # ------------------------------------------------------------------------ headless browser
+
 
 def body_attrs(dom):
     m = re.search(r'<body([^>]*)>', dom)
@@ -307,7 +338,10 @@ def test_index_renders_in_chromium(built):
     dom = browser.dump_dom(page)
     a = body_attrs(dom)
     assert a.get('data-ready') == '1', a
-    assert a.get('data-loaded') == f'{n_img}/{n_img}' and a.get('data-failed') == '0', (a, re.findall(r'<li>[^<]*', dom))
+    assert a.get('data-loaded') == f'{n_img}/{n_img}' and a.get('data-failed') == '0', (
+        a,
+        re.findall(r'<li>[^<]*', dom),
+    )
     assert len(summary_rows(dom)) == 3
     assert '3 of 3 comparisons shown' in dom
     assert re.search(r'<section id="load-status" class="problems" hidden', dom)
@@ -318,11 +352,13 @@ def test_scene_page_renders_in_chromium(built):
     page = os.path.join(built['run'], 'scene-alpha.html')
     html = read(page)
     n = html.count('class="view"') + html.count('<img ')
-    assert n == 3 + 1 + 2 + (3 if HAVE_GNUPLOT else 0)   # images, flip, heatmaps, plots
+    assert n == 3 + 1 + 2 + (3 if HAVE_GNUPLOT else 0)  # images, flip, heatmaps, plots
     dom = browser.dump_dom(page)
     a = body_attrs(dom)
-    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
-        (a, re.findall(r'<li>[^<]*', dom))
+    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', (
+        a,
+        re.findall(r'<li>[^<]*', dom),
+    )
     # the probe shows the centre pixel (4, 3) of every image: raster R = 0.05 + 0.1 * 4
     assert '(4, 3)' in dom and '<td>raster-twin</td><td>0.45000</td>' in dom
     assert 'EV +0.00' in dom
@@ -332,7 +368,7 @@ def test_scene_page_renders_in_chromium(built):
 def test_missing_view_js_is_reported_by_the_page(tmp_path):
     run = make_run(str(tmp_path), RUN1)
     assert run_report('--run', run).returncode == 0
-    os.remove(os.path.join(run, 'alpha', 'view.js'))          # removed after the page was written
+    os.remove(os.path.join(run, 'alpha', 'view.js'))  # removed after the page was written
     dom = browser.dump_dom(os.path.join(run, 'scene-alpha.html'))
     a = body_attrs(dom)
     assert a.get('data-ready') == '1' and a.get('data-failed') == '6', a
@@ -403,13 +439,14 @@ def test_viewer_interactions_in_chromium(built):
     # after two x1.25 zooms about the corner an image pixel spans 1.5625 fit pixels: the edge between
     # image columns 0 and 1 moved from fit to 1.5625 fit, and both sides differ (R steps by 0.1)
     assert out['zoomedEdge'][0] != out['zoomedEdge'][1]
-    assert out['sameAsFlip'] is True                  # the flip view (A = raster-twin) shares the zoom
+    assert out['sameAsFlip'] is True  # the flip view (A = raster-twin) shares the zoom
     dark, bright, label = out['ev']
     assert label.startswith('EV +2.00') and all(b > d for b, d in zip(bright, dark))
     assert out['flip'] == 'povray-twin (B)'
 
 
 # ------------------------------------------------------------------ run status and hostile names
+
 
 def test_run_status_recorded(tmp_path):
     """A run with a failing comparison is 'fail'; a crashed job makes the next run 'error', which is
@@ -465,8 +502,10 @@ def test_hostile_scene_name_page_loads(tmp_path):
     n = html.count('class="view"') + html.count('<img ')
     dom = browser.dump_dom(page)
     a = body_attrs(dom)
-    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', \
-        (a, re.findall(r'<li>[^<]*', dom))
+    assert a.get('data-ready') == '1' and a.get('data-loaded') == f'{n}/{n}' and a.get('data-failed') == '0', (
+        a,
+        re.findall(r'<li>[^<]*', dom),
+    )
 
 
 # ------------------------------------------------------------------ templates and shared names
@@ -482,8 +521,11 @@ def test_no_hand_escaping_in_the_package():
             text = read(os.path.join(d, f))
             assert 'html.escape' not in text and 'esc(' not in text, f
             assert '|safe' not in text and 'autoescape false' not in text, f
-    assert 'import report' not in ''.join(read(os.path.join(HARNESS, 'report', f))
-                                          for f in os.listdir(os.path.join(HARNESS, 'report')) if f.endswith('.py'))
+    assert 'import report' not in ''.join(
+        read(os.path.join(HARNESS, 'report', f))
+        for f in os.listdir(os.path.join(HARNESS, 'report'))
+        if f.endswith('.py')
+    )
 
 
 def test_hostile_text_is_escaped(tmp_path):
@@ -559,12 +601,23 @@ def test_renderers_come_from_the_run(tmp_path):
 def test_sweep_columns_come_from_the_sweep(tmp_path):
     """The equal-time table has a column per renderer the sweep file names, in its order."""
     run = make_run(str(tmp_path), RUN1)
-    sweep = {'format': 'reflcheck-sweep-1', 'scene': 'alpha', 'size': [8, 6], 'error_key': 'error',
-             'reference': {'renderer': 'cycles', 'role': 'twin', 'samples': 4096},
-             'series': [{'label': 'eevee taa', 'renderer': 'eevee',
-                         'points': [{'label': '16 taa', 'time_s': 0.5, 'error': 0.01}]}],
-             'equal_time': [{'budget': '1 s', 'budget_s': 1.0, 'best': {
-                 'raster': None, 'eevee': {'label': '16 taa', 'time_s': 0.5, 'error': 0.01}}}]}
+    sweep = {
+        'format': 'reflcheck-sweep-1',
+        'scene': 'alpha',
+        'size': [8, 6],
+        'error_key': 'error',
+        'reference': {'renderer': 'cycles', 'role': 'twin', 'samples': 4096},
+        'series': [
+            {'label': 'eevee taa', 'renderer': 'eevee', 'points': [{'label': '16 taa', 'time_s': 0.5, 'error': 0.01}]}
+        ],
+        'equal_time': [
+            {
+                'budget': '1 s',
+                'budget_s': 1.0,
+                'best': {'raster': None, 'eevee': {'label': '16 taa', 'time_s': 0.5, 'error': 0.01}},
+            }
+        ],
+    }
     with open(os.path.join(run, 'timing', 'alpha.json'), 'w', encoding='utf-8') as f:
         json.dump(sweep, f)
     assert run_report('--run', run).returncode == 0

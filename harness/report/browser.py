@@ -8,6 +8,7 @@ import tempfile
 
 from .util import CHROMIUM_TIMEOUT_S
 
+
 def chromium_exe():
     for n in ('chromium', 'chromium-browser', 'google-chrome'):
         p = shutil.which(n)
@@ -22,10 +23,23 @@ def chromium(args, page_path, timeout=CHROMIUM_TIMEOUT_S):
     if not exe:
         raise FileNotFoundError('chromium not found; apt-get install chromium')
     with tempfile.TemporaryDirectory(prefix='reflcheck-chromium-') as prof:
-        cmd = [exe, '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-               '--disable-component-update', '--disable-sync', '--no-first-run', '--hide-scrollbars',
-               f'--user-data-dir={prof}', '--virtual-time-budget=5000'] + args + \
-            ['file://' + os.path.abspath(page_path)]
+        cmd = (
+            [
+                exe,
+                '--headless',
+                '--no-sandbox',
+                '--disable-gpu',
+                '--disable-background-networking',
+                '--disable-component-update',
+                '--disable-sync',
+                '--no-first-run',
+                '--hide-scrollbars',
+                f'--user-data-dir={prof}',
+                '--virtual-time-budget=5000',
+            ]
+            + args
+            + ['file://' + os.path.abspath(page_path)]
+        )
         return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 
@@ -50,9 +64,13 @@ def check_pages(run, pages):
         m = re.search(r'data-loaded="(\d+)/(\d+)"', dom)
         failed = re.search(r'data-failed="(\d+)"', dom)
         if not m or m.group(1) != m.group(2) or (failed and failed.group(1) != '0'):
-            bad.append((name, f'images loaded {m.group(0) if m else "marker missing"}, '
-                              f'failed {failed.group(1) if failed else "?"}'))
+            bad.append(
+                (
+                    name,
+                    f'images loaded {m.group(0) if m else "marker missing"}, '
+                    f'failed {failed.group(1) if failed else "?"}',
+                )
+            )
         elif name == 'index.html' and '<tr' not in dom:
             bad.append((name, 'the comparisons table has no rows'))
     return bad
-

@@ -6,6 +6,7 @@ import os
 from .load import all_comparisons, flat_metrics, run_status, verdict_counts
 from .util import clean
 
+
 def history_record(R):
     metrics = {}
     for s, c in all_comparisons(R):
@@ -14,9 +15,19 @@ def history_record(R):
         for t in c['thresholds']:
             m[f'verdict.{t["metric"]}'] = t.get('verdict')
         metrics.setdefault(s['name'], {})[c['id']] = m
-    return clean({'run_id': R['run_id'], 'commit': R['commit'], 'time': R['time'],
-                  'report_time': R['report_time'], 'versions': R['versions'], 'machine': R['machine'],
-                  'status': run_status(R), 'counts': verdict_counts(R), 'metrics': metrics})
+    return clean(
+        {
+            'run_id': R['run_id'],
+            'commit': R['commit'],
+            'time': R['time'],
+            'report_time': R['report_time'],
+            'versions': R['versions'],
+            'machine': R['machine'],
+            'status': run_status(R),
+            'counts': verdict_counts(R),
+            'metrics': metrics,
+        }
+    )
 
 
 def read_history(path, problems=None):
@@ -37,8 +48,10 @@ def read_history(path, problems=None):
                 raise ValueError('not a run record')
         except (ValueError, UnicodeDecodeError) as e:
             if problems is not None:
-                problems.add(f'{path}:{no}', f'history line skipped (truncated or corrupt: {str(e)[:80]}); '
-                             'earlier runs are unaffected')
+                problems.add(
+                    f'{path}:{no}',
+                    f'history line skipped (truncated or corrupt: {str(e)[:80]}); ' 'earlier runs are unaffected',
+                )
             continue
         if rec['run_id'] not in out:
             order.append(rec['run_id'])
@@ -52,8 +65,9 @@ def append_history(path, rec, problems):
     closed with a newline first (in the same write) so that this record stays parseable."""
     existing = read_history(path)
     same = [r for r in existing if r.get('run_id') == rec['run_id']]
-    if same and {k: v for k, v in same[-1].items() if k != 'report_time'} == \
-            {k: v for k, v in rec.items() if k != 'report_time'}:
+    if same and {k: v for k, v in same[-1].items() if k != 'report_time'} == {
+        k: v for k, v in rec.items() if k != 'report_time'
+    }:
         return False
     line = json.dumps(rec, separators=(',', ':'), sort_keys=True).encode('utf-8') + b'\n'
     os.makedirs(os.path.dirname(os.path.abspath(path)) or '.', exist_ok=True)
@@ -79,4 +93,3 @@ def append_history(path, rec, problems):
         finally:
             os.close(dfd)
     return True
-

@@ -59,8 +59,9 @@ def read_view(path, problems, scene):
             problems.add(path, f'view.js image "{name}" is not base64: {e}', scene)
             continue
         if n != w * h * 3 * 4:
-            problems.add(path, f'view.js image "{name}" has {n} bytes, expected {w}x{h}x3 float32 = '
-                         f'{w * h * 12}', scene)
+            problems.add(
+                path, f'view.js image "{name}" has {n} bytes, expected {w}x{h}x3 float32 = ' f'{w * h * 12}', scene
+            )
             continue
         good.append(name)
     extra = {}
@@ -79,9 +80,18 @@ def read_view(path, problems, scene):
 def norm_comparison(c, path, problems, scene, index):
     if not isinstance(c, dict):
         problems.add(path, f'comparisons[{index}] is not an object', scene)
-        return {'id': f'comparison {index}', 'status': 'error', 'role': '', 'test': '', 'reference': '',
-                'reason': f'{os.path.basename(path)}: comparisons[{index}] is not an object',
-                'regions': {}, 'aovs': {}, 'thresholds': [], 'times': {}}
+        return {
+            'id': f'comparison {index}',
+            'status': 'error',
+            'role': '',
+            'test': '',
+            'reference': '',
+            'reason': f'{os.path.basename(path)}: comparisons[{index}] is not an object',
+            'regions': {},
+            'aovs': {},
+            'thresholds': [],
+            'times': {},
+        }
     out = dict(c)
     out['id'] = str(c.get('id') or f'{c.get("test", "?")}-vs-{c.get("reference", "?")}-{c.get("role", "?")}')
     status = str(c.get('status', 'error')).lower()
@@ -121,8 +131,16 @@ JOB_FILE = re.compile(r'^([a-z0-9_]+)-([a-z0-9_]+)\.json$')
 
 def load_scene(run, name, problems):
     d = os.path.join(run, name)
-    sc = {'name': name, 'page': f'scene-{safe_name(name)}.html', 'title': '', 'scene_path': '',
-          'comparisons': [], 'jobs': [], 'view': None, 'compare_ok': False}
+    sc = {
+        'name': name,
+        'page': f'scene-{safe_name(name)}.html',
+        'title': '',
+        'scene_path': '',
+        'comparisons': [],
+        'jobs': [],
+        'view': None,
+        'compare_ok': False,
+    }
     cpath = os.path.join(d, 'compare.json')
     comp = read_json(cpath, problems, 'compare.json', name)
     if comp is not None and not (isinstance(comp, dict) and isinstance(comp.get('comparisons', []), list)):
@@ -130,11 +148,24 @@ def load_scene(run, name, problems):
         comp = None
     if comp is None:
         why = 'missing' if not os.path.exists(cpath) else 'corrupt'
-        sc['comparisons'].append({'id': '(compare.json)', 'status': 'error', 'role': '', 'test': '',
-                                  'reference': '', 'pseudo': True,
-                                  'reason': f'{name}/compare.json {why}: no comparison could be read',
-                                  'regions': {}, 'aovs': {}, 'thresholds': [], 'times': {}, 'noise': {},
-                                  'angle_bins': [], 'angle_bins_ndotl': []})
+        sc['comparisons'].append(
+            {
+                'id': '(compare.json)',
+                'status': 'error',
+                'role': '',
+                'test': '',
+                'reference': '',
+                'pseudo': True,
+                'reason': f'{name}/compare.json {why}: no comparison could be read',
+                'regions': {},
+                'aovs': {},
+                'thresholds': [],
+                'times': {},
+                'noise': {},
+                'angle_bins': [],
+                'angle_bins_ndotl': [],
+            }
+        )
     else:
         sc['compare_ok'] = True
         sc['title'] = str(comp.get('title') or '')
@@ -148,8 +179,15 @@ def load_scene(run, name, problems):
         p = os.path.join(d, f)
         rec = read_json(p, problems, 'job record', name)
         if rec is None:
-            sc['jobs'].append({'renderer': m.group(1), 'role': m.group(2), 'status': 'error',
-                               'message': f'{name}/{f}: unreadable job record', 'file': f})
+            sc['jobs'].append(
+                {
+                    'renderer': m.group(1),
+                    'role': m.group(2),
+                    'status': 'error',
+                    'message': f'{name}/{f}: unreadable job record',
+                    'file': f,
+                }
+            )
             continue
         if not isinstance(rec, dict):
             problems.add(p, 'job record is not a JSON object', name)
@@ -184,8 +222,12 @@ def machine_info():
                     break
     except OSError:
         pass
-    return {'uname': f'{u.sysname} {u.release} {u.version} {u.machine}', 'node': u.nodename,
-            'cpu_model': cpu, 'cores': os.cpu_count()}
+    return {
+        'uname': f'{u.sysname} {u.release} {u.version} {u.machine}',
+        'node': u.nodename,
+        'cpu_model': cpu,
+        'cores': os.cpu_count(),
+    }
 
 
 RUN_ID = re.compile(r'^(\d{8})-(\d{6})(?:[-_]([0-9a-fA-F]{4,40}))?')
@@ -228,8 +270,10 @@ def load_optional(run, problems):
         if st is not None and not isinstance(rows, list):
             problems.add(sp, 'stability.json has no "rows" list')
             rows = None
-        opt['stability'] = {'meta': st if isinstance(st, dict) else {},
-                            'rows': [r for r in rows if isinstance(r, dict)] if rows else []}
+        opt['stability'] = {
+            'meta': st if isinstance(st, dict) else {},
+            'rows': [r for r in rows if isinstance(r, dict)] if rows else [],
+        }
     td = os.path.join(run, 'timing')
     if os.path.isdir(td):
         for f in sorted(os.listdir(td)):
@@ -247,10 +291,18 @@ def load_run(run, commit_arg=None):
     if not scenes:
         problems.add(run, 'no scene folders (with compare.json, job records or view.js); run `reflcheck run` first')
     run_id, commit, when = run_identity(run, commit_arg, scenes)
-    return {'dir': run, 'run_id': run_id, 'commit': commit, 'time': when,
-            'report_time': dt.datetime.now(dt.timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ'),
-            'machine': machine_info(), 'versions': renderer_versions(scenes), 'scenes': scenes,
-            'problems': problems, 'optional': load_optional(run, problems)}
+    return {
+        'dir': run,
+        'run_id': run_id,
+        'commit': commit,
+        'time': when,
+        'report_time': dt.datetime.now(dt.timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ'),
+        'machine': machine_info(),
+        'versions': renderer_versions(scenes),
+        'scenes': scenes,
+        'problems': problems,
+        'optional': load_optional(run, problems),
+    }
 
 
 def all_comparisons(R):
@@ -304,4 +356,3 @@ def flat_metrics(c):
         if is_num(v):
             out[f'times.{k}'] = v
     return out
-

@@ -15,8 +15,22 @@ from markupsafe import Markup
 
 from .load import all_comparisons, run_status, verdict_counts
 from .plots import is_sweep, timing_points
-from .util import (JOB_ORDER, ROLE_LEGEND, VERDICT_ORDER, VERDICTS, chan_name, fexp, finite, fmt_metric, fsec, fthr,
-                   is_num, json_script, load_ids, safe_name)
+from .util import (
+    JOB_ORDER,
+    ROLE_LEGEND,
+    VERDICT_ORDER,
+    VERDICTS,
+    chan_name,
+    fexp,
+    finite,
+    fmt_metric,
+    fsec,
+    fthr,
+    is_num,
+    json_script,
+    load_ids,
+    safe_name,
+)
 
 TEMPLATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'templates')
 IDS = load_ids()
@@ -34,13 +48,28 @@ def text(v):
 
 @functools.cache
 def _env():
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True, trim_blocks=True,
-                             lstrip_blocks=True, undefined=jinja2.Undefined,
-                             finalize=lambda v: '' if v is None else v)
-    env.globals.update(fmt=_plain(fmt_metric), fthr=_plain(fthr), fexp=_plain(fexp), fsec=_plain(fsec),
-                       chan=_plain(chan_name), crossover_text=_plain(crossover_text),
-                       ids={k: v for k, v in IDS.items() if not k.startswith('_')},
-                       I=IDS['id'], A=IDS['attr'], C=IDS['cls'], L=IDS['layer'], G=IDS['global'])
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(TEMPLATES),
+        autoescape=True,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        undefined=jinja2.Undefined,
+        finalize=lambda v: '' if v is None else v,
+    )
+    env.globals.update(
+        fmt=_plain(fmt_metric),
+        fthr=_plain(fthr),
+        fexp=_plain(fexp),
+        fsec=_plain(fsec),
+        chan=_plain(chan_name),
+        crossover_text=_plain(crossover_text),
+        ids={k: v for k, v in IDS.items() if not k.startswith('_')},
+        I=IDS['id'],
+        A=IDS['attr'],
+        C=IDS['cls'],
+        L=IDS['layer'],
+        G=IDS['global'],
+    )
     env.tests.update(finite=finite, num=is_num)
     env.filters['json_script'] = lambda o: Markup(json_script(o))
     return env
@@ -53,11 +82,18 @@ def render(template, kind, **data):
 # ---------------------------------------------------------------------------------------------
 # Pieces of data several pages show
 
+
 def job_rows(R, scenes):
     """Job records of the scenes, failures first, with their size text and log link."""
     rows = [(s, j) for s in scenes for j in s['jobs']]
-    rows.sort(key=lambda sj: (JOB_ORDER.get(str(sj[1].get('status')), 0), sj[0]['name'],
-                              str(sj[1].get('renderer')), str(sj[1].get('role'))))
+    rows.sort(
+        key=lambda sj: (
+            JOB_ORDER.get(str(sj[1].get('status')), 0),
+            sj[0]['name'],
+            str(sj[1].get('renderer')),
+            str(sj[1].get('role')),
+        )
+    )
     out = []
     for s, j in rows:
         size = ''
@@ -67,8 +103,16 @@ def job_rows(R, scenes):
                 size += f' ss{j["supersample"]}'
             if j.get('samples'):
                 size += f' {j["samples"]}spp'
-        out.append({'scene': s, 'job': j, 'status': str(j.get('status', '?')), 'size': size,
-                    'log': j.get('log') or '', 'log_href': log_href(R, s, j)})
+        out.append(
+            {
+                'scene': s,
+                'job': j,
+                'status': str(j.get('status', '?')),
+                'size': size,
+                'log': j.get('log') or '',
+                'log_href': log_href(R, s, j),
+            }
+        )
     return out
 
 
@@ -88,8 +132,9 @@ def crossover_text(c):
     if not isinstance(c, dict) or not finite(c.get('spp')):
         return '— (Cycles\' fit does not fall)'
     if c.get('extrapolated') == 'below':
-        return (f'≤ {fsec(c.get("upper_bound_s"))} s (Cycles\' fewest samples already beat it; fit: '
-                f'{c["spp"]:.2g} spp)')
+        return (
+            f'≤ {fsec(c.get("upper_bound_s"))} s (Cycles\' fewest samples already beat it; fit: ' f'{c["spp"]:.2g} spp)'
+        )
     txt = f'{fsec(c.get("time_s"))} s at {c["spp"]:.3g} spp'
     if finite(c.get('render_s')):
         txt += f' ({fsec(c["render_s"])} s inside Blender)'
@@ -105,12 +150,19 @@ def _dict(v):
 # ---------------------------------------------------------------------------------------------
 # Index page
 
+
 def stability_rows(opt):
     st = opt['stability']
     if st is None:
         return None
-    return [(r, any(finite(r.get(k)) and r.get(k) > 0 for k in ('nan', 'inf', 'negative'))
-             or (r.get('expect_ok') == 1 and r.get('check_ok') == 0)) for r in st['rows']]
+    return [
+        (
+            r,
+            any(finite(r.get(k)) and r.get(k) > 0 for k in ('nan', 'inf', 'negative'))
+            or (r.get('expect_ok') == 1 and r.get('check_ok') == 0),
+        )
+        for r in st['rows']
+    ]
 
 
 def sweep_overview(sweeps):
@@ -122,10 +174,20 @@ def sweep_overview(sweeps):
         cyc = next((sr for sr in t['series'] if isinstance(sr, dict) and sr.get('renderer') == ref.get('renderer')), {})
         fs, ft = _dict(cyc.get('fit_spp')), _dict(cyc.get('fit'))
         cb = t.get('crossover_best_raster') if isinstance(t.get('crossover_best_raster'), dict) else None
-        rows.append({'name': name, 'anchor': safe_name(name), 'asis': _dict(t.get('as_is')),
-                     'ref': ref, 'off': finite(fs.get('slope')) and abs(fs['slope'] + 0.5) > 0.1,
-                     'slope_spp': fs.get('slope', math.nan), 'slope_t': ft.get('slope', math.nan),
-                     'note': cyc.get('slope_note', ''), 'crossover': t.get('crossover'), 'best': cb})
+        rows.append(
+            {
+                'name': name,
+                'anchor': safe_name(name),
+                'asis': _dict(t.get('as_is')),
+                'ref': ref,
+                'off': finite(fs.get('slope')) and abs(fs['slope'] + 0.5) > 0.1,
+                'slope_spp': fs.get('slope', math.nan),
+                'slope_t': ft.get('slope', math.nan),
+                'note': cyc.get('slope_note', ''),
+                'crossover': t.get('crossover'),
+                'best': cb,
+            }
+        )
     return rows
 
 
@@ -140,8 +202,14 @@ def sweep_view(name, t, plots):
             f = _dict(sr.get(key))
             pair.append((f['slope'], f.get('r2', math.nan)) if finite(f.get('slope')) else None)
         tm = sr.get('time_model') if isinstance(sr.get('time_model'), dict) else None
-        fits.append({'label': sr.get('label'), 'fits': pair, 'note': sr.get('slope_note', ''),
-                     'time_model': f'{fsec(tm.get("t0_s"))} s + {fexp(tm.get("s_per_spp"))} s/spp' if tm else ''})
+        fits.append(
+            {
+                'label': sr.get('label'),
+                'fits': pair,
+                'note': sr.get('slope_note', ''),
+                'time_model': f'{fsec(tm.get("t0_s"))} s + {fexp(tm.get("s_per_spp"))} s/spp' if tm else '',
+            }
+        )
     # one column per renderer the sweep names, in its order
     equal_time = [e for e in t.get('equal_time') or [] if isinstance(e, dict)]
     renderers = []
@@ -153,19 +221,41 @@ def sweep_view(name, t, plots):
         budget = text(e.get('budget'))
         if not str(e.get('budget', '')).endswith(' s'):
             budget += f' ({fsec(e.get("budget_s"))} s)'
-        equal.append({'budget': budget, 'fit_error': e.get('cycles_fit_error'),
-                      'best': [b if isinstance(b, dict) else None for b in (best.get(r) for r in renderers)]})
-    points = [(sr.get('label'), p) for sr in t['series'] if isinstance(sr, dict)
-              for p in sr.get('points') or [] if isinstance(p, dict)]
+        equal.append(
+            {
+                'budget': budget,
+                'fit_error': e.get('cycles_fit_error'),
+                'best': [b if isinstance(b, dict) else None for b in (best.get(r) for r in renderers)],
+            }
+        )
+    points = [
+        (sr.get('label'), p)
+        for sr in t['series']
+        if isinstance(sr, dict)
+        for p in sr.get('points') or []
+        if isinstance(p, dict)
+    ]
     skipped = t.get('skipped') or []
-    return {'sweep': True, 'name': name, 'anchor': safe_name(name), 'plot': plots.get(name),
-            'size': 'x'.join(str(v) for v in t.get('size') or []), 'ref': t.get('reference') or {},
-            'fits': fits, 'eq_renderers': renderers, 'equal_time': equal,
-            'pareto': ', '.join(f'{text(p.get("renderer"))} {text(p.get("label"))}' for p in t.get('pareto') or []
-                                if isinstance(p, dict)),
-            'crossover': t.get('crossover'), 'error_key': ek, 'points': points,
-            'skipped': '; '.join(f'{text(k.get("label"))}: {text(k.get("message"))}' for k in skipped
-                                 if isinstance(k, dict))}
+    return {
+        'sweep': True,
+        'name': name,
+        'anchor': safe_name(name),
+        'plot': plots.get(name),
+        'size': 'x'.join(str(v) for v in t.get('size') or []),
+        'ref': t.get('reference') or {},
+        'fits': fits,
+        'eq_renderers': renderers,
+        'equal_time': equal,
+        'pareto': ', '.join(
+            f'{text(p.get("renderer"))} {text(p.get("label"))}' for p in t.get('pareto') or [] if isinstance(p, dict)
+        ),
+        'crossover': t.get('crossover'),
+        'error_key': ek,
+        'points': points,
+        'skipped': '; '.join(
+            f'{text(k.get("label"))}: {text(k.get("message"))}' for k in skipped if isinstance(k, dict)
+        ),
+    }
 
 
 def timing_view(name, t, plots):
@@ -176,8 +266,13 @@ def timing_view(name, t, plots):
             for k in p:
                 if k not in keys:
                     keys.append(k)
-    return {'sweep': False, 'name': name, 'keys_': keys, 'points': [(label, p) for label, pts in series for p in pts],
-            'plot': plots.get(name)}
+    return {
+        'sweep': False,
+        'name': name,
+        'keys_': keys,
+        'points': [(label, p) for label, pts in series for p in pts],
+        'plot': plots.get(name),
+    }
 
 
 def index_html(R, trends, timing_plots, history_note):
@@ -186,23 +281,43 @@ def index_html(R, trends, timing_plots, history_note):
     tm = R['optional']['timing']
     sweeps = [(n, t) for n, t in tm if is_sweep(t)]
     timing = [sweep_view(n, t, timing_plots) if is_sweep(t) else timing_view(n, t, timing_plots) for n, t in tm]
-    return render('index.html', 'index', R=R, status=run_status(R), counts=verdict_counts(R), verdicts=VERDICTS,
-                  rows=rows, roles=sorted({c['role'] for _, c in rows if c['role']}),
-                  role_legend=list(ROLE_LEGEND.items()), jobs=job_rows(R, R['scenes']), trends=trends,
-                  history_note=history_note, stability=stability_rows(R['optional']), timing=timing,
-                  sweeps=sweeps, overview=sweep_overview(sweeps))
+    return render(
+        'index.html',
+        'index',
+        R=R,
+        status=run_status(R),
+        counts=verdict_counts(R),
+        verdicts=VERDICTS,
+        rows=rows,
+        roles=sorted({c['role'] for _, c in rows if c['role']}),
+        role_legend=list(ROLE_LEGEND.items()),
+        jobs=job_rows(R, R['scenes']),
+        trends=trends,
+        history_note=history_note,
+        stability=stability_rows(R['optional']),
+        timing=timing,
+        sweeps=sweeps,
+        overview=sweep_overview(sweeps),
+    )
 
 
 # ---------------------------------------------------------------------------------------------
 # Scene page
 
+
 def metric_table(c):
     """(groups, keys): one row per region, AOV and object; one column per figure."""
     groups = [('region', k, v) for k, v in c['regions'].items()] + [('aov', k, v) for k, v in c['aovs'].items()]
     objs = c.get('objects') if isinstance(c.get('objects'), list) else []
-    groups += [('object', f'{o.get("object")} {o.get("material", "")}',
-                {k: v for k, v in o.items() if k not in ('object', 'material')})
-               for o in objs if isinstance(o, dict)]
+    groups += [
+        (
+            'object',
+            f'{o.get("object")} {o.get("material", "")}',
+            {k: v for k, v in o.items() if k not in ('object', 'material')},
+        )
+        for o in objs
+        if isinstance(o, dict)
+    ]
     keys = []
     for _, _, ms in groups:
         for k in ms:
@@ -216,25 +331,52 @@ def scene_html(R, s, angle_plots, trend):
     W, H = (v['width'], v['height']) if v else (4, 3)
     cw = 300
     measured = [c for c in s['comparisons'] if not c.get('pseudo')]
-    page_data = {'scene': s['name'], 'run_id': R['run_id'], 'view_src': f'{s["name"]}/view.js',
-                 'images': v['images'] if v else [],
-                 'comparisons': [{'id': c['id'], 'test': c['test'], 'reference': c['reference'], 'role': c['role'],
-                                  'status': c['status'], 'testKey': c.get('test_key'), 'refKey': c.get('ref_key'),
-                                  'rel_rms': c['regions'].get('surface', {}).get('rel_rms')} for c in measured]}
+    page_data = {
+        'scene': s['name'],
+        'run_id': R['run_id'],
+        'view_src': f'{s["name"]}/view.js',
+        'images': v['images'] if v else [],
+        'comparisons': [
+            {
+                'id': c['id'],
+                'test': c['test'],
+                'reference': c['reference'],
+                'role': c['role'],
+                'status': c['status'],
+                'testKey': c.get('test_key'),
+                'refKey': c.get('ref_key'),
+                'rel_rms': c['regions'].get('surface', {}).get('rel_rms'),
+            }
+            for c in measured
+        ],
+    }
     comparisons = []
     for c in sorted(s['comparisons'], key=lambda c: VERDICT_ORDER.get(c['status'], 0)):
         groups, keys = metric_table(c)
         comparisons.append(dict(c, metric_groups=groups, metric_keys=keys))
-    return render('scene.html', 'scene', R=R, s=s, v=v, cw=cw, ch=max(1, round(cw * H / W)),
-                  scene_problems=[p for p in R['problems'].items if p['scene'] == s['name']],
-                  comparisons=comparisons, measured=measured,
-                  heats=[c for c in measured if c.get('test_key') and c.get('ref_key')],
-                  noheat=[c for c in measured if not (c.get('test_key') and c.get('ref_key'))],
-                  angle_plots=angle_plots, trend=trend, jobs=job_rows(R, [s]), page_data=page_data)
+    return render(
+        'scene.html',
+        'scene',
+        R=R,
+        s=s,
+        v=v,
+        cw=cw,
+        ch=max(1, round(cw * H / W)),
+        scene_problems=[p for p in R['problems'].items if p['scene'] == s['name']],
+        comparisons=comparisons,
+        measured=measured,
+        heats=[c for c in measured if c.get('test_key') and c.get('ref_key')],
+        noheat=[c for c in measured if not (c.get('test_key') and c.get('ref_key'))],
+        angle_plots=angle_plots,
+        trend=trend,
+        jobs=job_rows(R, [s]),
+        page_data=page_data,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
 # Threshold proposal page
+
 
 def diff_class(ln):
     if ln.startswith('+') and not ln.startswith('+++'):
@@ -249,5 +391,4 @@ def diff_class(ln):
 
 
 def proposal_html(R, text_, rows):
-    return render('proposal.html', 'proposal', R=R, rows=rows,
-                  diff=[(diff_class(ln), ln) for ln in text_.splitlines()])
+    return render('proposal.html', 'proposal', R=R, rows=rows, diff=[(diff_class(ln), ln) for ln in text_.splitlines()])

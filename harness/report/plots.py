@@ -9,6 +9,7 @@ import subprocess
 
 from .util import GNUPLOT_TIMEOUT_S, PLOTS, TREND_RUNS, finite, is_num, safe_name
 
+
 def gnuplot_q(s):
     return "'" + str(s).replace("'", "''") + "'"
 
@@ -22,8 +23,9 @@ def run_gnuplot(script, params, out_svg, problems):
     params = dict(params, outfile=tmp, dir=PLOTS + os.sep)
     expr = '; '.join(f'{k}={gnuplot_q(v) if isinstance(v, str) else v}' for k, v in params.items())
     try:
-        r = subprocess.run([exe, '-e', expr, os.path.join(PLOTS, script)], capture_output=True, text=True,
-                           timeout=GNUPLOT_TIMEOUT_S)
+        r = subprocess.run(
+            [exe, '-e', expr, os.path.join(PLOTS, script)], capture_output=True, text=True, timeout=GNUPLOT_TIMEOUT_S
+        )
     except (OSError, subprocess.TimeoutExpired) as e:
         problems.add(out_svg, f'gnuplot failed: {e}')
         return False
@@ -57,8 +59,11 @@ def plot_angles(R, s, tmpdir, problems):
         for c in s['comparisons']:
             pts = {}
             for b in c.get(key, []):
-                lo, hi, v = b.get('ndotv_lo', b.get('ndotl_lo', b.get('lo'))), \
-                    b.get('ndotv_hi', b.get('ndotl_hi', b.get('hi'))), b.get('rel_rms')
+                lo, hi, v = (
+                    b.get('ndotv_lo', b.get('ndotl_lo', b.get('lo'))),
+                    b.get('ndotv_hi', b.get('ndotl_hi', b.get('hi'))),
+                    b.get('rel_rms'),
+                )
                 if finite(lo) and finite(hi) and finite(v) and v > 0 and b.get('n', 1) != 0:
                     x = round((lo + hi) / 2, 6)
                     pts[x] = v
@@ -71,8 +76,17 @@ def plot_angles(R, s, tmpdir, problems):
         dat = os.path.join(tmpdir, f'{safe_name(s["name"])}-{axis}.dat')
         write_table(dat, ['bin'] + [plot_id(i) for i, _ in cols], [[x] + [p.get(x) for _, p in cols] for x in xs])
         svg = os.path.join(R['dir'], 'plots', f'angle-{safe_name(s["name"])}-{axis}.svg')
-        if run_gnuplot('angle.gp', {'datafile': dat, 'ncols': len(cols) + 1, 'xlab': label,
-                                    'ptitle': f'{s["name"]}: surface rel_rms per {label} bin'}, svg, problems):
+        if run_gnuplot(
+            'angle.gp',
+            {
+                'datafile': dat,
+                'ncols': len(cols) + 1,
+                'xlab': label,
+                'ptitle': f'{s["name"]}: surface rel_rms per {label} bin',
+            },
+            svg,
+            problems,
+        ):
             out[axis] = os.path.relpath(svg, R['dir'])
     return out
 
@@ -81,21 +95,29 @@ def plot_trends(R, history, tmpdir, problems):
     out = {}
     for s in R['scenes']:
         # A run that errored measured only part of the scene: its figures are no trend.
-        runs = [h for h in history if s['name'] in (h.get('metrics') or {})
-                and h.get('status') != 'error'][-TREND_RUNS:]
+        runs = [h for h in history if s['name'] in (h.get('metrics') or {}) and h.get('status') != 'error'][
+            -TREND_RUNS:
+        ]
         ids = []
         for h in runs:
             for cid, m in h['metrics'][s['name']].items():
-                if isinstance(m, dict) and finite(m.get('surface.rel_rms')) and m['surface.rel_rms'] > 0 \
-                        and cid not in ids:
+                if (
+                    isinstance(m, dict)
+                    and finite(m.get('surface.rel_rms'))
+                    and m['surface.rel_rms'] > 0
+                    and cid not in ids
+                ):
                     ids.append(cid)
         if not ids:
             continue
         rows = []
         for i, h in enumerate(runs):
             ms = h['metrics'][s['name']]
-            label = (str(h.get('commit') or '')[:7] if h.get('commit') not in (None, '', 'unknown')
-                     else str(h['run_id'])[-13:])
+            label = (
+                str(h.get('commit') or '')[:7]
+                if h.get('commit') not in (None, '', 'unknown')
+                else str(h['run_id'])[-13:]
+            )
             vals = []
             for cid in ids:
                 v = (ms.get(cid) or {}).get('surface.rel_rms') if isinstance(ms.get(cid), dict) else None
@@ -104,15 +126,19 @@ def plot_trends(R, history, tmpdir, problems):
         dat = os.path.join(tmpdir, f'trend-{safe_name(s["name"])}.dat')
         write_table(dat, ['run', 'label'] + [plot_id(c) for c in ids], rows)
         svg = os.path.join(R['dir'], 'plots', f'trend-{safe_name(s["name"])}.svg')
-        if run_gnuplot('trend.gp', {'datafile': dat, 'ncols': len(ids) + 2,
-                                    'ptitle': f'{s["name"]}: surface rel_rms over runs'}, svg, problems):
+        if run_gnuplot(
+            'trend.gp',
+            {'datafile': dat, 'ncols': len(ids) + 2, 'ptitle': f'{s["name"]}: surface rel_rms over runs'},
+            svg,
+            problems,
+        ):
             out[s['name']] = os.path.relpath(svg, R['dir'])
     return out
 
 
 TIME_KEYS = ('time_s', 'wall_s', 'seconds', 'time')
 ERR_KEYS = ('rel_rms', 'error', 'rmse', 'mae')
-SWEEP_FORMAT = 'reflcheck-sweep-1'   # harness/sweep.py's timing/<scene>.json
+SWEEP_FORMAT = 'reflcheck-sweep-1'  # harness/sweep.py's timing/<scene>.json
 
 
 def is_sweep(t):
@@ -166,8 +192,11 @@ def plot_timing(R, tmpdir, problems):
     for name, t in R['optional']['timing']:
         series = timing_points(t)
         blocks, titles = [], []
-        srs = [sr for sr in t['series'] if isinstance(sr, dict) and isinstance(sr.get('points'), list)] \
-            if is_sweep(t) else []
+        srs = (
+            [sr for sr in t['series'] if isinstance(sr, dict) and isinstance(sr.get('points'), list)]
+            if is_sweep(t)
+            else []
+        )
         refs = []
         for i, (label, pts) in enumerate(series):
             if is_sweep(t):
@@ -190,33 +219,54 @@ def plot_timing(R, tmpdir, problems):
         dat = os.path.join(tmpdir, f'timing-{safe_name(name)}.dat')
         svg = os.path.join(R['dir'], 'plots', f'timing-{safe_name(name)}.svg')
         if is_sweep(t):
-            front = sorted((p['time_s'], p['error']) for p in t.get('pareto') or []
-                           if isinstance(p, dict) and finite(p.get('time_s')) and finite(p.get('error'))
-                           and p['time_s'] > 0 and p['error'] > 0)
+            front = sorted(
+                (p['time_s'], p['error'])
+                for p in t.get('pareto') or []
+                if isinstance(p, dict)
+                and finite(p.get('time_s'))
+                and finite(p.get('error'))
+                and p['time_s'] > 0
+                and p['error'] > 0
+            )
             blocks.insert(0, front or [(1.0, None)])
             with open(dat, 'w', encoding='utf-8') as f:
-                f.write('\n\n\n'.join('\n'.join(f'{x!r} {"?" if y is None else repr(y)}' for x, y in b)
-                                         for b in blocks) + '\n')
+                f.write(
+                    '\n\n\n'.join('\n'.join(f'{x!r} {"?" if y is None else repr(y)}' for x, y in b) for b in blocks)
+                    + '\n'
+                )
             asis = t.get('as_is') if isinstance(t.get('as_is'), dict) else {}
             cross = t.get('crossover') if isinstance(t.get('crossover'), dict) else {}
             hline = asis.get(t.get('error_key') or 'error')
             xcross = cross.get('time_s') if not cross.get('extrapolated') else cross.get('upper_bound_s')
-            params = {'datafile': dat, 'nseries': len(blocks) - 1, 'titles': ' '.join(f'"{x}"' for x in titles),
-                      'ptitle': f'{name}: error vs time ({"x".join(str(v) for v in t.get("size") or [])} px, '
-                                f'one thread per render)',
-                      'ylab': 'error: NRMSE vs noise-free (est.)' if t.get('error_key') == 'error'
-                      else str(t.get('error_key')),
-                      'xlab': f'{"CPU" if t.get("clock") == "cpu_s" else "wall"} time per render, 1 thread (s)',
-                      'hline': float(hline) if finite(hline) and hline > 0 else 0.0,
-                      'xcross': float(xcross) if finite(xcross) and xcross > 0 else 0.0}
+            params = {
+                'datafile': dat,
+                'nseries': len(blocks) - 1,
+                'titles': ' '.join(f'"{x}"' for x in titles),
+                'ptitle': f'{name}: error vs time ({"x".join(str(v) for v in t.get("size") or [])} px, '
+                f'one thread per render)',
+                'ylab': 'error: NRMSE vs noise-free (est.)'
+                if t.get('error_key') == 'error'
+                else str(t.get('error_key')),
+                'xlab': f'{"CPU" if t.get("clock") == "cpu_s" else "wall"} time per render, 1 thread (s)',
+                'hline': float(hline) if finite(hline) and hline > 0 else 0.0,
+                'xcross': float(xcross) if finite(xcross) and xcross > 0 else 0.0,
+            }
             ok = run_gnuplot('sweep.gp', params, svg, problems)
         else:
             with open(dat, 'w', encoding='utf-8') as f:
                 # Two blank lines end a gnuplot data set (`index`); one would only end a block.
                 f.write('\n\n\n'.join('\n'.join(f'{x!r} {y!r}' for x, y in b) for b in blocks) + '\n')
-            ok = run_gnuplot('time.gp', {'datafile': dat, 'nseries': len(blocks), 'titles': ' '.join(titles),
-                                         'ptitle': f'{name}: error vs time'}, svg, problems)
+            ok = run_gnuplot(
+                'time.gp',
+                {
+                    'datafile': dat,
+                    'nseries': len(blocks),
+                    'titles': ' '.join(titles),
+                    'ptitle': f'{name}: error vs time',
+                },
+                svg,
+                problems,
+            )
         if ok:
             out[name] = os.path.relpath(svg, R['dir'])
     return out
-

@@ -9,17 +9,17 @@ from .util import fexp, finite, is_num, yaml_num
 # A scene file's comparison leaves `test` out when it is this one (scenes/FORMAT.md).
 SCENE_DEFAULT_TEST = 'raster'
 
+
 def round_up_1sig(v):
     """Smallest 1-significant-digit number >= v (2.34e-4 -> 3e-4)."""
     if v <= 0:
         return v
     e = math.floor(math.log10(v))
     # Guards against 2.0000000001 / 1e-4 rounding up to 3 because of binary floating point.
-    m = math.ceil(v / 10 ** e * (1 - 1e-12))
+    m = math.ceil(v / 10**e * (1 - 1e-12))
     if m >= 10:
         m, e = 1, e + 1
     return float(f'{m}e{e}')
-
 
 
 def precision_floor(c, t):
@@ -83,8 +83,10 @@ def proposal(R):
     for s in R['scenes']:
         path = s['scene_path'] or f'scenes/{s["name"]}.yaml'
         lines.append(f'--- {path}\t(current thresholds, from {s["name"]}/compare.json)')
-        lines.append(f'+++ {path}\t(proposed: warn = 2x, fail = 4x measured, 1 significant digit up, '
-                     'never below the precision floor)')
+        lines.append(
+            f'+++ {path}\t(proposed: warn = 2x, fail = 4x measured, 1 significant digit up, '
+            'never below the precision floor)'
+        )
         for c in s['comparisons']:
             if c.get('pseudo'):
                 lines.append(f'@@ {c["id"]}: {c["reason"]} @@')
@@ -99,9 +101,19 @@ def proposal(R):
                 warn, fail = t.get('warn'), t.get('fail')
                 nw, nf, note = propose(c, t)
                 cur = yaml_line(t, warn, fail)
-                row = {'scene': s['name'], 'comparison': c['id'], 'metric': t['metric'], 'value': t.get('value'),
-                       'warn': warn, 'fail': fail, 'new_warn': nw, 'new_fail': nf, 'note': note,
-                       'verdict': t.get('verdict'), 'floor': precision_floor(c, t)}
+                row = {
+                    'scene': s['name'],
+                    'comparison': c['id'],
+                    'metric': t['metric'],
+                    'value': t.get('value'),
+                    'warn': warn,
+                    'fail': fail,
+                    'new_warn': nw,
+                    'new_fail': nf,
+                    'note': note,
+                    'verdict': t.get('verdict'),
+                    'floor': precision_floor(c, t),
+                }
                 rows.append(row)
                 if nw is None or (nw == warn and nf == fail):
                     lines.append(f' {cur}    # {note}')
@@ -109,5 +121,3 @@ def proposal(R):
                     lines.append(f'-{cur}    # {note}')
                     lines.append(f'+{yaml_line(t, nw, nf)}')
     return '\n'.join(lines) + '\n', rows
-
-

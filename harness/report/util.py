@@ -20,15 +20,28 @@ VERDICT_ORDER = {v: i for i, v in enumerate(VERDICTS)}
 JOB_ORDER = {'crashed': 0, 'failed': 1, 'timeout': 2, 'error': 3, 'skipped': 4, 'ok': 5}
 HIGHER_BETTER = ('psnr', 'ssim', 'coverage_agreement')
 # Error-like figures spanning decades: always shown as 1.23e-4 so columns compare at a glance.
-REL_METRICS = ('mae', 'rmse', 'rel_mse', 'rel_rms', 'max_abs', 'share_over', 'max_rel', 'mean_rel', 'error',
-               'ref_rel_rms', 'share_fail_pixels', 'z_fail_share', 'rel')
+REL_METRICS = (
+    'mae',
+    'rmse',
+    'rel_mse',
+    'rel_rms',
+    'max_abs',
+    'share_over',
+    'max_rel',
+    'mean_rel',
+    'error',
+    'ref_rel_rms',
+    'share_fail_pixels',
+    'z_fail_share',
+    'rel',
+)
 ROLE_LEGEND = {
     'twin': 'the reference renderer is set up to compute exactly our model; any difference is a '
-            'translation or renderer bug',
+    'translation or renderer bug',
     'validate': 'our real-time approximation against a physically based render; the difference '
-                'is the approximation\'s own error',
+    'is the approximation\'s own error',
     'agree': 'POV-Ray against Cycles on the same physical scene; how far the references agree '
-             '(the floor under every validate figure)',
+    '(the floor under every validate figure)',
 }
 # Trend plots show at most this many runs: older points crowd the axis without changing the story.
 TREND_RUNS = 60
@@ -45,7 +58,6 @@ class Problems:
     def add(self, path, message, scene=None):
         self.items.append({'file': path, 'message': message, 'scene': scene})
         print(f'report: {path}: {message}', file=sys.stderr)
-
 
 
 def is_num(v):
