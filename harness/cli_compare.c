@@ -1,14 +1,51 @@
 /* reflcheck compare: measure each listed comparison of the scenes on one run's renders.
- * reflcheck diff: the metrics of one image pair; exit 0 ok, 1 the value gate fails or the
- * metrics cannot be written, 2 bad input (command line, an image that cannot be read or does
- * not match). */
+ * reflcheck diff: the metrics of one image pair.
+ * Exit status (README): 0 every comparison passed, warned or was skipped; 1 a comparison
+ * failed or is an error, or our own output cannot be written; 2 bad input (command line, a
+ * scene file, two scenes with one name, a run folder that does not exist, an image given to
+ * diff that cannot be read or does not match). */
 #include <errno.h>
 #include <getopt.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "cli.h"
 #include "compare.h"
+#include "scene_file.h"
+
+/* Reads every scene before any is compared: a bad scene file or two scenes with one name
+ * (their jobs share RUN/<name>/, so one would be judged on the other's images) refuse the
+ * whole command, and nothing is written. */
+static int cli_compare_scenes_ok(char **paths, int n)
+{
+    char (*names)[SCENE_NAME_MAX] = calloc((size_t)n, sizeof *names);
+    scene *s = malloc(sizeof *s);
+    int rc = names != NULL && s != NULL ? CLI_OK : CLI_FAILED;
+    for (int i = 0; i < n && rc == CLI_OK; i++) {
+        char err[1024];
+        rc_status st = scene_file_load(paths[i], s, err, sizeof err);
+        if (st != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+            break;
+        }
+        snprintf(names[i], sizeof names[i], "%s", s->name);
+        for (int k = 0; k < i; k++)
+            if (strcmp(names[k], names[i]) == 0) {
+                fprintf(stderr,
+                        "reflcheck: compare: %s and %s both have the scene name '%s', so their renders would share "
+                        "RUN/%s/; give each scene a distinct name: key (or compare them in separate runs)\n",
+                        paths[k], paths[i], names[i], names[i]);
+                rc = CLI_BAD_INPUT;
+                break;
+            }
+    }
+    free(s);
+    free(names);
+    return rc;
+}
 
 int cli_compare(int argc, char **argv)
 {
@@ -29,14 +66,25 @@ int cli_compare(int argc, char **argv)
         fprintf(stderr, "reflcheck: usage: reflcheck compare SCENE... --run DIR\n");
         return CLI_BAD_INPUT;
     }
+    struct stat st_run;
+    int stat_rc = stat(run, &st_run);
+    if (stat_rc != 0 || !S_ISDIR(st_run.st_mode)) {
+        fprintf(stderr, "reflcheck: compare: --run %s: %s; give the run folder that reflcheck plan --out or "
+                "reflcheck run --out wrote\n", run, stat_rc != 0 ? strerror(errno) : "not a directory");
+        return CLI_BAD_INPUT;
+    }
+    int rc = cli_compare_scenes_ok(&argv[optind], argc - optind);
+    if (rc != CLI_OK)
+        return rc;
     int failed = 0, worst = CLI_OK;
     for (int i = optind; i < argc; i++) {
         compare_summary sum;
         char err[1024];
         rc_status st = compare_scene(argv[i], run, &sum, err, sizeof err);
         if (st != RC_OK) {
+            /* The scenes were read above, so this is our own output (compare.json, view.js). */
             fprintf(stderr, "reflcheck: %s\n", err);
-            worst = cli_exit_status(st);
+            worst = CLI_FAILED;
             continue;
         }
         printf("%-40s pass %d  warn %d  fail %d  skipped %d  error %d\n", argv[i], sum.pass, sum.warn, sum.fail,
@@ -46,6 +94,10 @@ int cli_compare(int argc, char **argv)
             if (sum.first_failure[0])
                 fprintf(stderr, "FAIL %s\n", sum.first_failure);
         }
+    }
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        fprintf(stderr, "reflcheck: compare: cannot write the summary to standard output: %s\n", strerror(errno));
+        return CLI_FAILED;
     }
     return worst != CLI_OK ? worst : (failed ? CLI_FAILED : CLI_OK);
 }

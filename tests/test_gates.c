@@ -1,6 +1,7 @@
-/* test_gates.c - gates that count everything: the value gate of every comparison and of diff
- * (NaN, Inf, negative values in any layer fail by themselves), job statuses mapped to
- * comparison statuses (only a skipped job skips), and diff's exit status.
+/* test_gates.c - gates that count everything: the value gate of every comparison (NaN, Inf,
+ * negative values in any layer fail by themselves), job statuses mapped to comparison
+ * statuses (only a skipped job skips), duplicate scene names refused, the exit status of
+ * compare and diff (check's is in test_env.c, with the environment it now loads).
  * Run folders are built by hand (job records and EXRs written here), so every expected count
  * is known exactly: the images are 16x8, all covered by one object, so every pixel is surface. */
 #include <setjmp.h>
@@ -370,6 +371,63 @@ static void test_job_status_vocabulary(void **state)
     cJSON_Delete(j);
 }
 
+/* Exit status of compare: 0 ok (pass), 1 fail (a threshold), 2 bad input. */
+static void test_compare_exit_status(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048];
+    snprintf(scn, sizeof scn, "%s/ex.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-ex", dir);
+    put_scene(scn, "ex", "twin", "d3d", "");
+    static gate_image t, r;
+    image_flat(&t, 0.5f);
+    image_flat(&r, 0.5f);
+    put_job(run, "ex", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "ex", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
+    cJSON *j = read_compare(run, "ex");
+    assert_string_equal(jstr(first_comparison(j), "status"), "pass");
+    assert_int_equal((long)jnum(first_comparison(j), "test_nonfinite"), 0);
+    cJSON_Delete(j);
+
+    image_flat(&r, 0.6f); /* rel_rms 0.1 / sqrt(0.36 + 1e-8) = 0.167 > 1e-3 */
+    put_job(run, "ex", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    assert_non_null(strstr(err, "rel_rms = 0.1667 > fail threshold"));
+
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s", scn), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s/missing.yaml --run %s", dir, run), 2);
+    assert_non_null(strstr(err, "missing.yaml"));
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s/no-such-run", scn, dir), 2);
+    assert_non_null(strstr(err, "no-such-run: No such file or directory"));
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, scn), 2);
+    assert_non_null(strstr(err, "not a directory"));
+}
+
+/* Two scene files with one name would share RUN/<name>/: refused before anything is written. */
+static void test_duplicate_scene_names(void **state)
+{
+    (void)state;
+    char a[512], b[512], run[512], err[2048], path[1024];
+    snprintf(a, sizeof a, "%s/a.yaml", dir);
+    snprintf(b, sizeof b, "%s/b.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-dup", dir);
+    put_scene(a, "same", "twin", "d3d", "");
+    put_scene(b, "same", "twin", "d3d", "");
+    static gate_image t;
+    image_flat(&t, 0.5f);
+    put_job(run, "same", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "same", RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s %s --run %s", a, b, run), 2);
+    assert_non_null(strstr(err, "a.yaml"));
+    assert_non_null(strstr(err, "b.yaml"));
+    assert_non_null(strstr(err, "'same'"));
+    snprintf(path, sizeof path, "%s/same/compare.json", run);
+    assert_int_equal(access(path, F_OK), -1);
+    /* One of them alone is fine. */
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", b, run), 0);
+}
+
 /* diff: 0 ok, 1 the value gate fails or the output cannot be written, 2 bad input. */
 static void test_diff_exit_status(void **state)
 {
@@ -412,6 +470,8 @@ int main(void)
         cmocka_unit_test(test_inf_layer_and_negative_fail),
         cmocka_unit_test(test_negative_allowed_only_where_model_allows),
         cmocka_unit_test(test_job_status_vocabulary),
+        cmocka_unit_test(test_compare_exit_status),
+        cmocka_unit_test(test_duplicate_scene_names),
         cmocka_unit_test(test_diff_exit_status),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
