@@ -383,6 +383,27 @@ static void compare_append_b64(FILE *f, const float *v, size_t n)
     }
 }
 
+/* A JSON string that is also safe inside a script file: a scene named after a file such as
+ * `<!--<script>.yaml` must not open an HTML comment (which script files honour) or end a
+ * script element, and a quote or backslash must not end the string. */
+static void compare_put_js_string(FILE *f, const char *text)
+{
+    fputc('"', f);
+    for (const unsigned char *p = (const unsigned char *)text; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(f, "\\%c", *p);
+        else if (*p < 0x20 || *p == '<' || *p == '>' || *p == '&')
+            fprintf(f, "\\u%04x", *p);
+        else if (p[0] == 0xe2 && p[1] == 0x80 && (p[2] == 0xa8 || p[2] == 0xa9)) {
+            /* U+2028 and U+2029 end a line in older JavaScript. */
+            fprintf(f, "\\u%04x", p[2] == 0xa8 ? 0x2028 : 0x2029);
+            p += 2;
+        } else
+            fputc(*p, f);
+    }
+    fputc('"', f);
+}
+
 /* view.js: every render of this scene as interleaved RGB floats, plus coverage and N.V. */
 static rc_status compare_write_view(const scene *s, const char *run, char *err, size_t errlen)
 {
@@ -394,7 +415,9 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
         snprintf(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
         return RC_ERR_IO;
     }
-    fprintf(f, "window.REFLCHECK_VIEW = {\"scene\": \"%s\", \"images\": {", s->name);
+    fputs("window.REFLCHECK_VIEW = {\"scene\": ", f);
+    compare_put_js_string(f, s->name);
+    fputs(", \"images\": {", f);
     int first = 1, w = 0, h = 0;
     float *buf = NULL;
     exr_image raster = {0};

@@ -1,7 +1,8 @@
 /* test_gates.c - gates that count everything: the value gate of every comparison (NaN, Inf,
  * negative values in any layer fail by themselves), job statuses mapped to comparison
  * statuses (only a skipped job skips), duplicate scene names refused, the exit status of
- * compare and diff (check's is in test_env.c, with the environment it now loads).
+ * compare and diff (check's is in test_env.c, with the environment it now loads), and the
+ * scene name escaped in the report viewer's view.js.
  * Run folders are built by hand (job records and EXRs written here), so every expected count
  * is known exactly: the images are 16x8, all covered by one object, so every pixel is surface. */
 #include <setjmp.h>
@@ -22,6 +23,7 @@
 #include "cli_exec.h"
 #include "exr.h"
 #include "jobs.h"
+#include "scene_file.h"
 
 enum { W = 16, H = 8, NP = W * H };
 
@@ -463,6 +465,41 @@ static void test_diff_exit_status(void **state)
     assert_int_equal(WEXITSTATUS(st), 1);
 }
 
+/* A scene named after its file `<!--<script>.yaml` broke the report's image viewer: view.js
+ * is a script file, where `<!--` opens a comment. The name is written escaped. */
+static void test_view_js_escapes_scene_name(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048], path[1200];
+    snprintf(scn, sizeof scn, "%s/<!--<script>.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-js", dir);
+    put_scene(scn, "x", "twin", "d3d", "");
+    /* put_scene writes a name: key; drop it so the name comes from the file name. */
+    char text[2048];
+    FILE *f = fopen(scn, "r");
+    assert_non_null(f);
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = '\0';
+    write_text(scn, strchr(text, '\n') + 1);
+    static scene sc;
+    assert_int_equal(scene_file_load(scn, &sc, err, sizeof err), RC_OK);
+    static gate_image t;
+    image_flat(&t, 0.5f);
+    put_job(run, sc.name, RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, sc.name, RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    assert_int_equal(cli_exec(err, sizeof err, "compare '%s' --run %s", scn, run), 0);
+    snprintf(path, sizeof path, "%s/%s/view.js", run, sc.name);
+    f = fopen(path, "r");
+    assert_non_null(f);
+    static char js[1 << 16];
+    n = fread(js, 1, sizeof js - 1, f);
+    fclose(f);
+    js[n] = '\0';
+    assert_null(strchr(js, '<'));
+    assert_non_null(strstr(js, "\"scene\": \"\\u003c!--\\u003cscript\\u003e\""));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -473,6 +510,7 @@ int main(void)
         cmocka_unit_test(test_compare_exit_status),
         cmocka_unit_test(test_duplicate_scene_names),
         cmocka_unit_test(test_diff_exit_status),
+        cmocka_unit_test(test_view_js_escapes_scene_name),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
 }
