@@ -6,7 +6,9 @@ import shutil
 import subprocess
 import tempfile
 
-from .util import CHROMIUM_TIMEOUT_S
+from .util import CHROMIUM_TIMEOUT_S, load_ids
+
+ATTR = load_ids()['attr']  # report.js's load markers on <body>
 
 
 def chromium_exe():
@@ -61,8 +63,8 @@ def check_pages(run, pages):
     bad = []
     for name in pages:
         dom = dump_dom(os.path.join(run, name))
-        m = re.search(r'data-loaded="(\d+)/(\d+)"', dom)
-        failed = re.search(r'data-failed="(\d+)"', dom)
+        m = re.search(ATTR['loaded'] + r'="(\d+)/(\d+)"', dom)
+        failed = re.search(ATTR['failed'] + r'="(\d+)"', dom)
         if not m or m.group(1) != m.group(2) or (failed and failed.group(1) != '0'):
             bad.append(
                 (

@@ -17,7 +17,6 @@ from .load import all_comparisons, run_status, verdict_counts
 from .plots import is_sweep, timing_points
 from .util import (
     JOB_ORDER,
-    ROLE_LEGEND,
     VERDICT_ORDER,
     VERDICTS,
     chan_name,
@@ -31,6 +30,16 @@ from .util import (
     load_ids,
     safe_name,
 )
+
+# The index page's legend of comparison roles.
+ROLE_LEGEND = {
+    'twin': 'the reference renderer is set up to compute exactly our model; any difference is a '
+    'translation or renderer bug',
+    'validate': 'our real-time approximation against a physically based render; the difference '
+    'is the approximation\'s own error',
+    'agree': 'POV-Ray against Cycles on the same physical scene; how far the references agree '
+    '(the floor under every validate figure)',
+}
 
 TEMPLATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'templates')
 IDS = load_ids()

@@ -35,14 +35,6 @@ REL_METRICS = (
     'z_fail_share',
     'rel',
 )
-ROLE_LEGEND = {
-    'twin': 'the reference renderer is set up to compute exactly our model; any difference is a '
-    'translation or renderer bug',
-    'validate': 'our real-time approximation against a physically based render; the difference '
-    'is the approximation\'s own error',
-    'agree': 'POV-Ray against Cycles on the same physical scene; how far the references agree '
-    '(the floor under every validate figure)',
-}
 # Trend plots show at most this many runs: older points crowd the axis without changing the story.
 TREND_RUNS = 60
 GNUPLOT_TIMEOUT_S = 60
