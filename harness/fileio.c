@@ -157,34 +157,30 @@ rc_status fileio_write_atomic(const char *path, const char *text, char *err, siz
 
 char *fileio_read_all(const char *path, size_t *len)
 {
-    FILE *f = fopen(path, "rb");
-    if (f == NULL)
+    int fd;
+    long long size = 0;
+    char err[16];
+    if (fileio_open_input(path, FILEIO_READ_ALL_MAX_BYTES, "a text file", &fd, &size, err, sizeof err) != RC_OK)
         return NULL;
-    char *buf = NULL;
-    size_t used = 0, cap = 0, n;
-    char chunk[8192];
-    while ((n = fread(chunk, 1, sizeof chunk, f)) > 0) {
-        if (used + n + 1 > cap) {
-            cap = (used + n + 1) * 2;
-            char *nb = realloc(buf, cap);
-            if (nb == NULL) {
-                free(buf);
-                fclose(f);
-                return NULL;
-            }
-            buf = nb;
+    char *buf = malloc((size_t)size + 1);
+    size_t used = 0;
+    /* At most the size fstat gave: a file growing meanwhile is cut there, never read without end. */
+    while (buf != NULL && used < (size_t)size) {
+        ssize_t r = read(fd, buf + used, (size_t)size - used);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0) {
+            free(buf);
+            buf = NULL;
+        } else if (r == 0) {
+            break;
+        } else {
+            used += (size_t)r;
         }
-        memcpy(buf + used, chunk, n);
-        used += n;
     }
-    int bad = ferror(f);
-    fclose(f);
-    if (!bad && buf == NULL)
-        buf = malloc(1); /* an empty file is an empty string */
-    if (bad || buf == NULL) {
-        free(buf);
+    close(fd);
+    if (buf == NULL)
         return NULL;
-    }
     buf[used] = '\0';
     if (len != NULL)
         *len = used;

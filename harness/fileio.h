@@ -11,7 +11,8 @@
  *   fileio_temp_open(target, tmp, sizeof tmp, &fd, err, sizeof err);  ... write(fd) ...
  *   fileio_temp_finish(fd, tmp, target, failed, err, sizeof err);     rename, or unlink the temp
  *   fileio_write_atomic("run/x/compare.json", text, err, sizeof err);  temp file, then rename
- *   char *text = fileio_read_all("record.json", &len);                 NUL-terminated; free()
+ *   char *text = fileio_read_all("record.json", &len);   NUL-terminated; free(); regular files
+ *                                                         of at most FILEIO_READ_ALL_MAX_BYTES
  *   fileio_copy("cache/k/out.exr", "run/x/raster-twin.exr");           temp file, then rename
  * Inputs: a FIFO, a device, a directory or a socket is refused with its kind named (it is
  * opened O_NONBLOCK, so a FIFO without a writer never blocks), and so is a file over the
@@ -49,6 +50,10 @@
  * 600 MB as OBJ text and 250 MB as binary PLY, far beyond any real-time scene, so 1 GiB keeps
  * every reasonable mesh and stops /dev/zero-like or runaway files before the first byte. */
 #define FILEIO_MESH_MAX_BYTES ((long long)1 << 30)
+
+/* fileio_read_all reads the harness's own JSON (job records, compare results): kilobytes, or a
+ * few MB with embedded image planes; 256 MiB keeps all of them and stops a runaway file. */
+#define FILEIO_READ_ALL_MAX_BYTES ((long long)256 << 20)
 
 /* When the physical memory cannot be asked (sysconf fails), assume a small 8 GiB machine. */
 #define FILEIO_MEMORY_FALLBACK ((size_t)8 << 30)

@@ -136,6 +136,34 @@ static void test_open_input(void **state)
     unlink(big);
 }
 
+/* fileio_read_all reads regular files only: a FIFO returns NULL at once (it used to block in
+ * fopen) and /dev/zero returns NULL instead of being read until memory runs out. */
+static void test_read_all_bounded(void **state)
+{
+    (void)state;
+    const char *fifo = "/tmp/reflcheck-test-readall.fifo";
+    unlink(fifo);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        alarm(20);
+#ifndef __SANITIZE_ADDRESS__
+        /* An unbounded read of /dev/zero fails here instead of meeting the OOM killer. */
+        struct rlimit rl = {.rlim_cur = (rlim_t)2 << 30, .rlim_max = (rlim_t)2 << 30};
+        setrlimit(RLIMIT_AS, &rl);
+#endif
+        int ok = fileio_read_all(fifo, NULL) == NULL && fileio_read_all("/dev/zero", NULL) == NULL &&
+                 fileio_read_all("/tmp", NULL) == NULL;
+        _exit(ok ? 0 : 1);
+    }
+    int ws = 0;
+    assert_int_equal(waitpid(pid, &ws, 0), pid);
+    assert_true(WIFEXITED(ws));
+    assert_int_equal(WEXITSTATUS(ws), 0);
+    unlink(fifo);
+}
+
 static void test_memory_limit(void **state)
 {
     (void)state;
@@ -245,6 +273,7 @@ int main(void)
         cmocka_unit_test(test_write_read_copy),
         cmocka_unit_test(test_errors),
         cmocka_unit_test(test_open_input),
+        cmocka_unit_test(test_read_all_bounded),
         cmocka_unit_test(test_memory_limit),
         cmocka_unit_test(test_output_target),
     };
