@@ -624,3 +624,11 @@ def test_sweep_columns_come_from_the_sweep(tmp_path):
     html = read(os.path.join(run, 'index.html'))
     assert '<th>budget</th><th>raster</th><th>eevee</th><th>Cycles (fit)</th>' in html
     assert 'reference: cycles twin 4096 spp' in html and '16 taa, 0.5 s' in html
+
+
+def test_stylesheet_ids_are_on_the_pages(built):
+    """report.css cannot read ids.json: every #id its selectors name must be one the pages carry."""
+    css = re.sub(r'/\*.*?\*/', '', read(os.path.join(HARNESS, 'report_assets', 'report.css')), flags=re.S)
+    names = {n for sel in re.findall(r'([^{}]*)\{', css) for n in re.findall(r'#([A-Za-z][\w-]*)', sel)}
+    pages = ''.join(read(os.path.join(built['run'], p)) for p in ('index.html', 'scene-alpha.html'))
+    assert names and all(f'id="{n}"' in pages for n in names), names
