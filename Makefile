@@ -36,7 +36,8 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all test test-unit test-scenes test-mutant test-kill test-report bench report fuzz deps clean
+.PHONY: all test test-unit test-scenes test-mutant test-kill test-report test-fuzz bench report fuzz \
+        deps clean
 all: $(CLI) $(TEST_BIN)
 
 deps:
@@ -66,7 +67,7 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-report
+	$(MAKE) test-mutant test-kill test-report test-fuzz
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
@@ -75,6 +76,11 @@ test-mutant: $(CLI)
 # Killing the nightly run at random points loses no history record.
 test-kill: $(CLI)
 	@bash tests/kill_nightly.sh $(BUILD)
+
+# The fuzzers, briefly, so that their build and a first pass over the corpus run in every CI.
+test-fuzz:
+	$(MAKE) fuzz FUZZ_TIME=$(TEST_FUZZ_TIME)
+TEST_FUZZ_TIME ?= 15
 
 # The report generator, and the report opened in headless Chromium.
 test-report:
@@ -90,18 +96,23 @@ report: deps
 	@bash harness/nightly.sh
 
 # Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
-# to tests/regress/ once fixed. FUZZ_TIME seconds per target.
+# to tests/regress/ once fixed. FUZZ_TIME seconds per target. The fuzz targets link the whole
+# library, built once with the fuzzer's instrumentation, so a new dependency between our own
+# files can never break their link again.
 FUZZ_CC    ?= clang
 FUZZ_TIME  ?= 300
-FUZZ_FLAGS := -g -O1 -fopenmp-simd -Wno-pass-failed -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $(STD) -Imodel -Iharness
+FUZZ_CFLAGS := -g -O1 -fopenmp-simd -Wno-pass-failed -fsanitize=address,undefined -fno-sanitize-recover=all \
+               $(STD) -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 FUZZ_DIR   := $(abspath $(BUILD))/fuzz
+FUZZ_OBJ   := $(MODEL_SRC:%.c=$(FUZZ_DIR)/obj/%.o) $(HARNESS_SRC:%.c=$(FUZZ_DIR)/obj/%.o)
 
-$(FUZZ_DIR)/fuzz_scene: tests/fuzz/fuzz_scene.c harness/scene_file.c $(MODEL_SRC)
+$(FUZZ_DIR)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(FUZZ_CC) $(FUZZ_FLAGS) $^ $(shell pkg-config --cflags --libs yaml-0.1) -lm -o $@
-$(FUZZ_DIR)/fuzz_exr: tests/fuzz/fuzz_exr.c harness/exr.c harness/runner.c
-	@mkdir -p $(dir $@)
-	$(FUZZ_CC) $(FUZZ_FLAGS) $^ $(shell pkg-config --cflags --libs OpenEXR) -lm -o $@
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer-no-link $(DEPFLAGS) -c $< -o $@
+$(FUZZ_DIR)/libreflcheck_fuzz.a: $(FUZZ_OBJ)
+	$(AR) rcs $@ $^
+$(FUZZ_DIR)/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DIR)/libreflcheck_fuzz.a
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer $^ -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lm -o $@
 
 fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
 	@mkdir -p $(FUZZ_DIR)/corpus_scene $(FUZZ_DIR)/corpus_exr $(FUZZ_DIR)/artifacts
@@ -109,6 +120,7 @@ fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/scene- $(FUZZ_DIR)/corpus_scene ../tests/fuzz/corpus/scene
 	$(FUZZ_DIR)/fuzz_exr -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/exr- $(FUZZ_DIR)/corpus_exr tests/fuzz/corpus/exr
+-include $(FUZZ_OBJ:.o=.d)
 
 # Benchmarks: the rasterizer across sizes, threads and triangle counts, llvmpipe (OSMesa) on
 # the same frame, POV-Ray and Cycles beside them. Targets live here, never in timed tests.
