@@ -2,6 +2,7 @@
 #   make            library, CLI and tests          make test     unit + renderer tests
 #   make report     the nightly report (all renderers, large renders)
 #   make bench      rasterizer benchmarks            make fuzz     coverage-guided fuzzing
+#   make check T=NAME   one unit-test program (tests/test_NAME.c)
 #   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
 CC ?= cc
 PKGS := OpenEXR yaml-0.1 cmocka libcjson
@@ -36,7 +37,7 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all test test-unit test-scenes test-mutant test-kill test-report test-fuzz bench report fuzz \
+.PHONY: all check test test-unit test-scenes test-mutant test-kill test-report test-fuzz bench report fuzz \
         deps clean
 all: $(CLI) $(TEST_BIN)
 
@@ -61,6 +62,12 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBS)
 # Unit tests (also the sanitizer run in CI), then the renderer-backed tests.
 test-unit: $(TEST_BIN) $(CLI)
 	@bash tests/run_unit.sh $(BUILD)
+
+# One unit-test program alone: `make check T=jobs` runs tests/test_jobs.c's program.
+check: $(CLI)
+	@test -n "$(T)" || { echo "usage: make check T=NAME (a tests/test_NAME.c program)"; exit 2; }
+	$(MAKE) $(BUILD)/tests/test_$(T)
+	REFLCHECK_BIN=$(CLI) $(BUILD)/tests/test_$(T)
 
 test: deps
 	$(MAKE) all
