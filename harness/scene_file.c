@@ -1337,12 +1337,19 @@ rc_status scene_file_parse(const char *text, size_t len, const char *path_for_me
     if (path_for_messages)
         snprintf(s->path, sizeof s->path, "%s", path_for_messages);
     {
-        /* Default name: the file's base name without its extension. */
+        /* Default name: the file's base name without its extension, with every character a
+         * name may not hold (sf_name_char) made '_'. The name becomes folder names, make
+         * targets and page names, so a file called `x;id>y.yaml` or `<!--<script>.yaml` must
+         * not carry its characters into them; two files that map to one name are refused
+         * where names must be unique (plan, compare). */
         const char *base = strrchr(c.file, '/');
         base = base ? base + 1 : c.file;
         size_t n = strcspn(base, ".");
-        if (path_for_messages && n > 0 && n < sizeof s->name)
-            snprintf(s->name, sizeof s->name, "%.*s", (int)n, base);
+        if (path_for_messages && n > 0 && n < sizeof s->name) {
+            for (size_t i = 0; i < n; i++)
+                s->name[i] = sf_name_char((unsigned char)base[i]) ? base[i] : '_';
+            s->name[n] = '\0';
+        }
     }
 
     yaml_node_t *root = yaml_document_get_root_node(&doc);

@@ -211,6 +211,22 @@ static void test_good_minimal_defaults(void **state)
     free(s);
 }
 
+/* The default name becomes folders, make targets and page names: characters a name may not
+ * hold are made '_' (letters, digits, _ - . stay). */
+static void test_default_name_made_safe(void **state)
+{
+    (void)state;
+    static const char text[] = "image: {width: 4, height: 3}\ncamera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n";
+    scene *s = malloc(sizeof *s);
+    char err[512];
+    assert_non_null(s);
+    assert_int_equal(scene_file_parse(text, sizeof text - 1, "dir.d/<!--<script>.yaml", s, err, sizeof err), RC_OK);
+    assert_string_equal(s->name, "__--_script_");
+    assert_int_equal(scene_file_parse(text, sizeof text - 1, "x;id>PWNED;.v2.yaml", s, err, sizeof err), RC_OK);
+    assert_string_equal(s->name, "x_id_PWNED_");
+    free(s);
+}
+
 static void test_derived_defaults(void **state)
 {
     (void)state;
@@ -562,6 +578,7 @@ int main(void)
         cmocka_unit_test(test_hash_vectors),
         cmocka_unit_test(test_good_full),
         cmocka_unit_test(test_good_minimal_defaults),
+        cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_bad_fixtures),
         cmocka_unit_test(test_fixture_list_complete),
