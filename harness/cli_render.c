@@ -4,7 +4,6 @@
  * symlink or a second name is caught too). Exit 1 when the image cannot be written; the
  * destination is then as it was (exr_write writes a temporary file and renames it). */
 #include <getopt.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -87,10 +86,6 @@ int cli_render(int argc, char **argv)
         fprintf(stderr, "reflcheck: %s\n", err);
         return cli_exit_status(ost);
     }
-    /* Past a file size limit (ulimit -f) a write must fail with EFBIG and be reported, not kill
-     * the process with SIGXFSZ and leave its temporary file behind. */
-    signal(SIGXFSZ, SIG_IGN);
-
     scene *s = malloc(sizeof *s);
     mesh m = {0};
     env_map env;

@@ -5,7 +5,6 @@
  * options or an output that is not a regular file (a device, FIFO or directory). */
 #include <errno.h>
 #include <getopt.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -75,8 +74,6 @@ int cli_stability(int argc, char **argv)
                 "[--json FILE] [--csv FILE] [--samples N]\n", argv[optind]);
         return CLI_BAD_INPUT;
     }
-    /* Past a file size limit (ulimit -f) a write must fail and be reported, not kill the process. */
-    signal(SIGXFSZ, SIG_IGN);
     stability_table *t = malloc(sizeof *t);
     if (!t) {
         fprintf(stderr, "reflcheck: stability: out of memory for the table\n");

@@ -4,9 +4,11 @@
  *   reflcheck eval fresnel|beckmann [--ior N] [--p P] [--r0 R0] [--m M] [--steps N]
  *   reflcheck check SCENE                 parse and validate only
  *   reflcheck run | plan | compare | stability   (see usage below)
- * Exit status: 0 ok, 1 a run failed (I/O, renderer), 2 bad input (command line, scene file).
+ * Exit status: 0 ok, 1 a run failed (a job not ok or skipped, a comparison that fails or errors, a
+ * write that failed), 2 bad input (command line, scene file, a file it references, an output onto an input).
  */
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -34,6 +36,10 @@ int main(int argc, char **argv)
         usage(argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
     }
+    /* Past a file size limit (ulimit -f) a write must fail with EFBIG and be reported by every
+     * command (outputs are temporaries renamed on success), not kill the process with SIGXFSZ
+     * and leave a temporary behind. */
+    signal(SIGXFSZ, SIG_IGN);
     const cli_command *c = cli_find(argv[1]);
     if (c == NULL) {
         fprintf(stderr, "reflcheck: unknown command '%s'\n", argv[1]);
