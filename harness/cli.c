@@ -6,7 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fileio.h"
 #include "frame.h"
+#include "render.h"
 #include "scene_file.h"
 #include "status.h"
 
@@ -83,9 +85,9 @@ int cli_parse_double(const char *opt, const char *text, double lo, double hi, do
 }
 
 /* Loads everything `render` loads (the scene, its meshes, its environment image with its
- * texels checked) without rendering, so a scene that passes check does not fail render on
- * its inputs. Everything here is the user's input: a failure is bad input (2), except
- * running out of memory (1). */
+ * texels checked) and asks render's own memory estimate, without rendering, so a scene that
+ * passes check does not fail render on its inputs or its size. Everything here is the
+ * user's input: a failure is bad input (2), except running out of memory (1). */
 int cli_check(int argc, char **argv)
 {
     if (argc != 2) {
@@ -107,6 +109,25 @@ int cli_check(int argc, char **argv)
         if (st != RC_OK) {
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+        }
+    }
+    if (rc == CLI_OK) {
+        /* The scene's own size, as `render SCENE` without options would refuse it. */
+        size_t limit = 0;
+        double need = 0.0;
+        char why[256];
+        if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
+            fprintf(stderr, "reflcheck: %s: %s\n", argv[1], why);
+            rc = CLI_BAD_INPUT;
+        } else {
+            render_memory_estimate(s, &m, &env, NULL, &need, NULL);
+            if (need > (double)limit) {
+                fprintf(stderr, "reflcheck: %s: image: a %dx%d render at supersample %d needs about %.2f GiB, over "
+                        "the memory limit of %.2f GiB; make image.width, image.height or image.supersample smaller, "
+                        "or raise REFLCHECK_MEMORY_LIMIT\n", argv[1], s->width, s->height, s->supersample,
+                        need / 1073741824.0, (double)limit / 1073741824.0);
+                rc = CLI_BAD_INPUT;
+            }
         }
     }
     if (rc == CLI_OK) {

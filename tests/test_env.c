@@ -234,6 +234,14 @@ static void test_check_loads_environment(void **state)
     write_text(env, "this is not an EXR file\n");
     assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
     assert_non_null(strstr(err, "env.yaml: environment.image: "));
+    /* render refuses a frame beyond the memory limit before allocating; check says so too. */
+    put_env(env, 0.0f, -1, 0, 0);
+    setenv("REFLCHECK_MEMORY_LIMIT", "1K", 1);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
+    assert_non_null(strstr(err, "env.yaml: image: a 8x4 render at supersample 1 needs about "));
+    assert_non_null(strstr(err, "REFLCHECK_MEMORY_LIMIT"));
+    unsetenv("REFLCHECK_MEMORY_LIMIT");
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 0);
     /* The rest of check's exit statuses: a missing scene, and a command line, are bad input. */
     assert_int_equal(cli_exec(err, sizeof err, "check %s/missing.yaml", dir), 2);
     assert_int_equal(cli_exec(err, sizeof err, "check %s %s", scn, scn), 2);
