@@ -37,8 +37,8 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all check test test-unit test-scenes test-mutant test-kill test-report test-fuzz bench report fuzz \
-        deps clean
+.PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-report test-fuzz \
+        bench report fuzz deps clean
 all: $(CLI) $(TEST_BIN)
 
 deps:
@@ -74,15 +74,19 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-report test-fuzz
+	$(MAKE) test-mutant test-kill test-status test-report test-fuzz
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
 	@bash tests/mutant_fresnel.sh $(BUILD)
 
-# Killing the nightly run at random points loses no history record.
+# Killing the nightly run at random points loses no history record and leaves no process.
 test-kill: $(CLI)
 	@bash tests/kill_nightly.sh $(BUILD)
+
+# The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer.
+test-status: $(CLI)
+	@bash tests/nightly_status.sh $(BUILD)
 
 # The fuzzers, briefly, so that their build and a first pass over the corpus run in every CI.
 test-fuzz:

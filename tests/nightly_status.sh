@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# The nightly's exit status and the run status it records: a clean run exits 0 and records ok;
+# a run whose comparison fails exits 1 and records fail; a run whose renderer crashes exits 1
+# and records error (the crash is not a skip). NO_SCREENSHOT=1 is honoured throughout.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+work=$build/status-test
+rm -rf "$work"
+mkdir -p "$work/bin"
+export BIN=$build/reflcheck RUNS=$work/runs HISTORY=$work/history.jsonl LATEST=$work/latest
+export CACHE=$work/cache SMALL=1 NO_SWEEP=1 NO_SCREENSHOT=1
+pass=0; fail=0
+ok() { pass=$((pass + 1)); echo "status: $*"; }
+bad() { fail=$((fail + 1)); echo "status: FAILED: $*"; }
+
+# A Lambert quad under a sun, raster against its POV-Ray twin; $1 is the rel_rms fail threshold.
+scene() {
+    cat > "$work/$2.yaml" <<YAML
+name: $2
+image: {width: 24, height: 16, supersample: 2}
+camera: {eye: [0, 2, 3], target: [0, 0, 0], hfov: 40}
+lights:
+  - {type: sun, direction: [0.2, -1, -0.3], irradiance: [3, 3, 3]}
+materials:
+  m: {albedo: [0.5, 0.4, 0.3], model: d3d}
+objects:
+  - {shape: quad, center: [0, 0, 0], size: [6, 6], material: m}
+comparisons:
+  - reference: povray
+    role: twin
+    thresholds:
+      rel_rms: {warn: $1, fail: $1, why: "test threshold"}
+YAML
+}
+record_status() {
+    /usr/bin/python3 -c 'import json,sys; print(json.loads(open(sys.argv[1]).read().splitlines()[-1])["status"])' \
+        "$HISTORY"
+}
+expect() {   # expect NAME WANT_EXIT WANT_STATUS GOT_EXIT
+    local st
+    st=$(record_status)
+    if [ "$4" -eq "$2" ] && [ "$st" = "$3" ]; then ok "$1: exit $4, recorded $st"
+    else bad "$1: exit $4 (want $2), recorded $st (want $3); see $work/$1.log"; fi
+}
+
+scene 1.0e-2 clean
+RUN_ID=clean SCENES="$work/clean.yaml" bash harness/nightly.sh > "$work/clean.log" 2>&1
+expect clean 0 ok $?
+# No screenshot was asked for: none was taken.
+[ ! -e "$RUNS/clean/screenshot.png" ] && ok "NO_SCREENSHOT=1: no screenshot" || bad "NO_SCREENSHOT=1 took a screenshot"
+
+# The half-float floor alone is about 1e-4: a threshold of 1e-12 fails the twin.
+scene 1.0e-12 tight
+RUN_ID=tight SCENES="$work/tight.yaml" bash harness/nightly.sh > "$work/tight.log" 2>&1
+expect tight 1 fail $?
+
+# A POV-Ray that names its version and then crashes on every render.
+cat > "$work/bin/povray" <<'SH'
+#!/bin/sh
+case "$*" in *--version*) echo "POV-Ray 3.7.0.10 (fake, crashes)"; exit 0;; esac
+kill -SEGV $$
+SH
+chmod +x "$work/bin/povray"
+scene 1.0e-2 crash
+RUN_ID=crash SCENES="$work/crash.yaml" PATH="$PWD/$work/bin:$PATH" bash harness/nightly.sh > "$work/crash.log" 2>&1
+rc=$?
+expect crash 1 error $rc
+grep -q '"status":[[:space:]]*"crashed"' "$RUNS/crash/crash/povray-twin.json" && ok "crash: job record says crashed" ||
+    bad "crash: job record does not say crashed"
+echo "status: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]
