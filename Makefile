@@ -37,7 +37,7 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-report test-fuzz \
+.PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz \
         bench report fuzz deps clean
 all: $(CLI) $(TEST_BIN)
 
@@ -74,7 +74,7 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-status test-report test-fuzz
+	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
@@ -87,6 +87,11 @@ test-kill: $(CLI)
 # The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer.
 test-status: $(CLI)
 	@bash tests/nightly_status.sh $(BUILD)
+
+# Two nightlies at once on one cache: both complete, the shared jobs render once, and both
+# history lines are intact.
+test-concurrent: $(CLI)
+	@bash tests/concurrent_nightly.sh $(BUILD)
 
 # The fuzzers, briefly, so that their build and a first pass over the corpus run in every CI.
 test-fuzz:
