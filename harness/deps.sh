@@ -5,7 +5,8 @@ set -euo pipefail
 
 pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjson-dev
       povray blender openimageio-tools gnuplot-nox chromium
-      libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2)
+      libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2
+      procps)
 
 missing=()
 for p in "${pkgs[@]}"; do
