@@ -98,9 +98,12 @@ int cli_render(int argc, char **argv)
         rc = cli_render_check_inputs(out, s);
     if (rc == CLI_OK) {
         rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
-        if (st == RC_OK)
-            st = render_scene(s, &m, &env, &ro, &img, err, sizeof err);
         if (st != RC_OK) {
+            /* The environment image is the user's input: missing, unreadable or with bad texels
+             * is bad input (exit 2), as `check` says for the same file; only memory is ours. */
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+        } else if ((st = render_scene(s, &m, &env, &ro, &img, err, sizeof err)) != RC_OK) {
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = cli_exit_status(st);
         }

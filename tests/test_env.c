@@ -209,6 +209,12 @@ static void test_render_refuses_bad_texels(void **state)
     put_env(env, -0.5f, 0, 2, 0);
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
     assert_non_null(strstr(err, "0 non-finite and 1 negative texel values, the first at texel (x 0, y 2) channel R = -0.5"));
+    /* A corrupt or missing environment image is bad input for render as for check (exit 2). */
+    write_text(env, "this is not an EXR file\n");
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    assert_non_null(strstr(err, "env.yaml: environment.image: "));
+    assert_int_equal(unlink(env), 0);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
     env_scene_remove(dir);
 }
 
