@@ -7,6 +7,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <cmocka.h>
+#include <sys/stat.h>
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -215,6 +216,13 @@ static void test_render_refuses_bad_texels(void **state)
     assert_non_null(strstr(err, "env.yaml: environment.image: "));
     assert_int_equal(unlink(env), 0);
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    /* A whole header with its pixel data cut off fails while decoding (an I/O status inside). */
+    put_env(env, 0.0f, -1, 0, 0);
+    struct stat st;
+    assert_int_equal(stat(env, &st), 0);
+    assert_int_equal(truncate(env, st.st_size - 40), 0);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
+    assert_int_equal(cli_exec(err, sizeof err, "check %s", scn), 2);
     env_scene_remove(dir);
 }
 
