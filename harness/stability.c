@@ -20,6 +20,7 @@
 #include "d3d.h"
 #include "d3d9client.h"
 #include "env.h"
+#include "formula.h"
 #include "fresnel.h"
 #include "microfacet.h"
 #include "scene.h"
@@ -52,24 +53,13 @@ static ld l3_max_comp(ld3 a) { return fmaxl(a.x, fmaxl(a.y, a.z)); }
 static ld ref_clamp(ld x, ld lo, ld hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static ld ref_satf(ld x) { return ref_clamp(x, -(ld)FLT_MAX, (ld)FLT_MAX); }
 
-static ld ref_r0(ld n)
-{
-    if (n <= 0 || isinf(n)) return 1;
-    ld r = (1 - n) / (1 + n);
-    return r * r;
-}
+static ld ref_r0(ld n) { return formula_r0_l(n); }
 
-static ld ref_schlick(ld f0, ld c)
-{
-    ld x = 1 - ref_clamp(c, 0, 1);
-    return ref_satf(f0 + (1 - f0) * x * x * x * x * x);
-}
+static ld ref_schlick(ld f0, ld c) { return ref_satf(formula_schlick_l(f0, c)); }
 
 static ld ref_d3d9(ld r0, ld m, ld p, ld c)
 {
-    ld x = 1 - ref_clamp(c, 0, 1);
-    ld e = p < 0 ? 0 : p;
-    return ref_satf(r0 + m * powl(x, e));
+    return ref_satf(formula_d3d9_fresnel_l(r0, m, powl(formula_one_minus_cos_l(c), formula_d3d9_power_l(p))));
 }
 
 static ld ref_dielectric(ld cos_i, ld eta)
@@ -110,42 +100,14 @@ static ld ref_beckmann(ld c, ld m, ct_normalisation norm)
     if (c > 1) c = 1;
     if (m <= 0) return c >= 1 ? MICROFACET_D_MAX : 0;
     /* long double's exponent range (1e+-4932) holds m^2 and c^4 for every float m, c. */
-    ld tan2 = (1 - c) * (1 + c) / (c * c);
-    ld d = expl(-tan2 / (m * m)) / (m * m * c * c * c * c);
-    if (norm != CT_CT1982) d /= REF_PI;
-    return d >= (ld)MICROFACET_D_MAX ? (ld)MICROFACET_D_MAX : d;
+    return formula_beckmann_d_l((1 - c) * (1 + c), c * c, 1 / (m * m), formula_beckmann_log_norm_l(m, norm != CT_CT1982));
 }
 
-static ld ref_vcavity(ld nh, ld nv, ld nl, ld vh)
-{
-    if (nh <= 0 || nv <= 0 || nl <= 0) return 0;
-    ld g = 1, tv = 2 * nh * nv, tl = 2 * nh * nl;
-    if (tv < g * vh) g = tv / vh;
-    if (tl < g * vh) g = tl / vh;
-    return g;
-}
+static ld ref_vcavity(ld nh, ld nv, ld nl, ld vh) { return formula_vcavity_g_l(nh, nv, nl, vh); }
 
-static ld ref_m_tan(ld c, ld m) { return m * (sqrtl((1 - c) * (1 + c)) / c); }
+static ld ref_smith_g1_walter(ld c, ld m) { return formula_smith_g1_walter_l(c, m); }
 
-static ld ref_smith_g1_walter(ld c, ld m)
-{
-    if (c <= 0) return 0;
-    if (c >= 1 || m <= 0) return 1;
-    ld inv_a = ref_m_tan(c, m);
-    if (inv_a < 0.625L) return 1;
-    ld a = 1 / inv_a;
-    return ((2.181L * a + 3.535L) * a) / ((2.577L * a + 2.276L) * a + 1);
-}
-
-static ld ref_smith_g1_exact(ld c, ld m)
-{
-    if (c <= 0) return 0;
-    if (c >= 1 || m <= 0) return 1;
-    ld x = ref_m_tan(c, m);
-    if (x <= 0) return 1;
-    ld a = 1 / x;
-    return 2 / (1 + erfl(a) + expl(-a * a) / (a * sqrtl(REF_PI)));
-}
+static ld ref_smith_g1_exact(ld c, ld m) { return formula_smith_g1_exact_l(c, m); }
 
 static ld ref_attenuation(const light *l, ld d)
 {

@@ -3,6 +3,8 @@
 #include <float.h>
 #include <math.h>
 
+#include "formula.h"
+
 /* Saturate a double to the float range. NaN passes through unchanged. */
 static float fresnel_sat(double x)
 {
@@ -19,19 +21,13 @@ static double fresnel_clampd(double x, double lo, double hi)
 
 float fresnel_r0_from_ior(float n)
 {
-    if (n <= 0.0f || isinf(n)) return 1.0f;
-    /* 1 - n is exact near n = 1 (Sterbenz), so R0 keeps full relative precision as n -> 1;
-     * double keeps 1 + n and the square from overflowing for n near FLT_MAX. */
-    double r = (1.0 - (double)n) / (1.0 + (double)n);
-    return (float)(r * r);
+    /* In double: 1 + n and the square cannot overflow for n near FLT_MAX. */
+    return (float)formula_r0_d(n);
 }
 
 float fresnel_schlick(float f0, float cos_theta)
 {
-    double c = fresnel_clampd(cos_theta, 0.0, 1.0);
-    double x = 1.0 - c;
-    double x2 = x * x;
-    return fresnel_sat(f0 + (1.0 - (double)f0) * x2 * x2 * x);
+    return fresnel_sat(formula_schlick_d(f0, cos_theta));
 }
 
 vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta)
@@ -42,9 +38,8 @@ vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta)
 
 float fresnel_d3d9(float r0, float m, float p, float cos_theta)
 {
-    double c = fresnel_clampd(cos_theta, 0.0, 1.0);
-    double e = (double)fresnel_d3d9_power(p);
-    double x = 1.0 - c, xe;
+    double e = formula_d3d9_power_d(p);
+    double x = formula_one_minus_cos_d(cos_theta), xe;
     /* Small whole powers (the seed's p = 2..5 and Schlick's 5) by repeated multiplication:
      * at most 7 double roundings, far below float resolution, and no libm pow per pixel. */
     if (e == floor(e) && e <= 8.0) {
@@ -54,7 +49,7 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta)
     } else
         xe = pow(x, e);
     /* x^e with x in [0, 1] and e >= 0 lies in [0, 1]: no overflow here. */
-    return fresnel_sat((double)r0 + (double)m * xe);
+    return fresnel_sat(formula_d3d9_fresnel_d(r0, m, xe));
 }
 
 /* Beyond this ratio eta^2 (or 1/eta^2) leaves the double range, while the reflectance

@@ -6,6 +6,9 @@
  *   float R  = fresnel_d3d9(r0, 1.0f - r0, 3.0f, n_v);    D3D9Client (1)/(3)
  *   double e = fresnel_dielectric(cos_i, 1.5);            exact, unpolarised
  *   double c = fresnel_conductor(cos_i, 0.2, 3.0);        exact, complex index eta + i k
+ * The approximations' formulas are formula.h's (formula_r0, formula_schlick,
+ * formula_d3d9_fresnel), which the SIMD lanes and the stability reference share; these functions
+ * add the scalar model's guards and evaluate them in double.
  * float functions model the shader (GPU precision); double functions are the exact
  * references the approximations are judged against. All are pure and return a reflectance
  * (a fraction, not a radiance; no cosine factor). Cosines outside their range are clamped
@@ -17,6 +20,7 @@
 #ifndef REFLCHECK_FRESNEL_H
 #define REFLCHECK_FRESNEL_H
 
+#include "formula.h"
 #include "vec.h"
 
 /* (2)/(4.9): R0 = ((1 - n)/(1 + n))^2 for a relative index n (n2/n1). n <= 0 (not an index)
@@ -35,7 +39,7 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta);
 /* The exponent fresnel_d3d9 applies: p, with p < 0 taken as 0 (a negative power is unbounded at
  * normal incidence). One definition for fresnel_d3d9 and the SIMD kernels (shade_batch.c), so a
  * change to the rule reaches every render. */
-static inline float fresnel_d3d9_power(float p) { return p < 0.0f ? 0.0f : p; }
+static inline float fresnel_d3d9_power(float p) { return formula_d3d9_power_f(p); }
 
 /* Exact unpolarised Fresnel reflectance of a smooth dielectric interface, (Rs + Rp)/2.
  * eta = n_t / n_i seen from the side the ray arrives on when cos_i >= 0; cos_i < 0 means

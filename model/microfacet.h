@@ -5,6 +5,9 @@
  *   float g = microfacet_vcavity_g(n_h, n_v, n_l, v_h);            (4.10)/(4.11)
  *   float s = microfacet_smith_g_walter(n_v, n_l, m);              Smith, as Cycles evaluates it
  *   double e = microfacet_smith_g_exact(n_v, n_l, m);              Smith, exact erf form
+ * The formulas are formula.h's (formula_beckmann_d, formula_vcavity_g, formula_smith_g1_*),
+ * shared with the SIMD lanes and the stability reference; these functions add the scalar
+ * model's guards (NaN, delta limit, underflow) and evaluate them in double.
  * Arguments are cosines of unit directions pointing away from the surface; m is the
  * Beckmann roughness (RMS slope; Cycles' alpha). Pure functions, no cosine factor beyond
  * what each formula states. Every finite argument gives a finite, non-negative result
@@ -13,12 +16,11 @@
 #ifndef REFLCHECK_MICROFACET_H
 #define REFLCHECK_MICROFACET_H
 
+#include "formula.h"
 #include "scene.h"
 
-/* D never exceeds this. 1/(pi m^2) reaches it at m = 5.6e-7, a lobe far narrower than any
- * pixel resolves. With the other caps (cooktorrance 1e12, d3d attenuation 1e12) a shading
- * sum of 8 lights of radiance 1e6 stays below ~1e31, well inside float (3.4e38). */
-#define MICROFACET_D_MAX 1e12f
+/* D never exceeds this (formula.h says why). */
+#define MICROFACET_D_MAX FORMULA_D_MAX
 
 /* (4.12) Beckmann. walter: exp(-tan^2/m^2) / (pi m^2 cos^4); ct1982: the same without pi.
  * cos_h <= 0 gives 0, cos_h > 1 is treated as 1. Evaluated in double in log space, so

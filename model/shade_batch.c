@@ -20,6 +20,7 @@
 
 #include "cooktorrance.h"
 #include "d3d9client.h"
+#include "formula.h"
 #include "fresnel.h"
 #include "microfacet.h"
 #include "smath.h"
@@ -38,8 +39,6 @@
 /* d3d.c's D3D_HALF_MIN and D3D_ATTEN_DENOM_MIN, for the same reasons (d3d.h). */
 #define SB_HALF_MIN 1e-6f
 #define SB_DENOM_MIN 1e-12f
-/* ln MICROFACET_D_MAX (1e12): where microfacet_beckmann_d caps D. */
-#define SB_LN_D_MAX 27.6310211f
 
 static inline vec3 sb_min(vec3 a, vec3 b)
 {
@@ -396,25 +395,12 @@ int shade_batch_ct_supported(const ct_params *ct)
     return ct->g != G_SMITH_EXACT && ct->f != F_EXACT && ct->m >= SB_CT_M_MIN;
 }
 
-/* Schlick (fresnel_schlick): F0 + (1 - F0)(1 - c)^5, c clamped to [0, 1]; or 1 (F_ONE). */
+/* (4.9) Schlick per channel, c clamped to [0, 1]; or 1 (F_ONE). */
 SB_INLINE vec3 sb_ct_fresnel(vec3 f0, float c, const int f_one)
 {
     if (f_one)
         return v3s(1.0f);
-    float cc = c < 0.0f ? 0.0f : (c > 1.0f ? 1.0f : c);
-    float x = 1.0f - cc, x2 = x * x, x5 = x2 * x2 * x;
-    return v3_add(f0, v3_scale(v3_sub(v3s(1.0f), f0), x5));
-}
-
-/* Walter's rational Smith G1 (microfacet_smith_g1_walter). */
-SB_INLINE float sb_ct_g1_walter(float c, float m)
-{
-    float cc = c > 1.0f ? 1.0f : c;
-    float inv_a = m * (sqrtf((1.0f - cc) * (1.0f + cc)) / (c > 0.0f ? c : 1.0f));
-    float a = inv_a > 0.0f ? 1.0f / inv_a : 0.0f;
-    float g = ((2.181f * a + 3.535f) * a) / ((2.577f * a + 2.276f) * a + 1.0f);
-    g = inv_a < 0.625f ? 1.0f : g;
-    return c <= 0.0f ? 0.0f : (c >= 1.0f ? 1.0f : g);
+    return v3(formula_schlick_v(f0.x, c), formula_schlick_v(f0.y, c), formula_schlick_v(f0.z, c));
 }
 
 /* The lobe ks F D G / (k N.V) for unit n, v, l, with cooktorrance_specular's guards in their
@@ -433,29 +419,16 @@ SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float
     vec3 h = v3_scale(hs, hl >= SB_HALF_MIN ? 1.0f / hl : 0.0f);
     float n_h = v3_dot(n, h), v_h = v3_dot(v, h);
     v_h = v_h < 0.0f ? 0.0f : (v_h > 1.0f ? 1.0f : v_h);
-    /* microfacet_beckmann_d: log D = -tan^2/m^2 - 2 ln m [- ln pi] - 2 ln cos^2, capped. sin^2
-     * from |N x H|^2, not 1 - cos^2: near the peak of a sharp lobe 1 - cos cancels, and its
-     * rounding (6e-8) over m^2 would move log D by 0.12 at m = 0.001; the cross product keeps
-     * sin^2's relative precision, so the kernel is the more accurate of the two paths there. */
+    /* (4.12), sin^2 from |N x H|^2, not 1 - cos^2: near the peak of a sharp lobe 1 - cos cancels,
+     * and its rounding (6e-8) over m^2 would move log D by 0.12 at m = 0.001; the cross product
+     * keeps sin^2's relative precision, so the kernel is the more accurate of the two paths there. */
     float c = n_h > 1.0f ? 1.0f : n_h, c2 = c * c;
     vec3 nxh = v3_cross(n, h);
     float s2 = v3_dot(nxh, nxh);
-    float tan2 = (s2 > 1.0f ? 1.0f : s2) / (c2 > 0.0f ? c2 : FLT_MIN);
-    float log_d = -tan2 * inv_m2 + log_d0 - 2.0f * smath_log(c2 > 0.0f ? c2 : FLT_MIN);
-    float d = log_d >= SB_LN_D_MAX ? MICROFACET_D_MAX : smath_exp(log_d);
+    float d = formula_beckmann_d_v(s2 > 1.0f ? 1.0f : s2, c2 > 0.0f ? c2 : FLT_MIN, inv_m2, log_d0);
     d = n_h > 0.0f ? d : 0.0f;
-    float g;
-    if (smith) {
-        g = sb_ct_g1_walter(n_v, ct->m) * sb_ct_g1_walter(n_l, ct->m);
-    } else {
-        /* microfacet_vcavity_g: min(1, 2 N.H N.V / V.H, 2 N.H N.L / V.H). */
-        float tv = 2.0f * n_h * n_v, tl = 2.0f * n_h * n_l;
-        float iv = v_h > 0.0f ? 1.0f / v_h : 0.0f;
-        g = 1.0f;
-        g = tv < g * v_h ? tv * iv : g;
-        g = tl < g * v_h ? tl * iv : g;
-        g = n_h > 0.0f ? g : 0.0f;
-    }
+    float g = smith ? formula_smith_g1_walter_v(n_v, ct->m) * formula_smith_g1_walter_v(n_l, ct->m)
+                    : formula_vcavity_g_v(n_h, n_v, n_l, v_h);
     vec3 f = sb_ct_fresnel(ct->f0, v_h, f_one);
     float common = front ? d * g / (k_norm * n_v) : 0.0f;
     vec3 r = v3_mul(v3_mul(ct->ks, f), v3s(common));
@@ -470,7 +443,7 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
     const sb_light b = sb_light_make(l);
     const vec3 kd = v3_scale(mat->albedo, SB_INV_PI);
     const float k_norm = ct->norm == CT_CT1982 ? SMATH_PI : 4.0f;
-    const float log_d0 = (float)(-2.0 * log((double)ct->m) - (ct->norm == CT_CT1982 ? 0.0 : log(3.14159265358979323846)));
+    const float log_d0 = (float)formula_beckmann_log_norm_d(ct->m, ct->norm != CT_CT1982);
     const float inv_m2 = 1.0f / (ct->m * ct->m);
     const int n = in->n;
     int bad[SHADE_BATCH];
