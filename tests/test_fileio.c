@@ -13,21 +13,9 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "check.h"
 #include "fileio.h"
 
-/* No temporary file NAME.tmp* is left in /tmp. */
-static void expect_no_temp(const char *name)
-{
-    DIR *d = opendir("/tmp");
-    assert_non_null(d);
-    char prefix[300];
-    snprintf(prefix, sizeof prefix, "%s.tmp", name);
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL)
-        if (strncmp(e->d_name, prefix, strlen(prefix)) == 0)
-            fail_msg("temporary file /tmp/%s left behind", e->d_name);
-    closedir(d);
-}
 
 static void test_write_read_copy(void **state)
 {
@@ -49,8 +37,8 @@ static void test_write_read_copy(void **state)
     assert_string_equal(text, "second, longer\n");
     free(text);
     /* No temporary file is left behind. */
-    expect_no_temp("reflcheck-test-fileio.txt");
-    expect_no_temp("reflcheck-test-fileio-copy.txt");
+    expect_no_temp("/tmp", "reflcheck-test-fileio.txt");
+    expect_no_temp("/tmp", "reflcheck-test-fileio-copy.txt");
     unlink(path);
     unlink(copy);
 }
@@ -262,7 +250,7 @@ static void test_output_target(void **state)
     text = fileio_read_all(real, NULL);
     assert_string_equal(text, "new");
     free(text);
-    expect_no_temp("reflcheck-test-target.txt");
+    expect_no_temp("/tmp", "reflcheck-test-target.txt");
     unlink(lnk);
     unlink(real);
 }

@@ -18,6 +18,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "check.h"
 #include "cli_exec.h"
 #include "exr.h"
 #include "mesh.h"
@@ -31,28 +32,6 @@
 #define SAFETY_TIMEOUT "60"
 
 static char dir[256];
-
-/* Runs the shell command (printf format) and returns its exit status (128 + signal when
- * killed), its stderr in err. Standard output goes where the command says, else to /dev/null. */
-__attribute__((format(printf, 3, 4))) static int sh_exec(char *err, size_t errlen, const char *fmt, ...)
-{
-    char args[4096], cmd[8192], errfile[300];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(args, sizeof args, fmt, ap);
-    va_end(ap);
-    snprintf(errfile, sizeof errfile, "%s/stderr.txt", dir);
-    snprintf(cmd, sizeof cmd, "exec >/dev/null 2>%s; %s", errfile, args);
-    int st = system(cmd);
-    FILE *f = fopen(errfile, "r");
-    size_t n = f != NULL ? fread(err, 1, errlen - 1, f) : 0;
-    err[n] = '\0';
-    if (f != NULL)
-        fclose(f);
-    if (st == -1)
-        return -1;
-    return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + (WIFSIGNALED(st) ? WTERMSIG(st) : 0);
-}
 
 /* The reflcheck command under timeout, for sh_exec. */
 static const char *rc_cmd(void)
@@ -94,19 +73,6 @@ static void expect_same_bytes(const char *path, const char *want, size_t want_le
     free(got);
 }
 
-/* No temporary file (NAME.tmp*) of dir/name is left behind. */
-static void expect_no_temp(const char *name)
-{
-    DIR *d = opendir(dir);
-    assert_non_null(d);
-    char prefix[300];
-    snprintf(prefix, sizeof prefix, "%s.tmp", name);
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL)
-        if (strncmp(e->d_name, prefix, strlen(prefix)) == 0)
-            fail_msg("temporary file %s/%s left behind", dir, e->d_name);
-    closedir(d);
-}
 
 static void path_in(char *out, size_t len, const char *name)
 {
@@ -220,13 +186,13 @@ static void test_failed_write_keeps_destination(void **state)
     if (rc != 1 || strstr(err, "dest.exr") == NULL || strstr(err, "File too large") == NULL)
         fail_msg("render under ulimit -f: exit %d, want 1 with the system's reason; stderr: %s", rc, err);
     expect_same_bytes(out, precious, strlen(precious));
-    expect_no_temp("dest.exr");
+    expect_no_temp(dir, "dest.exr");
     /* The same through stability's JSON and CSV outputs. */
     rc = sh_exec(err, sizeof err, "ulimit -f 4; %s stability --samples 16 --quiet --json %s", rc_cmd(), out);
     if (rc != 1 || strstr(err, "File too large") == NULL)
         fail_msg("stability under ulimit -f: exit %d, want 1; stderr: %s", rc, err);
     expect_same_bytes(out, precious, strlen(precious));
-    expect_no_temp("dest.exr");
+    expect_no_temp(dir, "dest.exr");
     /* An output folder that does not exist is a failed write, not bad input. */
     rc = sh_exec(err, sizeof err, "%s render %s/v.yaml -o %s/no-such-dir/x.exr", rc_cmd(), dir, dir);
     if (rc != 1 || strstr(err, "No such file or directory") == NULL)
