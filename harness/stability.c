@@ -112,12 +112,7 @@ static ld ref_smith_g1_exact(ld c, ld m) { return formula_smith_g1_exact_l(c, m)
 static ld ref_attenuation(const light *l, ld d)
 {
     if (l->kind == LIGHT_SUN) return 1;
-    if (d > l->range) return 0;
-    ld den = l->a0;
-    if (l->a1 != 0.0f) den += (ld)l->a1 * d;
-    if (l->a2 != 0.0f) den += (ld)l->a2 * d * d;
-    if (den < (ld)D3D_ATTEN_DENOM_MIN) den = (ld)D3D_ATTEN_DENOM_MIN;
-    return 1 / den;
+    return formula_attenuation_l(l->a0, l->a1, l->a2, d, d * d, l->range);
 }
 
 static ld ref_spot(const light *l, ld3 dir)
@@ -125,32 +120,20 @@ static ld ref_spot(const light *l, ld3 dir)
     if (l->kind != LIGHT_SPOT) return 1;
     ld rho = l3_dot(l3_norm(l3_from(l->direction)), dir);
     ld cos_in = cosl((ld)l->inner / 2), cos_out = cosl((ld)l->outer / 2);
-    if (l->profile == SPOT_SMOOTH) {
-        if (rho <= 0 || rho <= cos_out) return 0;
-        if (rho >= cos_in) return rho;
-        ld t = (rho - cos_out) / (cos_in - cos_out);
-        return rho * t * t * (3 - 2 * t);
-    }
-    if (rho > cos_in) return 1;
-    if (rho <= cos_out) return 0;
-    ld t = (rho - cos_out) / (cos_in - cos_out);
-    return powl(t, l->falloff < 0.0f ? 0 : (ld)l->falloff);
+    ld cone = formula_spot_cone_l(cos_in, cos_out);
+    if (l->profile == SPOT_SMOOTH) return formula_spot_smooth_l(rho, cos_in, cos_out, cone);
+    return formula_spot_d3d_l(rho, cos_in, cos_out, cone, l->falloff);
 }
 
-static ld ref_lambert(ld n_l) { return ref_clamp(n_l, 0, 1); }
+static ld ref_lambert(ld n_l) { return formula_d3d_lambert_l(n_l); }
 
-static ld ref_blinn(ld n_h, ld power)
-{
-    if (n_h <= 0) return 0;
-    return powl(n_h > 1 ? 1 : n_h, power < 0 ? 0 : power);
-}
+static ld ref_blinn(ld n_h, ld power) { return formula_blinn_l(n_h, power); }
 
 /* d3d_half_vector: zero when |L + V| < 1e-6 (the function's documented threshold). */
 static ld3 ref_half(ld3 l, ld3 v)
 {
     ld3 s = l3_add(l3_norm(l), l3_norm(v));
-    ld len = l3_len(s);
-    return len < 1e-6L ? l3(0, 0, 0) : l3_scale(s, 1 / len);
+    return l3_scale(s, formula_half_scale_l(l3_len(s)));
 }
 
 static ld ref_colour_norm(ld3 c, colour_norm norm)

@@ -6,19 +6,20 @@
  *   vec3  h  = d3d_half_vector(l, v3_norm(v3_sub(eye, x)), e_inf, mat->d3d.local_viewer);
  *   float rs = d3d_blinn(v3_dot(n, h), mat->d3d.power);
  * The caller sums Dv = Ia Va + Ve + sum A (Rd Vd Ld + Va La) and Sv = sum A Rs Vs Ls.
+ * The formulas are formula.h's (formula_attenuation, formula_spot_d3d, formula_spot_smooth,
+ * formula_d3d_lambert, formula_blinn, formula_half_scale), shared with the SIMD lanes and the
+ * stability reference; these functions read the light and add the scalar path's guards.
  * All factors are dimensionless and contain no 1/pi. Pure functions; a NaN argument
  * propagates, every finite argument gives a finite result.
  */
 #ifndef REFLCHECK_D3D_H
 #define REFLCHECK_D3D_H
 
+#include "formula.h"
 #include "scene.h"
 
-/* The attenuation denominator never goes below this, so A <= 1e12. It is reached only for
- * a0 = a1 = a2 = 0 (or a negative sum), which the scene parser rejects, or for a light
- * closer than 1e-6 m with a2 = 1: a singularity no pixel footprint resolves. 1e12 leaves
- * float headroom for intensity 1e6 times the other capped factors (see microfacet.h). */
-#define D3D_ATTEN_DENOM_MIN 1e-12
+/* The attenuation denominator never goes below this, so A <= 1e12 (formula.h says why). */
+#define D3D_ATTEN_DENOM_MIN FORMULA_ATTEN_DENOM_MIN
 
 /* 1/(a0 + a1 d + a2 d^2), computed in double (d^2 of a finite float cannot overflow there);
  * 0 for d > range; 1 for LIGHT_SUN. The denominator is clamped to D3D_ATTEN_DENOM_MIN, so
@@ -46,9 +47,8 @@ float d3d_blinn(float n_h, float power);
 /* D3D half vector H = norm(L + V): V = norm(v_local) (unit vector to the camera) when
  * local_viewer, else e_infinite (D3D's (0,0,-1) in view space, i.e. the unit vector from the
  * scene toward the camera along the view axis). L and V are normalised here. Returns the zero
- * vector when |L + V| < 1e-6: L is then opposite V to within float rounding of unit vectors
- * (~1e-7 per component), H has no defined direction, and for any N either N.L <= 0 or
- * N.V <= 0 up to that rounding, so the light gives no highlight (d3d_blinn(0, P) = 0). */
+ * vector (components +-0) when |L + V| < FORMULA_HALF_MIN (1e-6): L is then opposite V, H has
+ * no defined direction and the light gives no highlight (d3d_blinn(+-0, P) = 0). */
 vec3 d3d_half_vector(vec3 l, vec3 v_local, vec3 e_infinite, int local_viewer);
 
 #endif

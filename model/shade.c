@@ -6,9 +6,9 @@
 #include "cooktorrance.h"
 #include "d3d.h"
 #include "d3d9client.h"
+#include "formula.h"
 #include "fresnel.h"
 
-#define SHADE_INV_PI 0.318309886183790671538f
 
 void shade_context_make(const scene *s, const env_map *env, shade_context *c)
 {
@@ -72,7 +72,7 @@ static inline void shade_d3d_impl(const shade_context *c, const material *m, vec
         if (n_l <= 0.0f)
             continue;
         /* The D3D model has no 1/pi: its light colour is E/pi (CONVENTIONS.md). */
-        vec3 colour = v3_scale(e_perp, SHADE_INV_PI);
+        vec3 colour = v3_scale(e_perp, FORMULA_INV_PI_F);
         diffuse = v3_add(diffuse, v3_scale(v3_mul(d->diffuse, colour), d3d_lambert(n_l)));
         if (specular) {
             vec3 h = d3d_half_vector(to_l, v, c->e_inf, d->local_viewer);
@@ -143,7 +143,7 @@ static inline void shade_ct_impl(const shade_context *c, const material *m, vec3
                                  shade_terms *out, const int reflection)
 {
     vec3 diffuse = v3s(0.0f), spec = v3s(0.0f);
-    vec3 kd = v3_scale(m->albedo, SHADE_INV_PI);
+    vec3 kd = v3_scale(m->albedo, FORMULA_INV_PI_F);
     for (int i = 0; i < c->s->n_lights; i++) {
         vec3 to_l, e_perp;
         float atten;

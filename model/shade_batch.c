@@ -32,13 +32,9 @@
 #else
 #define SB_INLINE static inline
 #endif
-#define SB_INV_PI 0.318309886183790671538f
 /* The float-safe band of a squared light distance (shade_light_incident's own band). */
 #define SB_D2_MIN 1e-30f
 #define SB_D2_MAX 1e30f
-/* d3d.c's D3D_HALF_MIN and D3D_ATTEN_DENOM_MIN, for the same reasons (d3d.h). */
-#define SB_HALF_MIN 1e-6f
-#define SB_DENOM_MIN 1e-12f
 
 static inline vec3 sb_min(vec3 a, vec3 b)
 {
@@ -98,8 +94,8 @@ static sb_light sb_light_make(const light *l)
     b.axis = v3_from_d(dv3_norm(dv3_from(l->direction)));
     b.cos_in = (float)cos(0.5 * (double)l->inner);
     b.cos_out = (float)cos(0.5 * (double)l->outer);
-    b.falloff = l->falloff < 0.0f ? 0.0f : l->falloff;
-    b.cone = b.cos_in > b.cos_out ? b.cos_in - b.cos_out : 1.0f;
+    b.falloff = l->falloff;
+    b.cone = formula_spot_cone_f(b.cos_in, b.cos_out);
     return b;
 }
 
@@ -121,22 +117,12 @@ SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, co
     r.bad = !safe;
     float inv = 1.0f / sqrtf(safe ? d2 : 1.0f);
     r.to_l = v3_scale(d, inv);
-    float dist = d2 * inv;
-    float den = l->a0 + l->a1 * dist + l->a2 * d2;
-    den = den < SB_DENOM_MIN ? SB_DENOM_MIN : den;
-    r.atten = dist > l->range ? 0.0f : 1.0f / den;
+    r.atten = formula_attenuation_v(l->a0, l->a1, l->a2, d2 * inv, d2, l->range);
     if (kind == SB_POINT)
         return r;
     float rho = -v3_dot(b->axis, r.to_l);
-    float t = (rho - b->cos_out) / b->cone;
-    float spot;
-    if (kind == SB_SPOT_SMOOTH) {
-        spot = ((rho <= 0.0f) | (rho <= b->cos_out)) ? 0.0f : (rho >= b->cos_in ? rho : rho * t * t * (3.0f - 2.0f * t));
-    } else {
-        t = t > 1.0f ? 1.0f : (t < 0.0f ? 0.0f : t);
-        spot = rho > b->cos_in ? 1.0f : (rho <= b->cos_out ? 0.0f : smath_pow(t, b->falloff));
-    }
-    r.atten *= spot;
+    r.atten *= kind == SB_SPOT_SMOOTH ? formula_spot_smooth_v(rho, b->cos_in, b->cos_out, b->cone)
+                                      : formula_spot_d3d_v(rho, b->cos_in, b->cos_out, b->cone, b->falloff);
     return r;
 }
 
@@ -167,10 +153,10 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
 {
     const sb_light b = sb_light_make(l);
     /* The D3D light colour is E/pi (CONVENTIONS.md); Vd, Vs, Va folded in once here. */
-    const vec3 kd = v3_scale(v3_mul(d->diffuse, l->intensity), SB_INV_PI);
-    const vec3 ks = v3_scale(v3_mul(d->specular, l->intensity), SB_INV_PI);
+    const vec3 kd = v3_scale(v3_mul(d->diffuse, l->intensity), FORMULA_INV_PI_F);
+    const vec3 ks = v3_scale(v3_mul(d->specular, l->intensity), FORMULA_INV_PI_F);
     const vec3 ka = v3_mul(d->ambient, l->ambient);
-    const float power = d->power < 0.0f ? 0.0f : d->power;
+    const float power = d->power;
     const vec3 e_inf = c->e_inf;
     const int local = d->local_viewer, n = in->n;
     int bad[SHADE_BATCH];
@@ -186,14 +172,11 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
         vec3 dif = shade_lane_get(&out->diffuse, i);
         if (ambient)
             dif = v3_add(dif, v3_scale(ka, atten));
-        float lambert = n_l > 0.0f ? (n_l > 1.0f ? 1.0f : n_l) : 0.0f;
-        shade_lane_set(&out->diffuse, i, v3_add(dif, v3_scale(kd, atten * lambert)));
+        shade_lane_set(&out->diffuse, i, v3_add(dif, v3_scale(kd, atten * formula_d3d_lambert_v(n_l))));
         if (specular) {
             vec3 h = v3_add(inc.to_l, local ? v : e_inf);
-            float len = v3_len(h);
-            h = v3_scale(h, len >= SB_HALF_MIN ? 1.0f / len : 0.0f);
-            float n_h = v3_dot(nn, h);
-            float rs = n_l > 0.0f ? (n_h > 0.0f ? smath_pow(n_h > 1.0f ? 1.0f : n_h, power) : 0.0f) : 0.0f;
+            h = v3_scale(h, formula_half_scale_v(v3_len(h)));
+            float rs = n_l > 0.0f ? formula_blinn_v(v3_dot(nn, h), power) : 0.0f;
             shade_lane_set(&out->specular, i, v3_add(shade_lane_get(&out->specular, i), v3_scale(ks, atten * rs)));
         }
     }
@@ -415,8 +398,8 @@ SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float
     n_v = n_v < (float)COOKTORRANCE_COS_MIN ? (float)COOKTORRANCE_COS_MIN : n_v;
     vec3 hs = v3_add(l, v);
     float hl = v3_len(hs);
-    front &= hl >= SB_HALF_MIN;
-    vec3 h = v3_scale(hs, hl >= SB_HALF_MIN ? 1.0f / hl : 0.0f);
+    front &= hl >= (float)FORMULA_HALF_MIN;
+    vec3 h = v3_scale(hs, formula_half_scale_v(hl));
     float n_h = v3_dot(n, h), v_h = v3_dot(v, h);
     v_h = v_h < 0.0f ? 0.0f : (v_h > 1.0f ? 1.0f : v_h);
     /* (4.12), sin^2 from |N x H|^2, not 1 - cos^2: near the peak of a sharp lobe 1 - cos cancels,
@@ -441,7 +424,7 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
 {
     const ct_params *ct = &mat->ct;
     const sb_light b = sb_light_make(l);
-    const vec3 kd = v3_scale(mat->albedo, SB_INV_PI);
+    const vec3 kd = v3_scale(mat->albedo, FORMULA_INV_PI_F);
     const float k_norm = ct->norm == CT_CT1982 ? SMATH_PI : 4.0f;
     const float log_d0 = (float)formula_beckmann_log_norm_d(ct->m, ct->norm != CT_CT1982);
     const float inv_m2 = 1.0f / (ct->m * ct->m);
