@@ -192,17 +192,17 @@ static ld3 ref_ct_specular(const ct_params *p, ld3 n, ld3 v, ld3 l, const materi
     ld3 nd = l3_norm(n), vd = l3_norm(v), lv = l3_norm(l);
     ld n_l = l3_dot(nd, lv), n_v = l3_dot(nd, vd);
     if (n_l <= 0 || n_v <= 0) return l3(0, 0, 0);
-    if (n_l < (ld)COOKTORRANCE_COS_MIN) n_l = (ld)COOKTORRANCE_COS_MIN;
-    if (n_v < (ld)COOKTORRANCE_COS_MIN) n_v = (ld)COOKTORRANCE_COS_MIN;
+    n_l = formula_cos_floor_l(n_l);
+    n_v = formula_cos_floor_l(n_v);
     ld3 hs = l3_add(lv, vd);
     ld hl = l3_len(hs);
-    if (hl < 1e-6L) return l3(0, 0, 0);
-    ld3 h = l3_scale(hs, 1 / hl);
+    if (hl < (ld)FORMULA_HALF_MIN) return l3(0, 0, 0);
+    ld3 h = l3_scale(hs, formula_half_scale_l(hl));
     ld n_h = l3_dot(nd, h), v_h = ref_clamp(l3_dot(vd, h), 0, 1);
     ld d = ref_beckmann(n_h, p->m, p->norm);
     ld g = ref_ct_g(p, n_h, n_v, n_l, v_h);
-    ld k = p->norm == CT_CT1982 ? REF_PI : 4;
-    ld3 r = l3_scale(l3_mul(l3_from(p->ks), ref_ct_fresnel(p, v_h, mat)), d * g / (k * n_v));
+    ld3 r = l3_scale(l3_mul(l3_from(p->ks), ref_ct_fresnel(p, v_h, mat)),
+                     formula_ct_lobe_l(d, g, formula_ct_k_l(p->norm != CT_CT1982), n_v));
     ld cap = COOKTORRANCE_MAX;
     return l3(ref_clamp(r.x, -cap, cap), ref_clamp(r.y, -cap, cap), ref_clamp(r.z, -cap, cap));
 }

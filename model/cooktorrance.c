@@ -2,12 +2,9 @@
 
 #include <math.h>
 
+#include "formula.h"
 #include "fresnel.h"
 #include "microfacet.h"
-
-#define COOKTORRANCE_PI 3.14159265358979323846
-/* Below this |L + V| the half vector's direction is rounding noise (see the header). */
-#define COOKTORRANCE_HALF_MIN 1e-6
 
 static double cooktorrance_cap(double x)
 {
@@ -55,24 +52,23 @@ vec3 cooktorrance_specular(const ct_params *p, vec3 n, vec3 v, vec3 l, const mat
     /* 1. hemisphere */
     if (n_l <= 0.0 || n_v <= 0.0) return v3s(0.0f);
     /* 2. zero cosines */
-    if (n_l < COOKTORRANCE_COS_MIN) n_l = COOKTORRANCE_COS_MIN;
-    if (n_v < COOKTORRANCE_COS_MIN) n_v = COOKTORRANCE_COS_MIN;
+    n_l = formula_cos_floor_d(n_l);
+    n_v = formula_cos_floor_d(n_v);
     /* 3. zero-length half vector */
     dvec3 hs = dv3_add(ld, vd);
     double hl = dv3_len(hs);
-    if (hl < COOKTORRANCE_HALF_MIN) return v3s(0.0f);
+    if (hl < FORMULA_HALF_MIN) return v3s(0.0f);
     /* 4. normalise, then the terms */
-    dvec3 h = dv3_scale(hs, 1.0 / hl);
+    dvec3 h = dv3_scale(hs, formula_half_scale_d(hl));
     double n_h = dv3_dot(nd, h);
     double v_h = dv3_dot(vd, h);
     if (v_h < 0.0) v_h = 0.0;   /* V.H = |L+V|/2 >= 0 exactly; only rounding can dip below */
     if (v_h > 1.0) v_h = 1.0;
     double d = microfacet_beckmann_d(n_h, p->m, p->norm);
     double g = cooktorrance_g(p, n_h, n_v, n_l, v_h);
-    double k = p->norm == CT_CT1982 ? COOKTORRANCE_PI : 4.0;
     dvec3 f = cooktorrance_fresnel(p, v_h, mat);
     /* ks F D G / (k N.V): N.V >= 1e-6 and D <= 1e12, so this is finite before the cap. */
-    double common = d * g / (k * n_v);
+    double common = formula_ct_lobe_d(d, g, formula_ct_k_d(p->norm != CT_CT1982), n_v);
     dvec3 r = dv3_scale(dv3_mul(dv3_from(p->ks), f), common);
     return v3((float)cooktorrance_cap(r.x), (float)cooktorrance_cap(r.y), (float)cooktorrance_cap(r.z));
 }

@@ -10,16 +10,20 @@
  * with CT_s = F D G / (k (N.L)(N.V)) of (4.8). The diffuse term Kd Ld (N.L)+ / d^2 is the
  * caller's. mat is read only for F_EXACT (dielectric from mat->ior, or the conductor's
  * eta + i k per channel when mat->conductor); NULL there falls back to Schlick with p->f0.
+ * The lobe's formulas are formula.h's (formula_ct_lobe, formula_ct_k, formula_cos_floor,
+ * formula_half_scale and the microfacet and Fresnel terms), shared with the SIMD lanes and the
+ * stability reference; this file orders the guards and evaluates them in double.
  * Pure functions; every finite argument gives a finite result (each channel capped at
  * +-COOKTORRANCE_MAX); a NaN argument propagates.
  */
 #ifndef REFLCHECK_COOKTORRANCE_H
 #define REFLCHECK_COOKTORRANCE_H
 
+#include "formula.h"
 #include "scene.h"
 
-/* Output cap, the same headroom argument as MICROFACET_D_MAX (microfacet.h). */
-#define COOKTORRANCE_MAX 1e12f
+/* Output cap (formula.h's FORMULA_CT_MAX says why). */
+#define COOKTORRANCE_MAX FORMULA_CT_MAX
 
 /* Guards, in this order:
  *  1. hemisphere: N.L <= 0 or N.V <= 0 gives 0 (light behind, or surface seen from behind);
@@ -32,7 +36,7 @@
  *     F: F_SCHLICK Schlick(V.H) with p->f0, F_ONE 1, F_EXACT exact Fresnel of V.H (double);
  *     D: Beckmann(N.H, p->m) with p->norm; G: p->g (vcavity, Smith Walter, Smith exact);
  *     k = 4 for CT_WALTER, pi for CT_CT1982. Result times p->ks. */
-#define COOKTORRANCE_COS_MIN 1e-6
+#define COOKTORRANCE_COS_MIN FORMULA_COS_MIN
 vec3 cooktorrance_specular(const ct_params *p, vec3 n, vec3 v, vec3 l, const material *mat);
 
 /* Fr for the environment reflection: Schlick(N.V) with p->f0 (F_SCHLICK), 1 (F_ONE), or the

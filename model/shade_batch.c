@@ -394,8 +394,8 @@ SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float
 {
     float n_l = v3_dot(n, l), n_v = v3_dot(n, v);
     int front = (n_l > 0.0f) & (n_v > 0.0f);
-    n_l = n_l < (float)COOKTORRANCE_COS_MIN ? (float)COOKTORRANCE_COS_MIN : n_l;
-    n_v = n_v < (float)COOKTORRANCE_COS_MIN ? (float)COOKTORRANCE_COS_MIN : n_v;
+    n_l = formula_cos_floor_v(n_l);
+    n_v = formula_cos_floor_v(n_v);
     vec3 hs = v3_add(l, v);
     float hl = v3_len(hs);
     front &= hl >= (float)FORMULA_HALF_MIN;
@@ -413,9 +413,9 @@ SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float
     float g = smith ? formula_smith_g1_walter_v(n_v, ct->m) * formula_smith_g1_walter_v(n_l, ct->m)
                     : formula_vcavity_g_v(n_h, n_v, n_l, v_h);
     vec3 f = sb_ct_fresnel(ct->f0, v_h, f_one);
-    float common = front ? d * g / (k_norm * n_v) : 0.0f;
+    float common = front ? formula_ct_lobe_v(d, g, k_norm, n_v) : 0.0f;
     vec3 r = v3_mul(v3_mul(ct->ks, f), v3s(common));
-    return sb_min(r, v3s(COOKTORRANCE_MAX));
+    return sb_min(r, v3s(FORMULA_CT_MAX));
 }
 
 /* One light's Cook-Torrance terms added to every lane (shade.c's shade_ct_impl loop body). */
@@ -425,7 +425,7 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
     const ct_params *ct = &mat->ct;
     const sb_light b = sb_light_make(l);
     const vec3 kd = v3_scale(mat->albedo, FORMULA_INV_PI_F);
-    const float k_norm = ct->norm == CT_CT1982 ? SMATH_PI : 4.0f;
+    const float k_norm = formula_ct_k_f(ct->norm != CT_CT1982);
     const float log_d0 = (float)formula_beckmann_log_norm_d(ct->m, ct->norm != CT_CT1982);
     const float inv_m2 = 1.0f / (ct->m * ct->m);
     const int n = in->n;
@@ -484,7 +484,7 @@ SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_ba
         for (int i = 0; i < n; i++) {
             /* cooktorrance_reflection_weight: F at N.V, capped. */
             vec3 w = sb_min(sb_ct_fresnel(f0, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)), f_one),
-                            v3s(COOKTORRANCE_MAX));
+                            v3s(FORMULA_CT_MAX));
             shade_lane_set(&out->reflection, i, v3_mul(shade_lane_get(&phi, i), w));
         }
     }
