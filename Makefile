@@ -29,7 +29,8 @@ LDLIBS  += $(SAN) -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lm
 BUILD ?= build$(if $(SANITIZE),-san)$(if $(DEBUG),-dbg)
 
 MODEL_SRC   := $(wildcard model/*.c)
-HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c))
+# Each renderer is a folder under harness/renderers/ (registry.c holds the table).
+HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c harness/renderers/*.c harness/renderers/*/*.c))
 TEST_SRC    := $(wildcard tests/test_*.c)
 MODEL_OBJ   := $(MODEL_SRC:%.c=$(BUILD)/%.o)
 HARNESS_OBJ := $(HARNESS_SRC:%.c=$(BUILD)/%.o)

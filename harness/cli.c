@@ -21,6 +21,7 @@ static const cli_command cli_commands[] = {
     {"diff", cli_diff},
     {"plan", cli_plan},
     {"stability", cli_stability},
+    {"renderers", cli_renderers},
 };
 
 const cli_command *cli_find(const char *name)

@@ -36,5 +36,6 @@ int cli_compare(int argc, char **argv);
 int cli_diff(int argc, char **argv);
 int cli_plan(int argc, char **argv);
 int cli_stability(int argc, char **argv);
+int cli_renderers(int argc, char **argv);
 
 #endif

@@ -21,7 +21,7 @@ int cli_run(int argc, char **argv)
         {"seed", required_argument, NULL, 'E'},
         {NULL, 0, NULL, 0},
     };
-    job_spec j = {.renderer = RENDERER_RASTER, .role = ROLE_VALIDATE, .variant = JOB_FULL,
+    job_spec j = {.renderer = registry_model(), .role = ROLE_VALIDATE, .variant = JOB_FULL,
                   .out_dir = "reports/runs/manual", .cache_dir = "reports/cache"};
     int c, rc = CLI_OK, v;
     optind = 1;
@@ -29,11 +29,12 @@ int cli_run(int argc, char **argv)
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
         switch (c) {
         case 'r':
-            if ((v = job_renderer_from_name(optarg)) < 0) {
-                fprintf(stderr, "reflcheck: run: --renderer '%s': use raster, povray or cycles\n", optarg);
+            if ((v = registry_find(optarg)) < 0) {
+                char names[200];
+                fprintf(stderr, "reflcheck: run: --renderer '%s': use %s\n", optarg, registry_list(names, sizeof names));
                 rc = CLI_BAD_INPUT;
             }
-            j.renderer = (renderer_id)v;
+            j.renderer = v;
             break;
         case 'R':
             if ((v = job_role_from_name(optarg)) < 0) {
@@ -85,13 +86,13 @@ int cli_run(int argc, char **argv)
         fprintf(stderr, "reflcheck: %s\n", err);
         return job_exit_status(st, &r);
     }
-    printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, job_renderer_names[j.renderer],
+    printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, registry_name(j.renderer),
            job_role_names[j.role], runner_status_name(r.status), r.wall_s, r.cached ? " (cached)" : "",
            r.status == RUNNER_OK ? r.exr : r.message);
     /* A job that is neither done nor skipped fails the run: make -k, the nightly and scripts
      * see it in the exit status, not only in the record. */
     if (r.status != RUNNER_OK && r.status != RUNNER_MISSING)
-        fprintf(stderr, "reflcheck: run: %s %s: %s: %s\n", j.scene_path, job_renderer_names[j.renderer],
+        fprintf(stderr, "reflcheck: run: %s %s: %s: %s\n", j.scene_path, registry_name(j.renderer),
                 runner_status_name(r.status), r.message);
     return job_exit_status(st, &r);
 }

@@ -12,6 +12,7 @@
 #include "exr.h"
 #include "fileio.h"
 #include "jobs.h"
+#include "renderers/registry.h"
 #include "d3d9client.h"
 #include "metrics.h"
 #include "scene_file.h"
@@ -21,7 +22,7 @@ static const char *const compare_aovs[3] = {"diffuse", "specular", "reflection"}
 
 /* One side of a comparison: its record and image. */
 typedef struct {
-    renderer_id renderer;
+    int renderer;             /* a row of the renderer table */
     comparison_role role;
     cJSON *record;
     exr_image img;
@@ -53,7 +54,7 @@ static compare_side_state compare_load_side(const char *run, const char *scene_n
                                             size_t len)
 {
     char rec[1024];
-    const char *rname = job_renderer_names[s->renderer], *role = job_role_names[s->role];
+    const char *rname = registry_name(s->renderer), *role = job_role_names[s->role];
     job_output_path(run, scene_name, s->renderer, s->role, "json", rec, sizeof rec);
     job_output_path(run, scene_name, s->renderer, s->role, "exr", s->path, sizeof s->path);
     s->record = compare_read_json(rec);
@@ -422,10 +423,10 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
     float *buf = NULL;
     exr_image raster = {0};
     int have_raster = 0;
-    for (int r = 0; r < RENDERER_COUNT; r++)
+    for (int r = 0; r < registry_count(); r++)
         for (int role = ROLE_TWIN; role <= ROLE_AGREE; role++) {
             char exr[1024], e[256];
-            job_output_path(run, s->name, (renderer_id)r, (comparison_role)role, "exr", exr, sizeof exr);
+            job_output_path(run, s->name, r, (comparison_role)role, "exr", exr, sizeof exr);
             exr_image img;
             if (access(exr, R_OK) != 0 || exr_read(exr, &img, e, sizeof e) != RC_OK)
                 continue;
@@ -440,13 +441,13 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
                     for (size_t i = 0; i < np; i++)
                         for (int c = 0; c < 3; c++)
                             buf[3 * i + (size_t)c] = m.c[c][i];
-                    fprintf(f, "%s\"%s-%s\": \"", first ? "" : ", ", job_renderer_names[r], job_role_names[role]);
+                    fprintf(f, "%s\"%s-%s\": \"", first ? "" : ", ", registry_name(r), job_role_names[role]);
                     compare_append_b64(f, buf, 3 * np);
                     fputc('"', f);
                     first = 0;
                 }
             }
-            if (r == RENDERER_RASTER && !have_raster && img.width == w && img.height == h) {
+            if (r == registry_model() && !have_raster && img.width == w && img.height == h) {
                 raster = img;
                 have_raster = 1;
             } else
@@ -505,9 +506,10 @@ static int compare_scene_nonnegative(const scene *s)
 
 /* Our rasterizer and a twin reference compute the scene's model, so they may go below 0
  * where the model does; a physical reference (validate, agree) never reflects negative light. */
-static int compare_negative_allowed(int scene_nonnegative, renderer_id renderer, comparison_role role)
+static int compare_negative_allowed(int scene_nonnegative, int renderer, comparison_role role)
 {
-    return !scene_nonnegative && (renderer == RENDERER_RASTER || role == ROLE_TWIN);
+    const renderer_row *row = registry_row(renderer);
+    return !scene_nonnegative && ((row != NULL && row->is_model) || role == ROLE_TWIN);
 }
 
 static void compare_scan_channel(const exr_image *img, const char *name, int kind, compare_values *v)
@@ -585,16 +587,16 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
 {
     char id[128], reason[1200];
     comparison_role rr = c->role;
-    snprintf(id, sizeof id, "%s-vs-%s-%s", job_renderer_names[c->test], job_renderer_names[c->reference],
+    snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
              job_role_names[c->role]);
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "id", id);
-    cJSON_AddStringToObject(o, "test", job_renderer_names[c->test]);
-    cJSON_AddStringToObject(o, "reference", job_renderer_names[c->reference]);
+    cJSON_AddStringToObject(o, "test", registry_name(c->test));
+    cJSON_AddStringToObject(o, "reference", registry_name(c->reference));
     cJSON_AddStringToObject(o, "role", job_role_names[c->role]);
 
     compare_side t = {.renderer = c->test, .role = rr}, r = {.renderer = c->reference, .role = rr};
-    compare_side mask_src = {.renderer = RENDERER_RASTER, .role = rr};
+    compare_side mask_src = {.renderer = registry_model(), .role = rr};
     char why_t[600] = "", why_r[600] = "";
     compare_side_state ts = compare_load_side(run, s->name, &t, why_t, sizeof why_t);
     compare_side_state rs = compare_load_side(run, s->name, &r, why_r, sizeof why_r);
@@ -614,7 +616,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     const exr_image *geo = NULL;
     if (state == NULL) {
         char tmp[600];
-        geo = c->test == RENDERER_RASTER ? &t.img : (c->reference == RENDERER_RASTER ? &r.img : NULL);
+        geo = c->test == registry_model() ? &t.img : (c->reference == registry_model() ? &r.img : NULL);
         if (geo == NULL && compare_load_side(run, s->name, &mask_src, tmp, sizeof tmp) == COMPARE_SIDE_OK &&
             mask_src.img.width == t.img.width && mask_src.img.height == t.img.height)
             geo = &mask_src.img;
@@ -666,8 +668,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         compare_scan_image(&mask_src.img, 0, 1, &vm);
     char gate[900] = "";
     cJSON *values = cJSON_AddObjectToObject(o, "values");
-    compare_values_report(&vt, "test", job_renderer_names[c->test], values, gate, sizeof gate);
-    compare_values_report(&vr, "ref", job_renderer_names[c->reference], values, gate, sizeof gate);
+    compare_values_report(&vt, "test", registry_name(c->test), values, gate, sizeof gate);
+    compare_values_report(&vr, "ref", registry_name(c->reference), values, gate, sizeof gate);
     if (geo == &mask_src.img)
         compare_values_report(&vm, "mask", "raster geometry", values, gate, sizeof gate);
     cJSON_AddNumberToObject(o, "test_nonfinite", (double)vt.nonfinite);

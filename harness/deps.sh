@@ -4,14 +4,22 @@
 set -euo pipefail
 
 pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjson-dev
-      povray blender openimageio-tools gnuplot-nox chromium
+      openimageio-tools gnuplot-nox chromium
       libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2
       procps)
+# The renderers' packages come from their rows in the renderer table (.package = "..."), read
+# from the source because this runs before anything is built.
+registry="$(dirname "$0")/renderers/registry.c"
+renderer_pkgs=$(sed -n 's/.*\.package = "\([a-z0-9.+-]*\)".*/\1/p' "$registry")
+[ -n "$renderer_pkgs" ] || { echo "reflcheck: deps: no renderer packages found in $registry" >&2; exit 1; }
+for p in $renderer_pkgs; do pkgs+=("$p"); done
 
 missing=()
 for p in "${pkgs[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# DEPS_LIST=1: print the package list and install nothing (what a new renderer adds shows here).
+[ -n "${DEPS_LIST:-}" ] && { echo "${pkgs[*]}"; exit 0; }
 [ ${#missing[@]} -eq 0 ] && exit 0
 
 echo "reflcheck: installing missing Debian packages: ${missing[*]}" >&2

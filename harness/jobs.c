@@ -16,25 +16,14 @@
 
 #include <cJSON.h>
 
-#include "cycles.h"
 #include "frame.h"
 #include "exr.h"
 #include "fileio.h"
 #include "mesh.h"
-#include "povray.h"
-#include "render.h"
+#include "renderers/registry.h"
 #include "scene_file.h"
 
-const char *const job_renderer_names[RENDERER_COUNT] = {"raster", "povray", "cycles"};
 const char *const job_role_names[3] = {"twin", "validate", "agree"};
-
-int job_renderer_from_name(const char *name)
-{
-    for (int i = 0; i < RENDERER_COUNT; i++)
-        if (strcmp(name, job_renderer_names[i]) == 0)
-            return i;
-    return -1;
-}
 
 int job_role_from_name(const char *name)
 {
@@ -60,10 +49,10 @@ void job_apply_variant(scene *s, job_variant v)
     s->samples = s->small.samples > 0 ? s->small.samples : (s->samples < 32 ? s->samples : 32);
 }
 
-void job_output_path(const char *out_dir, const char *scene_name, renderer_id r, comparison_role role,
+void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role,
                      const char *ext, char *buf, size_t len)
 {
-    snprintf(buf, len, "%s/%s/%s-%s.%s", out_dir, scene_name, job_renderer_names[r], job_role_names[role], ext);
+    snprintf(buf, len, "%s/%s/%s-%s.%s", out_dir, scene_name, registry_name(renderer), job_role_names[role], ext);
 }
 
 static int job_mkdirs(const char *path)
@@ -181,28 +170,27 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
 }
 
 /* The code a render depends on. A reference render depends on the scene pipeline and its
- * translator only, so a change to our shading does not re-render POV-Ray or Cycles; those
- * sources are hashed when the run starts in the source tree. Elsewhere (or for our own
- * rasterizer) the whole reflcheck binary stands in for them. */
-static void job_key_code(renderer_id r, uint64_t *key)
+ * translator only (the table row's sources), so a change to our shading does not re-render
+ * POV-Ray or Cycles; those sources are hashed when the run starts in the source tree.
+ * Elsewhere (or for a renderer without sources, our rasterizer) the whole reflcheck binary
+ * stands in for them. */
+static void job_key_code(const renderer_row *row, uint64_t *key)
 {
     static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c", "model/scene.h",
-                                         "model/mesh.c",    "model/mesh.h",         "model/vec.h",   "harness/exr.c"};
-    static const char *const povray[] = {"harness/povray.c", "harness/povray.h"};
-    static const char *const cycles[] = {"harness/cycles.c", "harness/cycles.h", "harness/cycles_render.py"};
-    const char *const *own = r == RENDERER_POVRAY ? povray : cycles;
-    size_t n_own = r == RENDERER_POVRAY ? sizeof povray / sizeof povray[0] : sizeof cycles / sizeof cycles[0];
-    int have = r != RENDERER_RASTER;
+                                         "model/mesh.c",    "model/mesh.h",         "model/vec.h",   "harness/exr.c",
+                                         "harness/renderers/renderer.c"};
+    const char *const *own = row->sources;
+    int have = own != NULL;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
         have = access(common[i], R_OK) == 0;
-    for (size_t i = 0; have && i < n_own; i++)
+    for (size_t i = 0; have && own[i] != NULL; i++)
         have = access(own[i], R_OK) == 0;
     char err[1024];
     uint64_t h = *key;
     rc_status st = RC_OK;
     for (size_t i = 0; have && st == RC_OK && i < sizeof common / sizeof common[0]; i++)
         st = job_key_file(&h, common[i], common[i], err, sizeof err);
-    for (size_t i = 0; have && st == RC_OK && i < n_own; i++)
+    for (size_t i = 0; have && st == RC_OK && own[i] != NULL; i++)
         st = job_key_file(&h, own[i], own[i], err, sizeof err);
     if (!have || st != RC_OK) {
         h = *key;
@@ -235,7 +223,7 @@ static void job_key_program(const char *program, const char *version, uint64_t *
 static rc_status job_key(const job_spec *j, const scene *s, const char *version, uint64_t *key, char *err,
                          size_t errlen)
 {
-    static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
+    const renderer_row *row = registry_row(j->renderer);
     uint64_t h = JOB_FNV_BASIS;
     rc_status st = job_key_file(&h, "scene", j->scene_path, err, errlen);
     if (st == RC_OK)
@@ -243,13 +231,13 @@ static rc_status job_key(const job_spec *j, const scene *s, const char *version,
     if (st != RC_OK)
         return st;
     char settings[512];
-    int seeds = j->renderer == RENDERER_CYCLES ? (j->seeds > 0 ? j->seeds : 2) : 0;
+    int seeds = row->stochastic ? (j->seeds > 0 ? j->seeds : 2) : 0;
     snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d",
-             job_renderer_names[j->renderer], job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
+             row->name, job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
              s->width, s->height, s->supersample, s->samples, seeds, j->seed, j->tessellation, j->per_vertex);
     h = job_key_field(h, "options", settings, strlen(settings));
-    job_key_program(programs[j->renderer], version, &h);
-    job_key_code(j->renderer, &h);
+    job_key_program(row->program, version, &h);
+    job_key_code(row, &h);
     *key = h;
     return RC_OK;
 }
@@ -265,6 +253,7 @@ typedef struct {
     double timeout;
     const char *shown_log; /* the log messages point to: the copy in OUT, which stays */
     env_map env;          /* loaded and checked once, before any renderer runs */
+    renderer_result res;  /* the render entry's result */
 } job_ctx;
 
 __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner_status st, const char *fmt, ...)
@@ -274,208 +263,6 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
     r->status = st;
     vsnprintf(r->message, sizeof r->message, fmt, ap);
     va_end(ap);
-}
-
-static void job_raster(job_ctx *c, job_record *r)
-{
-    render_image img = {0};
-    char err[1024];
-    render_options ro = {.threads = c->j->threads};
-    snprintf(c->command, sizeof c->command, "reflcheck render (in process)");
-    rc_status st = render_scene(c->s, c->m, &c->env, &ro, &img, err, sizeof err);
-    if (st != RC_OK) {
-        /* Our side out of memory is an error; anything else the rasterizer refuses fails the job. */
-        job_fail(r, st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED, "%s", err);
-        return;
-    }
-    st = frame_write(c->exr, c->s, c->m, &img, err, sizeof err);
-    r->wall_s = img.seconds;
-    r->cpu_s = img.seconds;
-    render_image_free(&img);
-    if (st != RC_OK)
-        job_fail(r, RUNNER_ERROR, "%s", err);
-}
-
-/* A renderer that did not end well: the record's status, and a message that says which kind
- * of skip it is when the program is not there. */
-static void job_fail_run(job_record *r, const runner_result *rr, const char *program, const char *package,
-                         const char *what, const char *log)
-{
-    if (rr->status == RUNNER_MISSING)
-        job_fail(r, RUNNER_MISSING, "%s is not installed; install it with: apt-get install %s", program, package);
-    else if (rr->status == RUNNER_ERROR)
-        job_fail(r, RUNNER_ERROR, "%s could not be run (log file, fork or wait failed%s); see %s", program, what, log);
-    else if (rr->exec_errno != 0)
-        job_fail(r, RUNNER_FAILED, "%s failed to start (%s%s); see %s", program, strerror(rr->exec_errno), what, log);
-    else if (rr->status == RUNNER_CRASHED)
-        job_fail(r, RUNNER_CRASHED, "%s crashed (signal %d%s); see %s", program, rr->signal, what, log);
-    else if (rr->status == RUNNER_TIMEOUT)
-        job_fail(r, RUNNER_TIMEOUT, "%s timeout (killed after %.1f s%s); see %s", program, rr->wall_s, what, log);
-    else
-        job_fail(r, RUNNER_FAILED, "%s failed (exit status %d%s); see %s", program, rr->exit_code, what, log);
-}
-
-/* The variance of each k x k block's mean (unbiased sample variance / k^2), as the rasterizer
- * writes it: how far a pixel's k*k samples may be from its box integral. */
-static void job_block_variance(const float *src, int kw, int k, int w, int h, float *var)
-{
-    double n = (double)k * k;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            double s = 0.0, sq = 0.0;
-            for (int t = 0; t < k; t++)
-                for (int u = 0; u < k; u++) {
-                    double v = src[(size_t)(y * k + t) * (size_t)kw + (size_t)(x * k + u)];
-                    s += v;
-                    sq += v * v;
-                }
-            double vv = k > 1 ? (sq - s * s / n) / (n * (n - 1.0)) : 0.0;
-            var[(size_t)y * (size_t)w + (size_t)x] = (float)(vv > 0.0 ? vv : 0.0);
-        }
-}
-
-/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees),
- * and, if var is not NULL, the block variances. Returns 0, or -1 with the record's status and
- * message set. */
-static int job_povray_pass(job_ctx *c, job_record *r, const povray_options *o, const char *tag, float *planes[3],
-                           float *var[3])
-{
-    char sdl[1100], raw[1100], err[1024];
-    snprintf(sdl, sizeof sdl, "%s/%s.pov", c->dir, tag);
-    snprintf(raw, sizeof raw, "%s/%s-raw.exr", c->dir, tag);
-    rc_status st = povray_write_scene(c->s, c->m, o, sdl, err, sizeof err);
-    povray_argv cmd;
-    if (st == RC_OK)
-        st = povray_command(o, sdl, raw, c->s->width, c->s->height, c->s->supersample, &cmd, err, sizeof err);
-    if (st != RC_OK) {
-        if (st == RC_ERR_RANGE)
-            job_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
-        else
-            job_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
-        return -1;
-    }
-    if (!o->coverage)
-        povray_command_string(&cmd, c->command, sizeof c->command);
-    runner_result rr;
-    unlink(raw);
-    runner_exec((const char *const *)cmd.argv, c->timeout, c->log, &rr);
-    r->wall_s += rr.wall_s;
-    r->cpu_s += rr.cpu_s;
-    if (rr.status != RUNNER_OK) {
-        char what[64];
-        snprintf(what, sizeof what, ", %s pass", tag);
-        job_fail_run(r, &rr, "povray", "povray", what, c->shown_log);
-        return -1;
-    }
-    exr_image img;
-    if (exr_read(raw, &img, err, sizeof err) != RC_OK) {
-        job_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s", err);
-        return -1;
-    }
-    int k = c->s->supersample, w = c->s->width, h = c->s->height;
-    const char *names[3] = {"R", "G", "B"};
-    int ok = img.width == k * w && img.height == k * h;
-    for (int i = 0; ok && i < 3; i++) {
-        const float *src = exr_image_channel(&img, names[i]);
-        planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
-        ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
-        double scale = o->output_scale > 0 ? o->output_scale : 1.0;
-        for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
-            planes[i][p] = (float)(planes[i][p] / scale);
-        if (ok && var != NULL) {
-            var[i] = malloc((size_t)w * (size_t)h * sizeof(float));
-            ok = var[i] != NULL;
-            if (ok) {
-                job_block_variance(src, img.width, k, w, h, var[i]);
-                for (size_t p = 0; p < (size_t)w * (size_t)h; p++)
-                    var[i][p] = (float)(var[i][p] / (scale * scale));
-            }
-        }
-    }
-    exr_image_free(&img);
-    if (!ok) {
-        job_fail(r, RUNNER_FAILED, "povray image %s is not the size asked for, or lacks R, G, B", raw);
-        return -1;
-    }
-    return 0;
-}
-
-static void job_povray(job_ctx *c, job_record *r)
-{
-    povray_options o = {.role = c->j->role, .threads = c->j->threads};
-    povray_options geo = {.role = c->j->role, .threads = c->j->threads, .coverage = 1};
-    float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL}, *var[3] = {NULL, NULL, NULL};
-    if (job_povray_pass(c, r, &o, "scene", rgb, var) == 0 && job_povray_pass(c, r, &geo, "coverage", cov, NULL) == 0) {
-        /* Coverage pass: R is the covered share, G/R the object index + 1 (box-filtered). */
-        size_t np = (size_t)c->s->width * (size_t)c->s->height;
-        for (size_t p = 0; p < np; p++)
-            cov[1][p] = cov[0][p] > 0.5f ? floorf(cov[1][p] / cov[0][p] + 0.5f) - 1.0f : -1.0f;
-        exr_channel ch[8] = {{"R", rgb[0]},          {"G", rgb[1]},        {"B", rgb[2]},
-                             {"coverage", cov[0]},   {"object", cov[1]},   {"var.R", var[0]},
-                             {"var.G", var[1]},      {"var.B", var[2]}};
-        exr_attr at[] = {{"reflcheck.renderer", c->version}};
-        char err[1024];
-        if (exr_write(c->exr, c->s->width, c->s->height, ch, 8, at, 1, err, sizeof err) != RC_OK)
-            job_fail(r, RUNNER_ERROR, "%s", err);
-    }
-    for (int i = 0; i < 3; i++) {
-        free(rgb[i]);
-        free(cov[i]);
-        free(var[i]);
-    }
-}
-
-/* 1 if every seed image Blender wrote reads as an EXR. */
-static int job_cycles_raw_readable(const cycles_options *o, const char *exr)
-{
-    for (int i = 0; i < o->n_seeds; i++) {
-        char path[1200], err[512];
-        exr_image img;
-        if (cycles_raw_path(exr, i, path, sizeof path) != RC_OK || exr_read(path, &img, err, sizeof err) != RC_OK)
-            return 0;
-        exr_image_free(&img);
-    }
-    return 1;
-}
-
-static void job_cycles(job_ctx *c, job_record *r)
-{
-    char job[1100], err[1024];
-    snprintf(job, sizeof job, "%s/job.json", c->dir);
-    cycles_options o = {.role = c->j->role, .n_seeds = c->j->seeds > 0 ? c->j->seeds : 2,
-                        .seed = (unsigned)c->j->seed, .threads = c->j->threads, .partial = 1};
-    rc_status st = cycles_write_job(c->s, c->m, &o, job, err, sizeof err);
-    cycles_argv a;
-    if (st == RC_OK)
-        st = cycles_command(&o, job, c->exr, &a, err, sizeof err);
-    if (st != RC_OK) {
-        if (st == RC_ERR_RANGE)
-            job_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
-        else
-            job_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
-        return;
-    }
-    size_t used = 0;
-    for (int i = 0; i < a.argc && used < sizeof c->command; i++)
-        used += (size_t)snprintf(c->command + used, sizeof c->command - used, "%s%s", i ? " " : "", a.argv[i]);
-    runner_result rr;
-    runner_exec(a.argv, c->timeout, c->log, &rr);
-    r->wall_s = rr.wall_s;
-    r->cpu_s = rr.cpu_s;
-    if (rr.status != RUNNER_OK) {
-        job_fail_run(r, &rr, "blender", "blender", "", c->shown_log);
-        return;
-    }
-    st = cycles_collect(&o, c->exr, err, sizeof err);
-    if (st != RC_OK) {
-        /* Blender's images unreadable fail the job; readable ones that we could not merge and
-         * write (disk full) are our error. */
-        runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
-        if (st == RC_ERR_IO && job_cycles_raw_readable(&o, c->exr))
-            why = RUNNER_ERROR;
-        job_fail(r, why, "%s: %s", why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable",
-                 err);
-    }
 }
 
 /* Writes a cJSON document to path through a temporary file and a rename. */
@@ -510,7 +297,8 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddStringToObject(o, "scene", s->name);
     cJSON_AddStringToObject(o, "scene_path", c->j->scene_path);
     cJSON_AddStringToObject(o, "scene_hash", hash);
-    cJSON_AddStringToObject(o, "renderer", job_renderer_names[c->j->renderer]);
+    const renderer_row *row = registry_row(c->j->renderer);
+    cJSON_AddStringToObject(o, "renderer", row->name);
     cJSON_AddStringToObject(o, "role", job_role_names[c->j->role]);
     cJSON_AddStringToObject(o, "variant", c->j->variant == JOB_SMALL ? "small" : "full");
     cJSON_AddStringToObject(o, "status", runner_status_name(r->status));
@@ -523,9 +311,9 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddNumberToObject(o, "width", s->width);
     cJSON_AddNumberToObject(o, "height", s->height);
     cJSON_AddNumberToObject(o, "supersample", s->supersample);
-    cJSON_AddNumberToObject(o, "samples", c->j->renderer == RENDERER_CYCLES ? s->samples : 0);
-    cJSON_AddNumberToObject(o, "seeds", c->j->renderer == RENDERER_CYCLES ? (c->j->seeds > 0 ? c->j->seeds : 2) : 0);
-    cJSON_AddNumberToObject(o, "seed", c->j->renderer == RENDERER_CYCLES ? c->j->seed : 0);
+    cJSON_AddNumberToObject(o, "samples", row->stochastic ? s->samples : 0);
+    cJSON_AddNumberToObject(o, "seeds", row->stochastic ? (c->j->seeds > 0 ? c->j->seeds : 2) : 0);
+    cJSON_AddNumberToObject(o, "seed", row->stochastic ? c->j->seed : 0);
     cJSON_AddNumberToObject(o, "tessellation", s->n_objects > 0 ? s->objects[0].tessellation : 0);
     cJSON_AddBoolToObject(o, "per_vertex", c->j->per_vertex);
     cJSON_AddStringToObject(o, "tag", c->j->tag ? c->j->tag : "");
@@ -655,13 +443,20 @@ static int job_entry_complete(const char *entry, job_record *rec)
     return ok;
 }
 
+/* The table row's render entry, the same one the renderers' tests call. */
 static void job_render(job_ctx *c, job_record *rec)
 {
-    switch (c->j->renderer) {
-    case RENDERER_RASTER: job_raster(c, rec); break;
-    case RENDERER_POVRAY: job_povray(c, rec); break;
-    default: job_cycles(c, rec); break;
-    }
+    renderer_job rj = {.s = c->s, .m = c->m, .env = &c->env, .role = c->j->role, .threads = c->j->threads,
+                       .seeds = c->j->seeds, .seed = c->j->seed, .timeout = c->timeout,
+                       .partial = c->j->role == ROLE_TWIN, .dir = c->dir, .exr = c->exr, .log = c->log,
+                       .shown_log = c->shown_log, .version = c->version};
+    memset(&c->res, 0, sizeof c->res);
+    registry_row(c->j->renderer)->render(&rj, &c->res);
+    rec->status = c->res.status;
+    snprintf(rec->message, sizeof rec->message, "%s", c->res.message);
+    rec->wall_s = c->res.wall_s;
+    rec->cpu_s = c->res.cpu_s;
+    snprintf(c->command, sizeof c->command, "%s", c->res.command);
 }
 
 /* Renders into a private work folder c->dir (created here) under parent. */
@@ -757,13 +552,17 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         job_twin_switches(s);
 
     c.timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
-    static const char *const programs[RENDERER_COUNT] = {NULL, "povray", "blender"};
+    const renderer_row *row = registry_row(j->renderer);
+    if (st == RC_OK && row == NULL) {
+        snprintf(err, errlen, "renderer %d: not a row of the renderer table", j->renderer);
+        st = RC_ERR_RANGE;
+    }
     if (st == RC_OK) {
-        if (j->renderer == RENDERER_RASTER)
-            snprintf(c.version, sizeof c.version, "reflcheck-raster");
-        else if (!runner_version(programs[j->renderer], c.version, sizeof c.version))
+        if (row->program == NULL)
+            snprintf(c.version, sizeof c.version, "%s", row->version ? row->version : row->name);
+        else if (!runner_version(row->program, c.version, sizeof c.version))
             snprintf(rec->message, sizeof rec->message, "%s is not installed; install it with: apt-get install %s",
-                     programs[j->renderer], programs[j->renderer]);
+                     row->program, row->package);
         if (rec->message[0] != '\0')
             rec->status = RUNNER_MISSING;
         st = job_key(j, s, c.version, &key, err, errlen);
@@ -806,7 +605,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         /* Without a cache the job still locks itself (in OUT), so that the work folders a
          * killed run left can be told from a running one's and removed. */
         char prefix[64], lockname[80];
-        snprintf(prefix, sizeof prefix, "tmp-%s-%s", job_renderer_names[j->renderer], job_role_names[j->role]);
+        snprintf(prefix, sizeof prefix, "tmp-%s-%s", row->name, job_role_names[j->role]);
         snprintf(lockname, sizeof lockname, ".%s.lock", prefix);
         lock_fd = job_lock(dest_dir, lockname);
         if (lock_fd >= 0)

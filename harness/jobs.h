@@ -1,13 +1,15 @@
 /* jobs.h - one render job: a scene in one renderer and role, cached, timed, recorded.
  *
  * Usage:
- *   job_spec j = {.scene_path = "scenes/x.yaml", .renderer = RENDERER_POVRAY, .role = ROLE_TWIN,
+ *   job_spec j = {.scene_path = "scenes/x.yaml", .renderer = registry_find("povray"), .role = ROLE_TWIN,
  *                 .variant = JOB_SMALL, .out_dir = "reports/runs/r1", .cache_dir = "reports/cache"};
  *   job_record r;
  *   rc_status st = job_run(&j, &r, err, sizeof err);
  *   exit status: job_exit_status(st, &r)     0 ok or skipped, 1 anything else, 2 bad input
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
  * time, renderer version, command, cache key) and the renderer's .log.
+ * The job asks the renderer table (harness/renderers/registry.h) for everything about the
+ * renderer: its program, package, version, sources and render entry.
  *
  * Returns RC_OK once the record is written, whatever the renderer did; r.status says what:
  *   ok; skipped (RUNNER_MISSING) only when the renderer is not installed or cannot represent
@@ -23,9 +25,9 @@
  * every file it references (meshes, environment image), the options that reach the image
  * (renderer, role, variant, size, k, samples, seeds, seed, tessellation, per-vertex), the
  * renderer's version line and executable (path, size, times), and the code the render depends
- * on (translator and scene-pipeline sources for POV-Ray and Cycles when run in the source
- * tree, else and for our rasterizer the reflcheck binary). Threads, timeout and tag are not
- * in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
+ * on (the scene pipeline and the row's translator sources when run in the source tree, else
+ * and for a renderer without sources, our rasterizer, the reflcheck binary). Threads, timeout
+ * and tag are not in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
  * publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes it by rename, so runs
  * sharing a cache render each key once and never see a half entry; a killed run's lock goes
  * with it and its work folder is removed by the next job on that key. Only ok renders are
@@ -39,6 +41,7 @@
 #define REFLCHECK_JOBS_H
 
 #include <stddef.h>
+#include "renderers/registry.h"
 #include "runner.h"
 #include "scene.h"
 #include "status.h"
@@ -47,7 +50,7 @@ typedef enum { JOB_FULL = 0, JOB_SMALL = 1 } job_variant;
 
 typedef struct {
     const char *scene_path;
-    renderer_id renderer;
+    int renderer;             /* a row of the renderer table (registry_find) */
     comparison_role role;     /* raster: ROLE_TWIN switches Cook-Torrance to Smith G, F = 1 */
     job_variant variant;
     const char *out_dir;
@@ -72,15 +75,13 @@ typedef struct {
     int bad_input;   /* job_run failed on an input the user gave: exit status 2 */
 } job_record;
 
-extern const char *const job_renderer_names[RENDERER_COUNT];
 extern const char *const job_role_names[3];
 
-int job_renderer_from_name(const char *name);   /* -1 if unknown */
 int job_role_from_name(const char *name);       /* -1 if unknown */
 /* Applies the variant's image size and samples to s. */
 void job_apply_variant(scene *s, job_variant v);
 /* The files of a job: OUT/<scene>/<renderer>-<role>.<ext>. */
-void job_output_path(const char *out_dir, const char *scene_name, renderer_id r, comparison_role role,
+void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role,
                      const char *ext, char *buf, size_t len);
 /* Applies a spec's quality overrides to s (tessellation of every object, per-vertex shading
  * of every D3D material, supersample, samples). */

@@ -1151,10 +1151,19 @@ static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comp
     return RC_OK;
 }
 
+/* A renderer name: one of the table's (harness/renderers/registry.h). */
+static rc_status sf_renderer(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
+{
+    const char *names[16];
+    int count = registry_count() < 16 ? registry_count() : 16;
+    for (int i = 0; i < count; i++)
+        names[i] = registry_name(i);
+    return sf_enum(c, n, path, names, count, out);
+}
+
 static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     static const char *const keys[] = {"test", "reference", "role", "thresholds"};
-    static const char *const renderers[] = {"raster", "povray", "cycles"};
     static const char *const roles[] = {"twin", "validate", "agree"};
     char path[SF_PATHLEN], child[SF_PATHLEN];
     long count;
@@ -1172,19 +1181,19 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
             return sf_fail(c, RC_ERR_PARSE, n, path, "missing item; allowed: a comparison map");
         if ((rc = sf_map(c, e, path, keys, 4, f)) || (rc = sf_need(c, e, path, &f[1], "reference")))
             return rc;
-        cmp->test = RENDERER_RASTER;
+        cmp->test = registry_model();
         cmp->role = ROLE_TWIN;
         cmp->n_thresholds = 0;
         sf_child(child, path, "test");
         if (f[0].v) {
-            if ((rc = sf_enum(c, f[0].v, child, renderers, 3, &v)))
+            if ((rc = sf_renderer(c, f[0].v, child, &v)))
                 return rc;
-            cmp->test = (renderer_id)v;
+            cmp->test = v;
         }
         sf_child(child, path, "reference");
-        if ((rc = sf_enum(c, f[1].v, child, renderers, 3, &v)))
+        if ((rc = sf_renderer(c, f[1].v, child, &v)))
             return rc;
-        cmp->reference = (renderer_id)v;
+        cmp->reference = v;
         if (cmp->reference == cmp->test)
             return sf_fail(c, RC_ERR_RANGE, f[1].v, child,
                            "reference equals test; allowed: two different renderers");

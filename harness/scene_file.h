@@ -23,6 +23,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include "renderers/registry.h" /* comparisons hold rows of the renderer table */
 #include "scene.h"
 #include "status.h"
 

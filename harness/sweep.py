@@ -259,18 +259,33 @@ def scene_name(path):
     return os.path.splitext(os.path.basename(path))[0]
 
 
+# The renderer that computes the model (the default `test` of a comparison), from the
+# renderer table (`reflcheck renderers --json`, read by renderer_table in main); None until
+# then, so that an explicit `test:` never counts as the model.
+MODEL = None
+
+
+def renderer_table(bin_path):
+    """The renderer table as the CLI lists it: name -> row (model, stochastic, program, ...).
+    The sweep keeps no renderer list of its own."""
+    out = subprocess.run([bin_path, 'renderers', '--json'], capture_output=True, text=True, check=True,
+                         timeout=30).stdout
+    return {r['name']: r for r in json.loads(out)}
+
+
 def lists_cycles(path, role):
-    """True if the scene's comparisons hold {reference: cycles, role: ROLE} with the
-    rasterizer (the default test). A line-level read of the list items: scenes/FORMAT.md keeps
-    each comparison a `- ` item with plain keys."""
+    """True if the scene's comparisons hold {reference: cycles, role: ROLE} with the model
+    renderer as the test (the default, or `test:` naming it). A line-level read of the list
+    items: scenes/FORMAT.md keeps each comparison a `- ` item with plain keys."""
     with open(path, encoding='utf-8') as f:
         text = f.read()
     m = re.search(r'^comparisons:\s*\n((?:[ \t].*\n?|\s*\n)*)', text, re.M)
     if not m:
         return False
     for item in re.split(r'\n\s*-\s', '\n' + m.group(1)):
+        test = re.search(r'\btest:\s*([A-Za-z0-9_-]+)', item)
         if re.search(r'\breference:\s*cycles\b', item) and re.search(r'\brole:\s*' + role + r'\b', item) \
-                and not re.search(r'\btest:\s*(povray|cycles)\b', item):
+                and (test is None or test.group(1) == MODEL):
             return True
     return False
 
@@ -505,7 +520,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
     equal = []
     for name, b in budgets:
         best = {}
-        for r in ('raster', 'povray', 'cycles'):
+        for r in dict.fromkeys(j['renderer'] for j in jobs):   # the plan's renderers, in order
             p = best_within([q for q in all_pts if q['renderer'] == r], b)
             best[r] = None if p is None else {'label': p['label'], 'time_s': p['time_s'], 'error': p['error']}
         fe = None
@@ -591,6 +606,14 @@ def main(argv=None):
     if args.jobs < 1 or args.threads < 1:
         print('sweep.py: --jobs and --threads must be at least 1', file=sys.stderr)
         return 2
+    global MODEL
+    try:
+        table = renderer_table(args.bin)
+    except (OSError, ValueError, subprocess.SubprocessError) as e:
+        print(f'sweep.py: {args.bin} renderers --json: {e}; build a reflcheck that lists its renderers',
+              file=sys.stderr)
+        return 2
+    MODEL = next((n for n, r in table.items() if r.get('model')), None)
     scenes = args.scenes or sorted(os.path.join('scenes', f) for f in os.listdir('scenes') if f.endswith('.yaml'))
     for s in scenes:
         if not os.path.isfile(s):
@@ -612,6 +635,8 @@ def main(argv=None):
     for sp in scenes:
         name = scene_name(sp)
         jobs, ref_spp = plan(args.quick, runner.seed_opt)
+        # Knobs of a renderer this reflcheck does not have are not swept.
+        jobs = [j for j in jobs if j['renderer'] in table]
         plans[sp] = (name, jobs, ref_spp)
         work += [(sp, name, j) for j in jobs]
     work.sort(key=lambda w: -expected_cost(w[2]))

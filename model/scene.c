@@ -86,9 +86,7 @@ void scene_init(scene *s)
         material_init(&s->materials[i]);
     for (int i = 0; i < SCENE_MAX_OBJECTS; i++)
         object_init(&s->objects[i]);
-    for (int i = 0; i < SCENE_MAX_COMPARISONS; i++) {
-        s->comparisons[i].test = RENDERER_RASTER;
-        s->comparisons[i].reference = RENDERER_POVRAY;
+    /* Comparisons name renderers only in the file; harness/scene_file.c resolves them. */
+    for (int i = 0; i < SCENE_MAX_COMPARISONS; i++)
         s->comparisons[i].role = ROLE_TWIN;
-    }
 }

@@ -111,7 +111,6 @@ typedef struct {
     int material;            /* index into scene.materials */
 } object;
 
-typedef enum { RENDERER_RASTER, RENDERER_POVRAY, RENDERER_CYCLES, RENDERER_COUNT } renderer_id;
 typedef enum { ROLE_TWIN, ROLE_VALIDATE, ROLE_AGREE } comparison_role;
 
 #define METRIC_MAX 8
@@ -122,7 +121,9 @@ typedef struct {
 } threshold;
 
 typedef struct {
-    renderer_id test, reference;  /* test is usually RENDERER_RASTER */
+    /* Rows of the renderer table (harness/renderers/registry.h), resolved from the names in
+     * the scene file by harness/scene_file.c; the model knows no renderer. */
+    int test, reference;
     comparison_role role;
     int n_thresholds;
     threshold thresholds[METRIC_MAX];

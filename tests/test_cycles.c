@@ -18,11 +18,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include <ftw.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmocka.h>
 
-#include "cycles.h"
+#include "renderers/cycles/cycles.h"
+#include "renderers/registry.h"
 #include "exr.h"
 #include "mesh.h"
 #include "runner.h"
@@ -38,11 +40,12 @@ static int group_setup(void **state)
     (void)state;
     snprintf(g_dir, sizeof g_dir, "/tmp/test_cycles_XXXXXX");
     if (mkdtemp(g_dir) == NULL) return -1;
-    static const char *candidates[] = {"harness/cycles_render.py", "../harness/cycles_render.py"};
+    static const char *candidates[] = {"harness/renderers/cycles/cycles_render.py",
+                                       "../harness/renderers/cycles/cycles_render.py"};
     for (size_t i = 0; i < sizeof candidates / sizeof candidates[0]; i++)
         if (access(candidates[i], R_OK) == 0) g_script = candidates[i];
     if (g_script == NULL) {
-        fprintf(stderr, "test_cycles: harness/cycles_render.py not found; run from the repository root\n");
+        fprintf(stderr, "test_cycles: harness/renderers/cycles/cycles_render.py not found; run from the repository root\n");
         return -1;
     }
     return 0;
@@ -139,20 +142,38 @@ typedef struct {
 
 static double now_wall;
 
+/* Renders through the renderer table's entry, the one production (harness/jobs.c) runs:
+ * job, blender, collect. Returns the entry's result; out names the image. */
+static renderer_result render_entry(const scene *s, const mesh *m, const cycles_options *o, const char *tag,
+                                    char *out, size_t outlen)
+{
+    char dir[512], log[512];
+    snprintf(dir, sizeof dir, "%s/%s-work", g_dir, tag);
+    mkdir(dir, 0755);
+    snprintf(out, outlen, "%s/%s.exr", g_dir, tag);
+    snprintf(log, sizeof log, "%s/%s.log", g_dir, tag);
+    renderer_job j = {.s = s, .m = m, .role = o->role, .dir = dir, .exr = out, .log = log, .timeout = 3600.0,
+                      .options = o};
+    renderer_result res = {0};
+    registry_row(registry_find("cycles"))->render(&j, &res);
+    return res;
+}
+
+static void render_ok(const scene *s, const mesh *m, const cycles_options *o, const char *tag, result *r)
+{
+    char out[512], err[512];
+    renderer_result res = render_entry(s, m, o, tag, out, sizeof out);
+    if (res.status != RUNNER_OK) fail_msg("cycles entry: %s", res.message);
+    now_wall = res.wall_s;
+    if (exr_read(out, &r->img, err, sizeof err) != RC_OK) fail_msg("exr_read: %s", err);
+    r->w = r->img.width;
+    r->h = r->img.height;
+}
+
 static void render(const scene *s, const mesh *m, const char *tag, result *r)
 {
-    char job[512], out[512], log[512], err[512];
-    snprintf(job, sizeof job, "%s/%s.json", g_dir, tag);
-    snprintf(out, sizeof out, "%s/%s.exr", g_dir, tag);
-    snprintf(log, sizeof log, "%s/%s.log", g_dir, tag);
     cycles_options o = {.role = ROLE_TWIN, .n_seeds = 2, .seed = 11, .threads = 2, .script = g_script};
-    rc_status rc = cycles_write_job(s, m, &o, job, err, sizeof err);
-    if (rc != RC_OK) fail_msg("cycles_write_job: %s", err);
-    cycles_argv a;
-    assert_int_equal(cycles_command(&o, job, out, &a, err, sizeof err), RC_OK);
-    if (cycles_run(&a, log, &now_wall, err, sizeof err) != RC_OK) fail_msg("cycles_run: %s", err);
-    if (cycles_collect(&o, out, err, sizeof err) != RC_OK) fail_msg("cycles_collect: %s", err);
-    if (exr_read(out, &r->img, err, sizeof err) != RC_OK) fail_msg("exr_read: %s", err);
+    render_ok(s, m, &o, tag, r);
     r->w = r->img.width;
     r->h = r->img.height;
     printf("# %s: blender wall %.2f s (scene build %s s, render %s s for 2 seeds x %d spp, %dx%d)\n", tag, now_wall,
@@ -701,21 +722,10 @@ static void test_validate_role(void **state)
     s.materials[0].albedo = v3s(0.5f);
     s.materials[0].ior = 1.7f;
     s.materials[0].roughness = 0.2f;
-    char job[512], out[512], log[512], err[512];
-    snprintf(job, sizeof job, "%s/validate.json", g_dir);
-    snprintf(out, sizeof out, "%s/validate.exr", g_dir);
-    snprintf(log, sizeof log, "%s/validate.log", g_dir);
     cycles_options o = {.role = ROLE_VALIDATE, .n_seeds = 2, .seed = 3, .samples = 64, .threads = 2,
                         .script = g_script};
-    if (cycles_write_job(&s, &m, &o, job, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    cycles_argv a;
-    assert_int_equal(cycles_command(&o, job, out, &a, err, sizeof err), RC_OK);
-    if (cycles_run(&a, log, NULL, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    if (cycles_collect(&o, out, err, sizeof err) != RC_OK) fail_msg("%s", err);
     result r;
-    if (exr_read(out, &r.img, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    r.w = r.img.width;
-    r.h = r.img.height;
+    render_ok(&s, &m, &o, "validate", &r);
     cam c;
     cam_make(&s, r.w, r.h, &c);
     coat_ctx cc = {1.7, 0.5, 0.6};
@@ -733,11 +743,7 @@ static void test_validate_role(void **state)
     s.materials[0].k = v3(3.9f, 2.4f, 2.2f);
     o.n_seeds = 1;
     o.samples = 4;
-    if (cycles_write_job(&s, &m, &o, job, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    assert_int_equal(cycles_command(&o, job, out, &a, err, sizeof err), RC_OK);
-    if (cycles_run(&a, log, NULL, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    if (cycles_collect(&o, out, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    if (exr_read(out, &r.img, err, sizeof err) != RC_OK) fail_msg("%s", err);
+    render_ok(&s, &m, &o, "validate", &r);
     const float *dd = chan(&r, "diffuse.R"), *gr = chan(&r, "specular.R"), *gb = chan(&r, "specular.B");
     cov = chan(&r, "coverage");
     for (int p = 0; p < r.img.width * r.img.height; p++) {
@@ -754,11 +760,7 @@ static void test_validate_role(void **state)
     o.role = ROLE_AGREE;
     o.n_seeds = 2;
     o.samples = 16;
-    if (cycles_write_job(&s, &m, &o, job, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    assert_int_equal(cycles_command(&o, job, out, &a, err, sizeof err), RC_OK);
-    if (cycles_run(&a, log, NULL, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    if (cycles_collect(&o, out, err, sizeof err) != RC_OK) fail_msg("%s", err);
-    if (exr_read(out, &r.img, err, sizeof err) != RC_OK) fail_msg("%s", err);
+    render_ok(&s, &m, &o, "validate", &r);
     n = compare_floor_channel(&r, &c, "reflection.G", 1.0f, fresnel_mirror, &cc, "agree Fresnel mirror", 0.0);
     assert_true(n > 150);
     exr_image_free(&r.img);
@@ -870,22 +872,29 @@ static void test_job_contents_and_refusals(void **state)
     assert_string_equal(buf, "d/x.cyc1.exr");
 }
 
+/* A driver script that fails is a failed job whose message carries the script's error line
+ * (the same path production takes). The script here reads the job and refuses it as
+ * cycles_render.py refuses a job without samples. */
 static void test_script_failure_is_reported(void **state)
 {
     (void)state;
-    char job[512], out[512], log[512], err[512];
-    snprintf(job, sizeof job, "%s/broken.json", g_dir);
-    snprintf(out, sizeof out, "%s/broken.exr", g_dir);
-    snprintf(log, sizeof log, "%s/broken.log", g_dir);
-    FILE *fp = fopen(job, "w");
+    char script[512], out[512];
+    snprintf(script, sizeof script, "%s/broken.py", g_dir);
+    FILE *fp = fopen(script, "w");
     assert_non_null(fp);
-    fputs("{\"format\": \"reflcheck-cycles-job\", \"version\": 1}\n", fp);
+    fputs("import sys\nprint(\"cycles_render.py: error: job: missing key 'samples'\", file=sys.stderr)\n"
+          "sys.exit(1)\n", fp);
     fclose(fp);
-    cycles_options o = {.script = g_script};
-    cycles_argv a;
-    assert_int_equal(cycles_command(&o, job, out, &a, err, sizeof err), RC_OK);
-    assert_int_equal(cycles_run(&a, log, NULL, err, sizeof err), RC_ERR_RENDERER);
-    assert_non_null(strstr(err, "missing key 'samples'"));
+    scene s;
+    mesh m;
+    base_scene(&s, 8, 8);
+    floor_scene_mesh(&s, &m);
+    cycles_options o = {.role = ROLE_TWIN, .n_seeds = 1, .samples = 1, .script = script};
+    renderer_result r = render_entry(&s, &m, &o, "broken", out, sizeof out);
+    assert_int_equal(r.status, RUNNER_FAILED);
+    assert_non_null(strstr(r.message, "blender failed (exit status 1)"));
+    assert_non_null(strstr(r.message, "missing key 'samples'"));
+    mesh_free(&m);
 }
 
 int main(void)

@@ -79,7 +79,7 @@ static int teardown(void **state)
     return system(cmd) != 0;
 }
 
-static job_record run_job(renderer_id r, double timeout)
+static job_record run_job(int r, double timeout)
 {
     job_spec j = {.scene_path = "scenes/d3d_spot.yaml", .renderer = r, .role = ROLE_TWIN, .variant = JOB_SMALL,
                   .out_dir = out_dir, .cache_dir = NULL, .timeout_s = timeout, .threads = 1};
@@ -98,7 +98,7 @@ static void test_renderer_fails(void **state)
 {
     (void)state;
     fake("povray", "echo 'Parse Error: broken on purpose' >&2; exit 3");
-    job_record r = run_job(RENDERER_POVRAY, 30);
+    job_record r = run_job(registry_find("povray"), 30);
     assert_int_equal(r.status, RUNNER_FAILED);
     assert_non_null(strstr(r.message, "povray failed"));
     assert_non_null(strstr(r.message, "exit status 3"));
@@ -109,7 +109,7 @@ static void test_renderer_crashes(void **state)
 {
     (void)state;
     fake("povray", "kill -SEGV $$");
-    job_record r = run_job(RENDERER_POVRAY, 30);
+    job_record r = run_job(registry_find("povray"), 30);
     assert_int_equal(r.status, RUNNER_CRASHED);
     assert_non_null(strstr(r.message, "signal 11"));
 }
@@ -118,7 +118,7 @@ static void test_renderer_hangs(void **state)
 {
     (void)state;
     fake("blender", "sleep 60");
-    job_record r = run_job(RENDERER_CYCLES, 0.5);
+    job_record r = run_job(registry_find("cycles"), 0.5);
     assert_int_equal(r.status, RUNNER_TIMEOUT);
     assert_true(r.wall_s < 10.0);
 }
@@ -128,7 +128,7 @@ static void test_renderer_writes_garbage(void **state)
     (void)state;
     /* Exits 0 but the "EXR" it names is text: an unreadable image, recorded as a failure. */
     fake("povray", "for a in \"$@\"; do case \"$a\" in +O*) echo 'not an exr' > \"${a#+O}\";; esac; done; exit 0");
-    job_record r = run_job(RENDERER_POVRAY, 30);
+    job_record r = run_job(registry_find("povray"), 30);
     assert_int_equal(r.status, RUNNER_FAILED);
     assert_non_null(strstr(r.message, "unreadable"));
 }
@@ -137,10 +137,10 @@ static void test_renderer_missing_and_results_kept(void **state)
 {
     (void)state;
     /* A result written before: the raster job. Then blender is missing from PATH entirely. */
-    job_record ok = run_job(RENDERER_RASTER, 30);
+    job_record ok = run_job(registry_model(), 30);
     assert_int_equal(ok.status, RUNNER_OK);
     use_path("/usr/local/nonexistent");
-    job_record r = run_job(RENDERER_CYCLES, 30);
+    job_record r = run_job(registry_find("cycles"), 30);
     use_fake_path();
     assert_int_equal(r.status, RUNNER_MISSING);
     assert_string_equal(runner_status_name(r.status), "skipped");

@@ -18,10 +18,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "exr.h"
-#include "povray.h"
+#include "renderers/povray/povray.h"
+#include "renderers/registry.h"
 
 #define PI 3.14159265358979323846
 /* Half-float quantisation (<= 2.4e-4) plus POV-Ray's float arithmetic, with margin. */
@@ -153,22 +155,72 @@ static int cam_hit_plane(const cam *c, double sx, double sy, dvec3 o, dvec3 n, d
 
 /* ---- running POV-Ray --------------------------------------------------------------- */
 
+/* What the render entry wrote, read back: R, G, B planes (radiance, scale undone). */
+typedef struct {
+    int width, height, supersample;
+    float *rgb[3];
+    double seconds;
+    char command[2048];
+} povray_image;
+
+static void povray_image_free(povray_image *img)
+{
+    for (int c = 0; c < 3; c++) {
+        free(img->rgb[c]);
+        img->rgb[c] = NULL;
+    }
+}
+
+/* Renders through the renderer table's entry, the one production (harness/jobs.c) runs. */
+static renderer_result pov_entry(const scene *s, const mesh *m, const povray_options *o, const char *tag,
+                                 char *exr, size_t exrlen)
+{
+    char dir[512], log[600];
+    snprintf(dir, sizeof dir, "%s/%s-work", tmpdir, tag);
+    mkdir(dir, 0755);
+    snprintf(exr, exrlen, "%s/%s.exr", tmpdir, tag);
+    snprintf(log, sizeof log, "%s/%s.log", tmpdir, tag);
+    renderer_job j = {.s = s, .m = m, .role = o->role, .dir = dir, .exr = exr, .log = log, .timeout = 600.0,
+                      .options = o};
+    renderer_result r = {0};
+    registry_row(registry_find("povray"))->render(&j, &r);
+    return r;
+}
+
 static void pov_render(const scene *s, const mesh *m, const povray_options *o, const char *tag,
                    povray_image *img)
 {
-    char sdl[512], exr[512], log[600], err[512] = "";
-    snprintf(sdl, sizeof sdl, "%s/%s.pov", tmpdir, tag);
-    snprintf(exr, sizeof exr, "%s/%s.exr", tmpdir, tag);
-    rc_status st = povray_render(s, m, o, sdl, exr, img, err, sizeof err);
-    if (st != RC_OK)
-        fprintf(stderr, "povray_render(%s): %s\n", tag, err);
-    assert_int_equal(st, RC_OK);
+    static const char *const names[3] = {"R", "G", "B"};
+    char exr[512], log[600], err[512] = "";
+    memset(img, 0, sizeof *img);
+    renderer_result r = pov_entry(s, m, o, tag, exr, sizeof exr);
+    if (r.status != RUNNER_OK)
+        fprintf(stderr, "povray entry (%s): %s\n", tag, r.message);
+    assert_int_equal(r.status, RUNNER_OK);
+    exr_image e;
+    if (exr_read(exr, &e, err, sizeof err) != RC_OK)
+        fail_msg("exr_read(%s): %s", exr, err);
+    assert_int_equal(e.width, s->width);
+    assert_int_equal(e.height, s->height);
+    size_t np = (size_t)e.width * (size_t)e.height;
+    for (int c = 0; c < 3; c++) {
+        const float *src = exr_image_channel(&e, names[c]);
+        assert_non_null(src);
+        img->rgb[c] = malloc(np * sizeof(float));
+        assert_non_null(img->rgb[c]);
+        memcpy(img->rgb[c], src, np * sizeof(float));
+    }
+    exr_image_free(&e);
+    img->width = s->width;
+    img->height = s->height;
+    img->supersample = o->supersample > 0 ? o->supersample : (s->supersample > 0 ? s->supersample : 1);
+    img->seconds = r.wall_s;
+    snprintf(img->command, sizeof img->command, "%s", r.command);
     total_seconds += img->seconds;
-    printf("  [%s] %dx%d k=%d: POV-Ray %.3f s: %s\n", tag, img->width, img->height,
+    printf("  [%s] %dx%d k=%d: POV-Ray %.3f s (scene and geometry passes): %s\n", tag, img->width, img->height,
            img->supersample, img->seconds, img->command);
     if (!getenv("REFLCHECK_KEEP")) {
-        snprintf(log, sizeof log, "%s.log", exr);
-        unlink(sdl);
+        snprintf(log, sizeof log, "%s/%s.log", tmpdir, tag);
         unlink(exr);
         unlink(log);
     }
@@ -641,7 +693,8 @@ static void test_env_image(void **state)
     unlink(envp);
 }
 
-/* A POV-Ray that cannot run is a renderer error with a message, not a crash or a stale image. */
+/* A POV-Ray that cannot run is a failed job with a message, not a crash or a stale image;
+ * a POV-Ray that reports an error has its error line passed on. Both through the entry. */
 static void test_run_failure(void **state)
 {
     (void)state;
@@ -649,25 +702,26 @@ static void test_run_failure(void **state)
     base_scene(&s, 8, 8, v3(0, 1, 3), v3(0, 0, 0), 40.0);
     mesh m = {0};
     add_plane(&m, v3(0, 0, 0), v3(0, 1, 0), 1.0f, 0);
-    char sdl[300], exr[300], log[320], err[512] = "";
-    snprintf(sdl, sizeof sdl, "%s/fail.pov", tmpdir);
-    snprintf(exr, sizeof exr, "%s/fail.exr", tmpdir);
-    snprintf(log, sizeof log, "%s.log", exr);
+    char exr[512], script[600];
     povray_options o = {.povray = "/nonexistent/povray"};
-    povray_image img;
-    assert_int_equal(povray_render(&s, &m, &o, sdl, exr, &img, err, sizeof err), RC_ERR_RENDERER);
-    assert_non_null(strstr(err, "POV-Ray failed"));
-    /* A syntax error in the SDL: POV-Ray's own message is passed on. */
-    FILE *fp = fopen(sdl, "w");
+    renderer_result r = pov_entry(&s, &m, &o, "fail", exr, sizeof exr);
+    assert_int_not_equal(r.status, RUNNER_OK);
+    assert_non_null(strstr(r.message, "povray"));
+    assert_int_equal(access(exr, F_OK), -1);
+    /* A stand-in povray that prints an error as POV-Ray does and exits 1. */
+    snprintf(script, sizeof script, "%s/fakepov.sh", tmpdir);
+    FILE *fp = fopen(script, "w");
     assert_non_null(fp);
-    fputs("#version 3.7;\ncamera { location <0,0,-1> look_at 0 }\nsphere { 0, 1 pigment { rgb 1 }\n", fp);
+    fputs("#!/bin/sh\necho 'Parse Error: No matching } in sphere'\nexit 1\n", fp);
     fclose(fp);
-    povray_argv cmd;
-    assert_int_equal(povray_command(NULL, sdl, exr, 8, 8, 1, &cmd, err, sizeof err), RC_OK);
-    assert_int_equal(povray_run(&cmd, exr, NULL, err, sizeof err), RC_ERR_RENDERER);
-    assert_non_null(strstr(err, "rror"));
-    unlink(sdl);
-    unlink(log);
+    chmod(script, 0755);
+    o.povray = script;
+    r = pov_entry(&s, &m, &o, "fail2", exr, sizeof exr);
+    assert_int_equal(r.status, RUNNER_FAILED);
+    assert_non_null(strstr(r.message, "povray failed (exit status 1, scene pass)"));
+    assert_non_null(strstr(r.message, "Parse Error: No matching }"));
+    assert_int_equal(access(exr, F_OK), -1);
+    unlink(script);
     mesh_release(&m);
 }
 

@@ -201,6 +201,25 @@ def test_lists_cycles_validate(tmp_path):
     assert sweep.sweep_role(str(none)) is None
 
 
+def test_renderers_from_cli(tmp_path, monkeypatch):
+    """The sweep takes the renderers from `reflcheck renderers --json`, not from a list: the
+    model renderer counts as a comparison's test whether or not the scene names it."""
+    fake = tmp_path / 'reflcheck'
+    fake.write_text('#!/bin/sh\n[ "$1 $2" = "renderers --json" ] || exit 2\n'
+                    'echo \'[{"name": "ours", "model": true}, {"name": "cycles", "model": false}]\'\n')
+    fake.chmod(0o755)
+    table = sweep.renderer_table(str(fake))
+    assert list(table) == ['ours', 'cycles'] and table['ours']['model']
+    named = tmp_path / 'named.yaml'
+    named.write_text('name: named\ncomparisons:\n  - test: ours\n    reference: cycles\n    role: validate\n')
+    assert not sweep.lists_cycles_validate(str(named))      # before the table is read: not the model
+    monkeypatch.setattr(sweep, 'MODEL', 'ours')
+    assert sweep.lists_cycles_validate(str(named))
+    other = tmp_path / 'other.yaml'
+    other.write_text('name: other\ncomparisons:\n  - test: povray\n    reference: cycles\n    role: validate\n')
+    assert not sweep.lists_cycles_validate(str(other))
+
+
 # ------------------------------------------------------------------------------------ analyse
 
 def synthetic(nested=True):

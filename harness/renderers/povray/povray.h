@@ -1,13 +1,16 @@
-/* povray.h - a scene as POV-Ray 3.7 SDL, the exact povray command line, and the box filter.
+/* povray.h - a scene as POV-Ray 3.7 SDL, the exact povray command line, the box filter, and
+ * the render entry of the renderer table (harness/renderers/registry.h).
  *
  * Usage:
  *   povray_options o = {0};                    zero = twin role, every term, scene's k, all cores
- *   povray_write_scene(&scn, &msh, &o, "out/s.pov", err, sizeof err);
- *   povray_render(&scn, &msh, &o, "out/s.pov", "out/s_pov.exr", &img, err, sizeof err);
- *   ... img.rgb[c][y * img.width + x], c = 0, 1, 2 (linear, radiance / output_scale undone) ...
- *   povray_image_free(&img);
- * or by hand: povray_command(&o, sdl, exr, W, H, &cmd, ...) gives argv for execvp (the image is
- * rendered at k*W x k*H with antialiasing off), then povray_box_downsample per channel.
+ *   renderer_job j = {.s = &scn, .m = &msh, .role = ROLE_TWIN, .dir = "work", .exr = "out.exr",
+ *                     .log = "out.log", .options = &o};
+ *   renderer_result r = {0};
+ *   povray_render_job(&j, &r);                 what production (harness/jobs.c) runs too
+ *   ... out.exr: R, G, B (radiance, output_scale undone, box-filtered from k*W x k*H),
+ *       coverage, object (a second, geometry pass), var.R/G/B (each k x k block's variance) ...
+ * The pieces: povray_write_scene, povray_command (argv for execvp; antialiasing off),
+ * povray_box_downsample per channel.
  *
  * What the SDL reproduces (see harness/CONTRACT.md):
  * - role ROLE_TWIN: the rasterizer's model per material (d3d, d3d9client); cook_torrance and
@@ -31,19 +34,20 @@
  *   still shows the environment there (mask it with the rasterizer's coverage).
  * POV-Ray's EXR output is half float: values are quantised to 2^-11 relative (4.9e-4) and
  * overflow above 65504; output_scale multiplies every source (lights, emission, ambient,
- * environment) so that HDR scenes fit, and povray_render divides it out again.
+ * environment) so that HDR scenes fit, and povray_render_job divides it out again.
  * Paths are written into the SDL as given (relative paths are relative to POV-Ray's working
  * directory, the caller's); povray_write_scene refuses paths containing '"' or '\\'.
- * All functions return RC_OK or an error with one line in err; nothing is allocated except
- * by povray_render (free with povray_image_free).
+ * All functions but the entry return RC_OK or an error with one line in err and allocate
+ * nothing.
  */
 #ifndef REFLCHECK_POVRAY_H
 #define REFLCHECK_POVRAY_H
 
 #include <stddef.h>
-#include "../model/mesh.h"
-#include "../model/scene.h"
-#include "../model/status.h"
+#include "mesh.h"
+#include "scene.h"
+#include "status.h"
+#include "../renderer.h"
 
 /* Terms for povray_options.term (bits, same meaning as the rasterizer's AOV layers). */
 enum {
@@ -93,30 +97,14 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
 /* The command as one shell-quoted line (for logs and reports). */
 void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen);
 
-/* Runs the command (fork + execvp), console output to <exr_out>.log. *seconds = wall time
- * (may be NULL). RC_ERR_RENDERER with the log's first error line if POV-Ray fails or writes
- * no image. */
-rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *seconds, char *err,
-                     size_t errlen);
-
 /* Exact box filter: dst[(j * kw/k) + i] = mean of the k x k block of src (kw x kh, row-major)
  * whose top-left sample is (i*k, j*k). One channel. RC_ERR_RANGE if k < 1 or kw, kh are not
  * positive multiples of k. Sums in double, so the result is the float nearest the exact mean
  * up to one rounding of each sample's addition (k*k <= 65536). */
 rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *dst);
 
-typedef struct {
-    int width, height, supersample;
-    float *rgb[3];          /* width*height each, row 0 at the top; radiance (scale undone) */
-    double seconds;         /* POV-Ray's wall time (parse + render + write) */
-    char command[POVRAY_ARGV_BUF + 256];
-} povray_image;
-
-/* povray_write_scene + povray_command at the scene's size + povray_run + exr_read +
- * povray_box_downsample, divided by output_scale. */
-rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
-                        const char *sdl_path, const char *exr_out, povray_image *out,
-                        char *err, size_t errlen);
-void povray_image_free(povray_image *img);
+/* The render entry (renderer.h): SDL, POV-Ray, box filter and the geometry pass into j->exr.
+ * Refusals are RUNNER_MISSING ("povray cannot represent this scene: ..."). */
+void povray_render_job(const renderer_job *j, renderer_result *r);
 
 #endif

@@ -1,11 +1,13 @@
-/* cycles.h - a reflcheck scene as a Blender 3.4 Cycles render (harness/cycles_render.py).
+/* cycles.h - a reflcheck scene as a Blender 3.4 Cycles render (cycles_render.py, beside this
+ * file), and the render entry of the renderer table (harness/renderers/registry.h).
  *
  * Usage:
- *   cycles_options o = {.role = ROLE_TWIN, .n_seeds = 2};       zero = defaults (below)
- *   cycles_write_job(&scn, &msh, &o, "job.json", err, sizeof err);
- *   cycles_argv a; cycles_command(&o, "job.json", "out.exr", &a, err, sizeof err);
- *   cycles_run(&a, "out.log", &seconds, err, sizeof err);        runs blender, waits
- *   cycles_collect(&o, "out.exr", err, sizeof err);               raw seed files -> out.exr
+ *   cycles_options o = {.n_seeds = 2};                            zero = defaults (below)
+ *   renderer_job j = {.s = &scn, .m = &msh, .role = ROLE_TWIN, .dir = "work", .exr = "out.exr",
+ *                     .log = "out.log", .options = &o};
+ *   renderer_result r = {0};
+ *   cycles_render_job(&j, &r);        job.json, blender, collect: what production runs too
+ * The pieces: cycles_write_job, cycles_command (argv), cycles_collect (raw seed files -> out.exr).
  *
  * The job (JSON) holds the image size, samples, seeds, the camera in the canonical frame,
  * lights converted to Cycles units (point/spot energy P = 4 pi I, sun strength E), the
@@ -44,9 +46,10 @@
 #define REFLCHECK_CYCLES_H
 
 #include <stddef.h>
-#include "../model/mesh.h"
-#include "../model/scene.h"
-#include "../model/status.h"
+#include "mesh.h"
+#include "scene.h"
+#include "status.h"
+#include "../renderer.h"
 
 typedef struct {
     comparison_role role;   /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE */
@@ -58,7 +61,7 @@ typedef struct {
     int partial;            /* nonzero: leave out the terms Cycles cannot reproduce */
     int keep_raw;           /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
     const char *blender;    /* executable; NULL = "blender" (searched in PATH) */
-    const char *script;     /* NULL = "harness/cycles_render.py" */
+    const char *script;     /* NULL = "harness/renderers/cycles/cycles_render.py" */
 } cycles_options;
 
 rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path,
@@ -75,10 +78,6 @@ typedef struct {
 rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path,
                          cycles_argv *out, char *err, size_t errlen);
 
-/* Runs the command, stdout and stderr to log_path (NULL = /dev/null), waits; *seconds = wall
- * time (may be NULL). RC_ERR_RENDERER with the script's error line if blender fails. */
-rc_status cycles_run(const cycles_argv *a, const char *log_path, double *seconds, char *err, size_t errlen);
-
 /* The raw file cycles_render.py writes for seed index i: OUT without ".exr" + ".cyc<i>.exr". */
 rc_status cycles_raw_path(const char *out_exr_path, int seed_index, char *buf, size_t len);
 
@@ -88,5 +87,10 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
 /* The raw (Blender) channel name for one of reflcheck's layers: ("", 'R') -> "R",
  * ("diffuse", 'G') -> "diffuse.G", ("coverage", 0) -> "coverage.V". Returns buf. */
 const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len);
+
+/* The render entry (renderer.h): job, blender, collect into j->exr. Options from j->options
+ * (role and partial from j), else seeds, seed and threads from j. Refusals are
+ * RUNNER_MISSING ("cycles cannot represent this scene: ..."). */
+void cycles_render_job(const renderer_job *j, renderer_result *r);
 
 #endif

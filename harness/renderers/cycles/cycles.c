@@ -677,7 +677,7 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
     const char *list[] = {o->blender ? o->blender : "blender", "-b", "--factory-startup",
                           /* without this a Python exception still exits 0 */
                           "--python-exit-code", "1", "-t", threads, "-P",
-                          o->script ? o->script : "harness/cycles_render.py", "--", job_json_path, out_exr_path};
+                          o->script ? o->script : "harness/renderers/cycles/cycles_render.py", "--", job_json_path, out_exr_path};
     for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
         if (cycles_put(out, &used, list[i]) == NULL) {
             status_message(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
@@ -686,29 +686,6 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
     return RC_OK;
 }
 
-rc_status cycles_run(const cycles_argv *a, const char *log_path, double *seconds, char *err, size_t errlen)
-{
-    runner_result r;
-    /* Generous: the tests render in seconds; a real scene at 1k spp can take minutes. */
-    runner_exec(a->argv, 3600.0, log_path, &r);
-    if (seconds) *seconds = r.wall_s;
-    if (r.status == RUNNER_OK) return RC_OK;
-    char line[512] = "";
-    FILE *fp = log_path ? fopen(log_path, "r") : NULL;
-    if (fp != NULL) {
-        char buf[512];
-        while (fgets(buf, sizeof buf, fp) != NULL)
-            if (strstr(buf, "cycles_render.py: error:") != NULL || strstr(buf, "Error:") != NULL) {
-                buf[strcspn(buf, "\n")] = '\0';
-                snprintf(line, sizeof line, "%s", buf);
-                if (strstr(buf, "cycles_render.py") != NULL) break;
-            }
-        fclose(fp);
-    }
-    status_message(err, errlen, "%s: %s (exit %d)%s%s; see %s", a->argv[0], runner_status_name(r.status), r.exit_code,
-               line[0] ? ": " : "", line, log_path ? log_path : "the log (none kept)");
-    return RC_ERR_RENDERER;
-}
 
 static size_t cycles_stem_len(const char *out)
 {
@@ -882,4 +859,60 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
         remove(path);
     }
     return rc;
+}
+
+/* 1 if every seed image Blender wrote reads as an EXR. */
+static int cycles_raw_readable(const cycles_options *o, const char *exr)
+{
+    for (int i = 0; i < (o->n_seeds > 0 ? o->n_seeds : 1); i++) {
+        char path[1200], err[512];
+        exr_image img;
+        if (cycles_raw_path(exr, i, path, sizeof path) != RC_OK || exr_read(path, &img, err, sizeof err) != RC_OK)
+            return 0;
+        exr_image_free(&img);
+    }
+    return 1;
+}
+
+void cycles_render_job(const renderer_job *j, renderer_result *r)
+{
+    char job[1100], err[1024];
+    snprintf(job, sizeof job, "%s/job.json", j->dir);
+    cycles_options o = {.n_seeds = j->seeds > 0 ? j->seeds : 2, .seed = (unsigned)j->seed, .threads = j->threads};
+    if (j->options != NULL)
+        o = *(const cycles_options *)j->options;
+    o.role = j->role;
+    o.partial = j->partial;
+    rc_status st = cycles_write_job(j->s, j->m, &o, job, err, sizeof err);
+    cycles_argv a;
+    if (st == RC_OK)
+        st = cycles_command(&o, job, j->exr, &a, err, sizeof err);
+    if (st != RC_OK) {
+        if (st == RC_ERR_RANGE)
+            renderer_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
+        else
+            renderer_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
+        return;
+    }
+    size_t used = 0;
+    for (int i = 0; i < a.argc && used < sizeof r->command; i++)
+        used += (size_t)snprintf(r->command + used, sizeof r->command - used, "%s%s", i ? " " : "", a.argv[i]);
+    runner_result rr;
+    runner_exec(a.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    r->wall_s = rr.wall_s;
+    r->cpu_s = rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        renderer_fail_run(r, &rr, "blender", "blender", "", j->log, "error:", j->shown_log);
+        return;
+    }
+    st = cycles_collect(&o, j->exr, err, sizeof err);
+    if (st != RC_OK) {
+        /* Blender's images unreadable fail the job; readable ones that we could not merge and
+         * write (disk full) are our error. */
+        runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
+        if (st == RC_ERR_IO && cycles_raw_readable(&o, j->exr))
+            why = RUNNER_ERROR;
+        renderer_fail(r, why, "%s: %s", why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable",
+                      err);
+    }
 }

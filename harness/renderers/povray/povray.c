@@ -727,53 +727,6 @@ void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen)
     }
 }
 
-/* The first line of POV-Ray's log that reports an error, for the one-line message. */
-static void povray_log_error(const char *log, char *line, size_t n)
-{
-    line[0] = '\0';
-    FILE *fp = fopen(log, "r");
-    if (!fp)
-        return;
-    char buf[512];
-    while (fgets(buf, sizeof buf, fp)) {
-        if (strstr(buf, "Error") || strstr(buf, "error") || strstr(buf, "failed")) {
-            size_t len = strcspn(buf, "\r\n");
-            if (len >= n)
-                len = n - 1;
-            memcpy(line, buf, len);
-            line[len] = '\0';
-            break;
-        }
-    }
-    fclose(fp);
-}
-
-rc_status povray_run(const povray_argv *cmd, const char *exr_out, double *seconds, char *err,
-                     size_t errlen)
-{
-    char log[POVRAY_ARGV_BUF];
-    snprintf(log, sizeof log, "%s.log", exr_out);
-    /* A stale image from an earlier run must not pass for this one. */
-    if (unlink(exr_out) != 0 && errno != ENOENT) {
-        status_message(err, errlen, "%s: cannot remove the old image: %s", exr_out, strerror(errno));
-        return RC_ERR_IO;
-    }
-    runner_result rr;
-    runner_exec((const char *const *)cmd->argv, 0.0, log, &rr);
-    if (seconds)
-        *seconds = rr.wall_s;
-    struct stat sb;
-    int ok = rr.status == RUNNER_OK && stat(exr_out, &sb) == 0;
-    if (!ok) {
-        char line[300];
-        povray_log_error(log, line, sizeof line);
-        status_message(err, errlen, "%s: POV-Ray failed (%s, exit status %d, signal %d)%s%s; see %s", cmd->argv[1] + 2,
-                   runner_status_name(rr.status), rr.exit_code, rr.signal, line[0] ? ": " : "", line, log);
-        return RC_ERR_RENDERER;
-    }
-    return RC_OK;
-}
-
 /* ---- box filter ------------------------------------------------------------------------ */
 
 rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *dst)
@@ -797,70 +750,121 @@ rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *
     return RC_OK;
 }
 
-/* ---- all in one ------------------------------------------------------------------------ */
+/* ---- the render entry ------------------------------------------------------------------ */
 
-void povray_image_free(povray_image *img)
+/* The variance of each k x k block's mean (unbiased sample variance / k^2), as the rasterizer
+ * writes it: how far a pixel's k*k samples may be from its box integral. */
+static void povray_block_variance(const float *src, int kw, int k, int w, int h, float *var)
 {
-    for (int c = 0; c < 3; c++) {
-        free(img->rgb[c]);
-        img->rgb[c] = NULL;
-    }
+    double n = (double)k * k;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double s = 0.0, sq = 0.0;
+            for (int t = 0; t < k; t++)
+                for (int u = 0; u < k; u++) {
+                    double v = src[(size_t)(y * k + t) * (size_t)kw + (size_t)(x * k + u)];
+                    s += v;
+                    sq += v * v;
+                }
+            double vv = k > 1 ? (sq - s * s / n) / (n * (n - 1.0)) : 0.0;
+            var[(size_t)y * (size_t)w + (size_t)x] = (float)(vv > 0.0 ? vv : 0.0);
+        }
 }
 
-rc_status povray_render(const scene *s, const mesh *m, const povray_options *o,
-                        const char *sdl_path, const char *exr_out, povray_image *out,
-                        char *err, size_t errlen)
+/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees),
+ * and, if var is not NULL, the block variances. Returns 0, or -1 with the result's status and
+ * message set. */
+static int povray_pass(const renderer_job *j, renderer_result *r, const povray_options *o, const char *tag,
+                       float *planes[3], float *var[3])
 {
-    memset(out, 0, sizeof *out);
-    povray_resolved r;
-    rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
-    if (st != RC_OK)
-        return st;
-    if ((st = povray_write_scene(s, m, o, sdl_path, err, errlen)) != RC_OK)
-        return st;
+    const scene *s = j->s;
+    char sdl[1100], raw[1100], err[1024];
+    snprintf(sdl, sizeof sdl, "%s/%s.pov", j->dir, tag);
+    snprintf(raw, sizeof raw, "%s/%s-raw.exr", j->dir, tag);
+    int k = o->supersample > 0 ? o->supersample : (s->supersample > 0 ? s->supersample : 1);
+    rc_status st = povray_write_scene(s, j->m, o, sdl, err, sizeof err);
     povray_argv cmd;
-    if ((st = povray_command(o, sdl_path, exr_out, s->width, s->height, r.k, &cmd, err, errlen)) != RC_OK)
-        return st;
-    povray_command_string(&cmd, out->command, sizeof out->command);
-    if ((st = povray_run(&cmd, exr_out, &out->seconds, err, errlen)) != RC_OK)
-        return st;
-    exr_image img;
-    if ((st = exr_read(exr_out, &img, err, errlen)) != RC_OK)
-        return st;
-    int kw = s->width * r.k, kh = s->height * r.k;
-    if (img.width != kw || img.height != kh) {
-        status_message(err, errlen, "%s: POV-Ray wrote %dx%d, expected %dx%d", exr_out, img.width,
-                   img.height, kw, kh);
-        exr_image_free(&img);
-        return RC_ERR_RENDERER;
+    if (st == RC_OK)
+        st = povray_command(o, sdl, raw, s->width, s->height, k, &cmd, err, sizeof err);
+    if (st != RC_OK) {
+        if (st == RC_ERR_RANGE)
+            renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
+        else
+            renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
+        return -1;
     }
+    if (!o->coverage)
+        povray_command_string(&cmd, r->command, sizeof r->command);
+    runner_result rr;
+    unlink(raw);
+    runner_exec((const char *const *)cmd.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    r->wall_s += rr.wall_s;
+    r->cpu_s += rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        char what[64];
+        snprintf(what, sizeof what, ", %s pass", tag);
+        renderer_fail_run(r, &rr, "povray", "povray", what, j->log, "rror", j->shown_log);
+        return -1;
+    }
+    exr_image img;
+    if (exr_read(raw, &img, err, sizeof err) != RC_OK) {
+        renderer_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s", err);
+        return -1;
+    }
+    int w = s->width, h = s->height;
     const char *names[3] = {"R", "G", "B"};
-    size_t n = (size_t)s->width * (size_t)s->height;
-    for (int c = 0; c < 3 && st == RC_OK; c++) {
-        const float *src = exr_image_channel(&img, names[c]);
-        if (!src) {
-            status_message(err, errlen, "%s: no channel %s in POV-Ray's output", exr_out, names[c]);
-            st = RC_ERR_RENDERER;
-            break;
+    int ok = img.width == k * w && img.height == k * h;
+    double scale = o->output_scale > 0 ? o->output_scale : 1.0;
+    for (int i = 0; ok && i < 3; i++) {
+        const float *src = exr_image_channel(&img, names[i]);
+        planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
+        ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
+        for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
+            planes[i][p] = (float)(planes[i][p] / scale);
+        if (ok && var != NULL) {
+            var[i] = malloc((size_t)w * (size_t)h * sizeof(float));
+            ok = var[i] != NULL;
+            if (ok) {
+                povray_block_variance(src, img.width, k, w, h, var[i]);
+                for (size_t p = 0; p < (size_t)w * (size_t)h; p++)
+                    var[i][p] = (float)(var[i][p] / (scale * scale));
+            }
         }
-        out->rgb[c] = malloc(n * sizeof(float));
-        if (!out->rgb[c]) {
-            status_message(err, errlen, "%s: out of memory", exr_out);
-            st = RC_ERR_NOMEM;
-            break;
-        }
-        povray_box_downsample(src, kw, kh, r.k, out->rgb[c]);
-        if (r.scale != 1.0)
-            for (size_t i = 0; i < n; i++)
-                out->rgb[c][i] = (float)(out->rgb[c][i] / r.scale);
     }
     exr_image_free(&img);
-    if (st != RC_OK) {
-        povray_image_free(out);
-        return st;
+    if (!ok) {
+        renderer_fail(r, RUNNER_FAILED, "povray image %s is not the size asked for, or lacks R, G, B", raw);
+        return -1;
     }
-    out->width = s->width;
-    out->height = s->height;
-    out->supersample = r.k;
-    return RC_OK;
+    return 0;
+}
+
+void povray_render_job(const renderer_job *j, renderer_result *r)
+{
+    povray_options o = {0};
+    if (j->options != NULL)
+        o = *(const povray_options *)j->options;
+    else
+        o.threads = j->threads;
+    o.role = j->role;
+    povray_options geo = o;
+    geo.coverage = 1;
+    float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL}, *var[3] = {NULL, NULL, NULL};
+    if (povray_pass(j, r, &o, "scene", rgb, var) == 0 && povray_pass(j, r, &geo, "coverage", cov, NULL) == 0) {
+        /* Coverage pass: R is the covered share, G/R the object index + 1 (box-filtered). */
+        size_t np = (size_t)j->s->width * (size_t)j->s->height;
+        for (size_t p = 0; p < np; p++)
+            cov[1][p] = cov[0][p] > 0.5f ? floorf(cov[1][p] / cov[0][p] + 0.5f) - 1.0f : -1.0f;
+        exr_channel ch[8] = {{"R", rgb[0]},        {"G", rgb[1]},      {"B", rgb[2]},      {"coverage", cov[0]},
+                             {"object", cov[1]}, {"var.R", var[0]}, {"var.G", var[1]}, {"var.B", var[2]}};
+        exr_attr at[] = {{"reflcheck.renderer", j->version ? j->version : "povray"}};
+        char err[1024];
+        if (exr_write(j->exr, j->s->width, j->s->height, ch, 8, at, 1, err, sizeof err) != RC_OK)
+            renderer_fail(r, RUNNER_ERROR, "%s", err);
+    }
+    for (int i = 0; i < 3; i++) {
+        free(rgb[i]);
+        free(cov[i]);
+        free(var[i]);
+    }
 }

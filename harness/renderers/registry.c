@@ -1,0 +1,64 @@
+/* registry.c - the renderers, one row each. Adding a renderer: its folder, its #include and
+ * its row here (README, "Adding a renderer"). */
+#include "registry.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#include "cycles/cycles.h"
+#include "povray/povray.h"
+#include "raster/raster_render.h"
+
+static const char *const registry_povray_sources[] = {"harness/renderers/povray/povray.c",
+                                                      "harness/renderers/povray/povray.h", NULL};
+static const char *const registry_cycles_sources[] = {"harness/renderers/cycles/cycles.c",
+                                                      "harness/renderers/cycles/cycles.h",
+                                                      "harness/renderers/cycles/cycles_render.py", NULL};
+
+static const renderer_row registry_rows[] = {
+    {.name = "raster", .title = "reflcheck rasterizer", .version = "reflcheck-raster", .is_model = 1,
+     .render = raster_render_job},
+    {.name = "povray", .title = "POV-Ray 3.7", .program = "povray", .package = "povray",
+     .sources = registry_povray_sources,
+     .cannot = "Cook-Torrance (no Beckmann lobe), conductors (no complex Fresnel), Gouraud, clamping, eq. 8, "
+               "the D3D spot profile, distance-attenuated D3D ambient",
+     .render = povray_render_job},
+    {.name = "cycles", .title = "Blender 3.4 Cycles", .program = "blender", .package = "blender",
+     .sources = registry_cycles_sources, .stochastic = 1,
+     .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
+     .render = cycles_render_job},
+};
+
+#define REGISTRY_N ((int)(sizeof registry_rows / sizeof registry_rows[0]))
+
+int registry_count(void) { return REGISTRY_N; }
+
+const renderer_row *registry_row(int i) { return i >= 0 && i < REGISTRY_N ? &registry_rows[i] : NULL; }
+
+const char *registry_name(int i) { return i >= 0 && i < REGISTRY_N ? registry_rows[i].name : "?"; }
+
+int registry_find(const char *name)
+{
+    for (int i = 0; name != NULL && i < REGISTRY_N; i++)
+        if (strcmp(name, registry_rows[i].name) == 0)
+            return i;
+    return -1;
+}
+
+int registry_model(void)
+{
+    for (int i = 0; i < REGISTRY_N; i++)
+        if (registry_rows[i].is_model)
+            return i;
+    return -1;
+}
+
+const char *registry_list(char *buf, size_t len)
+{
+    size_t used = 0;
+    buf[0] = '\0';
+    for (int i = 0; i < REGISTRY_N && used < len; i++)
+        used += (size_t)snprintf(buf + used, len - used, "%s%s", i == 0 ? "" : (i == REGISTRY_N - 1 ? " or " : ", "),
+                                 registry_rows[i].name);
+    return buf;
+}

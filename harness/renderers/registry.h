@@ -1,0 +1,56 @@
+/* registry.h - the one table of renderers: one row each, as Lua's linit.c registers libraries.
+ *
+ * Usage:
+ *   int i = registry_find("povray");                 -1 if no such renderer
+ *   const renderer_row *row = registry_row(i);
+ *   row->render(&job, &result);                      the render entry (renderer.h)
+ *   for (int i = 0; i < registry_count(); i++) ... registry_row(i)->name ...
+ *   registry_list(buf, sizeof buf);                  "raster, povray or cycles", for messages
+ * A renderer's index is its row; scene files, job records and run folders hold its name. Nothing
+ * outside this table and the renderer's own folder names a renderer: adding one is a folder
+ * harness/renderers/NAME/ with its entry, and one row in registry.c (README, "Adding a
+ * renderer").
+ */
+#ifndef REFLCHECK_REGISTRY_H
+#define REFLCHECK_REGISTRY_H
+
+#include <stddef.h>
+
+#include "renderer.h"
+
+typedef struct {
+    const char *name;           /* in scene files, CLI options, job records, output file names */
+    const char *title;          /* for people: "POV-Ray 3.7" */
+    const char *program;        /* the executable, NULL = renders in process */
+    const char *package;        /* the Debian package that installs program */
+    const char *version;        /* the version line of an in-process renderer (else: program --version) */
+    const char *const *sources; /* translator sources (NULL-terminated, relative to the source tree)
+                                   hashed into cache keys; NULL = the reflcheck binary stands in */
+    int is_model;               /* computes reflcheck's own model: its exact coverage, object and N.V
+                                   layers mask every comparison, and it may go below 0 where the
+                                   model does */
+    int stochastic;             /* samples and seeds reach the image (and the record) */
+    const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
+    renderer_render_fn render;
+} renderer_row;
+
+int registry_count(void);
+/* Row i, or NULL when i is out of range. */
+const renderer_row *registry_row(int i);
+/* The row's name, "?" when i is out of range. */
+const char *registry_name(int i);
+int registry_find(const char *name);
+/* The renderer that computes the model itself (masks come from it); -1 if none. */
+int registry_model(void);
+/* The names as "a, b or c" for messages; returns buf. */
+const char *registry_list(char *buf, size_t len);
+
+/* Transitional: tests/test_gates.c and tests/test_scene_file.c (other owners) still spell
+ * renderers as constants. These resolve through the table; remove them once those tests call
+ * registry_find. */
+typedef int renderer_id;
+#define RENDERER_RASTER registry_find("raster")
+#define RENDERER_POVRAY registry_find("povray")
+#define RENDERER_CYCLES registry_find("cycles")
+
+#endif

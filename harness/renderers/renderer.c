@@ -1,0 +1,59 @@
+#include "renderer.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    r->status = st;
+    vsnprintf(r->message, sizeof r->message, fmt, ap);
+    va_end(ap);
+}
+
+/* The first line of the log holding marker, for a one-line message; "" if none. */
+static void renderer_log_line(const char *log, const char *marker, char *line, size_t n)
+{
+    line[0] = '\0';
+    FILE *fp = log != NULL && marker != NULL ? fopen(log, "r") : NULL;
+    if (fp == NULL)
+        return;
+    char buf[512];
+    while (fgets(buf, sizeof buf, fp) != NULL)
+        if (strstr(buf, marker) != NULL) {
+            buf[strcspn(buf, "\r\n")] = '\0';
+            snprintf(line, n, "%s", buf);
+            break;
+        }
+    fclose(fp);
+}
+
+void renderer_fail_run(renderer_result *r, const runner_result *rr, const char *program, const char *package,
+                       const char *what, const char *log, const char *marker, const char *shown_log)
+{
+    char line[240], tail[260] = "";
+    renderer_log_line(log, marker, line, sizeof line);
+    if (line[0])
+        snprintf(tail, sizeof tail, ": %s", line);
+    if (shown_log == NULL)
+        shown_log = log;
+    if (rr->status == RUNNER_MISSING)
+        renderer_fail(r, RUNNER_MISSING, "%s is not installed; install it with: apt-get install %s", program, package);
+    else if (rr->status == RUNNER_ERROR)
+        renderer_fail(r, RUNNER_ERROR, "%s could not be run (log file, fork or wait failed%s); see %s", program, what,
+                      shown_log);
+    else if (rr->exec_errno != 0)
+        renderer_fail(r, RUNNER_FAILED, "%s failed to start (%s%s); see %s", program, strerror(rr->exec_errno), what,
+                      shown_log);
+    else if (rr->status == RUNNER_CRASHED)
+        renderer_fail(r, RUNNER_CRASHED, "%s crashed (signal %d%s)%s; see %s", program, rr->signal, what, tail,
+                      shown_log);
+    else if (rr->status == RUNNER_TIMEOUT)
+        renderer_fail(r, RUNNER_TIMEOUT, "%s timeout (killed after %.1f s%s); see %s", program, rr->wall_s, what,
+                      shown_log);
+    else
+        renderer_fail(r, RUNNER_FAILED, "%s failed (exit status %d%s)%s; see %s", program, rr->exit_code, what, tail,
+                      shown_log);
+}
