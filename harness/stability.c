@@ -46,7 +46,6 @@ static ld3 l3_norm(ld3 a)
     ld l = l3_len(a);
     return l > 0 ? l3_scale(a, 1 / l) : l3(0, 0, 0);
 }
-static ld l3_max_comp(ld3 a) { return fmaxl(a.x, fmaxl(a.y, a.z)); }
 
 /* -------------------------------------------------------------------- reference formulas */
 
@@ -138,13 +137,8 @@ static ld3 ref_half(ld3 l, ld3 v)
 
 static ld ref_colour_norm(ld3 c, colour_norm norm)
 {
-    switch (norm) {
-    case NORM_MEAN: return (c.x + c.y + c.z) / 3;
-    case NORM_LUMINANCE: return 0.2126L * c.x + 0.7152L * c.y + 0.0722L * c.z;
-    case NORM_EUCLID: return sqrtl(l3_dot(c, c));
-    case NORM_MAX:
-    default: return l3_max_comp(c);
-    }
+    d3d9_norm_weights w = d3d9_norm_weights_of(norm);
+    return formula_colour_norm_l(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
 }
 
 typedef struct { ld3 rgb, r_tot; ld alpha, weight; } ref_d9;
@@ -153,14 +147,14 @@ static ref_d9 ref_d3d9client(const d3d9client_params *p, ld3 d, ld da, ld3 phi, 
 {
     ref_d9 r;
     ld R = ref_d3d9(p->r0, p->m, p->p, n_v);
-    ld3 k = l3_add(l3_scale(l3_from(p->reflect), 1 - R), l3_scale(l3_from(p->fresnel_colour), R));
-    r.r_tot = l3_mul(k, phi);
-    r.weight = 1 - ref_colour_norm(l3_from(p->reflect), p->norm);
-    ld dw = r.weight;
-    if (p->sun_angle) dw *= 1 - ref_d3d9(p->r0, p->m, p->p, n_sun);
-    r.rgb = l3_add(l3_scale(d, dw), r.r_tot);
-    ld rn = ref_colour_norm(r.r_tot, p->norm);
-    r.alpha = da > rn ? da : rn;
+    ld3 lam = l3_from(p->reflect), s = l3_from(p->fresnel_colour);
+    r.r_tot = l3(formula_d3d9_r_tot_l(lam.x, s.x, R, phi.x), formula_d3d9_r_tot_l(lam.y, s.y, R, phi.y),
+                 formula_d3d9_r_tot_l(lam.z, s.z, R, phi.z));
+    r.weight = formula_d3d9_diffuse_weight_l(ref_colour_norm(lam, p->norm));
+    ld dw = p->sun_angle ? r.weight * formula_d3d9_sun_factor_l(ref_d3d9(p->r0, p->m, p->p, n_sun)) : r.weight;
+    r.rgb = l3(formula_d3d9_colour_l(d.x, dw, r.r_tot.x), formula_d3d9_colour_l(d.y, dw, r.r_tot.y),
+               formula_d3d9_colour_l(d.z, dw, r.r_tot.z));
+    r.alpha = formula_d3d9_alpha_l(da, ref_colour_norm(r.r_tot, p->norm));
     return r;
 }
 

@@ -3,6 +3,7 @@
 #include <float.h>
 #include <math.h>
 
+#include "formula.h"
 #include "fresnel.h"
 
 static float d3d9client_sat(double x)
@@ -12,39 +13,52 @@ static float d3d9client_sat(double x)
     return (float)x;
 }
 
+d3d9_norm_weights d3d9_norm_weights_of(colour_norm norm)
+{
+    d3d9_norm_weights w = {0.0, 0.0, 0.0, 0.0, 0.0};
+    switch (norm) {
+    case NORM_MEAN: w.w_r = w.w_g = w.w_b = 1.0 / 3.0; break;
+    case NORM_LUMINANCE: w.w_r = 0.2126; w.w_g = 0.7152; w.w_b = 0.0722; break;
+    case NORM_EUCLID: w.w_euclid = 1.0; break;
+    case NORM_MAX:
+    default: w.w_max = 1.0; break;
+    }
+    return w;
+}
+
+double d3d9_colour_norm_d(vec3 c, colour_norm norm)
+{
+    d3d9_norm_weights w = d3d9_norm_weights_of(norm);
+    return formula_colour_norm_d(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
+}
+
 float d3d9_colour_norm(vec3 c, colour_norm norm)
 {
-    double r = c.x, g = c.y, b = c.z;
-    if (isnan(r) || isnan(g) || isnan(b)) return NAN;   /* fmaxf below would drop a NaN */
-    switch (norm) {
-    case NORM_MEAN: return d3d9client_sat((r + g + b) / 3.0);
-    case NORM_LUMINANCE: return d3d9client_sat(0.2126 * r + 0.7152 * g + 0.0722 * b);
-    case NORM_EUCLID: return d3d9client_sat(sqrt(r * r + g * g + b * b));
-    case NORM_MAX:
-    default: return v3_max_comp(c);
-    }
+    if (isnan(c.x) || isnan(c.y) || isnan(c.z)) return NAN;   /* a max by selects would drop a NaN */
+    return d3d9client_sat(d3d9_colour_norm_d(c, norm));
 }
 
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
                         vec3 env_radiance_phi, float n_v, float n_sun, d3d9_result *out)
 {
     double R = fresnel_d3d9(p->r0, p->m, p->p, n_v);
-    dvec3 lambda = dv3_from(p->reflect);
-    dvec3 s = dv3_from(p->fresnel_colour);
-    /* (5): lambda (1 - R) + s R, times phi. */
-    dvec3 k = dv3_add(dv3_scale(lambda, 1.0 - R), dv3_scale(s, R));
-    dvec3 r_tot = dv3_mul(k, dv3_from(env_radiance_phi));
+    vec3 l = p->reflect, s = p->fresnel_colour, phi = env_radiance_phi;
+    /* (5) */
+    dvec3 r_tot = dv3(formula_d3d9_r_tot_d(l.x, s.x, R, phi.x), formula_d3d9_r_tot_d(l.y, s.y, R, phi.y),
+                      formula_d3d9_r_tot_d(l.z, s.z, R, phi.z));
     vec3 r_tot_f = v3(d3d9client_sat(r_tot.x), d3d9client_sat(r_tot.y), d3d9client_sat(r_tot.z));
-    double w = 1.0 - (double)d3d9_colour_norm(p->reflect, p->norm);
-    double dw = w;
-    /* (8): the sun-lit diffuse loses what the coat's Fresnel reflects at the sun angle. */
-    if (p->sun_angle) dw *= 1.0 - (double)fresnel_d3d9(p->r0, p->m, p->p, n_sun);
-    dvec3 c = dv3_add(dv3_scale(dv3_from(diffuse_rgb), dw), r_tot);
-    out->rgb = v3(d3d9client_sat(c.x), d3d9client_sat(c.y), d3d9client_sat(c.z));
+    /* (6), and (8): the sun-lit diffuse loses what the coat's Fresnel reflects at the sun angle. */
+    double w = formula_d3d9_diffuse_weight_d(d3d9_colour_norm(p->reflect, p->norm));
+    float r_sun = p->sun_angle ? fresnel_d3d9(p->r0, p->m, p->p, n_sun) : 0.0f;
+    double dw = p->sun_angle ? w * formula_d3d9_sun_factor_d(r_sun) : w;
+    out->rgb = v3(d3d9client_sat(formula_d3d9_colour_d(diffuse_rgb.x, dw, r_tot.x)),
+                  d3d9client_sat(formula_d3d9_colour_d(diffuse_rgb.y, dw, r_tot.y)),
+                  d3d9client_sat(formula_d3d9_colour_d(diffuse_rgb.z, dw, r_tot.z)));
     out->r_tot = r_tot_f;
     out->fresnel_R = (float)R;
     out->diffuse_weight = d3d9client_sat(w);
-    /* (7); fmax would hide a NaN, so compare explicitly. */
+    out->diffuse_scale = p->sun_angle ? out->diffuse_weight * formula_d3d9_sun_factor_f(r_sun) : out->diffuse_weight;
+    /* (7), with an explicit NaN test: the select would pick the other operand. */
     float rn = d3d9_colour_norm(r_tot_f, p->norm);
-    out->alpha = (isnan(diffuse_alpha) || isnan(rn)) ? NAN : (diffuse_alpha > rn ? diffuse_alpha : rn);
+    out->alpha = (isnan(diffuse_alpha) || isnan(rn)) ? NAN : formula_d3d9_alpha_f(diffuse_alpha, rn);
 }

@@ -9,17 +9,27 @@
  * env_radiance_phi is phi, the radiance arriving along the mirror direction. Outputs are
  * radiance-like colours in the inputs' units; nothing is clamped (HDR), so a negative
  * diffuse weight (euclid norm of a bright lambda) shows in the result instead of hiding.
+ * The equations are formula.h's (formula_d3d9_fresnel, formula_d3d9_r_tot,
+ * formula_d3d9_diffuse_weight, formula_d3d9_sun_factor, formula_d3d9_colour, formula_d3d9_alpha,
+ * formula_colour_norm), shared with the SIMD lanes and the stability reference.
  * Pure functions; every finite argument gives a finite result (sums are formed in double
  * and saturated to +-FLT_MAX); a NaN argument propagates.
  */
 #ifndef REFLCHECK_D3D9CLIENT_H
 #define REFLCHECK_D3D9CLIENT_H
 
+#include "formula.h"
 #include "scene.h"
 
 /* |c| for a colour: NORM_MAX largest component, NORM_MEAN (R+G+B)/3, NORM_LUMINANCE
  * 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709), NORM_EUCLID sqrt(R^2+G^2+B^2) (sqrt 3 for
- * white: 1 - |lambda| < 0). Unknown values behave as NORM_MAX. */
+ * white: 1 - |lambda| < 0). Unknown values behave as NORM_MAX. As formula.h's
+ * formula_colour_norm weights it: w_max max(c) + w . c + w_euclid |c|_2, one weight non-zero. */
+typedef struct { double w_max, w_r, w_g, w_b, w_euclid; } d3d9_norm_weights;
+d3d9_norm_weights d3d9_norm_weights_of(colour_norm norm);
+/* |c| in double, unsaturated (the POV-Ray translator's 1 - |lambda|). */
+double d3d9_colour_norm_d(vec3 c, colour_norm norm);
+/* |c| saturated to +-FLT_MAX. */
 float d3d9_colour_norm(vec3 c, colour_norm norm);
 
 typedef struct {
@@ -29,6 +39,8 @@ typedef struct {
     float fresnel_R;       /* (3) R0 + m (1 - (N.V)+)^p */
     float diffuse_weight;  /* 1 - |lambda|, reported unclamped: < 0 flags a norm (euclid)
                               that makes bright metals subtract diffuse light */
+    float diffuse_scale;   /* what multiplies d in rgb, in float as the shading loop applies
+                              it: diffuse_weight, times (8)'s 1 - R(sigma) when p->sun_angle */
 } d3d9_result;
 
 /* Equations (3)-(8). n_v = N.V (clamped to [0, 1] inside (3)); n_sun = cos sigma = N.L of

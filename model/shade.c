@@ -7,7 +7,6 @@
 #include "d3d.h"
 #include "d3d9client.h"
 #include "formula.h"
-#include "fresnel.h"
 
 
 void shade_context_make(const scene *s, const env_map *env, shade_context *c)
@@ -131,10 +130,7 @@ static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x
     d3d9client_combine(&m->d9, out->diffuse, m->d9.alpha, phi, v3_dot(n, v), n_sun, &r);
     /* The diffuse layer from its own factors, not rgb - R_tot: that difference cancels to 0
      * when an HDR environment makes R_tot much larger than d. */
-    float weight = r.diffuse_weight;
-    if (m->d9.sun_angle)
-        weight *= 1.0f - fresnel_d3d9(m->d9.r0, m->d9.m, m->d9.p, n_sun);
-    out->diffuse = v3_scale(out->diffuse, weight);
+    out->diffuse = v3_scale(out->diffuse, r.diffuse_scale);
     out->reflection = r.r_tot;
     out->alpha = r.alpha;
 }

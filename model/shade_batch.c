@@ -49,7 +49,6 @@ SB_INLINE int sb_any(const int *flag, int n)
         any |= flag[i];
     return any;
 }
-static inline float sb_max(float a, float b) { return a > b ? a : b; }
 static inline float sb_sat(float x) { return x > FLT_MAX ? FLT_MAX : (x < -FLT_MAX ? -FLT_MAX : x); }
 
 /* Lane i from shade_eval. */
@@ -237,49 +236,13 @@ void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const sha
         shade_batch_scalar(c, p, in, out);
 }
 
-/* fresnel_d3d9 (MODELS.md 2, eq. 3): R0 + m (1 - cos)^p, cos clamped to [0, 1], p >= 0. A whole
- * p up to 8 (a constant `whole` at each call) by multiplication, as fresnel.c, else smath_pow. */
+/* (1)/(3) per lane: formula_d3d9_fresnel with the instance's power of 1 - cos: a whole p up to
+ * 8 (a constant `whole` at each call) by multiplication, as fresnel.c, else smath_pow. */
 SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole, float cos_theta)
 {
-    float cc = cos_theta < 0.0f ? 0.0f : (cos_theta > 1.0f ? 1.0f : cos_theta);
-    float x = 1.0f - cc, xe;
-    if (whole) {
-        int ip = (int)p;
-        float x2 = x * x, x4 = x2 * x2;
-        xe = ((ip & 1) ? x : 1.0f) * ((ip & 2) ? x2 : 1.0f) * ((ip & 4) ? x4 : 1.0f) * ((ip & 8) ? x4 * x4 : 1.0f);
-    } else {
-        xe = smath_pow(x, p);
-    }
-    return sb_sat(d9->r0 + d9->m * xe);
-}
-
-/* d3d9_colour_norm as weights fixed before the lane loop: |c| = w_max max(c) + w_dot . c +
- * w_euclid |c|_2, one of them non-zero (a select on the norm kind inside the loop would not
- * vectorise). */
-typedef struct { float w_max, w_euclid; vec3 w_dot; } sb_norm_weights;
-
-static sb_norm_weights sb_norm_make(colour_norm norm)
-{
-    sb_norm_weights w = {0.0f, 0.0f, v3s(0.0f)};
-    switch (norm) {
-    case NORM_MEAN: w.w_dot = v3s(1.0f / 3.0f); break;
-    case NORM_LUMINANCE: w.w_dot = v3(0.2126f, 0.7152f, 0.0722f); break;
-    case NORM_EUCLID: w.w_euclid = 1.0f; break;
-    case NORM_MAX:
-    default: w.w_max = 1.0f; break;
-    }
-    return w;
-}
-
-SB_INLINE float sb_norm(vec3 c, const sb_norm_weights *w)
-{
-    float mx = sb_max(c.x, sb_max(c.y, c.z));
-    /* Scaled by the largest magnitude, so squares of HDR values cannot overflow. */
-    vec3 m = v3(c.x < 0.0f ? -c.x : c.x, c.y < 0.0f ? -c.y : c.y, c.z < 0.0f ? -c.z : c.z);
-    float a = sb_max(m.x, sb_max(m.y, m.z));
-    vec3 u = v3_scale(c, a > 0.0f ? 1.0f / a : 0.0f);
-    float euclid = a * sqrtf(v3_dot(u, u));
-    return w->w_max * mx + v3_dot(w->w_dot, c) + w->w_euclid * euclid;
+    float x = formula_one_minus_cos_v(cos_theta);
+    float xe = whole ? smath_pow_whole(x, (int)p) : smath_pow(x, p);
+    return sb_sat(formula_d3d9_fresnel_v(d9->r0, d9->m, xe));
 }
 
 /* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
@@ -295,7 +258,7 @@ SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const sha
     for (int i = 0; i < n; i++) {
         sb_incidence inc = sb_incident(sun, &b, shade_lane_get(&in->x, i), kind);
         bad[i] = inc.bad;
-        f[i] = 1.0f - sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), inc.to_l));
+        f[i] = formula_d3d9_sun_factor_v(sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), inc.to_l)));
     }
     return sb_any(bad, n);
 }
@@ -306,22 +269,24 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
 {
     const float fp = fresnel_d3d9_power(d9->p);
     const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
-    const float w = sb_sat(1.0f - d3d9_colour_norm(d9->reflect, d9->norm));
-    const sb_norm_weights norm = sb_norm_make(d9->norm);
+    const float w = sb_sat(formula_d3d9_diffuse_weight_f(d3d9_colour_norm(d9->reflect, d9->norm)));
+    /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
+     * not vectorise). */
+    const d3d9_norm_weights nw = d3d9_norm_weights_of(d9->norm);
+    const float w_max = (float)nw.w_max, w_r = (float)nw.w_r, w_g = (float)nw.w_g, w_b = (float)nw.w_b;
+    const float w_euclid = (float)nw.w_euclid;
     const float d_alpha = d9->alpha;
     const int n = in->n;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         float R = sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)));
-        /* (5): (lambda (1 - R) + s R) phi. */
-        vec3 k = v3_add(v3_scale(lambda, 1.0f - R), v3_scale(s, R));
-        vec3 r_tot = v3_mul(k, shade_lane_get(phi, i));
-        r_tot = v3(sb_sat(r_tot.x), sb_sat(r_tot.y), sb_sat(r_tot.z));
+        vec3 ph = shade_lane_get(phi, i);
+        vec3 r_tot = v3(sb_sat(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)), sb_sat(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
+                        sb_sat(formula_d3d9_r_tot_v(lambda.z, s.z, R, ph.z)));
         shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f[i]));
         shade_lane_set(&out->reflection, i, r_tot);
-        /* (7) */
-        float rn = sb_norm(r_tot, &norm);
-        out->alpha[i] = d_alpha > rn ? d_alpha : rn;
+        float rn = formula_colour_norm_v(r_tot.x, r_tot.y, r_tot.z, w_max, w_r, w_g, w_b, w_euclid);
+        out->alpha[i] = formula_d3d9_alpha_v(d_alpha, rn);
     }
 }
 
