@@ -6,7 +6,17 @@
 #include <cJSON.h>
 
 #include "cli.h"
+#include "jobs.h"
 #include "renderers/registry.h"
+
+static cJSON *cli_renderers_terms(unsigned bits)
+{
+    cJSON *a = cJSON_CreateArray();
+    for (int t = 0; t < RENDERER_N_TERMS; t++)
+        if (bits & (1u << t))
+            cJSON_AddItemToArray(a, cJSON_CreateString(renderer_term_name(t)));
+    return a;
+}
 
 int cli_renderers(int argc, char **argv)
 {
@@ -39,6 +49,9 @@ int cli_renderers(int argc, char **argv)
             cJSON_AddNullToObject(o, "package");
         cJSON_AddBoolToObject(o, "model", r->is_model);
         cJSON_AddBoolToObject(o, "stochastic", r->stochastic);
+        cJSON *partial = cJSON_AddObjectToObject(o, "may_leave_out");
+        for (int role = 0; role < 3; role++)
+            cJSON_AddItemToObject(partial, job_role_names[role], cli_renderers_terms(r->partial[role]));
         cJSON_AddStringToObject(o, "cannot", r->cannot ? r->cannot : "");
         cJSON_AddItemToArray(arr, o);
     }

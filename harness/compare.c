@@ -583,6 +583,120 @@ static void compare_values_report(const compare_values *v, const char *side, con
              used ? "; " : "", side, renderer, nf, nf[0] && ng[0] ? " and " : "", ng, v->values);
 }
 
+/* A partial twin (harness/renderers/renderer.h): the terms left out by either side, why, and
+ * each side's image without them (R, G, B minus the side's own layers of those terms). */
+typedef struct {
+    unsigned left_out;                     /* RENDERER_TERM_* bits */
+    char why[RENDERER_N_TERMS][240];       /* "<renderer>: <reason>" */
+    float *planes[2][3];                   /* [test, ref][channel], NULL = the image's own */
+    char reason[1200];
+} compare_partial;
+
+/* The terms a side's record says it left out, with their reasons. */
+static void compare_partial_read(const compare_side *s, compare_partial *p)
+{
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(s->record, "terms_left_out");
+    const cJSON *g;
+    cJSON_ArrayForEach(g, arr)
+    {
+        unsigned bit = renderer_term_from_name(compare_json_str(g, "term"));
+        for (int t = 0; t < RENDERER_N_TERMS; t++)
+            if (bit == (1u << t) && !(p->left_out & bit)) {
+                p->left_out |= bit;
+                snprintf(p->why[t], sizeof p->why[t], "%s: %s", registry_name(s->renderer),
+                         compare_json_str(g, "reason"));
+            }
+    }
+}
+
+static unsigned compare_side_left_out(const compare_side *s)
+{
+    compare_partial own = {0};
+    compare_partial_read(s, &own);
+    return own.left_out;
+}
+
+/* Reads both records and builds the images without the left-out terms. Returns 0, or -1 with
+ * the reason when a side lacks the layer of a term it must give up. */
+static int compare_partial_setup(const compare_side *t, const compare_side *r, compare_partial *p, char *reason,
+                                 size_t len)
+{
+    compare_partial_read(t, p);
+    compare_partial_read(r, p);
+    if (p->left_out == 0)
+        return 0;
+    const compare_side *sides[2] = {t, r};
+    size_t np = (size_t)t->img.width * (size_t)t->img.height;
+    for (int sd = 0; sd < 2; sd++) {
+        unsigned drop = p->left_out & ~compare_side_left_out(sides[sd]);
+        if (drop == 0)
+            continue;
+        metrics_image full = compare_planes(&sides[sd]->img, "");
+        for (int ch = 0; ch < 3; ch++) {
+            p->planes[sd][ch] = malloc(np * sizeof(float));
+            if (p->planes[sd][ch] == NULL) {
+                snprintf(reason, len, "out of memory for a partial twin's image");
+                return -1;
+            }
+            memcpy(p->planes[sd][ch], full.c[ch], np * sizeof(float));
+        }
+        for (int term = 0; term < RENDERER_N_TERMS; term++) {
+            if (!(drop & (1u << term)))
+                continue;
+            metrics_image layer = compare_planes(&sides[sd]->img, renderer_term_name(term));
+            if (!layer.c[0] || !layer.c[1] || !layer.c[2]) {
+                snprintf(reason, len, "partial twin: %s left out %s, but %s has no %s layer to leave out too",
+                         p->why[term], renderer_term_name(term), sides[sd]->path, renderer_term_name(term));
+                return -1;
+            }
+            for (int ch = 0; ch < 3; ch++)
+                for (size_t i = 0; i < np; i++)
+                    p->planes[sd][ch][i] -= layer.c[ch][i];
+        }
+    }
+    return 0;
+}
+
+static void compare_partial_apply(const compare_partial *p, metrics_image *tm, metrics_image *rm)
+{
+    metrics_image *m[2] = {tm, rm};
+    for (int sd = 0; sd < 2; sd++)
+        for (int ch = 0; ch < 3; ch++)
+            if (p->planes[sd][ch] != NULL)
+                m[sd]->c[ch] = p->planes[sd][ch];
+}
+
+/* terms_compared and terms_left_out, and the reason a passing partial twin states. */
+static void compare_partial_json(compare_partial *p, cJSON *o)
+{
+    cJSON *cmp = cJSON_AddArrayToObject(o, "terms_compared");
+    cJSON *left = cJSON_AddArrayToObject(o, "terms_left_out");
+    char done[200] = "", gone[900] = "";
+    for (int t = 0; t < RENDERER_N_TERMS; t++) {
+        char *buf = (p->left_out & (1u << t)) ? gone : done;
+        size_t cap = (p->left_out & (1u << t)) ? sizeof gone : sizeof done, used = strlen(buf);
+        if (!(p->left_out & (1u << t))) {
+            cJSON_AddItemToArray(cmp, cJSON_CreateString(renderer_term_name(t)));
+            snprintf(buf + used, cap - used, "%s%s", used ? ", " : "", renderer_term_name(t));
+            continue;
+        }
+        cJSON *g = cJSON_CreateObject();
+        cJSON_AddStringToObject(g, "term", renderer_term_name(t));
+        cJSON_AddStringToObject(g, "reason", p->why[t]);
+        cJSON_AddItemToArray(left, g);
+        snprintf(buf + used, cap - used, "%s%s (%s)", used ? "; " : "", renderer_term_name(t), p->why[t]);
+    }
+    if (p->left_out != 0)
+        snprintf(p->reason, sizeof p->reason, "partial twin: compared %s; left out %s", done, gone);
+}
+
+static void compare_partial_free(compare_partial *p)
+{
+    for (int sd = 0; sd < 2; sd++)
+        for (int ch = 0; ch < 3; ch++)
+            free(p->planes[sd][ch]);
+}
+
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
@@ -613,6 +727,11 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         snprintf(reason, sizeof reason, "image sizes differ: %s is %dx%d, %s is %dx%d", t.path, t.img.width,
                  t.img.height, r.path, r.img.width, r.img.height);
     }
+    /* A partial twin: the terms either side left out are removed from the other (its own
+     * layers), so both images hold the same sum of terms. */
+    compare_partial part = {0};
+    if (state == NULL && compare_partial_setup(&t, &r, &part, reason, sizeof reason) != 0)
+        state = "error";
     const exr_image *geo = NULL;
     if (state == NULL) {
         char tmp[600];
@@ -634,6 +753,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         compare_side_free(&t);
         compare_side_free(&r);
         compare_side_free(&mask_src);
+        compare_partial_free(&part);
         return o;
     }
 
@@ -641,6 +761,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     size_t np = (size_t)w * (size_t)h;
     unsigned char *cls = malloc(np), *mask[3] = {malloc(np), malloc(np), malloc(np)};
     metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
+    compare_partial_apply(&part, &tm, &rm);
+    compare_partial_json(&part, o);
     /* The largest finite value of each side (a half-float EXR overflows to Inf above 65504). */
     const metrics_image *sides[2] = {&tm, &rm};
     const char *side_names[2] = {"test", "ref"};
@@ -710,6 +832,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
          * (Cycles files an environment mirror under glossy, our model under reflection). */
         cJSON *aovs = cJSON_AddObjectToObject(o, "aovs");
         for (int a = 0; a < 3 && c->role == ROLE_TWIN; a++) {
+            if (part.left_out & renderer_term_from_name(compare_aovs[a]))
+                continue;
             metrics_image ta = compare_planes(&t.img, compare_aovs[a]), ra = compare_planes(&r.img, compare_aovs[a]);
             if (!ta.c[0] || !ta.c[1] || !ta.c[2] || !ra.c[0] || !ra.c[1] || !ra.c[2])
                 continue;
@@ -749,6 +873,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         snprintf(reason, sizeof reason, "values: %s", gate);
         cJSON_AddStringToObject(o, "reason", reason);
     }
+    if (part.left_out != 0 && gate[0] == '\0')
+        cJSON_AddStringToObject(o, "reason", part.reason);
     cJSON_AddStringToObject(o, "status", verdict);
     if (strcmp(verdict, "fail") == 0)
         sum->fail++;
@@ -762,6 +888,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     compare_side_free(&t);
     compare_side_free(&r);
     compare_side_free(&mask_src);
+    compare_partial_free(&part);
     return o;
 }
 

@@ -253,7 +253,7 @@ typedef struct {
     double timeout;
     const char *shown_log; /* the log messages point to: the copy in OUT, which stays */
     env_map env;          /* loaded and checked once, before any renderer runs */
-    renderer_result res;  /* the render entry's result */
+    renderer_result res;  /* the render entry's result: left-out terms for the record */
 } job_ctx;
 
 __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner_status st, const char *fmt, ...)
@@ -320,6 +320,16 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddStringToObject(o, "key", keyhex);
     cJSON_AddStringToObject(o, "exr", r->exr);
     cJSON_AddStringToObject(o, "log", r->log);
+    /* A partial twin: the terms the renderer left out of its image, and why. */
+    cJSON *gaps = cJSON_AddArrayToObject(o, "terms_left_out");
+    for (int t = 0; r->status == RUNNER_OK && t < RENDERER_N_TERMS; t++) {
+        if (!(c->res.left_out & (1u << t)))
+            continue;
+        cJSON *g = cJSON_CreateObject();
+        cJSON_AddStringToObject(g, "term", renderer_term_name(t));
+        cJSON_AddStringToObject(g, "reason", c->res.why[t]);
+        cJSON_AddItemToArray(gaps, g);
+    }
     cJSON_AddNumberToObject(o, "finished_unix", (double)time(NULL));
     rc_status st = job_write_json(o, path, err, errlen);
     cJSON_Delete(o);
@@ -427,8 +437,9 @@ static void job_clean_stale(const char *cache_dir, const char *own_keyhex)
         closedir(d);
 }
 
-/* A published entry: its marker (wall and CPU seconds of the render) and image. */
-static int job_entry_complete(const char *entry, job_record *rec)
+/* A published entry: its marker (wall and CPU seconds of the render, then one line per term
+ * the renderer left out: bit index and reason) and image. */
+static int job_entry_complete(const char *entry, job_record *rec, renderer_result *res)
 {
     char done[1100], exr[1100];
     snprintf(done, sizeof done, "%s/ok", entry);
@@ -438,7 +449,17 @@ static int job_entry_complete(const char *entry, job_record *rec)
     FILE *f = fopen(done, "r");
     if (f == NULL)
         return 0;
-    int ok = fscanf(f, "%lf %lf", &rec->wall_s, &rec->cpu_s) == 2;
+    int ok = fscanf(f, "%lf %lf\n", &rec->wall_s, &rec->cpu_s) == 2;
+    char line[300];
+    memset(res, 0, sizeof *res);
+    while (ok && fgets(line, sizeof line, f) != NULL) {
+        char *end;
+        long t = strtol(line, &end, 10);
+        if (end == line || *end != ' ' || t < 0 || t >= RENDERER_N_TERMS)
+            continue;
+        end[1 + strcspn(end + 1, "\n")] = '\0';
+        renderer_leave_out(res, 1u << t, end + 1);
+    }
     fclose(f);
     return ok;
 }
@@ -490,7 +511,7 @@ static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *loc
     job_clean_stale(cache, keyhex);
     snprintf(c->exr, sizeof c->exr, "%s/out.exr", entry);
     snprintf(c->log, sizeof c->log, "%s/render.log", entry);
-    if (job_entry_complete(entry, rec)) {
+    if (job_entry_complete(entry, rec, &c->res)) {
         rec->cached = 1;
         snprintf(c->command, sizeof c->command, "(cached %s)", keyhex);
         return;
@@ -511,6 +532,9 @@ static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *loc
     snprintf(done, sizeof done, "%s/ok", c->dir);
     FILE *f = fopen(done, "w");
     int ok = f != NULL && fprintf(f, "%.6f %.6f\n", rec->wall_s, rec->cpu_s) > 0;
+    for (int t = 0; ok && t < RENDERER_N_TERMS; t++)
+        if (c->res.left_out & (1u << t))
+            ok = fprintf(f, "%d %s\n", t, c->res.why[t]) > 0;
     if (f != NULL)
         ok &= fclose(f) == 0;
     if (!ok || rename(c->dir, entry) != 0) {

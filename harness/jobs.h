@@ -7,9 +7,10 @@
  *   rc_status st = job_run(&j, &r, err, sizeof err);
  *   exit status: job_exit_status(st, &r)     0 ok or skipped, 1 anything else, 2 bad input
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
- * time, renderer version, command, cache key) and the renderer's .log.
+ * time, renderer version, command, cache key, terms_left_out) and the renderer's .log.
  * The job asks the renderer table (harness/renderers/registry.h) for everything about the
- * renderer: its program, package, version, sources and render entry.
+ * renderer: its program, package, version, sources and render entry. A twin lets the renderer
+ * leave out whole terms it cannot reproduce; the record names them (terms_left_out).
  *
  * Returns RC_OK once the record is written, whatever the renderer did; r.status says what:
  *   ok; skipped (RUNNER_MISSING) only when the renderer is not installed or cannot represent
@@ -26,8 +27,8 @@
  * (renderer, role, variant, size, k, samples, seeds, seed, tessellation, per-vertex), the
  * renderer's version line and executable (path, size, times), and the code the render depends
  * on (the scene pipeline and the row's translator sources when run in the source tree, else
- * and for a renderer without sources, our rasterizer, the reflcheck binary). Threads, timeout
- * and tag are not in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
+ * and for a renderer without sources, our rasterizer, the reflcheck binary), and the terms the
+ * renderer left out are kept with the entry. Threads, timeout and tag are not in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
  * publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes it by rename, so runs
  * sharing a cache render each key once and never see a half entry; a killed run's lock goes
  * with it and its work folder is removed by the next job on that key. Only ok renders are

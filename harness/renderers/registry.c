@@ -20,11 +20,13 @@ static const renderer_row registry_rows[] = {
      .render = raster_render_job},
     {.name = "povray", .title = "POV-Ray 3.7", .program = "povray", .package = "povray",
      .sources = registry_povray_sources,
+     .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "Cook-Torrance (no Beckmann lobe), conductors (no complex Fresnel), Gouraud, clamping, eq. 8, "
                "the D3D spot profile, distance-attenuated D3D ambient",
      .render = povray_render_job},
     {.name = "cycles", .title = "Blender 3.4 Cycles", .program = "blender", .package = "blender",
      .sources = registry_cycles_sources, .stochastic = 1,
+     .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
      .render = cycles_render_job},
 };

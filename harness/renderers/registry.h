@@ -30,6 +30,8 @@ typedef struct {
                                    layers mask every comparison, and it may go below 0 where the
                                    model does */
     int stochastic;             /* samples and seeds reach the image (and the record) */
+    unsigned partial[3];        /* per role: the terms (RENDERER_TERM_*) it may leave out when it
+                                   cannot reproduce them; the record names those it did */
     const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
     renderer_render_fn render;
 } renderer_row;

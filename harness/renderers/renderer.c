@@ -4,6 +4,18 @@
 #include <stdio.h>
 #include <string.h>
 
+static const char *const renderer_terms[RENDERER_N_TERMS] = {"diffuse", "specular", "reflection", "emission"};
+
+const char *renderer_term_name(int i) { return i >= 0 && i < RENDERER_N_TERMS ? renderer_terms[i] : ""; }
+
+unsigned renderer_term_from_name(const char *name)
+{
+    for (int i = 0; i < RENDERER_N_TERMS; i++)
+        if (strcmp(name, renderer_terms[i]) == 0)
+            return 1u << i;
+    return 0;
+}
+
 void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
 {
     va_list ap;
@@ -11,6 +23,15 @@ void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
     r->status = st;
     vsnprintf(r->message, sizeof r->message, fmt, ap);
     va_end(ap);
+}
+
+void renderer_leave_out(renderer_result *r, unsigned term, const char *why)
+{
+    for (int i = 0; i < RENDERER_N_TERMS; i++)
+        if ((term & (1u << i)) && !(r->left_out & (1u << i))) {
+            r->left_out |= 1u << i;
+            snprintf(r->why[i], sizeof r->why[i], "%s", why);
+        }
 }
 
 /* The first line of the log holding marker, for a one-line message; "" if none. */

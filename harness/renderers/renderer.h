@@ -3,9 +3,15 @@
  * Usage (a renderer's folder, harness/renderers/NAME/):
  *   void NAME_render(const renderer_job *j, renderer_result *r);
  *     writes j->exr (linear float: R, G, B, and what layers it has) and fills r: status and
- *     message (renderer_fail, renderer_fail_run), wall and CPU seconds, the command line.
+ *     message (renderer_fail, renderer_fail_run), wall and CPU seconds, the command line, and
+ *     in a twin the terms it left out (renderer_leave_out) when j->partial allows it.
  *   Production (harness/jobs.c) and the renderer's unit tests call the same entry through
  *   the table in registry.h; tests may pass the translator's own options in j->options.
+ *
+ * Terms are the rasterizer's AOV layers (diffuse, specular, reflection, emission); their sum
+ * is the image. A reference that cannot reproduce a whole term of a twin may leave it out:
+ * its image is then the sum of the terms it did render, and the comparison removes the same
+ * terms from the other side (harness/compare.c).
  */
 #ifndef REFLCHECK_RENDERER_H
 #define REFLCHECK_RENDERER_H
@@ -17,6 +23,15 @@
 #include "runner.h"
 #include "scene.h"
 
+enum {
+    RENDERER_TERM_DIFFUSE = 1,
+    RENDERER_TERM_SPECULAR = 2,
+    RENDERER_TERM_REFLECTION = 4,
+    RENDERER_TERM_EMISSION = 8,
+    RENDERER_TERM_ALL = 15
+};
+#define RENDERER_N_TERMS 4
+
 typedef struct {
     const scene *s;
     const mesh *m;            /* the scene's mesh (mesh_build) */
@@ -26,7 +41,7 @@ typedef struct {
     int seeds;                /* stochastic renderers: seeds averaged, 0 = 2 */
     int seed;                 /* first seed */
     double timeout;           /* seconds before the renderer is killed; 0 = 600 */
-    int partial;              /* twin: terms it cannot reproduce may be left out */
+    int partial;              /* twin: terms it cannot reproduce may be left out (r->left_out) */
     const char *dir;          /* a private work folder that exists */
     const char *exr;          /* the image to write */
     const char *log;          /* the renderer's console output */
@@ -40,10 +55,16 @@ typedef struct {
     char message[512];
     double wall_s, cpu_s;
     char command[2048];
+    unsigned left_out;        /* RENDERER_TERM_* bits left out of the image */
+    char why[RENDERER_N_TERMS][200]; /* per left-out term (bit index), the reason */
 } renderer_result;
 
 typedef void (*renderer_render_fn)(const renderer_job *j, renderer_result *r);
 
+/* The name of term bit i (0..3): diffuse, specular, reflection, emission. */
+const char *renderer_term_name(int i);
+/* The bit of a term name, 0 if unknown. */
+unsigned renderer_term_from_name(const char *name);
 /* Sets the result's status and a formatted message. */
 void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
@@ -52,4 +73,7 @@ void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
  * it: a line holding it; NULL = none) and the shown log. */
 void renderer_fail_run(renderer_result *r, const runner_result *rr, const char *program, const char *package,
                        const char *what, const char *log, const char *marker, const char *shown_log);
+/* Records term bit `term` as left out, with its reason (the first reason is kept). */
+void renderer_leave_out(renderer_result *r, unsigned term, const char *why);
+
 #endif

@@ -91,19 +91,26 @@ typedef struct {
     int agree;
     char missing[8][160];     /* terms left out under options.partial */
     int n_missing;
+    unsigned missing_terms;   /* their RENDERER_TERM_* bits */
     char *err;
     size_t errlen;
 } cycles_ctx;
 
-/* A term Cycles cannot reproduce: an error, or (options.partial) a note in the job. */
-static rc_status cycles_cannot(cycles_ctx *c, const char *what, const char *fix)
+/* Something Cycles cannot reproduce: an error, or, when it is a whole term (term, a
+ * RENDERER_TERM_* bit) and options.partial is set, a note in the job and in options.left_out.
+ * Leaving out part of a term (ambient inside diffuse, Gouraud, clamping) would compare
+ * unlike images, so that is always an error. */
+static rc_status cycles_cannot(cycles_ctx *c, unsigned term, const char *what, const char *fix)
 {
-    if (!c->o->partial) {
+    if (!c->o->partial || term == 0) {
         status_message(c->err, c->errlen, "%s: %s; %s, or render with cycles partial terms", c->s->path, what, fix);
         return RC_ERR_RANGE;
     }
     if (c->n_missing < (int)(sizeof c->missing / sizeof c->missing[0]))
         snprintf(c->missing[c->n_missing++], sizeof c->missing[0], "%s", what);
+    if (c->o->left_out != NULL)
+        renderer_leave_out(c->o->left_out, term, what);
+    c->missing_terms |= term;
     return RC_OK;
 }
 
@@ -302,20 +309,20 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
         if (cycles_nonzero(d->specular)) {
             snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, what, "set the d3d specular colour to 0")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK) return rc;
         }
         if (cycles_nonzero(d->ambient) && (amb_light || cycles_nonzero(s->global_ambient))) {
             snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, what, "set the material ambient to 0")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK) return rc;
         }
         if (d->per_vertex) {
             snprintf(what, sizeof what, "materials[%d] '%s': Gouraud (per-vertex) shading", mi, mat->name);
-            if ((rc = cycles_cannot(c, what, "shade per pixel")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "shade per pixel")) != RC_OK) return rc;
         }
         if (d->clamp) {
             snprintf(what, sizeof what, "materials[%d] '%s': D3D clamping to [0, 1]", mi, mat->name);
-            if ((rc = cycles_cannot(c, what, "turn clamp off")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK) return rc;
         }
     }
 
@@ -337,7 +344,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
                 snprintf(what, sizeof what,
                          "materials[%d] '%s': eq. (8) with a point or spot main light (position-dependent)", mi,
                          mat->name);
-                if ((rc = cycles_cannot(c, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
+                if ((rc = cycles_cannot(c, 0, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
                     return rc;
             } else if (ml != NULL) {
                 fputs(", \"sun_angle\": {\"to_sun\": ", fp);
@@ -378,7 +385,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
             snprintf(what, sizeof what,
                      "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, what, "set ct g smith_walter, f one, norm walter")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set ct g smith_walter, f one, norm walter")) != RC_OK) return rc;
             lobe = 0;
         }
         if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
@@ -519,7 +526,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
                           cycles_nonzero(s->materials[mi].d3d.ambient);
             if (cycles_nonzero(s->lights[i].ambient) && any_va) {
                 snprintf(what, sizeof what, "lights[%d]: D3D light ambient La", i);
-                if ((rc = cycles_cannot(&c, what, "set the light ambient to 0")) != RC_OK) return rc;
+                if ((rc = cycles_cannot(&c, 0, what, "set the light ambient to 0")) != RC_OK) return rc;
             }
         }
     }
@@ -883,11 +890,13 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
         o = *(const cycles_options *)j->options;
     o.role = j->role;
     o.partial = j->partial;
+    o.left_out = r;
     rc_status st = cycles_write_job(j->s, j->m, &o, job, err, sizeof err);
     cycles_argv a;
     if (st == RC_OK)
         st = cycles_command(&o, job, j->exr, &a, err, sizeof err);
     if (st != RC_OK) {
+        r->left_out = 0;
         if (st == RC_ERR_RANGE)
             renderer_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
         else

@@ -17,10 +17,11 @@
  *             G = smith_walter, F = one -> Glossy 'BECKMANN' roughness sqrt(m) colour ks;
  *             D3D9Client reflection -> Glossy 'SHARP' coloured lambda + (s - lambda) R;
  *             Cook-Torrance reflection env(reflect(-V, N)) * Schlick(F0, N.V) -> shader AOV).
- *             A term Cycles cannot reproduce (Blinn-Phong specular, ambient, per-vertex
+ *             What Cycles cannot reproduce (Blinn-Phong specular, ambient, per-vertex
  *             shading, clamping, D3D attenuation or spot profile) is an RC_ERR_RANGE error
- *             naming the fix, unless options.partial is set (then it is left out and listed
- *             in the job's "missing").
+ *             naming the fix, unless it is a whole term (the Blinn-Phong specular, a Cook-
+ *             Torrance lobe without Cycles' switches) and options.partial is set: then the
+ *             term is left out, listed in the job's "missing" and in options.left_out.
  *   validate: the material's physical intent: Lambert albedo * (1 - F_dielectric(N.V)) +
  *             Glossy 'BECKMANN' sqrt(roughness) coloured by the exact Fresnel of N.V
  *             (dielectric ior, or conductor eta + ik without diffuse); world fully visible.
@@ -58,7 +59,8 @@ typedef struct {
     unsigned seed;          /* first seed, default 0 */
     int width, height;      /* 0 = the scene's */
     int threads;            /* blender -t; 0 = all cores */
-    int partial;            /* nonzero: leave out the terms Cycles cannot reproduce */
+    int partial;            /* nonzero: leave out whole terms Cycles cannot reproduce */
+    renderer_result *left_out; /* partial: receives the terms left out and why (may be NULL) */
     int keep_raw;           /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
     const char *blender;    /* executable; NULL = "blender" (searched in PATH) */
     const char *script;     /* NULL = "harness/renderers/cycles/cycles_render.py" */

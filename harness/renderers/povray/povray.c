@@ -839,6 +839,29 @@ static int povray_pass(const renderer_job *j, renderer_result *r, const povray_o
     return 0;
 }
 
+/* A twin POV-Ray cannot write in full may still be written without the Blinn-Phong
+ * highlight (coloured Vs, infinite viewer): the only term whose refusals depend on the term
+ * mask. Any other refusal stays a refusal. */
+static void povray_choose_terms(const renderer_job *j, povray_options *o, renderer_result *r)
+{
+    if (o->term == 0)
+        o->term = POVRAY_TERM_ALL;
+    if (!j->partial || j->role != ROLE_TWIN || !(o->term & POVRAY_TERM_SPECULAR))
+        return;
+    char sdl[1100], err[1024];
+    snprintf(sdl, sizeof sdl, "%s/probe.pov", j->dir);
+    if (povray_write_scene(j->s, j->m, o, sdl, err, sizeof err) != RC_ERR_RANGE)
+        return;
+    povray_options less = *o;
+    less.term &= ~(unsigned)POVRAY_TERM_SPECULAR;
+    char why[1024];
+    if (povray_write_scene(j->s, j->m, &less, sdl, why, sizeof why) == RC_OK) {
+        *o = less;
+        renderer_leave_out(r, RENDERER_TERM_SPECULAR, err);
+    }
+    unlink(sdl);
+}
+
 void povray_render_job(const renderer_job *j, renderer_result *r)
 {
     povray_options o = {0};
@@ -847,6 +870,7 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
     else
         o.threads = j->threads;
     o.role = j->role;
+    povray_choose_terms(j, &o, r);
     povray_options geo = o;
     geo.coverage = 1;
     float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL}, *var[3] = {NULL, NULL, NULL};

@@ -11,6 +11,8 @@
  *       coverage, object (a second, geometry pass), var.R/G/B (each k x k block's variance) ...
  * The pieces: povray_write_scene, povray_command (argv for execvp; antialiasing off),
  * povray_box_downsample per channel.
+ * With j.partial in a twin, a scene whose Blinn-Phong highlight POV-Ray cannot express
+ * (coloured Vs, infinite viewer) is rendered without it and r.left_out says so.
  *
  * What the SDL reproduces (see harness/CONTRACT.md):
  * - role ROLE_TWIN: the rasterizer's model per material (d3d, d3d9client); cook_torrance and
