@@ -68,29 +68,12 @@ static ld ref_dielectric(ld cos_i, ld eta)
         cos_i = -cos_i;
         eta = 1 / eta;
     }
-    cos_i = ref_clamp(cos_i, 0, 1);
-    ld sin_t = sqrtl((1 - cos_i) * (1 + cos_i)) / eta;
-    if (sin_t >= 1) return 1;
-    ld cos_t = sqrtl((1 - sin_t) * (1 + sin_t));
-    ld rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    ld rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    return (rs * rs + rp * rp) / 2;
+    return formula_fresnel_dielectric_l(ref_clamp(cos_i, 0, 1), eta);
 }
 
 static ld ref_conductor(ld cos_i, ld eta, ld k)
 {
-    ld c = ref_clamp(fabsl(cos_i), 0, 1);
-    eta = fabsl(eta);
-    k = fabsl(k);
-    ld c2 = c * c, s2 = (1 - c) * (1 + c);
-    ld t0 = eta * eta - k * k - s2;
-    ld a2pb2 = hypotl(t0, 2 * eta * k);
-    ld a = sqrtl(fmaxl(0, (a2pb2 + t0) / 2));
-    ld t1 = a2pb2 + c2, t2 = 2 * c * a;
-    ld rs = t1 + t2 > 0 ? (t1 - t2) / (t1 + t2) : 1;
-    ld t3 = c2 * a2pb2 + s2 * s2, t4 = t2 * s2;
-    ld rp = t3 + t4 > 0 ? rs * (t3 - t4) / (t3 + t4) : rs;
-    return (rs + rp) / 2;
+    return formula_fresnel_conductor_l(ref_clamp(fabsl(cos_i), 0, 1), fabsl(eta), fabsl(k));
 }
 
 static ld ref_beckmann(ld c, ld m, ct_normalisation norm)

@@ -88,6 +88,7 @@
 #define FORMULA_EXP exp
 #define FORMULA_SQRT sqrt
 #define FORMULA_ERF erf
+#define FORMULA_HYPOT hypot
 /* ln of the float cap as a double: D is compared with the very value the float result is capped
  * to (1e12f = 999999995904). */
 #define FORMULA_LN_D_MAX log((double)FORMULA_D_MAX)
@@ -115,6 +116,7 @@
 #define FORMULA_EXP expl
 #define FORMULA_SQRT sqrtl
 #define FORMULA_ERF erfl
+#define FORMULA_HYPOT hypotl
 #define FORMULA_LN_D_MAX logl((long double)FORMULA_D_MAX)
 #include "formula.h"
 
@@ -156,6 +158,48 @@ FORMULA_INLINE FT FN(formula_schlick)(FT f0, FT cos_theta)
 {
     return f0 + (1 - f0) * FN(formula_schlick_weight)(cos_theta);
 }
+
+#ifdef FORMULA_HYPOT
+/* The exact references (MODELS.md 4), double and long double only: no SIMD lane needs them. */
+
+/* Exact unpolarised Fresnel reflectance of a smooth dielectric, (Rs + Rp)/2, for cos_i in
+ * [0, 1] and a relative index eta > 0 seen from the side the ray arrives on (the caller swaps
+ * the media for a ray from inside). Total internal reflection (and exact grazing) gives 1.
+ * sin_t from sin_i/eta rather than sin_i^2/eta^2, so a tiny eta cannot make 0/0. */
+FORMULA_INLINE FT FN(formula_fresnel_dielectric)(FT cos_i, FT eta)
+{
+    FT sin_i = FORMULA_SQRT((1 - cos_i) * (1 + cos_i));
+    FT sin_t = sin_i / eta;
+    if (sin_t >= 1) return 1;
+    FT cos_t = FORMULA_SQRT((1 - sin_t) * (1 + sin_t));
+    /* Both denominators are > 0 here: cos_t > 0 because sin_t < 1, and eta > 0. */
+    FT rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    FT rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return FC(0.5) * (rs * rs + rp * rp);
+}
+
+/* Exact unpolarised Fresnel reflectance of a conductor with complex index eta + i k, c = |cos_i|
+ * in [0, 1], eta and k >= 0: the standard real form of |r_s|^2 and |r_p|^2 (as in PBRT),
+ * t0 = eta^2 - k^2 - sin^2, a^2 + b^2 = |t0 + 2 i eta k|, a = Re sqrt(t0 + 2 i eta k). */
+FORMULA_INLINE FT FN(formula_fresnel_conductor)(FT c, FT eta, FT k)
+{
+    FT c2 = c * c;
+    FT s2 = (1 - c) * (1 + c);
+    FT t0 = eta * eta - k * k - s2;
+    FT a2pb2 = FORMULA_HYPOT(t0, 2 * eta * k);
+    FT h = FC(0.5) * (a2pb2 + t0);
+    FT a = FORMULA_SQRT(h > 0 ? h : 0);
+    FT t1 = a2pb2 + c2;
+    FT t2 = 2 * c * a;
+    /* t1 + t2 = 0 only at exact grazing with eta = 1, k = 0: the grazing limit is 1. */
+    FT rs = t1 + t2 > 0 ? (t1 - t2) / (t1 + t2) : 1;
+    FT t3 = c2 * a2pb2 + s2 * s2;
+    FT t4 = t2 * s2;
+    /* t3 + t4 = 0 only at normal incidence with eta = k = 0, where p equals s. */
+    FT rp = t3 + t4 > 0 ? rs * (t3 - t4) / (t3 + t4) : rs;
+    return FC(0.5) * (rs + rp);
+}
+#endif
 
 /* The exponent of (1)/(3): p, with p < 0 (bad input) taken as 0, because (1 - c)^p would be
  * unbounded at normal incidence. */
@@ -340,5 +384,6 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot) { return d_a
 #undef FORMULA_EXP
 #undef FORMULA_SQRT
 #undef FORMULA_ERF
+#undef FORMULA_HYPOT
 #undef FORMULA_LN_D_MAX
 #endif /* FORMULA_T */

@@ -65,15 +65,7 @@ double fresnel_dielectric(double cos_i, double eta)
         eta = 1.0 / eta;
     }
     cos_i = fresnel_clampd(cos_i, 0.0, 1.0);
-    /* sin_t from sin_i/eta rather than sin_i^2/eta^2, so a tiny eta cannot make 0/0. */
-    double sin_i = sqrt((1.0 - cos_i) * (1.0 + cos_i));
-    double sin_t = sin_i / eta;
-    if (sin_t >= 1.0) return 1.0;
-    double cos_t = sqrt((1.0 - sin_t) * (1.0 + sin_t));
-    /* Both denominators are > 0 here: cos_t > 0 because sin_t < 1, and eta > 0. */
-    double rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    double rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    return 0.5 * (rs * rs + rp * rp);
+    return formula_fresnel_dielectric_d(cos_i, eta);
 }
 
 double fresnel_conductor(double cos_i, double eta, double k)
@@ -82,21 +74,6 @@ double fresnel_conductor(double cos_i, double eta, double k)
     double c = fresnel_clampd(fabs(cos_i), 0.0, 1.0);
     eta = fresnel_clampd(fabs(eta), 0.0, FRESNEL_ETA_LIMIT);
     k = fresnel_clampd(fabs(k), 0.0, FRESNEL_ETA_LIMIT);
-    double c2 = c * c;
-    double s2 = (1.0 - c) * (1.0 + c);
-    /* The standard real form of |r_s|^2 and |r_p|^2 for n = eta + i k (as in PBRT):
-     * t0 = eta^2 - k^2 - sin^2, a^2 + b^2 = |t0 + 2 i eta k|, a = Re sqrt(t0 + 2 i eta k).
-     * Overflow-free for eta, k <= 1e150 since every square stays below 1e300. */
-    double t0 = eta * eta - k * k - s2;
-    double a2pb2 = hypot(t0, 2.0 * eta * k);
-    double a = sqrt(fmax(0.0, 0.5 * (a2pb2 + t0)));
-    double t1 = a2pb2 + c2;
-    double t2 = 2.0 * c * a;
-    /* t1 + t2 = 0 only at exact grazing with eta = 1, k = 0: the grazing limit is 1. */
-    double rs = t1 + t2 > 0.0 ? (t1 - t2) / (t1 + t2) : 1.0;
-    double t3 = c2 * a2pb2 + s2 * s2;
-    double t4 = t2 * s2;
-    /* t3 + t4 = 0 only at normal incidence with eta = k = 0, where p equals s. */
-    double rp = t3 + t4 > 0.0 ? rs * (t3 - t4) / (t3 + t4) : rs;
-    return 0.5 * (rs + rp);
+    /* Overflow-free for eta, k <= 1e150 since every square stays below 1e300. */
+    return formula_fresnel_conductor_d(c, eta, k);
 }

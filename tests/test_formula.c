@@ -118,6 +118,13 @@ static void test_hand_values(void **state)
     close_rel(formula_colour_norm_d(0.3, 0.6, 0.9, 0, 1.0 / 3, 1.0 / 3, 1.0 / 3, 0), 0.6, 4 * U_D);
     close_rel(formula_colour_norm_d(0.3, 0.6, 0.9, 0, 0.2126, 0.7152, 0.0722, 0), 0.55788, 4 * U_D);
     close_rel(formula_colour_norm_d(0.3, 0.6, 0.9, 0, 0, 0, 0, 1), 1.1224972160321824, 8 * U_D);
+    /* Exact Fresnel at normal incidence: ((1 - 1.5)/(1 + 1.5))^2 = 0.04 for the dielectric and
+     * for the conductor with k = 0; a perfect conductor (k -> Inf) reflects everything. */
+    close_rel(formula_fresnel_dielectric_d(1.0, 1.5), 0.04, 8 * U_D);
+    close_rel(formula_fresnel_conductor_d(1.0, 1.5, 0.0), 0.04, 8 * U_D);
+    close_rel(formula_fresnel_conductor_l(1.0L, 0.0L, 1e6L), 1.0, 1e-11);
+    /* Total internal reflection: from inside glass (eta = 1/1.5) beyond 41.8 degrees */
+    assert_true(formula_fresnel_dielectric_d(cos(deg(60.0)), 1.0 / 1.5) == 1.0);
     /* Lambert BRDF: 1/pi */
     close_rel(formula_lambert_brdf_d(1.0), 0.31830988618379067, 2 * U_D);
 }
@@ -226,6 +233,14 @@ static void test_instances_agree(void **state)
             agree("colour norm _d", i, formula_colour_norm_d(cr, cgr, cb, w[k][0], w[k][1], w[k][2], w[k][3], w[k][4]),
                   nl_, 8 * U_D, 0);
         }
+        /* Exact Fresnel, double against long double: about 12 roundings, and rs, rp subtract
+         * (cos_i - eta cos_t vanishes at Brewster's angle), so an absolute floor of 12 u on
+         * reflectances <= 1 covers the cancellation: rel 64 u, abs 12 u. */
+        float ce = rnd(0.05, 1.0), eta = rnd(1.1, 3.0), ke = rnd(0.0, 5.0);
+        agree("dielectric _d", i, formula_fresnel_dielectric_d(ce, eta), formula_fresnel_dielectric_l(ce, eta),
+              64 * U_D, 12 * U_D);
+        agree("conductor _d", i, formula_fresnel_conductor_d(ce, eta, ke), formula_fresnel_conductor_l(ce, eta, ke),
+              64 * U_D, 12 * U_D);
         /* The lobe: 3 roundings. */
         float dd = rnd(0.0, 100.0), gg = rnd(0.0, 1.0), nvv = rnd(1e-6, 1.0);
         long double ll = formula_ct_lobe_l(dd, gg, formula_ct_k_l(walter), nvv);
