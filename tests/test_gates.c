@@ -78,7 +78,7 @@ static void write_text(const char *path, const char *text)
 }
 
 /* The job record and image of one side of scene `name` in run `run`; status NULL: no record. */
-static void put_job(const char *run, const char *name, renderer_id r, comparison_role role, const char *status,
+static void put_job(const char *run, const char *name, int r, comparison_role role, const char *status,
                     const gate_image *im)
 {
     char sd[600], path[1024], text[512];
@@ -184,8 +184,8 @@ static void test_nan_surface_fails_twin(void **state)
     image_flat(&r, 0.5f);
     for (int i = 0; i < 110; i++) /* 110 of 128 pixels: 86 % */
         t.rgb[0][i] = NAN;
-    put_job(run, "nan", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, "nan", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "nan", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, "nan", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     assert_non_null(strstr(err, "110 non-finite (first R at (x 0, y 0) = nan)"));
     cJSON *j = read_compare(run, "nan");
@@ -221,8 +221,8 @@ static void test_inf_layer_and_negative_fail(void **state)
     image_flat(&t, 0.5f);
     image_flat(&r, 0.5f);
     r.terms[1][2][5 * W + 3] = INFINITY; /* specular.B at (x 3, y 5) */
-    put_job(run, "inf", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "inf", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     cJSON *j = read_compare(run, "inf");
     const cJSON *c = first_comparison(j);
@@ -234,7 +234,7 @@ static void test_inf_layer_and_negative_fail(void **state)
     image_flat(&r, 0.5f);
     for (int i = 0; i < 3; i++)
         r.rgb[1][W + i] = -1e-3f; /* G at (0..2, 1) */
-    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "inf");
     c = first_comparison(j);
@@ -257,7 +257,7 @@ static void test_inf_layer_and_negative_fail(void **state)
     for (int c3 = 0; c3 < 3; c3++)
         for (int i = 0; i < NP; i++)
             r.var[c3][i] = -1.0f;
-    put_job(run, "inf", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "inf");
     c = first_comparison(j);
@@ -282,8 +282,8 @@ static void test_negative_allowed_only_where_model_allows(void **state)
     static gate_image t;
     image_flat(&t, 0.5f);
     t.rgb[0][7] = -0.25f;
-    put_job(run, "neg", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, "neg", RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    put_job(run, "neg", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, "neg", registry_find("povray"), ROLE_TWIN, "ok", &t);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
     cJSON *j = read_compare(run, "neg");
     const cJSON *c = first_comparison(j);
@@ -293,8 +293,8 @@ static void test_negative_allowed_only_where_model_allows(void **state)
     cJSON_Delete(j);
 
     put_scene(scn, "neg", "validate", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
-    put_job(run, "neg", RENDERER_RASTER, ROLE_VALIDATE, "ok", &t);
-    put_job(run, "neg", RENDERER_POVRAY, ROLE_VALIDATE, "ok", &t);
+    put_job(run, "neg", registry_find("raster"), ROLE_VALIDATE, "ok", &t);
+    put_job(run, "neg", registry_find("povray"), ROLE_VALIDATE, "ok", &t);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "neg");
     c = first_comparison(j);
@@ -323,11 +323,11 @@ static void test_job_status_vocabulary(void **state)
     put_scene(scn, "st", "twin", "d3d", "");
     static gate_image t;
     image_flat(&t, 0.5f);
-    put_job(run, "st", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
+    put_job(run, "st", registry_find("raster"), ROLE_TWIN, "ok", &t);
 
     static const char *const bad[] = {"failed", "crashed", "timeout", "error"};
     for (int i = 0; i < 4; i++) {
-        put_job(run, "st", RENDERER_POVRAY, ROLE_TWIN, bad[i], NULL);
+        put_job(run, "st", registry_find("povray"), ROLE_TWIN, bad[i], NULL);
         assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
         cJSON *j = read_compare(run, "st");
         const cJSON *c = first_comparison(j);
@@ -340,14 +340,14 @@ static void test_job_status_vocabulary(void **state)
         cJSON_Delete(j);
     }
 
-    put_job(run, "st", RENDERER_POVRAY, ROLE_TWIN, "skipped", NULL);
+    put_job(run, "st", registry_find("povray"), ROLE_TWIN, "skipped", NULL);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
     cJSON *j = read_compare(run, "st");
     assert_string_equal(jstr(first_comparison(j), "status"), "skipped");
     assert_non_null(strstr(jstr(first_comparison(j), "reason"), "povray twin skipped: the skipped message"));
     cJSON_Delete(j);
 
-    put_job(run, "st", RENDERER_POVRAY, ROLE_TWIN, NULL, NULL);
+    put_job(run, "st", registry_find("povray"), ROLE_TWIN, NULL, NULL);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "st");
     assert_string_equal(jstr(first_comparison(j), "status"), "error");
@@ -355,8 +355,8 @@ static void test_job_status_vocabulary(void **state)
     cJSON_Delete(j);
 
     /* A record saying ok beside an image that is not an EXR. */
-    put_job(run, "st", RENDERER_POVRAY, ROLE_TWIN, "ok", NULL);
-    job_output_path(run, "st", RENDERER_POVRAY, ROLE_TWIN, "exr", path, sizeof path);
+    put_job(run, "st", registry_find("povray"), ROLE_TWIN, "ok", NULL);
+    job_output_path(run, "st", registry_find("povray"), ROLE_TWIN, "exr", path, sizeof path);
     write_text(path, "not an exr\n");
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "st");
@@ -365,8 +365,8 @@ static void test_job_status_vocabulary(void **state)
     cJSON_Delete(j);
 
     /* The test side's own error wins over a skipped reference. */
-    put_job(run, "st", RENDERER_RASTER, ROLE_TWIN, "crashed", NULL);
-    put_job(run, "st", RENDERER_POVRAY, ROLE_TWIN, "skipped", NULL);
+    put_job(run, "st", registry_find("raster"), ROLE_TWIN, "crashed", NULL);
+    put_job(run, "st", registry_find("povray"), ROLE_TWIN, "skipped", NULL);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "st");
     assert_string_equal(jstr(first_comparison(j), "status"), "error");
@@ -384,8 +384,8 @@ static void test_compare_exit_status(void **state)
     static gate_image t, r;
     image_flat(&t, 0.5f);
     image_flat(&r, 0.5f);
-    put_job(run, "ex", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, "ex", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "ex", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, "ex", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
     cJSON *j = read_compare(run, "ex");
     assert_string_equal(jstr(first_comparison(j), "status"), "pass");
@@ -393,7 +393,7 @@ static void test_compare_exit_status(void **state)
     cJSON_Delete(j);
 
     image_flat(&r, 0.6f); /* rel_rms 0.1 / sqrt(0.36 + 1e-8) = 0.167 > 1e-3 */
-    put_job(run, "ex", RENDERER_POVRAY, ROLE_TWIN, "ok", &r);
+    put_job(run, "ex", registry_find("povray"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     assert_non_null(strstr(err, "rel_rms = 0.1667 > fail threshold"));
 
@@ -418,8 +418,8 @@ static void test_duplicate_scene_names(void **state)
     put_scene(b, "same", "twin", "d3d", "");
     static gate_image t;
     image_flat(&t, 0.5f);
-    put_job(run, "same", RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, "same", RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    put_job(run, "same", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, "same", registry_find("povray"), ROLE_TWIN, "ok", &t);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s %s --run %s", a, b, run), 2);
     assert_non_null(strstr(err, "a.yaml"));
     assert_non_null(strstr(err, "b.yaml"));
@@ -487,8 +487,8 @@ static void test_view_js_escapes_scene_name(void **state)
     assert_int_equal(scene_file_load(scn, &sc, err, sizeof err), RC_OK);
     static gate_image t;
     image_flat(&t, 0.5f);
-    put_job(run, sc.name, RENDERER_RASTER, ROLE_TWIN, "ok", &t);
-    put_job(run, sc.name, RENDERER_POVRAY, ROLE_TWIN, "ok", &t);
+    put_job(run, sc.name, registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, sc.name, registry_find("povray"), ROLE_TWIN, "ok", &t);
     assert_int_equal(cli_exec(err, sizeof err, "compare '%s' --run %s", scn, run), 0);
     snprintf(path, sizeof path, "%s/%s/view.js", run, sc.name);
     f = fopen(path, "r");

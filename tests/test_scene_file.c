@@ -172,8 +172,8 @@ static void test_good_full(void **state)
 
     assert_int_equal(s->n_comparisons, 2);
     const comparison *k = s->comparisons;
-    assert_int_equal(k[0].test, RENDERER_RASTER);
-    assert_int_equal(k[0].reference, RENDERER_POVRAY);
+    assert_int_equal(k[0].test, registry_find("raster"));
+    assert_int_equal(k[0].reference, registry_find("povray"));
     assert_int_equal(k[0].role, ROLE_TWIN);
     assert_int_equal(k[0].n_thresholds, 2);
     assert_string_equal(k[0].thresholds[0].metric, "rel_rms");
@@ -182,7 +182,7 @@ static void test_good_full(void **state)
     assert_non_null(strstr(k[0].thresholds[0].why, "half float"));
     assert_string_equal(k[0].thresholds[1].metric, "psnr");
     assert_float_equal(k[0].thresholds[1].warn, 60, 0);
-    assert_int_equal(k[1].test, RENDERER_CYCLES);
+    assert_int_equal(k[1].test, registry_find("cycles"));
     assert_int_equal(k[1].role, ROLE_AGREE);
 
     size_t len;

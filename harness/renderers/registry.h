@@ -47,12 +47,4 @@ int registry_model(void);
 /* The names as "a, b or c" for messages; returns buf. */
 const char *registry_list(char *buf, size_t len);
 
-/* Transitional: tests/test_gates.c and tests/test_scene_file.c (other owners) still spell
- * renderers as constants. These resolve through the table; remove them once those tests call
- * registry_find. */
-typedef int renderer_id;
-#define RENDERER_RASTER registry_find("raster")
-#define RENDERER_POVRAY registry_find("povray")
-#define RENDERER_CYCLES registry_find("cycles")
-
 #endif
