@@ -38,7 +38,7 @@ TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
-.PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz \
+.PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
         bench report fuzz deps clean
 all: $(CLI) $(TEST_BIN)
 
@@ -75,7 +75,7 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz
+	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
@@ -93,6 +93,11 @@ test-status: $(CLI)
 # history lines are intact.
 test-concurrent: $(CLI)
 	@bash tests/concurrent_nightly.sh $(BUILD)
+
+# Adding a renderer is a folder and one row of harness/renderers/registry.c: done in a scratch
+# copy, built, and checked through the CLI, a plan, a job and deps.sh.
+test-renderer:
+	@bash tests/add_renderer.sh $(BUILD)
 
 # The fuzzers, briefly, so that their build and a first pass over the corpus run in every CI.
 test-fuzz:
