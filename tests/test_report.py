@@ -632,3 +632,27 @@ def test_stylesheet_ids_are_on_the_pages(built):
     names = {n for sel in re.findall(r'([^{}]*)\{', css) for n in re.findall(r'#([A-Za-z][\w-]*)', sel)}
     pages = ''.join(read(os.path.join(built['run'], p)) for p in ('index.html', 'scene-alpha.html'))
     assert names and all(f'id="{n}"' in pages for n in names), names
+
+
+def test_partial_twin_terms_shown(tmp_path):
+    """A partial twin's compared and left-out terms reach summary.json and the scene page."""
+    run = make_run(str(tmp_path), RUN1)
+    cpath = os.path.join(run, 'alpha', 'compare.json')
+    comp = json.loads(read(cpath))
+    c = comp['comparisons'][1]
+    c['terms_compared'] = ['diffuse', 'reflection', 'emission']
+    c['terms_left_out'] = [{'term': 'specular', 'reason': 'cycles: Cycles has no Blinn-Phong lobe'}]
+    with open(cpath, 'w', encoding='utf-8') as f:
+        json.dump(comp, f)
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    summ = json.loads(read(os.path.join(run, 'summary.json')))
+    got = summ['scenes'][0]['comparisons'][1]
+    assert got['terms_left_out'] == c['terms_left_out'] and got['terms_compared'] == c['terms_compared']
+    assert 'terms_left_out' not in summ['scenes'][0]['comparisons'][0]
+    page = read(os.path.join(run, 'scene-alpha.html'))
+    assert re.search(
+        r'partial twin: compared <span class="mono">diffuse, reflection, emission</span>;\s*left out '
+        r'<span class="mono">specular</span> \(cycles: Cycles has no Blinn-Phong lobe\)',
+        page,
+    )

@@ -34,6 +34,9 @@ def summary_object(R):
             }
             o['test_image'] = c.get('test_key')
             o['reference_image'] = c.get('ref_key')
+            for k in ('terms_compared', 'terms_left_out'):  # partial twins only
+                if k in c:
+                    o[k] = c[k]
             comps.append(o)
         jobs = [
             {
