@@ -120,7 +120,7 @@ static ld3 ref_half(ld3 l, ld3 v)
 
 static ld ref_colour_norm(ld3 c, colour_norm norm)
 {
-    d3d9_norm_weights w = d3d9_norm_weights_of(norm);
+    d3d9client_norm_weights w = d3d9client_norm_weights_of(norm);
     return formula_colour_norm_l(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
 }
 

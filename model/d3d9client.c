@@ -13,9 +13,9 @@ static float d3d9client_sat(double x)
     return (float)x;
 }
 
-d3d9_norm_weights d3d9_norm_weights_of(colour_norm norm)
+d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm)
 {
-    d3d9_norm_weights w = {0.0, 0.0, 0.0, 0.0, 0.0};
+    d3d9client_norm_weights w = {0.0, 0.0, 0.0, 0.0, 0.0};
     switch (norm) {
     case NORM_MEAN: w.w_r = w.w_g = w.w_b = 1.0 / 3.0; break;
     case NORM_LUMINANCE: w.w_r = 0.2126; w.w_g = 0.7152; w.w_b = 0.0722; break;
@@ -26,16 +26,16 @@ d3d9_norm_weights d3d9_norm_weights_of(colour_norm norm)
     return w;
 }
 
-double d3d9_colour_norm_d(vec3 c, colour_norm norm)
+double d3d9client_colour_norm_d(vec3 c, colour_norm norm)
 {
-    d3d9_norm_weights w = d3d9_norm_weights_of(norm);
+    d3d9client_norm_weights w = d3d9client_norm_weights_of(norm);
     return formula_colour_norm_d(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
 }
 
 float d3d9_colour_norm(vec3 c, colour_norm norm)
 {
     if (isnan(c.x) || isnan(c.y) || isnan(c.z)) return NAN;   /* a max by selects would drop a NaN */
-    return d3d9client_sat(d3d9_colour_norm_d(c, norm));
+    return d3d9client_sat(d3d9client_colour_norm_d(c, norm));
 }
 
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,

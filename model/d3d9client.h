@@ -25,10 +25,10 @@
  * 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709), NORM_EUCLID sqrt(R^2+G^2+B^2) (sqrt 3 for
  * white: 1 - |lambda| < 0). Unknown values behave as NORM_MAX. As formula.h's
  * formula_colour_norm weights it: w_max max(c) + w . c + w_euclid |c|_2, one weight non-zero. */
-typedef struct { double w_max, w_r, w_g, w_b, w_euclid; } d3d9_norm_weights;
-d3d9_norm_weights d3d9_norm_weights_of(colour_norm norm);
+typedef struct { double w_max, w_r, w_g, w_b, w_euclid; } d3d9client_norm_weights;
+d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm);
 /* |c| in double, unsaturated (the POV-Ray translator's 1 - |lambda|). */
-double d3d9_colour_norm_d(vec3 c, colour_norm norm);
+double d3d9client_colour_norm_d(vec3 c, colour_norm norm);
 /* |c| saturated to +-FLT_MAX. */
 float d3d9_colour_norm(vec3 c, colour_norm norm);
 

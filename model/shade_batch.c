@@ -4,11 +4,12 @@
  * Each kernel runs the light loop outside and the lanes inside, so a lane loop has no branch
  * that depends on the light or the material (those are chosen before it starts) and compiles
  * to straight SIMD code: one sample per lane, selects for the per-sample conditions that
- * shade.c writes as `if`/`continue`, smath for pow, log, exp and atan2. The formulas and their
- * order of guards are shade.c's and the formula layers' (d3d.c, fresnel.c, d3d9client.c,
- * cooktorrance.c, microfacet.c); what differs is float where the scalar path sums in double,
- * and smath's approximations, which is why lanes match shade_eval within the bounds shade.h
- * states rather than bit for bit (tests/test_shade_batch.c measures them).
+ * shade.c writes as `if`/`continue`, smath for pow, log, exp and atan2. Every formula is
+ * formula.h's lane instance (suffix _v), the very code the scalar models run in double (_d) and
+ * the stability check in long double (_l), with the scalar models' order of guards; what
+ * differs is float where the scalar path sums in double, and smath's approximations, which is
+ * why lanes match shade_eval within the bounds shade.h states rather than bit for bit
+ * (tests/test_shade_batch.c measures them).
  *
  * A lane outside the float-safe range of the point-light distance (the scalar path switches
  * to double there) marks the batch, and the whole batch is redone by shade_batch_scalar;
@@ -272,7 +273,7 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     const float w = sb_sat(formula_d3d9_diffuse_weight_f(d3d9_colour_norm(d9->reflect, d9->norm)));
     /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
      * not vectorise). */
-    const d3d9_norm_weights nw = d3d9_norm_weights_of(d9->norm);
+    const d3d9client_norm_weights nw = d3d9client_norm_weights_of(d9->norm);
     const float w_max = (float)nw.w_max, w_r = (float)nw.w_r, w_g = (float)nw.w_g, w_b = (float)nw.w_b;
     const float w_euclid = (float)nw.w_euclid;
     const float d_alpha = d9->alpha;
