@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "jobs.h"
+#include "jsonio.h"
 #include "renderers/registry.h"
 
 static cJSON *cli_renderers_terms(unsigned bits)
@@ -55,11 +56,7 @@ int cli_renderers(int argc, char **argv)
         cJSON_AddStringToObject(o, "cannot", r->cannot ? r->cannot : "");
         cJSON_AddItemToArray(arr, o);
     }
-    char *text = cJSON_Print(arr);
+    int bad = jsonio_print(stdout, arr);
     cJSON_Delete(arr);
-    if (text == NULL)
-        return CLI_FAILED;
-    printf("%s\n", text);
-    cJSON_free(text);
-    return fflush(stdout) == 0 ? CLI_OK : CLI_FAILED;
+    return bad == 0 && fflush(stdout) == 0 ? CLI_OK : CLI_FAILED;
 }

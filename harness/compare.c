@@ -11,6 +11,7 @@
 
 #include "exr.h"
 #include "fileio.h"
+#include "jsonio.h"
 #include "jobs.h"
 #include "renderers/registry.h"
 #include "d3d9client.h"
@@ -911,9 +912,7 @@ rc_status compare_scene(const char *scene_path, const char *run_dir, compare_sum
         cJSON_AddItemToArray(arr, compare_one(s, &s->comparisons[i], run_dir, sum));
     char path[1024];
     snprintf(path, sizeof path, "%s/%s/compare.json", run_dir, s->name);
-    char *text = cJSON_Print(root);
-    st = text ? fileio_write_atomic(path, text, err, errlen) : RC_ERR_NOMEM;
-    cJSON_free(text);
+    st = jsonio_write_file(root, path, err, errlen);
     cJSON_Delete(root);
     if (st == RC_OK)
         st = compare_write_view(s, run_dir, err, errlen);
@@ -983,11 +982,8 @@ rc_status compare_images(const char *test_exr, const char *ref_exr, const char *
                 *failed = 1;
                 snprintf(err, errlen, "values: %s", gate);
             }
-            char *text = cJSON_Print(o);
-            if (text != NULL) {
-                fprintf(out, "%s\n", text);
-                cJSON_free(text);
-            }
+            /* A failed write shows in the stream's error flag, which cli_diff checks. */
+            (void)jsonio_print(out, o);
         } else
             st = RC_ERR_NOMEM;
         cJSON_Delete(o);

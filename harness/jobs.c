@@ -19,6 +19,7 @@
 #include "frame.h"
 #include "exr.h"
 #include "fileio.h"
+#include "jsonio.h"
 #include "mesh.h"
 #include "renderers/registry.h"
 #include "scene_file.h"
@@ -265,27 +266,6 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
     va_end(ap);
 }
 
-/* Writes a cJSON document to path through a temporary file and a rename. */
-static rc_status job_write_json(cJSON *doc, const char *path, char *err, size_t errlen)
-{
-    char *text = cJSON_Print(doc);
-    if (text == NULL) {
-        snprintf(err, errlen, "%s: out of memory for the job record", path);
-        return RC_ERR_NOMEM;
-    }
-    size_t n = strlen(text);
-    char *line = realloc(text, n + 2);
-    if (line == NULL) {
-        cJSON_free(text);
-        snprintf(err, errlen, "%s: out of memory for the job record", path);
-        return RC_ERR_NOMEM;
-    }
-    memcpy(line + n, "\n", 2);
-    rc_status st = fileio_write_atomic(path, line, err, errlen);
-    free(line);
-    return st;
-}
-
 static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key,
                                   char *err, size_t errlen)
 {
@@ -331,7 +311,7 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
         cJSON_AddItemToArray(gaps, g);
     }
     cJSON_AddNumberToObject(o, "finished_unix", (double)time(NULL));
-    rc_status st = job_write_json(o, path, err, errlen);
+    rc_status st = jsonio_write_file(o, path, err, errlen);
     cJSON_Delete(o);
     return st;
 }
