@@ -13,8 +13,11 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../model/d3d9client.h"
+#include <cJSON.h>
+
+#include "d3d9client.h"
 #include "exr.h"
+#include "fileio.h"
 #include "runner.h"
 
 #define CYCLES_PI 3.14159265358979323846
@@ -730,26 +733,18 @@ static const struct { const char *aov; char c; } cycles_layout[] = {
 };
 #define CYCLES_LAYOUT_N ((int)(sizeof cycles_layout / sizeof cycles_layout[0]))
 
-/* Reads "key": number from the flat timing JSON the script writes; NAN if absent. */
-static double cycles_timing_value(const char *text, const char *key)
+/* A number, or the sum of a list of numbers, under key in the timing JSON the script writes
+ * (one entry per seed); NAN if absent. */
+static double cycles_timing_value(const cJSON *doc, const char *key)
 {
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(text, pat);
-    if (p == NULL) return NAN;
-    p += strlen(pat);
-    if (*p == '[') p++;
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(doc, key);
+    if (cJSON_IsNumber(v))
+        return v->valuedouble;
+    if (!cJSON_IsArray(v))
+        return NAN;
     double sum = 0.0;
-    for (;;) {
-        char *end;
-        double v = strtod(p, &end);
-        if (end == p) break;
-        sum += v;
-        p = end;
-        while (*p == ' ') p++;
-        if (*p != ',') break;
-        p++;
-    }
+    const cJSON *e;
+    cJSON_ArrayForEach(e, v) sum += cJSON_IsNumber(e) ? e->valuedouble : NAN;
     return sum;
 }
 
@@ -841,15 +836,14 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
         }
         char tpath[PATH_MAX], seeds[32], build[32] = "", render[32] = "";
         snprintf(tpath, sizeof tpath, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
-        FILE *fp = fopen(tpath, "r");
-        if (fp != NULL) {
-            char text[2048];
-            size_t got = fread(text, 1, sizeof text - 1, fp);
-            text[got] = '\0';
-            fclose(fp);
-            snprintf(build, sizeof build, "%.3f", cycles_timing_value(text, "build_s"));
-            snprintf(render, sizeof render, "%.3f", cycles_timing_value(text, "render_s"));
+        char *text = fileio_read_all(tpath, NULL);
+        cJSON *timing = text != NULL ? cJSON_Parse(text) : NULL;
+        if (timing != NULL) {
+            snprintf(build, sizeof build, "%.3f", cycles_timing_value(timing, "build_s"));
+            snprintf(render, sizeof render, "%.3f", cycles_timing_value(timing, "render_s"));
         }
+        cJSON_Delete(timing);
+        free(text);
         snprintf(seeds, sizeof seeds, "%d", n);
         exr_attr at[] = {{"reflcheck.renderer", "cycles"},
                          {"reflcheck.cycles_seeds", seeds},
