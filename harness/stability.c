@@ -27,7 +27,7 @@
 #include "shade.h"
 
 typedef long double ld;
-#define REF_PI 3.141592653589793238462643383279502884L
+#define REF_PI FORMULA_PI_L
 
 /* ------------------------------------------------------------------ long double vectors */
 
@@ -777,7 +777,8 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
     memset(o, 0, sizeof *o);
     o->alpha = 1;
     if (m->model == MODEL_COOK_TORRANCE) {
-        ld3 kd = l3_scale(l3_from(m->albedo), 1 / REF_PI);
+        ld3 kd = l3(formula_lambert_brdf_l(m->albedo.x), formula_lambert_brdf_l(m->albedo.y),
+                    formula_lambert_brdf_l(m->albedo.z));
         for (int i = 0; i < sc->n_lights; i++) {
             ld3 to_l, e;
             if (!ref_light_incident(&sc->lights[i], x, &to_l, &e)) continue;
@@ -1033,6 +1034,7 @@ static void check_monotonic(sweep *s, const char *fn, const char *cs, fresnel_of
 static double ct_albedo(const material *mat, double theta_o, int grid)
 {
     double m = mat->ct.m, sum = 0.0;
+    double inv_m2 = 1.0 / (m * m), log_norm = formula_beckmann_log_norm_d(m, 1);
     vec3 nn = v3(0, 1, 0);
     dvec3 v = dv3(sin(theta_o), cos(theta_o), 0.0);
     vec3 vf = v3_from_d(v);
@@ -1047,7 +1049,8 @@ static double ct_albedo(const material *mat, double theta_o, int grid)
             if (vh <= 0.0) continue;
             dvec3 l = dv3_sub(dv3_scale(h, 2.0 * vh), v);
             if (l.y <= 0.0) continue;
-            double d = exp(-tan2 / (m * m)) / ((double)REF_PI * m * m * ch * ch * ch * ch);
+            /* The sampled density: (4.12) with Walter's normalisation. */
+            double d = formula_beckmann_d_d(sh * sh, ch * ch, inv_m2, log_norm);
             double pdf = d * ch / (4.0 * vh);
             vec3 f = cooktorrance_specular(&mat->ct, nn, vf, v3_from_d(l), mat);
             sum += (double)f.x / pdf;
