@@ -8,10 +8,10 @@
 #include <string.h>
 
 #include "cli.h"
+#include "formula.h"
 #include "fresnel.h"
 #include "microfacet.h"
 
-#define EVAL_PI 3.14159265358979323846
 
 typedef struct {
     double ior, p, r0, m;
@@ -25,7 +25,7 @@ static void eval_fresnel(const eval_args *a)
     printf("angle_deg,cos_theta,d3d9_R,schlick5,exact_dielectric,d3d9_minus_exact,schlick5_minus_exact\n");
     for (int i = 0; i <= a->steps; i++) {
         double deg = 90.0 * i / a->steps;
-        double c = cos(deg * EVAL_PI / 180.0);
+        double c = cos(deg * FORMULA_PI_D / 180.0);
         float d9 = fresnel_d3d9((float)r0, (float)mult, (float)a->p, (float)c);
         float s5 = fresnel_schlick((float)r0, (float)c);
         double ex = fresnel_dielectric(c, a->ior);
@@ -38,7 +38,7 @@ static void eval_beckmann(const eval_args *a)
     printf("angle_deg,cos_h,D_walter,D_ct1982\n");
     for (int i = 0; i <= a->steps; i++) {
         double deg = 90.0 * i / a->steps;
-        double c = cos(deg * EVAL_PI / 180.0);
+        double c = cos(deg * FORMULA_PI_D / 180.0);
         printf("%.6g,%.9g,%.9g,%.9g\n", deg, c, microfacet_beckmann_d((float)c, (float)a->m, CT_WALTER),
                microfacet_beckmann_d((float)c, (float)a->m, CT_CT1982));
     }
@@ -49,7 +49,7 @@ static void eval_smith(const eval_args *a)
     printf("angle_deg,cos_theta,G1_walter,G1_exact,walter_minus_exact\n");
     for (int i = 0; i <= a->steps; i++) {
         double deg = 90.0 * i / a->steps;
-        double c = cos(deg * EVAL_PI / 180.0);
+        double c = cos(deg * FORMULA_PI_D / 180.0);
         float w = microfacet_smith_g1_walter((float)c, (float)a->m);
         double e = microfacet_smith_g1_exact(c, a->m);
         printf("%.6g,%.9g,%.9g,%.9g,%.9g\n", deg, c, w, e, w - e);

@@ -18,9 +18,9 @@
 #include <yaml.h>
 
 #include "fileio.h"
+#include "formula.h"
 #include "scene_file.h"
 
-#define SF_PI 3.14159265358979323846
 /* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
 #define SF_MAX_DEPTH 32
 #define SF_PATHLEN 256
@@ -283,7 +283,7 @@ static rc_status sf_angle(sf_ctx *c, yaml_node_t *n, const char *path, double lo
     rc_status rc = sf_number(c, n, path, lo, hi, flags, allowed, &v);
     if (rc)
         return rc;
-    *out = (float)(v * SF_PI / 180.0);
+    *out = (float)(v * FORMULA_PI_D / 180.0);
     return RC_OK;
 }
 
@@ -1008,7 +1008,7 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
         if ((rc = sf_floats(c, f[OK_ROTATE].v, SF_CHILD("rotate"), 3, -INFINITY, INFINITY, 0,
                             "[x, y, z] Euler angles in degrees, applied X then Y then Z", r)))
             return rc;
-        o->rotate = v3_scale(v3(r[0], r[1], r[2]), (float)(SF_PI / 180.0));
+        o->rotate = v3_scale(v3(r[0], r[1], r[2]), (float)(FORMULA_PI_D / 180.0));
     }
     if (f[OK_MAJOR].v && (rc = sf_float(c, f[OK_MAJOR].v, SF_CHILD("major"), 0.0, INFINITY,
                                         SF_LO_OPEN, "a finite ring radius > 0 [m]", &o->major)))

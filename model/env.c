@@ -3,17 +3,17 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "formula.h"
 #include "smath.h"
 
-#define ENV_PI 3.14159265358979323846f
 
 void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty)
 {
     vec3 d = v3_norm(dir);
     /* asinf is only defined on [-1, 1]; rounding in v3_norm can leave y a few ulp outside. */
     float y = fminf(fmaxf(d.y, -1.0f), 1.0f);
-    float u = 0.5f + atan2f(d.z, d.x) / (2.0f * ENV_PI);
-    float v = 0.5f + asinf(y) / ENV_PI;
+    float u = 0.5f + atan2f(d.z, d.x) / (2.0f * FORMULA_PI_F);
+    float v = 0.5f + asinf(y) / FORMULA_PI_F;
     *tx = u * (float)e->width;
     *ty = (1.0f - v) * (float)e->height;
 }
@@ -94,8 +94,8 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
     for (int i = 0; i < n; i++) {
         float x = dx[i], y = dy[i], z = dz[i];
         int zero = (x == 0.0f) & (y == 0.0f) & (z == 0.0f);
-        float u = 0.5f + smath_atan2(z, x) * (0.5f / ENV_PI);
-        float v = 0.5f + smath_atan2(y, sqrtf(x * x + z * z)) * (1.0f / ENV_PI);
+        float u = 0.5f + smath_atan2(z, x) * (0.5f / FORMULA_PI_F);
+        float v = 0.5f + smath_atan2(y, sqrtf(x * x + z * z)) * (1.0f / FORMULA_PI_F);
         float fx = u * fw - 0.5f, fy = (1.0f - v) * fh - 0.5f;
         /* fx, fy >= -0.5: truncating fx + 1 is floor(fx) + 1 without a libm floorf. */
         int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;

@@ -26,9 +26,9 @@
 #include <unistd.h>
 
 #include "fileio.h"
+#include "formula.h"
 #include "mesh.h"
 
-#define MESH_PI 3.14159265358979323846
 
 typedef struct {
     double r[3][3];
@@ -153,9 +153,9 @@ static int mesh_sphere(mesh_builder *b, const object *o)
     uint32_t top = mesh_vert(b, dv3(0, r, 0), dv3(0, 1, 0));
     uint32_t first = (uint32_t)b->m->n_verts;
     for (int i = 1; i < rings; i++) {
-        double th = MESH_PI * i / rings;
+        double th = FORMULA_PI_D * i / rings;
         for (int j = 0; j < seg; j++) {
-            double ph = 2.0 * MESH_PI * j / seg;
+            double ph = 2.0 * FORMULA_PI_D * j / seg;
             dvec3 n = dv3(sin(th) * cos(ph), cos(th), sin(th) * sin(ph));
             mesh_vert(b, dv3_scale(n, r), n);
         }
@@ -230,7 +230,7 @@ static int mesh_box(mesh_builder *b, const object *o)
                 dvec3 c = dv3_add(mesh_axis(p, sp * h[p]), mesh_axis(q, sq * h[q]));
                 uint32_t start = (uint32_t)b->m->n_verts;
                 for (int k = 0; k <= seg; k++) {
-                    double al = 0.5 * MESH_PI * k / seg;
+                    double al = 0.5 * FORMULA_PI_D * k / seg;
                     dvec3 n = dv3_add(mesh_axis(p, sp * cos(al)), mesh_axis(q, sq * sin(al)));
                     dvec3 rim = dv3_add(c, dv3_scale(n, r));
                     mesh_vert(b, dv3_add(rim, mesh_axis(a, -h[a])), n);
@@ -252,9 +252,9 @@ static int mesh_box(mesh_builder *b, const object *o)
                 dvec3 c = dv3(sx * h[0], sy * h[1], sz * h[2]);
                 uint32_t start = (uint32_t)b->m->n_verts;
                 for (int k = 0; k <= seg; k++) {
-                    double th = 0.5 * MESH_PI * k / seg;
+                    double th = 0.5 * FORMULA_PI_D * k / seg;
                     for (int j = 0; j <= k; j++) {
-                        double ph = k ? 0.5 * MESH_PI * j / k : 0.0;
+                        double ph = k ? 0.5 * FORMULA_PI_D * j / k : 0.0;
                         dvec3 n = dv3(sx * sin(th) * cos(ph), sy * cos(th), sz * sin(th) * sin(ph));
                         mesh_vert(b, dv3_add(c, dv3_scale(n, r)), n);
                     }
@@ -281,10 +281,10 @@ static int mesh_torus(mesh_builder *b, const object *o)
     double big = o->major, r = o->radius;
     uint32_t start = (uint32_t)b->m->n_verts;
     for (int i = 0; i < nu; i++) {
-        double u = 2.0 * MESH_PI * i / nu;
+        double u = 2.0 * FORMULA_PI_D * i / nu;
         dvec3 radial = dv3(cos(u), 0, sin(u));
         for (int j = 0; j < nv; j++) {
-            double v = 2.0 * MESH_PI * j / nv;
+            double v = 2.0 * FORMULA_PI_D * j / nv;
             dvec3 n = dv3_add(dv3_scale(radial, cos(v)), dv3(0, sin(v), 0));
             mesh_vert(b, dv3_add(dv3_scale(radial, big), dv3_scale(n, r)), n);
         }

@@ -8,9 +8,10 @@
 #include <string.h>
 
 #include "scene.h"
+#include "formula.h"
 
 /* Degrees to radians for the few defaults that are angles. */
-static float scene_deg(double d) { return (float)(d * 3.14159265358979323846 / 180.0); }
+static float scene_deg(double d) { return (float)(d * FORMULA_PI_D / 180.0); }
 
 void light_init(light *l)
 {

@@ -15,12 +15,12 @@
 
 #include <cJSON.h>
 
+#include "formula.h"
 #include "d3d9client.h"
 #include "exr.h"
 #include "fileio.h"
 #include "runner.h"
 
-#define CYCLES_PI 3.14159265358979323846
 
 
 /* ------------------------------------------------------------------ JSON writing */
@@ -162,7 +162,7 @@ static rc_status cycles_check_light(cycles_ctx *c, int i)
                        c->s->path, i);
             return RC_ERR_RANGE;
         }
-        if (!(l->outer > 0.0f && l->outer <= (float)CYCLES_PI && l->inner >= 0.0f && l->inner <= l->outer)) {
+        if (!(l->outer > 0.0f && l->outer <= (float)FORMULA_PI_D && l->inner >= 0.0f && l->inner <= l->outer)) {
             status_message(c->err, c->errlen,
                        "%s: lights[%d]: spot cones need 0 <= inner <= outer <= 180 degrees, outer > 0", c->s->path, i);
             return RC_ERR_RANGE;
@@ -191,7 +191,7 @@ static void cycles_write_light(jw *w, const light *l)
         /* Point energy P [W] radiates P / (4 pi) W/sr; spots keep the point's intensity. */
         jw_str(w, l->kind == LIGHT_SPOT ? "SPOT" : "POINT");
         fputs(", \"energy\": ", fp);
-        jw_num(w, "lights.energy", 4.0 * CYCLES_PI * (double)mx * inv_a2);
+        jw_num(w, "lights.energy", 4.0 * FORMULA_PI_D * (double)mx * inv_a2);
         fputs(", \"position\": ", fp);
         jw_vec(w, "lights.position", l->position);
     }

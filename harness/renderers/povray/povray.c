@@ -20,10 +20,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "formula.h"
 #include "exr.h"
 #include "runner.h"
 
-#define POVRAY_PI 3.14159265358979323846
 
 
 /* ---- resolved options ---------------------------------------------------------------- */
@@ -163,13 +163,13 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
     /* POV-Ray's falloff is a half angle, which must stay below 90 degrees. */
     if (!povray_finite3(l->intensity) || !povray_finite3(l->position) ||
         !povray_finite3(l->direction) || (needs_dir && v3_len(l->direction) == 0.0f) ||
-        (l->kind == LIGHT_SPOT && !(l->inner >= 0.0f && l->inner <= l->outer && (double)l->outer < POVRAY_PI))) {
+        (l->kind == LIGHT_SPOT && !(l->inner >= 0.0f && l->inner <= l->outer && (double)l->outer < FORMULA_PI_D))) {
         status_message(err, errlen,
                    "%s: lights[%d]: intensity/position/direction must be finite, a sun or spot "
                    "direction non-zero, and a spot's 0 <= inner <= outer < 180 degrees", s->path, i);
         return RC_ERR_RANGE;
     }
-    dvec3 c = dv3_scale(dv3_from(l->intensity), r->scale / POVRAY_PI);
+    dvec3 c = dv3_scale(dv3_from(l->intensity), r->scale / FORMULA_PI_D);
     if (l->kind == LIGHT_SUN) {
         pl->colour = c;
         pl->constant_atten = 1;
@@ -444,7 +444,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     if (st != RC_OK)
         return st;
     /* A perspective angle must stay below 180 degrees (tan(hfov/2) finite). */
-    if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < POVRAY_PI) ||
+    if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < FORMULA_PI_D) ||
         !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) ||
         !povray_finite3(s->camera.up)) {
         status_message(err, errlen, "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
@@ -518,7 +518,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     povray_put_fvec(fp, s->camera.eye);
     fprintf(fp, "\n  right -x*%.9g\n  up y\n  sky ", (double)s->width / (double)s->height);
     povray_put_fvec(fp, s->camera.up);
-    fprintf(fp, "\n  angle %.9g\n  look_at ", (double)s->camera.hfov * 180.0 / POVRAY_PI);
+    fprintf(fp, "\n  angle %.9g\n  look_at ", (double)s->camera.hfov * 180.0 / FORMULA_PI_D);
     povray_put_fvec(fp, s->camera.target);
     fprintf(fp, "\n}\n\n");
 
@@ -565,7 +565,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             if (l->kind == LIGHT_SPOT) {
                 /* POV-Ray's radius/falloff are half angles; tightness 1 = the extra cos. */
                 fprintf(fp, "  spotlight\n  radius %.9g\n  falloff %.9g\n  tightness 1\n  point_at ",
-                        (double)l->inner * 90.0 / POVRAY_PI, (double)l->outer * 90.0 / POVRAY_PI);
+                        (double)l->inner * 90.0 / FORMULA_PI_D, (double)l->outer * 90.0 / FORMULA_PI_D);
                 povray_put_vec(fp, dv3_add(dv3_from(l->position), dir));
                 fprintf(fp, "\n");
             }
