@@ -16,7 +16,7 @@
  * file (/dev/full, a FIFO, a directory) is refused with RC_ERR_RANGE before anything is written.
  * exr_read reads regular files only (a device, FIFO or directory: RC_ERR_RANGE, at once, never
  * blocking) and refuses a header whose float planes (width x height x channels x 4 bytes)
- * exceed the memory limit (harness/fileio.h: half the physical memory or REFLCHECK_MEMORY_LIMIT).
+ * exceed the memory limit (model/fileio.h: half the physical memory or REFLCHECK_MEMORY_LIMIT).
  */
 #ifndef REFLCHECK_EXR_H
 #define REFLCHECK_EXR_H

@@ -4,7 +4,7 @@
  * and translated by the object's center. Debian 12 ships no C library for OBJ or PLY
  * (tinyobjloader is C++, rply is not packaged), so both readers are here: small, bounds-checked,
  * and reading the whole file into memory first (a regular file of at most FILEIO_MESH_MAX_BYTES,
- * checked before reading: harness/fileio.h).
+ * checked before reading: model/fileio.h).
  *
  * Sphere: UV sphere, `tessellation` segments around Y, tessellation/2 rings, single pole vertices.
  * Quad: two triangles in the object's XZ plane, normal +Y, size.x by size.z.

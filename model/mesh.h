@@ -9,7 +9,7 @@
  * Normals are unit per-vertex shading normals (smooth where the shape is smooth,
  * duplicated vertices along creases). The mesh owns its arrays.
  * Mesh files are read only when they are regular files of at most FILEIO_MESH_MAX_BYTES (1 GiB,
- * harness/fileio.h), checked before reading: a device, FIFO or directory, or a larger file, is
+ * model/fileio.h), checked before reading: a device, FIFO or directory, or a larger file, is
  * RC_ERR_RANGE with its kind or size in the message.
  */
 #ifndef REFLCHECK_MESH_H

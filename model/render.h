@@ -21,7 +21,7 @@
  * Output is bit-identical for any thread count. Returns RC_OK, RC_ERR_RANGE, RC_ERR_NOMEM.
  * Memory: render_scene first estimates what the frame needs (render_memory_estimate: layers,
  * per-thread buffers, mesh, environment, rasterizer bins) and refuses with RC_ERR_RANGE, before
- * allocating, beyond the limit of harness/fileio.h's fileio_memory_limit (half the physical
+ * allocating, beyond the limit of model/fileio.h's fileio_memory_limit (half the physical
  * memory, or REFLCHECK_MEMORY_LIMIT, e.g. 8G); the message gives the estimate and the fix.
  *   double bytes; int layers; render_memory_estimate(&scn, &msh, &env, &o, &bytes, &layers);
  */

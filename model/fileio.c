@@ -208,3 +208,83 @@ int fileio_copy(const char *from, const char *to)
     fclose(in);
     return fileio_temp_finish(out, tmp, target, failed, err, sizeof err) == RC_OK ? 0 : -1;
 }
+
+const char *fileio_kind(mode_t m)
+{
+    if (S_ISDIR(m)) return "a directory";
+    if (S_ISFIFO(m)) return "a FIFO";
+    if (S_ISCHR(m)) return "a character device";
+    if (S_ISBLK(m)) return "a block device";
+    if (S_ISSOCK(m)) return "a socket";
+    return "not a regular file";
+}
+
+rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out,
+                                          long long *size_out, char *err, size_t errlen)
+{
+    *fd_out = -1;
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) {
+        status_message(err, errlen, "%s: cannot open (%s); give a path to %s", path, strerror(errno), what);
+        return RC_ERR_IO;
+    }
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        status_message(err, errlen, "%s: cannot stat (%s); give a path to %s", path, strerror(errno), what);
+        close(fd);
+        return RC_ERR_IO;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        status_message(err, errlen, "%s: not a regular file (%s); give a path to %s", path, fileio_kind(st.st_mode),
+                       what);
+        close(fd);
+        return RC_ERR_RANGE;
+    }
+    if ((long long)st.st_size > max_bytes) {
+        status_message(err, errlen, "%s: %lld bytes is over the limit of %lld bytes; give %s of at most that size",
+                       path, (long long)st.st_size, max_bytes, what);
+        close(fd);
+        return RC_ERR_RANGE;
+    }
+    /* Reads of a regular file never block; clear the flag so they behave as ordinary reads. */
+    int fl = fcntl(fd, F_GETFL);
+    if (fl != -1)
+        fcntl(fd, F_SETFL, fl & ~O_NONBLOCK);
+    *fd_out = fd;
+    if (size_out != NULL)
+        *size_out = (long long)st.st_size;
+    return RC_OK;
+}
+
+rc_status fileio_memory_limit(size_t *bytes, char *err, size_t errlen)
+{
+    const char *v = getenv("REFLCHECK_MEMORY_LIMIT");
+    if (v != NULL && v[0] != '\0') {
+        char *end;
+        errno = 0;
+        unsigned long long n = strtoull(v, &end, 10);
+        int shift = 0;
+        switch (*end) {
+        case 'k': case 'K': shift = 10; end++; break;
+        case 'm': case 'M': shift = 20; end++; break;
+        case 'g': case 'G': shift = 30; end++; break;
+        case 't': case 'T': shift = 40; end++; break;
+        default: break;
+        }
+        if (errno != 0 || end == v || *end != '\0' || v[0] == '-' || n == 0 || n > (SIZE_MAX >> shift)) {
+            status_message(err, errlen, "REFLCHECK_MEMORY_LIMIT='%s': expected a positive number of bytes with an "
+                           "optional K, M, G or T suffix, e.g. 8G; fix or unset it", v);
+            return RC_ERR_RANGE;
+        }
+        *bytes = (size_t)n << shift;
+        return RC_OK;
+    }
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    /* Half the machine: the other half stays for the system, the page cache and the second
+     * job the nightly runs beside this one (make -j2). */
+    if (pages <= 0 || page <= 0)
+        *bytes = FILEIO_MEMORY_FALLBACK;
+    else
+        *bytes = (size_t)pages / 2 * (size_t)page;
+    return RC_OK;
+}
