@@ -19,6 +19,8 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "procs.h"
+
 #include <cJSON.h>
 
 #include "cli_exec.h"
@@ -433,50 +435,6 @@ static void test_two_runs_share_a_cache(void **state)
     assert_true(files_equal(a, b));
 }
 
-/* 1 while pid exists and is not a zombie (a zombie has ended). */
-static int alive(pid_t pid)
-{
-    char p[64], buf[512];
-    snprintf(p, sizeof p, "/proc/%ld/stat", (long)pid);
-    FILE *f = fopen(p, "r");
-    if (f == NULL)
-        return 0;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = '\0';
-    const char *close_paren = strrchr(buf, ')');
-    return close_paren != NULL && close_paren[1] == ' ' && close_paren[2] != 'Z';
-}
-
-static void nap_10ms(void)
-{
-    struct timespec t = {0, 10 * 1000 * 1000};
-    nanosleep(&t, NULL);
-}
-
-/* Waits up to 20 s (generous: the grace after SIGTERM is 2 s) for pid to end. */
-static int gone_within(pid_t pid)
-{
-    for (int i = 0; i < 2000 && alive(pid); i++)
-        nap_10ms();
-    return !alive(pid);
-}
-
-static pid_t read_pid(const char *path)
-{
-    for (int i = 0; i < 3000; i++) {
-        FILE *f = fopen(path, "r");
-        long v = 0;
-        int got = f != NULL && fscanf(f, "%ld", &v) == 1;
-        if (f != NULL)
-            fclose(f);
-        if (got && v > 0)
-            return (pid_t)v;
-        nap_10ms();
-    }
-    return -1;
-}
-
 /* Starts `reflcheck run` on the tiny scene with a POV-Ray that writes its pid and sleeps, kills
  * the run with sig once the renderer is up, and checks the renderer is gone. Then a second run
  * on the same cache is not blocked by the killed run's lock and leaves no work folder. */
@@ -526,14 +484,14 @@ static void kill_run(int sig, int cached)
               cached ? "--cache" : "--no-cache", cached ? cache : NULL, (char *)NULL);
         _exit(127);
     }
-    pid_t renderer = read_pid(pidfile);
+    pid_t renderer = proc_read_pid(pidfile);
     assert_true(renderer > 0);
     kill(run, sig);
     int st;
     assert_int_equal(waitpid(run, &st, 0), run);
     assert_true(WIFSIGNALED(st));
     assert_int_equal(WTERMSIG(st), sig);
-    int gone = gone_within(renderer);
+    int gone = proc_gone_within(renderer);
     if (!gone)
         kill(renderer, SIGKILL);
     assert_true(gone);

@@ -14,6 +14,8 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "procs.h"
+
 #include "runner.h"
 
 static void test_ok_and_log(void **state)
@@ -126,48 +128,6 @@ static void test_which(void **state)
     assert_string_equal(path, "");
 }
 
-/* 1 while pid exists and is not a zombie (a zombie has ended; only its parent's wait is due). */
-static int alive(pid_t pid)
-{
-    char p[64], buf[512];
-    snprintf(p, sizeof p, "/proc/%ld/stat", (long)pid);
-    FILE *f = fopen(p, "r");
-    if (f == NULL)
-        return 0;
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    fclose(f);
-    buf[n] = '\0';
-    const char *close_paren = strrchr(buf, ')');
-    return close_paren != NULL && close_paren[1] == ' ' && close_paren[2] != 'Z';
-}
-
-/* Waits up to 20 s (generous: the grace is 2 s) for pid to end. */
-static int gone_within(pid_t pid)
-{
-    for (int i = 0; i < 2000 && alive(pid); i++) {
-        struct timespec nap = {0, 10 * 1000 * 1000};
-        nanosleep(&nap, NULL);
-    }
-    return !alive(pid);
-}
-
-/* Reads a pid a child wrote; waits up to 20 s for the file. */
-static pid_t read_pid(const char *path)
-{
-    for (int i = 0; i < 2000; i++) {
-        FILE *f = fopen(path, "r");
-        long v = 0;
-        int got = f != NULL && fscanf(f, "%ld", &v) == 1;
-        if (f != NULL)
-            fclose(f);
-        if (got && v > 0)
-            return (pid_t)v;
-        struct timespec nap = {0, 10 * 1000 * 1000};
-        nanosleep(&nap, NULL);
-    }
-    return -1;
-}
-
 /* A process of ours that waits in runner_exec on a renderer (and a grandchild it started), to
  * be killed with sig: afterwards neither renderer process may be left. */
 static void kill_waiting_parent(int sig, int *parent_status, pid_t *renderer, pid_t *grandchild)
@@ -186,8 +146,8 @@ static void kill_waiting_parent(int sig, int *parent_status, pid_t *renderer, pi
         runner_exec(argv, 120.0, NULL, &r);
         _exit(0);
     }
-    *renderer = read_pid(a);
-    *grandchild = read_pid(b);
+    *renderer = proc_read_pid(a);
+    *grandchild = proc_read_pid(b);
     assert_true(*renderer > 0 && *grandchild > 0);
     kill(parent, sig);
     assert_int_equal(waitpid(parent, parent_status, 0), parent);
@@ -204,8 +164,8 @@ static void test_sigterm_is_forwarded_to_the_group(void **state)
     /* The parent still ends by the signal it got, after taking the renderer's group with it. */
     assert_true(WIFSIGNALED(st));
     assert_int_equal(WTERMSIG(st), SIGTERM);
-    assert_true(gone_within(renderer));
-    assert_true(gone_within(grandchild));
+    assert_true(proc_gone_within(renderer));
+    assert_true(proc_gone_within(grandchild));
 }
 
 static void test_sigkill_takes_the_renderer(void **state)
@@ -216,7 +176,7 @@ static void test_sigkill_takes_the_renderer(void **state)
     kill_waiting_parent(SIGKILL, &st, &renderer, &grandchild);
     assert_true(WIFSIGNALED(st));
     /* PR_SET_PDEATHSIG: the renderer itself dies with us; its own children are out of reach. */
-    assert_true(gone_within(renderer));
+    assert_true(proc_gone_within(renderer));
     kill(grandchild, SIGKILL);
 }
 
