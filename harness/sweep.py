@@ -106,11 +106,11 @@ BUDGETS_S = (1.0, 10.0, 100.0)
 
 # ---------------------------------------------------------------------------------- maths
 
+
 def fit_loglog(xs, ys):
     """Least squares of ln y on ln x over the points with x, y > 0.
     Returns {"slope", "intercept", "r2", "n"} or None with fewer than 2 distinct x."""
-    pts = [(math.log(x), math.log(y)) for x, y in zip(xs, ys)
-           if x is not None and y is not None and x > 0 and y > 0]
+    pts = [(math.log(x), math.log(y)) for x, y in zip(xs, ys) if x is not None and y is not None and x > 0 and y > 0]
     if len({p[0] for p in pts}) < 2:
         return None
     n = len(pts)
@@ -139,8 +139,11 @@ def fit_solve(fit, y):
 def local_slopes(xs, ys):
     """Slope of ln y on ln x between consecutive points (sorted by x): where a fit bends."""
     pts = sorted((x, y) for x, y in zip(xs, ys) if x and y and x > 0 and y > 0)
-    return [{'from': a[0], 'to': b[0], 'slope': math.log(b[1] / a[1]) / math.log(b[0] / a[0])}
-            for a, b in zip(pts, pts[1:]) if b[0] != a[0]]
+    return [
+        {'from': a[0], 'to': b[0], 'slope': math.log(b[1] / a[1]) / math.log(b[0] / a[0])}
+        for a, b in zip(pts, pts[1:])
+        if b[0] != a[0]
+    ]
 
 
 def fit_linear(xs, ys):
@@ -170,8 +173,7 @@ def pareto(points):
 
 def best_within(points, budget):
     """The lowest-error point whose time is within budget, or None."""
-    ok = [p for p in points if p.get('time_s') is not None and p.get('error') is not None
-          and p['time_s'] <= budget]
+    ok = [p for p in points if p.get('time_s') is not None and p.get('error') is not None and p['time_s'] <= budget]
     return min(ok, key=lambda p: (p['error'], p['time_s'])) if ok else None
 
 
@@ -219,9 +221,14 @@ def crossover(fit_spp, levels, render_levels, fit_time, raster_error):
     if spp is None:
         return None
     ns = [n for n, _ in levels]
-    out = {'raster_error': raster_error, 'spp': spp, 'time_s': interp_time(levels, spp),
-           'render_s': interp_time(render_levels, spp), 'loglog_time_s': fit_solve(fit_time, raster_error),
-           'extrapolated': None}
+    out = {
+        'raster_error': raster_error,
+        'spp': spp,
+        'time_s': interp_time(levels, spp),
+        'render_s': interp_time(render_levels, spp),
+        'loglog_time_s': fit_solve(fit_time, raster_error),
+        'extrapolated': None,
+    }
     if ns and spp < min(ns):
         # Under the fewest samples the answer is mostly Blender's start-up; the honest statement
         # is a bound: the lowest level measured already beats the raster.
@@ -237,18 +244,23 @@ def slope_note(fit_spp, local):
     if fit_spp is None:
         return 'no fit (fewer than two spp levels measured)'
     s = fit_spp['slope']
-    off = [f"{int(l['from'])}->{int(l['to'])} spp: {l['slope']:.2f}" for l in local
-           if abs(l['slope'] + 0.5) > SLOPE_TOL]
+    off = [
+        f"{int(l['from'])}->{int(l['to'])} spp: {l['slope']:.2f}" for l in local if abs(l['slope'] + 0.5) > SLOPE_TOL
+    ]
     if abs(s + 0.5) <= SLOPE_TOL and not off:
         return f'spp^{s:.2f}: the Monte Carlo rate -0.5 throughout'
-    why = ('faster than -0.5: stratified (PMJ) samples on a smooth integrand converge faster'
-           if s < -0.5 - SLOPE_TOL else
-           'slower than -0.5: a floor (reference noise, clamping or bias) or rare bright paths'
-           if s > -0.5 + SLOPE_TOL else 'overall -0.5')
+    why = (
+        'faster than -0.5: stratified (PMJ) samples on a smooth integrand converge faster'
+        if s < -0.5 - SLOPE_TOL
+        else 'slower than -0.5: a floor (reference noise, clamping or bias) or rare bright paths'
+        if s > -0.5 + SLOPE_TOL
+        else 'overall -0.5'
+    )
     return f'spp^{s:.2f} ({why})' + (f'; off -0.5 at {", ".join(off)}' if off else '')
 
 
 # ---------------------------------------------------------------------------------- scenes
+
 
 def scene_name(path):
     with open(path, encoding='utf-8') as f:
@@ -268,8 +280,9 @@ MODEL = None
 def renderer_table(bin_path):
     """The renderer table as the CLI lists it: name -> row (model, stochastic, program, ...).
     The sweep keeps no renderer list of its own."""
-    out = subprocess.run([bin_path, 'renderers', '--json'], capture_output=True, text=True, check=True,
-                         timeout=30).stdout
+    out = subprocess.run(
+        [bin_path, 'renderers', '--json'], capture_output=True, text=True, check=True, timeout=30
+    ).stdout
     return {r['name']: r for r in json.loads(out)}
 
 
@@ -284,8 +297,11 @@ def lists_cycles(path, role):
         return False
     for item in re.split(r'\n\s*-\s', '\n' + m.group(1)):
         test = re.search(r'\btest:\s*([A-Za-z0-9_-]+)', item)
-        if re.search(r'\breference:\s*cycles\b', item) and re.search(r'\brole:\s*' + role + r'\b', item) \
-                and (test is None or test.group(1) == MODEL):
+        if (
+            re.search(r'\breference:\s*cycles\b', item)
+            and re.search(r'\brole:\s*' + role + r'\b', item)
+            and (test is None or test.group(1) == MODEL)
+        ):
             return True
     return False
 
@@ -306,6 +322,7 @@ def sweep_role(path):
 
 # ---------------------------------------------------------------------------------- jobs
 
+
 class Runner:
     def __init__(self, args):
         self.bin = args.bin
@@ -314,7 +331,7 @@ class Runner:
         self.small = not args.full_size
         self.renders = os.path.join(args.run, 'timing', 'renders')
         self.seed_opt = self.cli_has_seed()
-        self.roles = {}   # scene name -> 'validate' or 'twin' (sweep_role)
+        self.roles = {}  # scene name -> 'validate' or 'twin' (sweep_role)
 
     def cli_has_seed(self):
         """`reflcheck run --seed N` (first Cycles seed): lets sweep points avoid the reference's
@@ -331,9 +348,25 @@ class Runner:
 
     def run(self, scene_path, scene, renderer, tag, opts, repeats=1):
         """One job; returns the record dict (with 'wall_s' the fastest of the repeats)."""
-        cmd = [self.bin, 'run', scene_path, '--renderer', renderer, '--role', self.roles.get(scene, 'validate'),
-               '--out', self.renders,
-               '--tag', tag, '--threads', str(self.threads)] + (['--small'] if self.small else []) + opts
+        cmd = (
+            [
+                self.bin,
+                'run',
+                scene_path,
+                '--renderer',
+                renderer,
+                '--role',
+                self.roles.get(scene, 'validate'),
+                '--out',
+                self.renders,
+                '--tag',
+                tag,
+                '--threads',
+                str(self.threads),
+            ]
+            + (['--small'] if self.small else [])
+            + opts
+        )
         cmd += ['--no-cache'] if repeats > 1 else ['--cache', self.cache]
         best, t0 = None, time.monotonic()
         for _ in range(repeats):
@@ -343,11 +376,15 @@ class Runner:
                 with open(rec_path, encoding='utf-8') as f:
                     rec = json.load(f)
             except (OSError, ValueError):
-                rec = {'status': 'error', 'message': (r.stderr.strip() or r.stdout.strip() or
-                                                      f'no record {rec_path}').splitlines()[-1]}
+                rec = {
+                    'status': 'error',
+                    'message': (r.stderr.strip() or r.stdout.strip() or f'no record {rec_path}').splitlines()[-1],
+                }
             if r.returncode != 0 and rec.get('status') == 'ok':
-                rec = {'status': 'error', 'message': r.stderr.strip().splitlines()[-1] if r.stderr.strip() else
-                       f'exit {r.returncode}'}
+                rec = {
+                    'status': 'error',
+                    'message': r.stderr.strip().splitlines()[-1] if r.stderr.strip() else f'exit {r.returncode}',
+                }
             if rec.get('status') != 'ok':
                 best = rec
                 break
@@ -360,8 +397,7 @@ class Runner:
         return best
 
     def diff(self, test, ref, mask):
-        r = subprocess.run([self.bin, 'diff', test, ref, '--mask', mask], capture_output=True, text=True,
-                           timeout=300)
+        r = subprocess.run([self.bin, 'diff', test, ref, '--mask', mask], capture_output=True, text=True, timeout=300)
         if r.returncode != 0:
             raise RuntimeError(f'reflcheck diff {test} {ref}: ' + (r.stderr.strip().splitlines() or ['failed'])[-1])
         return json.loads(r.stdout)
@@ -401,38 +437,101 @@ def make_zero(like, path):
     exe = shutil.which('oiiotool')
     if not exe:
         return None
-    r = subprocess.run([exe, like, '--ch', 'R,G,B', '--mulc', '0', '-o', path], capture_output=True, text=True,
-                       timeout=120)
+    r = subprocess.run(
+        [exe, like, '--ch', 'R,G,B', '--mulc', '0', '-o', path], capture_output=True, text=True, timeout=120
+    )
     return path if r.returncode == 0 and os.path.exists(path) else None
 
 
 # ---------------------------------------------------------------------------------- plan
+
 
 def plan(quick, seed_opt):
     """The jobs of one scene: (key, renderer, tag, options, repeats, series labels, knob value)."""
     spp = QUICK_SPP if quick else CYCLES_SPP
     ref = QUICK_REF if quick else REF_SPP
     ks, tess, pov = (QUICK_K, QUICK_TESS, QUICK_POV) if quick else (RASTER_K, RASTER_TESS, POV_K)
-    jobs = [dict(key='reference', renderer='cycles', tag=f'cycles-spp{ref}', label=f'{ref} spp (reference)',
-                 opts=['--samples', str(ref), '--seeds', str(SEEDS)], series='cycles spp', samples=ref)]
+    jobs = [
+        dict(
+            key='reference',
+            renderer='cycles',
+            tag=f'cycles-spp{ref}',
+            label=f'{ref} spp (reference)',
+            opts=['--samples', str(ref), '--seeds', str(SEEDS)],
+            series='cycles spp',
+            samples=ref,
+        )
+    ]
     for n in spp:
         extra = ['--seed', str(SEEDS)] if seed_opt else []
-        jobs.append(dict(key=f'cycles{n}', renderer='cycles', tag=f'cycles-spp{n}' + ('-s2' if seed_opt else ''),
-                         label=f'{n} spp', opts=['--samples', str(n), '--seeds', str(SEEDS)] + extra,
-                         series='cycles spp', samples=n))
-    jobs.append(dict(key='as_is', renderer='raster', tag='raster-as-is', label='as-is', opts=[],
-                     series='raster shading', repeats=RASTER_REPEATS))
-    jobs.append(dict(key='per_vertex', renderer='raster', tag='raster-per-vertex', label='per-vertex',
-                     opts=['--per-vertex'], series='raster shading', repeats=RASTER_REPEATS))
+        jobs.append(
+            dict(
+                key=f'cycles{n}',
+                renderer='cycles',
+                tag=f'cycles-spp{n}' + ('-s2' if seed_opt else ''),
+                label=f'{n} spp',
+                opts=['--samples', str(n), '--seeds', str(SEEDS)] + extra,
+                series='cycles spp',
+                samples=n,
+            )
+        )
+    jobs.append(
+        dict(
+            key='as_is',
+            renderer='raster',
+            tag='raster-as-is',
+            label='as-is',
+            opts=[],
+            series='raster shading',
+            repeats=RASTER_REPEATS,
+        )
+    )
+    jobs.append(
+        dict(
+            key='per_vertex',
+            renderer='raster',
+            tag='raster-per-vertex',
+            label='per-vertex',
+            opts=['--per-vertex'],
+            series='raster shading',
+            repeats=RASTER_REPEATS,
+        )
+    )
     for k in ks:
-        jobs.append(dict(key=f'rk{k}', renderer='raster', tag=f'raster-k{k}', label=f'k={k}',
-                         opts=['--supersample', str(k)], series='raster k', repeats=RASTER_REPEATS))
+        jobs.append(
+            dict(
+                key=f'rk{k}',
+                renderer='raster',
+                tag=f'raster-k{k}',
+                label=f'k={k}',
+                opts=['--supersample', str(k)],
+                series='raster k',
+                repeats=RASTER_REPEATS,
+            )
+        )
     for t in tess:
-        jobs.append(dict(key=f'rt{t}', renderer='raster', tag=f'raster-t{t}', label=f'tess={t}',
-                         opts=['--tessellation', str(t)], series='raster tessellation', repeats=RASTER_REPEATS))
+        jobs.append(
+            dict(
+                key=f'rt{t}',
+                renderer='raster',
+                tag=f'raster-t{t}',
+                label=f'tess={t}',
+                opts=['--tessellation', str(t)],
+                series='raster tessellation',
+                repeats=RASTER_REPEATS,
+            )
+        )
     for k in pov:
-        jobs.append(dict(key=f'pk{k}', renderer='povray', tag=f'povray-k{k}', label=f'k={k}',
-                         opts=['--supersample', str(k)], series='povray k'))
+        jobs.append(
+            dict(
+                key=f'pk{k}',
+                renderer='povray',
+                tag=f'povray-k{k}',
+                label=f'k={k}',
+                opts=['--supersample', str(k)],
+                series='povray k',
+            )
+        )
     return jobs, ref
 
 
@@ -445,16 +544,32 @@ def expected_cost(job):
 
 # ---------------------------------------------------------------------------------- analysis
 
+
 def point_of(job, rec, d, noise, err, clock='wall_s'):
     s = (d or {}).get('surface') or {}
-    return {'label': job['label'], 'renderer': job['renderer'], 'tag': job['tag'],
-            'time_s': rec.get(clock), 'wall_s': rec.get('wall_s'), 'cpu_s': rec.get('cpu_s'),
-            'render_s': rec.get('render_s'),
-            'samples': rec.get('samples'), 'seeds': rec.get('seeds'), 'supersample': rec.get('supersample'),
-            'tessellation': rec.get('tessellation'), 'per_vertex': rec.get('per_vertex'),
-            'cached': rec.get('cached'), 'rmse': s.get('rmse'), 'nrmse': s.get('nrmse'),
-            'rel_rms': s.get('rel_rms'), 'psnr': s.get('psnr'), 'ssim': s.get('ssim'),
-            'error': err, 'noise_nrmse': noise, 'is_reference': job['key'] == 'reference'}
+    return {
+        'label': job['label'],
+        'renderer': job['renderer'],
+        'tag': job['tag'],
+        'time_s': rec.get(clock),
+        'wall_s': rec.get('wall_s'),
+        'cpu_s': rec.get('cpu_s'),
+        'render_s': rec.get('render_s'),
+        'samples': rec.get('samples'),
+        'seeds': rec.get('seeds'),
+        'supersample': rec.get('supersample'),
+        'tessellation': rec.get('tessellation'),
+        'per_vertex': rec.get('per_vertex'),
+        'cached': rec.get('cached'),
+        'rmse': s.get('rmse'),
+        'nrmse': s.get('nrmse'),
+        'rel_rms': s.get('rel_rms'),
+        'psnr': s.get('psnr'),
+        'ssim': s.get('ssim'),
+        'error': err,
+        'noise_nrmse': noise,
+        'is_reference': job['key'] == 'reference',
+    }
 
 
 def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate'):
@@ -464,8 +579,12 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
     for job in jobs:
         rec = recs[job['key']]
         if rec.get('status') != 'ok' or job['key'] not in diffs:
-            skipped.append({'label': f"{job['series']} {job['label']}",
-                            'message': rec.get('message') or diffs.get(job['key'] + ':err', 'no diff')})
+            skipped.append(
+                {
+                    'label': f"{job['series']} {job['label']}",
+                    'message': rec.get('message') or diffs.get(job['key'] + ':err', 'no diff'),
+                }
+            )
             continue
         nr = diffs[job['key']]['surface'].get('nrmse')
         if job['key'] == 'reference':
@@ -475,12 +594,21 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
         else:
             err = independent_error(nr, noise_ref)
         p = point_of(job, rec, diffs[job['key']], noises.get(job['key']), err, clock)
-        series.setdefault(job['series'], {'label': job['series'], 'renderer': job['renderer'],
-                                          'knob': {'cycles spp': 'samples', 'raster k': 'supersample',
-                                                   'povray k': 'supersample',
-                                                   'raster tessellation': 'tessellation',
-                                                   'raster shading': 'per_vertex'}[job['series']],
-                                          'points': []})['points'].append(p)
+        series.setdefault(
+            job['series'],
+            {
+                'label': job['series'],
+                'renderer': job['renderer'],
+                'knob': {
+                    'cycles spp': 'samples',
+                    'raster k': 'supersample',
+                    'povray k': 'supersample',
+                    'raster tessellation': 'tessellation',
+                    'raster shading': 'per_vertex',
+                }[job['series']],
+                'points': [],
+            },
+        )['points'].append(p)
         all_pts.append(p)
     # The as-is raster point is also the k = (small default) point of the k series.
     as_is = next((p for p in all_pts if p['tag'] == 'raster-as-is'), None)
@@ -509,9 +637,16 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
             every = sr['points']
             lin = fit_linear([p['samples'] for p in every], [p['time_s'] for p in every])
             rlin = fit_linear([p['samples'] for p in every], [p['render_s'] for p in every])
-            sr['time_model'] = None if lin is None else {
-                't0_s': lin[0], 's_per_spp': lin[1],
-                'render_t0_s': rlin[0] if rlin else None, 'render_s_per_spp': rlin[1] if rlin else None}
+            sr['time_model'] = (
+                None
+                if lin is None
+                else {
+                    't0_s': lin[0],
+                    's_per_spp': lin[1],
+                    'render_t0_s': rlin[0] if rlin else None,
+                    'render_s_per_spp': rlin[1] if rlin else None,
+                }
+            )
         out_series.append(sr)
 
     front = pareto(all_pts)
@@ -520,7 +655,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
     equal = []
     for name, b in budgets:
         best = {}
-        for r in dict.fromkeys(j['renderer'] for j in jobs):   # the plan's renderers, in order
+        for r in dict.fromkeys(j['renderer'] for j in jobs):  # the plan's renderers, in order
             p = best_within([q for q in all_pts if q['renderer'] == r], b)
             best[r] = None if p is None else {'label': p['label'], 'time_s': p['time_s'], 'error': p['error']}
         fe = None
@@ -543,28 +678,53 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
                 cross_best['raster_label'] = b['label']
     for c in (cross, cross_best):
         if c:
-            c['note'] = {None: 'interpolated between measured spp levels',
-                         'below': 'below the fewest samples measured: Cycles at its lowest level is already '
-                                  'closer to the reference than the raster',
-                         'above': 'beyond the most samples measured: extrapolated on the fit'}[c['extrapolated']]
-    return {'format': FORMAT, 'scene': scene, 'size': size, 'error_key': 'error', 'clock': clock,
-            'error_doc': 'estimated NRMSE (surface RMSE over the reference mean) against the noise-free '
-                         'image: the measured NRMSE against the reference with the reference noise taken '
-                         'out (see harness/sweep.py)',
-            'reference': {'renderer': 'cycles', 'role': role, 'samples': ref_spp,
-                          'seeds': list(range(SEEDS)), 'noise_nrmse': noise_ref, 'nested': nested,
-                          'note': ('sweep points use seeds 0..1 too: they are the first n samples of the '
-                                   'reference (PMJ is nested); error corrects the measured NRMSE by '
-                                   '1/sqrt(1 - n/N)') if nested else
-                                  ('sweep points use seeds 2..3, disjoint from the reference\'s; error takes '
-                                   'the reference noise out in quadrature')},
-            'series': out_series, 'as_is': as_is,
-            'pareto': [{'label': p['label'], 'renderer': p['renderer'], 'time_s': p['time_s'], 'error': p['error']}
-                       for p in front],
-            'equal_time': equal, 'crossover': cross, 'crossover_best_raster': cross_best, 'skipped': skipped}
+            c['note'] = {
+                None: 'interpolated between measured spp levels',
+                'below': 'below the fewest samples measured: Cycles at its lowest level is already '
+                'closer to the reference than the raster',
+                'above': 'beyond the most samples measured: extrapolated on the fit',
+            }[c['extrapolated']]
+    return {
+        'format': FORMAT,
+        'scene': scene,
+        'size': size,
+        'error_key': 'error',
+        'clock': clock,
+        'error_doc': 'estimated NRMSE (surface RMSE over the reference mean) against the noise-free '
+        'image: the measured NRMSE against the reference with the reference noise taken '
+        'out (see harness/sweep.py)',
+        'reference': {
+            'renderer': 'cycles',
+            'role': role,
+            'samples': ref_spp,
+            'seeds': list(range(SEEDS)),
+            'noise_nrmse': noise_ref,
+            'nested': nested,
+            'note': (
+                'sweep points use seeds 0..1 too: they are the first n samples of the '
+                'reference (PMJ is nested); error corrects the measured NRMSE by '
+                '1/sqrt(1 - n/N)'
+            )
+            if nested
+            else (
+                'sweep points use seeds 2..3, disjoint from the reference\'s; error takes '
+                'the reference noise out in quadrature'
+            ),
+        },
+        'series': out_series,
+        'as_is': as_is,
+        'pareto': [
+            {'label': p['label'], 'renderer': p['renderer'], 'time_s': p['time_s'], 'error': p['error']} for p in front
+        ],
+        'equal_time': equal,
+        'crossover': cross,
+        'crossover_best_raster': cross_best,
+        'skipped': skipped,
+    }
 
 
 # ---------------------------------------------------------------------------------- main
+
 
 def write_json(path, obj):
     os.makedirs(os.path.dirname(path), exist_ok=True)
@@ -588,17 +748,24 @@ def clean_nan(o):
 def main(argv=None):
     ap = argparse.ArgumentParser(description='error against render time for every renderer knob (see the docstring)')
     ap.add_argument('--run', required=True, help='run folder; writes RUN/timing/<scene>.json')
-    ap.add_argument('--cache', default=os.path.join('reports', 'cache', 'sweep'),
-                    help='job cache (keep it apart from the nightly cache: its records were timed with other threads)')
+    ap.add_argument(
+        '--cache',
+        default=os.path.join('reports', 'cache', 'sweep'),
+        help='job cache (keep it apart from the nightly cache: its records were timed with other threads)',
+    )
     ap.add_argument('--scenes', nargs='*', help='scene files (default: every scene listing cycles validate)')
     ap.add_argument('--quick', action='store_true', help='fewer levels, reference at 1024 spp')
     ap.add_argument('--full-size', action='store_true', help="the scenes' full size instead of the small variant")
     ap.add_argument('--jobs', type=int, default=2, help='jobs at a time (default 2)')
     ap.add_argument('--threads', type=int, default=1, help='threads per job (default 1, for comparable times)')
     ap.add_argument('--bin', default=os.path.join('build', 'reflcheck'))
-    ap.add_argument('--clock', choices=('wall', 'cpu'), default='wall',
-                    help="time_s: the job's wall time (default) or its CPU time (robust when other work "
-                         "shares the cores; equal to wall on an idle core with --threads 1)")
+    ap.add_argument(
+        '--clock',
+        choices=('wall', 'cpu'),
+        default='wall',
+        help="time_s: the job's wall time (default) or its CPU time (robust when other work "
+        "shares the cores; equal to wall on an idle core with --threads 1)",
+    )
     args = ap.parse_args(argv)
     if not os.path.isfile(args.bin) or not os.access(args.bin, os.X_OK):
         print(f'sweep.py: --bin {args.bin}: not an executable; build it with `make build/reflcheck`', file=sys.stderr)
@@ -610,8 +777,9 @@ def main(argv=None):
     try:
         table = renderer_table(args.bin)
     except (OSError, ValueError, subprocess.SubprocessError) as e:
-        print(f'sweep.py: {args.bin} renderers --json: {e}; build a reflcheck that lists its renderers',
-              file=sys.stderr)
+        print(
+            f'sweep.py: {args.bin} renderers --json: {e}; build a reflcheck that lists its renderers', file=sys.stderr
+        )
         return 2
     MODEL = next((n for n, r in table.items() if r.get('model')), None)
     scenes = args.scenes or sorted(os.path.join('scenes', f) for f in os.listdir('scenes') if f.endswith('.yaml'))
@@ -642,8 +810,10 @@ def main(argv=None):
     work.sort(key=lambda w: -expected_cost(w[2]))
     recs = {}
     with cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
-        futs = {ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)):
-                (sp, j['key']) for sp, name, j in work}
+        futs = {
+            ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
+            for sp, name, j in work
+        }
         for f in cf.as_completed(futs):
             sp, key = futs[f]
             try:
@@ -653,18 +823,28 @@ def main(argv=None):
     t_render = time.monotonic() - t_start
 
     rc = 0
-    summary = {'scenes': {}, 'render_wall_s': t_render, 'jobs': len(work),
-               'cached': sum(1 for r in recs.values() if r.get('cached')),
-               'job_time_sum_s': sum(r.get('sweep_elapsed_s') or 0 for r in recs.values()),
-               'threads_per_job': args.threads, 'parallel_jobs': args.jobs, 'quick': args.quick,
-               'size': 'full' if args.full_size else 'small', 'nested_reference': nested}
+    summary = {
+        'scenes': {},
+        'render_wall_s': t_render,
+        'jobs': len(work),
+        'cached': sum(1 for r in recs.values() if r.get('cached')),
+        'job_time_sum_s': sum(r.get('sweep_elapsed_s') or 0 for r in recs.values()),
+        'threads_per_job': args.threads,
+        'parallel_jobs': args.jobs,
+        'quick': args.quick,
+        'size': 'full' if args.full_size else 'small',
+        'nested_reference': nested,
+    }
     for sp in scenes:
         name, jobs, ref_spp = plans[sp]
         r = {j['key']: recs[(sp, j['key'])] for j in jobs}
         if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
             bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
-            print(f'sweep.py: {sp}: the {bad} render failed: {r[bad].get("message")}; see its log under '
-                  f'{runner.renders}/{name}', file=sys.stderr)
+            print(
+                f'sweep.py: {sp}: the {bad} render failed: {r[bad].get("message")}; see its log under '
+                f'{runner.renders}/{name}',
+                file=sys.stderr,
+            )
             rc = 1
             continue
         ref, mask = r['reference']['exr'], r['as_is']['exr']
@@ -680,19 +860,34 @@ def main(argv=None):
             if j['renderer'] == 'cycles':
                 noises[j['key']] = noise_nrmse(runner, r[j['key']]['exr'], mask, zero)
         rec0 = r['as_is']
-        t = analyse(name, jobs, r, diffs, noises, ref_spp, nested, [rec0.get('width'), rec0.get('height')],
-                    args.clock + '_s', runner.roles.get(name, 'validate'))
-        t['sweep'] = {'jobs': len(jobs), 'cached': sum(1 for v in r.values() if v.get('cached')),
-                      'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
-                      'threads_per_job': args.threads}
+        t = analyse(
+            name,
+            jobs,
+            r,
+            diffs,
+            noises,
+            ref_spp,
+            nested,
+            [rec0.get('width'), rec0.get('height')],
+            args.clock + '_s',
+            runner.roles.get(name, 'validate'),
+        )
+        t['sweep'] = {
+            'jobs': len(jobs),
+            'cached': sum(1 for v in r.values() if v.get('cached')),
+            'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
+            'threads_per_job': args.threads,
+        }
         write_json(os.path.join(args.run, 'timing', f'{name}.json'), clean_nan(t))
         summary['scenes'][name] = t['sweep']
         print(one_line(t))
     summary['wall_s'] = time.monotonic() - t_start
     write_json(os.path.join(args.run, 'sweep.json'), clean_nan(summary))
-    print(f"sweep: {len(scenes)} scenes, {summary['jobs']} jobs ({summary['cached']} cached), "
-          f"{summary['wall_s']:.1f} s wall on {args.jobs} workers x {args.threads} thread(s); "
-          f"serial job time {summary['job_time_sum_s']:.1f} s")
+    print(
+        f"sweep: {len(scenes)} scenes, {summary['jobs']} jobs ({summary['cached']} cached), "
+        f"{summary['wall_s']:.1f} s wall on {args.jobs} workers x {args.threads} thread(s); "
+        f"serial job time {summary['job_time_sum_s']:.1f} s"
+    )
     return rc
 
 
@@ -703,10 +898,12 @@ def fmt(v, spec='.3g'):
 def one_line(t):
     cyc = next((s for s in t['series'] if s['label'] == 'cycles spp'), {})
     fs, c = cyc.get('fit_spp'), t.get('crossover')
-    return (f"{t['scene']}: raster as-is error {fmt((t['as_is'] or {}).get('error'))}; cycles slope "
-            f"{fmt(fs and fs['slope'], '.2f')}/spp, {fmt(cyc.get('fit') and cyc['fit']['slope'], '.2f')}/s; "
-            f"crossover {fmt(c and c['spp'], '.3g')} spp = {fmt(c and c['time_s'], '.3g')} s"
-            + (f" ({c['extrapolated']} the measured range)" if c and c['extrapolated'] else ''))
+    return (
+        f"{t['scene']}: raster as-is error {fmt((t['as_is'] or {}).get('error'))}; cycles slope "
+        f"{fmt(fs and fs['slope'], '.2f')}/spp, {fmt(cyc.get('fit') and cyc['fit']['slope'], '.2f')}/s; "
+        f"crossover {fmt(c and c['spp'], '.3g')} spp = {fmt(c and c['time_s'], '.3g')} s"
+        + (f" ({c['extrapolated']} the measured range)" if c and c['extrapolated'] else '')
+    )
 
 
 if __name__ == '__main__':

@@ -18,7 +18,7 @@ import xml.etree.ElementTree as ET
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.dont_write_bytecode = True   # no __pycache__ in the source tree
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 spec = importlib.util.spec_from_file_location('reflcheck_sweep', os.path.join(ROOT, 'harness', 'sweep.py'))
 sweep = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(sweep)
@@ -27,6 +27,7 @@ L2 = math.log(2.0)
 
 
 # ------------------------------------------------------------------------------------ fits
+
 
 def test_fit_exact_power_law():
     # y = 8 x^-0.5 through (1, 8), (4, 4), (16, 2): slope -0.5, intercept ln 8, r2 1
@@ -47,7 +48,7 @@ def test_fit_least_squares_by_hand():
 
 
 def test_fit_ignores_non_positive_and_needs_two_x():
-    f = sweep.fit_loglog([1, 4, 16, 5, None], [8, 4, 2, 0, 3])   # (5, 0) and (None, 3) dropped
+    f = sweep.fit_loglog([1, 4, 16, 5, None], [8, 4, 2, 0, 3])  # (5, 0) and (None, 3) dropped
     assert f['n'] == 3 and f['slope'] == pytest.approx(-0.5)
     assert sweep.fit_loglog([2, 2], [1, 3]) is None
     assert sweep.fit_loglog([2], [1]) is None
@@ -55,10 +56,10 @@ def test_fit_ignores_non_positive_and_needs_two_x():
 
 def test_fit_solve_and_eval():
     f = {'slope': -0.5, 'intercept': math.log(8)}
-    assert sweep.fit_solve(f, 1.0) == pytest.approx(64.0)        # 8 / sqrt(64) = 1
+    assert sweep.fit_solve(f, 1.0) == pytest.approx(64.0)  # 8 / sqrt(64) = 1
     assert sweep.fit_eval(f, 16) == pytest.approx(2.0)
-    assert sweep.fit_solve({'slope': 0.1, 'intercept': 0.0}, 0.5) is None   # rising: never
-    assert sweep.fit_solve({'slope': 0.0, 'intercept': 0.0}, 0.5) is None   # flat: never
+    assert sweep.fit_solve({'slope': 0.1, 'intercept': 0.0}, 0.5) is None  # rising: never
+    assert sweep.fit_solve({'slope': 0.0, 'intercept': 0.0}, 0.5) is None  # flat: never
     assert sweep.fit_solve(None, 0.5) is None
 
 
@@ -79,13 +80,15 @@ def test_fit_linear_by_hand():
 
 # ------------------------------------------------------------------------------------ frontier
 
-PTS = [{'label': 'A', 'time_s': 1.0, 'error': 0.5},
-       {'label': 'B', 'time_s': 2.0, 'error': 0.6},    # slower and worse than A
-       {'label': 'C', 'time_s': 2.0, 'error': 0.3},
-       {'label': 'D', 'time_s': 0.5, 'error': 0.9},
-       {'label': 'E', 'time_s': 3.0, 'error': 0.3},    # same error as C, slower
-       {'label': 'F', 'time_s': 10.0, 'error': 0.01},
-       {'label': 'G', 'time_s': 0.7, 'error': None}]   # no error: never on the frontier
+PTS = [
+    {'label': 'A', 'time_s': 1.0, 'error': 0.5},
+    {'label': 'B', 'time_s': 2.0, 'error': 0.6},  # slower and worse than A
+    {'label': 'C', 'time_s': 2.0, 'error': 0.3},
+    {'label': 'D', 'time_s': 0.5, 'error': 0.9},
+    {'label': 'E', 'time_s': 3.0, 'error': 0.3},  # same error as C, slower
+    {'label': 'F', 'time_s': 10.0, 'error': 0.01},
+    {'label': 'G', 'time_s': 0.7, 'error': None},
+]  # no error: never on the frontier
 
 
 def test_pareto_frontier():
@@ -102,11 +105,12 @@ def test_best_within_budget():
 
 # ------------------------------------------------------------------------------------ noise
 
+
 def test_nested_and_independent_error_by_hand():
     assert sweep.nested_error(0.03, 1024, 4096) == pytest.approx(0.03 / math.sqrt(0.75))
     assert sweep.nested_error(0.03, 4096, 4096) is None
-    assert sweep.independent_error(0.05, 0.03) == pytest.approx(0.04)   # 3-4-5
-    assert sweep.independent_error(0.02, 0.03) is None                   # all reference noise
+    assert sweep.independent_error(0.05, 0.03) == pytest.approx(0.04)  # 3-4-5
+    assert sweep.independent_error(0.02, 0.03) is None  # all reference noise
     assert sweep.independent_error(0.02, None) == 0.02
 
 
@@ -127,15 +131,15 @@ def test_nested_correction_matches_simulation():
 
 # ------------------------------------------------------------------------------------ crossover
 
-LEVELS = [(16, 2.16), (64, 2.64), (256, 4.56), (1024, 12.24)]          # 2 + 0.01 spp
-RENDER = [(16, 0.26), (64, 0.74), (256, 2.66), (1024, 10.34)]          # 0.1 + 0.01 spp
+LEVELS = [(16, 2.16), (64, 2.64), (256, 4.56), (1024, 12.24)]  # 2 + 0.01 spp
+RENDER = [(16, 0.26), (64, 0.74), (256, 2.66), (1024, 10.34)]  # 0.1 + 0.01 spp
 
 
 def test_interp_time():
-    assert sweep.interp_time(LEVELS, 256) == pytest.approx(4.56)       # a level
-    assert sweep.interp_time(LEVELS, 160) == pytest.approx(2.64 + (4.56 - 2.64) * 96 / 192)   # 3.6
-    assert sweep.interp_time(LEVELS, 8) == pytest.approx(2.16)         # below: the first level
-    assert sweep.interp_time(LEVELS, 2048) == pytest.approx(12.24 + 7.68 * 1024 / 768)   # 22.48
+    assert sweep.interp_time(LEVELS, 256) == pytest.approx(4.56)  # a level
+    assert sweep.interp_time(LEVELS, 160) == pytest.approx(2.64 + (4.56 - 2.64) * 96 / 192)  # 3.6
+    assert sweep.interp_time(LEVELS, 8) == pytest.approx(2.16)  # below: the first level
+    assert sweep.interp_time(LEVELS, 2048) == pytest.approx(12.24 + 7.68 * 1024 / 768)  # 22.48
     assert sweep.interp_time([], 5) is None
 
 
@@ -154,11 +158,11 @@ def test_crossover_interpolated():
 
 def test_crossover_out_of_range_and_none():
     fs = {'slope': -0.5, 'intercept': math.log(0.8)}
-    below = sweep.crossover(fs, LEVELS, [], None, 0.5)     # spp 2.56 < 16
+    below = sweep.crossover(fs, LEVELS, [], None, 0.5)  # spp 2.56 < 16
     assert below['spp'] == pytest.approx(2.56) and below['extrapolated'] == 'below'
-    assert below['upper_bound_s'] == pytest.approx(2.16)   # the 16-spp level
+    assert below['upper_bound_s'] == pytest.approx(2.16)  # the 16-spp level
     assert below['render_s'] is None and below['loglog_time_s'] is None
-    above = sweep.crossover(fs, LEVELS, [], None, 0.001)   # spp 640000
+    above = sweep.crossover(fs, LEVELS, [], None, 0.001)  # spp 640000
     assert above['spp'] == pytest.approx(640000.0) and above['extrapolated'] == 'above'
     assert above['time_s'] == pytest.approx(12.24 + 0.01 * (640000 - 1024))
     assert sweep.crossover({'slope': 0.2, 'intercept': 0.0}, LEVELS, [], None, 0.05) is None
@@ -169,8 +173,9 @@ def test_slope_note():
     assert 'Monte Carlo rate' in sweep.slope_note(on, [{'from': 16, 'to': 64, 'slope': -0.55}])
     steep = sweep.slope_note({'slope': -0.96}, [{'from': 16, 'to': 64, 'slope': -0.99}])
     assert 'faster' in steep and '16->64 spp: -0.99' in steep
-    flat = sweep.slope_note({'slope': -0.37}, [{'from': 64, 'to': 256, 'slope': -0.24},
-                                               {'from': 256, 'to': 1024, 'slope': -0.5}])
+    flat = sweep.slope_note(
+        {'slope': -0.37}, [{'from': 64, 'to': 256, 'slope': -0.24}, {'from': 256, 'to': 1024, 'slope': -0.5}]
+    )
     assert 'slower' in flat and '64->256' in flat and '256->1024' not in flat
     # on average -0.5 but bent: still says where
     assert 'off -0.5 at 16->64' in sweep.slope_note(on, [{'from': 16, 'to': 64, 'slope': -0.8}])
@@ -178,16 +183,23 @@ def test_slope_note():
 
 # ------------------------------------------------------------------------------------ scenes
 
+
 def test_lists_cycles_validate(tmp_path):
     yes = tmp_path / 'yes.yaml'
-    yes.write_text('name: yes\ncomparisons:\n  - reference: povray\n    role: twin\n'
-                   '  - reference: cycles\n    role: validate\n    thresholds:\n      nrmse: {warn: 1, fail: 2}\n')
+    yes.write_text(
+        'name: yes\ncomparisons:\n  - reference: povray\n    role: twin\n'
+        '  - reference: cycles\n    role: validate\n    thresholds:\n      nrmse: {warn: 1, fail: 2}\n'
+    )
     agree = tmp_path / 'agree.yaml'
-    agree.write_text('name: agree\ncomparisons:\n  - reference: cycles\n    role: twin\n'
-                     '  - test: povray\n    reference: cycles\n    role: validate\n')
-    mixed = tmp_path / 'mixed.yaml'   # cycles twin + povray validate: no cycles validate item
-    mixed.write_text('name: mixed\ncomparisons:\n  - reference: cycles\n    role: twin\n'
-                     '  - reference: povray\n    role: validate\n')
+    agree.write_text(
+        'name: agree\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+        '  - test: povray\n    reference: cycles\n    role: validate\n'
+    )
+    mixed = tmp_path / 'mixed.yaml'  # cycles twin + povray validate: no cycles validate item
+    mixed.write_text(
+        'name: mixed\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+        '  - reference: povray\n    role: validate\n'
+    )
     assert sweep.lists_cycles_validate(str(yes))
     assert not sweep.lists_cycles_validate(str(agree))
     assert not sweep.lists_cycles_validate(str(mixed))
@@ -205,14 +217,16 @@ def test_renderers_from_cli(tmp_path, monkeypatch):
     """The sweep takes the renderers from `reflcheck renderers --json`, not from a list: the
     model renderer counts as a comparison's test whether or not the scene names it."""
     fake = tmp_path / 'reflcheck'
-    fake.write_text('#!/bin/sh\n[ "$1 $2" = "renderers --json" ] || exit 2\n'
-                    'echo \'[{"name": "ours", "model": true}, {"name": "cycles", "model": false}]\'\n')
+    fake.write_text(
+        '#!/bin/sh\n[ "$1 $2" = "renderers --json" ] || exit 2\n'
+        'echo \'[{"name": "ours", "model": true}, {"name": "cycles", "model": false}]\'\n'
+    )
     fake.chmod(0o755)
     table = sweep.renderer_table(str(fake))
     assert list(table) == ['ours', 'cycles'] and table['ours']['model']
     named = tmp_path / 'named.yaml'
     named.write_text('name: named\ncomparisons:\n  - test: ours\n    reference: cycles\n    role: validate\n')
-    assert not sweep.lists_cycles_validate(str(named))      # before the table is read: not the model
+    assert not sweep.lists_cycles_validate(str(named))  # before the table is read: not the model
     monkeypatch.setattr(sweep, 'MODEL', 'ours')
     assert sweep.lists_cycles_validate(str(named))
     other = tmp_path / 'other.yaml'
@@ -221,6 +235,7 @@ def test_renderers_from_cli(tmp_path, monkeypatch):
 
 
 # ------------------------------------------------------------------------------------ analyse
+
 
 def synthetic(nested=True):
     """A quick plan with made-up records: Cycles error 0.8/sqrt(spp) against the truth, wall
@@ -241,7 +256,7 @@ def synthetic(nested=True):
             continue
         diffs[j['key']] = {'surface': {'nrmse': nr, 'rmse': nr / 10, 'rel_rms': nr * 2}}
     recs['rk1']['wall_s'] = 0.005
-    diffs['rk1']['surface']['nrmse'] = 0.2            # k = 1: faster, worse
+    diffs['rk1']['surface']['nrmse'] = 0.2  # k = 1: faster, worse
     return sweep.analyse('synth', jobs, recs, diffs, noises, ref, True, [96, 72])
 
 
@@ -249,10 +264,10 @@ def test_analyse_end_to_end():
     t = synthetic()
     json.dumps(t, allow_nan=False)
     cyc = next(s for s in t['series'] if s['label'] == 'cycles spp')
-    assert cyc['fit_spp']['slope'] == pytest.approx(-0.5, abs=1e-9)       # the correction undid 1 - n/N
+    assert cyc['fit_spp']['slope'] == pytest.approx(-0.5, abs=1e-9)  # the correction undid 1 - n/N
     assert cyc['time_model']['t0_s'] == pytest.approx(2.0) and cyc['time_model']['s_per_spp'] == pytest.approx(0.01)
     ref_pt = next(p for p in cyc['points'] if p['is_reference'])
-    assert ref_pt['error'] == 0.06 and cyc['fit_spp']['n'] == 3             # the reference is not fitted
+    assert ref_pt['error'] == 0.06 and cyc['fit_spp']['n'] == 3  # the reference is not fitted
     assert t['as_is']['error'] == pytest.approx(0.08)
     # crossover: (0.8 / 0.08)^2 = 100 spp -> 2 + 1 = 3 s, inside 16..256
     assert t['crossover']['spp'] == pytest.approx(100.0)
@@ -260,12 +275,13 @@ def test_analyse_end_to_end():
     assert t['crossover']['extrapolated'] is None
     # equal time at the raster's 0.01 s: only the raster; at 10 s: Cycles 256 spp, 0.8/16 = 0.05
     eq = {e['budget']: e for e in t['equal_time']}
-    assert eq['raster as-is']['best']['cycles'] is None and eq['raster as-is']['best']['raster']['error'] == \
-        pytest.approx(0.08)
+    assert eq['raster as-is']['best']['cycles'] is None and eq['raster as-is']['best']['raster'][
+        'error'
+    ] == pytest.approx(0.08)
     assert eq['10 s']['best']['cycles']['label'] == '256 spp'
     assert eq['10 s']['best']['cycles']['error'] == pytest.approx(0.05)
-    assert eq['10 s']['cycles_fit_error'] == pytest.approx(0.8 / math.sqrt(800))   # (10 - 2)/0.01 spp
-    assert eq['1 s']['cycles_fit_error'] is None                                   # inside start-up
+    assert eq['10 s']['cycles_fit_error'] == pytest.approx(0.8 / math.sqrt(800))  # (10 - 2)/0.01 spp
+    assert eq['1 s']['cycles_fit_error'] is None  # inside start-up
     assert [s['label'] for s in t['skipped']] == ['povray k k=1', 'povray k k=2']
     # frontier: raster k=1 (0.005 s, 0.2), a raster 0.01 s point (0.08); Cycles 16 and 64 spp
     # (0.2, 0.1) lose to it, 256 spp (0.05) wins, the reference (its noise 0.06) loses to 256
@@ -276,6 +292,7 @@ def test_analyse_end_to_end():
 
 # ------------------------------------------------------------------------------------ report
 
+
 def test_report_shows_sweep(tmp_path):
     run = tmp_path / '20250101-120000-abc1234'
     (run / 'timing').mkdir(parents=True)
@@ -284,9 +301,9 @@ def test_report_shows_sweep(tmp_path):
     assert r.returncode == 0, r.stderr
     html = (run / 'index.html').read_text(encoding='utf-8')
     assert 'id="timing-synth"' in html
-    assert '3 s at 100 spp' in html                         # the crossover
+    assert '3 s at 100 spp' in html  # the crossover
     assert 'Pareto frontier' in html and 'none within budget' in html
-    assert '-0.50' in html                                   # the spp slope in the overview
+    assert '-0.50' in html  # the spp slope in the overview
     if shutil.which('gnuplot'):
         svg = run / 'plots' / 'timing-synth.svg'
         ET.parse(str(svg))

@@ -241,14 +241,29 @@ class Expr:
         self._in(n.inputs[1], b)
         return n.outputs[0]
 
-    def add(self, a, b): return self.op('ADD', a, b)
-    def sub(self, a, b): return self.op('SUBTRACT', a, b)
-    def mul(self, a, b): return self.op('MULTIPLY', a, b)
-    def div(self, a, b): return self.op('DIVIDE', a, b)
-    def pow(self, a, b): return self.op('POWER', a, b)
-    def max(self, a, b): return self.op('MAXIMUM', a, b)
-    def min(self, a, b): return self.op('MINIMUM', a, b)
-    def sqrt(self, a): return self.op('SQRT', a)
+    def add(self, a, b):
+        return self.op('ADD', a, b)
+
+    def sub(self, a, b):
+        return self.op('SUBTRACT', a, b)
+
+    def mul(self, a, b):
+        return self.op('MULTIPLY', a, b)
+
+    def div(self, a, b):
+        return self.op('DIVIDE', a, b)
+
+    def pow(self, a, b):
+        return self.op('POWER', a, b)
+
+    def max(self, a, b):
+        return self.op('MAXIMUM', a, b)
+
+    def min(self, a, b):
+        return self.op('MINIMUM', a, b)
+
+    def sqrt(self, a):
+        return self.op('SQRT', a)
 
     def geometry(self):
         if not hasattr(self, "_geo"):
@@ -399,8 +414,7 @@ def build_material(i, spec, env):
 
     rl = spec.get("reflection_lookup")
     if rl is not None:  # Cook-Torrance reflection: env(reflect(-V, N)) * Fr(N.V)
-        fac = fresnel_factor(need(rl, "fresnel", where + ".reflection_lookup"),
-                             where + ".reflection_lookup.fresnel")
+        fac = fresnel_factor(need(rl, "fresnel", where + ".reflection_lookup"), where + ".reflection_lookup.fresnel")
         geo = e.geometry()
         refl = nt.nodes.new('ShaderNodeVectorMath')
         refl.operation = 'REFLECT'
@@ -467,9 +481,9 @@ def setup_objects(job, materials):
         t = need(o, "tris", where)
         if len(v) % 3 or len(nrm) != len(v) or len(t) % 3:
             raise JobError("%s: verts, normals and tris must hold whole triples of equal count" % where)
-        verts = [tuple(to_blender(v[j:j + 3])) for j in range(0, len(v), 3)]
-        normals = [tuple(to_blender(nrm[j:j + 3]).normalized()) for j in range(0, len(nrm), 3)]
-        faces = [tuple(t[j:j + 3]) for j in range(0, len(t), 3)]
+        verts = [tuple(to_blender(v[j : j + 3])) for j in range(0, len(v), 3)]
+        normals = [tuple(to_blender(nrm[j : j + 3]).normalized()) for j in range(0, len(nrm), 3)]
+        faces = [tuple(t[j : j + 3]) for j in range(0, len(t), 3)]
         me = bpy.data.meshes.new("reflcheck_mesh_%d" % i)
         me.from_pydata(verts, [], faces)
         me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
@@ -559,9 +573,16 @@ def setup_compositor(job, base_path):
     f.color_depth = '32'
     f.exr_codec = 'ZIP'
     fo.layer_slots.clear()
-    layers = [("", seta.outputs[0]), ("diffuse", diffuse), ("specular", specular),
-              ("reflection", reflection), ("emission", o['Emit']), ("background", o['Env']),
-              ("coverage", o['Alpha']), ("object", obj.outputs[0])]
+    layers = [
+        ("", seta.outputs[0]),
+        ("diffuse", diffuse),
+        ("specular", specular),
+        ("reflection", reflection),
+        ("emission", o['Emit']),
+        ("background", o['Env']),
+        ("coverage", o['Alpha']),
+        ("object", obj.outputs[0]),
+    ]
     for name, src in layers:
         fo.layer_slots.new(name)
         nt.links.new(src, fo.inputs[len(fo.inputs) - 1])
@@ -573,7 +594,7 @@ def setup_compositor(job, base_path):
 
 def main():
     t0 = time.monotonic()
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     if len(argv) != 2:
         raise JobError("usage: blender -b --factory-startup -P cycles_render.py -- JOB.json OUT.exr")
     job_path, out_path = argv
@@ -608,9 +629,14 @@ def main():
         if not os.path.isfile(written):
             raise JobError("the compositor wrote no file %s; check disk space and permissions" % written)
         os.replace(written, "%s.cyc%d.exr" % (stem, i))
-    timing = {"blender": bpy.app.version_string, "build_s": t_build, "render_s": render_s,
-              "samples": job["samples"], "seeds": seeds,
-              "threads": bpy.context.scene.render.threads}
+    timing = {
+        "blender": bpy.app.version_string,
+        "build_s": t_build,
+        "render_s": render_s,
+        "samples": job["samples"],
+        "seeds": seeds,
+        "threads": bpy.context.scene.render.threads,
+    }
     with open(stem + ".timing.json", "w") as fh:
         json.dump(timing, fh)
     print("reflcheck-cycles: build %.3f s, render %s s" % (t_build, " ".join("%.3f" % r for r in render_s)))
