@@ -50,7 +50,7 @@ static ld3 l3_norm(ld3 a)
 /* -------------------------------------------------------------------- reference formulas */
 
 static ld ref_clamp(ld x, ld lo, ld hi) { return x < lo ? lo : (x > hi ? hi : x); }
-static ld ref_satf(ld x) { return ref_clamp(x, -(ld)FLT_MAX, (ld)FLT_MAX); }
+static ld ref_satf(ld x) { return formula_sat_l(x); }
 
 static ld ref_r0(ld n) { return formula_r0_l(n); }
 

@@ -6,12 +6,8 @@
 #include "formula.h"
 #include "fresnel.h"
 
-static float d3d9client_sat(double x)
-{
-    if (x > FLT_MAX) return FLT_MAX;
-    if (x < -FLT_MAX) return -FLT_MAX;
-    return (float)x;
-}
+/* The float result of a sum formed in double, saturated to +-FLT_MAX. */
+static float d3d9client_sat(double x) { return (float)formula_sat_d(x); }
 
 d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm)
 {

@@ -30,6 +30,7 @@
 #ifndef REFLCHECK_FORMULA_H
 #define REFLCHECK_FORMULA_H
 
+#include <float.h>
 #include <math.h>
 
 #include "smath.h"
@@ -131,6 +132,10 @@
 
 /* x clamped to [0, 1]; a NaN passes (every comparison with it is false). */
 FORMULA_INLINE FT FN(formula_clamp01)(FT x) { return x < 0 ? 0 : (x > 1 ? 1 : x); }
+
+/* x saturated to the float range +-FLT_MAX (the models' outputs are floats: a sum formed in a
+ * wider type must not become Inf when narrowed); a NaN passes. */
+FORMULA_INLINE FT FN(formula_sat)(FT x) { return x > FLT_MAX ? FLT_MAX : (x < -FLT_MAX ? -FLT_MAX : x); }
 
 /* 1 - c with c clamped to [0, 1]: the base of the Fresnel powers (1) and (4.9). */
 FORMULA_INLINE FT FN(formula_one_minus_cos)(FT cos_theta) { return 1 - FN(formula_clamp01)(cos_theta); }

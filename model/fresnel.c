@@ -5,14 +5,6 @@
 
 #include "formula.h"
 
-/* Saturate a double to the float range. NaN passes through unchanged. */
-static float fresnel_sat(double x)
-{
-    if (x > FLT_MAX) return FLT_MAX;
-    if (x < -FLT_MAX) return -FLT_MAX;
-    return (float)x;
-}
-
 /* Clamp to [lo, hi] without hiding a NaN (comparisons with NaN are false). */
 static double fresnel_clampd(double x, double lo, double hi)
 {
@@ -27,7 +19,7 @@ float fresnel_r0_from_ior(float n)
 
 float fresnel_schlick(float f0, float cos_theta)
 {
-    return fresnel_sat(formula_schlick_d(f0, cos_theta));
+    return (float)formula_sat_d(formula_schlick_d(f0, cos_theta));
 }
 
 vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta)
@@ -49,7 +41,7 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta)
     } else
         xe = pow(x, e);
     /* x^e with x in [0, 1] and e >= 0 lies in [0, 1]: no overflow here. */
-    return fresnel_sat(formula_d3d9_fresnel_d(r0, m, xe));
+    return (float)formula_sat_d(formula_d3d9_fresnel_d(r0, m, xe));
 }
 
 /* Beyond this ratio eta^2 (or 1/eta^2) leaves the double range, while the reflectance

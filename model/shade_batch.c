@@ -50,7 +50,6 @@ SB_INLINE int sb_any(const int *flag, int n)
         any |= flag[i];
     return any;
 }
-static inline float sb_sat(float x) { return x > FLT_MAX ? FLT_MAX : (x < -FLT_MAX ? -FLT_MAX : x); }
 
 /* Lane i from shade_eval. */
 static void sb_scalar_lane(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out,
@@ -243,7 +242,7 @@ SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole
 {
     float x = formula_one_minus_cos_v(cos_theta);
     float xe = whole ? smath_pow_whole(x, (int)p) : smath_pow(x, p);
-    return sb_sat(formula_d3d9_fresnel_v(d9->r0, d9->m, xe));
+    return formula_sat_v(formula_d3d9_fresnel_v(d9->r0, d9->m, xe));
 }
 
 /* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
@@ -270,7 +269,7 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
 {
     const float fp = fresnel_d3d9_power(d9->p);
     const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
-    const float w = sb_sat(formula_d3d9_diffuse_weight_f(d3d9_colour_norm(d9->reflect, d9->norm)));
+    const float w = formula_sat_v(formula_d3d9_diffuse_weight_f(d3d9_colour_norm(d9->reflect, d9->norm)));
     /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
      * not vectorise). */
     const d3d9client_norm_weights nw = d3d9client_norm_weights_of(d9->norm);
@@ -282,8 +281,8 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     for (int i = 0; i < n; i++) {
         float R = sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)));
         vec3 ph = shade_lane_get(phi, i);
-        vec3 r_tot = v3(sb_sat(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)), sb_sat(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
-                        sb_sat(formula_d3d9_r_tot_v(lambda.z, s.z, R, ph.z)));
+        vec3 r_tot = v3(formula_sat_v(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)), formula_sat_v(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
+                        formula_sat_v(formula_d3d9_r_tot_v(lambda.z, s.z, R, ph.z)));
         shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f[i]));
         shade_lane_set(&out->reflection, i, r_tot);
         float rn = formula_colour_norm_v(r_tot.x, r_tot.y, r_tot.z, w_max, w_r, w_g, w_b, w_euclid);
