@@ -20,6 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "d3d9client.h"
 #include "formula.h"
 #include "exr.h"
 #include "runner.h"
@@ -240,17 +241,6 @@ typedef struct {
     double falloff, ior;
 } povray_finish;
 
-static double povray_colour_norm(vec3 c, colour_norm n)
-{
-    switch (n) {
-    case NORM_MEAN: return ((double)c.x + c.y + c.z) / 3.0;
-    case NORM_LUMINANCE: return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-    case NORM_EUCLID: return dv3_len(dv3_from(c));
-    case NORM_MAX:
-    default: return fmax(c.x, fmax(c.y, c.z));
-    }
-}
-
 static double povray_comp(dvec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y : v.z); }
 
 static int povray_is_zero(vec3 v) { return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f; }
@@ -281,7 +271,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                    "set it to false", s->path, mi, name);
         return RC_ERR_RANGE;
     }
-    double keep = d9 ? 1.0 - povray_colour_norm(mat->d9.reflect, mat->d9.norm) : 1.0;
+    double keep = d9 ? formula_d3d9_diffuse_weight_d(d3d9client_colour_norm_d(mat->d9.reflect, mat->d9.norm)) : 1.0;
     f->pigment = dv3_scale(dv3_from(d->diffuse), keep);
     f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
 
