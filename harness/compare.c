@@ -498,7 +498,7 @@ static int compare_scene_nonnegative(const scene *s)
 {
     for (int i = 0; i < s->n_materials; i++) {
         const material *m = &s->materials[i];
-        if (m->model == MODEL_D3D9CLIENT && (!(d3d9_colour_norm(m->d9.reflect, m->d9.norm) <= 1.0f) ||
+        if (m->model == MODEL_D3D9CLIENT && (!(d3d9client_colour_norm(m->d9.reflect, m->d9.norm) <= 1.0f) ||
                                              (double)m->d9.r0 + (double)m->d9.m > 1.0 + COMPARE_R_SUM_TOL))
             return 0;
     }

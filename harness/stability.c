@@ -646,7 +646,7 @@ static void sweep_d3d9client(sweep *s)
             case 3: p->p = (float)(i % 2 ? lsp(i, n, 1e-6, 0.1) : lsp(i, n, 1e4, 1e7)); break;
             default: p->reflect = v3s((float)rng_range(&s->r, 0.8, 1.0)); break;
             }
-            d3d9_result r;
+            d3d9client_result r;
             d3d9client_combine(p, d, da, phi, nv, nsun, &r);
             ref_d9 e = ref_d3d9client(p, l3_from(d), da, l3_from(phi), nv, nsun);
             const float got[4] = {r.rgb.x, r.rgb.y, r.rgb.z, r.alpha};
@@ -1186,7 +1186,7 @@ static void check_physics(sweep *s, int grid)
                     for (int q = 0; q <= 10; q++) {
                         mat.d9.reflect = v3((float)a / steps_l, (float)b / steps_l, (float)c / steps_l);
                         float nv = (float)q / 10.0f;
-                        d3d9_result r;
+                        d3d9client_result r;
                         d3d9client_combine(&mat.d9, v3s(1.0f), 1.0f, v3s(1.0f), nv, 0.0f, &r);
                         row->samples++;
                         if (isnan(r.rgb.x) || isnan(r.diffuse_weight)) row->nan++;

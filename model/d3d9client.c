@@ -28,14 +28,14 @@ double d3d9client_colour_norm_d(vec3 c, colour_norm norm)
     return formula_colour_norm_d(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
 }
 
-float d3d9_colour_norm(vec3 c, colour_norm norm)
+float d3d9client_colour_norm(vec3 c, colour_norm norm)
 {
     if (isnan(c.x) || isnan(c.y) || isnan(c.z)) return NAN;   /* a max by selects would drop a NaN */
     return d3d9client_sat(d3d9client_colour_norm_d(c, norm));
 }
 
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
-                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9_result *out)
+                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9client_result *out)
 {
     double R = fresnel_d3d9(p->r0, p->m, p->p, n_v);
     vec3 l = p->reflect, s = p->fresnel_colour, phi = env_radiance_phi;
@@ -44,7 +44,7 @@ void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diff
                       formula_d3d9_r_tot_d(l.z, s.z, R, phi.z));
     vec3 r_tot_f = v3(d3d9client_sat(r_tot.x), d3d9client_sat(r_tot.y), d3d9client_sat(r_tot.z));
     /* (6), and (8): the sun-lit diffuse loses what the coat's Fresnel reflects at the sun angle. */
-    double w = formula_d3d9_diffuse_weight_d(d3d9_colour_norm(p->reflect, p->norm));
+    double w = formula_d3d9_diffuse_weight_d(d3d9client_colour_norm(p->reflect, p->norm));
     float r_sun = p->sun_angle ? fresnel_d3d9(p->r0, p->m, p->p, n_sun) : 0.0f;
     double dw = p->sun_angle ? w * formula_d3d9_sun_factor_d(r_sun) : w;
     out->rgb = v3(d3d9client_sat(formula_d3d9_colour_d(diffuse_rgb.x, dw, r_tot.x)),
@@ -55,6 +55,6 @@ void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diff
     out->diffuse_weight = d3d9client_sat(w);
     out->diffuse_scale = p->sun_angle ? out->diffuse_weight * formula_d3d9_sun_factor_f(r_sun) : out->diffuse_weight;
     /* (7), with an explicit NaN test: the select would pick the other operand. */
-    float rn = d3d9_colour_norm(r_tot_f, p->norm);
+    float rn = d3d9client_colour_norm(r_tot_f, p->norm);
     out->alpha = (isnan(diffuse_alpha) || isnan(rn)) ? NAN : formula_d3d9_alpha_f(diffuse_alpha, rn);
 }

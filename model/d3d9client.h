@@ -2,7 +2,7 @@
  * equations (1)-(8)), evaluated for one surface point.
  *
  * Usage:
- *   d3d9_result r;
+ *   d3d9client_result r;
  *   d3d9client_combine(&mat->d9, lit_diffuse_rgb, diffuse_alpha, env(reflect(-V, N)),
  *                      n_v, n_sun, &r);          r.rgb is the pixel colour (6) or (8)
  * diffuse_rgb is the lit diffuse colour d (section 1's Dv, or texture x lighting);
@@ -30,7 +30,7 @@ d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm);
 /* |c| in double, unsaturated (the POV-Ray translator's 1 - |lambda|). */
 double d3d9client_colour_norm_d(vec3 c, colour_norm norm);
 /* |c| saturated to +-FLT_MAX. */
-float d3d9_colour_norm(vec3 c, colour_norm norm);
+float d3d9client_colour_norm(vec3 c, colour_norm norm);
 
 typedef struct {
     vec3 rgb;              /* (6), or (8) when p->sun_angle */
@@ -41,11 +41,11 @@ typedef struct {
                               that makes bright metals subtract diffuse light */
     float diffuse_scale;   /* what multiplies d in rgb, in float as the shading loop applies
                               it: diffuse_weight, times (8)'s 1 - R(sigma) when p->sun_angle */
-} d3d9_result;
+} d3d9client_result;
 
 /* Equations (3)-(8). n_v = N.V (clamped to [0, 1] inside (3)); n_sun = cos sigma = N.L of
  * the main light, read only when p->sun_angle (clamped the same way in (8)). */
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
-                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9_result *out);
+                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9client_result *out);
 
 #endif

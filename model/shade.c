@@ -126,7 +126,7 @@ static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x
         shade_light_incident(sun, x, &to_l, &e_perp, &atten);
         n_sun = v3_dot(n, to_l);
     }
-    d3d9_result r;
+    d3d9client_result r;
     d3d9client_combine(&m->d9, out->diffuse, m->d9.alpha, phi, v3_dot(n, v), n_sun, &r);
     /* The diffuse layer from its own factors, not rgb - R_tot: that difference cancels to 0
      * when an HDR environment makes R_tot much larger than d. */

@@ -269,7 +269,7 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
 {
     const float fp = fresnel_d3d9_power(d9->p);
     const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
-    const float w = formula_sat_v(formula_d3d9_diffuse_weight_f(d3d9_colour_norm(d9->reflect, d9->norm)));
+    const float w = formula_sat_v(formula_d3d9_diffuse_weight_f(d3d9client_colour_norm(d9->reflect, d9->norm)));
     /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
      * not vectorise). */
     const d3d9client_norm_weights nw = d3d9client_norm_weights_of(d9->norm);

@@ -28,15 +28,15 @@ static void test_colour_norm(void **state)
 {
     (void)state;
     vec3 c = v3(0.9f, 0.6f, 0.3f);
-    close_rel(d3d9_colour_norm(c, NORM_MAX), 0.9, 1e-7);
-    close_rel(d3d9_colour_norm(c, NORM_MEAN), 0.6, 1e-7);
-    close_rel(d3d9_colour_norm(c, NORM_LUMINANCE), 0.64212, 1e-6);
-    close_rel(d3d9_colour_norm(c, NORM_EUCLID), 1.1224972160, 1e-6);
+    close_rel(d3d9client_colour_norm(c, NORM_MAX), 0.9, 1e-7);
+    close_rel(d3d9client_colour_norm(c, NORM_MEAN), 0.6, 1e-7);
+    close_rel(d3d9client_colour_norm(c, NORM_LUMINANCE), 0.64212, 1e-6);
+    close_rel(d3d9client_colour_norm(c, NORM_EUCLID), 1.1224972160, 1e-6);
     /* max is the only one with |lambda| <= 1 for every lambda in [0,1]^3 and = the largest */
-    close_rel(d3d9_colour_norm(v3(0.2f, 0.7f, 0.1f), NORM_MAX), 0.7, 1e-7);
-    close_rel(d3d9_colour_norm(v3s(1.0f), NORM_EUCLID), sqrt(3.0), 1e-7);
-    close_rel(d3d9_colour_norm(v3s(1.0f), NORM_LUMINANCE), 1.0, 1e-6);   /* weights sum to 1 */
-    assert_true(isnan(d3d9_colour_norm(v3(0.1f, NAN, 0.2f), NORM_MAX)));
+    close_rel(d3d9client_colour_norm(v3(0.2f, 0.7f, 0.1f), NORM_MAX), 0.7, 1e-7);
+    close_rel(d3d9client_colour_norm(v3s(1.0f), NORM_EUCLID), sqrt(3.0), 1e-7);
+    close_rel(d3d9client_colour_norm(v3s(1.0f), NORM_LUMINANCE), 1.0, 1e-6);   /* weights sum to 1 */
+    assert_true(isnan(d3d9client_colour_norm(v3(0.1f, NAN, 0.2f), NORM_MAX)));
 }
 
 static d3d9client_params params(void)
@@ -63,7 +63,7 @@ static void test_combine_point(void **state)
     (void)state;
     d3d9client_params p = params();
     vec3 d = v3(0.2f, 0.3f, 0.4f), phi = v3(2.0f, 1.0f, 0.5f);
-    d3d9_result r;
+    d3d9client_result r;
     d3d9client_combine(&p, d, 0.5f, phi, 0.5f, 0.8f, &r);
     close_rel(r.fresnel_R, 0.16, 1e-6);
     close_v3(r.r_tot, 1.832, 0.664, 0.206, 1e-6);
@@ -84,7 +84,7 @@ static void test_fresnel_ends(void **state)
     (void)state;
     d3d9client_params p = params();
     p.r0 = 0.1f; p.m = 0.7f;
-    d3d9_result r;
+    d3d9client_result r;
     d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), 1.0f, 0.0f, &r);
     close_rel(r.fresnel_R, 0.1, 1e-6);
     d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), 0.0f, 0.0f, &r);
@@ -99,7 +99,7 @@ static void test_disabled(void **state)
     (void)state;
     d3d9client_params p = params();
     p.r0 = 0.0f; p.m = 0.0f; p.reflect = v3s(0.0f);
-    d3d9_result r;
+    d3d9client_result r;
     d3d9client_combine(&p, v3(0.2f, 0.3f, 0.4f), 0.7f, v3(5.0f, 6.0f, 7.0f), 0.3f, 0.2f, &r);
     close_v3(r.rgb, 0.2, 0.3, 0.4, 1e-7);
     assert_true(r.r_tot.x == 0.0f && r.r_tot.y == 0.0f && r.r_tot.z == 0.0f);
@@ -118,7 +118,7 @@ static void test_povray_form(void **state)
     const float cs[] = {0.0f, 0.1f, 0.45f, 0.8f, 1.0f};
     const float lam[3] = {0.9f, 0.6f, 0.3f}, s[3] = {1.0f, 0.9f, 0.7f};
     for (size_t i = 0; i < 5; i++) {
-        d3d9_result r;
+        d3d9client_result r;
         d3d9client_combine(&p, v3s(0.0f), 0.0f, v3s(1.0f), cs[i], 0.0f, &r);
         const float got[3] = {r.r_tot.x, r.r_tot.y, r.r_tot.z};
         for (int ch = 0; ch < 3; ch++) {
@@ -137,7 +137,7 @@ static void test_euclid_negative_weight(void **state)
     d3d9client_params p = params();
     p.reflect = v3s(1.0f);
     p.norm = NORM_EUCLID;
-    d3d9_result r;
+    d3d9client_result r;
     vec3 d = v3(0.5f, 0.25f, 0.125f);
     d3d9client_combine(&p, d, 1.0f, v3s(1.0f), 1.0f, 0.0f, &r);
     close_rel(r.diffuse_weight, 1.0 - sqrt(3.0), 1e-6);
@@ -155,7 +155,7 @@ static const float extremes[] = {
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
-static int finite_result(const d3d9_result *r)
+static int finite_result(const d3d9client_result *r)
 {
     return isfinite(r->rgb.x) && isfinite(r->rgb.y) && isfinite(r->rgb.z) && isfinite(r->alpha) &&
            isfinite(r->r_tot.x) && isfinite(r->r_tot.y) && isfinite(r->r_tot.z) &&
@@ -177,10 +177,10 @@ static void test_extremes_finite(void **state)
                     p.fresnel_colour = v3(c, 1.0f, a);
                     p.norm = (colour_norm)norm;
                     p.sun_angle = (int)(k & 1);
-                    d3d9_result r;
+                    d3d9client_result r;
                     d3d9client_combine(&p, v3(a, c, 0.2f), b, v3(c, b, 1e6f), a, b, &r);
                     bad += !finite_result(&r);
-                    bad += !isfinite(d3d9_colour_norm(v3(a, b, c), (colour_norm)norm));
+                    bad += !isfinite(d3d9client_colour_norm(v3(a, b, c), (colour_norm)norm));
                     n += 2;
                 }
     if (bad) fail_msg("%zu of %zu evaluations were not finite", bad, n);

@@ -338,7 +338,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
     case MODEL_D3D9CLIENT: {
         const d3d9client_params *p = &mat->d9;
         /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
-        float weight = 1.0f - d3d9_colour_norm(p->reflect, p->norm);
+        float weight = 1.0f - d3d9client_colour_norm(p->reflect, p->norm);
         fputs(", \"diffuse\": {\"color\": ", fp);
         jw_vec(w, "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
         if (p->sun_angle) {
