@@ -13,15 +13,9 @@
 #include "status.h"
 
 static const cli_command cli_commands[] = {
-    {"render", cli_render},
-    {"check", cli_check},
-    {"eval", cli_eval},
-    {"run", cli_run},
-    {"compare", cli_compare},
-    {"diff", cli_diff},
-    {"plan", cli_plan},
-    {"stability", cli_stability},
-    {"renderers", cli_renderers},
+    {"render", cli_render}, {"check", cli_check},         {"eval", cli_eval},
+    {"run", cli_run},       {"compare", cli_compare},     {"diff", cli_diff},
+    {"plan", cli_plan},     {"stability", cli_stability}, {"renderers", cli_renderers},
 };
 
 const cli_command *cli_find(const char *name)
@@ -123,10 +117,12 @@ int cli_check(int argc, char **argv)
         } else {
             render_memory_estimate(s, &m, &env, NULL, &need, NULL);
             if (need > (double)limit) {
-                fprintf(stderr, "reflcheck: %s: image: a %dx%d render at supersample %d needs about %.2f GiB, over "
+                fprintf(stderr,
+                        "reflcheck: %s: image: a %dx%d render at supersample %d needs about %.2f GiB, over "
                         "the memory limit of %.2f GiB; make image.width, image.height or image.supersample smaller, "
-                        "or raise REFLCHECK_MEMORY_LIMIT\n", argv[1], s->width, s->height, s->supersample,
-                        need / 1073741824.0, (double)limit / 1073741824.0);
+                        "or raise REFLCHECK_MEMORY_LIMIT\n",
+                        argv[1], s->width, s->height, s->supersample, need / 1073741824.0,
+                        (double)limit / 1073741824.0);
                 rc = CLI_BAD_INPUT;
             }
         }

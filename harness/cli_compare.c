@@ -20,7 +20,7 @@
  * whole command, and nothing is written. */
 static int cli_compare_scenes_ok(char **paths, int n)
 {
-    char (*names)[SCENE_NAME_MAX] = calloc((size_t)n, sizeof *names);
+    char(*names)[SCENE_NAME_MAX] = calloc((size_t)n, sizeof *names);
     scene *s = malloc(sizeof *s);
     int rc = names != NULL && s != NULL ? CLI_OK : CLI_FAILED;
     for (int i = 0; i < n && rc == CLI_OK; i++) {
@@ -69,8 +69,10 @@ int cli_compare(int argc, char **argv)
     struct stat st_run;
     int stat_rc = stat(run, &st_run);
     if (stat_rc != 0 || !S_ISDIR(st_run.st_mode)) {
-        fprintf(stderr, "reflcheck: compare: --run %s: %s; give the run folder that reflcheck plan --out or "
-                "reflcheck run --out wrote\n", run, stat_rc != 0 ? strerror(errno) : "not a directory");
+        fprintf(stderr,
+                "reflcheck: compare: --run %s: %s; give the run folder that reflcheck plan --out or "
+                "reflcheck run --out wrote\n",
+                run, stat_rc != 0 ? strerror(errno) : "not a directory");
         return CLI_BAD_INPUT;
     }
     int rc = cli_compare_scenes_ok(&argv[optind], argc - optind);
@@ -112,7 +114,8 @@ int cli_diff(int argc, char **argv)
     opterr = 0;
     while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
         if (c != 'm') {
-            fprintf(stderr, "reflcheck: diff: unknown option '%s'; usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n",
+            fprintf(stderr,
+                    "reflcheck: diff: unknown option '%s'; usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n",
                     argv[optind - 1]);
             return CLI_BAD_INPUT;
         }

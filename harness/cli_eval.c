@@ -12,7 +12,6 @@
 #include "fresnel.h"
 #include "microfacet.h"
 
-
 typedef struct {
     double ior, p, r0, m;
     int r0_given, m_given, steps;
@@ -59,8 +58,8 @@ static void eval_smith(const eval_args *a)
 int cli_eval(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"ior", required_argument, NULL, 'n'}, {"p", required_argument, NULL, 'p'},
-        {"r0", required_argument, NULL, 'r'},  {"m", required_argument, NULL, 'm'},
+        {"ior", required_argument, NULL, 'n'},   {"p", required_argument, NULL, 'p'},
+        {"r0", required_argument, NULL, 'r'},    {"m", required_argument, NULL, 'm'},
         {"steps", required_argument, NULL, 's'}, {NULL, 0, NULL, 0},
     };
     eval_args a = {.ior = 1.5, .p = 5.0, .m = 0.3, .steps = 90};
@@ -71,8 +70,14 @@ int cli_eval(int argc, char **argv)
         switch (c) {
         case 'n': rc = cli_parse_double("--ior", optarg, 1.0, 100.0, &a.ior); break;
         case 'p': rc = cli_parse_double("--p", optarg, 0.0, 1e4, &a.p); break;
-        case 'r': rc = cli_parse_double("--r0", optarg, 0.0, 1.0, &a.r0); a.r0_given = 1; break;
-        case 'm': rc = cli_parse_double("--m", optarg, 0.0, 1e3, &a.m); a.m_given = 1; break;
+        case 'r':
+            rc = cli_parse_double("--r0", optarg, 0.0, 1.0, &a.r0);
+            a.r0_given = 1;
+            break;
+        case 'm':
+            rc = cli_parse_double("--m", optarg, 0.0, 1e3, &a.m);
+            a.m_given = 1;
+            break;
         case 's': rc = cli_parse_int("--steps", optarg, 1, 1000000, &a.steps); break;
         default:
             fprintf(stderr, "reflcheck: eval: unknown option '%s'; options: --ior --p --r0 --m --steps\n",

@@ -47,14 +47,14 @@ static int plan_check_path(const char *what, const char *path)
 {
     if (strpbrk(path, "\n\r") == NULL)
         return CLI_OK;
-    fprintf(stderr, "reflcheck: plan: %s '%s' holds a line break, which a make recipe cannot carry; rename it\n",
-            what, path);
+    fprintf(stderr, "reflcheck: plan: %s '%s' holds a line break, which a make recipe cannot carry; rename it\n", what,
+            path);
     return CLI_BAD_INPUT;
 }
 
 typedef struct {
     char name[SCENE_NAME_MAX];
-    unsigned char need[16][3];     /* [renderer row][role]; the table has fewer rows */
+    unsigned char need[16][3]; /* [renderer row][role]; the table has fewer rows */
 } plan_scene;
 
 /* Loads one scene and works out its jobs; refuses names make cannot carry and names an
@@ -109,9 +109,9 @@ static int plan_load(char **paths, int i, int first, const char *out, plan_scene
 int cli_plan(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"out", required_argument, NULL, 'o'}, {"small", no_argument, NULL, 's'},
+        {"out", required_argument, NULL, 'o'},   {"small", no_argument, NULL, 's'},
         {"cache", required_argument, NULL, 'c'}, {"threads", required_argument, NULL, 't'},
-        {"bin", required_argument, NULL, 'b'}, {NULL, 0, NULL, 0},
+        {"bin", required_argument, NULL, 'b'},   {NULL, 0, NULL, 0},
     };
     const char *out = NULL, *cache = "reports/cache", *bin = "build/reflcheck";
     int small = 0, threads = 1, c, rc = CLI_OK;
@@ -124,9 +124,7 @@ int cli_plan(int argc, char **argv)
         case 'c': cache = optarg; break;
         case 'b': bin = optarg; break;
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &threads); break;
-        default:
-            fprintf(stderr, "reflcheck: plan: unknown option '%s'\n", argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+        default: fprintf(stderr, "reflcheck: plan: unknown option '%s'\n", argv[optind - 1]); rc = CLI_BAD_INPUT;
         }
     }
     if (rc != CLI_OK)
@@ -136,8 +134,10 @@ int cli_plan(int argc, char **argv)
         return CLI_BAD_INPUT;
     }
     if (!plan_target_safe(out)) {
-        fprintf(stderr, "reflcheck: plan: --out '%s': make cannot carry this path in a target; allowed: letters, "
-                        "digits, _ . / + , @ -\n", out);
+        fprintf(stderr,
+                "reflcheck: plan: --out '%s': make cannot carry this path in a target; allowed: letters, "
+                "digits, _ . / + , @ -\n",
+                out);
         return CLI_BAD_INPUT;
     }
     rc = plan_check_path("--cache", cache);
@@ -164,8 +164,7 @@ int cli_plan(int argc, char **argv)
                 if (!all[i - optind].need[r][role])
                     continue;
                 char target[1200];
-                job_output_path(out, all[i - optind].name, r, (comparison_role)role, "json", target,
-                                sizeof target);
+                job_output_path(out, all[i - optind].name, r, (comparison_role)role, "json", target, sizeof target);
                 printf("all: %s\n%s:\n\t@", target, target);
                 plan_quote(bin);
                 printf(" run --renderer %s --role %s --out ", registry_name(r), job_role_names[role]);

@@ -32,8 +32,8 @@ static int cli_render_check_inputs(const char *out, const scene *s)
         }
     if (what == NULL)
         return CLI_OK;
-    fprintf(stderr, "reflcheck: %s: the output is %s %s, which would be overwritten; give another -o path\n", out,
-            what, input);
+    fprintf(stderr, "reflcheck: %s: the output is %s %s, which would be overwritten; give another -o path\n", out, what,
+            input);
     return CLI_BAD_INPUT;
 }
 
@@ -117,8 +117,10 @@ int cli_render(int argc, char **argv)
             (printf("%s: %dx%d k=%d, %d triangles, %.3f ms, %lld shaded samples -> %s\n", s->name, img.width,
                     img.height, img.supersample, m.n_tris, img.seconds * 1e3, img.shaded_samples, out) < 0 ||
              fflush(stdout) != 0)) {
-            fprintf(stderr, "reflcheck: render: %s was written, but the summary could not be printed; check "
-                    "where standard output goes\n", out);
+            fprintf(stderr,
+                    "reflcheck: render: %s was written, but the summary could not be printed; check "
+                    "where standard output goes\n",
+                    out);
             rc = CLI_FAILED;
         }
     }

@@ -18,11 +18,13 @@ int cli_run(int argc, char **argv)
         {"seeds", required_argument, NULL, 'S'},    {"supersample", required_argument, NULL, 'k'},
         {"samples", required_argument, NULL, 'N'},  {"tessellation", required_argument, NULL, 'e'},
         {"per-vertex", no_argument, NULL, 'v'},     {"tag", required_argument, NULL, 'g'},
-        {"seed", required_argument, NULL, 'E'},
-        {NULL, 0, NULL, 0},
+        {"seed", required_argument, NULL, 'E'},     {NULL, 0, NULL, 0},
     };
-    job_spec j = {.renderer = registry_model(), .role = ROLE_VALIDATE, .variant = JOB_FULL,
-                  .out_dir = "reports/runs/manual", .cache_dir = "reports/cache"};
+    job_spec j = {.renderer = registry_model(),
+                  .role = ROLE_VALIDATE,
+                  .variant = JOB_FULL,
+                  .out_dir = "reports/runs/manual",
+                  .cache_dir = "reports/cache"};
     int c, rc = CLI_OK, v;
     optind = 1;
     opterr = 0;
@@ -31,7 +33,8 @@ int cli_run(int argc, char **argv)
         case 'r':
             if ((v = registry_find(optarg)) < 0) {
                 char names[200];
-                fprintf(stderr, "reflcheck: run: --renderer '%s': use %s\n", optarg, registry_list(names, sizeof names));
+                fprintf(stderr, "reflcheck: run: --renderer '%s': use %s\n", optarg,
+                        registry_list(names, sizeof names));
                 rc = CLI_BAD_INPUT;
             }
             j.renderer = v;
@@ -86,8 +89,8 @@ int cli_run(int argc, char **argv)
         fprintf(stderr, "reflcheck: %s\n", err);
         return job_exit_status(st, &r);
     }
-    printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, registry_name(j.renderer),
-           job_role_names[j.role], runner_status_name(r.status), r.wall_s, r.cached ? " (cached)" : "",
+    printf("%-28s %-7s %-8s %-8s %8.2f s%s  %s\n", j.scene_path, registry_name(j.renderer), job_role_names[j.role],
+           runner_status_name(r.status), r.wall_s, r.cached ? " (cached)" : "",
            r.status == RUNNER_OK ? r.exr : r.message);
     /* A job that is neither done nor skipped fails the run: make -k, the nightly and scripts
      * see it in the exit status, not only in the record. */

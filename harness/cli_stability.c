@@ -40,9 +40,9 @@ static int cli_stability_write(const char *path, const stability_table *t, int j
 int cli_stability(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"json", required_argument, NULL, 'j'}, {"csv", required_argument, NULL, 'c'},
+        {"json", required_argument, NULL, 'j'},    {"csv", required_argument, NULL, 'c'},
         {"samples", required_argument, NULL, 's'}, {"seed", required_argument, NULL, 'r'},
-        {"quiet", no_argument, NULL, 'q'}, {NULL, 0, NULL, 0},
+        {"quiet", no_argument, NULL, 'q'},         {NULL, 0, NULL, 0},
     };
     const char *json = NULL, *csv = NULL;
     stability_options o = {0};
@@ -62,16 +62,20 @@ int cli_stability(int argc, char **argv)
         }
         case 'q': quiet = 1; break;
         default:
-            fprintf(stderr, "reflcheck: stability: unknown option '%s'; options: --json FILE --csv FILE "
-                    "--samples N --seed N --quiet\n", argv[optind - 1]);
+            fprintf(stderr,
+                    "reflcheck: stability: unknown option '%s'; options: --json FILE --csv FILE "
+                    "--samples N --seed N --quiet\n",
+                    argv[optind - 1]);
             rc = CLI_BAD_INPUT;
         }
     }
     if (rc != CLI_OK)
         return rc;
     if (optind != argc) {
-        fprintf(stderr, "reflcheck: stability: unexpected argument '%s'; usage: reflcheck stability "
-                "[--json FILE] [--csv FILE] [--samples N]\n", argv[optind]);
+        fprintf(stderr,
+                "reflcheck: stability: unexpected argument '%s'; usage: reflcheck stability "
+                "[--json FILE] [--csv FILE] [--samples N]\n",
+                argv[optind]);
         return CLI_BAD_INPUT;
     }
     stability_table *t = malloc(sizeof *t);
@@ -86,16 +90,22 @@ int cli_stability(int argc, char **argv)
         return cli_exit_status(st);
     }
     if (!quiet && (stability_write_text(stdout, t) != 0 || fflush(stdout) != 0 || ferror(stdout))) {
-        fprintf(stderr, "reflcheck: stability: cannot write the table to standard output (%s); check where it "
-                "goes\n", strerror(errno));
+        fprintf(stderr,
+                "reflcheck: stability: cannot write the table to standard output (%s); check where it "
+                "goes\n",
+                strerror(errno));
         rc = CLI_FAILED;
     }
-    if (json && rc == CLI_OK) rc = cli_stability_write(json, t, 1);
-    if (csv && rc == CLI_OK) rc = cli_stability_write(csv, t, 0);
+    if (json && rc == CLI_OK)
+        rc = cli_stability_write(json, t, 1);
+    if (csv && rc == CLI_OK)
+        rc = cli_stability_write(csv, t, 0);
     int fails = stability_failures(t);
     if (fails)
-        fprintf(stderr, "reflcheck: stability: %d rows fail a gate (NaN, Inf or negative output for finite input, "
-                "or a gating physics check); see the FAIL rows\n", fails);
+        fprintf(stderr,
+                "reflcheck: stability: %d rows fail a gate (NaN, Inf or negative output for finite input, "
+                "or a gating physics check); see the FAIL rows\n",
+                fails);
     free(t);
     return rc != CLI_OK ? rc : (fails ? CLI_FAILED : CLI_OK);
 }

@@ -23,7 +23,7 @@ static const char *const compare_aovs[3] = {"diffuse", "specular", "reflection"}
 
 /* One side of a comparison: its record and image. */
 typedef struct {
-    int renderer;             /* a row of the renderer table */
+    int renderer; /* a row of the renderer table */
     comparison_role role;
     cJSON *record;
     exr_image img;
@@ -60,8 +60,10 @@ static compare_side_state compare_load_side(const char *run, const char *scene_n
     job_output_path(run, scene_name, s->renderer, s->role, "exr", s->path, sizeof s->path);
     s->record = compare_read_json(rec);
     if (s->record == NULL) {
-        snprintf(buf, len, "%s %s: no job record %s (missing or not JSON); render it with: reflcheck run SCENE "
-                 "--renderer %s --role %s", rname, role, rec, rname, role);
+        snprintf(buf, len,
+                 "%s %s: no job record %s (missing or not JSON); render it with: reflcheck run SCENE "
+                 "--renderer %s --role %s",
+                 rname, role, rec, rname, role);
         return COMPARE_SIDE_ERROR;
     }
     const char *status = compare_json_str(s->record, "status");
@@ -293,8 +295,9 @@ static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
     char head[64];
     const char *dot = strchr(metric, '.');
     if (strcmp(metric, "z_fail_share") == 0) {
-        x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(
-                cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ztest"), "share_fail_pixels");
+        x = cJSON_GetObjectItemCaseSensitive(
+            cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ztest"),
+            "share_fail_pixels");
     } else if (strcmp(metric, "noise_rel_rms") == 0) {
         x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "noise"), "ref_rel_rms");
     } else if (strcmp(metric, "coverage_agreement") == 0 || strcmp(metric, "test_nonfinite") == 0 ||
@@ -325,8 +328,7 @@ static int compare_higher_is_better(const char *metric)
     return strcmp(base, "psnr") == 0 || strcmp(base, "ssim") == 0 || strcmp(base, "coverage_agreement") == 0;
 }
 
-static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp, const char *id,
-                                 compare_summary *sum)
+static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp, const char *id, compare_summary *sum)
 {
     cJSON *arr = cJSON_AddArrayToObject(cmp, "thresholds");
     int worst = 0; /* 0 pass, 1 warn, 2 fail */
@@ -476,7 +478,6 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
     return RC_OK;
 }
 
-
 /* Non-finite and negative values of one image over the layers a comparison reads. */
 typedef struct {
     long channels, values, nonfinite, negative;
@@ -587,9 +588,9 @@ static void compare_values_report(const compare_values *v, const char *side, con
 /* A partial twin (harness/renderers/renderer.h): the terms left out by either side, why, and
  * each side's image without them (R, G, B minus the side's own layers of those terms). */
 typedef struct {
-    unsigned left_out;                     /* RENDERER_TERM_* bits */
-    char why[RENDERER_N_TERMS][240];       /* "<renderer>: <reason>" */
-    float *planes[2][3];                   /* [test, ref][channel], NULL = the image's own */
+    unsigned left_out;               /* RENDERER_TERM_* bits */
+    char why[RENDERER_N_TERMS][240]; /* "<renderer>: <reason>" */
+    float *planes[2][3];             /* [test, ref][channel], NULL = the image's own */
     char reason[1200];
 } compare_partial;
 
@@ -719,7 +720,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     if (ts == COMPARE_SIDE_ERROR || rs == COMPARE_SIDE_ERROR) {
         state = "error";
         snprintf(reason, sizeof reason, "%s%s%s", ts == COMPARE_SIDE_ERROR ? why_t : "",
-                 ts == COMPARE_SIDE_ERROR && rs == COMPARE_SIDE_ERROR ? "; " : "", rs == COMPARE_SIDE_ERROR ? why_r : "");
+                 ts == COMPARE_SIDE_ERROR && rs == COMPARE_SIDE_ERROR ? "; " : "",
+                 rs == COMPARE_SIDE_ERROR ? why_r : "");
     } else if (ts == COMPARE_SIDE_SKIPPED || rs == COMPARE_SIDE_SKIPPED) {
         state = "skipped";
         snprintf(reason, sizeof reason, "%s%s%s", why_t, why_t[0] && why_r[0] ? "; " : "", why_r);
@@ -943,8 +945,8 @@ rc_status compare_images(const char *test_exr, const char *ref_exr, const char *
     }
     const exr_image *geo = have_g ? &g : &t;
     metrics_image tm = compare_planes(&t, ""), rm = compare_planes(&r, "");
-    if (t.width != r.width || t.height != r.height || geo->width != t.width || geo->height != t.height ||
-        !tm.c[0] || !tm.c[1] || !tm.c[2] || !rm.c[0] || !rm.c[1] || !rm.c[2]) {
+    if (t.width != r.width || t.height != r.height || geo->width != t.width || geo->height != t.height || !tm.c[0] ||
+        !tm.c[1] || !tm.c[2] || !rm.c[0] || !rm.c[1] || !rm.c[2]) {
         snprintf(err, errlen, "%s, %s: images must have the same size and R, G, B channels", test_exr, ref_exr);
         st = RC_ERR_RANGE;
     } else {

@@ -44,11 +44,10 @@
 
 typedef struct {
     int pass, warn, fail, skipped, error;
-    char first_failure[1024];   /* "scene: comparison: metric value > threshold (why)" */
+    char first_failure[1024]; /* "scene: comparison: metric value > threshold (why)" */
 } compare_summary;
 
-rc_status compare_scene(const char *scene_path, const char *run_dir, compare_summary *sum, char *err,
-                        size_t errlen);
+rc_status compare_scene(const char *scene_path, const char *run_dir, compare_summary *sum, char *err, size_t errlen);
 
 /* Metrics between two EXR images (regions from mask_exr's, else test's, coverage and object
  * layers; z-test where ref has var.* layers) and the value gate, printed as one JSON object

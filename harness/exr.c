@@ -39,7 +39,7 @@ extern char **environ;
 /* Guard against a corrupt header asking for an absurd allocation: 1 << 15 per side is
  * larger than any render this project makes (and than 8K video), and the product cap
  * keeps one channel under 1 GiB of floats. */
-#define EXR_MAX_SIDE (1 << 15)
+#define EXR_MAX_SIDE   (1 << 15)
 #define EXR_MAX_PIXELS ((size_t)1 << 28)
 
 typedef struct {
@@ -90,8 +90,8 @@ static int64_t exr_stream_size(exr_const_context_t ctxt, void *ud)
     return ((const exr_stream *)ud)->size;
 }
 
-static int64_t exr_stream_write(exr_const_context_t ctxt, void *ud, const void *buffer, uint64_t sz,
-                                uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+static int64_t exr_stream_write(exr_const_context_t ctxt, void *ud, const void *buffer, uint64_t sz, uint64_t offset,
+                                exr_stream_error_func_ptr_t error_cb)
 {
     const exr_stream *f = ud;
     uint64_t done = 0;
@@ -108,7 +108,6 @@ static int64_t exr_stream_write(exr_const_context_t ctxt, void *ud, const void *
     }
     return (int64_t)done;
 }
-
 
 /* The library's own message when it gave one, else its generic text for the code. */
 static const char *lib_msg(const exr_errctx *e, exr_result_t rv)
@@ -137,12 +136,12 @@ static int cmp_channel_name(const void *a, const void *b)
 
 /* Writes the image into the open stream out; path names it in messages. */
 static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx *ec, int width, int height,
-                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs,
-                                  char *err, size_t errlen)
+                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs, char *err,
+                                  size_t errlen)
 {
     if (width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
-        status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side",
-                path, width, height, EXR_MAX_SIDE);
+        status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side", path, width,
+                       height, EXR_MAX_SIDE);
         return RC_ERR_RANGE;
     }
     if (n_channels <= 0 || !ch) {
@@ -159,8 +158,8 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
             return RC_ERR_RANGE;
         }
         if (strlen(ch[i].name) >= EXR_NAME_MAX) {
-            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; shorten it",
-                    path, ch[i].name, EXR_NAME_MAX - 1);
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; shorten it", path,
+                           ch[i].name, EXR_NAME_MAX - 1);
             return RC_ERR_RANGE;
         }
     }
@@ -176,8 +175,8 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
     qsort(sorted, (size_t)n_channels, sizeof *sorted, cmp_channel_name);
     for (int i = 1; i < n_channels; i++)
         if (strcmp(sorted[i - 1].name, sorted[i].name) == 0) {
-            status_message(err, errlen, "%s: channel '%s' given twice; channel names must be unique",
-                    path, sorted[i].name);
+            status_message(err, errlen, "%s: channel '%s' given twice; channel names must be unique", path,
+                           sorted[i].name);
             free(sorted);
             return RC_ERR_RANGE;
         }
@@ -218,8 +217,10 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
         }
         rv = exr_attr_set_string(ctxt, part, attrs[i].name, attrs[i].value);
         if (rv != EXR_ERR_SUCCESS) {
-            status_message(err, errlen, "%s: cannot set string attribute '%s' (%s); use a name that is not a "
-                    "standard EXR attribute", path, attrs[i].name, lib_msg(ec, rv));
+            status_message(err, errlen,
+                           "%s: cannot set string attribute '%s' (%s); use a name that is not a "
+                           "standard EXR attribute",
+                           path, attrs[i].name, lib_msg(ec, rv));
             st = RC_ERR_RANGE;
             goto done;
         }
@@ -262,8 +263,8 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
         exr_encoding_destroy(ctxt, &enc);
     }
     if (rv != EXR_ERR_SUCCESS && st == RC_OK) {
-        status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions",
-                path, stage, lib_msg(ec, rv));
+        status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions", path, stage,
+                       lib_msg(ec, rv));
         st = rv == EXR_ERR_OUT_OF_MEMORY ? RC_ERR_NOMEM : RC_ERR_IO;
     }
 
@@ -272,8 +273,8 @@ done:
     {
         exr_result_t frv = exr_finish(&ctxt);
         if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
-            status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space",
-                    path, lib_msg(ec, frv));
+            status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space", path,
+                           lib_msg(ec, frv));
             st = RC_ERR_IO;
         }
     }
@@ -347,8 +348,8 @@ const char *exr_image_attr(const exr_image *img, const char *name)
 
 /* Decode one chunk (scanline block or tile) whose top-left pixel is (x0, y0) in image
  * coordinates into the per-channel float planes. */
-static exr_result_t decode_chunk(exr_const_context_t ctxt, int part, const exr_chunk_info_t *cinfo,
-                                 int x0, int y0, exr_image *img)
+static exr_result_t decode_chunk(exr_const_context_t ctxt, int part, const exr_chunk_info_t *cinfo, int x0, int y0,
+                                 exr_image *img)
 {
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     exr_result_t rv = exr_decoding_initialize(ctxt, part, cinfo, &dec);
@@ -381,8 +382,8 @@ static exr_result_t decode_chunk(exr_const_context_t ctxt, int part, const exr_c
     return rv;
 }
 
-static rc_status read_pixels(exr_context_t ctxt, int part, exr_storage_t storage, exr_attr_box2i_t dw,
-                             exr_image *img, const char **stage, exr_result_t *rvout)
+static rc_status read_pixels(exr_context_t ctxt, int part, exr_storage_t storage, exr_attr_box2i_t dw, exr_image *img,
+                             const char **stage, exr_result_t *rvout)
 {
     exr_result_t rv = EXR_ERR_SUCCESS;
     if (storage == EXR_STORAGE_SCANLINE) {
@@ -433,8 +434,8 @@ static rc_status read_attrs(exr_context_t ctxt, int part, exr_image *img)
         return RC_ERR_NOMEM;
     for (int32_t i = 0; i < count; i++) {
         const exr_attribute_t *a = NULL;
-        if (exr_get_attribute_by_index(ctxt, part, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS ||
-            !a || a->type != EXR_ATTR_STRING || !a->string || !a->name)
+        if (exr_get_attribute_by_index(ctxt, part, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS || !a ||
+            a->type != EXR_ATTR_STRING || !a->string || !a->name)
             continue;
         /* Names that do not fit the fixed slot are skipped rather than truncated, so a
          * lookup can never match the wrong attribute; long values are truncated. */
@@ -464,28 +465,31 @@ static int run_oiiotool_convert(const char *in, const char *out)
 
 /* Read a DWA-compressed file through an oiiotool conversion; attributes are taken from the
  * original header (ctxt) so oiiotool's own additions do not leak into the image. */
-static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_image *img, char *err,
-                                   size_t errlen)
+static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_image *img, char *err, size_t errlen)
 {
     char dir[] = "/tmp/reflcheck_exr_XXXXXX";
     if (!mkdtemp(dir)) {
-        status_message(err, errlen, "%s: DWA-compressed EXR needs a temporary directory (%s); check /tmp",
-                path, strerror(errno));
+        status_message(err, errlen, "%s: DWA-compressed EXR needs a temporary directory (%s); check /tmp", path,
+                       strerror(errno));
         return RC_ERR_IO;
     }
     char tmp[sizeof dir + 16];
     snprintf(tmp, sizeof tmp, "%s/conv.exr", dir);
     rc_status st;
     if (run_oiiotool_convert(path, tmp) != 0) {
-        status_message(err, errlen, "%s: DWA-compressed EXR could not be converted by oiiotool; install "
-                "openimageio-tools or re-save the file with ZIP compression", path);
+        status_message(err, errlen,
+                       "%s: DWA-compressed EXR could not be converted by oiiotool; install "
+                       "openimageio-tools or re-save the file with ZIP compression",
+                       path);
         st = RC_ERR_PARSE;
     } else {
         char sub[256];
         st = exr_read(tmp, img, sub, sizeof sub);
         if (st != RC_OK) {
-            status_message(err, errlen, "%s: DWA-compressed EXR unreadable after conversion (%s); re-save it "
-                    "with ZIP compression", path, sub);
+            status_message(err, errlen,
+                           "%s: DWA-compressed EXR unreadable after conversion (%s); re-save it "
+                           "with ZIP compression",
+                           path, sub);
         } else {
             free(img->attr_names);
             free(img->attr_values);
@@ -522,8 +526,10 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
     exr_result_t rv = exr_start_read(&ctxt, path, &init);
     if (rv != EXR_ERR_SUCCESS) {
         rc_status st = status_of(rv);
-        status_message(err, errlen, "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
-                "re-render or re-export it", path, lib_msg(ec, rv));
+        status_message(err, errlen,
+                       "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
+                       "re-render or re-export it",
+                       path, lib_msg(ec, rv));
         if (ctxt)
             exr_finish(&ctxt);
         return st;
@@ -539,7 +545,7 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
     rv = exr_get_storage(ctxt, part, &storage);
     if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
         status_message(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
-                path);
+                       path);
         st = RC_ERR_PARSE;
         goto out;
     }
@@ -557,16 +563,18 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_channels(ctxt, part, &chl);
     if (rv != EXR_ERR_SUCCESS || !chl) {
-        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file",
-                path, lib_msg(ec, rv));
+        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file", path,
+                       lib_msg(ec, rv));
         st = RC_ERR_PARSE;
         goto out;
     }
     {
         int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
         if (w <= 0 || h <= 0 || w > EXR_MAX_SIDE || h > EXR_MAX_SIDE || (size_t)(w * h) > EXR_MAX_PIXELS) {
-            status_message(err, errlen, "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
-                    "corrupt", path, dw.min.x, dw.min.y, dw.max.x, dw.max.y);
+            status_message(err, errlen,
+                           "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
+                           "corrupt",
+                           path, dw.min.x, dw.min.y, dw.max.x, dw.max.y);
             st = RC_ERR_PARSE;
             goto out;
         }
@@ -581,14 +589,16 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
     for (int c = 0; c < chl->num_channels; c++) {
         const exr_attr_chlist_entry_t *e = &chl->entries[c];
         if (e->x_sampling != 1 || e->y_sampling != 1) {
-            status_message(err, errlen, "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
-                    "are supported", path, e->name.str, e->x_sampling, e->y_sampling);
+            status_message(err, errlen,
+                           "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
+                           "are supported",
+                           path, e->name.str, e->x_sampling, e->y_sampling);
             st = RC_ERR_PARSE;
             goto out;
         }
         if (e->name.length >= EXR_NAME_MAX) {
-            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer",
-                    path, e->name.str, EXR_NAME_MAX - 1);
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer", path,
+                           e->name.str, EXR_NAME_MAX - 1);
             st = RC_ERR_PARSE;
             goto out;
         }
@@ -604,9 +614,11 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
         }
         double need = (double)img->width * img->height * chl->num_channels * sizeof(float);
         if (need > (double)limit) {
-            status_message(err, errlen, "%s: %dx%d with %d channels needs %.1f MiB as floats, over the memory limit "
-                    "of %.1f MiB; set REFLCHECK_MEMORY_LIMIT higher or give a smaller image", path, img->width,
-                    img->height, chl->num_channels, need / 1048576.0, (double)limit / 1048576.0);
+            status_message(err, errlen,
+                           "%s: %dx%d with %d channels needs %.1f MiB as floats, over the memory limit "
+                           "of %.1f MiB; set REFLCHECK_MEMORY_LIMIT higher or give a smaller image",
+                           path, img->width, img->height, chl->num_channels, need / 1048576.0,
+                           (double)limit / 1048576.0);
             st = RC_ERR_RANGE;
             goto out;
         }
@@ -631,8 +643,10 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
 
     st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
     if (st != RC_OK) {
-        status_message(err, errlen, "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
-                "re-render it", path, stage, lib_msg(ec, rv));
+        status_message(err, errlen,
+                       "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
+                       "re-render it",
+                       path, stage, lib_msg(ec, rv));
         goto out;
     }
     st = read_attrs(ctxt, part, img);

@@ -24,15 +24,21 @@
 #include <stddef.h>
 #include "../model/status.h"
 
-typedef struct { const char *name; const float *data; } exr_channel;
-typedef struct { const char *name; const char *value; } exr_attr;
+typedef struct {
+    const char *name;
+    const float *data;
+} exr_channel;
+typedef struct {
+    const char *name;
+    const char *value;
+} exr_attr;
 
 #define EXR_NAME_MAX 64
 typedef struct {
     int width, height, n_channels;
     char (*names)[EXR_NAME_MAX];
     float **data;
-    int n_attrs;                       /* string attributes only */
+    int n_attrs; /* string attributes only */
     char (*attr_names)[EXR_NAME_MAX];
     char (*attr_values)[256];
 } exr_image;

@@ -57,7 +57,7 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
                  "(x %d, y %d) channel %c = %g; give an image whose texels are finite and >= 0, e.g. "
                  "oiiotool %s --fixnan black --clamp:min=0 -o fixed.exr",
                  s->path, s->env.path, chk.n_nonfinite, chk.n_negative, t->x, t->y, "RGB"[t->channel],
-                 (double)t->value, s->env.path);
+                 (double)t -> value, s -> env.path);
         free(p);
         e->rgb = NULL;
         e->width = e->height = 0;
@@ -82,9 +82,12 @@ rc_status frame_write(const char *path, const scene *s, const mesh *m, const ren
     snprintf(tris, sizeof tris, "%d", m->n_tris);
     snprintf(samples, sizeof samples, "%lld", img->shaded_samples);
     exr_attr at[] = {
-        {"reflcheck.scene", s->name},       {"reflcheck.scene_hash", hash},
-        {"reflcheck.renderer", "reflcheck-raster"}, {"reflcheck.render_ms", ms},
-        {"reflcheck.supersample", k},       {"reflcheck.triangles", tris},
+        {"reflcheck.scene", s->name},
+        {"reflcheck.scene_hash", hash},
+        {"reflcheck.renderer", "reflcheck-raster"},
+        {"reflcheck.render_ms", ms},
+        {"reflcheck.supersample", k},
+        {"reflcheck.triangles", tris},
         {"reflcheck.shaded_samples", samples},
     };
     return exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);

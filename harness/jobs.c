@@ -50,8 +50,8 @@ void job_apply_variant(scene *s, job_variant v)
     s->samples = s->small.samples > 0 ? s->small.samples : (s->samples < 32 ? s->samples : 32);
 }
 
-void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role,
-                     const char *ext, char *buf, size_t len)
+void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role, const char *ext,
+                     char *buf, size_t len)
 {
     snprintf(buf, len, "%s/%s/%s-%s.%s", out_dir, scene_name, registry_name(renderer), job_role_names[role], ext);
 }
@@ -177,9 +177,9 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
  * stands in for them. */
 static void job_key_code(const renderer_row *row, uint64_t *key)
 {
-    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c", "model/scene.h",
-                                         "model/mesh.c",    "model/mesh.h",         "model/vec.h",   "harness/exr.c",
-                                         "harness/renderers/renderer.c"};
+    static const char *const common[] = {"harness/jobs.c", "harness/scene_file.c", "model/scene.c",
+                                         "model/scene.h",  "model/mesh.c",         "model/mesh.h",
+                                         "model/vec.h",    "harness/exr.c",        "harness/renderers/renderer.c"};
     const char *const *own = row->sources;
     int have = own != NULL;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
@@ -233,9 +233,9 @@ static rc_status job_key(const job_spec *j, const scene *s, const char *version,
         return st;
     char settings[512];
     int seeds = row->stochastic ? (j->seeds > 0 ? j->seeds : 2) : 0;
-    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d",
-             row->name, job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full",
-             s->width, s->height, s->supersample, s->samples, seeds, j->seed, j->tessellation, j->per_vertex);
+    snprintf(settings, sizeof settings, "%s|%s|%s|%dx%d|k%d|spp%d|seeds%d@%d|tess%d|pv%d", row->name,
+             job_role_names[j->role], j->variant == JOB_SMALL ? "small" : "full", s->width, s->height, s->supersample,
+             s->samples, seeds, j->seed, j->tessellation, j->per_vertex);
     h = job_key_field(h, "options", settings, strlen(settings));
     job_key_program(row->program, version, &h);
     job_key_code(row, &h);
@@ -247,14 +247,14 @@ typedef struct {
     const job_spec *j;
     scene *s;
     mesh *m;
-    char dir[1024];       /* where the work happens (cache entry or output folder) */
+    char dir[1024]; /* where the work happens (cache entry or output folder) */
     char exr[1100], log[1100];
     char version[256];
     char command[2048];
     double timeout;
     const char *shown_log; /* the log messages point to: the copy in OUT, which stays */
-    env_map env;          /* loaded and checked once, before any renderer runs */
-    renderer_result res;  /* the render entry's result: left-out terms for the record */
+    env_map env;           /* loaded and checked once, before any renderer runs */
+    renderer_result res;   /* the render entry's result: left-out terms for the record */
 } job_ctx;
 
 __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner_status st, const char *fmt, ...)
@@ -266,8 +266,8 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
     va_end(ap);
 }
 
-static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key,
-                                  char *err, size_t errlen)
+static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key, char *err,
+                                  size_t errlen)
 {
     const scene *s = c->s;
     char hash[32], keyhex[32];
@@ -447,10 +447,20 @@ static int job_entry_complete(const char *entry, job_record *rec, renderer_resul
 /* The table row's render entry, the same one the renderers' tests call. */
 static void job_render(job_ctx *c, job_record *rec)
 {
-    renderer_job rj = {.s = c->s, .m = c->m, .env = &c->env, .role = c->j->role, .threads = c->j->threads,
-                       .seeds = c->j->seeds, .seed = c->j->seed, .timeout = c->timeout,
-                       .partial = c->j->role == ROLE_TWIN, .dir = c->dir, .exr = c->exr, .log = c->log,
-                       .shown_log = c->shown_log, .version = c->version};
+    renderer_job rj = {.s = c->s,
+                       .m = c->m,
+                       .env = &c->env,
+                       .role = c->j->role,
+                       .threads = c->j->threads,
+                       .seeds = c->j->seeds,
+                       .seed = c->j->seed,
+                       .timeout = c->timeout,
+                       .partial = c->j->role == ROLE_TWIN,
+                       .dir = c->dir,
+                       .exr = c->exr,
+                       .log = c->log,
+                       .shown_log = c->shown_log,
+                       .version = c->version};
     memset(&c->res, 0, sizeof c->res);
     registry_row(c->j->renderer)->render(&rj, &c->res);
     rec->status = c->res.status;
@@ -623,8 +633,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         }
     }
     if (rec->status == RUNNER_OK && fileio_copy(c.exr, dest_exr) != 0)
-        job_fail(rec, RUNNER_ERROR, "cannot copy %s to %s: %s; check the output folder and its space", c.exr,
-                 dest_exr, strerror(errno));
+        job_fail(rec, RUNNER_ERROR, "cannot copy %s to %s: %s; check the output folder and its space", c.exr, dest_exr,
+                 strerror(errno));
     /* This job's log or none: an older run's must not pass for this one's. */
     unlink(dest_log);
     if (c.log[0] != '\0' && access(c.log, R_OK) == 0)

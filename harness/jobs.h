@@ -28,11 +28,11 @@
  * renderer's version line and executable (path, size, times), and the code the render depends
  * on (the scene pipeline and the row's translator sources when run in the source tree, else
  * and for a renderer without sources, our rasterizer, the reflcheck binary), and the terms the
- * renderer left out are kept with the entry. Threads, timeout and tag are not in it. A job takes an exclusive flock on CACHE/<key>.lock while it checks, renders and
- * publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes it by rename, so runs
- * sharing a cache render each key once and never see a half entry; a killed run's lock goes
- * with it and its work folder is removed by the next job on that key. Only ok renders are
- * cached. Without a cache the work folder is private too (OUT/<scene>/tmp-<renderer>-<role>-
+ * renderer left out are kept with the entry. Threads, timeout and tag are not in it. A job takes an exclusive flock on
+ * CACHE/<key>.lock while it checks, renders and publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes
+ * it by rename, so runs sharing a cache render each key once and never see a half entry; a killed run's lock goes with
+ * it and its work folder is removed by the next job on that key. Only ok renders are cached. Without a cache the work
+ * folder is private too (OUT/<scene>/tmp-<renderer>-<role>-
  * XXXXXX, under a lock OUT/<scene>/.tmp-<renderer>-<role>.lock) and removed afterwards, or by
  * the next run of the job if this one was killed.
  * Files in OUT are written under a temporary name and renamed, so a killed run leaves no half
@@ -51,16 +51,16 @@ typedef enum { JOB_FULL = 0, JOB_SMALL = 1 } job_variant;
 
 typedef struct {
     const char *scene_path;
-    int renderer;             /* a row of the renderer table (registry_find) */
-    comparison_role role;     /* raster: ROLE_TWIN switches Cook-Torrance to Smith G, F = 1 */
+    int renderer;         /* a row of the renderer table (registry_find) */
+    comparison_role role; /* raster: ROLE_TWIN switches Cook-Torrance to Smith G, F = 1 */
     job_variant variant;
     const char *out_dir;
-    const char *cache_dir;    /* NULL = no cache */
-    double timeout_s;         /* 0 = the scene's timeout */
-    int threads;              /* 0 = all cores */
-    int seeds;                /* Cycles seeds, 0 = 2 */
-    int seed;                 /* Cycles first seed, default 0: sweeps use seeds disjoint from
-                                 their reference's */
+    const char *cache_dir; /* NULL = no cache */
+    double timeout_s;      /* 0 = the scene's timeout */
+    int threads;           /* 0 = all cores */
+    int seeds;             /* Cycles seeds, 0 = 2 */
+    int seed;              /* Cycles first seed, default 0: sweeps use seeds disjoint from
+                              their reference's */
     /* Quality overrides for error-against-time sweeps (0 = the scene's or variant's). With any
      * set, outputs are named <renderer>-<role>-<tag> so sweeps do not overwrite each other. */
     int supersample, samples, tessellation, per_vertex;
@@ -73,17 +73,17 @@ typedef struct {
     char exr[1024], record[1024], log[1024];
     double wall_s, cpu_s;
     int cached;
-    int bad_input;   /* job_run failed on an input the user gave: exit status 2 */
+    int bad_input; /* job_run failed on an input the user gave: exit status 2 */
 } job_record;
 
 extern const char *const job_role_names[3];
 
-int job_role_from_name(const char *name);       /* -1 if unknown */
+int job_role_from_name(const char *name); /* -1 if unknown */
 /* Applies the variant's image size and samples to s. */
 void job_apply_variant(scene *s, job_variant v);
 /* The files of a job: OUT/<scene>/<renderer>-<role>.<ext>. */
-void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role,
-                     const char *ext, char *buf, size_t len);
+void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role, const char *ext,
+                     char *buf, size_t len);
 /* Applies a spec's quality overrides to s (tessellation of every object, per-vertex shading
  * of every D3D material, supersample, samples). */
 void job_apply_overrides(scene *s, const job_spec *j);

@@ -10,21 +10,20 @@
 /* Default relative-MSE epsilon: the value used with relMSE in the denoising literature
  * (Rousselle, Knaus and Zwicker 2011 and later work). It keeps near-black reference pixels
  * from dominating the mean: below r ~ 0.1 the error is judged in absolute terms. */
-#define METRICS_REL_EPS 1e-2
+#define METRICS_REL_EPS   1e-2
 /* idiff's default -fail/-warn threshold, so share_over matches its "pixels over" line. */
 #define METRICS_THRESHOLD 1e-6
 /* Wang, Bovik, Sheikh and Simoncelli 2004, "Image quality assessment: from error visibility
  * to structural similarity", IEEE TIP 13(4): K1 = 0.01, K2 = 0.03, Gaussian sigma 1.5 over
  * 11x11. L = 1 treats 1.0 as reference white; for HDR data the constants only keep the
  * ratios finite in flat dark regions, and bright regions (values >> L) dominate regardless. */
-#define SSIM_K1 0.01
-#define SSIM_K2 0.03
-#define SSIM_SIGMA 1.5
+#define SSIM_K1           0.01
+#define SSIM_K2           0.03
+#define SSIM_SIGMA        1.5
 /* Default z-test variance floor: sigma = 1e-5 absolute, about 100 float ulps at 1.0, so a
  * pixel whose seeds agree exactly (variance 0) tolerates float rounding but nothing more. */
-#define ZTEST_VAR_FLOOR 1e-10
-#define ZTEST_ALPHA 0.01
-
+#define ZTEST_VAR_FLOOR   1e-10
+#define ZTEST_ALPHA       0.01
 
 static int check_image(const metrics_image *im, const char *what, int w, int h, char *err, size_t errlen)
 {
@@ -34,7 +33,7 @@ static int check_image(const metrics_image *im, const char *what, int w, int h, 
     }
     if (im->width <= 0 || im->height <= 0 || (w > 0 && (im->width != w || im->height != h))) {
         status_message(err, errlen, "metrics: %s image is %dx%d but %dx%d was expected; compare images of one size",
-                what, im->width, im->height, w, h);
+                       what, im->width, im->height, w, h);
         return 0;
     }
     for (int c = 0; c < 3; c++)
@@ -45,10 +44,7 @@ static int check_image(const metrics_image *im, const char *what, int w, int h, 
     return 1;
 }
 
-double metrics_luminance(double r, double g, double b)
-{
-    return 0.2126 * r + 0.7152 * g + 0.0722 * b;
-}
+double metrics_luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
 
 /* ---------------------------------------------------------------- SSIM */
 
@@ -80,9 +76,8 @@ static void window_pass(int w, int h, const double *in, double *tmp, double *out
         }
 }
 
-rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test,
-                           const unsigned char *mask, const metrics_options *opt, float *map,
-                           double *mean, char *err, size_t errlen)
+rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test, const unsigned char *mask,
+                           const metrics_options *opt, float *map, double *mean, char *err, size_t errlen)
 {
     if (width <= 0 || height <= 0 || !ref || !test) {
         status_message(err, errlen, "metrics_ssim_map: need positive size and two planes (got %dx%d)", width, height);
@@ -90,7 +85,7 @@ rc_status metrics_ssim_map(int width, int height, const float *ref, const float 
     }
     if (opt && opt->ssim_window != METRICS_SSIM_BOX8 && opt->ssim_window != METRICS_SSIM_GAUSS11) {
         status_message(err, errlen, "metrics: ssim_window %d unknown; use METRICS_SSIM_GAUSS11 or METRICS_SSIM_BOX8",
-                opt->ssim_window);
+                       opt->ssim_window);
         return RC_ERR_RANGE;
     }
     int box = opt && opt->ssim_window == METRICS_SSIM_BOX8;
@@ -179,9 +174,10 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
     double thr = opt && opt->threshold > 0 ? opt->threshold : METRICS_THRESHOLD;
     double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
     if (opt && (opt->threshold < 0 || opt->rel_eps < 0 || opt->psnr_peak < 0 || opt->ssim_range < 0)) {
-        status_message(err, errlen, "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
-                "ssim_range %g); use 0 for the default", opt->threshold, opt->rel_eps, opt->psnr_peak,
-                opt->ssim_range);
+        status_message(err, errlen,
+                       "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
+                       "ssim_range %g); use 0 for the default",
+                       opt->threshold, opt->rel_eps, opt->psnr_peak, opt->ssim_range);
         return RC_ERR_RANGE;
     }
 
@@ -290,8 +286,7 @@ static int cover_state(const float *cov, size_t p)
     return a >= 1.0f - COVER_TOL ? 2 : 1;
 }
 
-void metrics_classify(int width, int height, const float *coverage, const float *object_id,
-                      unsigned char *cls)
+void metrics_classify(int width, int height, const float *coverage, const float *object_id, unsigned char *cls)
 {
     if (width <= 0 || height <= 0 || !cls)
         return;
@@ -316,8 +311,8 @@ void metrics_classify(int width, int height, const float *coverage, const float 
         }
 }
 
-long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want,
-                             const float *object_id, float id, unsigned char *mask)
+long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want, const float *object_id,
+                             float id, unsigned char *mask)
 {
     if (width <= 0 || height <= 0 || !cls || !mask)
         return 0;
@@ -360,12 +355,12 @@ void metrics_scan_values(const float *v, size_t n, metrics_value_scan *out)
  * brings it to double precision (the step converges cubically). */
 double metrics_norm_quantile(double p)
 {
-    static const double a[6] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
-                                1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00};
+    static const double a[6] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
+                                1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
     static const double b[5] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
                                 6.680131188771972e+01, -1.328068155288572e+01};
     static const double c[6] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
-                                -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00};
+                                -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
     static const double d[4] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
                                 3.754408661907416e+00};
     if (isnan(p) || p < 0.0 || p > 1.0)
@@ -400,9 +395,8 @@ static int cmp_double(const void *a, const void *b)
 }
 
 /* z and two-sided p of one value, or 0 when the value cannot be tested. */
-static int z_of(const metrics_image *rm, const metrics_image *rv, const metrics_image *t,
-                const metrics_image *tv, double floor_abs, double floor_rel, size_t p, int c,
-                double *z, double *pv)
+static int z_of(const metrics_image *rm, const metrics_image *rv, const metrics_image *t, const metrics_image *tv,
+                double floor_abs, double floor_rel, size_t p, int c, double *z, double *pv)
 {
     double r = rm->c[c][p], x = t->c[c][p], v = rv->c[c][p];
     double vt = tv ? tv->c[c][p] : 0.0;
@@ -414,9 +408,8 @@ static int z_of(const metrics_image *rm, const metrics_image *rv, const metrics_
     return 1;
 }
 
-rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var,
-                        const metrics_image *test, const metrics_image *test_var,
-                        const unsigned char *mask, const metrics_ztest_options *opt,
+rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var, const metrics_image *test,
+                        const metrics_image *test_var, const unsigned char *mask, const metrics_ztest_options *opt,
                         metrics_ztest_result *out, char *err, size_t errlen)
 {
     if (!out) {
@@ -438,8 +431,10 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
     double floor_rel = opt ? opt->rel_floor : 0.0;
     int corr = opt ? opt->correction : METRICS_BONFERRONI;
     if (alpha >= 1 || floor_rel < 0 || (corr != METRICS_BONFERRONI && corr != METRICS_HOLM && corr != METRICS_SIDAK)) {
-        status_message(err, errlen, "metrics_ztest: bad option (alpha %g must be in (0,1), rel_floor %g >= 0, "
-                "correction %d one of BONFERRONI/HOLM/SIDAK)", alpha, floor_rel, corr);
+        status_message(err, errlen,
+                       "metrics_ztest: bad option (alpha %g must be in (0,1), rel_floor %g >= 0, "
+                       "correction %d one of BONFERRONI/HOLM/SIDAK)",
+                       alpha, floor_rel, corr);
         return RC_ERR_RANGE;
     }
 
@@ -527,8 +522,8 @@ done:
     return st;
 }
 
-rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3],
-                             char *err, size_t errlen)
+rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3], char *err,
+                             size_t errlen)
 {
     if (!seeds || k < 2 || !mean || !var) {
         status_message(err, errlen, "metrics_seed_stats: need at least 2 seed images (got %d) and output planes", k);

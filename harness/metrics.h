@@ -49,17 +49,17 @@ typedef struct {
 } metrics_options;
 
 typedef struct {
-    long n_pixels;     /* pixels included by the mask and finite */
-    long n_nonfinite;  /* included pixels left out because a value was NaN or Inf */
-    double mae, rmse;  /* over all included values of R, G, B */
+    long n_pixels;    /* pixels included by the mask and finite */
+    long n_nonfinite; /* included pixels left out because a value was NaN or Inf */
+    double mae, rmse; /* over all included values of R, G, B */
     double rel_mse, rel_rms;
-    double psnr, peak; /* psnr in dB, +inf when rmse == 0; peak as used */
-    double max_abs;    /* largest |t - r|; first in row-major, then R, G, B order */
-    int max_x, max_y, max_c;           /* its pixel and channel (0 R, 1 G, 2 B); -1 if no pixel */
-    double max_ref, max_test;          /* the two values there */
-    long n_over;       /* pixels with any channel |t - r| > threshold */
-    double share_over; /* n_over / n_pixels */
-    double ssim;       /* mean SSIM of Rec.709 luminance over included pixels */
+    double psnr, peak;        /* psnr in dB, +inf when rmse == 0; peak as used */
+    double max_abs;           /* largest |t - r|; first in row-major, then R, G, B order */
+    int max_x, max_y, max_c;  /* its pixel and channel (0 R, 1 G, 2 B); -1 if no pixel */
+    double max_ref, max_test; /* the two values there */
+    long n_over;              /* pixels with any channel |t - r| > threshold */
+    double share_over;        /* n_over / n_pixels */
+    double ssim;              /* mean SSIM of Rec.709 luminance over included pixels */
     double mae_ch[3], rmse_ch[3], rel_mse_ch[3], max_abs_ch[3], ssim_ch[3];
 } metrics_result;
 
@@ -70,9 +70,8 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
  * Windows are truncated at the image border and at excluded pixels, with the remaining
  * weights renormalised, so an excluded region never leaks into the score. *mean gets the
  * mean over included pixels (may be NULL). */
-rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test,
-                           const unsigned char *mask, const metrics_options *opt, float *map,
-                           double *mean, char *err, size_t errlen);
+rc_status metrics_ssim_map(int width, int height, const float *ref, const float *test, const unsigned char *mask,
+                           const metrics_options *opt, float *map, double *mean, char *err, size_t errlen);
 
 /* Rec.709 luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of one pixel. */
 double metrics_luminance(double r, double g, double b);
@@ -85,22 +84,21 @@ enum { METRICS_PX_BACKGROUND = 0, METRICS_PX_INTERIOR = 1, METRICS_PX_EDGE = 2 }
  * any pixel in its 3x3 neighbourhood differs in covered-ness or, both covered, in object id
  * (exact float compare: box-filtered ids at a boundary are fractional and so differ;
  * object_id NULL: ids ignored). Otherwise INTERIOR if covered, BACKGROUND if not. */
-void metrics_classify(int width, int height, const float *coverage, const float *object_id,
-                      unsigned char *cls);
+void metrics_classify(int width, int height, const float *coverage, const float *object_id, unsigned char *cls);
 
 /* mask[i] = 1 where cls[i] == want (want < 0: any class) and, if object_id is not NULL,
  * object_id[i] == id; else 0. Returns the number of pixels selected. */
-long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want,
-                             const float *object_id, float id, unsigned char *mask);
+long metrics_mask_from_class(int width, int height, const unsigned char *cls, int want, const float *object_id,
+                             float id, unsigned char *mask);
 
 /* ---- noise-aware per-pixel test ---- */
 enum { METRICS_BONFERRONI = 0, METRICS_HOLM = 1, METRICS_SIDAK = 2 };
 
 typedef struct {
-    double alpha;       /* family-wise error rate; 0 -> 0.01 (Mitsuba 3's render tests) */
-    double var_floor;   /* absolute variance added to every value; 0 -> 1e-10, < 0 -> none */
-    double rel_floor;   /* sigma_floor = rel_floor * |r| added in quadrature; 0 -> none */
-    int correction;     /* METRICS_BONFERRONI, METRICS_HOLM or METRICS_SIDAK */
+    double alpha;     /* family-wise error rate; 0 -> 0.01 (Mitsuba 3's render tests) */
+    double var_floor; /* absolute variance added to every value; 0 -> 1e-10, < 0 -> none */
+    double rel_floor; /* sigma_floor = rel_floor * |r| added in quadrature; 0 -> none */
+    int correction;   /* METRICS_BONFERRONI, METRICS_HOLM or METRICS_SIDAK */
 } metrics_ztest_options;
 
 typedef struct {
@@ -111,7 +109,7 @@ typedef struct {
     double z_crit;      /* |z| threshold of the per-value level (Bonferroni/Sidak; the first Holm step) */
     double max_abs_z;
     int max_x, max_y, max_c;
-    double min_p;       /* smallest two-sided p-value */
+    double min_p; /* smallest two-sided p-value */
 } metrics_ztest_result;
 
 /* z = (t - r) / sqrt(var_ref + var_test + var_floor + (rel_floor r)^2) per channel, with
@@ -120,24 +118,23 @@ typedef struct {
  * var_test may be NULL for a deterministic test image. With few seeds the variance estimate
  * has k - 1 degrees of freedom and normal quantiles understate its tails: use many seeds or a
  * floor. */
-rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var,
-                        const metrics_image *test, const metrics_image *test_var,
-                        const unsigned char *mask, const metrics_ztest_options *opt,
+rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var, const metrics_image *test,
+                        const metrics_image *test_var, const unsigned char *mask, const metrics_ztest_options *opt,
                         metrics_ztest_result *out, char *err, size_t errlen);
 
 /* Mean and variance of the mean (unbiased sample variance / k) over k >= 2 renders with
  * different seeds, into caller planes mean[3] and var[3] (w*h floats each). */
-rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3],
-                             char *err, size_t errlen);
+rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mean[3], float *const var[3], char *err,
+                             size_t errlen);
 
 /* ---- value integrity ---- */
 typedef struct {
-    long n_values;          /* values scanned */
-    long n_nonfinite;       /* NaN, +Inf or -Inf */
-    long n_negative;        /* finite and < 0 (-0.0 is not negative) */
-    long first_nonfinite;   /* index of the first such value, -1 if none */
+    long n_values;        /* values scanned */
+    long n_nonfinite;     /* NaN, +Inf or -Inf */
+    long n_negative;      /* finite and < 0 (-0.0 is not negative) */
+    long first_nonfinite; /* index of the first such value, -1 if none */
     long first_negative;
-    float nonfinite_value;  /* the value there (0 if none) */
+    float nonfinite_value; /* the value there (0 if none) */
     float negative_value;
 } metrics_value_scan;
 

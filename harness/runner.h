@@ -26,11 +26,11 @@
 
 typedef enum {
     RUNNER_OK = 0,
-    RUNNER_MISSING,   /* the program is not installed (not on PATH) */
-    RUNNER_FAILED,    /* exited with a non-zero status */
-    RUNNER_CRASHED,   /* killed by a signal it did not get from us */
-    RUNNER_TIMEOUT,   /* exceeded the time limit and was killed */
-    RUNNER_ERROR      /* could not start (fork, log file) */
+    RUNNER_MISSING, /* the program is not installed (not on PATH) */
+    RUNNER_FAILED,  /* exited with a non-zero status */
+    RUNNER_CRASHED, /* killed by a signal it did not get from us */
+    RUNNER_TIMEOUT, /* exceeded the time limit and was killed */
+    RUNNER_ERROR    /* could not start (fork, log file) */
 } runner_status;
 
 typedef struct {
@@ -39,7 +39,7 @@ typedef struct {
     int signal;
     double wall_s, cpu_s;
     long max_rss_kb;
-    int exec_errno;   /* why the program could not be started, 0 if it was */
+    int exec_errno; /* why the program could not be started, 0 if it was */
 } runner_result;
 
 /* 1 if `program` is an executable on PATH (or a path that is executable). */

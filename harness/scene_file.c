@@ -23,7 +23,7 @@
 
 /* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
 #define SF_MAX_DEPTH 32
-#define SF_PATHLEN 256
+#define SF_PATHLEN   256
 
 typedef struct {
     yaml_document_t *doc;
@@ -55,8 +55,7 @@ uint64_t scene_file_hash(const void *bytes, size_t len)
 }
 
 SF_PRINTF(5, 0)
-static void sf_vmsg(sf_ctx *c, unsigned long line, unsigned long col, const char *path,
-                    const char *fmt, va_list ap)
+static void sf_vmsg(sf_ctx *c, unsigned long line, unsigned long col, const char *path, const char *fmt, va_list ap)
 {
     char msg[512];
     if (!c->err || c->errlen == 0)
@@ -66,20 +65,18 @@ static void sf_vmsg(sf_ctx *c, unsigned long line, unsigned long col, const char
 }
 
 SF_PRINTF(5, 6)
-static rc_status sf_fail(sf_ctx *c, rc_status rc, const yaml_node_t *n, const char *path,
-                         const char *fmt, ...)
+static rc_status sf_fail(sf_ctx *c, rc_status rc, const yaml_node_t *n, const char *path, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    sf_vmsg(c, n ? (unsigned long)n->start_mark.line + 1 : 1,
-            n ? (unsigned long)n->start_mark.column + 1 : 1, path, fmt, ap);
+    sf_vmsg(c, n ? (unsigned long)n->start_mark.line + 1 : 1, n ? (unsigned long)n->start_mark.column + 1 : 1, path,
+            fmt, ap);
     va_end(ap);
     return rc;
 }
 
 SF_PRINTF(5, 6)
-static rc_status sf_fail_at(sf_ctx *c, rc_status rc, yaml_mark_t m, const char *path,
-                            const char *fmt, ...)
+static rc_status sf_fail_at(sf_ctx *c, rc_status rc, yaml_mark_t m, const char *path, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
@@ -159,16 +156,14 @@ static void sf_join(char *out, size_t outlen, const char *const *names, int n)
 }
 
 /* Reads a map whose keys must come from `keys`; found[i] gets key i's key and value nodes. */
-static rc_status sf_map(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *keys,
-                        int nkeys, sf_kv *found)
+static rc_status sf_map(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *keys, int nkeys, sf_kv *found)
 {
     char allowed[400], child[SF_PATHLEN], q[48];
     sf_join(allowed, sizeof allowed, keys, nkeys);
     memset(found, 0, sizeof(sf_kv) * (size_t)nkeys);
     if (n->type != YAML_MAPPING_NODE)
         return sf_fail(c, RC_ERR_PARSE, n, path[0] ? path : "(top level)",
-                       "expected a map {key: value, ...}, got %s; allowed keys: %s", sf_kind(n),
-                       allowed);
+                       "expected a map {key: value, ...}, got %s; allowed keys: %s", sf_kind(n), allowed);
     for (yaml_node_pair_t *p = n->data.mapping.pairs.start; p < n->data.mapping.pairs.top; p++) {
         yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
         yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
@@ -185,8 +180,7 @@ static rc_status sf_map(sf_ctx *c, yaml_node_t *n, const char *path, const char 
         if (idx < 0)
             return sf_fail(c, RC_ERR_PARSE, k, child, "unknown key; allowed: %s", allowed);
         if (found[idx].k)
-            return sf_fail(c, RC_ERR_PARSE, k, child,
-                           "duplicate key (first at line %lu); allowed: each key once",
+            return sf_fail(c, RC_ERR_PARSE, k, child, "duplicate key (first at line %lu); allowed: each key once",
                            (unsigned long)found[idx].k->start_mark.line + 1);
         found[idx].k = k;
         found[idx].v = v;
@@ -194,20 +188,21 @@ static rc_status sf_map(sf_ctx *c, yaml_node_t *n, const char *path, const char 
     return RC_OK;
 }
 
-static rc_status sf_need(sf_ctx *c, yaml_node_t *map, const char *path, const sf_kv *f,
-                         const char *key)
+static rc_status sf_need(sf_ctx *c, yaml_node_t *map, const char *path, const sf_kv *f, const char *key)
 {
     char child[SF_PATHLEN];
     if (f->v)
         return RC_OK;
     sf_child(child, path, key);
-    return sf_fail(c, RC_ERR_PARSE, map, child, "missing required key in the map at this line; "
-                   "allowed: add %s: ...", key);
+    return sf_fail(c, RC_ERR_PARSE, map, child,
+                   "missing required key in the map at this line; "
+                   "allowed: add %s: ...",
+                   key);
 }
 
 /* A key given where it does not apply (e.g. `radius` on a quad). */
-static rc_status sf_forbid(sf_ctx *c, const char *path, const sf_kv *f, const char *key,
-                           const char *what, const char *allowed)
+static rc_status sf_forbid(sf_ctx *c, const char *path, const sf_kv *f, const char *key, const char *what,
+                           const char *allowed)
 {
     char child[SF_PATHLEN];
     if (!f->k)
@@ -243,14 +238,14 @@ static int sf_parse_double(const char *s, double *out)
     return 1;
 }
 
-static rc_status sf_number(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
-                           int flags, const char *allowed, double *out)
+static rc_status sf_number(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi, int flags,
+                           const char *allowed, double *out)
 {
     const char *s = sf_text(n);
     double v;
     if (!s || !sf_parse_double(s, &v))
-        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a number, got %s; allowed: %s",
-                       s ? "text" : sf_kind(n), allowed);
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a number, got %s; allowed: %s", s ? "text" : sf_kind(n),
+                       allowed);
     if (isnan(v))
         return sf_fail(c, RC_ERR_RANGE, n, path, "NaN is not a value; allowed: %s", allowed);
     if (isinf(v) && !(flags & SF_ALLOW_INF))
@@ -261,23 +256,22 @@ static rc_status sf_number(sf_ctx *c, yaml_node_t *n, const char *path, double l
     return RC_OK;
 }
 
-static rc_status sf_float(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
-                          int flags, const char *allowed, float *out)
+static rc_status sf_float(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi, int flags,
+                          const char *allowed, float *out)
 {
     double v;
     rc_status rc = sf_number(c, n, path, lo, hi, flags, allowed, &v);
     if (rc)
         return rc;
     if (isfinite(v) && fabs(v) > FLT_MAX)
-        return sf_fail(c, RC_ERR_RANGE, n, path, "too large for single precision; allowed: %s",
-                       allowed);
+        return sf_fail(c, RC_ERR_RANGE, n, path, "too large for single precision; allowed: %s", allowed);
     *out = (float)v;
     return RC_OK;
 }
 
 /* Degrees in the file, radians in the struct. */
-static rc_status sf_angle(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi,
-                          int flags, const char *allowed, float *out)
+static rc_status sf_angle(sf_ctx *c, yaml_node_t *n, const char *path, double lo, double hi, int flags,
+                          const char *allowed, float *out)
 {
     double v;
     rc_status rc = sf_number(c, n, path, lo, hi, flags, allowed, &v);
@@ -292,18 +286,15 @@ static rc_status sf_int(sf_ctx *c, yaml_node_t *n, const char *path, long lo, lo
     const char *s = sf_text(n);
     char *end;
     if (!s || !s[0] || isspace((unsigned char)s[0]))
-        return sf_fail(c, RC_ERR_PARSE, n, path,
-                       "expected a whole number, got %s; allowed: %ld..%ld",
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got %s; allowed: %ld..%ld",
                        s ? "empty text" : sf_kind(n), lo, hi);
     errno = 0;
     long v = strtol(s, &end, 10);
     if (*end) {
         double d;
         if (sf_parse_double(s, &d))
-            return sf_fail(c, RC_ERR_PARSE, n, path,
-                           "expected a whole number, got %s; allowed: %ld..%ld", s, lo, hi);
-        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got text; allowed: %ld..%ld",
-                       lo, hi);
+            return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got %s; allowed: %ld..%ld", s, lo, hi);
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got text; allowed: %ld..%ld", lo, hi);
     }
     if (errno == ERANGE || v < lo || v > hi)
         return sf_fail(c, RC_ERR_RANGE, n, path, "%s is out of range; allowed: %ld..%ld", s, lo, hi);
@@ -326,8 +317,7 @@ static rc_status sf_bool(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
                    s ? "other text" : sf_kind(n));
 }
 
-static rc_status sf_enum(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *names,
-                         int count, int *out)
+static rc_status sf_enum(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *names, int count, int *out)
 {
     char allowed[200], q[48];
     const char *s = sf_text(n);
@@ -336,22 +326,19 @@ static rc_status sf_enum(sf_ctx *c, yaml_node_t *n, const char *path, const char
             return *out = i, RC_OK;
     sf_join(allowed, sizeof allowed, names, count);
     if (!s)
-        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a word, got %s; allowed: %s",
-                       sf_kind(n), allowed);
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a word, got %s; allowed: %s", sf_kind(n), allowed);
     sf_quote(q, sizeof q, s);
     return sf_fail(c, RC_ERR_PARSE, n, path, "unknown value '%s'; allowed: %s", q, allowed);
 }
 
 /* A list of exactly `count` numbers, each checked like sf_float. */
-static rc_status sf_floats(sf_ctx *c, yaml_node_t *n, const char *path, int count, double lo,
-                           double hi, int flags, const char *allowed, float *out)
+static rc_status sf_floats(sf_ctx *c, yaml_node_t *n, const char *path, int count, double lo, double hi, int flags,
+                           const char *allowed, float *out)
 {
     char child[SF_PATHLEN];
-    if (n->type != YAML_SEQUENCE_NODE ||
-        n->data.sequence.items.top - n->data.sequence.items.start != count)
-        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a list of %d numbers, got %s; allowed: %s",
-                       count, n->type == YAML_SEQUENCE_NODE ? "a list of another length" : sf_kind(n),
-                       allowed);
+    if (n->type != YAML_SEQUENCE_NODE || n->data.sequence.items.top - n->data.sequence.items.start != count)
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a list of %d numbers, got %s; allowed: %s", count,
+                       n->type == YAML_SEQUENCE_NODE ? "a list of another length" : sf_kind(n), allowed);
     for (int i = 0; i < count; i++) {
         yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
         sf_index(child, path, i);
@@ -364,8 +351,7 @@ static rc_status sf_floats(sf_ctx *c, yaml_node_t *n, const char *path, int coun
     return RC_OK;
 }
 
-static rc_status sf_vec3(sf_ctx *c, yaml_node_t *n, const char *path, double lo,
-                         const char *allowed, vec3 *out)
+static rc_status sf_vec3(sf_ctx *c, yaml_node_t *n, const char *path, double lo, const char *allowed, vec3 *out)
 {
     float f[3];
     rc_status rc = sf_floats(c, n, path, 3, lo, INFINITY, 0, allowed, f);
@@ -402,8 +388,7 @@ static rc_status sf_direction(sf_ctx *c, yaml_node_t *n, const char *path, vec3 
         return rc;
     dvec3 dd = dv3_from(d);
     if (dv3_len(dd) == 0.0)
-        return sf_fail(c, RC_ERR_RANGE, n, path,
-                       "zero-length direction; allowed: [x, y, z] with a nonzero length");
+        return sf_fail(c, RC_ERR_RANGE, n, path, "zero-length direction; allowed: [x, y, z] with a nonzero length");
     *out = v3_from_d(dv3_norm(dd));
     return RC_OK;
 }
@@ -414,17 +399,15 @@ static rc_status sf_name(sf_ctx *c, yaml_node_t *n, const char *path, char *out,
 {
     const char *s = sf_text(n);
     if (!s)
-        return sf_fail(c, RC_ERR_PARSE, n, path,
-                       "expected a name, got %s; allowed: letters, digits, _ - .", sf_kind(n));
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a name, got %s; allowed: letters, digits, _ - .",
+                       sf_kind(n));
     size_t len = strlen(s);
     if (len == 0 || len >= outlen)
-        return sf_fail(c, RC_ERR_RANGE, n, path, "name length %zu; allowed: 1..%zu characters", len,
-                       outlen - 1);
+        return sf_fail(c, RC_ERR_RANGE, n, path, "name length %zu; allowed: 1..%zu characters", len, outlen - 1);
     for (size_t i = 0; i < len; i++)
         if (!sf_name_char((unsigned char)s[i]))
             return sf_fail(c, RC_ERR_RANGE, n, path,
-                           "character %zu is not allowed in a name; allowed: letters, digits, _ - .",
-                           i + 1);
+                           "character %zu is not allowed in a name; allowed: letters, digits, _ - .", i + 1);
     memcpy(out, s, len + 1);
     return RC_OK;
 }
@@ -442,8 +425,8 @@ static int sf_ends_with(const char *s, const char *suffix)
 
 /* A file path relative to the scene file's directory; the file must be a readable regular
  * file of at most max_bytes now (checked without reading it, so a FIFO cannot block). */
-static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *exts,
-                         int nexts, const char *what, long long max_bytes, char *out)
+static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char *const *exts, int nexts,
+                         const char *what, long long max_bytes, char *out)
 {
     char q[80], allowed[80];
     const char *s = sf_text(n);
@@ -456,8 +439,8 @@ static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char
         ok |= sf_ends_with(s, exts[i]);
     sf_quote(q, sizeof q, s);
     if (!ok)
-        return sf_fail(c, RC_ERR_RANGE, n, path, "'%s' has an unsupported extension; allowed: %s (%s)",
-                       q, what, allowed);
+        return sf_fail(c, RC_ERR_RANGE, n, path, "'%s' has an unsupported extension; allowed: %s (%s)", q, what,
+                       allowed);
     size_t need = (s[0] == '/' ? 0 : strlen(c->dir)) + strlen(s) + 1;
     if (need > SCENE_PATH_MAX)
         return sf_fail(c, RC_ERR_RANGE, n, path, "path is %zu bytes long; allowed: at most %d", need,
@@ -522,8 +505,8 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
         return rc;
     if (f[2].v && (rc = sf_direction(c, f[2].v, "camera.up", &s->camera.up)))
         return rc;
-    if ((rc = sf_angle(c, f[3].v, "camera.hfov", 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN,
-                       "degrees in (0, 180)", &s->camera.hfov)))
+    if ((rc = sf_angle(c, f[3].v, "camera.hfov", 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN, "degrees in (0, 180)",
+                       &s->camera.hfov)))
         return rc;
     dvec3 view = dv3_sub(dv3_from(s->camera.target), dv3_from(s->camera.eye));
     if (dv3_len(view) == 0.0)
@@ -551,46 +534,55 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
                        "give exactly one of 'constant' and 'image'; allowed: {constant: [r, g, b]} "
                        "or {image: file.exr, scale: s}, or omit environment for none");
     if (f[0].v) {
-        if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment",
-                            "constant: [r, g, b] alone")))
+        if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment", "constant: [r, g, b] alone")))
             return rc;
         s->env.kind = ENV_CONSTANT;
         return sf_colour(c, f[0].v, "environment.constant", &s->env.radiance);
     }
     s->env.kind = ENV_IMAGE;
     s->env.radiance = v3s(1.0f);
-    if ((rc = sf_file(c, f[1].v, "environment.image", exts, 1,
-                      "equirectangular linear OpenEXR image", LLONG_MAX, s->env.path)))
+    if ((rc = sf_file(c, f[1].v, "environment.image", exts, 1, "equirectangular linear OpenEXR image", LLONG_MAX,
+                      s->env.path)))
         return rc;
     if (f[2].v) {
         if (f[2].v->type == YAML_SEQUENCE_NODE)
             return sf_colour(c, f[2].v, "environment.scale", &s->env.radiance);
         float k;
-        if ((rc = sf_float(c, f[2].v, "environment.scale", 0.0, INFINITY, 0,
-                           "a finite number >= 0 or [r, g, b]", &k)))
+        if ((rc = sf_float(c, f[2].v, "environment.scale", 0.0, INFINITY, 0, "a finite number >= 0 or [r, g, b]", &k)))
             return rc;
         s->env.radiance = v3s(k);
     }
     return RC_OK;
 }
 
-enum { LK_TYPE, LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_IRRADIANCE, LK_AMBIENT,
-       LK_ATTENUATION, LK_RANGE, LK_INNER, LK_OUTER, LK_FALLOFF, LK_PROFILE, LK_COUNT };
+enum {
+    LK_TYPE,
+    LK_POSITION,
+    LK_DIRECTION,
+    LK_INTENSITY,
+    LK_IRRADIANCE,
+    LK_AMBIENT,
+    LK_ATTENUATION,
+    LK_RANGE,
+    LK_INNER,
+    LK_OUTER,
+    LK_FALLOFF,
+    LK_PROFILE,
+    LK_COUNT
+};
 
 static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
 {
-    static const char *const keys[LK_COUNT] = {"type", "position", "direction", "intensity",
-                                               "irradiance", "ambient", "attenuation", "range",
-                                               "inner", "outer", "falloff", "profile"};
+    static const char *const keys[LK_COUNT] = {"type",       "position", "direction",   "intensity",
+                                               "irradiance", "ambient",  "attenuation", "range",
+                                               "inner",      "outer",    "falloff",     "profile"};
     static const char *const types[] = {"point", "sun", "spot"};
     static const char *const profiles[] = {"d3d", "smooth"};
     /* Keys each light type accepts, and the ones it requires. */
-    static const int point_ok[] = {LK_TYPE, LK_POSITION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION,
-                                   LK_RANGE, -1};
+    static const int point_ok[] = {LK_TYPE, LK_POSITION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION, LK_RANGE, -1};
     static const int sun_ok[] = {LK_TYPE, LK_DIRECTION, LK_IRRADIANCE, LK_AMBIENT, -1};
-    static const int spot_ok[] = {LK_TYPE, LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_AMBIENT,
-                                  LK_ATTENUATION, LK_RANGE, LK_INNER, LK_OUTER, LK_FALLOFF,
-                                  LK_PROFILE, -1};
+    static const int spot_ok[] = {LK_TYPE,  LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION,
+                                  LK_RANGE, LK_INNER,    LK_OUTER,     LK_FALLOFF,   LK_PROFILE, -1};
     static const int point_req[] = {LK_POSITION, LK_INTENSITY, -1};
     static const int sun_req[] = {LK_DIRECTION, LK_IRRADIANCE, -1};
     static const int spot_req[] = {LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_INNER, LK_OUTER, -1};
@@ -634,14 +626,11 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
     if (f[LK_POSITION].v && (rc = sf_point(c, f[LK_POSITION].v, SF_CHILD("position"), &l->position)))
         return rc;
-    if (f[LK_DIRECTION].v &&
-        (rc = sf_direction(c, f[LK_DIRECTION].v, SF_CHILD("direction"), &l->direction)))
+    if (f[LK_DIRECTION].v && (rc = sf_direction(c, f[LK_DIRECTION].v, SF_CHILD("direction"), &l->direction)))
         return rc;
-    if (f[LK_INTENSITY].v &&
-        (rc = sf_colour(c, f[LK_INTENSITY].v, SF_CHILD("intensity"), &l->intensity)))
+    if (f[LK_INTENSITY].v && (rc = sf_colour(c, f[LK_INTENSITY].v, SF_CHILD("intensity"), &l->intensity)))
         return rc;
-    if (f[LK_IRRADIANCE].v &&
-        (rc = sf_colour(c, f[LK_IRRADIANCE].v, SF_CHILD("irradiance"), &l->intensity)))
+    if (f[LK_IRRADIANCE].v && (rc = sf_colour(c, f[LK_IRRADIANCE].v, SF_CHILD("irradiance"), &l->intensity)))
         return rc;
     if (f[LK_AMBIENT].v && (rc = sf_colour(c, f[LK_AMBIENT].v, SF_CHILD("ambient"), &l->ambient)))
         return rc;
@@ -658,9 +647,8 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
         l->a1 = a[1];
         l->a2 = a[2];
     }
-    if (f[LK_RANGE].v && (rc = sf_float(c, f[LK_RANGE].v, SF_CHILD("range"), 0.0, INFINITY,
-                                        SF_LO_OPEN | SF_ALLOW_INF, "a number > 0 or .inf [m]",
-                                        &l->range)))
+    if (f[LK_RANGE].v && (rc = sf_float(c, f[LK_RANGE].v, SF_CHILD("range"), 0.0, INFINITY, SF_LO_OPEN | SF_ALLOW_INF,
+                                        "a number > 0 or .inf [m]", &l->range)))
         return rc;
     if (type == LIGHT_SPOT) {
         if ((rc = sf_angle(c, f[LK_INNER].v, SF_CHILD("inner"), 0.0, 180.0, SF_HI_OPEN,
@@ -671,9 +659,8 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
         if (l->inner > l->outer)
             return sf_fail(c, RC_ERR_RANGE, f[LK_INNER].v, SF_CHILD("inner"),
                            "inner cone is wider than outer; allowed: inner <= outer");
-        if (f[LK_FALLOFF].v &&
-            (rc = sf_float(c, f[LK_FALLOFF].v, SF_CHILD("falloff"), 0.0, INFINITY, 0,
-                           "a finite exponent >= 0", &l->falloff)))
+        if (f[LK_FALLOFF].v && (rc = sf_float(c, f[LK_FALLOFF].v, SF_CHILD("falloff"), 0.0, INFINITY, 0,
+                                              "a finite exponent >= 0", &l->falloff)))
             return rc;
         if (f[LK_PROFILE].v) {
             int p;
@@ -688,8 +675,7 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
 
 /* The head every list section shares: a YAML sequence of at most max items (the scene's fixed
  * arrays). name is the section ("lights"), first_key the key its items start with ("type"). */
-static rc_status sf_list(sf_ctx *c, yaml_node_t *n, const char *name, const char *first_key, long max,
-                         long *count)
+static rc_status sf_list(sf_ctx *c, yaml_node_t *n, const char *name, const char *first_key, long max, long *count)
 {
     if (n->type != YAML_SEQUENCE_NODE)
         return sf_fail(c, RC_ERR_PARSE, n, name, "expected a list (- {%s: ...} items), got %s; allowed: a list of %s",
@@ -723,8 +709,8 @@ enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, M
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given)
 {
-    static const char *const keys[] = {"ambient", "diffuse", "specular", "emissive", "power",
-                                       "local_viewer", "per_vertex", "clamp"};
+    static const char *const keys[] = {"ambient", "diffuse",      "specular",   "emissive",
+                                       "power",   "local_viewer", "per_vertex", "clamp"};
     sf_kv f[8];
     char child[SF_PATHLEN];
     rc_status rc;
@@ -738,8 +724,7 @@ static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params 
     }
     *diffuse_given = f[1].v != NULL;
     sf_child(child, path, "power");
-    if (f[4].v && (rc = sf_float(c, f[4].v, child, 0.0, INFINITY, 0, "a finite exponent >= 0",
-                                 &d->power)))
+    if (f[4].v && (rc = sf_float(c, f[4].v, child, 0.0, INFINITY, 0, "a finite exponent >= 0", &d->power)))
         return rc;
     int *flag[3] = {&d->local_viewer, &d->per_vertex, &d->clamp};
     for (int i = 0; i < 3; i++) {
@@ -750,11 +735,9 @@ static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params 
     return RC_OK;
 }
 
-static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d,
-                       int *r0_given, int *m_given)
+static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d, int *r0_given, int *m_given)
 {
-    static const char *const keys[] = {"p", "r0", "m", "reflect", "fresnel_colour", "norm",
-                                       "sun_angle", "alpha"};
+    static const char *const keys[] = {"p", "r0", "m", "reflect", "fresnel_colour", "norm", "sun_angle", "alpha"};
     static const char *const norms[] = {"max", "mean", "luminance", "euclid"};
     sf_kv f[8];
     char child[SF_PATHLEN];
@@ -763,13 +746,11 @@ static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_p
     if ((rc = sf_map(c, n, path, keys, 8, f)))
         return rc;
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
-    if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("p"), 0.0, INFINITY, 0,
-                                 "a finite power >= 0", &d->p)))
+    if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("p"), 0.0, INFINITY, 0, "a finite power >= 0", &d->p)))
         return rc;
     if (f[1].v && (rc = sf_float(c, f[1].v, SF_CHILD("r0"), 0.0, 1.0, 0, "R0 in [0, 1]", &d->r0)))
         return rc;
-    if (f[2].v && (rc = sf_float(c, f[2].v, SF_CHILD("m"), 0.0, INFINITY, 0,
-                                 "a finite multiplier >= 0", &d->m)))
+    if (f[2].v && (rc = sf_float(c, f[2].v, SF_CHILD("m"), 0.0, INFINITY, 0, "a finite multiplier >= 0", &d->m)))
         return rc;
     if (f[3].v && (rc = sf_colour(c, f[3].v, SF_CHILD("reflect"), &d->reflect)))
         return rc;
@@ -790,8 +771,7 @@ static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_p
     return RC_OK;
 }
 
-static rc_status sf_ct(sf_ctx *c, yaml_node_t *n, const char *path, ct_params *d, int *m_given,
-                       int *f0_given)
+static rc_status sf_ct(sf_ctx *c, yaml_node_t *n, const char *path, ct_params *d, int *m_given, int *f0_given)
 {
     static const char *const keys[] = {"m", "f0", "ks", "normalisation", "g", "f", "reflection"};
     static const char *const norms[] = {"walter", "ct1982"};
@@ -804,8 +784,8 @@ static rc_status sf_ct(sf_ctx *c, yaml_node_t *n, const char *path, ct_params *d
     if ((rc = sf_map(c, n, path, keys, 7, f)))
         return rc;
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
-    if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("m"), 0.0, INFINITY, 0,
-                                 "a finite Beckmann roughness >= 0", &d->m)))
+    if (f[0].v &&
+        (rc = sf_float(c, f[0].v, SF_CHILD("m"), 0.0, INFINITY, 0, "a finite Beckmann roughness >= 0", &d->m)))
         return rc;
     if (f[1].v && (rc = sf_unit01(c, f[1].v, SF_CHILD("f0"), &d->f0)))
         return rc;
@@ -842,8 +822,8 @@ static float sf_f0(double eta, double k)
 
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo", "ior", "conductor", "roughness", "model",
-                                               "d3d", "d3d9client", "cook_torrance"};
+    static const char *const keys[MK_COUNT] = {"albedo", "ior", "conductor",  "roughness",
+                                               "model",  "d3d", "d3d9client", "cook_torrance"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
@@ -870,20 +850,17 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         float eta[3], k[3];
         sf_child(sub, child, "eta");
-        if ((rc = sf_floats(c, cf[0].v, sub, 3, 0.0, INFINITY, SF_LO_OPEN,
-                            "[r, g, b], 3 finite numbers > 0", eta)))
+        if ((rc = sf_floats(c, cf[0].v, sub, 3, 0.0, INFINITY, SF_LO_OPEN, "[r, g, b], 3 finite numbers > 0", eta)))
             return rc;
         sf_child(sub, child, "k");
-        if ((rc = sf_floats(c, cf[1].v, sub, 3, 0.0, INFINITY, 0, "[r, g, b], 3 finite numbers >= 0",
-                            k)))
+        if ((rc = sf_floats(c, cf[1].v, sub, 3, 0.0, INFINITY, 0, "[r, g, b], 3 finite numbers >= 0", k)))
             return rc;
         m->conductor = 1;
         m->eta = v3(eta[0], eta[1], eta[2]);
         m->k = v3(k[0], k[1], k[2]);
     }
-    if (f[MK_ROUGHNESS].v &&
-        (rc = sf_float(c, f[MK_ROUGHNESS].v, SF_CHILD("roughness"), 0.0, INFINITY, 0,
-                       "a finite Beckmann roughness >= 0", &m->roughness)))
+    if (f[MK_ROUGHNESS].v && (rc = sf_float(c, f[MK_ROUGHNESS].v, SF_CHILD("roughness"), 0.0, INFINITY, 0,
+                                            "a finite Beckmann roughness >= 0", &m->roughness)))
         return rc;
     if (f[MK_MODEL].v) {
         if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 3, &e)))
@@ -892,11 +869,9 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     }
     if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given)))
         return rc;
-    if (f[MK_D9].v &&
-        (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
+    if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
         return rc;
-    if (f[MK_CT].v &&
-        (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
+    if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
         return rc;
 #undef SF_CHILD
 
@@ -910,8 +885,7 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     if (!ctm_given)
         m->ct.m = m->roughness;
     if (!f0_given)
-        m->ct.f0 = m->conductor ? v3(sf_f0(m->eta.x, m->k.x), sf_f0(m->eta.y, m->k.y),
-                                     sf_f0(m->eta.z, m->k.z))
+        m->ct.f0 = m->conductor ? v3(sf_f0(m->eta.x, m->k.x), sf_f0(m->eta.y, m->k.y), sf_f0(m->eta.z, m->k.z))
                                 : v3s(sf_f0(m->ior, 0.0));
     return RC_OK;
 }
@@ -942,8 +916,7 @@ static rc_status sf_materials(sf_ctx *c, yaml_node_t *n, scene *s)
         sf_child(child, "materials", m->name);
         for (int j = 0; j < i; j++)
             if (strcmp(s->materials[j].name, m->name) == 0)
-                return sf_fail(c, RC_ERR_PARSE, k, child,
-                               "duplicate material name; allowed: each name once");
+                return sf_fail(c, RC_ERR_PARSE, k, child, "duplicate material name; allowed: each name once");
         if ((rc = sf_material(c, v, child, m)))
             return rc;
     }
@@ -951,13 +924,12 @@ static rc_status sf_materials(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { OK_SHAPE, OK_CENTER, OK_ROTATE, OK_RADIUS, OK_MAJOR, OK_SIZE, OK_TESS, OK_PATH, OK_MATERIAL,
-       OK_COUNT };
+enum { OK_SHAPE, OK_CENTER, OK_ROTATE, OK_RADIUS, OK_MAJOR, OK_SIZE, OK_TESS, OK_PATH, OK_MATERIAL, OK_COUNT };
 
 static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
 {
-    static const char *const keys[OK_COUNT] = {"shape", "center", "rotate", "radius", "major",
-                                               "size", "tessellation", "path", "material"};
+    static const char *const keys[OK_COUNT] = {"shape", "center",       "rotate", "radius",  "major",
+                                               "size",  "tessellation", "path",   "material"};
     static const char *const shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
     static const char *const mesh_exts[] = {".obj", ".ply"};
     /* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
@@ -1010,27 +982,25 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
             return rc;
         o->rotate = v3_scale(v3(r[0], r[1], r[2]), (float)(FORMULA_PI_D / 180.0));
     }
-    if (f[OK_MAJOR].v && (rc = sf_float(c, f[OK_MAJOR].v, SF_CHILD("major"), 0.0, INFINITY,
-                                        SF_LO_OPEN, "a finite ring radius > 0 [m]", &o->major)))
+    if (f[OK_MAJOR].v && (rc = sf_float(c, f[OK_MAJOR].v, SF_CHILD("major"), 0.0, INFINITY, SF_LO_OPEN,
+                                        "a finite ring radius > 0 [m]", &o->major)))
         return rc;
     if (f[OK_RADIUS].v) {
         int box = shape == SHAPE_BOX;
-        if ((rc = sf_float(c, f[OK_RADIUS].v, SF_CHILD("radius"), 0.0, INFINITY,
-                           box ? 0 : SF_LO_OPEN,
+        if ((rc = sf_float(c, f[OK_RADIUS].v, SF_CHILD("radius"), 0.0, INFINITY, box ? 0 : SF_LO_OPEN,
                            box ? "an edge rounding >= 0 [m]" : "a finite radius > 0 [m]", &o->radius)))
             return rc;
     }
     if (f[OK_SIZE].v) {
         float sz[3];
         int quad = shape == SHAPE_QUAD;
-        if ((rc = sf_floats(c, f[OK_SIZE].v, SF_CHILD("size"), quad ? 2 : 3, 0.0, INFINITY,
-                            SF_LO_OPEN,
+        if ((rc = sf_floats(c, f[OK_SIZE].v, SF_CHILD("size"), quad ? 2 : 3, 0.0, INFINITY, SF_LO_OPEN,
                             quad ? "[x, z] extents > 0 [m]" : "[x, y, z] full extents > 0 [m]", sz)))
             return rc;
         o->size = quad ? v3(sz[0], 0.0f, sz[1]) : v3(sz[0], sz[1], sz[2]);
     }
-    if (f[OK_TESS].v && (rc = sf_int(c, f[OK_TESS].v, SF_CHILD("tessellation"), tess_lo[shape],
-                                     tess_hi[shape], &o->tessellation)))
+    if (f[OK_TESS].v &&
+        (rc = sf_int(c, f[OK_TESS].v, SF_CHILD("tessellation"), tess_lo[shape], tess_hi[shape], &o->tessellation)))
         return rc;
     if (shape == SHAPE_BOX) {
         float half = 0.5f * fminf(o->size.x, fminf(o->size.y, o->size.z));
@@ -1043,8 +1013,8 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        "tube radius exceeds the ring radius (self-intersecting); allowed: radius <= "
                        "major = %g",
                        o->major);
-    if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2,
-                                      "triangle mesh", FILEIO_MESH_MAX_BYTES, o->path)))
+    if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2, "triangle mesh",
+                                      FILEIO_MESH_MAX_BYTES, o->path)))
         return rc;
 
     const char *mt = sf_text(f[OK_MATERIAL].v);
@@ -1139,11 +1109,15 @@ static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comp
             const char *why = sf_text(f[2].v);
             sf_child(sub, child, "why");
             if (!why)
-                return sf_fail(c, RC_ERR_PARSE, f[2].v, sub, "expected text, got %s; allowed: a "
-                               "quoted sentence", sf_kind(f[2].v));
+                return sf_fail(c, RC_ERR_PARSE, f[2].v, sub,
+                               "expected text, got %s; allowed: a "
+                               "quoted sentence",
+                               sf_kind(f[2].v));
             if (strlen(why) >= sizeof t->why)
-                return sf_fail(c, RC_ERR_RANGE, f[2].v, sub, "text too long; allowed: at most %zu "
-                               "characters", sizeof t->why - 1);
+                return sf_fail(c, RC_ERR_RANGE, f[2].v, sub,
+                               "text too long; allowed: at most %zu "
+                               "characters",
+                               sizeof t->why - 1);
             strcpy(t->why, why);
         }
     }
@@ -1195,8 +1169,7 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
             return rc;
         cmp->reference = v;
         if (cmp->reference == cmp->test)
-            return sf_fail(c, RC_ERR_RANGE, f[1].v, child,
-                           "reference equals test; allowed: two different renderers");
+            return sf_fail(c, RC_ERR_RANGE, f[1].v, child, "reference equals test; allowed: two different renderers");
         sf_child(child, path, "role");
         if (f[2].v) {
             if ((rc = sf_enum(c, f[2].v, child, roles, 3, &v)))
@@ -1211,17 +1184,26 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { TK_NAME, TK_IMAGE, TK_CAMERA, TK_AMBIENT, TK_ENV, TK_LIGHTS, TK_MATERIALS, TK_OBJECTS,
-       TK_COMPARISONS, TK_COUNT };
+enum {
+    TK_NAME,
+    TK_IMAGE,
+    TK_CAMERA,
+    TK_AMBIENT,
+    TK_ENV,
+    TK_LIGHTS,
+    TK_MATERIALS,
+    TK_OBJECTS,
+    TK_COMPARISONS,
+    TK_COUNT
+};
 
 static rc_status sf_top(sf_ctx *c, yaml_node_t *root, scene *s)
 {
-    static const char *const keys[TK_COUNT] = {"name", "image", "camera", "ambient", "environment",
+    static const char *const keys[TK_COUNT] = {"name",   "image",     "camera",  "ambient",    "environment",
                                                "lights", "materials", "objects", "comparisons"};
     sf_kv f[TK_COUNT];
     rc_status rc;
-    if ((rc = sf_map(c, root, "", keys, TK_COUNT, f)) ||
-        (rc = sf_need(c, root, "", &f[TK_IMAGE], "image")) ||
+    if ((rc = sf_map(c, root, "", keys, TK_COUNT, f)) || (rc = sf_need(c, root, "", &f[TK_IMAGE], "image")) ||
         (rc = sf_need(c, root, "", &f[TK_CAMERA], "camera")))
         return rc;
     if (f[TK_NAME].v && (rc = sf_name(c, f[TK_NAME].v, "name", s->name, sizeof s->name)))
@@ -1251,8 +1233,7 @@ static rc_status sf_yaml_error(sf_ctx *c, const yaml_parser_t *p)
         return sf_fail(c, RC_ERR_NOMEM, NULL, "(yaml)", "out of memory; allowed: a smaller file");
     if (p->error == YAML_READER_ERROR)
         return sf_fail_at(c, RC_ERR_PARSE, p->problem_mark, "(yaml)",
-                          "%s at byte %zu; allowed: UTF-8 text without control characters", problem,
-                          p->problem_offset);
+                          "%s at byte %zu; allowed: UTF-8 text without control characters", problem, p->problem_offset);
     return sf_fail_at(c, RC_ERR_PARSE, p->problem_mark, "(yaml)",
                       "%s%s%s; allowed: valid YAML (check indentation, brackets, quotes, and that "
                       "lists use '- ' or [a, b])",
@@ -1283,8 +1264,7 @@ static rc_status sf_depth_check(sf_ctx *c, const char *text, size_t len)
             depth--;
         if (depth > SF_MAX_DEPTH) {
             rc = sf_fail_at(c, RC_ERR_PARSE, m, "(yaml)",
-                            "nesting deeper than %d levels; allowed: the scene format's 4 levels",
-                            SF_MAX_DEPTH);
+                            "nesting deeper than %d levels; allowed: the scene format's 4 levels", SF_MAX_DEPTH);
             break;
         }
         if (t == YAML_STREAM_END_EVENT)
@@ -1294,8 +1274,8 @@ static rc_status sf_depth_check(sf_ctx *c, const char *text, size_t len)
     return rc;
 }
 
-rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages, scene *out,
-                           char *err, size_t errlen)
+rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages, scene *out, char *err,
+                           size_t errlen)
 {
     sf_ctx c;
     memset(&c, 0, sizeof c);
@@ -1308,16 +1288,15 @@ rc_status scene_file_parse(const char *text, size_t len, const char *path_for_me
         return sf_fail(&c, RC_ERR_IO, NULL, "(file)", "no text given; allowed: a buffer");
     if (len > SCENE_FILE_MAX_BYTES)
         return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
-                       "file is %zu bytes; allowed: at most %u bytes (scene files are hand-written)",
-                       len, SCENE_FILE_MAX_BYTES);
+                       "file is %zu bytes; allowed: at most %u bytes (scene files are hand-written)", len,
+                       SCENE_FILE_MAX_BYTES);
     if (path_for_messages && strlen(path_for_messages) >= SCENE_PATH_MAX)
-        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)",
-                       "scene file path too long; allowed: at most %d bytes", SCENE_PATH_MAX - 1);
+        return sf_fail(&c, RC_ERR_RANGE, NULL, "(file)", "scene file path too long; allowed: at most %d bytes",
+                       SCENE_PATH_MAX - 1);
     if (path_for_messages) {
         const char *slash = strrchr(path_for_messages, '/');
         if (slash)
-            snprintf(c.dir, sizeof c.dir, "%.*s", (int)(slash - path_for_messages + 1),
-                     path_for_messages);
+            snprintf(c.dir, sizeof c.dir, "%.*s", (int)(slash - path_for_messages + 1), path_for_messages);
     }
 
     rc_status rc = sf_depth_check(&c, text ? text : "", len);

@@ -31,8 +31,8 @@
 #define SCENE_FILE_MAX_BYTES (1u << 20)
 
 rc_status scene_file_load(const char *path, scene *out, char *err, size_t errlen);
-rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages,
-                           scene *out, char *err, size_t errlen);
+rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages, scene *out, char *err,
+                           size_t errlen);
 /* FNV-1a 64-bit hash of len bytes (the scene hash). */
 uint64_t scene_file_hash(const void *bytes, size_t len);
 

@@ -31,9 +31,15 @@ typedef long double ld;
 
 /* ------------------------------------------------------------------ long double vectors */
 
-typedef struct { ld x, y, z; } ld3;
+typedef struct {
+    ld x, y, z;
+} ld3;
 
-static ld3 l3(ld x, ld y, ld z) { ld3 r = {x, y, z}; return r; }
+static ld3 l3(ld x, ld y, ld z)
+{
+    ld3 r = {x, y, z};
+    return r;
+}
 static ld3 l3_from(vec3 a) { return l3(a.x, a.y, a.z); }
 static ld3 l3_add(ld3 a, ld3 b) { return l3(a.x + b.x, a.y + b.y, a.z + b.z); }
 static ld3 l3_sub(ld3 a, ld3 b) { return l3(a.x - b.x, a.y - b.y, a.z - b.z); }
@@ -63,7 +69,8 @@ static ld ref_d3d9(ld r0, ld m, ld p, ld c)
 
 static ld ref_dielectric(ld cos_i, ld eta)
 {
-    if (!(eta > 0)) return 1;
+    if (!(eta > 0))
+        return 1;
     if (cos_i < 0) {
         cos_i = -cos_i;
         eta = 1 / eta;
@@ -78,11 +85,15 @@ static ld ref_conductor(ld cos_i, ld eta, ld k)
 
 static ld ref_beckmann(ld c, ld m, ct_normalisation norm)
 {
-    if (c <= 0) return 0;
-    if (c > 1) c = 1;
-    if (m <= 0) return c >= 1 ? MICROFACET_D_MAX : 0;
+    if (c <= 0)
+        return 0;
+    if (c > 1)
+        c = 1;
+    if (m <= 0)
+        return c >= 1 ? MICROFACET_D_MAX : 0;
     /* long double's exponent range (1e+-4932) holds m^2 and c^4 for every float m, c. */
-    return formula_beckmann_d_l((1 - c) * (1 + c), c * c, 1 / (m * m), formula_beckmann_log_norm_l(m, norm != CT_CT1982));
+    return formula_beckmann_d_l((1 - c) * (1 + c), c * c, 1 / (m * m),
+                                formula_beckmann_log_norm_l(m, norm != CT_CT1982));
 }
 
 static ld ref_vcavity(ld nh, ld nv, ld nl, ld vh) { return formula_vcavity_g_l(nh, nv, nl, vh); }
@@ -93,17 +104,20 @@ static ld ref_smith_g1_exact(ld c, ld m) { return formula_smith_g1_exact_l(c, m)
 
 static ld ref_attenuation(const light *l, ld d)
 {
-    if (l->kind == LIGHT_SUN) return 1;
+    if (l->kind == LIGHT_SUN)
+        return 1;
     return formula_attenuation_l(l->a0, l->a1, l->a2, d, d * d, l->range);
 }
 
 static ld ref_spot(const light *l, ld3 dir)
 {
-    if (l->kind != LIGHT_SPOT) return 1;
+    if (l->kind != LIGHT_SPOT)
+        return 1;
     ld rho = l3_dot(l3_norm(l3_from(l->direction)), dir);
     ld cos_in = cosl((ld)l->inner / 2), cos_out = cosl((ld)l->outer / 2);
     ld cone = formula_spot_cone_l(cos_in, cos_out);
-    if (l->profile == SPOT_SMOOTH) return formula_spot_smooth_l(rho, cos_in, cos_out, cone);
+    if (l->profile == SPOT_SMOOTH)
+        return formula_spot_smooth_l(rho, cos_in, cos_out, cone);
     return formula_spot_d3d_l(rho, cos_in, cos_out, cone, l->falloff);
 }
 
@@ -124,7 +138,10 @@ static ld ref_colour_norm(ld3 c, colour_norm norm)
     return formula_colour_norm_l(c.x, c.y, c.z, w.w_max, w.w_r, w.w_g, w.w_b, w.w_euclid);
 }
 
-typedef struct { ld3 rgb, r_tot; ld alpha, weight; } ref_d9;
+typedef struct {
+    ld3 rgb, r_tot;
+    ld alpha, weight;
+} ref_d9;
 
 static ref_d9 ref_d3d9client(const d3d9client_params *p, ld3 d, ld da, ld3 phi, ld n_v, ld n_sun)
 {
@@ -143,7 +160,8 @@ static ref_d9 ref_d3d9client(const d3d9client_params *p, ld3 d, ld da, ld3 phi, 
 
 static ld3 ref_ct_fresnel(const ct_params *p, ld c, const material *mat)
 {
-    if (p->f == F_ONE) return l3(1, 1, 1);
+    if (p->f == F_ONE)
+        return l3(1, 1, 1);
     if (p->f == F_EXACT && mat) {
         if (mat->conductor)
             return l3(ref_conductor(c, mat->eta.x, mat->k.x), ref_conductor(c, mat->eta.y, mat->k.y),
@@ -168,12 +186,14 @@ static ld3 ref_ct_specular(const ct_params *p, ld3 n, ld3 v, ld3 l, const materi
 {
     ld3 nd = l3_norm(n), vd = l3_norm(v), lv = l3_norm(l);
     ld n_l = l3_dot(nd, lv), n_v = l3_dot(nd, vd);
-    if (n_l <= 0 || n_v <= 0) return l3(0, 0, 0);
+    if (n_l <= 0 || n_v <= 0)
+        return l3(0, 0, 0);
     n_l = formula_cos_floor_l(n_l);
     n_v = formula_cos_floor_l(n_v);
     ld3 hs = l3_add(lv, vd);
     ld hl = l3_len(hs);
-    if (hl < (ld)FORMULA_HALF_MIN) return l3(0, 0, 0);
+    if (hl < (ld)FORMULA_HALF_MIN)
+        return l3(0, 0, 0);
     ld3 h = l3_scale(hs, formula_half_scale_l(hl));
     ld n_h = l3_dot(nd, h), v_h = ref_clamp(l3_dot(vd, h), 0, 1);
     ld d = ref_beckmann(n_h, p->m, p->norm);
@@ -226,14 +246,14 @@ static vec3 dir_at(double c, double ph)
 typedef struct {
     stability_table *t;
     rng r;
-    int n;          /* samples per case */
+    int n; /* samples per case */
 } sweep;
 
 static stability_row *row_begin(sweep *s, const char *fn, const char *cs, stability_kind kind, int precision)
 {
     stability_table *t = s->t;
     if (t->n_rows >= STABILITY_MAX_ROWS)
-        abort();   /* a programming error: raise STABILITY_MAX_ROWS with the new rows */
+        abort(); /* a programming error: raise STABILITY_MAX_ROWS with the new rows */
     stability_row *row = &t->rows[t->n_rows++];
     memset(row, 0, sizeof *row);
     snprintf(row->function, sizeof row->function, "%s", fn);
@@ -249,20 +269,26 @@ static stability_row *row_begin(sweep *s, const char *fn, const char *cs, stabil
 
 static void row_end(stability_row *row)
 {
-    if (row->max_ulp < 0.0) row->max_ulp = 0.0;
-    if (row->max_abs < 0.0) row->max_abs = 0.0;
+    if (row->max_ulp < 0.0)
+        row->max_ulp = 0.0;
+    if (row->max_abs < 0.0)
+        row->max_abs = 0.0;
 }
 
 static ld ulp_of(ld ref, int precision)
 {
     ld a = fabsl(ref);
     if (precision == 24) {
-        if (a < (ld)FLT_MIN) return 0x1p-149L;
-        if (a > (ld)FLT_MAX) a = FLT_MAX;
+        if (a < (ld)FLT_MIN)
+            return 0x1p-149L;
+        if (a > (ld)FLT_MAX)
+            a = FLT_MAX;
         return ldexpl(1.0L, ilogbl(a) - 23);
     }
-    if (a < (ld)DBL_MIN) return 0x1p-1074L;
-    if (a > (ld)DBL_MAX) a = DBL_MAX;
+    if (a < (ld)DBL_MIN)
+        return 0x1p-1074L;
+    if (a > (ld)DBL_MAX)
+        a = DBL_MAX;
     return ldexpl(1.0L, ilogbl(a) - 52);
 }
 
@@ -272,9 +298,16 @@ static ld ulp_of(ld ref, int precision)
 static int row_add(stability_row *row, double got, ld ref)
 {
     row->samples++;
-    if (isnan(got)) { row->nan++; return 0; }
-    if (isinf(got)) { row->inf++; return 0; }
-    if (got < 0.0 && ref >= 0) row->negative++;
+    if (isnan(got)) {
+        row->nan++;
+        return 0;
+    }
+    if (isinf(got)) {
+        row->inf++;
+        return 0;
+    }
+    if (got < 0.0 && ref >= 0)
+        row->negative++;
     ld diff = fabsl((ld)got - ref);
     double u = (double)(diff / ulp_of(ref, row->precision));
     double ab = (double)diff;
@@ -282,20 +315,29 @@ static int row_add(stability_row *row, double got, ld ref)
      * below that the result is denormal or 0 by design and the ulp figure says it all. */
     if (fabsl(ref) >= (row->precision == 24 ? (ld)FLT_MIN : (ld)DBL_MIN)) {
         double rel = (double)(diff / fabsl(ref));
-        if (rel > row->max_rel) row->max_rel = rel;
+        if (rel > row->max_rel)
+            row->max_rel = rel;
     }
     int worst = 0;
-    if (u > row->max_ulp) { row->max_ulp = u; worst |= 1; }
-    if (ab > row->max_abs) { row->max_abs = ab; worst |= 2; }
+    if (u > row->max_ulp) {
+        row->max_ulp = u;
+        worst |= 1;
+    }
+    if (ab > row->max_abs) {
+        row->max_abs = ab;
+        worst |= 2;
+    }
     return worst;
 }
 
 /* Records the inputs of the worst ulp and of the worst absolute error. */
-#define ADD(row, got, ref, ...)                                                    \
-    do {                                                                           \
-        int w_ = row_add((row), (got), (ref));                                     \
-        if (w_ & 1) snprintf((row)->where, sizeof (row)->where, __VA_ARGS__);      \
-        if (w_ & 2) snprintf((row)->where_abs, sizeof (row)->where_abs, __VA_ARGS__); \
+#define ADD(row, got, ref, ...)                                                                                        \
+    do {                                                                                                               \
+        int w_ = row_add((row), (got), (ref));                                                                         \
+        if (w_ & 1)                                                                                                    \
+            snprintf((row)->where, sizeof(row)->where, __VA_ARGS__);                                                   \
+        if (w_ & 2)                                                                                                    \
+            snprintf((row)->where_abs, sizeof(row)->where_abs, __VA_ARGS__);                                           \
     } while (0)
 
 /* ------------------------------------------------------------------------ Fresnel sweeps */
@@ -324,7 +366,13 @@ static void sweep_fresnel(sweep *s)
     }
     row_end(row);
 
-    struct { const char *name; double c_lo, c_hi; int near_one; double f_lo, f_hi; int f_log; } sc[] = {
+    struct {
+        const char *name;
+        double c_lo, c_hi;
+        int near_one;
+        double f_lo, f_hi;
+        int f_log;
+    } sc[] = {
         {"cos->0 (denormal..0.1)", 1.4e-45, 0.1, 0, 0.0, 1.0, 0},
         {"cos->1 (1-2^-24..0.9)", 0x1p-24, 0.1, 1, 0.0, 1.0, 0},
         {"F0->0 (n->1, 1e-38..1e-2)", 1e-3, 1.0, 0, 1e-38, 1e-2, 1},
@@ -336,14 +384,18 @@ static void sweep_fresnel(sweep *s)
         for (int i = 0; i < n; i++) {
             double cv = k < 2 ? lsp(i, n, sc[k].c_lo, sc[k].c_hi) : rng_range(&s->r, sc[k].c_lo, sc[k].c_hi);
             float c = (float)(sc[k].near_one ? 1.0 - cv : cv);
-            float f0 = (float)(sc[k].f_log ? lsp(i, n, sc[k].f_lo, sc[k].f_hi) : rng_range(&s->r, sc[k].f_lo, sc[k].f_hi));
+            float f0 =
+                (float)(sc[k].f_log ? lsp(i, n, sc[k].f_lo, sc[k].f_hi) : rng_range(&s->r, sc[k].f_lo, sc[k].f_hi));
             ADD(row, fresnel_schlick(f0, c), ref_schlick(f0, c), "F0=%.9g cos=%.9g", f0, c);
         }
         row_end(row);
     }
 
-    struct { const char *name; int mode; } dc[] = {
-        {"p->0 (1e-6..0.1)", 0}, {"p>=1e4 (1e4..1e7)", 1}, {"cos->0 (denormal..0.1)", 2},
+    struct {
+        const char *name;
+        int mode;
+    } dc[] = {
+        {"p->0 (1e-6..0.1)", 0},      {"p>=1e4 (1e4..1e7)", 1},   {"cos->0 (denormal..0.1)", 2},
         {"cos->1 (1-2^-24..0.9)", 3}, {"bad input R0>1, m<0", 4}, {"huge R0, m (saturation)", 5},
     };
     for (size_t k = 0; k < sizeof dc / sizeof dc[0]; k++) {
@@ -353,10 +405,16 @@ static void sweep_fresnel(sweep *s)
             float p = (float)rng_range(&s->r, 0.5, 8.0), c = (float)rng_u(&s->r);
             switch (dc[k].mode) {
             case 0: p = (float)lsp(i, n, 1e-6, 0.1); break;
-            case 1: p = (float)lsp(i, n, 1e4, 1e7); c = (float)rng_log(&s->r, 1e-8, 1e-2); break;
+            case 1:
+                p = (float)lsp(i, n, 1e4, 1e7);
+                c = (float)rng_log(&s->r, 1e-8, 1e-2);
+                break;
             case 2: c = (float)lsp(i, n, 1.4e-45, 0.1); break;
             case 3: c = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1)); break;
-            case 4: r0 = (float)rng_range(&s->r, 1.0, 100.0); m = (float)rng_range(&s->r, -100.0, 0.0); break;
+            case 4:
+                r0 = (float)rng_range(&s->r, 1.0, 100.0);
+                m = (float)rng_range(&s->r, -100.0, 0.0);
+                break;
             default:
                 r0 = (float)((i % 2 ? -1 : 1) * lsp(i, n, 1e30, FLT_MAX));
                 m = (float)((i % 3 ? 1 : -1) * lsp(n - 1 - i, n, 1e30, FLT_MAX));
@@ -371,7 +429,8 @@ static void sweep_fresnel(sweep *s)
     row = row_begin(s, "fresnel_dielectric", "cos->0 (1e-300..0.1)", STABILITY_ROUNDING, 53);
     for (int i = 0; i < n; i++) {
         double c = lsp(i, n, 1e-300, 0.1), eta = rng_range(&s->r, 1.01, 3.0);
-        if (i % 2) eta = 1.0 / eta;
+        if (i % 2)
+            eta = 1.0 / eta;
         ADD(row, fresnel_dielectric(c, eta), ref_dielectric(c, eta), "cos=%.17g eta=%.17g", c, eta);
     }
     row_end(row);
@@ -384,7 +443,8 @@ static void sweep_fresnel(sweep *s)
     row = row_begin(s, "fresnel_dielectric", "n->inf (1e3..1e150), n->0", STABILITY_ROUNDING, 53);
     for (int i = 0; i < n; i++) {
         double eta = lsp(i / 2, n / 2, 1e3, 1e150), c = rng_u(&s->r);
-        if (i % 2) eta = 1.0 / eta;
+        if (i % 2)
+            eta = 1.0 / eta;
         ADD(row, fresnel_dielectric(c, eta), ref_dielectric(c, eta), "cos=%.17g eta=%.17g", c, eta);
     }
     row_end(row);
@@ -404,9 +464,12 @@ static void sweep_fresnel(sweep *s)
     row_end(row);
 
     /* Approximation error against the exact dielectric (Figure 1's numbers). */
-    struct { const char *fn; double ior, p; } ap[] = {
-        {"schlick p=5 vs exact", 1.33, 5.0}, {"schlick p=5 vs exact", 1.5, 5.0},
-        {"schlick p=5 vs exact", 2.4, 5.0}, {"d3d9 p=2 vs exact", 1.5, 2.0}, {"d3d9 p=4 vs exact", 1.5, 4.0},
+    struct {
+        const char *fn;
+        double ior, p;
+    } ap[] = {
+        {"schlick p=5 vs exact", 1.33, 5.0}, {"schlick p=5 vs exact", 1.5, 5.0}, {"schlick p=5 vs exact", 2.4, 5.0},
+        {"d3d9 p=2 vs exact", 1.5, 2.0},     {"d3d9 p=4 vs exact", 1.5, 4.0},
     };
     for (size_t k = 0; k < sizeof ap / sizeof ap[0]; k++) {
         char cs[56];
@@ -430,9 +493,15 @@ static void sweep_microfacet(sweep *s)
     int n = s->n;
     stability_row *row;
     static const char *dname[2] = {"microfacet_beckmann_d[walter]", "microfacet_beckmann_d[ct1982]"};
-    struct { const char *name; int mode; } bc[] = {
-        {"cos_h->0 (denormal..0.1)", 0}, {"cos_h->1 (1-2^-24..0.9)", 1}, {"m->0 (1e-6..1e-2)", 2},
-        {"m->inf (1..1e3)", 3}, {"denormal m", 4},
+    struct {
+        const char *name;
+        int mode;
+    } bc[] = {
+        {"cos_h->0 (denormal..0.1)", 0},
+        {"cos_h->1 (1-2^-24..0.9)", 1},
+        {"m->0 (1e-6..1e-2)", 2},
+        {"m->inf (1..1e3)", 3},
+        {"denormal m", 4},
     };
     for (int norm = 0; norm < 2; norm++) {
         ct_normalisation cn = norm ? CT_CT1982 : CT_WALTER;
@@ -441,14 +510,23 @@ static void sweep_microfacet(sweep *s)
             for (int i = 0; i < n; i++) {
                 float c = (float)rng_u(&s->r), m = (float)rng_log(&s->r, 0.01, 1.0);
                 switch (bc[k].mode) {
-                case 0: c = (float)lsp(i, n, 1.4e-45, 0.1); m = (float)rng_log(&s->r, 1.0, 1e3); break;
-                case 1: c = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1)); m = (float)rng_log(&s->r, 1e-6, 1.0); break;
+                case 0:
+                    c = (float)lsp(i, n, 1.4e-45, 0.1);
+                    m = (float)rng_log(&s->r, 1.0, 1e3);
+                    break;
+                case 1:
+                    c = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1));
+                    m = (float)rng_log(&s->r, 1e-6, 1.0);
+                    break;
                 case 2:
                     m = (float)lsp(i, n, 1e-6, 1e-2);
-                    c = (float)cos(rng_range(&s->r, 0.0, 5.0 * m));   /* inside the lobe */
+                    c = (float)cos(rng_range(&s->r, 0.0, 5.0 * m)); /* inside the lobe */
                     break;
                 case 3: m = (float)lsp(i, n, 1.0, 1e3); break;
-                default: m = (float)lsp(i, n, 1.4e-45, 1e-38); c = (float)(1.0 - rng_log(&s->r, 1e-8, 1.0)); break;
+                default:
+                    m = (float)lsp(i, n, 1.4e-45, 1e-38);
+                    c = (float)(1.0 - rng_log(&s->r, 1e-8, 1.0));
+                    break;
                 }
                 ADD(row, microfacet_beckmann_d(c, m, cn), ref_beckmann(c, m, cn), "cos_h=%.9g m=%.9g", c, m);
             }
@@ -456,13 +534,19 @@ static void sweep_microfacet(sweep *s)
         }
     }
 
-    struct { const char *name; int mode; } vc[] = {
-        {"V.H->0 (denormal..1e-3)", 0}, {"cos->0 (N.V, N.L)", 1}, {"random unit-vector geometry", 2},
+    struct {
+        const char *name;
+        int mode;
+    } vc[] = {
+        {"V.H->0 (denormal..1e-3)", 0},
+        {"cos->0 (N.V, N.L)", 1},
+        {"random unit-vector geometry", 2},
     };
     for (size_t k = 0; k < sizeof vc / sizeof vc[0]; k++) {
         row = row_begin(s, "microfacet_vcavity_g", vc[k].name, STABILITY_ROUNDING, 24);
         for (int i = 0; i < n; i++) {
-            float nh = (float)rng_u(&s->r), nv = (float)rng_u(&s->r), nl = (float)rng_u(&s->r), vh = (float)rng_u(&s->r);
+            float nh = (float)rng_u(&s->r), nv = (float)rng_u(&s->r), nl = (float)rng_u(&s->r),
+                  vh = (float)rng_u(&s->r);
             if (vc[k].mode == 0) {
                 vh = (float)lsp(i, n, 1.4e-45, 1e-3);
             } else if (vc[k].mode == 1) {
@@ -471,7 +555,10 @@ static void sweep_microfacet(sweep *s)
             } else {
                 vec3 nn = v3(0, 1, 0), v = rng_dir_upper(&s->r, -0.2, 1.0), l = rng_dir_upper(&s->r, -0.2, 1.0);
                 vec3 h = v3_norm(v3_add(v, l));
-                nh = v3_dot(nn, h); nv = v3_dot(nn, v); nl = v3_dot(nn, l); vh = v3_dot(v, h);
+                nh = v3_dot(nn, h);
+                nv = v3_dot(nn, v);
+                nl = v3_dot(nn, l);
+                vh = v3_dot(v, h);
             }
             ADD(row, microfacet_vcavity_g(nh, nv, nl, vh), ref_vcavity(nh, nv, nl, vh),
                 "nh=%.9g nv=%.9g nl=%.9g vh=%.9g", nh, nv, nl, vh);
@@ -479,9 +566,12 @@ static void sweep_microfacet(sweep *s)
         row_end(row);
     }
 
-    struct { const char *name; int mode; } sc[] = {
+    struct {
+        const char *name;
+        int mode;
+    } sc[] = {
         {"cos->0 (denormal..0.1)", 0}, {"cos->1 (1-2^-24..0.9)", 1}, {"m->0 (1e-6..1e-2)", 2},
-        {"m->inf (1..1e3)", 3}, {"a near 1.6 (branch)", 4},
+        {"m->inf (1..1e3)", 3},        {"a near 1.6 (branch)", 4},
     };
     for (int exact = 0; exact < 2; exact++) {
         for (size_t k = 0; k < sizeof sc / sizeof sc[0]; k++) {
@@ -492,7 +582,10 @@ static void sweep_microfacet(sweep *s)
                 switch (sc[k].mode) {
                 case 0: c = (float)lsp(i, n, 1.4e-45, 0.1); break;
                 case 1: c = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1)); break;
-                case 2: m = (float)lsp(i, n, 1e-6, 1e-2); c = (float)rng_log(&s->r, 1e-8, 1.0); break;
+                case 2:
+                    m = (float)lsp(i, n, 1e-6, 1e-2);
+                    c = (float)rng_log(&s->r, 1e-8, 1.0);
+                    break;
                 case 3: m = (float)lsp(i, n, 1.0, 1e3); break;
                 default: {
                     /* 1/(m tan) = 1.6 +- a little: tan = 1/(1.6 m) */
@@ -523,8 +616,13 @@ static void sweep_d3d(sweep *s)
 {
     int n = s->n;
     stability_row *row;
-    struct { const char *name; int mode; } bc[] = {
-        {"P->0 (1e-6..0.1)", 0}, {"P>=1e4 (1e4..1e7)", 1}, {"N.H->0 (denormal..0.1)", 2},
+    struct {
+        const char *name;
+        int mode;
+    } bc[] = {
+        {"P->0 (1e-6..0.1)", 0},
+        {"P>=1e4 (1e4..1e7)", 1},
+        {"N.H->0 (denormal..0.1)", 2},
         {"N.H->1 (1-2^-24..0.9)", 3},
     };
     for (size_t k = 0; k < sizeof bc / sizeof bc[0]; k++) {
@@ -533,9 +631,18 @@ static void sweep_d3d(sweep *s)
             float nh = (float)rng_u(&s->r), p = (float)rng_log(&s->r, 1.0, 128.0);
             switch (bc[k].mode) {
             case 0: p = (float)lsp(i, n, 1e-6, 0.1); break;
-            case 1: p = (float)lsp(i, n, 1e4, 1e7); nh = (float)(1.0 - rng_log(&s->r, 1e-8, 1e-2)); break;
-            case 2: nh = (float)lsp(i, n, 1.4e-45, 0.1); p = (float)rng_log(&s->r, 1e-3, 4.0); break;
-            default: nh = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1)); p = (float)rng_log(&s->r, 1.0, 1e4); break;
+            case 1:
+                p = (float)lsp(i, n, 1e4, 1e7);
+                nh = (float)(1.0 - rng_log(&s->r, 1e-8, 1e-2));
+                break;
+            case 2:
+                nh = (float)lsp(i, n, 1.4e-45, 0.1);
+                p = (float)rng_log(&s->r, 1e-3, 4.0);
+                break;
+            default:
+                nh = (float)(1.0 - lsp(i, n, 0x1p-24, 0.1));
+                p = (float)rng_log(&s->r, 1.0, 1e4);
+                break;
             }
             ADD(row, d3d_blinn(nh, p), ref_blinn(nh, p), "N.H=%.9g P=%.9g", nh, p);
         }
@@ -549,8 +656,14 @@ static void sweep_d3d(sweep *s)
     }
     row_end(row);
 
-    struct { const char *name; int mode; } ac[] = {
-        {"d->0 (denormal..1e-3)", 0}, {"d->inf (1e3..FLT_MAX)", 1}, {"a0=a1=a2=0", 2}, {"random a, range", 3},
+    struct {
+        const char *name;
+        int mode;
+    } ac[] = {
+        {"d->0 (denormal..1e-3)", 0},
+        {"d->inf (1e3..FLT_MAX)", 1},
+        {"a0=a1=a2=0", 2},
+        {"random a, range", 3},
     };
     for (size_t k = 0; k < sizeof ac / sizeof ac[0]; k++) {
         row = row_begin(s, "d3d_attenuation", ac[k].name, STABILITY_ROUNDING, 24);
@@ -559,11 +672,22 @@ static void sweep_d3d(sweep *s)
             light_init(&l);
             float d = (float)rng_log(&s->r, 1e-3, 1e3);
             switch (ac[k].mode) {
-            case 0: d = (float)lsp(i, n, 1.4e-45, 1e-3); l.a0 = (float)(i % 3 == 0 ? 0.0 : rng_u(&s->r)); break;
-            case 1: d = (float)lsp(i, n, 1e3, FLT_MAX); l.a1 = (float)(i % 2 ? rng_u(&s->r) : 0.0); break;
-            case 2: l.a0 = l.a1 = l.a2 = 0.0f; d = (float)rng_log(&s->r, 1.4e-45, FLT_MAX); break;
+            case 0:
+                d = (float)lsp(i, n, 1.4e-45, 1e-3);
+                l.a0 = (float)(i % 3 == 0 ? 0.0 : rng_u(&s->r));
+                break;
+            case 1:
+                d = (float)lsp(i, n, 1e3, FLT_MAX);
+                l.a1 = (float)(i % 2 ? rng_u(&s->r) : 0.0);
+                break;
+            case 2:
+                l.a0 = l.a1 = l.a2 = 0.0f;
+                d = (float)rng_log(&s->r, 1.4e-45, FLT_MAX);
+                break;
             default:
-                l.a0 = (float)rng_u(&s->r); l.a1 = (float)rng_u(&s->r); l.a2 = (float)rng_u(&s->r);
+                l.a0 = (float)rng_u(&s->r);
+                l.a1 = (float)rng_u(&s->r);
+                l.a2 = (float)rng_u(&s->r);
                 l.range = (float)rng_log(&s->r, 1e-2, 1e4);
                 break;
             }
@@ -572,7 +696,12 @@ static void sweep_d3d(sweep *s)
         row_end(row);
     }
 
-    struct { const char *fn; spot_profile prof; const char *name; int mode; } pc[] = {
+    struct {
+        const char *fn;
+        spot_profile prof;
+        const char *name;
+        int mode;
+    } pc[] = {
         {"d3d_spot[d3d]", SPOT_D3D, "rho near outer edge", 0},
         {"d3d_spot[d3d]", SPOT_D3D, "rho near inner edge", 1},
         {"d3d_spot[d3d]", SPOT_D3D, "falloff 0..1e4, random rho", 2},
@@ -618,9 +747,13 @@ static void sweep_d3d9client(sweep *s)
 {
     int n = s->n;
     static const char *nname[4] = {"max", "mean", "luminance", "euclid"};
-    struct { const char *name; int mode; } cc[] = {
-        {"grazing N.V (denormal..0.1)", 0}, {"HDR phi and d up to 1e6", 1}, {"sun angle (8), N.L->0", 2},
-        {"p->0 and p>=1e4", 3}, {"bright lambda (euclid < 0)", 4},
+    struct {
+        const char *name;
+        int mode;
+    } cc[] = {
+        {"grazing N.V (denormal..0.1)", 0}, {"HDR phi and d up to 1e6", 1},
+        {"sun angle (8), N.L->0", 2},       {"p->0 and p>=1e4", 3},
+        {"bright lambda (euclid < 0)", 4},
     };
     for (size_t k = 0; k < sizeof cc / sizeof cc[0]; k++) {
         stability_row *row = row_begin(s, "d3d9client_combine", cc[k].name, STABILITY_ROUNDING, 24);
@@ -642,7 +775,10 @@ static void sweep_d3d9client(sweep *s)
                 phi = v3_scale(phi, (float)lsp(i, n, 1.0, 1e6));
                 d = v3_scale(d, (float)rng_log(&s->r, 1e-6, 1e6));
                 break;
-            case 2: p->sun_angle = 1; nsun = (float)lsp(i, n, 1.4e-45, 0.1); break;
+            case 2:
+                p->sun_angle = 1;
+                nsun = (float)lsp(i, n, 1.4e-45, 0.1);
+                break;
             case 3: p->p = (float)(i % 2 ? lsp(i, n, 1e-6, 0.1) : lsp(i, n, 1e4, 1e7)); break;
             default: p->reflect = v3s((float)rng_range(&s->r, 0.8, 1.0)); break;
             }
@@ -669,7 +805,7 @@ static void ct_variant(int i, ct_params *p, material *mat)
     p->g = gs[i % 3];
     p->f = fs[(i / 3) % 3];
     mat->conductor = (i / 3) % 3 == 2;
-    mat->eta = v3(0.18f, 0.42f, 1.37f);   /* gold-like complex index, per channel */
+    mat->eta = v3(0.18f, 0.42f, 1.37f); /* gold-like complex index, per channel */
     mat->k = v3(3.42f, 2.35f, 1.77f);
     p->ks = v3(1.0f, 0.9f, 0.8f);
 }
@@ -678,9 +814,17 @@ static void sweep_cooktorrance(sweep *s)
 {
     int n = s->n;
     static const char *gname[3] = {"vcavity", "smith-walter", "smith-exact"};
-    struct { const char *name; int mode; } cc[] = {
-        {"grazing view (N.V denormal..0.1)", 0}, {"grazing light (N.L->0)", 1}, {"V.H->0 (L ~ -V)", 2},
-        {"N.L < 0", 3}, {"m->0 (1e-6..1e-2)", 4}, {"m->inf (1..1e3)", 5}, {"zero-length / denormal normal", 6},
+    struct {
+        const char *name;
+        int mode;
+    } cc[] = {
+        {"grazing view (N.V denormal..0.1)", 0},
+        {"grazing light (N.L->0)", 1},
+        {"V.H->0 (L ~ -V)", 2},
+        {"N.L < 0", 3},
+        {"m->0 (1e-6..1e-2)", 4},
+        {"m->inf (1..1e3)", 5},
+        {"zero-length / denormal normal", 6},
         {"random geometry", 7},
     };
     for (int norm = 0; norm < 2; norm++) {
@@ -718,7 +862,10 @@ static void sweep_cooktorrance(sweep *s)
                 }
                 case 5: p->m = (float)lsp(i, n, 1.0, 1e3); break;
                 case 6: nn = i % 2 ? v3s(0.0f) : v3(0.0f, (float)lsp(i, n, 1.4e-45, 1e-38), 0.0f); break;
-                default: v = rng_dir_upper(&s->r, -0.1, 1.0); l = rng_dir_upper(&s->r, -0.1, 1.0); break;
+                default:
+                    v = rng_dir_upper(&s->r, -0.1, 1.0);
+                    l = rng_dir_upper(&s->r, -0.1, 1.0);
+                    break;
                 }
                 vec3 got = cooktorrance_specular(p, nn, v, l, &mat);
                 ld3 want = ref_ct_specular(p, l3_from(nn), l3_from(v), l3_from(l), &mat);
@@ -726,13 +873,16 @@ static void sweep_cooktorrance(sweep *s)
                 const ld w3[3] = {want.x, want.y, want.z};
                 for (int j = 0; j < 3; j++)
                     ADD(row, g3[j], w3[j], "ch%d G=%s F=%s m=%.6g N.V=%.6g N.L=%.6g", j, gname[p->g],
-                        p->f == F_SCHLICK ? "schlick" : mat.conductor ? "conductor" : "dielectric", p->m,
-                        v3_dot(v3_norm(nn), v), v3_dot(v3_norm(nn), l));
+                        p->f == F_SCHLICK ? "schlick"
+                        : mat.conductor   ? "conductor"
+                                          : "dielectric",
+                        p->m, v3_dot(v3_norm(nn), v), v3_dot(v3_norm(nn), l));
             }
             row_end(row);
         }
     }
-    stability_row *row = row_begin(s, "cooktorrance_reflection_weight", "N.V denormal..1, all F", STABILITY_ROUNDING, 24);
+    stability_row *row =
+        row_begin(s, "cooktorrance_reflection_weight", "N.V denormal..1, all F", STABILITY_ROUNDING, 24);
     for (int i = 0; i < n; i++) {
         material mat;
         material_init(&mat);
@@ -750,7 +900,10 @@ static void sweep_cooktorrance(sweep *s)
 
 /* ----------------------------------------------------------------------- shade_eval */
 
-typedef struct { ld3 diffuse, specular, reflection, emission; ld alpha; } ref_terms;
+typedef struct {
+    ld3 diffuse, specular, reflection, emission;
+    ld alpha;
+} ref_terms;
 
 static int ref_light_incident(const light *l, ld3 x, ld3 *to_l, ld3 *e_perp)
 {
@@ -761,7 +914,8 @@ static int ref_light_incident(const light *l, ld3 x, ld3 *to_l, ld3 *e_perp)
     }
     ld3 d = l3_sub(l3_from(l->position), x);
     ld dist = l3_len(d);
-    if (!(dist > 0)) return 0;
+    if (!(dist > 0))
+        return 0;
     *to_l = l3_scale(d, 1 / dist);
     ld a = ref_attenuation(l, dist) * ref_spot(l, l3_scale(*to_l, -1));
     *e_perp = l3_scale(l3_from(l->intensity), a);
@@ -781,9 +935,11 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
                     formula_lambert_brdf_l(m->albedo.z));
         for (int i = 0; i < sc->n_lights; i++) {
             ld3 to_l, e;
-            if (!ref_light_incident(&sc->lights[i], x, &to_l, &e)) continue;
+            if (!ref_light_incident(&sc->lights[i], x, &to_l, &e))
+                continue;
             ld n_l = l3_dot(n, to_l);
-            if (n_l <= 0) continue;
+            if (n_l <= 0)
+                continue;
             diffuse = l3_add(diffuse, l3_scale(l3_mul(kd, e), n_l));
             spec = l3_add(spec, l3_mul(ref_ct_specular(&m->ct, n, v, to_l, m), e));
         }
@@ -800,12 +956,15 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
     for (int i = 0; i < sc->n_lights; i++) {
         const light *l = &sc->lights[i];
         ld3 to_l, e;
-        if (!ref_light_incident(l, x, &to_l, &e)) continue;
-        ld atten = l->kind == LIGHT_SUN ? 1 : ref_attenuation(l, l3_len(l3_sub(l3_from(l->position), x))) *
-                                                  ref_spot(l, l3_scale(to_l, -1));
+        if (!ref_light_incident(l, x, &to_l, &e))
+            continue;
+        ld atten = l->kind == LIGHT_SUN
+                       ? 1
+                       : ref_attenuation(l, l3_len(l3_sub(l3_from(l->position), x))) * ref_spot(l, l3_scale(to_l, -1));
         diffuse = l3_add(diffuse, l3_scale(l3_mul(l3_from(d->ambient), l3_from(l->ambient)), atten));
         ld n_l = l3_dot(n, to_l);
-        if (n_l <= 0) continue;
+        if (n_l <= 0)
+            continue;
         ld3 colour = l3_scale(e, 1 / REF_PI);
         diffuse = l3_add(diffuse, l3_scale(l3_mul(l3_from(d->diffuse), colour), ref_lambert(n_l)));
         ld3 h = ref_half(to_l, d->local_viewer ? v : e_inf);
@@ -814,16 +973,21 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
     o->diffuse = diffuse;
     o->specular = spec;
     o->emission = l3_from(d->emissive);
-    if (m->model != MODEL_D3D9CLIENT) return;
+    if (m->model != MODEL_D3D9CLIENT)
+        return;
     ld3 refl = l3_sub(l3_scale(n, 2 * l3_dot(n, v)), v);
     ld3 phi = l3_dot(refl, refl) > 0 ? l3_from(env_const) : l3(0, 0, 0);
     ld n_sun = 0;
     if (m->d9.sun_angle && sc->n_lights > 0) {
         const light *sun = &sc->lights[0];
         for (int i = 0; i < sc->n_lights; i++)
-            if (sc->lights[i].kind == LIGHT_SUN) { sun = &sc->lights[i]; break; }
+            if (sc->lights[i].kind == LIGHT_SUN) {
+                sun = &sc->lights[i];
+                break;
+            }
         ld3 to_l, e;
-        if (ref_light_incident(sun, x, &to_l, &e)) n_sun = l3_dot(n, to_l);
+        if (ref_light_incident(sun, x, &to_l, &e))
+            n_sun = l3_dot(n, to_l);
     }
     ref_d9 r = ref_d3d9client(&m->d9, diffuse, m->d9.alpha, phi, l3_dot(n, v), n_sun);
     o->diffuse = l3_sub(r.rgb, r.r_tot);
@@ -832,7 +996,8 @@ static void ref_shade(const scene *sc, vec3 env_const, const material *m, vec3 x
 }
 
 /* shade_eval_n on a batch of one lane: the batch kernel's answer for one input. */
-static void shade_eval_one_lane(const shade_context *ctx, const shade_plan *plan, vec3 x, vec3 n, vec3 v, shade_terms *t)
+static void shade_eval_one_lane(const shade_context *ctx, const shade_plan *plan, vec3 x, vec3 n, vec3 v,
+                                shade_terms *t)
 {
     shade_batch_in in;
     shade_batch_out out;
@@ -878,19 +1043,23 @@ static void sweep_shade(sweep *s)
     static const char *bname[4] = {"shade_eval_n[d3d]", "shade_eval_n[d3d9client]", NULL,
                                    "shade_eval_n[ct ct1982 vcavity schlick]"};
     static const char *tname[5] = {"diffuse", "specular", "reflection", "emission", "alpha"};
-    struct { const char *name; int mode; } cc[] = {
-        {"grazing view (N.V denormal..0.1)", 0}, {"grazing light (N.L->0)", 1}, {"N.L < 0", 2},
-        {"light distance->0 (1e-30..1e-3)", 3}, {"light distance->inf (1e3..1e30)", 4}, {"a0=a1=a2=0", 5},
-        {"HDR intensity, env 1e6", 6}, {"zero-length / denormal normal", 7}, {"m->0 or P->0 / P>=1e4", 8},
+    struct {
+        const char *name;
+        int mode;
+    } cc[] = {
+        {"grazing view (N.V denormal..0.1)", 0}, {"grazing light (N.L->0)", 1},          {"N.L < 0", 2},
+        {"light distance->0 (1e-30..1e-3)", 3},  {"light distance->inf (1e3..1e30)", 4}, {"a0=a1=a2=0", 5},
+        {"HDR intensity, env 1e6", 6},           {"zero-length / denormal normal", 7},   {"m->0 or P->0 / P>=1e4", 8},
         {"random lights (point/sun/spot)", 9},
     };
     scene *sc = malloc(sizeof *sc);
-    if (!sc) abort();
+    if (!sc)
+        abort();
     for (int model = 0; model < 4; model++) {
         for (size_t k = 0; k < sizeof cc / sizeof cc[0]; k++) {
             stability_row *row = row_begin(s, mname[model], cc[k].name, STABILITY_ROUNDING, 24);
-            stability_row *brow = bname[model] != NULL ? row_begin(s, bname[model], cc[k].name, STABILITY_ROUNDING, 24)
-                                                       : NULL;
+            stability_row *brow =
+                bname[model] != NULL ? row_begin(s, bname[model], cc[k].name, STABILITY_ROUNDING, 24) : NULL;
             for (int i = 0; i < n; i++) {
                 scene_init(sc);
                 sc->camera.eye = v3(0.3f, 1.7f, 4.1f);
@@ -903,7 +1072,8 @@ static void sweep_shade(sweep *s)
                 l->intensity = v3(10.0f, 8.0f, 6.0f);
                 l->ambient = v3(0.1f, 0.1f, 0.1f);
                 vec3 env_c = v3(0.5f, 0.6f, 0.7f);
-                vec3 x = v3((float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1));
+                vec3 x =
+                    v3((float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1));
                 vec3 nn = v3(0, 1, 0);
                 double ph = rng_range(&s->r, 0.0, 2.0 * (double)REF_PI);
                 vec3 v = rng_dir_upper(&s->r, 0.0, 1.0);
@@ -913,8 +1083,14 @@ static void sweep_shade(sweep *s)
                 case 0: v = dir_at(lsp(i, n, 1.4e-45, 0.1), ph); break;
                 case 1: ldir = dir_at(lsp(i, n, 1.4e-45, 0.1), ph); break;
                 case 2: ldir = rng_dir_upper(&s->r, -1.0, 0.0); break;
-                case 3: dist = lsp(i, n, 1e-30, 1e-3); x = v3s(0.0f); break;
-                case 4: dist = lsp(i, n, 1e3, 1e30); x = v3s(0.0f); break;
+                case 3:
+                    dist = lsp(i, n, 1e-30, 1e-3);
+                    x = v3s(0.0f);
+                    break;
+                case 4:
+                    dist = lsp(i, n, 1e3, 1e30);
+                    x = v3s(0.0f);
+                    break;
                 case 5: l->a0 = l->a1 = l->a2 = 0.0f; break;
                 case 6:
                     l->intensity = v3_scale(l->intensity, (float)lsp(i, n, 1.0, 1e5));
@@ -927,7 +1103,7 @@ static void sweep_shade(sweep *s)
                     m->d9.p = m->d3d.power;
                     /* light near V's mirror direction, so the narrow lobes are hit */
                     ldir = v3_reflect(v, v3_norm(v3_add(nn, v3((float)rng_range(&s->r, -0.01, 0.01), 0.0f,
-                                                                (float)rng_range(&s->r, -0.01, 0.01)))));
+                                                               (float)rng_range(&s->r, -0.01, 0.01)))));
                     break;
                 default:
                     l->kind = (light_kind)(i % 3);
@@ -965,7 +1141,7 @@ static void sweep_shade(sweep *s)
                         const ld w3[3] = {ev[j].x, ev[j].y, ev[j].z};
                         for (int c = 0; c < 3; c++)
                             ADD(r, g3[c], w3[c], "%s.%c N.V=%.6g N.L=%.6g d=%.6g I=%.3g env=%.3g m=%.3g P=%.3g",
-                                tname[j], "rgb"[c], v3_dot(nn, v), v3_dot(nn, ldir), dist, l->intensity.x, env_c.x,
+                                tname[j], "rgb"[c], v3_dot(nn, v), v3_dot(nn, ldir), dist, l -> intensity.x, env_c.x,
                                 m->ct.m, m->d3d.power);
                     }
                     ADD(r, t[b].alpha, e.alpha, "alpha N.V=%.6g", v3_dot(nn, v));
@@ -1001,22 +1177,29 @@ static double fr_d3d9(double c, const void *arg)
     return fresnel_d3d9((float)a[0], (float)(1.0 - a[0]), (float)a[1], (float)c);
 }
 
-static void check_monotonic(sweep *s, const char *fn, const char *cs, fresnel_of_cos f, const void *arg,
-                            int precision, double tol_ulp, int gate, const char *why, int steps)
+static void check_monotonic(sweep *s, const char *fn, const char *cs, fresnel_of_cos f, const void *arg, int precision,
+                            double tol_ulp, int gate, const char *why, int steps)
 {
     stability_row *row = row_begin(s, fn, cs, STABILITY_PHYSICS, 0);
     double prev = f(1.0, arg), worst = 0.0, worst_deg = 0.0;
     long viol = 0;
     for (int i = 1; i <= steps; i++) {
         double deg = 90.0 * i / steps;
-        double c = precision == 24 ? (double)(float)cos(deg * (double)REF_PI / 180.0) : cos(deg * (double)REF_PI / 180.0);
+        double c =
+            precision == 24 ? (double)(float)cos(deg * (double)REF_PI / 180.0) : cos(deg * (double)REF_PI / 180.0);
         double cur = f(c, arg);
         row->samples++;
-        if (isnan(cur)) row->nan++;
-        if (isinf(cur)) row->inf++;
+        if (isnan(cur))
+            row->nan++;
+        if (isinf(cur))
+            row->inf++;
         double drop = (prev - cur) / (double)ulp_of(prev, precision);
-        if (drop > worst) { worst = drop; worst_deg = deg; }
-        if (drop > tol_ulp) viol++;
+        if (drop > worst) {
+            worst = drop;
+            worst_deg = deg;
+        }
+        if (drop > tol_ulp)
+            viol++;
         prev = cur;
     }
     row->check_ok = viol == 0;
@@ -1046,9 +1229,11 @@ static double ct_albedo(const material *mat, double theta_o, int grid)
             double ph = 2.0 * (double)REF_PI * (j + 0.5) / grid;
             dvec3 h = dv3(sh * cos(ph), ch, sh * sin(ph));
             double vh = dv3_dot(v, h);
-            if (vh <= 0.0) continue;
+            if (vh <= 0.0)
+                continue;
             dvec3 l = dv3_sub(dv3_scale(h, 2.0 * vh), v);
-            if (l.y <= 0.0) continue;
+            if (l.y <= 0.0)
+                continue;
             /* The sampled density: (4.12) with Walter's normalisation. */
             double d = formula_beckmann_d_d(sh * sh, ch * ch, inv_m2, log_norm);
             double pdf = d * ch / (4.0 * vh);
@@ -1081,8 +1266,13 @@ static void check_albedo_ct(sweep *s, int grid, const char *fn, ct_normalisation
         for (size_t b = 0; b < sizeof th / sizeof th[0]; b++) {
             double al = ct_albedo(&mat, th[b] * (double)REF_PI / 180.0, grid);
             row->samples++;
-            if (isnan(al)) row->nan++;
-            if (al > worst) { worst = al; wm = ms[a]; wt = th[b]; }
+            if (isnan(al))
+                row->nan++;
+            if (al > worst) {
+                worst = al;
+                wm = ms[a];
+                wt = th[b];
+            }
         }
     }
     row->value = worst;
@@ -1090,7 +1280,9 @@ static void check_albedo_ct(sweep *s, int grid, const char *fn, ct_normalisation
     row->expect_ok = gate;
     snprintf(row->where, sizeof row->where, "m=%.3g view=%.3g deg", wm, wt);
     snprintf(row->note, sizeof row->note, "albedo max %.6f (limit 1 + %.0e quadrature tolerance): %s%s%s", worst, tol,
-             row->check_ok ? "energy conserving" : gate ? "VIOLATION" : "breaks energy conservation",
+             row->check_ok ? "energy conserving"
+             : gate        ? "VIOLATION"
+                           : "breaks energy conservation",
              why ? "; " : "", why ? why : "");
 }
 
@@ -1102,9 +1294,18 @@ static void check_physics(sweep *s, int grid)
      * below R0 (at n = 10 down to 0.48 from 0.67 near 84 deg). So n <= 3.7 gates, 10 and 1000
      * are reported. n = 1.0001 is reported too: the rs/rp differences cancel as n -> 1 (see
      * the n->1 rounding row), which is numerical noise of ~1e4 ulp on a 2.5e-9 reflectance. */
-    static const struct { double n; int gate; const char *why; } iors[] = {
-        {1.0001, 0, "numerical: rs, rp cancel as n -> 1"}, {1.33, 1, NULL}, {1.5, 1, NULL}, {2.4, 1, NULL},
-        {3.7, 1, NULL}, {1.0 / 1.5, 1, NULL}, {10.0, 0, "physical: n > 2+sqrt(3) dips below R0"},
+    static const struct {
+        double n;
+        int gate;
+        const char *why;
+    } iors[] = {
+        {1.0001, 0, "numerical: rs, rp cancel as n -> 1"},
+        {1.33, 1, NULL},
+        {1.5, 1, NULL},
+        {2.4, 1, NULL},
+        {3.7, 1, NULL},
+        {1.0 / 1.5, 1, NULL},
+        {10.0, 0, "physical: n > 2+sqrt(3) dips below R0"},
         {1000.0, 0, "physical: n > 2+sqrt(3) dips below R0"},
     };
     for (size_t i = 0; i < sizeof iors / sizeof iors[0]; i++) {
@@ -1143,7 +1344,7 @@ static void check_physics(sweep *s, int grid)
         sum += microfacet_lambert_brdf(1.0) * ((i + 0.5) / grid) * 2.0 * (double)REF_PI / grid;
     row->samples = grid;
     row->value = sum;
-    row->check_ok = fabs(sum - 1.0) < 1e-12;   /* rounding of grid additions only */
+    row->check_ok = fabs(sum - 1.0) < 1e-12; /* rounding of grid additions only */
     snprintf(row->note, sizeof row->note, "albedo %.15f", sum);
 
     /* Quadrature tolerance: against a 1536^2 grid, the 96^2 estimate differs by at most 5e-4
@@ -1189,7 +1390,8 @@ static void check_physics(sweep *s, int grid)
                         d3d9client_result r;
                         d3d9client_combine(&mat.d9, v3s(1.0f), 1.0f, v3s(1.0f), nv, 0.0f, &r);
                         row->samples++;
-                        if (isnan(r.rgb.x) || isnan(r.diffuse_weight)) row->nan++;
+                        if (isnan(r.rgb.x) || isnan(r.diffuse_weight))
+                            row->nan++;
                         if (r.diffuse_weight < wmin) {
                             wmin = r.diffuse_weight;
                             snprintf(wat, sizeof wat, "lambda=(%.2f,%.2f,%.2f)", mat.d9.reflect.x, mat.d9.reflect.y,
@@ -1204,7 +1406,7 @@ static void check_physics(sweep *s, int grid)
                     }
         row->value = amax;
         row->aux = wmin;
-        row->check_ok = amax <= 1.0 + 1e-6 && wmin >= 0.0;   /* 1e-6: float rounding of the sum */
+        row->check_ok = amax <= 1.0 + 1e-6 && wmin >= 0.0; /* 1e-6: float rounding of the sum */
         row->expect_ok = 0;
         snprintf(row->where, sizeof row->where, "albedo at %s; weight at %s", aat, wat);
         snprintf(row->note, sizeof row->note, "albedo max %.4f; min diffuse weight 1-|lambda| = %.4f%s", amax, wmin,
@@ -1217,13 +1419,17 @@ static void check_physics(sweep *s, int grid)
 rc_status stability_run(const stability_options *o, stability_table *out)
 {
     stability_options d = {0};
-    if (o) d = *o;
-    if (d.samples == 0) d.samples = STABILITY_DEFAULT_SAMPLES;
-    if (d.albedo_grid == 0) d.albedo_grid = 96;
+    if (o)
+        d = *o;
+    if (d.samples == 0)
+        d.samples = STABILITY_DEFAULT_SAMPLES;
+    if (d.albedo_grid == 0)
+        d.albedo_grid = 96;
     if (d.samples < 16 || d.samples > STABILITY_MAX_SAMPLES || d.albedo_grid < 8 || d.albedo_grid > 2048)
         return RC_ERR_RANGE;
     stability_table *t = malloc(sizeof *t);
-    if (!t) return RC_ERR_NOMEM;
+    if (!t)
+        return RC_ERR_NOMEM;
     memset(t, 0, sizeof *t);
     t->samples = d.samples;
     t->ldbl_mant_dig = LDBL_MANT_DIG;
@@ -1242,7 +1448,8 @@ rc_status stability_run(const stability_options *o, stability_table *out)
 
 static int row_fails(const stability_row *r)
 {
-    if (r->nan || r->inf || r->negative) return 1;
+    if (r->nan || r->inf || r->negative)
+        return 1;
     return r->kind == STABILITY_PHYSICS && r->expect_ok && r->check_ok == 0;
 }
 
@@ -1258,8 +1465,10 @@ const stability_row *stability_find(const stability_table *t, const char *functi
 {
     for (int i = 0; i < t->n_rows; i++) {
         const stability_row *r = &t->rows[i];
-        if (function && strncmp(r->function, function, strlen(function)) != 0) continue;
-        if (case_prefix && strncmp(r->case_name, case_prefix, strlen(case_prefix)) != 0) continue;
+        if (function && strncmp(r->function, function, strlen(function)) != 0)
+            continue;
+        if (case_prefix && strncmp(r->case_name, case_prefix, strlen(case_prefix)) != 0)
+            continue;
         return r;
     }
     return NULL;
@@ -1274,9 +1483,12 @@ static void json_str(FILE *f, const char *s)
 {
     fputc('"', f);
     for (; *s; s++) {
-        if (*s == '"' || *s == '\\') fprintf(f, "\\%c", *s);
-        else if ((unsigned char)*s < 0x20) fprintf(f, "\\u%04x", (unsigned)(unsigned char)*s);
-        else fputc(*s, f);
+        if (*s == '"' || *s == '\\')
+            fprintf(f, "\\%c", *s);
+        else if ((unsigned char)*s < 0x20)
+            fprintf(f, "\\u%04x", (unsigned)(unsigned char)*s);
+        else
+            fputc(*s, f);
     }
     fputc('"', f);
 }
@@ -1284,8 +1496,10 @@ static void json_str(FILE *f, const char *s)
 /* JSON has no Inf/NaN: such a figure (never expected) is written as null. */
 static void json_num(FILE *f, double x)
 {
-    if (isfinite(x)) fprintf(f, "%.6g", x);
-    else fputs("null", f);
+    if (isfinite(x))
+        fprintf(f, "%.6g", x);
+    else
+        fputs("null", f);
 }
 
 int stability_write_json(FILE *f, const stability_table *t)
@@ -1326,7 +1540,8 @@ static void csv_str(FILE *f, const char *s)
 {
     fputc('"', f);
     for (; *s; s++) {
-        if (*s == '"') fputc('"', f);
+        if (*s == '"')
+            fputc('"', f);
         fputc(*s, f);
     }
     fputc('"', f);
@@ -1334,8 +1549,10 @@ static void csv_str(FILE *f, const char *s)
 
 int stability_write_csv(FILE *f, const stability_table *t)
 {
-    fputs("function,case,kind,precision_bits,samples,max_ulp,max_rel,max_abs,where,where_abs,nan,inf,negative,check_ok,gating,"
-          "value,aux,note,fails\n", f);
+    fputs("function,case,kind,precision_bits,samples,max_ulp,max_rel,max_abs,where,where_abs,nan,inf,negative,check_ok,"
+          "gating,"
+          "value,aux,note,fails\n",
+          f);
     for (int i = 0; i < t->n_rows; i++) {
         const stability_row *r = &t->rows[i];
         csv_str(f, r->function);
@@ -1356,15 +1573,17 @@ int stability_write_csv(FILE *f, const stability_table *t)
 
 int stability_write_text(FILE *f, const stability_table *t)
 {
-    fprintf(f, "stability: %d samples per case, reference long double (%d-bit significand); ulp in the result's "
-               "precision (0.5 = correctly rounded)\n", t->samples, t->ldbl_mant_dig);
-    fprintf(f, "%-38s %-34s %10s %10s %10s %4s %4s %4s  %s\n", "function", "case", "max_ulp", "max_rel", "max_abs", "NaN",
-            "Inf", "neg", "where / check");
+    fprintf(f,
+            "stability: %d samples per case, reference long double (%d-bit significand); ulp in the result's "
+            "precision (0.5 = correctly rounded)\n",
+            t->samples, t->ldbl_mant_dig);
+    fprintf(f, "%-38s %-34s %10s %10s %10s %4s %4s %4s  %s\n", "function", "case", "max_ulp", "max_rel", "max_abs",
+            "NaN", "Inf", "neg", "where / check");
     for (int i = 0; i < t->n_rows; i++) {
         const stability_row *r = &t->rows[i];
         if (r->kind == STABILITY_PHYSICS)
-            fprintf(f, "%-38s %-34s %10s %10s %10s %4ld %4ld %4s  %s%s [%s]\n", r->function, r->case_name, "-", "-", "-",
-                    r->nan, r->inf, "-", row_fails(r) ? "FAIL " : "", r->note, r->where);
+            fprintf(f, "%-38s %-34s %10s %10s %10s %4ld %4ld %4s  %s%s [%s]\n", r->function, r->case_name, "-", "-",
+                    "-", r->nan, r->inf, "-", row_fails(r) ? "FAIL " : "", r->note, r->where);
         else
             fprintf(f, "%-38s %-34s %10.3g %10.3g %10.3g %4ld %4ld %4ld  %s%s\n", r->function, r->case_name, r->max_ulp,
                     r->max_rel, r->max_abs, r->nan, r->inf, r->negative, row_fails(r) ? "FAIL " : "",

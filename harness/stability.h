@@ -32,41 +32,41 @@
 #include "status.h"
 
 #define STABILITY_DEFAULT_SAMPLES 4000
-#define STABILITY_MAX_SAMPLES 10000000
-#define STABILITY_MAX_ROWS 256
+#define STABILITY_MAX_SAMPLES     10000000
+#define STABILITY_MAX_ROWS        256
 
 typedef struct {
-    int samples;          /* samples per sweep case; 0 = STABILITY_DEFAULT_SAMPLES */
-    unsigned seed;        /* PRNG seed of the random part of each sweep; 0 = fixed default */
-    int albedo_grid;      /* albedo quadrature: grid x grid stratified samples; 0 = 96 */
+    int samples;     /* samples per sweep case; 0 = STABILITY_DEFAULT_SAMPLES */
+    unsigned seed;   /* PRNG seed of the random part of each sweep; 0 = fixed default */
+    int albedo_grid; /* albedo quadrature: grid x grid stratified samples; 0 = 96 */
 } stability_options;
 
 typedef enum { STABILITY_ROUNDING, STABILITY_APPROX, STABILITY_PHYSICS } stability_kind;
 
 typedef struct {
-    char function[40];    /* e.g. "fresnel_schlick", "shade_eval[cook-torrance walter]" */
-    char case_name[56];   /* the extreme swept, e.g. "cos->0 (grazing)" */
+    char function[40];  /* e.g. "fresnel_schlick", "shade_eval[cook-torrance walter]" */
+    char case_name[56]; /* the extreme swept, e.g. "cos->0 (grazing)" */
     stability_kind kind;
-    int precision;        /* significand bits of the result: 24 float, 53 double; 0 physics */
-    long samples;         /* evaluations (each RGB channel counts once) */
-    double max_ulp;       /* ROUNDING: largest |f - ref| / ulp(ref) */
-    double max_rel;       /* largest |f - ref| / |ref| (ref != 0) */
-    double max_abs;       /* largest |f - ref| */
-    char where[128];      /* the inputs of the largest ulp error (PHYSICS: of the value) */
-    char where_abs[128];  /* the inputs of the largest absolute error */
-    long nan, inf;        /* outputs that are NaN / Inf for finite input: must be 0 */
-    long negative;        /* negative outputs where the exact value is >= 0: must be 0 */
-    int check_ok;         /* PHYSICS: 1 holds, 0 broken (as documented or a bug), -1 n/a */
-    int expect_ok;        /* PHYSICS: 1 the check gates (must hold), 0 reported break */
-    double value;         /* PHYSICS: the albedo maximum, or the largest drop in ulps */
-    double aux;           /* PHYSICS d3d9client rows: the smallest diffuse weight 1 - |lambda| */
-    char note[200];       /* PHYSICS verdict or ROUNDING remark */
+    int precision;       /* significand bits of the result: 24 float, 53 double; 0 physics */
+    long samples;        /* evaluations (each RGB channel counts once) */
+    double max_ulp;      /* ROUNDING: largest |f - ref| / ulp(ref) */
+    double max_rel;      /* largest |f - ref| / |ref| (ref != 0) */
+    double max_abs;      /* largest |f - ref| */
+    char where[128];     /* the inputs of the largest ulp error (PHYSICS: of the value) */
+    char where_abs[128]; /* the inputs of the largest absolute error */
+    long nan, inf;       /* outputs that are NaN / Inf for finite input: must be 0 */
+    long negative;       /* negative outputs where the exact value is >= 0: must be 0 */
+    int check_ok;        /* PHYSICS: 1 holds, 0 broken (as documented or a bug), -1 n/a */
+    int expect_ok;       /* PHYSICS: 1 the check gates (must hold), 0 reported break */
+    double value;        /* PHYSICS: the albedo maximum, or the largest drop in ulps */
+    double aux;          /* PHYSICS d3d9client rows: the smallest diffuse weight 1 - |lambda| */
+    char note[200];      /* PHYSICS verdict or ROUNDING remark */
 } stability_row;
 
 typedef struct {
     int n_rows;
-    int samples;          /* per case, as run */
-    int ldbl_mant_dig;    /* the reference's significand bits (64 on x86-64) */
+    int samples;       /* per case, as run */
+    int ldbl_mant_dig; /* the reference's significand bits (64 on x86-64) */
     stability_row rows[STABILITY_MAX_ROWS];
 } stability_table;
 

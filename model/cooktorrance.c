@@ -8,19 +8,21 @@
 
 static double cooktorrance_cap(double x)
 {
-    if (x > COOKTORRANCE_MAX) return COOKTORRANCE_MAX;
-    if (x < -COOKTORRANCE_MAX) return -COOKTORRANCE_MAX;
+    if (x > COOKTORRANCE_MAX)
+        return COOKTORRANCE_MAX;
+    if (x < -COOKTORRANCE_MAX)
+        return -COOKTORRANCE_MAX;
     return x;
 }
 
 /* Fresnel per channel for the cosine c (V.H for the lobe, N.V for the reflection). */
 static dvec3 cooktorrance_fresnel(const ct_params *p, double c, const material *mat)
 {
-    if (p->f == F_ONE) return dv3(1.0, 1.0, 1.0);
+    if (p->f == F_ONE)
+        return dv3(1.0, 1.0, 1.0);
     if (p->f == F_EXACT && mat) {
         if (mat->conductor)
-            return dv3(fresnel_conductor(c, mat->eta.x, mat->k.x),
-                       fresnel_conductor(c, mat->eta.y, mat->k.y),
+            return dv3(fresnel_conductor(c, mat->eta.x, mat->k.x), fresnel_conductor(c, mat->eta.y, mat->k.y),
                        fresnel_conductor(c, mat->eta.z, mat->k.z));
         /* A cosine of exactly 0 stays on the outside: the ray arrives from outside. */
         double f = fresnel_dielectric(c, mat->ior);
@@ -48,22 +50,27 @@ vec3 cooktorrance_specular(const ct_params *p, vec3 n, vec3 v, vec3 l, const mat
     dvec3 ld = dv3_norm(dv3_from(l));
     double n_l = dv3_dot(nd, ld);
     double n_v = dv3_dot(nd, vd);
-    if (isnan(n_l) || isnan(n_v)) return v3s(NAN);
+    if (isnan(n_l) || isnan(n_v))
+        return v3s(NAN);
     /* 1. hemisphere */
-    if (n_l <= 0.0 || n_v <= 0.0) return v3s(0.0f);
+    if (n_l <= 0.0 || n_v <= 0.0)
+        return v3s(0.0f);
     /* 2. zero cosines */
     n_l = formula_cos_floor_d(n_l);
     n_v = formula_cos_floor_d(n_v);
     /* 3. zero-length half vector */
     dvec3 hs = dv3_add(ld, vd);
     double hl = dv3_len(hs);
-    if (hl < FORMULA_HALF_MIN) return v3s(0.0f);
+    if (hl < FORMULA_HALF_MIN)
+        return v3s(0.0f);
     /* 4. normalise, then the terms */
     dvec3 h = dv3_scale(hs, formula_half_scale_d(hl));
     double n_h = dv3_dot(nd, h);
     double v_h = dv3_dot(vd, h);
-    if (v_h < 0.0) v_h = 0.0;   /* V.H = |L+V|/2 >= 0 exactly; only rounding can dip below */
-    if (v_h > 1.0) v_h = 1.0;
+    if (v_h < 0.0)
+        v_h = 0.0; /* V.H = |L+V|/2 >= 0 exactly; only rounding can dip below */
+    if (v_h > 1.0)
+        v_h = 1.0;
     double d = microfacet_beckmann_d(n_h, p->m, p->norm);
     double g = cooktorrance_g(p, n_h, n_v, n_l, v_h);
     dvec3 f = cooktorrance_fresnel(p, v_h, mat);
@@ -75,7 +82,8 @@ vec3 cooktorrance_specular(const ct_params *p, vec3 n, vec3 v, vec3 l, const mat
 
 vec3 cooktorrance_reflection_weight(const ct_params *p, float n_v, const material *mat)
 {
-    if (isnan(n_v)) return v3s(NAN);
+    if (isnan(n_v))
+        return v3s(NAN);
     double c = n_v < 0.0f ? 0.0 : (n_v > 1.0f ? 1.0 : (double)n_v);
     dvec3 f = cooktorrance_fresnel(p, c, mat);
     return v3((float)cooktorrance_cap(f.x), (float)cooktorrance_cap(f.y), (float)cooktorrance_cap(f.z));

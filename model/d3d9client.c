@@ -14,7 +14,11 @@ d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm)
     d3d9client_norm_weights w = {0.0, 0.0, 0.0, 0.0, 0.0};
     switch (norm) {
     case NORM_MEAN: w.w_r = w.w_g = w.w_b = 1.0 / 3.0; break;
-    case NORM_LUMINANCE: w.w_r = 0.2126; w.w_g = 0.7152; w.w_b = 0.0722; break;
+    case NORM_LUMINANCE:
+        w.w_r = 0.2126;
+        w.w_g = 0.7152;
+        w.w_b = 0.0722;
+        break;
     case NORM_EUCLID: w.w_euclid = 1.0; break;
     case NORM_MAX:
     default: w.w_max = 1.0; break;
@@ -30,12 +34,13 @@ double d3d9client_colour_norm_d(vec3 c, colour_norm norm)
 
 float d3d9client_colour_norm(vec3 c, colour_norm norm)
 {
-    if (isnan(c.x) || isnan(c.y) || isnan(c.z)) return NAN;   /* a max by selects would drop a NaN */
+    if (isnan(c.x) || isnan(c.y) || isnan(c.z))
+        return NAN; /* a max by selects would drop a NaN */
     return d3d9client_sat(d3d9client_colour_norm_d(c, norm));
 }
 
-void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
-                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9client_result *out)
+void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha, vec3 env_radiance_phi,
+                        float n_v, float n_sun, d3d9client_result *out)
 {
     double R = fresnel_d3d9(p->r0, p->m, p->p, n_v);
     vec3 l = p->reflect, s = p->fresnel_colour, phi = env_radiance_phi;

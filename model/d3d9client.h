@@ -25,7 +25,9 @@
  * 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709), NORM_EUCLID sqrt(R^2+G^2+B^2) (sqrt 3 for
  * white: 1 - |lambda| < 0). Unknown values behave as NORM_MAX. As formula.h's
  * formula_colour_norm weights it: w_max max(c) + w . c + w_euclid |c|_2, one weight non-zero. */
-typedef struct { double w_max, w_r, w_g, w_b, w_euclid; } d3d9client_norm_weights;
+typedef struct {
+    double w_max, w_r, w_g, w_b, w_euclid;
+} d3d9client_norm_weights;
 d3d9client_norm_weights d3d9client_norm_weights_of(colour_norm norm);
 /* |c| in double, unsaturated (the POV-Ray translator's 1 - |lambda|). */
 double d3d9client_colour_norm_d(vec3 c, colour_norm norm);
@@ -33,19 +35,19 @@ double d3d9client_colour_norm_d(vec3 c, colour_norm norm);
 float d3d9client_colour_norm(vec3 c, colour_norm norm);
 
 typedef struct {
-    vec3 rgb;              /* (6), or (8) when p->sun_angle */
-    float alpha;           /* (7) max(d_a, |R_tot|) */
-    vec3 r_tot;            /* (5) (lambda (1 - R) + s R) phi */
-    float fresnel_R;       /* (3) R0 + m (1 - (N.V)+)^p */
-    float diffuse_weight;  /* 1 - |lambda|, reported unclamped: < 0 flags a norm (euclid)
-                              that makes bright metals subtract diffuse light */
-    float diffuse_scale;   /* what multiplies d in rgb, in float as the shading loop applies
-                              it: diffuse_weight, times (8)'s 1 - R(sigma) when p->sun_angle */
+    vec3 rgb;             /* (6), or (8) when p->sun_angle */
+    float alpha;          /* (7) max(d_a, |R_tot|) */
+    vec3 r_tot;           /* (5) (lambda (1 - R) + s R) phi */
+    float fresnel_R;      /* (3) R0 + m (1 - (N.V)+)^p */
+    float diffuse_weight; /* 1 - |lambda|, reported unclamped: < 0 flags a norm (euclid)
+                             that makes bright metals subtract diffuse light */
+    float diffuse_scale;  /* what multiplies d in rgb, in float as the shading loop applies
+                             it: diffuse_weight, times (8)'s 1 - R(sigma) when p->sun_angle */
 } d3d9client_result;
 
 /* Equations (3)-(8). n_v = N.V (clamped to [0, 1] inside (3)); n_sun = cos sigma = N.L of
  * the main light, read only when p->sun_angle (clamped the same way in (8)). */
-void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha,
-                        vec3 env_radiance_phi, float n_v, float n_sun, d3d9client_result *out);
+void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha, vec3 env_radiance_phi,
+                        float n_v, float n_sun, d3d9client_result *out);
 
 #endif

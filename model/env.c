@@ -6,7 +6,6 @@
 #include "formula.h"
 #include "smath.h"
 
-
 void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty)
 {
     vec3 d = v3_norm(dir);
@@ -62,7 +61,8 @@ vec3 env_lookup(const env_map *e, vec3 dir)
     /* tx lies in [0, W], so x0 is in [-1, W]: wrap with compares instead of a division per texel. */
     x0 = x0 < 0 ? x0 + e->width : (x0 >= e->width ? x0 - e->width : x0);
     int x1 = x0 + 1 >= e->width ? x0 + 1 - e->width : x0 + 1;
-    if (x0 < 0 || x0 >= e->width) x0 = 0, x1 = e->width > 1 ? 1 : 0;
+    if (x0 < 0 || x0 >= e->width)
+        x0 = 0, x1 = e->width > 1 ? 1 : 0;
     vec3 top = v3_lerp(env_texel_rgb(e, x0, y0), env_texel_rgb(e, x1, y0), ax);
     vec3 bottom = v3_lerp(env_texel_rgb(e, x0, y0 + 1), env_texel_rgb(e, x1, y0 + 1), ax);
     return v3_mul(v3_lerp(top, bottom, ay), e->scale);
@@ -72,8 +72,8 @@ vec3 env_lookup(const env_map *e, vec3 dir)
  * taken as atan2(y, sqrt(x^2 + z^2)), which needs no normalisation, and every index is kept
  * inside the image by selects, so no lane can read out of bounds whatever its input. */
 SMATH_CLONES
-void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float *restrict dy,
-                  const float *restrict dz, float *restrict r, float *restrict g, float *restrict b)
+void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float *restrict dy, const float *restrict dz,
+                  float *restrict r, float *restrict g, float *restrict b)
 {
     if (e == NULL || e->kind == ENV_NONE || e->kind == ENV_CONSTANT || e->rgb == NULL || e->width <= 0 ||
         e->height <= 0) {

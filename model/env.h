@@ -22,14 +22,14 @@
 
 typedef struct {
     env_kind kind;
-    vec3 constant;       /* ENV_CONSTANT radiance */
-    vec3 scale;          /* ENV_IMAGE multiplier */
+    vec3 constant; /* ENV_CONSTANT radiance */
+    vec3 scale;    /* ENV_IMAGE multiplier */
     int width, height;
     const float *rgb;
 } env_map;
 
 typedef struct {
-    int x, y, channel;   /* texel column, row (0 at the top), channel (0 R, 1 G, 2 B); -1 if none */
+    int x, y, channel; /* texel column, row (0 at the top), channel (0 R, 1 G, 2 B); -1 if none */
     float value;
 } env_texel;
 
@@ -50,8 +50,8 @@ vec3 env_lookup(const env_map *e, vec3 dir);
  * g[i], b[i]); vectorised through smath_atan2, so the result differs from env_lookup's by
  * under 1e-6 of a texel step (tests/test_shade_batch.c). Directions need not be unit (lengths
  * 1e-15 to 1e15: beyond, squares leave float's range, as in env_lookup); a zero one gives 0. */
-void env_lookup_n(const env_map *e, int n, const float *dx, const float *dy, const float *dz,
-                  float *r, float *g, float *b);
+void env_lookup_n(const env_map *e, int n, const float *dx, const float *dy, const float *dz, float *r, float *g,
+                  float *b);
 /* The image coordinates (in texels, x right, y down from the top edge) of a direction. */
 void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty);
 

@@ -42,8 +42,10 @@ rc_status fileio_output_target(const char *path, char *target, size_t len, char 
         /* Write the file the link points to, so the link stays a link. */
         char resolved[PATH_MAX];
         if (realpath(path, resolved) == NULL) {
-            status_message(err, errlen, "%s: the output is a symlink that cannot be followed (%s); give a "
-                           "regular file or a new name", path, strerror(errno));
+            status_message(err, errlen,
+                           "%s: the output is a symlink that cannot be followed (%s); give a "
+                           "regular file or a new name",
+                           path, strerror(errno));
             return RC_ERR_RANGE;
         }
         if (stat(resolved, &st) != 0) {
@@ -52,8 +54,10 @@ rc_status fileio_output_target(const char *path, char *target, size_t len, char 
             return RC_ERR_IO;
         }
         if (!S_ISREG(st.st_mode)) {
-            status_message(err, errlen, "%s: the output is not a regular file (%s); give a regular file or a "
-                           "new name", path, fileio_kind(st.st_mode));
+            status_message(err, errlen,
+                           "%s: the output is not a regular file (%s); give a regular file or a "
+                           "new name",
+                           path, fileio_kind(st.st_mode));
             return RC_ERR_RANGE;
         }
         if (snprintf(target, len, "%s", resolved) >= (int)len) {
@@ -69,8 +73,10 @@ rc_status fileio_output_target(const char *path, char *target, size_t len, char 
     }
     /* An existing file we may not write stays as it is: renaming over it would bypass its mode. */
     if (access(path, W_OK) != 0) {
-        status_message(err, errlen, "%s: the output exists and is not writable (%s); make it writable or give "
-                       "another path", path, strerror(errno));
+        status_message(err, errlen,
+                       "%s: the output exists and is not writable (%s); make it writable or give "
+                       "another path",
+                       path, strerror(errno));
         return RC_ERR_IO;
     }
     if (snprintf(target, len, "%s", path) >= (int)len) {
@@ -98,8 +104,10 @@ rc_status fileio_temp_open(const char *target, char *tmp, size_t tmplen, int *fd
         if (errno != EEXIST)
             break;
     }
-    status_message(err, errlen, "%s: cannot create a temporary file next to it (%s); check the folder exists "
-                   "and is writable", target, strerror(errno));
+    status_message(err, errlen,
+                   "%s: cannot create a temporary file next to it (%s); check the folder exists "
+                   "and is writable",
+                   target, strerror(errno));
     return RC_ERR_IO;
 }
 
@@ -114,8 +122,10 @@ rc_status fileio_temp_finish(int fd, const char *tmp, const char *target, int fa
     if (!failed && rename(tmp, target) != 0) {
         e = errno;
         failed = 1;
-        status_message(err, errlen, "%s: cannot rename the finished temporary file onto it (%s); check the "
-                       "folder is writable", target, strerror(e));
+        status_message(err, errlen,
+                       "%s: cannot rename the finished temporary file onto it (%s); check the "
+                       "folder is writable",
+                       target, strerror(e));
     }
     if (failed) {
         unlink(tmp);
@@ -211,16 +221,21 @@ int fileio_copy(const char *from, const char *to)
 
 const char *fileio_kind(mode_t m)
 {
-    if (S_ISDIR(m)) return "a directory";
-    if (S_ISFIFO(m)) return "a FIFO";
-    if (S_ISCHR(m)) return "a character device";
-    if (S_ISBLK(m)) return "a block device";
-    if (S_ISSOCK(m)) return "a socket";
+    if (S_ISDIR(m))
+        return "a directory";
+    if (S_ISFIFO(m))
+        return "a FIFO";
+    if (S_ISCHR(m))
+        return "a character device";
+    if (S_ISBLK(m))
+        return "a block device";
+    if (S_ISSOCK(m))
+        return "a socket";
     return "not a regular file";
 }
 
-rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out,
-                                          long long *size_out, char *err, size_t errlen)
+rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out, long long *size_out,
+                            char *err, size_t errlen)
 {
     *fd_out = -1;
     int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
@@ -265,15 +280,33 @@ rc_status fileio_memory_limit(size_t *bytes, char *err, size_t errlen)
         unsigned long long n = strtoull(v, &end, 10);
         int shift = 0;
         switch (*end) {
-        case 'k': case 'K': shift = 10; end++; break;
-        case 'm': case 'M': shift = 20; end++; break;
-        case 'g': case 'G': shift = 30; end++; break;
-        case 't': case 'T': shift = 40; end++; break;
+        case 'k':
+        case 'K':
+            shift = 10;
+            end++;
+            break;
+        case 'm':
+        case 'M':
+            shift = 20;
+            end++;
+            break;
+        case 'g':
+        case 'G':
+            shift = 30;
+            end++;
+            break;
+        case 't':
+        case 'T':
+            shift = 40;
+            end++;
+            break;
         default: break;
         }
         if (errno != 0 || end == v || *end != '\0' || v[0] == '-' || n == 0 || n > (SIZE_MAX >> shift)) {
-            status_message(err, errlen, "REFLCHECK_MEMORY_LIMIT='%s': expected a positive number of bytes with an "
-                           "optional K, M, G or T suffix, e.g. 8G; fix or unset it", v);
+            status_message(err, errlen,
+                           "REFLCHECK_MEMORY_LIMIT='%s': expected a positive number of bytes with an "
+                           "optional K, M, G or T suffix, e.g. 8G; fix or unset it",
+                           v);
             return RC_ERR_RANGE;
         }
         *bytes = (size_t)n << shift;

@@ -59,8 +59,8 @@
 
 /* The kind of a non-regular file, for messages ("a FIFO", "a directory", ...). */
 const char *fileio_kind(mode_t m);
-rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out,
-                            long long *size_out, char *err, size_t errlen);
+rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out, long long *size_out,
+                            char *err, size_t errlen);
 rc_status fileio_memory_limit(size_t *bytes, char *err, size_t errlen);
 
 int fileio_same_file(const char *a, const char *b);

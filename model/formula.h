@@ -36,88 +36,88 @@
 #include "smath.h"
 
 /* pi and 1/pi to 36 digits: every instance's constant is this literal rounded once. */
-#define FORMULA_PI_DIGITS 3.14159265358979323846264338327950288
+#define FORMULA_PI_DIGITS     3.14159265358979323846264338327950288
 #define FORMULA_INV_PI_DIGITS 0.318309886183790671537767526745028724
-#define FORMULA_PI_F 3.14159265358979323846264338327950288f
-#define FORMULA_INV_PI_F 0.318309886183790671537767526745028724f
-#define FORMULA_PI_D 3.14159265358979323846264338327950288
-#define FORMULA_PI_L 3.14159265358979323846264338327950288L
+#define FORMULA_PI_F          3.14159265358979323846264338327950288f
+#define FORMULA_INV_PI_F      0.318309886183790671537767526745028724f
+#define FORMULA_PI_D          3.14159265358979323846264338327950288
+#define FORMULA_PI_L          3.14159265358979323846264338327950288L
 
 /* Beckmann D never exceeds this. 1/(pi m^2) reaches it at m = 5.6e-7, a lobe far narrower than
  * any pixel resolves. With the other caps (the lobe's FORMULA_CT_MAX, the attenuation's
  * 1/FORMULA_ATTEN_DENOM_MIN) a shading sum of 8 lights of radiance 1e6 stays below ~1e31, well
  * inside float (3.4e38). */
-#define FORMULA_D_MAX 1e12f
+#define FORMULA_D_MAX            1e12f
 /* The Cook-Torrance lobe's cap, by the same headroom argument. */
-#define FORMULA_CT_MAX 1e12f
+#define FORMULA_CT_MAX           1e12f
 /* The attenuation denominator never goes below this, so A <= 1e12: reached only for
  * a0 = a1 = a2 = 0 (rejected by the scene parser) or a light closer than 1e-6 m with a2 = 1, a
  * singularity no pixel footprint resolves. */
-#define FORMULA_ATTEN_DENOM_MIN 1e-12
+#define FORMULA_ATTEN_DENOM_MIN  1e-12
 /* Below this |L + V| (unit L, V) the half vector's direction is float rounding noise (~1e-7 per
  * component of a unit vector): L is opposite V, H has no direction, and for any N either N.L or
  * N.V is <= 0 up to that rounding, so the light gives no highlight. */
-#define FORMULA_HALF_MIN 1e-6
+#define FORMULA_HALF_MIN         1e-6
 /* Cook-Torrance's zero-cosine guard: N.V and N.L are raised to this before use. Below it a unit
  * vector's cosine is float rounding noise, and the lobe F D G / (k N.V) has a finite limit there
  * that the clamp approaches. */
-#define FORMULA_COS_MIN 1e-6
+#define FORMULA_COS_MIN          1e-6
 /* Walter et al. 2007's rational Smith G1 is 1 for a = 1/(m tan) >= 1.6, i.e. m tan <= 1/1.6. */
 #define FORMULA_WALTER_INV_A_MAX 0.625
 
 /* The instances. FORMULA_C gives a literal the instance's type (2.5 -> 2.5f, 2.5, 2.5L). */
 #define FORMULA_CAT_(a, b) a##b
-#define FORMULA_CAT(a, b) FORMULA_CAT_(a, b)
+#define FORMULA_CAT(a, b)  FORMULA_CAT_(a, b)
 
-#define FORMULA_T float
+#define FORMULA_T        float
 #define FORMULA_FN(name) name##_f
-#define FORMULA_C(x) FORMULA_CAT(x, f)
-#define FORMULA_INLINE static inline
-#define FORMULA_POW powf
-#define FORMULA_LOG logf
-#define FORMULA_EXP expf
-#define FORMULA_SQRT sqrtf
+#define FORMULA_C(x)     FORMULA_CAT(x, f)
+#define FORMULA_INLINE   static inline
+#define FORMULA_POW      powf
+#define FORMULA_LOG      logf
+#define FORMULA_EXP      expf
+#define FORMULA_SQRT     sqrtf
 #define FORMULA_LN_D_MAX logf(FORMULA_D_MAX)
 #include "formula.h"
 
-#define FORMULA_T double
+#define FORMULA_T        double
 #define FORMULA_FN(name) name##_d
-#define FORMULA_C(x) x
-#define FORMULA_INLINE static inline
-#define FORMULA_POW pow
-#define FORMULA_LOG log
-#define FORMULA_EXP exp
-#define FORMULA_SQRT sqrt
-#define FORMULA_ERF erf
-#define FORMULA_HYPOT hypot
+#define FORMULA_C(x)     x
+#define FORMULA_INLINE   static inline
+#define FORMULA_POW      pow
+#define FORMULA_LOG      log
+#define FORMULA_EXP      exp
+#define FORMULA_SQRT     sqrt
+#define FORMULA_ERF      erf
+#define FORMULA_HYPOT    hypot
 /* ln of the float cap as a double: D is compared with the very value the float result is capped
  * to (1e12f = 999999995904). */
 #define FORMULA_LN_D_MAX log((double)FORMULA_D_MAX)
 #include "formula.h"
 
-#define FORMULA_T float
+#define FORMULA_T        float
 #define FORMULA_FN(name) name##_v
-#define FORMULA_C(x) FORMULA_CAT(x, f)
-#define FORMULA_INLINE SMATH_INLINE
-#define FORMULA_POW smath_pow
-#define FORMULA_LOG smath_log
-#define FORMULA_EXP smath_exp
-#define FORMULA_SQRT sqrtf
+#define FORMULA_C(x)     FORMULA_CAT(x, f)
+#define FORMULA_INLINE   SMATH_INLINE
+#define FORMULA_POW      smath_pow
+#define FORMULA_LOG      smath_log
+#define FORMULA_EXP      smath_exp
+#define FORMULA_SQRT     sqrtf
 /* ln 1e12f rounded to float, a literal so that no lane evaluates it (tests/test_formula.c checks
  * it against logf). */
 #define FORMULA_LN_D_MAX 27.6310211f
 #include "formula.h"
 
-#define FORMULA_T long double
+#define FORMULA_T        long double
 #define FORMULA_FN(name) name##_l
-#define FORMULA_C(x) FORMULA_CAT(x, L)
-#define FORMULA_INLINE static inline
-#define FORMULA_POW powl
-#define FORMULA_LOG logl
-#define FORMULA_EXP expl
-#define FORMULA_SQRT sqrtl
-#define FORMULA_ERF erfl
-#define FORMULA_HYPOT hypotl
+#define FORMULA_C(x)     FORMULA_CAT(x, L)
+#define FORMULA_INLINE   static inline
+#define FORMULA_POW      powl
+#define FORMULA_LOG      logl
+#define FORMULA_EXP      expl
+#define FORMULA_SQRT     sqrtl
+#define FORMULA_ERF      erfl
+#define FORMULA_HYPOT    hypotl
 #define FORMULA_LN_D_MAX logl((long double)FORMULA_D_MAX)
 #include "formula.h"
 
@@ -175,7 +175,8 @@ FORMULA_INLINE FT FN(formula_fresnel_dielectric)(FT cos_i, FT eta)
 {
     FT sin_i = FORMULA_SQRT((1 - cos_i) * (1 + cos_i));
     FT sin_t = sin_i / eta;
-    if (sin_t >= 1) return 1;
+    if (sin_t >= 1)
+        return 1;
     FT cos_t = FORMULA_SQRT((1 - sin_t) * (1 + sin_t));
     /* Both denominators are > 0 here: cos_t > 0 because sin_t < 1, and eta > 0. */
     FT rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
@@ -325,11 +326,15 @@ FORMULA_INLINE FT FN(formula_smith_g1_walter)(FT c, FT m)
  * rounds to 1 in double: G1 = 1; for tiny a the last term is large but finite. */
 FORMULA_INLINE FT FN(formula_smith_g1_exact)(FT c, FT m)
 {
-    if (c <= 0) return 0;
-    if (c >= 1 || m <= 0) return 1;
+    if (c <= 0)
+        return 0;
+    if (c >= 1 || m <= 0)
+        return 1;
     FT x = m * (FORMULA_SQRT((1 - c) * (1 + c)) / c);
-    if (x <= 0) return 1;
-    if (isinf(x)) return 0;
+    if (x <= 0)
+        return 1;
+    if (isinf(x))
+        return 0;
     FT a = 1 / x;
     return 2 / (1 + FORMULA_ERF(a) + FORMULA_EXP(-a * a) / (a * FORMULA_SQRT(FC(FORMULA_PI_DIGITS))));
 }
@@ -375,7 +380,10 @@ FORMULA_INLINE FT FN(formula_d3d9_sun_factor)(FT r_sun) { return 1 - r_sun; }
 FORMULA_INLINE FT FN(formula_d3d9_colour)(FT d, FT w, FT r_tot) { return d * w + r_tot; }
 
 /* (7) c_a = max(d_a, |R_tot|). */
-FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot) { return d_alpha > norm_r_tot ? d_alpha : norm_r_tot; }
+FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
+{
+    return d_alpha > norm_r_tot ? d_alpha : norm_r_tot;
+}
 
 #undef FT
 #undef FN

@@ -6,10 +6,7 @@
 #include "formula.h"
 
 /* Clamp to [lo, hi] without hiding a NaN (comparisons with NaN are false). */
-static double fresnel_clampd(double x, double lo, double hi)
-{
-    return x < lo ? lo : (x > hi ? hi : x);
-}
+static double fresnel_clampd(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
 float fresnel_r0_from_ior(float n)
 {
@@ -17,15 +14,11 @@ float fresnel_r0_from_ior(float n)
     return (float)formula_r0_d(n);
 }
 
-float fresnel_schlick(float f0, float cos_theta)
-{
-    return (float)formula_sat_d(formula_schlick_d(f0, cos_theta));
-}
+float fresnel_schlick(float f0, float cos_theta) { return (float)formula_sat_d(formula_schlick_d(f0, cos_theta)); }
 
 vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta)
 {
-    return v3(fresnel_schlick(f0.x, cos_theta), fresnel_schlick(f0.y, cos_theta),
-              fresnel_schlick(f0.z, cos_theta));
+    return v3(fresnel_schlick(f0.x, cos_theta), fresnel_schlick(f0.y, cos_theta), fresnel_schlick(f0.z, cos_theta));
 }
 
 float fresnel_d3d9(float r0, float m, float p, float cos_theta)
@@ -50,7 +43,8 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta)
 
 double fresnel_dielectric(double cos_i, double eta)
 {
-    if (!(eta > 0.0)) return isnan(eta) ? eta : 1.0;
+    if (!(eta > 0.0))
+        return isnan(eta) ? eta : 1.0;
     eta = fresnel_clampd(eta, 1.0 / FRESNEL_ETA_LIMIT, FRESNEL_ETA_LIMIT);
     if (cos_i < 0.0) {
         cos_i = -cos_i;
@@ -62,7 +56,8 @@ double fresnel_dielectric(double cos_i, double eta)
 
 double fresnel_conductor(double cos_i, double eta, double k)
 {
-    if (isnan(cos_i) || isnan(eta) || isnan(k)) return NAN;
+    if (isnan(cos_i) || isnan(eta) || isnan(k))
+        return NAN;
     double c = fresnel_clampd(fabs(cos_i), 0.0, 1.0);
     eta = fresnel_clampd(fabs(eta), 0.0, FRESNEL_ETA_LIMIT);
     k = fresnel_clampd(fabs(k), 0.0, FRESNEL_ETA_LIMIT);

@@ -29,7 +29,6 @@
 #include "formula.h"
 #include "mesh.h"
 
-
 typedef struct {
     double r[3][3];
     dvec3 t;
@@ -54,7 +53,6 @@ static dvec3 mesh_rotate(const mesh_xform *x, dvec3 v)
                x->r[1][0] * v.x + x->r[1][1] * v.y + x->r[1][2] * v.z,
                x->r[2][0] * v.x + x->r[2][1] * v.y + x->r[2][2] * v.z);
 }
-
 
 static rc_status mesh_reserve(mesh *m, size_t add_verts, size_t add_tris)
 {
@@ -161,7 +159,7 @@ static int mesh_sphere(mesh_builder *b, const object *o)
         }
     }
     uint32_t bottom = mesh_vert(b, dv3(0, -r, 0), dv3(0, -1, 0));
-#define RING(i, j) (first + (uint32_t)(((i) - 1) * seg + ((j) % seg)))
+#define RING(i, j) (first + (uint32_t)(((i)-1) * seg + ((j) % seg)))
     for (int j = 0; j < seg; j++) {
         if (!mesh_tri_out(b, top, RING(1, j + 1), RING(1, j)))
             return 0;
@@ -186,10 +184,7 @@ static int mesh_quad(mesh_builder *b, const object *o)
     return mesh_quad_out(b, a, bb, c, d);
 }
 
-static dvec3 mesh_axis(int a, double s)
-{
-    return dv3(a == 0 ? s : 0.0, a == 1 ? s : 0.0, a == 2 ? s : 0.0);
-}
+static dvec3 mesh_axis(int a, double s) { return dv3(a == 0 ? s : 0.0, a == 1 ? s : 0.0, a == 2 ? s : 0.0); }
 
 static int mesh_box(mesh_builder *b, const object *o)
 {
@@ -302,13 +297,13 @@ static int mesh_torus(mesh_builder *b, const object *o)
 
 /* A polygon soup as read from a file, before triangulation. */
 typedef struct {
-    double *pos;      /* 3 per position */
-    double *nrm;      /* 3 per file normal */
+    double *pos; /* 3 per position */
+    double *nrm; /* 3 per file normal */
     int n_pos, cap_pos, n_nrm, cap_nrm;
-    int *cv, *cn;     /* per face corner: position index, normal index or -1 */
+    int *cv, *cn; /* per face corner: position index, normal index or -1 */
     int n_corner, cap_corner;
-    int *face_start;  /* n_face + 1 entries into the corner arrays */
-    int *face_line;   /* OBJ line or PLY face number, for messages */
+    int *face_start; /* n_face + 1 entries into the corner arrays */
+    int *face_line;  /* OBJ line or PLY face number, for messages */
     int n_face, cap_face;
 } mesh_soup;
 
@@ -393,8 +388,7 @@ static rc_status mesh_read_file(const char *path, char **out, size_t *len, char 
 {
     int fd;
     long long size = 0;
-    rc_status rc = fileio_open_input(path, FILEIO_MESH_MAX_BYTES, "an OBJ or PLY mesh file", &fd, &size, err,
-                                     errlen);
+    rc_status rc = fileio_open_input(path, FILEIO_MESH_MAX_BYTES, "an OBJ or PLY mesh file", &fd, &size, err, errlen);
     if (rc != RC_OK)
         return rc;
     char *buf = malloc((size_t)size + 1);
@@ -458,8 +452,7 @@ static int mesh_parse_doubles(char **cur, double *v, int max)
     return n;
 }
 
-static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err,
-                                size_t errlen)
+static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     int line = 0;
     char *p = buf, *endbuf = buf + len;
@@ -468,8 +461,8 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         char *le = nl ? nl : endbuf;
         line++;
         if (memchr(p, '\0', (size_t)(le - p))) {
-            status_message(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ",
-                     label, line);
+            status_message(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ", label,
+                           line);
             return RC_ERR_PARSE;
         }
         *le = '\0';
@@ -490,14 +483,15 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         if (kwlen == 1 && kw[0] == 'v') {
             int n = mesh_parse_doubles(&cur, v, 7);
             if (n < 3) {
-                status_message(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label,
-                         line);
+                status_message(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label, line);
                 return RC_ERR_PARSE;
             }
-            if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 ||
-                fabs(v[1]) > 1e30 || fabs(v[2]) > 1e30) {
-                status_message(err, errlen, "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
-                         "finite coordinates", label, line);
+            if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 || fabs(v[1]) > 1e30 ||
+                fabs(v[2]) > 1e30) {
+                status_message(err, errlen,
+                               "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
+                               "finite coordinates",
+                               label, line);
                 return RC_ERR_RANGE;
             }
             if (!mesh_soup_pos(s, v))
@@ -505,14 +499,15 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
             int n = mesh_parse_doubles(&cur, v, 3);
             if (n != 3) {
-                status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label,
-                         line);
+                status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label, line);
                 return RC_ERR_PARSE;
             }
             double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             if (!isfinite(l) || l == 0.0) {
-                status_message(err, errlen, "%s:%d: normal is zero or not finite; fix: a nonzero finite "
-                         "'vn', or drop normals to have them computed", label, line);
+                status_message(err, errlen,
+                               "%s:%d: normal is zero or not finite; fix: a nonzero finite "
+                               "'vn', or drop normals to have them computed",
+                               label, line);
                 return RC_ERR_RANGE;
             }
             if (!mesh_soup_nrm(s, v))
@@ -542,20 +537,24 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                     }
                 }
                 if (!ok || (*e && *e != ' ' && *e != '\t')) {
-                    status_message(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn",
-                             label, line);
+                    status_message(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn", label,
+                                   line);
                     return RC_ERR_PARSE;
                 }
                 cur = e;
                 int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
                 if (pv < 0) {
-                    status_message(err, errlen, "%s:%d: vertex index %ld out of range (%d vertices so far); "
-                             "fix: indices 1..%d or negative", label, line, vi, s->n_pos, s->n_pos);
+                    status_message(err, errlen,
+                                   "%s:%d: vertex index %ld out of range (%d vertices so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, vi, s->n_pos, s->n_pos);
                     return RC_ERR_RANGE;
                 }
                 if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
-                    status_message(err, errlen, "%s:%d: normal index %ld out of range (%d normals so far); "
-                             "fix: indices 1..%d or negative", label, line, ni, s->n_nrm, s->n_nrm);
+                    status_message(err, errlen,
+                                   "%s:%d: normal index %ld out of range (%d normals so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, ni, s->n_nrm, s->n_nrm);
                     return RC_ERR_RANGE;
                 }
                 if (!mesh_soup_corner(s, pv, pn))
@@ -563,8 +562,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                 corners++;
             }
             if (corners < 3) {
-                status_message(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line,
-                         corners);
+                status_message(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line, corners);
                 return RC_ERR_PARSE;
             }
             if (!mesh_soup_face(s, line))
@@ -581,7 +579,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
 typedef enum { PLY_I8, PLY_U8, PLY_I16, PLY_U16, PLY_I32, PLY_U32, PLY_F32, PLY_F64, PLY_BAD } ply_type;
 
 #define PLY_MAX_ELEMENTS 16
-#define PLY_MAX_PROPS 32
+#define PLY_MAX_PROPS    32
 
 typedef struct {
     char name[40];
@@ -599,9 +597,8 @@ typedef struct {
 
 static ply_type ply_type_of(const char *s)
 {
-    static const char *const names[][2] = {{"char", "int8"},     {"uchar", "uint8"},
-                                           {"short", "int16"},   {"ushort", "uint16"},
-                                           {"int", "int32"},     {"uint", "uint32"},
+    static const char *const names[][2] = {{"char", "int8"},     {"uchar", "uint8"},   {"short", "int16"},
+                                           {"ushort", "uint16"}, {"int", "int32"},     {"uint", "uint32"},
                                            {"float", "float32"}, {"double", "float64"}};
     for (int i = 0; i < 8; i++)
         if (strcmp(s, names[i][0]) == 0 || strcmp(s, names[i][1]) == 0)
@@ -670,8 +667,7 @@ static int ply_read(ply_reader *r, ply_type t, double *out)
     return *e == '\0';
 }
 
-static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, mesh_soup *s,
-                                char *err, size_t errlen)
+static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     ply_element el[PLY_MAX_ELEMENTS];
     int n_el = 0, binary = -1, line = 0;
@@ -682,14 +678,18 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         const char *nl = memchr(p, '\n', (size_t)(end - p));
         line++;
         if (!nl) {
-            status_message(err, errlen, "%s:%d: PLY header has no end_header line; fix: a complete PLY "
-                     "file", label, line);
+            status_message(err, errlen,
+                           "%s:%d: PLY header has no end_header line; fix: a complete PLY "
+                           "file",
+                           label, line);
             return RC_ERR_PARSE;
         }
         size_t n = (size_t)(nl - p);
         if (n >= sizeof text || memchr(p, '\0', n)) {
-            status_message(err, errlen, "%s:%d: PLY header line too long or holding a NUL byte; fix: a "
-                     "valid PLY header", label, line);
+            status_message(err, errlen,
+                           "%s:%d: PLY header line too long or holding a NUL byte; fix: a "
+                           "valid PLY header",
+                           label, line);
             return RC_ERR_PARSE;
         }
         memcpy(text, p, n);
@@ -707,14 +707,18 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             strcpy(w[nw++], tk);
         }
         if (long_word && !(nw > 0 && (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0))) {
-            status_message(err, errlen, "%s:%d: PLY header line has too many or too long words; fix: a "
-                     "valid PLY header", label, line);
+            status_message(err, errlen,
+                           "%s:%d: PLY header line has too many or too long words; fix: a "
+                           "valid PLY header",
+                           label, line);
             return RC_ERR_PARSE;
         }
         if (line == 1) {
             if (nw != 1 || strcmp(w[0], "ply") != 0) {
-                status_message(err, errlen, "%s:1: not a PLY file (first line must be 'ply'); fix: export "
-                         "as PLY", label);
+                status_message(err, errlen,
+                               "%s:1: not a PLY file (first line must be 'ply'); fix: export "
+                               "as PLY",
+                               label);
                 return RC_ERR_PARSE;
             }
             continue;
@@ -729,17 +733,20 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             else if (strcmp(w[1], "binary_little_endian") == 0)
                 binary = 1;
             else {
-                status_message(err, errlen, "%s:%d: PLY format '%s' not supported; fix: ascii or "
-                         "binary_little_endian", label, line, w[1]);
+                status_message(err, errlen,
+                               "%s:%d: PLY format '%s' not supported; fix: ascii or "
+                               "binary_little_endian",
+                               label, line, w[1]);
                 return RC_ERR_PARSE;
             }
         } else if (strcmp(w[0], "element") == 0 && nw == 3) {
             char *e;
             long count = strtol(w[2], &e, 10);
             if (*e || count < 0 || (size_t)count > len || n_el == PLY_MAX_ELEMENTS) {
-                status_message(err, errlen, "%s:%d: bad element line (count %s, %d elements so far); fix: "
-                         "'element name count' with a count the file can hold, at most %d elements",
-                         label, line, w[2], n_el, PLY_MAX_ELEMENTS);
+                status_message(err, errlen,
+                               "%s:%d: bad element line (count %s, %d elements so far); fix: "
+                               "'element name count' with a count the file can hold, at most %d elements",
+                               label, line, w[2], n_el, PLY_MAX_ELEMENTS);
                 return RC_ERR_PARSE;
             }
             ply_element *x = &el[n_el++];
@@ -758,14 +765,17 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             snprintf(pr->name, sizeof pr->name, "%s", w[nw - 1]);
             if (pr->type == PLY_BAD || pr->count_type == PLY_BAD ||
                 (pr->is_list && (pr->count_type == PLY_F32 || pr->count_type == PLY_F64))) {
-                status_message(err, errlen, "%s:%d: unknown PLY property type; fix: char uchar short ushort "
-                         "int uint float double (or int8 ... float64), integer list counts", label,
-                         line);
+                status_message(err, errlen,
+                               "%s:%d: unknown PLY property type; fix: char uchar short ushort "
+                               "int uint float double (or int8 ... float64), integer list counts",
+                               label, line);
                 return RC_ERR_PARSE;
             }
         } else {
-            status_message(err, errlen, "%s:%d: unexpected PLY header line '%s'; fix: format, element, "
-                     "property, comment, end_header", label, line, w[0]);
+            status_message(err, errlen,
+                           "%s:%d: unexpected PLY header line '%s'; fix: format, element, "
+                           "property, comment, end_header",
+                           label, line, w[0]);
             return RC_ERR_PARSE;
         }
     }
@@ -782,8 +792,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         int ix[6] = {-1, -1, -1, -1, -1, -1}, iface = -1;
         static const char *const vn[6] = {"x", "y", "z", "nx", "ny", "nz"};
         if (x->n_props == 0 && x->count > 0) {
-            status_message(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header",
-                     label, x->name);
+            status_message(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header", label, x->name);
             return RC_ERR_PARSE;
         }
         for (int k = 0; k < x->n_props; k++) {
@@ -791,30 +800,31 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 if (!x->props[k].is_list && strcmp(x->props[k].name, vn[c]) == 0)
                     ix[c] = k;
             if (x->props[k].is_list &&
-                (strcmp(x->props[k].name, "vertex_indices") == 0 ||
-                 strcmp(x->props[k].name, "vertex_index") == 0))
+                (strcmp(x->props[k].name, "vertex_indices") == 0 || strcmp(x->props[k].name, "vertex_index") == 0))
                 iface = k;
         }
         if (is_vertex) {
             if (have_vertex || ix[0] < 0 || ix[1] < 0 || ix[2] < 0) {
-                status_message(err, errlen, "%s: vertex element %s; fix: one vertex element with x, y, z",
-                         label, have_vertex ? "given twice" : "lacks x, y or z");
+                status_message(err, errlen, "%s: vertex element %s; fix: one vertex element with x, y, z", label,
+                               have_vertex ? "given twice" : "lacks x, y or z");
                 return RC_ERR_PARSE;
             }
             int nn = (ix[3] >= 0) + (ix[4] >= 0) + (ix[5] >= 0);
             if (nn != 0 && nn != 3) {
-                status_message(err, errlen, "%s: vertex has only some of nx, ny, nz; fix: all three or none",
-                         label);
+                status_message(err, errlen, "%s: vertex has only some of nx, ny, nz; fix: all three or none", label);
                 return RC_ERR_PARSE;
             }
             have_vertex = 1 + (nn == 3);
         }
         if (is_face) {
             if (!have_vertex || have_face || iface < 0) {
-                status_message(err, errlen, "%s: face element %s; fix: vertex element first, then one "
-                         "face element with a vertex_indices list", label,
-                         !have_vertex ? "before the vertex element" : have_face ? "given twice"
-                                                                                : "lacks vertex_indices");
+                status_message(err, errlen,
+                               "%s: face element %s; fix: vertex element first, then one "
+                               "face element with a vertex_indices list",
+                               label,
+                               !have_vertex ? "before the vertex element"
+                               : have_face  ? "given twice"
+                                            : "lacks vertex_indices");
                 return RC_ERR_PARSE;
             }
             have_face = 1;
@@ -836,8 +846,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 if (!ply_read(&r, pr->count_type, &cnt))
                     goto truncated;
                 if (!(cnt >= 0 && cnt <= 65535 && cnt == floor(cnt))) {
-                    status_message(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name,
-                             i, cnt);
+                    status_message(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name, i, cnt);
                     return RC_ERR_PARSE;
                 }
                 if (is_face && k == iface && cnt < 3) {
@@ -849,8 +858,10 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                         goto truncated;
                     if (is_face && k == iface) {
                         if (!(d >= 0 && d < s->n_pos && d == floor(d))) {
-                            status_message(err, errlen, "%s: face %ld: vertex index %g out of range; fix: "
-                                     "0..%d", label, i, d, s->n_pos - 1);
+                            status_message(err, errlen,
+                                           "%s: face %ld: vertex index %g out of range; fix: "
+                                           "0..%d",
+                                           label, i, d, s->n_pos - 1);
                             return RC_ERR_RANGE;
                         }
                         int vi = (int)d;
@@ -862,16 +873,20 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             if (is_vertex) {
                 for (int c = 0; c < 6; c++)
                     if ((c < 3 || have_vertex == 2) && (!isfinite(vals[c]) || fabs(vals[c]) > 1e30)) {
-                        status_message(err, errlen, "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
-                                 "finite values", label, i, vn[c]);
+                        status_message(err, errlen,
+                                       "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
+                                       "finite values",
+                                       label, i, vn[c]);
                         return RC_ERR_RANGE;
                     }
                 if (!mesh_soup_pos(s, vals))
                     return RC_ERR_NOMEM;
                 if (have_vertex == 2) {
                     if (vals[3] == 0.0 && vals[4] == 0.0 && vals[5] == 0.0) {
-                        status_message(err, errlen, "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
-                                 "drop them to have normals computed", label, i);
+                        status_message(err, errlen,
+                                       "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
+                                       "drop them to have normals computed",
+                                       label, i);
                         return RC_ERR_RANGE;
                     }
                     if (!mesh_soup_nrm(s, vals + 3))
@@ -884,20 +899,22 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
     }
     if (!have_vertex || !have_face) {
         status_message(err, errlen, "%s: PLY has no %s element; fix: vertex and face elements", label,
-                 have_vertex ? "face" : "vertex");
+                       have_vertex ? "face" : "vertex");
         return RC_ERR_PARSE;
     }
     return RC_OK;
 truncated:
-    status_message(err, errlen, "%s: PLY data ends early or holds a malformed number; fix: a complete "
-             "file matching its header", label);
+    status_message(err, errlen,
+                   "%s: PLY data ends early or holds a malformed number; fix: a complete "
+                   "file matching its header",
+                   label);
     return RC_ERR_PARSE;
 }
 
 /* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
  * Vertices are shared per (position, normal) pair. */
-static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj,
-                                char *err, size_t errlen)
+static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj, char *err,
+                                size_t errlen)
 {
     mesh *m = b->m;
     size_t ntri = 0;
@@ -934,13 +951,15 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             dvec3 cr = dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
             if (dv3_len(cr) == 0.0) {
                 if (is_obj)
-                    status_message(err, errlen, "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
-                             "coincide or are collinear); fix: remove the degenerate face", label,
-                             s->face_line[f], s->cv[c[0]] + 1, s->cv[c[1]] + 1, s->cv[c[2]] + 1);
+                    status_message(err, errlen,
+                                   "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
+                                   "coincide or are collinear); fix: remove the degenerate face",
+                                   label, s->face_line[f], s->cv[c[0]] + 1, s->cv[c[1]] + 1, s->cv[c[2]] + 1);
                 else
-                    status_message(err, errlen, "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
-                             "coincide or are collinear); fix: remove the degenerate face", label,
-                             s->face_line[f], s->cv[c[0]], s->cv[c[1]], s->cv[c[2]]);
+                    status_message(err, errlen,
+                                   "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
+                                   "coincide or are collinear); fix: remove the degenerate face",
+                                   label, s->face_line[f], s->cv[c[0]], s->cv[c[1]], s->cv[c[2]]);
                 rc = RC_ERR_RANGE;
                 goto done;
             }
@@ -971,9 +990,11 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             } else {
                 n = acc[vi];
                 if (dv3_len(n) == 0.0) {
-                    status_message(err, errlen, "%s: vertex %d: its triangles' normals cancel, so no "
-                             "normal can be computed; fix: give normals or remove back-to-back "
-                             "faces", label, vi + is_obj);
+                    status_message(err, errlen,
+                                   "%s: vertex %d: its triangles' normals cancel, so no "
+                                   "normal can be computed; fix: give normals or remove back-to-back "
+                                   "faces",
+                                   label, vi + is_obj);
                     free(corner_vert);
                     rc = RC_ERR_RANGE;
                     goto done;
@@ -991,9 +1012,10 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
             dvec3 cr;
             /* Nonzero in the file's precision can still collapse once stored as float. */
             if (mesh_tri_area2(m, a, bb, c, &cr) == 0.0) {
-                status_message(err, errlen, "%s%s%d: face has a zero-area triangle in single precision "
-                         "(tiny or huge coordinates); fix: rescale the mesh or remove the face",
-                         label, is_obj ? ":" : ": face ", s->face_line[f]);
+                status_message(err, errlen,
+                               "%s%s%d: face has a zero-area triangle in single precision "
+                               "(tiny or huge coordinates); fix: rescale the mesh or remove the face",
+                               label, is_obj ? ":" : ": face ", s->face_line[f]);
                 rc = RC_ERR_RANGE;
                 break;
             }
@@ -1019,8 +1041,7 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
     int is_obj = pl >= 4 && (strcmp(o->path + pl - 4, ".obj") == 0 || strcmp(o->path + pl - 4, ".OBJ") == 0);
     int is_ply = pl >= 4 && (strcmp(o->path + pl - 4, ".ply") == 0 || strcmp(o->path + pl - 4, ".PLY") == 0);
     if (!is_obj && !is_ply) {
-        status_message(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file",
-                 o->path, index);
+        status_message(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file", o->path, index);
         return RC_ERR_PARSE;
     }
     char why[SCENE_PATH_MAX + 200];
@@ -1029,13 +1050,12 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
         status_message(err, errlen, "objects[%d]: cannot read mesh: %s", index, why);
         return rc;
     }
-    rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen)
-                : mesh_ply_parse(buf, len, label, &s, err, errlen);
+    rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen) : mesh_ply_parse(buf, len, label, &s, err, errlen);
     if (rc == RC_OK)
         rc = mesh_soup_emit(&s, b, label, is_obj, err, errlen);
     if (rc == RC_ERR_NOMEM)
-        status_message(err, errlen, "%s: objects[%d]: out of memory reading the mesh; fix: a smaller mesh",
-                 o->path, index);
+        status_message(err, errlen, "%s: objects[%d]: out of memory reading the mesh; fix: a smaller mesh", o->path,
+                       index);
     mesh_soup_free(&s);
     free(buf);
     return rc;
@@ -1046,10 +1066,22 @@ static void mesh_counts(const object *o, size_t *nv, size_t *nt)
 {
     size_t s = (size_t)o->tessellation;
     switch (o->shape) {
-    case SHAPE_SPHERE: *nv = 2 + s * (s / 2); *nt = 2 * s * (s / 2); break;
-    case SHAPE_QUAD: *nv = 4; *nt = 2; break;
-    case SHAPE_BOX: *nv = 24 + 12 * 2 * (s + 1) + 8 * (s + 1) * (s + 2) / 2; *nt = 12 + 24 * s + 8 * s * s; break;
-    case SHAPE_TORUS: *nv = s * (s / 2 < 3 ? 3 : s / 2); *nt = 2 * *nv; break;
+    case SHAPE_SPHERE:
+        *nv = 2 + s * (s / 2);
+        *nt = 2 * s * (s / 2);
+        break;
+    case SHAPE_QUAD:
+        *nv = 4;
+        *nt = 2;
+        break;
+    case SHAPE_BOX:
+        *nv = 24 + 12 * 2 * (s + 1) + 8 * (s + 1) * (s + 2) / 2;
+        *nt = 12 + 24 * s + 8 * s * s;
+        break;
+    case SHAPE_TORUS:
+        *nv = s * (s / 2 < 3 ? 3 : s / 2);
+        *nt = 2 * *nv;
+        break;
     default: *nv = *nt = 0;
     }
 }
@@ -1079,22 +1111,19 @@ static int mesh_valid(const object *o, char *why, size_t whylen)
         break;
     case SHAPE_BOX:
         if (!(sz > 0 && fmaxf(o->size.x, fmaxf(o->size.y, o->size.z)) < big) ||
-            !(o->radius >= 0 && o->radius <= 0.5f * sz) || o->tessellation < 1 ||
-            o->tessellation > 256)
-            return snprintf(why, whylen,
-                            "needs size > 0, 0 <= radius <= min(size)/2, tessellation 1..256"), 0;
+            !(o->radius >= 0 && o->radius <= 0.5f * sz) || o->tessellation < 1 || o->tessellation > 256)
+            return snprintf(why, whylen, "needs size > 0, 0 <= radius <= min(size)/2, tessellation 1..256"), 0;
         break;
     case SHAPE_TORUS:
-        if (!(o->major > 0 && o->major < big && o->radius > 0 && o->radius <= o->major) ||
-            o->tessellation < 3 || o->tessellation > 1024)
+        if (!(o->major > 0 && o->major < big && o->radius > 0 && o->radius <= o->major) || o->tessellation < 3 ||
+            o->tessellation > 1024)
             return snprintf(why, whylen, "needs 0 < radius <= major and tessellation 3..1024"), 0;
         break;
     case SHAPE_MESH:
         if (!o->path[0])
             return snprintf(why, whylen, "needs a path"), 0;
         break;
-    default:
-        return snprintf(why, whylen, "unknown shape"), 0;
+    default: return snprintf(why, whylen, "unknown shape"), 0;
     }
     return 1;
 }
@@ -1102,15 +1131,14 @@ static int mesh_valid(const object *o, char *why, size_t whylen)
 rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err, size_t errlen)
 {
     if (!s || !out || object_index < 0 || object_index >= s->n_objects) {
-        status_message(err, errlen, "%s: objects[%d]: no such object; fix: an index below %d",
-                 s ? s->path : "(scene)", object_index, s ? s->n_objects : 0);
+        status_message(err, errlen, "%s: objects[%d]: no such object; fix: an index below %d", s ? s->path : "(scene)",
+                       object_index, s ? s->n_objects : 0);
         return RC_ERR_RANGE;
     }
     const object *o = &s->objects[object_index];
     char why[128];
     if (!mesh_valid(o, why, sizeof why)) {
-        status_message(err, errlen, "%s: objects[%d] (%s): %s", s->path, object_index,
-                 mesh_shape_name(o->shape), why);
+        status_message(err, errlen, "%s: objects[%d] (%s): %s", s->path, object_index, mesh_shape_name(o->shape), why);
         return RC_ERR_RANGE;
     }
     int nv0 = out->n_verts, nt0 = out->n_tris;
@@ -1123,8 +1151,8 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
         mesh_counts(o, &nv, &nt);
         rc = mesh_reserve(out, nv, nt);
         if (rc != RC_OK) {
-            status_message(err, errlen, "%s: objects[%d] (%s): out of memory; fix: lower tessellation",
-                     s->path, object_index, mesh_shape_name(o->shape));
+            status_message(err, errlen, "%s: objects[%d] (%s): out of memory; fix: lower tessellation", s->path,
+                           object_index, mesh_shape_name(o->shape));
         } else {
             int ok = 0;
             switch (o->shape) {
@@ -1134,9 +1162,10 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
             default: ok = mesh_torus(&b, o); break;
             }
             if (!ok) {
-                status_message(err, errlen, "%s: objects[%d] (%s): a triangle has zero area in float "
-                         "precision; fix: a larger size or lower tessellation", s->path,
-                         object_index, mesh_shape_name(o->shape));
+                status_message(err, errlen,
+                               "%s: objects[%d] (%s): a triangle has zero area in float "
+                               "precision; fix: a larger size or lower tessellation",
+                               s->path, object_index, mesh_shape_name(o->shape));
                 rc = RC_ERR_RANGE;
             }
         }

@@ -25,8 +25,8 @@ typedef struct {
     int cap_verts, cap_tris;
     vec3 *pos;
     vec3 *nrm;
-    uint32_t *idx;       /* 3 per triangle */
-    int *tri_object;     /* index into scene.objects, per triangle */
+    uint32_t *idx;   /* 3 per triangle */
+    int *tri_object; /* index into scene.objects, per triangle */
 } mesh;
 
 rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen);

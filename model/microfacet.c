@@ -7,14 +7,18 @@
 
 float microfacet_beckmann_d(double cos_h, float m, ct_normalisation norm)
 {
-    if (isnan(cos_h) || isnan(m)) return NAN;
-    if (cos_h <= 0.0) return 0.0f;
+    if (isnan(cos_h) || isnan(m))
+        return NAN;
+    if (cos_h <= 0.0)
+        return 0.0f;
     double c = cos_h > 1.0 ? 1.0 : cos_h;
-    if (m <= 0.0f) return c >= 1.0 ? MICROFACET_D_MAX : 0.0f;
+    if (m <= 0.0f)
+        return c >= 1.0 ? MICROFACET_D_MAX : 0.0f;
     double md = m;
     /* Below 1e-150, c^2 would underflow; tan^2/m^2 > 1e300/FLT_MAX^2 = 8e222 there, so D is 0
      * for every float m. */
-    if (c < 1e-150) return 0.0f;
+    if (c < 1e-150)
+        return 0.0f;
     /* In double: every term of log D is finite for every positive finite float c and m, and
      * sin^2 = (1 - c)(1 + c) keeps its precision near the peak (cos_h is a double, see the
      * header). */
@@ -24,19 +28,22 @@ float microfacet_beckmann_d(double cos_h, float m, ct_normalisation norm)
 
 float microfacet_vcavity_g(float n_h, float n_v, float n_l, float v_h)
 {
-    if (isnan(n_h) || isnan(n_v) || isnan(n_l) || isnan(v_h)) return NAN;
+    if (isnan(n_h) || isnan(n_v) || isnan(n_l) || isnan(v_h))
+        return NAN;
     return (float)formula_vcavity_g_d(n_h, n_v, n_l, v_h);
 }
 
 float microfacet_smith_g1_walter(float cos_theta, float m)
 {
-    if (isnan(cos_theta) || isnan(m)) return NAN;
+    if (isnan(cos_theta) || isnan(m))
+        return NAN;
     return (float)formula_smith_g1_walter_d(cos_theta, m);
 }
 
 double microfacet_smith_g1_exact(double cos_theta, double m)
 {
-    if (isnan(cos_theta) || isnan(m)) return NAN;
+    if (isnan(cos_theta) || isnan(m))
+        return NAN;
     return formula_smith_g1_exact_d(cos_theta, m);
 }
 
@@ -50,7 +57,4 @@ double microfacet_smith_g_exact(double n_v, double n_l, double m)
     return microfacet_smith_g1_exact(n_v, m) * microfacet_smith_g1_exact(n_l, m);
 }
 
-double microfacet_lambert_brdf(double albedo)
-{
-    return formula_lambert_brdf_d(albedo);
-}
+double microfacet_lambert_brdf(double albedo) { return formula_lambert_brdf_d(albedo); }

@@ -30,15 +30,17 @@
 #include <string.h>
 #include <unistd.h>
 
-#define RASTER_HALF 256                    /* fixed units from a sample to the cell edge */
-#define RASTER_STEP (2 * RASTER_HALF)      /* fixed units between neighbouring samples */
-#define RASTER_FIX_LIMIT (1 << 29)         /* |fixed coordinate| bound kept by the guard band */
-#define RASTER_MAX_POLY 16                 /* 3 vertices + one per clip plane (5), + slack */
-#define RASTER_MAX_THREADS 1024
-#define RASTER_MAX_TILE_SAMPLES 4096       /* tile * k bound: keeps a worker buffer <= 320 MB */
-#define RASTER_MAX_CHUNK_CELLS (1 << 22)   /* bound on chunks * tiles bookkeeping */
+#define RASTER_HALF             256               /* fixed units from a sample to the cell edge */
+#define RASTER_STEP             (2 * RASTER_HALF) /* fixed units between neighbouring samples */
+#define RASTER_FIX_LIMIT        (1 << 29)         /* |fixed coordinate| bound kept by the guard band */
+#define RASTER_MAX_POLY         16                /* 3 vertices + one per clip plane (5), + slack */
+#define RASTER_MAX_THREADS      1024
+#define RASTER_MAX_TILE_SAMPLES 4096      /* tile * k bound: keeps a worker buffer <= 320 MB */
+#define RASTER_MAX_CHUNK_CELLS  (1 << 22) /* bound on chunks * tiles bookkeeping */
 
-typedef struct { int32_t x, y; } raster_fix;
+typedef struct {
+    int32_t x, y;
+} raster_fix;
 
 typedef struct {
     const raster_vertex *v;
@@ -47,21 +49,21 @@ typedef struct {
     int width, height, k, tile;
     int tiles_x, tiles_y, n_tiles;
     double near, gx, gy;
-    double half_w_fix, half_h_fix;     /* 0.5 * W (or H) * fixed units per pixel */
+    double half_w_fix, half_h_fix; /* 0.5 * W (or H) * fixed units per pixel */
     int n_chunks, chunk_len;
-    uint32_t *counts;                  /* [chunk][tile] bin entries */
-    size_t *offsets;                   /* [chunk][tile] write position during the fill */
-    size_t *tile_start;                /* [tile + 1] */
+    uint32_t *counts;   /* [chunk][tile] bin entries */
+    size_t *offsets;    /* [chunk][tile] write position during the fill */
+    size_t *tile_start; /* [tile + 1] */
     uint32_t *bins;
-    uint16_t (*rects)[4];              /* [triangle] tile range from the count pass; x0 > x1 = none */
+    uint16_t (*rects)[4]; /* [triangle] tile range from the count pass; x0 > x1 = none */
     raster_tile_fn fn;
     void *user;
     int n_threads;
     int phase;
     atomic_int next;
-    raster_sample **tile_samples;      /* [thread] */
-    double **tile_depth;               /* [thread], 1/w of the current winner */
-    double **tile_uv;                  /* [thread], u per sample column then v per row */
+    raster_sample **tile_samples; /* [thread] */
+    double **tile_depth;          /* [thread], 1/w of the current winner */
+    double **tile_uv;             /* [thread], u per sample column then v per row */
 } raster_ctx;
 
 enum { RASTER_PHASE_COUNT, RASTER_PHASE_FILL, RASTER_PHASE_TILES };
@@ -110,10 +112,12 @@ static int raster_clip_plane(const raster_ctx *c, const dvec3 *in, int n, dvec3 
         /* Exact clipping of a triangle adds one vertex per plane; rounding could in
          * principle make a near-degenerate polygon non-convex, so bound the output
          * (the caller then drops the sliver). */
-        if (m + 2 > RASTER_MAX_POLY) return 0;
+        if (m + 2 > RASTER_MAX_POLY)
+            return 0;
         dvec3 a = in[i], b = in[(i + 1) % n];
         double da = raster_plane_dist(c, a, plane), db = raster_plane_dist(c, b, plane);
-        if (da >= 0) out[m++] = a;
+        if (da >= 0)
+            out[m++] = a;
         if ((da >= 0) != (db >= 0))
             out[m++] = da >= 0 ? raster_intersect(a, da, b, db) : raster_intersect(b, db, a, da);
     }
@@ -124,7 +128,8 @@ static bool raster_load_tri(const raster_ctx *c, uint32_t t, dvec3 p[3])
 {
     for (int i = 0; i < 3; i++) {
         const raster_vertex *rv = &c->v[c->idx[3 * (size_t)t + i]];
-        if (!isfinite(rv->x) || !isfinite(rv->y) || !isfinite(rv->w)) return false;
+        if (!isfinite(rv->x) || !isfinite(rv->y) || !isfinite(rv->w))
+            return false;
         p[i] = dv3(rv->x, rv->y, rv->w);
     }
     return true;
@@ -135,7 +140,8 @@ static bool raster_load_tri(const raster_ctx *c, uint32_t t, dvec3 p[3])
 static int raster_polygon(const raster_ctx *c, uint32_t t, raster_fix *fix, int *orient)
 {
     dvec3 a[RASTER_MAX_POLY], b[RASTER_MAX_POLY];
-    if (!raster_load_tri(c, t, a)) return 0;
+    if (!raster_load_tri(c, t, a))
+        return 0;
     int n = 3;
     bool inside = true;
     for (int i = 0; i < 3; i++) {
@@ -148,10 +154,13 @@ static int raster_polygon(const raster_ctx *c, uint32_t t, raster_fix *fix, int 
         dvec3 *src = a, *dst = b;
         for (int pl = 0; pl < 5 && n >= 3; pl++) {
             n = raster_clip_plane(c, src, n, dst, pl);
-            dvec3 *tmp = src; src = dst; dst = tmp;
+            dvec3 *tmp = src;
+            src = dst;
+            dst = tmp;
         }
         poly = src;
-        if (n < 3) return 0;
+        if (n < 3)
+            return 0;
     }
     double fx[RASTER_MAX_POLY], fy[RASTER_MAX_POLY];
     const double lim = RASTER_FIX_LIMIT;
@@ -168,7 +177,8 @@ static int raster_polygon(const raster_ctx *c, uint32_t t, raster_fix *fix, int 
     double area = 0;
     for (int i = 1; i + 1 < n; i++)
         area += (fx[i] - fx[0]) * (fy[i + 1] - fy[0]) - (fy[i] - fy[0]) * (fx[i + 1] - fx[0]);
-    if (!(area != 0)) return 0;
+    if (!(area != 0))
+        return 0;
     *orient = area > 0 ? 1 : -1;
     return n;
 }
@@ -179,24 +189,34 @@ static bool raster_tile_range(const raster_ctx *c, uint32_t t, int r[4])
     raster_fix p[RASTER_MAX_POLY];
     int orient;
     int n = raster_polygon(c, t, p, &orient);
-    if (n == 0) return false;
+    if (n == 0)
+        return false;
     int64_t x0 = p[0].x, x1 = p[0].x, y0 = p[0].y, y1 = p[0].y;
     for (int i = 1; i < n; i++) {
-        if (p[i].x < x0) x0 = p[i].x;
-        if (p[i].x > x1) x1 = p[i].x;
-        if (p[i].y < y0) y0 = p[i].y;
-        if (p[i].y > y1) y1 = p[i].y;
+        if (p[i].x < x0)
+            x0 = p[i].x;
+        if (p[i].x > x1)
+            x1 = p[i].x;
+        if (p[i].y < y0)
+            y0 = p[i].y;
+        if (p[i].y > y1)
+            y1 = p[i].y;
     }
     int64_t sx0 = raster_ceil_div(x0 - RASTER_HALF, RASTER_STEP);
     int64_t sx1 = raster_floor_div(x1 - RASTER_HALF, RASTER_STEP);
     int64_t sy0 = raster_ceil_div(y0 - RASTER_HALF, RASTER_STEP);
     int64_t sy1 = raster_floor_div(y1 - RASTER_HALF, RASTER_STEP);
     int64_t nsx = (int64_t)c->width * c->k, nsy = (int64_t)c->height * c->k;
-    if (sx0 < 0) sx0 = 0;
-    if (sy0 < 0) sy0 = 0;
-    if (sx1 > nsx - 1) sx1 = nsx - 1;
-    if (sy1 > nsy - 1) sy1 = nsy - 1;
-    if (sx0 > sx1 || sy0 > sy1) return false;
+    if (sx0 < 0)
+        sx0 = 0;
+    if (sy0 < 0)
+        sy0 = 0;
+    if (sx1 > nsx - 1)
+        sx1 = nsx - 1;
+    if (sy1 > nsy - 1)
+        sy1 = nsy - 1;
+    if (sx0 > sx1 || sy0 > sy1)
+        return false;
     int64_t ts = (int64_t)c->tile * c->k;
     r[0] = (int)(sx0 / ts);
     r[1] = (int)(sy0 / ts);
@@ -207,7 +227,7 @@ static bool raster_tile_range(const raster_ctx *c, uint32_t t, int r[4])
 
 typedef struct {
     bool ready, ok;
-    dvec3 f1, f2, sum;   /* F_1, F_2 and sum F_i as (u, v, 1) coefficient rows */
+    dvec3 f1, f2, sum; /* F_1, F_2 and sum F_i as (u, v, 1) coefficient rows */
 } raster_attr;
 
 static void raster_attr_setup(const raster_ctx *c, uint32_t t, raster_attr *at)
@@ -215,11 +235,13 @@ static void raster_attr_setup(const raster_ctx *c, uint32_t t, raster_attr *at)
     dvec3 p[3];
     at->ready = true;
     at->ok = false;
-    if (!raster_load_tri(c, t, p)) return;
+    if (!raster_load_tri(c, t, p))
+        return;
     dvec3 r0 = dv3_cross(p[1], p[2]), r1 = dv3_cross(p[2], p[0]), r2 = dv3_cross(p[0], p[1]);
     double det = dv3_dot(p[0], r0);
     /* det = 0: the triangle's plane contains the eye, it is seen edge-on. */
-    if (!(det != 0) || !isfinite(det)) return;
+    if (!(det != 0) || !isfinite(det))
+        return;
     double inv = 1.0 / det;
     at->f1 = dv3_scale(r1, inv);
     at->f2 = dv3_scale(r2, inv);
@@ -228,11 +250,11 @@ static void raster_attr_setup(const raster_ctx *c, uint32_t t, raster_attr *at)
 }
 
 typedef struct {
-    int sx0, sy0, sx1, sy1;        /* inclusive sample rectangle of the tile */
+    int sx0, sy0, sx1, sy1; /* inclusive sample rectangle of the tile */
     int stride;
     raster_sample *s;
     double *depth;
-    const double *u, *v;           /* NDC u per column, v per row */
+    const double *u, *v; /* NDC u per column, v per row */
 } raster_target;
 
 static int64_t raster_edge(raster_fix a, raster_fix b, int64_t px, int64_t py)
@@ -240,30 +262,44 @@ static int64_t raster_edge(raster_fix a, raster_fix b, int64_t px, int64_t py)
     return ((int64_t)b.x - a.x) * (py - a.y) - ((int64_t)b.y - a.y) * (px - a.x);
 }
 
-static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_fix p0,
-                          raster_fix p1, raster_fix p2, int orient, uint32_t t, raster_attr *at)
+static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_fix p0, raster_fix p1, raster_fix p2,
+                          int orient, uint32_t t, raster_attr *at)
 {
     int64_t area = raster_edge(p0, p1, p2.x, p2.y);
     /* A sub-triangle that snapping turned over (or flattened) is a sliver: drop it. */
-    if (area == 0 || (area > 0) != (orient > 0)) return;
-    if (area < 0) { raster_fix tmp = p1; p1 = p2; p2 = tmp; }
+    if (area == 0 || (area > 0) != (orient > 0))
+        return;
+    if (area < 0) {
+        raster_fix tmp = p1;
+        p1 = p2;
+        p2 = tmp;
+    }
     int32_t x0 = p0.x, x1 = p0.x, y0 = p0.y, y1 = p0.y;
     const raster_fix *q[3] = {&p0, &p1, &p2};
     for (int i = 1; i < 3; i++) {
-        if (q[i]->x < x0) x0 = q[i]->x;
-        if (q[i]->x > x1) x1 = q[i]->x;
-        if (q[i]->y < y0) y0 = q[i]->y;
-        if (q[i]->y > y1) y1 = q[i]->y;
+        if (q[i]->x < x0)
+            x0 = q[i]->x;
+        if (q[i]->x > x1)
+            x1 = q[i]->x;
+        if (q[i]->y < y0)
+            y0 = q[i]->y;
+        if (q[i]->y > y1)
+            y1 = q[i]->y;
     }
     int64_t sx0 = raster_ceil_div((int64_t)x0 - RASTER_HALF, RASTER_STEP);
     int64_t sx1 = raster_floor_div((int64_t)x1 - RASTER_HALF, RASTER_STEP);
     int64_t sy0 = raster_ceil_div((int64_t)y0 - RASTER_HALF, RASTER_STEP);
     int64_t sy1 = raster_floor_div((int64_t)y1 - RASTER_HALF, RASTER_STEP);
-    if (sx0 < tg->sx0) sx0 = tg->sx0;
-    if (sy0 < tg->sy0) sy0 = tg->sy0;
-    if (sx1 > tg->sx1) sx1 = tg->sx1;
-    if (sy1 > tg->sy1) sy1 = tg->sy1;
-    if (sx0 > sx1 || sy0 > sy1) return;
+    if (sx0 < tg->sx0)
+        sx0 = tg->sx0;
+    if (sy0 < tg->sy0)
+        sy0 = tg->sy0;
+    if (sx1 > tg->sx1)
+        sx1 = tg->sx1;
+    if (sy1 > tg->sy1)
+        sy1 = tg->sy1;
+    if (sx0 > sx1 || sy0 > sy1)
+        return;
 
     /* Edge i is opposite vertex i; inside is e >= 0. Top-left rule (y down, this
      * orientation): a top edge runs in +x with dy = 0, a left edge has dy < 0. Other
@@ -278,12 +314,15 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
         step_x[i] = -dy * RASTER_STEP;
         step_y[i] = dx * RASTER_STEP;
     }
-    if (!at->ready) raster_attr_setup(c, t, at);
-    if (!at->ok) return;
+    if (!at->ready)
+        raster_attr_setup(c, t, at);
+    if (!at->ok)
+        return;
     const dvec3 sum = at->sum, f1 = at->f1, f2 = at->f2;
     for (int64_t sy = sy0; sy <= sy1; sy++) {
         int64_t e0 = e_row[0], e1 = e_row[1], e2 = e_row[2];
-        for (int i = 0; i < 3; i++) e_row[i] += step_y[i];
+        for (int i = 0; i < 3; i++)
+            e_row[i] += step_y[i];
         raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
         double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
         double v = tg->v[sy - tg->sy0];
@@ -301,7 +340,11 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
                      * true triangle; keep their weights on the triangle. */
                     b1 = b1 < 0.0 ? 0.0 : b1 > 1.0 ? 1.0 : b1;
                     b2 = b2 < 0.0 ? 0.0 : b2 > 1.0 ? 1.0 : b2;
-                    if (b1 + b2 > 1.0) { double s = 1.0 / (b1 + b2); b1 *= s; b2 *= s; }
+                    if (b1 + b2 > 1.0) {
+                        double s = 1.0 / (b1 + b2);
+                        b1 *= s;
+                        b2 *= s;
+                    }
                     drow[sx] = iw;
                     srow[sx].tri = (int32_t)t;
                     srow[sx].b1 = (float)b1;
@@ -321,10 +364,12 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
 static void raster_prefetch(const raster_ctx *c, size_t e, size_t e_end)
 {
 #if defined(__GNUC__) || defined(__clang__)
-    if (e + 16 < e_end) __builtin_prefetch(&c->idx[3 * (size_t)c->bins[e + 16]]);
+    if (e + 16 < e_end)
+        __builtin_prefetch(&c->idx[3 * (size_t)c->bins[e + 16]]);
     if (e + 8 < e_end) {
         const uint32_t *ix = &c->idx[3 * (size_t)c->bins[e + 8]];
-        for (int i = 0; i < 3; i++) __builtin_prefetch(&c->v[ix[i]]);
+        for (int i = 0; i < 3; i++)
+            __builtin_prefetch(&c->v[ix[i]]);
     }
 #else
     (void)c;
@@ -369,7 +414,8 @@ static void raster_tile_run(raster_ctx *c, int tile, int thread)
         int orient;
         int n = raster_polygon(c, t, p, &orient);
         raster_attr at = {0};
-        for (int i = 1; i + 1 < n; i++) raster_subtri(c, &tg, p[0], p[i], p[i + 1], orient, t, &at);
+        for (int i = 1; i + 1 < n; i++)
+            raster_subtri(c, &tg, p[0], p[i], p[i + 1], orient, t, &at);
     }
     raster_tile rt = {x0, y0, tw, th, k, thread, tg.s};
     c->fn(c->user, &rt);
@@ -381,7 +427,10 @@ static void raster_chunk_bounds(const raster_ctx *c, int ch, int *t0, int *t1)
     *t1 = *t0 + c->chunk_len < c->n_tris ? *t0 + c->chunk_len : c->n_tris;
 }
 
-typedef struct { raster_ctx *c; int id; } raster_worker_arg;
+typedef struct {
+    raster_ctx *c;
+    int id;
+} raster_worker_arg;
 
 static void *raster_worker(void *arg)
 {
@@ -390,7 +439,8 @@ static void *raster_worker(void *arg)
     int items = c->phase == RASTER_PHASE_TILES ? c->n_tiles : c->n_chunks;
     for (;;) {
         int it = atomic_fetch_add(&c->next, 1);
-        if (it >= items) break;
+        if (it >= items)
+            break;
         if (c->phase == RASTER_PHASE_TILES) {
             raster_tile_run(c, it, w->id);
             continue;
@@ -406,13 +456,16 @@ static void *raster_worker(void *arg)
                     rc[2] = 0;
                     continue;
                 }
-                for (int i = 0; i < 4; i++) rc[i] = (uint16_t)r[i];
+                for (int i = 0; i < 4; i++)
+                    rc[i] = (uint16_t)r[i];
             }
             for (int y = rc[1]; y <= rc[3]; y++)
                 for (int x = rc[0]; x <= rc[2]; x++) {
                     size_t cell = base + (size_t)y * c->tiles_x + x;
-                    if (c->phase == RASTER_PHASE_COUNT) c->counts[cell]++;
-                    else c->bins[c->offsets[cell]++] = (uint32_t)t;
+                    if (c->phase == RASTER_PHASE_COUNT)
+                        c->counts[cell]++;
+                    else
+                        c->bins[c->offsets[cell]++] = (uint32_t)t;
                 }
         }
     }
@@ -435,14 +488,17 @@ static void raster_run_phase(raster_ctx *c, int phase)
     }
     raster_worker(&args[0]);
     for (int i = 1; i < c->n_threads; i++)
-        if (started[i]) pthread_join(th[i], NULL);
+        if (started[i])
+            pthread_join(th[i], NULL);
 }
 
 int raster_thread_count(const raster_options *opt)
 {
-    if (opt && opt->threads > 0) return opt->threads > RASTER_MAX_THREADS ? RASTER_MAX_THREADS : opt->threads;
+    if (opt && opt->threads > 0)
+        return opt->threads > RASTER_MAX_THREADS ? RASTER_MAX_THREADS : opt->threads;
     long n = sysconf(_SC_NPROCESSORS_ONLN);
-    if (n < 1) n = 1;
+    if (n < 1)
+        n = 1;
     return n > RASTER_MAX_THREADS ? RASTER_MAX_THREADS : (int)n;
 }
 
@@ -454,26 +510,36 @@ static void raster_free(raster_ctx *c)
     free(c->bins);
     free(c->rects);
     for (int i = 0; i < c->n_threads; i++) {
-        if (c->tile_samples) free(c->tile_samples[i]);
-        if (c->tile_depth) free(c->tile_depth[i]);
-        if (c->tile_uv) free(c->tile_uv[i]);
+        if (c->tile_samples)
+            free(c->tile_samples[i]);
+        if (c->tile_depth)
+            free(c->tile_depth[i]);
+        if (c->tile_uv)
+            free(c->tile_uv[i]);
     }
     free(c->tile_samples);
     free(c->tile_depth);
     free(c->tile_uv);
 }
 
-rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris,
-                      const raster_options *opt, raster_tile_fn fn, void *user)
+rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris, const raster_options *opt,
+                      raster_tile_fn fn, void *user)
 {
-    if (!opt || !fn || n_verts < 0 || n_tris < 0) return RC_ERR_RANGE;
-    if (n_tris > 0 && (!v || !idx)) return RC_ERR_RANGE;
-    if (opt->width <= 0 || opt->height <= 0) return RC_ERR_RANGE;
-    if (opt->supersample < 0 || opt->supersample > 16) return RC_ERR_RANGE;
-    if (opt->threads < 0 || opt->threads > RASTER_MAX_THREADS || opt->tile < 0) return RC_ERR_RANGE;
-    if (!(opt->near >= 0) || !isfinite(opt->near)) return RC_ERR_RANGE;
+    if (!opt || !fn || n_verts < 0 || n_tris < 0)
+        return RC_ERR_RANGE;
+    if (n_tris > 0 && (!v || !idx))
+        return RC_ERR_RANGE;
+    if (opt->width <= 0 || opt->height <= 0)
+        return RC_ERR_RANGE;
+    if (opt->supersample < 0 || opt->supersample > 16)
+        return RC_ERR_RANGE;
+    if (opt->threads < 0 || opt->threads > RASTER_MAX_THREADS || opt->tile < 0)
+        return RC_ERR_RANGE;
+    if (!(opt->near >= 0) || !isfinite(opt->near))
+        return RC_ERR_RANGE;
     for (size_t i = 0; i < 3 * (size_t)n_tris; i++)
-        if (idx[i] >= (uint32_t)n_verts) return RC_ERR_RANGE;
+        if (idx[i] >= (uint32_t)n_verts)
+            return RC_ERR_RANGE;
 
     raster_ctx c;
     memset(&c, 0, sizeof c);
@@ -484,21 +550,25 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
     c.height = opt->height;
     c.k = opt->supersample ? opt->supersample : 1;
     c.tile = opt->tile ? opt->tile : 16;
-    if ((int64_t)c.tile * c.k > RASTER_MAX_TILE_SAMPLES) return RC_ERR_RANGE;
+    if ((int64_t)c.tile * c.k > RASTER_MAX_TILE_SAMPLES)
+        return RC_ERR_RANGE;
     c.near = opt->near > 0 ? opt->near : 1e-3;
     double fix_per_px = (double)c.k * RASTER_STEP;
     c.gx = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c.width) - 1.0;
     c.gy = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c.height) - 1.0;
     /* The guard band must sit well outside the image (3 = at least one image width on
      * each side); a larger image would not fit the fixed-point range. */
-    if (c.gx < 3.0 || c.gy < 3.0) return RC_ERR_RANGE;
+    if (c.gx < 3.0 || c.gy < 3.0)
+        return RC_ERR_RANGE;
     c.half_w_fix = 0.5 * c.width * fix_per_px;
     c.half_h_fix = 0.5 * c.height * fix_per_px;
     c.tiles_x = (c.width + c.tile - 1) / c.tile;
     c.tiles_y = (c.height + c.tile - 1) / c.tile;
     /* tile ranges are cached as uint16 per axis */
-    if (c.tiles_x > UINT16_MAX || c.tiles_y > UINT16_MAX) return RC_ERR_RANGE;
-    if ((int64_t)c.tiles_x * c.tiles_y > INT32_MAX / 2) return RC_ERR_RANGE;
+    if (c.tiles_x > UINT16_MAX || c.tiles_y > UINT16_MAX)
+        return RC_ERR_RANGE;
+    if ((int64_t)c.tiles_x * c.tiles_y > INT32_MAX / 2)
+        return RC_ERR_RANGE;
     c.n_tiles = c.tiles_x * c.tiles_y;
     c.fn = fn;
     c.user = user;
@@ -506,11 +576,15 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
 
     int max_chunks = RASTER_MAX_CHUNK_CELLS / c.n_tiles;
     c.n_chunks = 16 * c.n_threads;
-    if (c.n_chunks > n_tris / 1024 + 1) c.n_chunks = n_tris / 1024 + 1;
-    if (c.n_chunks > max_chunks) c.n_chunks = max_chunks;
-    if (c.n_chunks < 1) c.n_chunks = 1;
+    if (c.n_chunks > n_tris / 1024 + 1)
+        c.n_chunks = n_tris / 1024 + 1;
+    if (c.n_chunks > max_chunks)
+        c.n_chunks = max_chunks;
+    if (c.n_chunks < 1)
+        c.n_chunks = 1;
     c.chunk_len = (n_tris + c.n_chunks - 1) / c.n_chunks;
-    if (c.chunk_len < 1) c.chunk_len = 1;
+    if (c.chunk_len < 1)
+        c.chunk_len = 1;
 
     rc_status rc = RC_ERR_NOMEM;
     size_t cells = (size_t)c.n_chunks * c.n_tiles;
@@ -528,7 +602,8 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
         c.tile_samples[i] = malloc(tsn * tsn * sizeof(raster_sample));
         c.tile_depth[i] = malloc(tsn * tsn * sizeof(double));
         c.tile_uv[i] = malloc(2 * tsn * sizeof(double));
-        if (!c.tile_samples[i] || !c.tile_depth[i] || !c.tile_uv[i]) goto done;
+        if (!c.tile_samples[i] || !c.tile_depth[i] || !c.tile_uv[i])
+            goto done;
     }
 
     raster_run_phase(&c, RASTER_PHASE_COUNT);
@@ -543,7 +618,8 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
     }
     c.tile_start[c.n_tiles] = total;
     c.bins = malloc((total ? total : 1) * sizeof *c.bins);
-    if (!c.bins) goto done;
+    if (!c.bins)
+        goto done;
     raster_run_phase(&c, RASTER_PHASE_FILL);
     raster_run_phase(&c, RASTER_PHASE_TILES);
     rc = RC_OK;

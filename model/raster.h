@@ -21,31 +21,36 @@
 #include <stdint.h>
 #include "status.h"
 
-typedef struct { float x, y, w; } raster_vertex;
+typedef struct {
+    float x, y, w;
+} raster_vertex;
 
 typedef struct {
-    int width, height;   /* image size in pixels */
-    int supersample;     /* k (k*k samples per pixel), 0 = 1 */
-    int threads;         /* 0 = all cores */
-    int tile;            /* tile edge in pixels, 0 = 16 */
-    float near;          /* near plane in w, 0 = 1e-3 */
+    int width, height; /* image size in pixels */
+    int supersample;   /* k (k*k samples per pixel), 0 = 1 */
+    int threads;       /* 0 = all cores */
+    int tile;          /* tile edge in pixels, 0 = 16 */
+    float near;        /* near plane in w, 0 = 1e-3 */
 } raster_options;
 
 /* One sample: the triangle that covers it (-1 for none) and the perspective-correct
  * barycentric weights of that triangle's vertices 1 and 2 (vertex 0 gets 1 - b1 - b2). */
-typedef struct { int32_t tri; float b1, b2; } raster_sample;
+typedef struct {
+    int32_t tri;
+    float b1, b2;
+} raster_sample;
 
 typedef struct {
-    int x0, y0, w, h;            /* pixel rectangle */
-    int k;                       /* supersample factor */
-    int thread;                  /* worker index, 0..threads-1, for per-thread scratch */
-    const raster_sample *samples;/* (h*k) rows of (w*k) samples, row-major, top row first */
+    int x0, y0, w, h;             /* pixel rectangle */
+    int k;                        /* supersample factor */
+    int thread;                   /* worker index, 0..threads-1, for per-thread scratch */
+    const raster_sample *samples; /* (h*k) rows of (w*k) samples, row-major, top row first */
 } raster_tile;
 
 typedef void (*raster_tile_fn)(void *user, const raster_tile *tile);
 
-rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris,
-                      const raster_options *opt, raster_tile_fn fn, void *user);
+rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris, const raster_options *opt,
+                      raster_tile_fn fn, void *user);
 /* The worker count raster_draw will use for these options. */
 int raster_thread_count(const raster_options *opt);
 

@@ -12,13 +12,29 @@
 #include "smath.h"
 
 const char *const render_channel_names[RENDER_CHANNELS] = {
-    "R", "G", "B", "A",
-    "diffuse.R", "diffuse.G", "diffuse.B",
-    "specular.R", "specular.G", "specular.B",
-    "reflection.R", "reflection.G", "reflection.B",
-    "emission.R", "emission.G", "emission.B",
-    "coverage", "object", "ndotv", "ndotl",
-    "var.R", "var.G", "var.B",
+    "R",
+    "G",
+    "B",
+    "A",
+    "diffuse.R",
+    "diffuse.G",
+    "diffuse.B",
+    "specular.R",
+    "specular.G",
+    "specular.B",
+    "reflection.R",
+    "reflection.G",
+    "reflection.B",
+    "emission.R",
+    "emission.G",
+    "emission.B",
+    "coverage",
+    "object",
+    "ndotv",
+    "ndotl",
+    "var.R",
+    "var.G",
+    "var.B",
 };
 
 void render_camera_make(const scene *s, int width, int height, render_camera *c)
@@ -42,23 +58,19 @@ static vec3 render_camera_dir(const render_camera *c, float sx, float sy)
     return v3_madd(d, c->up, ny * c->tan_half_y);
 }
 
-vec3 render_camera_ray(const render_camera *c, float sx, float sy)
-{
-    return v3_norm(render_camera_dir(c, sx, sy));
-}
+vec3 render_camera_ray(const render_camera *c, float sx, float sy) { return v3_norm(render_camera_dir(c, sx, sy)); }
 
 static raster_vertex render_project(const render_camera *c, vec3 p)
 {
     vec3 d = v3_sub(p, c->eye);
-    raster_vertex r = {v3_dot(d, c->right) / c->tan_half_x, v3_dot(d, c->up) / c->tan_half_y,
-                       v3_dot(d, c->forward)};
+    raster_vertex r = {v3_dot(d, c->right) / c->tan_half_x, v3_dot(d, c->up) / c->tan_half_y, v3_dot(d, c->forward)};
     return r;
 }
 
 /* Samples shaded per span (a rectangle of a tile's pixels, the whole tile when it fits): a
  * span's per-sample results, batches and queues are a worker's scratch (about 350 KiB), small
  * enough to stay in L2 while the span is shaded. */
-#define RENDER_SPAN 4096
+#define RENDER_SPAN  4096
 /* The widest SIMD vector in floats (AVX-512); SHADE_BATCH is a multiple of it. */
 #define RENDER_LANES 16
 
@@ -76,15 +88,15 @@ typedef struct {
 } render_queue;
 
 typedef struct {
-    shade_terms terms[RENDER_SPAN];          /* per slot: a span's samples, k*k per pixel in order */
-    vec3 bg[RENDER_SPAN];                     /* per slot: the environment where no triangle is */
-    render_queue queue[SCENE_MAX_OBJECTS];    /* per object: samples waiting for shading */
+    shade_terms terms[RENDER_SPAN];        /* per slot: a span's samples, k*k per pixel in order */
+    vec3 bg[RENDER_SPAN];                  /* per slot: the environment where no triangle is */
+    render_queue queue[SCENE_MAX_OBJECTS]; /* per object: samples waiting for shading */
     shade_batch_in in;
-    shade_vec3_n bg_dir, bg_rad;              /* background rays waiting for env_lookup_n */
+    shade_vec3_n bg_dir, bg_rad; /* background rays waiting for env_lookup_n */
     uint16_t bg_slot[SHADE_BATCH];
     int bg_n;
     shade_batch_out res;
-    int per_px, centre;                       /* samples per pixel; the centre sample's index */
+    int per_px, centre;                                   /* samples per pixel; the centre sample's index */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
 } render_scratch;
 
@@ -93,12 +105,12 @@ typedef struct {
     const mesh *m;
     const render_camera *cam;
     shade_context sc;
-    const shade_plan *plans;       /* one per object */
+    const shade_plan *plans;         /* one per object */
     const shade_terms *vertex_terms; /* Gouraud: per vertex, NULL where per-pixel */
     const unsigned char *per_vertex; /* per object */
     render_image *out;
-    long long *shaded;             /* per worker */
-    render_scratch *scratch;       /* per worker */
+    long long *shaded;       /* per worker */
+    render_scratch *scratch; /* per worker */
 } render_job;
 
 static vec3 render_terms_sum(const shade_terms *t)
@@ -125,7 +137,8 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
  * the viewer (two-sided, as POV-Ray and Cycles shade; where opposite vertex normals cancel, the
  * face normal, the only direction left) and the unit direction to the viewer. */
 SMATH_CLONES
-static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n, shade_batch_in *restrict in)
+static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n,
+                               shade_batch_in *restrict in)
 {
     /* Vertex arrays as flat floats (vec3 is three packed floats): a gather takes an element
      * index times 4 bytes, not a 12-byte struct stride. */
@@ -317,8 +330,9 @@ static void render_tile(void *user, const raster_tile *tile)
                 /* Unbiased sample variance over n = k*k samples, divided by n; 0 for k = 1.
                  * Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
                 float n = (float)(k * k);
-                vec3 var = k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
-                                 : v3s(0.0f);
+                vec3 var =
+                    k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
+                          : v3s(0.0f);
                 o->chan[RENDER_VAR_R][i] = fmaxf(var.x, 0.0f);
                 o->chan[RENDER_VAR_G][i] = fmaxf(var.y, 0.0f);
                 o->chan[RENDER_VAR_B][i] = fmaxf(var.z, 0.0f);
@@ -383,8 +397,8 @@ static unsigned render_aov_bits(const render_options *o)
     return o->aovs == 0 ? RENDER_AOV_ALL : (o->aovs & RENDER_AOV_ALL);
 }
 
-void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *opt,
-                            double *bytes, int *layers)
+void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *opt, double *bytes,
+                            int *layers)
 {
     static const render_options defaults = {0};
     if (opt == NULL)
@@ -397,8 +411,8 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
      * (raster.c: tile edge 16 by default, times k per axis). */
     raster_options ro = {.threads = opt->threads};
     double tsn = (double)(opt->tile > 0 ? opt->tile : 16) * k;
-    double per_thread = sizeof(render_scratch) + tsn * tsn * (sizeof(raster_sample) + sizeof(double)) +
-                        2.0 * tsn * sizeof(double);
+    double per_thread =
+        sizeof(render_scratch) + tsn * tsn * (sizeof(raster_sample) + sizeof(double)) + 2.0 * tsn * sizeof(double);
     total += raster_thread_count(&ro) * per_thread;
     /* The inputs stay resident: the mesh and the environment's float RGB. */
     double nv = m->n_verts, nt = m->n_tris;
@@ -418,8 +432,8 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
         *layers = n_layers;
 }
 
-rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt,
-                       render_image *out, char *err, size_t errlen)
+rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt, render_image *out,
+                       char *err, size_t errlen)
 {
     static const render_options defaults = {0};
     if (opt == NULL)
@@ -446,7 +460,8 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     int layers = 0;
     render_memory_estimate(s, m, env, opt, &need, &layers);
     if (need > (double)limit) {
-        snprintf(err, errlen, "%s: a %dx%d render at supersample %d with %d layers needs about %.2f GiB, over the "
+        snprintf(err, errlen,
+                 "%s: a %dx%d render at supersample %d with %d layers needs about %.2f GiB, over the "
                  "memory limit of %.2f GiB (half the physical memory unless REFLCHECK_MEMORY_LIMIT is set); render "
                  "smaller (--width, --height), with fewer layers (--aovs none) or raise REFLCHECK_MEMORY_LIMIT",
                  s->path, out->width, out->height, out->supersample, layers, need / 1073741824.0,
@@ -480,8 +495,11 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
     shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
-    raster_options ro = {.width = out->width, .height = out->height, .supersample = out->supersample,
-                         .threads = opt->threads, .tile = opt->tile};
+    raster_options ro = {.width = out->width,
+                         .height = out->height,
+                         .supersample = out->supersample,
+                         .threads = opt->threads,
+                         .tile = opt->tile};
     long long *shaded = calloc((size_t)raster_thread_count(&ro), sizeof *shaded);
     render_scratch *scratch = calloc((size_t)raster_thread_count(&ro), sizeof *scratch);
     if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL || scratch == NULL) {

@@ -35,45 +35,67 @@
 #include "status.h"
 
 typedef enum {
-    RENDER_R, RENDER_G, RENDER_B, RENDER_A,
-    RENDER_DIFFUSE_R, RENDER_DIFFUSE_G, RENDER_DIFFUSE_B,
-    RENDER_SPECULAR_R, RENDER_SPECULAR_G, RENDER_SPECULAR_B,
-    RENDER_REFLECTION_R, RENDER_REFLECTION_G, RENDER_REFLECTION_B,
-    RENDER_EMISSION_R, RENDER_EMISSION_G, RENDER_EMISSION_B,
-    RENDER_COVERAGE, RENDER_OBJECT, RENDER_NDOTV, RENDER_NDOTL,
-    RENDER_VAR_R, RENDER_VAR_G, RENDER_VAR_B,
+    RENDER_R,
+    RENDER_G,
+    RENDER_B,
+    RENDER_A,
+    RENDER_DIFFUSE_R,
+    RENDER_DIFFUSE_G,
+    RENDER_DIFFUSE_B,
+    RENDER_SPECULAR_R,
+    RENDER_SPECULAR_G,
+    RENDER_SPECULAR_B,
+    RENDER_REFLECTION_R,
+    RENDER_REFLECTION_G,
+    RENDER_REFLECTION_B,
+    RENDER_EMISSION_R,
+    RENDER_EMISSION_G,
+    RENDER_EMISSION_B,
+    RENDER_COVERAGE,
+    RENDER_OBJECT,
+    RENDER_NDOTV,
+    RENDER_NDOTL,
+    RENDER_VAR_R,
+    RENDER_VAR_G,
+    RENDER_VAR_B,
     RENDER_CHANNELS
 } render_channel;
 
 /* Layers beyond R, G, B, A, coverage and object: bits of render_options.aovs. */
-enum { RENDER_AOV_DIFFUSE = 1, RENDER_AOV_SPECULAR = 2, RENDER_AOV_REFLECTION = 4, RENDER_AOV_EMISSION = 8,
-       RENDER_AOV_ALL = 15, RENDER_AOV_NONE = 16 };
+enum {
+    RENDER_AOV_DIFFUSE = 1,
+    RENDER_AOV_SPECULAR = 2,
+    RENDER_AOV_REFLECTION = 4,
+    RENDER_AOV_EMISSION = 8,
+    RENDER_AOV_ALL = 15,
+    RENDER_AOV_NONE = 16
+};
 
 typedef struct {
-    int threads;          /* 0 = all cores */
-    int tile;             /* 0 = rasterizer default */
-    unsigned aovs;        /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
-    int width, height;    /* 0 = the scene's */
-    int supersample;      /* 0 = the scene's */
-    int general;          /* 1 = every object through shade_plan_make_general: the unspecialised
-                             path, for the specialisation benchmark; same output */
+    int threads;       /* 0 = all cores */
+    int tile;          /* 0 = rasterizer default */
+    unsigned aovs;     /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
+    int width, height; /* 0 = the scene's */
+    int supersample;   /* 0 = the scene's */
+    int general;       /* 1 = every object through shade_plan_make_general: the unspecialised
+                          path, for the specialisation benchmark; same output */
 } render_options;
 
 typedef struct {
     int width, height, supersample;
     float *chan[RENDER_CHANNELS];
-    double seconds;       /* wall time of render_scene */
+    double seconds; /* wall time of render_scene */
     long long shaded_samples;
 } render_image;
 
 extern const char *const render_channel_names[RENDER_CHANNELS];
 
-rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *o,
-                       render_image *out, char *err, size_t errlen);
+rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *o, render_image *out,
+                       char *err, size_t errlen);
 void render_image_free(render_image *img);
 /* Bytes render_scene would hold for this frame (env may be NULL), and its layer count. */
-void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *o,
-                            double *bytes, int *layers);
+void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *o, double *bytes,
+                            int *layers);
 
 /* Camera: world point to raster clip coordinates; and the world ray through a screen point
  * (pixel units, row 0 at the top). Exposed for tests and the translators. */

@@ -41,8 +41,8 @@ typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE } env_kind;
 
 typedef struct {
     env_kind kind;
-    vec3 radiance;              /* constant radiance, or scale for the image (default 1) */
-    char path[SCENE_PATH_MAX];  /* equirectangular linear EXR, resolved relative to the scene file */
+    vec3 radiance;             /* constant radiance, or scale for the image (default 1) */
+    char path[SCENE_PATH_MAX]; /* equirectangular linear EXR, resolved relative to the scene file */
 } environment;
 
 typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
@@ -52,47 +52,47 @@ typedef enum { G_VCAVITY, G_SMITH_WALTER, G_SMITH_EXACT } ct_geometry;
 typedef enum { F_SCHLICK, F_ONE, F_EXACT } ct_fresnel;
 
 typedef struct {
-    vec3 ambient;       /* Va, default 0 */
-    vec3 diffuse;       /* Vd, default = albedo */
-    vec3 specular;      /* Vs, default 0 */
-    vec3 emissive;      /* Ve, default 0 */
-    float power;        /* P, default 0: ((N.H)+)^0 = 1, so a non-zero Vs then gives a flat highlight */
-    int local_viewer;   /* D3DRS_LOCALVIEWER, default 1 */
-    int per_vertex;     /* Gouraud, default 0 (per pixel) */
-    int clamp;          /* clamp Dv + Sv to [0, 1], default 0 */
+    vec3 ambient;     /* Va, default 0 */
+    vec3 diffuse;     /* Vd, default = albedo */
+    vec3 specular;    /* Vs, default 0 */
+    vec3 emissive;    /* Ve, default 0 */
+    float power;      /* P, default 0: ((N.H)+)^0 = 1, so a non-zero Vs then gives a flat highlight */
+    int local_viewer; /* D3DRS_LOCALVIEWER, default 1 */
+    int per_vertex;   /* Gouraud, default 0 (per pixel) */
+    int clamp;        /* clamp Dv + Sv to [0, 1], default 0 */
 } d3d_params;
 
 typedef struct {
-    float p;            /* fresnel power, default 3 */
-    float r0;           /* offset, default ((1-n)/(1+n))^2 from the material ior */
-    float m;            /* multiplier, default 1 - r0 */
-    vec3 reflect;       /* lambda, metallic reflect colour, default 0 */
-    vec3 fresnel_colour;/* s, default white */
-    colour_norm norm;   /* |lambda| and |R_tot|, default max */
-    int sun_angle;      /* equation (8), default 0 */
-    float alpha;        /* d_a, the material/texture alpha of equation (7), default 1 */
+    float p;             /* fresnel power, default 3 */
+    float r0;            /* offset, default ((1-n)/(1+n))^2 from the material ior */
+    float m;             /* multiplier, default 1 - r0 */
+    vec3 reflect;        /* lambda, metallic reflect colour, default 0 */
+    vec3 fresnel_colour; /* s, default white */
+    colour_norm norm;    /* |lambda| and |R_tot|, default max */
+    int sun_angle;       /* equation (8), default 0 */
+    float alpha;         /* d_a, the material/texture alpha of equation (7), default 1 */
 } d3d9client_params;
 
 typedef struct {
-    float m;                 /* Beckmann roughness, default = material roughness */
-    vec3 f0;                 /* Schlick F0, default from ior (dielectric) or conductor at 0 deg */
-    vec3 ks;                 /* specular colour scale, default 1 */
-    ct_normalisation norm;   /* default walter */
-    ct_geometry g;           /* default vcavity */
-    ct_fresnel f;            /* default schlick */
-    int reflection;          /* environment reflection term CM * Fr, default 1 */
+    float m;               /* Beckmann roughness, default = material roughness */
+    vec3 f0;               /* Schlick F0, default from ior (dielectric) or conductor at 0 deg */
+    vec3 ks;               /* specular colour scale, default 1 */
+    ct_normalisation norm; /* default walter */
+    ct_geometry g;         /* default vcavity */
+    ct_fresnel f;          /* default schlick */
+    int reflection;        /* environment reflection term CM * Fr, default 1 */
 } ct_params;
 
 typedef struct {
     char name[SCENE_NAME_MAX];
     /* physical intent */
-    vec3 albedo;             /* diffuse albedo rho, default 0.8 grey */
-    float ior;               /* dielectric index n, default 1.5 */
-    int conductor;           /* 1 if eta/k given */
-    vec3 eta, k;             /* conductor complex index per channel */
-    float roughness;         /* Beckmann m, default 0.3 */
+    vec3 albedo;     /* diffuse albedo rho, default 0.8 grey */
+    float ior;       /* dielectric index n, default 1.5 */
+    int conductor;   /* 1 if eta/k given */
+    vec3 eta, k;     /* conductor complex index per channel */
+    float roughness; /* Beckmann m, default 0.3 */
     model_kind model;
-    d3d_params d3d;          /* also the lit diffuse d of the D3D9Client model */
+    d3d_params d3d; /* also the lit diffuse d of the D3D9Client model */
     d3d9client_params d9;
     ct_params ct;
 } material;
@@ -102,20 +102,20 @@ typedef enum { SHAPE_SPHERE, SHAPE_QUAD, SHAPE_BOX, SHAPE_TORUS, SHAPE_MESH } sh
 typedef struct {
     shape_kind shape;
     vec3 center;
-    vec3 rotate;             /* Euler angles [rad], applied X then Y then Z */
-    float radius;            /* sphere; box edge rounding; torus tube radius */
-    float major;             /* torus ring radius */
-    vec3 size;               /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */
-    int tessellation;        /* segments; default 32 */
+    vec3 rotate;               /* Euler angles [rad], applied X then Y then Z */
+    float radius;              /* sphere; box edge rounding; torus tube radius */
+    float major;               /* torus ring radius */
+    vec3 size;                 /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */
+    int tessellation;          /* segments; default 32 */
     char path[SCENE_PATH_MAX]; /* mesh: OBJ or PLY */
-    int material;            /* index into scene.materials */
+    int material;              /* index into scene.materials */
 } object;
 
 typedef enum { ROLE_TWIN, ROLE_VALIDATE, ROLE_AGREE } comparison_role;
 
 #define METRIC_MAX 8
 typedef struct {
-    char metric[32];         /* e.g. rel_rms, psnr, max_abs, z_fail_share */
+    char metric[32]; /* e.g. rel_rms, psnr, max_abs, z_fail_share */
     double warn, fail;
     char why[160];
 } threshold;
@@ -129,29 +129,34 @@ typedef struct {
     threshold thresholds[METRIC_MAX];
 } comparison;
 
-#define SCENE_MAX_LIGHTS 8
-#define SCENE_MAX_MATERIALS 16
-#define SCENE_MAX_OBJECTS 32
+#define SCENE_MAX_LIGHTS      8
+#define SCENE_MAX_MATERIALS   16
+#define SCENE_MAX_OBJECTS     32
 #define SCENE_MAX_COMPARISONS 8
 
 typedef struct {
     char name[SCENE_NAME_MAX];
-    char path[SCENE_PATH_MAX];   /* the scene file, for messages */
+    char path[SCENE_PATH_MAX]; /* the scene file, for messages */
     int width, height, supersample;
-    int samples;                 /* Cycles samples per pixel, default 64 */
+    int samples; /* Cycles samples per pixel, default 64 */
     /* The small variant `make test` renders (all renderers): 0 = derived from the full size
      * (width at most 96, aspect kept, supersample at most 2, samples at most 32). */
-    struct { int width, height, supersample, samples; } small;
-    float timeout;               /* seconds one reference render may take, 0 = 600 */
-    struct { vec3 eye, target, up; float hfov; } camera; /* hfov [rad] */
-    vec3 global_ambient;         /* D3D Ia, default 0 */
+    struct {
+        int width, height, supersample, samples;
+    } small;
+    float timeout; /* seconds one reference render may take, 0 = 600 */
+    struct {
+        vec3 eye, target, up;
+        float hfov;
+    } camera;            /* hfov [rad] */
+    vec3 global_ambient; /* D3D Ia, default 0 */
     environment env;
     int n_lights, n_materials, n_objects, n_comparisons;
     light lights[SCENE_MAX_LIGHTS];
     material materials[SCENE_MAX_MATERIALS];
     object objects[SCENE_MAX_OBJECTS];
     comparison comparisons[SCENE_MAX_COMPARISONS];
-    uint64_t hash;               /* FNV-1a of the scene file's bytes */
+    uint64_t hash; /* FNV-1a of the scene file's bytes */
 } scene;
 
 void scene_init(scene *s);

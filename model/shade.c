@@ -8,7 +8,6 @@
 #include "d3d9client.h"
 #include "formula.h"
 
-
 void shade_context_make(const scene *s, const env_map *env, shade_context *c)
 {
     c->s = s;
@@ -52,8 +51,8 @@ int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, f
 
 /* Direct3D fixed function (MODELS.md 1). The flags are compile-time constants in each
  * wrapper below, so every specialised path is its own branch-free loop body. */
-static inline void shade_d3d_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v,
-                                  shade_terms *out, const int specular, const int ambient)
+static inline void shade_d3d_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v, shade_terms *out,
+                                  const int specular, const int ambient)
 {
     const d3d_params *d = &m->d3d;
     vec3 diffuse = ambient ? v3_mul(d->ambient, c->s->global_ambient) : v3s(0.0f);
@@ -135,8 +134,8 @@ static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x
     out->alpha = r.alpha;
 }
 
-static inline void shade_ct_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v,
-                                 shade_terms *out, const int reflection)
+static inline void shade_ct_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v, shade_terms *out,
+                                 const int reflection)
 {
     vec3 diffuse = v3s(0.0f), spec = v3s(0.0f);
     vec3 kd = v3_scale(m->albedo, FORMULA_INV_PI_F);

@@ -26,13 +26,16 @@
 #include "env.h"
 #include "scene.h"
 
-typedef struct { vec3 diffuse, specular, reflection, emission; float alpha; } shade_terms;
+typedef struct {
+    vec3 diffuse, specular, reflection, emission;
+    float alpha;
+} shade_terms;
 
 typedef struct {
     const scene *s;
     const env_map *env;
     vec3 eye;
-    vec3 e_inf;       /* unit vector from the target toward the eye: D3D's infinite viewer */
+    vec3 e_inf; /* unit vector from the target toward the eye: D3D's infinite viewer */
 } shade_context;
 
 enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 4, SHADE_TERM_EMISSION = 8 };
@@ -40,10 +43,12 @@ enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 
 /* Samples per batch: enough lanes to amortise the per-light set-up, few enough that a batch's
  * inputs and outputs (22 floats a lane) stay in the L1 cache. */
 #define SHADE_BATCH 64
-typedef struct { float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH]; } shade_vec3_n;
 typedef struct {
-    int n;                          /* lanes in use, 0..SHADE_BATCH */
-    shade_vec3_n x, nrm, v;         /* as shade_eval's x, n, v */
+    float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH];
+} shade_vec3_n;
+typedef struct {
+    int n;                  /* lanes in use, 0..SHADE_BATCH */
+    shade_vec3_n x, nrm, v; /* as shade_eval's x, n, v */
 } shade_batch_in;
 typedef struct {
     shade_vec3_n diffuse, specular, reflection, emission;
@@ -87,7 +92,7 @@ typedef void (*shade_batch_fn)(const shade_context *c, const shade_plan *p, cons
                                shade_batch_out *out);
 struct shade_plan {
     const material *mat;
-    unsigned terms;       /* SHADE_TERM_* this material can make non-zero here */
+    unsigned terms; /* SHADE_TERM_* this material can make non-zero here */
     shade_fn fn;
     shade_batch_fn batch; /* the same path over a batch */
     const char *path;     /* the specialised path's name, for reports and benchmarks */
@@ -113,9 +118,11 @@ static inline void shade_eval_n(const shade_context *c, const shade_plan *p, con
 /* The batch kernels (shade_batch.c), one per specialised path, that shade_plan_make installs;
  * shade_batch_scalar is shade_eval lane by lane (models without a kernel, unsafe lanes). */
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
-void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                             shade_batch_out *out);
 void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
-void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                            shade_batch_out *out);
 void shade_batch_ct_lights(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 /* Whether the Cook-Torrance kernels cover a material: Beckmann D, V-cavity or Walter's Smith G,

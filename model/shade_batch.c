@@ -80,10 +80,10 @@ SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *re
 /* What a light's lane loop reads, fixed before the loop (d3d_spot's normalised axis and cone
  * cosines, which d3d.c recomputes per call). */
 typedef struct {
-    vec3 to_sun;            /* sun: unit direction to the light */
-    vec3 axis;              /* spot: unit direction the light travels */
+    vec3 to_sun; /* sun: unit direction to the light */
+    vec3 axis;   /* spot: unit direction the light travels */
     float cos_in, cos_out, falloff;
-    float cone;             /* cos_in - cos_out, 1 where the cones coincide (no division then) */
+    float cone; /* cos_in - cos_out, 1 where the cones coincide (no division then) */
 } sb_light;
 
 static sb_light sb_light_make(const light *l)
@@ -103,7 +103,11 @@ static sb_light sb_light_make(const light *l)
  * light's type is decided before the lane loop, not in it. Returned by value: nothing in a
  * lane loop has its address taken. */
 enum { SB_SUN, SB_POINT, SB_SPOT_D3D, SB_SPOT_SMOOTH };
-typedef struct { vec3 to_l; float atten; int bad; } sb_incidence;
+typedef struct {
+    vec3 to_l;
+    float atten;
+    int bad;
+} sb_incidence;
 
 SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, const int kind)
 {
@@ -136,19 +140,32 @@ static int sb_kind(const light *l)
 
 /* Runs STMT with K a compile-time constant equal to light l's kind, so that each kind gets its
  * own lane loop (sb_incident's `kind` tests fold away). */
-#define SB_WITH_KIND(l, STMT)                                                      \
-    do {                                                                           \
-        switch (sb_kind(l)) {                                                      \
-        case SB_SUN: { enum { K = SB_SUN }; STMT; } break;                         \
-        case SB_POINT: { enum { K = SB_POINT }; STMT; } break;                     \
-        case SB_SPOT_D3D: { enum { K = SB_SPOT_D3D }; STMT; } break;               \
-        default: { enum { K = SB_SPOT_SMOOTH }; STMT; } break;                     \
-        }                                                                          \
+#define SB_WITH_KIND(l, STMT)                                                                                          \
+    do {                                                                                                               \
+        switch (sb_kind(l)) {                                                                                          \
+        case SB_SUN: {                                                                                                 \
+            enum { K = SB_SUN };                                                                                       \
+            STMT;                                                                                                      \
+        } break;                                                                                                       \
+        case SB_POINT: {                                                                                               \
+            enum { K = SB_POINT };                                                                                     \
+            STMT;                                                                                                      \
+        } break;                                                                                                       \
+        case SB_SPOT_D3D: {                                                                                            \
+            enum { K = SB_SPOT_D3D };                                                                                  \
+            STMT;                                                                                                      \
+        } break;                                                                                                       \
+        default: {                                                                                                     \
+            enum { K = SB_SPOT_SMOOTH };                                                                               \
+            STMT;                                                                                                      \
+        } break;                                                                                                       \
+        }                                                                                                              \
     } while (0)
 
 /* One light's D3D terms added to every lane (shade.c's shade_d3d_impl loop body). */
-SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const light *l, const shade_batch_in *restrict in,
-                           shade_batch_out *restrict out, const int kind, const int specular, const int ambient)
+SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const light *l,
+                           const shade_batch_in *restrict in, shade_batch_out *restrict out, const int kind,
+                           const int specular, const int ambient)
 {
     const sb_light b = sb_light_make(l);
     /* The D3D light colour is E/pi (CONVENTIONS.md); Vd, Vs, Va folded in once here. */
@@ -223,7 +240,8 @@ SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batc
 }
 
 SMATH_CLONES
-void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                             shade_batch_out *out)
 {
     if (sb_d3d(c, p->mat, in, out, 0, 0))
         shade_batch_scalar(c, p, in, out);
@@ -247,8 +265,8 @@ SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole
 
 /* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
  * alone (shade.c's shade_main_light: it counts even where the light gives nothing). */
-SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const shade_batch_in *restrict in, float *restrict f,
-                        const int kind, const int whole)
+SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const shade_batch_in *restrict in,
+                        float *restrict f, const int kind, const int whole)
 {
     const sb_light b = sb_light_make(sun);
     const float fp = fresnel_d3d9_power(d9->p);
@@ -264,8 +282,9 @@ SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const sha
 }
 
 /* Equations (3)-(7) on the D3D terms already in out; sun_f holds (8)'s factor per lane. */
-SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *restrict in, const shade_vec3_n *restrict phi,
-                             const float *restrict sun_f, shade_batch_out *restrict out, const int whole)
+SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *restrict in,
+                             const shade_vec3_n *restrict phi, const float *restrict sun_f,
+                             shade_batch_out *restrict out, const int whole)
 {
     const float fp = fresnel_d3d9_power(d9->p);
     const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
@@ -281,7 +300,8 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     for (int i = 0; i < n; i++) {
         float R = sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)));
         vec3 ph = shade_lane_get(phi, i);
-        vec3 r_tot = v3(formula_sat_v(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)), formula_sat_v(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
+        vec3 r_tot = v3(formula_sat_v(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)),
+                        formula_sat_v(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
                         formula_sat_v(formula_d3d9_r_tot_v(lambda.z, s.z, R, ph.z)));
         shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f[i]));
         shade_lane_set(&out->reflection, i, r_tot);
@@ -330,12 +350,12 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
 
 /* Roughness below this goes through the scalar path: m^2 would leave float's normal range in
  * the Beckmann exponent, where cooktorrance.c works in double. */
-#define SB_CT_M_MIN 1e-6f
+#define SB_CT_M_MIN    1e-6f
 /* Lanes the kernel hands back to shade_eval. Below N.V = 0.01 the lobe's 1/N.V turns the float
  * dot product's ~1e-7 absolute error into more than 1e-5 relative (cooktorrance.c forms N.V in
  * double); such grazing lanes are a thin band at silhouettes. A normal whose squared length
  * is off 1 by more than 1e-5 is one cooktorrance.c would renormalise in double. */
-#define SB_CT_NV_MIN 0.01f
+#define SB_CT_NV_MIN   0.01f
 #define SB_CT_UNIT_TOL 1e-5f
 
 int shade_batch_ct_supported(const ct_params *ct)
@@ -409,7 +429,6 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
     }
     return sb_any(bad, n);
 }
-
 
 /* shade.c's shade_ct_impl over a batch; only for materials shade_batch_ct_supported accepts. */
 SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_batch_in *restrict in,

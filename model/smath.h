@@ -40,15 +40,25 @@
 #define SMATH_INLINE static inline
 #endif
 
-#define SMATH_PI 3.14159265358979323846f
-#define SMATH_PI_2 1.57079632679489661923f
+#define SMATH_PI     3.14159265358979323846f
+#define SMATH_PI_2   1.57079632679489661923f
 /* ln 2 split so that n * SMATH_LN2_HI is exact for |n| < 2^15 (Cody and Waite). */
 #define SMATH_LN2_HI 0.693359375f
 #define SMATH_LN2_LO (-2.12194440e-4f)
-#define SMATH_LOG2E 1.44269504088896340736f
+#define SMATH_LOG2E  1.44269504088896340736f
 
-SMATH_INLINE int32_t smath_bits(float f) { int32_t i; memcpy(&i, &f, sizeof i); return i; }
-SMATH_INLINE float smath_float(int32_t i) { float f; memcpy(&f, &i, sizeof f); return f; }
+SMATH_INLINE int32_t smath_bits(float f)
+{
+    int32_t i;
+    memcpy(&i, &f, sizeof i);
+    return i;
+}
+SMATH_INLINE float smath_float(int32_t i)
+{
+    float f;
+    memcpy(&f, &i, sizeof f);
+    return f;
+}
 
 /* Natural log of a positive finite x. */
 SMATH_INLINE float smath_log(float x)
@@ -75,14 +85,16 @@ SMATH_INLINE float smath_log(float x)
 #define SMATH_LN_FLT_MAX 88.72283935546875f
 SMATH_INLINE float smath_exp(float y)
 {
-    int under = y < -104.0f, over = y > SMATH_LN_FLT_MAX;
+    int under = y<-104.0f, over = y> SMATH_LN_FLT_MAX;
     y = under ? -104.0f : (over ? SMATH_LN_FLT_MAX : y);
     /* Adding and subtracting 1.5 * 2^23 rounds to the nearest integer without a libm call. */
     float nf = (y * SMATH_LOG2E + 12582912.0f) - 12582912.0f;
     float r = (y - nf * SMATH_LN2_HI) - nf * SMATH_LN2_LO;
     /* Minimax on |r| <= ln2/2: relative error 1.9e-9 before float rounding. */
-    float p = 1.000000001f + r * (1.000000036f + r * (0.4999999208f + r * (0.1666642020f +
-              r * (0.04166822580f + r * (0.008374813388f + r * 0.001383682195f)))));
+    float p = 1.000000001f +
+              r * (1.000000036f +
+                   r * (0.4999999208f +
+                        r * (0.1666642020f + r * (0.04166822580f + r * (0.008374813388f + r * 0.001383682195f)))));
     /* 2^n as two normal powers of two (n in [-150, 128] does not fit one float exponent), so
      * that results between FLT_MIN and the smallest subnormal round once, at the end. */
     int32_t n = (int32_t)nf, h = n / 2;
@@ -115,8 +127,13 @@ SMATH_INLINE float smath_atan2(float y, float x)
     float hi = ax > ay ? ax : ay, lo = ax > ay ? ay : ax;
     float a = hi > 0.0f ? lo / hi : 0.0f, t = a * a;
     /* atan(a) = a P(a^2) on [0, 1]; minimax, 3.7e-8 rad before float rounding. */
-    float r = a * (0.9999993356f + t * (-0.3332986070f + t * (0.1994656454f + t * (-0.1390862345f +
-              t * (0.09642180306f + t * (-0.05591207542f + t * (0.02186277073f + t * -0.004054511950f)))))));
+    float r =
+        a *
+        (0.9999993356f +
+         t * (-0.3332986070f +
+              t * (0.1994656454f +
+                   t * (-0.1390862345f +
+                        t * (0.09642180306f + t * (-0.05591207542f + t * (0.02186277073f + t * -0.004054511950f)))))));
     r = ay > ax ? SMATH_PI_2 - r : r;
     r = x_neg ? SMATH_PI - r : r;
     return y_neg ? -r : r;

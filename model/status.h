@@ -9,11 +9,11 @@
 
 typedef enum {
     RC_OK = 0,
-    RC_ERR_IO,       /* a file could not be opened, read or written */
-    RC_ERR_PARSE,    /* malformed input: syntax, unknown key, wrong type */
-    RC_ERR_RANGE,    /* a value outside what is allowed (NaN, negative roughness, ...) */
+    RC_ERR_IO,    /* a file could not be opened, read or written */
+    RC_ERR_PARSE, /* malformed input: syntax, unknown key, wrong type */
+    RC_ERR_RANGE, /* a value outside what is allowed (NaN, negative roughness, ...) */
     RC_ERR_NOMEM,
-    RC_ERR_RENDERER  /* an external renderer failed */
+    RC_ERR_RENDERER /* an external renderer failed */
 } rc_status;
 
 /* Formats the one-line message into err (errlen bytes, cut to fit); err NULL or errlen 0:

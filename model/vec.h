@@ -12,10 +12,18 @@
 
 #include <math.h>
 
-typedef struct { float x, y, z; } vec3;
-typedef struct { double x, y, z; } dvec3;
+typedef struct {
+    float x, y, z;
+} vec3;
+typedef struct {
+    double x, y, z;
+} dvec3;
 
-static inline vec3 v3(float x, float y, float z) { vec3 r = {x, y, z}; return r; }
+static inline vec3 v3(float x, float y, float z)
+{
+    vec3 r = {x, y, z};
+    return r;
+}
 static inline vec3 v3s(float s) { return v3(s, s, s); }
 static inline vec3 v3_add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
 static inline vec3 v3_sub(vec3 a, vec3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
@@ -40,7 +48,11 @@ static inline float v3_sum(vec3 a) { return a.x + a.y + a.z; }
 /* Mirror of d about unit n, with d pointing away from the surface: 2(n.d)n - d. */
 static inline vec3 v3_reflect(vec3 d, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(n, d)), d); }
 
-static inline dvec3 dv3(double x, double y, double z) { dvec3 r = {x, y, z}; return r; }
+static inline dvec3 dv3(double x, double y, double z)
+{
+    dvec3 r = {x, y, z};
+    return r;
+}
 static inline dvec3 dv3_from(vec3 a) { return dv3(a.x, a.y, a.z); }
 static inline vec3 v3_from_d(dvec3 a) { return v3((float)a.x, (float)a.y, (float)a.z); }
 static inline dvec3 dv3_add(dvec3 a, dvec3 b) { return dv3(a.x + b.x, a.y + b.y, a.z + b.z); }

@@ -14,9 +14,6 @@
 
 #include "cooktorrance.h"
 
-
-
-
 static ct_params params(float m, ct_normalisation norm, ct_geometry g, ct_fresnel f)
 {
     ct_params p = {0};
@@ -75,8 +72,8 @@ static void test_hand_point(void **state)
 }
 
 static const float dirs[][3] = {
-    {0.3f, 0.9f, 0.1f}, {-0.5f, 0.4f, 0.6f}, {0.05f, 1.0f, -0.02f}, {0.9f, 0.15f, -0.3f},
-    {-0.2f, 0.7f, -0.8f}, {0.99f, 0.01f, 0.0f},
+    {0.3f, 0.9f, 0.1f},   {-0.5f, 0.4f, 0.6f},  {0.05f, 1.0f, -0.02f},
+    {0.9f, 0.15f, -0.3f}, {-0.2f, 0.7f, -0.8f}, {0.99f, 0.01f, 0.0f},
 };
 #define N_DIRS (sizeof dirs / sizeof dirs[0])
 
@@ -96,7 +93,8 @@ static void test_reciprocity(void **state)
                     for (size_t j = 0; j < N_DIRS; j++) {
                         vec3 v = v3_norm(dir(i)), l = v3_norm(dir(j));
                         float nl = v3_dot(n, l), nv = v3_dot(n, v);
-                        if (nl <= 0.0f || nv <= 0.0f) continue;
+                        if (nl <= 0.0f || nv <= 0.0f)
+                            continue;
                         vec3 a = cooktorrance_specular(&p, n, v, l, &glass);
                         vec3 b = cooktorrance_specular(&p, n, l, v, &glass);
                         close_rel(a.x / nl, b.x / nv, 2e-5);
@@ -117,7 +115,10 @@ static void test_ct1982_is_4x(void **state)
                 ct_params c = params(0.4f, CT_CT1982, (ct_geometry)g, F_SCHLICK);
                 vec3 a = cooktorrance_specular(&w, n, dir(i), dir(j), NULL);
                 vec3 b = cooktorrance_specular(&c, n, dir(i), dir(j), NULL);
-                if (a.y == 0.0f) { assert_true(b.y == 0.0f); continue; }
+                if (a.y == 0.0f) {
+                    assert_true(b.y == 0.0f);
+                    continue;
+                }
                 close_rel(b.y, 4.0 * a.y, 1e-5);
             }
 }
@@ -136,9 +137,11 @@ static double albedo(const ct_params *p, double theta_v)
             double ph = (j + 0.5) * dp;
             vec3 h = v3((float)(sin(th) * cos(ph)), (float)(sin(th) * sin(ph)), (float)cos(th));
             float vh = v3_dot(v, h);
-            if (vh <= 0.0f) continue;
+            if (vh <= 0.0f)
+                continue;
             vec3 l = v3_reflect(v, h);
-            if (l.z <= 0.0f) continue;
+            if (l.z <= 0.0f)
+                continue;
             sum += cooktorrance_specular(p, n, v, l, NULL).x * 4.0 * vh * sin(th);
         }
     }
@@ -153,7 +156,9 @@ static double albedo_over_l(double m, double theta_v)
     const int nt = 600, np = 1200;
     double vx = sin(theta_v), vz = cos(theta_v), sum = 0.0;
     double dt = 0.5 * TEST_PI / nt, dp = 2.0 * TEST_PI / np;
-    double g1v = vz >= 1.0 ? 1.0 : 2.0 / (1.0 + erf(vz / (m * vx)) + exp(-pow(vz / (m * vx), 2.0)) / (vz / (m * vx) * sqrt(TEST_PI)));
+    double g1v =
+        vz >= 1.0 ? 1.0
+                  : 2.0 / (1.0 + erf(vz / (m * vx)) + exp(-pow(vz / (m * vx), 2.0)) / (vz / (m * vx) * sqrt(TEST_PI)));
     for (int i = 0; i < nt; i++) {
         double th = (i + 0.5) * dt, lz = cos(th);
         double al = lz / (m * sin(th));
@@ -192,7 +197,8 @@ static void test_furnace(void **state)
             print_message("albedo m = %.2f, theta_v = %2.0f: smith exact %.4f\n", ms[i], tv[j], al);
             assert_true(al <= 1.0 + 2e-3);
             assert_true(al > 0.5);
-            if (ms[i] >= 0.3f) close_rel(al, albedo_over_l(ms[i], deg(tv[j])), 3e-3);
+            if (ms[i] >= 0.3f)
+                close_rel(al, albedo_over_l(ms[i], deg(tv[j])), 3e-3);
             if (j == 0) {
                 assert_true(al < prev_normal);
                 prev_normal = al;
@@ -243,7 +249,7 @@ static void test_reflection_weight(void **state)
     close_rel(f.z, 0.9515625, 1e-6);
     f = cooktorrance_reflection_weight(&p, 1.0f, NULL);
     close_rel(f.x, 0.04, 1e-6);
-    f = cooktorrance_reflection_weight(&p, -0.2f, NULL);   /* clamped to grazing */
+    f = cooktorrance_reflection_weight(&p, -0.2f, NULL); /* clamped to grazing */
     close_rel(f.x, 1.0, 1e-6);
     p.f = F_ONE;
     f = cooktorrance_reflection_weight(&p, 0.5f, NULL);
@@ -262,11 +268,11 @@ static void test_guards(void **state)
     (void)state;
     ct_params p = params(0.3f, CT_WALTER, G_VCAVITY, F_SCHLICK);
     vec3 n = v3(0.0f, 1.0f, 0.0f), v = v3(0.3f, 0.9f, 0.1f);
-    vec3 z = cooktorrance_specular(&p, n, v, v3(0.2f, -0.5f, 0.1f), NULL);   /* light below */
+    vec3 z = cooktorrance_specular(&p, n, v, v3(0.2f, -0.5f, 0.1f), NULL); /* light below */
     assert_true(z.x == 0.0f && z.y == 0.0f && z.z == 0.0f);
-    z = cooktorrance_specular(&p, n, v3(0.2f, -0.5f, 0.1f), v, NULL);        /* seen from below */
+    z = cooktorrance_specular(&p, n, v3(0.2f, -0.5f, 0.1f), v, NULL); /* seen from below */
     assert_true(z.x == 0.0f);
-    z = cooktorrance_specular(&p, v3s(0.0f), v, v, NULL);                    /* zero normal */
+    z = cooktorrance_specular(&p, v3s(0.0f), v, v, NULL); /* zero normal */
     assert_true(z.x == 0.0f);
     /* L opposite V, both grazing: no half vector */
     z = cooktorrance_specular(&p, n, v3(1.0f, 1e-8f, 0.0f), v3(-1.0f, 1e-8f, 0.0f), NULL);
@@ -283,8 +289,7 @@ static void test_guards(void **state)
 }
 
 static const float extremes[] = {
-    -FLT_MAX, -1e30f, -1.0f, -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-12f, 1e-6f, 0.3f, 1.0f, 2.0f,
-    1e6f, 1e30f, FLT_MAX,
+    -FLT_MAX, -1e30f, -1.0f, -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-12f, 1e-6f, 0.3f, 1.0f, 2.0f, 1e6f, 1e30f, FLT_MAX,
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
@@ -301,8 +306,8 @@ static void test_extremes_finite(void **state)
     for (size_t mi = 0; mi < N_EXTREMES; mi++)
         for (size_t a = 0; a < N_EXTREMES; a++)
             for (int opt = 0; opt < 18; opt++) {
-                ct_params p = params(extremes[mi], (ct_normalisation)(opt % 2),
-                                     (ct_geometry)(opt / 2 % 3), (ct_fresnel)(opt / 6));
+                ct_params p = params(extremes[mi], (ct_normalisation)(opt % 2), (ct_geometry)(opt / 2 % 3),
+                                     (ct_fresnel)(opt / 6));
                 p.f0 = v3(extremes[a], 0.04f, extremes[(a + 3) % N_EXTREMES]);
                 p.ks = v3(extremes[(a + 5) % N_EXTREMES], 1.0f, 1e6f);
                 const material *m = &mats[(size_t)opt % 3];
@@ -318,7 +323,8 @@ static void test_extremes_finite(void **state)
                     n += 5;
                 }
             }
-    if (bad) fail_msg("%zu of %zu evaluations were not finite", bad, n);
+    if (bad)
+        fail_msg("%zu of %zu evaluations were not finite", bad, n);
 }
 
 int main(void)

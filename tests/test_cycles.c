@@ -39,13 +39,16 @@ static int group_setup(void **state)
 {
     (void)state;
     snprintf(g_dir, sizeof g_dir, "/tmp/test_cycles_XXXXXX");
-    if (mkdtemp(g_dir) == NULL) return -1;
+    if (mkdtemp(g_dir) == NULL)
+        return -1;
     static const char *candidates[] = {"harness/renderers/cycles/cycles_render.py",
                                        "../harness/renderers/cycles/cycles_render.py"};
     for (size_t i = 0; i < sizeof candidates / sizeof candidates[0]; i++)
-        if (access(candidates[i], R_OK) == 0) g_script = candidates[i];
+        if (access(candidates[i], R_OK) == 0)
+            g_script = candidates[i];
     if (g_script == NULL) {
-        fprintf(stderr, "test_cycles: harness/renderers/cycles/cycles_render.py not found; run from the repository root\n");
+        fprintf(stderr,
+                "test_cycles: harness/renderers/cycles/cycles_render.py not found; run from the repository root\n");
         return -1;
     }
     return 0;
@@ -90,7 +93,8 @@ static void add_quad(mesh *m, fixture_mesh *f, vec3 p0, vec3 e1, vec3 e2, int o)
         f->nrm[b + i] = n;
     }
     uint32_t t[6] = {0, 1, 2, 0, 2, 3};
-    for (int i = 0; i < 6; i++) f->idx[3 * m->n_tris + i] = (uint32_t)b + t[i];
+    for (int i = 0; i < 6; i++)
+        f->idx[3 * m->n_tris + i] = (uint32_t)b + t[i];
     f->tri_object[m->n_tris] = o;
     f->tri_object[m->n_tris + 1] = o;
     m->n_verts += 4;
@@ -128,7 +132,8 @@ static void floor_scene_mesh(scene *s, mesh *m)
     s->objects[0].center = v3(-0.1f, 0.0f, 0.1f);
     s->objects[0].size = v3(2.8f, 1.0f, 2.6f);
     memset(m, 0, sizeof *m);
-    if (mesh_build(s, m, err, sizeof err) != RC_OK) fail_msg("mesh_build: %s", err);
+    if (mesh_build(s, m, err, sizeof err) != RC_OK)
+        fail_msg("mesh_build: %s", err);
     assert_int_equal(m->n_tris, 2);
 }
 
@@ -144,16 +149,16 @@ static double now_wall;
 
 /* Renders through the renderer table's entry, the one production (harness/jobs.c) runs:
  * job, blender, collect. Returns the entry's result; out names the image. */
-static renderer_result render_entry(const scene *s, const mesh *m, const cycles_options *o, const char *tag,
-                                    char *out, size_t outlen)
+static renderer_result render_entry(const scene *s, const mesh *m, const cycles_options *o, const char *tag, char *out,
+                                    size_t outlen)
 {
     char dir[512], log[512];
     snprintf(dir, sizeof dir, "%s/%s-work", g_dir, tag);
     mkdir(dir, 0755);
     snprintf(out, outlen, "%s/%s.exr", g_dir, tag);
     snprintf(log, sizeof log, "%s/%s.log", g_dir, tag);
-    renderer_job j = {.s = s, .m = m, .role = o->role, .dir = dir, .exr = out, .log = log, .timeout = 3600.0,
-                      .options = o};
+    renderer_job j = {
+        .s = s, .m = m, .role = o->role, .dir = dir, .exr = out, .log = log, .timeout = 3600.0, .options = o};
     renderer_result res = {0};
     registry_row(registry_find("cycles"))->render(&j, &res);
     return res;
@@ -163,9 +168,11 @@ static void render_ok(const scene *s, const mesh *m, const cycles_options *o, co
 {
     char out[512], err[512];
     renderer_result res = render_entry(s, m, o, tag, out, sizeof out);
-    if (res.status != RUNNER_OK) fail_msg("cycles entry: %s", res.message);
+    if (res.status != RUNNER_OK)
+        fail_msg("cycles entry: %s", res.message);
     now_wall = res.wall_s;
-    if (exr_read(out, &r->img, err, sizeof err) != RC_OK) fail_msg("exr_read: %s", err);
+    if (exr_read(out, &r->img, err, sizeof err) != RC_OK)
+        fail_msg("exr_read: %s", err);
     r->w = r->img.width;
     r->h = r->img.height;
 }
@@ -184,12 +191,17 @@ static void render(const scene *s, const mesh *m, const char *tag, result *r)
 static const float *chan(const result *r, const char *name)
 {
     const float *p = exr_image_channel(&r->img, name);
-    if (p == NULL) fail_msg("channel %s missing from the Cycles EXR", name);
+    if (p == NULL)
+        fail_msg("channel %s missing from the Cycles EXR", name);
     return p;
 }
 
 /* Independent pinhole camera (double): the ray through screen point (sx, sy) in pixels. */
-typedef struct { dvec3 eye, f, r, u; double tx, ty; int w, h; } cam;
+typedef struct {
+    dvec3 eye, f, r, u;
+    double tx, ty;
+    int w, h;
+} cam;
 
 static void cam_make(const scene *s, int w, int h, cam *c)
 {
@@ -222,16 +234,24 @@ static double expected_pixel(const cam *c, int i, int j, radiance_fn fn, const v
     for (int t = 0; t < k; t++)
         for (int s = 0; s < k; s++) {
             dvec3 d = cam_ray(c, i + (s + 0.5) / k, j + (t + 0.5) / k);
-            if (d.y >= 0.0) { *covered = 0; continue; }
+            if (d.y >= 0.0) {
+                *covered = 0;
+                continue;
+            }
             double tt = -c->eye.y / d.y;
             dvec3 x = dv3_add(c->eye, dv3_scale(d, tt));
-            if (x.x < -1.5 || x.x > 1.3 || x.z < -1.2 || x.z > 1.4) { *covered = 0; continue; }
+            if (x.x < -1.5 || x.x > 1.3 || x.z < -1.2 || x.z > 1.4) {
+                *covered = 0;
+                continue;
+            }
             sum += fn(ctx, x, dv3_scale(d, -1.0));
         }
     return sum / (k * k);
 }
 
-typedef struct { double n, sum_abs_z, max_z, sum_rel, max_rel; } agreement;
+typedef struct {
+    double n, sum_abs_z, max_z, sum_rel, max_rel;
+} agreement;
 
 static void agree_add(agreement *a, double obs, double exp, double sigma)
 {
@@ -267,24 +287,29 @@ static int compare_floor_channel(const result *r, const cam *c, const char *name
             int covered;
             int p = j * r->w + i;
             /* Edge pixels: our 8 x 8 grid can miss a sliver that Cycles' samples hit. */
-            if (cov[p] < 1.0f) continue;
+            if (cov[p] < 1.0f)
+                continue;
             double e = scale * expected_pixel(c, i, j, fn, ctx, &covered);
-            if (!covered || isnan(e) || e < min_value) continue;
+            if (!covered || isnan(e) || e < min_value)
+                continue;
             double pool = 0.0;
             int np = 0;
             for (int b = j - 2; b <= j + 2; b++)
                 for (int ii = i - 2; ii <= i + 2; ii++) {
-                    if (ii < 0 || b < 0 || ii >= r->w || b >= r->h) continue;
+                    if (ii < 0 || b < 0 || ii >= r->w || b >= r->h)
+                        continue;
                     int q = b * r->w + ii;
-                    if (cov[q] >= 1.0f && fabsf(v[q]) > 0.0f) { pool += var[q] / ((double)v[q] * v[q]); np++; }
+                    if (cov[q] >= 1.0f && fabsf(v[q]) > 0.0f) {
+                        pool += var[q] / ((double)v[q] * v[q]);
+                        np++;
+                    }
                 }
             pool = np ? pool / np : 0.0;
             double sigma = sqrt(fmax(var[p], pool * e * e));
             double tol = 4.0 * sigma + 2e-4 * fabs(e);
             agree_add(&a, v[p], e, sqrt(sigma * sigma + (1e-4 * e) * (1e-4 * e)));
             if (fabs(v[p] - e) > tol)
-                fail_msg("%s: pixel (%d, %d) %s = %.6g, expected %.6g (sigma %.3g)", what, i, j, name, v[p], e,
-                         sigma);
+                fail_msg("%s: pixel (%d, %d) %s = %.6g, expected %.6g (sigma %.3g)", what, i, j, name, v[p], e, sigma);
             n_checked++;
         }
     agree_print(what, &a);
@@ -307,7 +332,11 @@ static int compare_floor(const result *r, const cam *c, const char *layer, const
 
 /* ------------------------------------------------------------------ 1: sun on a Lambert quad */
 
-typedef struct { dvec3 to_light; double e; double albedo; } sun_ctx;
+typedef struct {
+    dvec3 to_light;
+    double e;
+    double albedo;
+} sun_ctx;
 
 static double sun_lambert(const void *ctx, dvec3 x, dvec3 v)
 {
@@ -365,7 +394,10 @@ static void test_sun_lambert(void **state)
 
 /* ------------------------------------------------------------------ 2: point light, Lambert */
 
-typedef struct { dvec3 p; double i, albedo; } point_ctx;
+typedef struct {
+    dvec3 p;
+    double i, albedo;
+} point_ctx;
 
 static double point_lambert(const void *ctx, dvec3 x, dvec3 v)
 {
@@ -407,13 +439,17 @@ static void test_point_lambert(void **state)
 
 /* ------------------------------------------------------------------ 3: Beckmann twin */
 
-typedef struct { dvec3 p; double i, m; } beck_ctx;
+typedef struct {
+    dvec3 p;
+    double i, m;
+} beck_ctx;
 
 /* Walter et al. 2007 rational approximation of the Beckmann Smith G1 (the form Cycles uses). */
 static double g1_walter(double cos_t, double m)
 {
     double tan_t = sqrt(fmax(1.0 - cos_t * cos_t, 0.0)) / cos_t;
-    if (tan_t == 0.0) return 1.0;
+    if (tan_t == 0.0)
+        return 1.0;
     double a = 1.0 / (m * tan_t);
     return a < 1.6 ? (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a) : 1.0;
 }
@@ -425,7 +461,8 @@ static double beckmann_spec(const void *ctx, dvec3 x, dvec3 v)
     double d2 = dv3_dot(dl, dl);
     dvec3 l = dv3_scale(dl, 1.0 / sqrt(d2));
     double nl = l.y, nv = v.y;
-    if (nl <= 0.0 || nv <= 0.0) return 0.0;
+    if (nl <= 0.0 || nv <= 0.0)
+        return 0.0;
     dvec3 h = dv3_norm(dv3_add(l, v));
     double c = h.y, c2 = c * c, m2 = b->m * b->m;
     double tan2 = (1.0 - c2) / c2;
@@ -470,7 +507,8 @@ static void test_beckmann_twin(void **state)
     /* The lobe must actually be there: a peak well above the tail threshold. */
     const float *sp = chan(&r, "specular.R");
     float peak = 0.0f;
-    for (int p = 0; p < r.w * r.h; p++) peak = fmaxf(peak, sp[p]);
+    for (int p = 0; p < r.w * r.h; p++)
+        peak = fmaxf(peak, sp[p]);
     printf("# Beckmann twin: peak specular.R %.4f\n", peak);
     assert_true(peak > 0.1f);
     exr_image_free(&r.img);
@@ -511,8 +549,8 @@ static void test_camera_frame(void **state)
     double px = (0.7 / (z * t) + 1.0) / 2.0 * r.w;
     double py = (1.0 - 0.4 / (z * t * r.h / r.w)) / 2.0 * r.h;
     double area = (0.4 / (z * t) * r.w / 2.0) * (0.2 / (z * t * r.h / r.w) * r.h / 2.0);
-    printf("# frame: centroid (%.3f, %.3f) predicted (%.3f, %.3f); area %.2f px^2 predicted %.2f\n", sx / sa,
-           sy / sa, px, py, sa, area);
+    printf("# frame: centroid (%.3f, %.3f) predicted (%.3f, %.3f); area %.2f px^2 predicted %.2f\n", sx / sa, sy / sa,
+           px, py, sa, area);
     assert_true(px > r.w / 2.0 && py < r.h / 2.0); /* the fixture itself is right and up */
     assert_float_equal(sx / sa, px, 0.15);
     assert_float_equal(sy / sa, py, 0.15);
@@ -552,9 +590,11 @@ static void test_background_constant(void **state)
     for (int p = 0; p < r.w * r.h; p++) {
         /* The twin keeps the environment out of diffuse lighting: the quad stays black. */
         assert_float_equal(dif[p], 0.0, 1e-7);
-        if (cov[p] > 0.0f) continue;
+        if (cov[p] > 0.0f)
+            continue;
         empty++;
-        for (int c = 0; c < 3; c++) assert_float_equal(ch[c][p], want[c], 1e-6);
+        for (int c = 0; c < 3; c++)
+            assert_float_equal(ch[c][p], want[c], 1e-6);
         assert_float_equal(bg[p], 0.5, 1e-6);
     }
     assert_true(empty > r.w * r.h / 2);
@@ -562,10 +602,13 @@ static void test_background_constant(void **state)
     exr_image_free(&r.img);
 }
 
-
 /* ------------------------------------------------------------------ 6: mirror terms (twin) */
 
-typedef struct { dvec3 l; double lam[3], sc[3], r0, m, p, f0[3]; int ch; } mirror_ctx;
+typedef struct {
+    dvec3 l;
+    double lam[3], sc[3], r0, m, p, f0[3];
+    int ch;
+} mirror_ctx;
 
 /* Left quad (x < -0.1): D3D9Client reflection (lambda + (s - lambda) R) L; right quad
  * (x > 0.1): Cook-Torrance env(reflect) * Schlick(F0, N.V) with a constant environment L.
@@ -579,13 +622,29 @@ static double mirror_radiance(const void *ctx, dvec3 x, dvec3 v)
         double r = mc->r0 + mc->m * pow(1.0 - nv, mc->p);
         return (mc->lam[mc->ch] + (mc->sc[mc->ch] - mc->lam[mc->ch]) * r) * l;
     }
-    if (x.x > 0.1) return (mc->f0[mc->ch] + (1.0 - mc->f0[mc->ch]) * pow(1.0 - nv, 5.0)) * l;
+    if (x.x > 0.1)
+        return (mc->f0[mc->ch] + (1.0 - mc->f0[mc->ch]) * pow(1.0 - nv, 5.0)) * l;
     return NAN;
 }
 
-static double mirror_r(const void *ctx, dvec3 x, dvec3 v) { mirror_ctx c = *(const mirror_ctx *)ctx; c.ch = 0; return mirror_radiance(&c, x, v); }
-static double mirror_g(const void *ctx, dvec3 x, dvec3 v) { mirror_ctx c = *(const mirror_ctx *)ctx; c.ch = 1; return mirror_radiance(&c, x, v); }
-static double mirror_b(const void *ctx, dvec3 x, dvec3 v) { mirror_ctx c = *(const mirror_ctx *)ctx; c.ch = 2; return mirror_radiance(&c, x, v); }
+static double mirror_r(const void *ctx, dvec3 x, dvec3 v)
+{
+    mirror_ctx c = *(const mirror_ctx *)ctx;
+    c.ch = 0;
+    return mirror_radiance(&c, x, v);
+}
+static double mirror_g(const void *ctx, dvec3 x, dvec3 v)
+{
+    mirror_ctx c = *(const mirror_ctx *)ctx;
+    c.ch = 1;
+    return mirror_radiance(&c, x, v);
+}
+static double mirror_b(const void *ctx, dvec3 x, dvec3 v)
+{
+    mirror_ctx c = *(const mirror_ctx *)ctx;
+    c.ch = 2;
+    return mirror_radiance(&c, x, v);
+}
 
 static void test_mirror_terms(void **state)
 {
@@ -675,13 +734,16 @@ static void test_environment_image_scale(void **state)
     const float want[3] = {0.5f, 1.5f, 0.5f};
     const float *c3[3] = {chan(&r, "R"), chan(&r, "G"), chan(&r, "B")};
     for (int p = 0; p < r.w * r.h; p++)
-        for (int k = 0; k < 3; k++) assert_float_equal(c3[k][p], want[k], 1e-5);
+        for (int k = 0; k < 3; k++)
+            assert_float_equal(c3[k][p], want[k], 1e-5);
     exr_image_free(&r.img);
 }
 
 /* ------------------------------------------------------------------ 8: validate role */
 
-typedef struct { double ior, albedo, l; } coat_ctx;
+typedef struct {
+    double ior, albedo, l;
+} coat_ctx;
 
 static double fresnel_dielectric_ref(double c, double n)
 {
@@ -722,8 +784,8 @@ static void test_validate_role(void **state)
     s.materials[0].albedo = v3s(0.5f);
     s.materials[0].ior = 1.7f;
     s.materials[0].roughness = 0.2f;
-    cycles_options o = {.role = ROLE_VALIDATE, .n_seeds = 2, .seed = 3, .samples = 64, .threads = 2,
-                        .script = g_script};
+    cycles_options o = {
+        .role = ROLE_VALIDATE, .n_seeds = 2, .seed = 3, .samples = 64, .threads = 2, .script = g_script};
     result r;
     render_ok(&s, &m, &o, "validate", &r);
     cam c;
@@ -734,7 +796,8 @@ static void test_validate_role(void **state)
     /* The glossy lobe sees the environment: positive, below L (a lobe reflects at most all). */
     const float *g = chan(&r, "specular.G"), *cov = chan(&r, "coverage");
     for (int p = 0; p < r.w * r.h; p++)
-        if (cov[p] >= 1.0f) assert_true(g[p] > 0.0f && g[p] < 0.6f);
+        if (cov[p] >= 1.0f)
+            assert_true(g[p] > 0.0f && g[p] < 0.6f);
     exr_image_free(&r.img);
 
     /* A conductor builds the complex-Fresnel node graph and has no diffuse layer. */
@@ -749,7 +812,8 @@ static void test_validate_role(void **state)
     for (int p = 0; p < r.img.width * r.img.height; p++) {
         assert_float_equal(dd[p], 0.0, 1e-7);
         /* Gold-like: red reflects more than blue. */
-        if (cov[p] >= 1.0f) assert_true(gr[p] > gb[p] && isfinite(gr[p]));
+        if (cov[p] >= 1.0f)
+            assert_true(gr[p] > gb[p] && isfinite(gr[p]));
     }
     exr_image_free(&r.img);
 
@@ -771,7 +835,8 @@ static void test_validate_role(void **state)
 static int file_contains(const char *path, const char *needle)
 {
     FILE *fp = fopen(path, "r");
-    if (fp == NULL) return 0;
+    if (fp == NULL)
+        return 0;
     static char buf[1 << 16];
     size_t n = fread(buf, 1, sizeof buf - 1, fp);
     buf[n] = '\0';
@@ -794,8 +859,8 @@ static void test_job_contents_and_refusals(void **state)
     s.lights[1].kind = LIGHT_SPOT;
     s.lights[1].position = v3(0.0f, 2.0f, 0.0f);
     s.lights[1].intensity = v3s(1.0f);
-    s.lights[1].inner = (float)(PI / 3.0);     /* 60 deg full: half 30 */
-    s.lights[1].outer = (float)(PI / 2.0);     /* 90 deg full: half 45 */
+    s.lights[1].inner = (float)(PI / 3.0); /* 60 deg full: half 30 */
+    s.lights[1].outer = (float)(PI / 2.0); /* 90 deg full: half 45 */
     char job[512], err[512];
     snprintf(job, sizeof job, "%s/contents.json", g_dir);
     cycles_options o = {0};
@@ -817,7 +882,8 @@ static void test_job_contents_and_refusals(void **state)
     assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
     assert_true(file_contains(job, "\"diffuse\": {\"color\": [0.300000012, 0.300000012, 0.300000012]}"));
     assert_true(file_contains(job, "\"mirror\": {\"kind\": \"d3d9client\""));
-    assert_true(file_contains(job, "\"world_visibility\": {\"diffuse\": false, \"glossy\": true, \"light_sampling\": false}"));
+    assert_true(
+        file_contains(job, "\"world_visibility\": {\"diffuse\": false, \"glossy\": true, \"light_sampling\": false}"));
     assert_true(file_contains(job, "\"glossy_aov\": \"reflection\""));
     /* ... and a Cook-Torrance lobe beside that mirror cannot be separated: refused. */
     s.n_materials = 2;
@@ -883,7 +949,8 @@ static void test_script_failure_is_reported(void **state)
     FILE *fp = fopen(script, "w");
     assert_non_null(fp);
     fputs("import sys\nprint(\"cycles_render.py: error: job: missing key 'samples'\", file=sys.stderr)\n"
-          "sys.exit(1)\n", fp);
+          "sys.exit(1)\n",
+          fp);
     fclose(fp);
     scene s;
     mesh m;

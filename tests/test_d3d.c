@@ -14,9 +14,6 @@
 
 #include "d3d.h"
 
-
-
-
 /* Written out here rather than through scene.c, so the test depends on d3d.c alone. */
 static light point_light(float a0, float a1, float a2, float range)
 {
@@ -25,7 +22,9 @@ static light point_light(float a0, float a1, float a2, float range)
     l.position = v3(1.0f, 4.0f, -2.0f);
     l.direction = v3(0.0f, -1.0f, 0.0f);
     l.intensity = v3s(1.0f);
-    l.a0 = a0; l.a1 = a1; l.a2 = a2;
+    l.a0 = a0;
+    l.a1 = a1;
+    l.a2 = a2;
     l.range = range;
     l.falloff = 1.0f;
     return l;
@@ -35,15 +34,15 @@ static void test_attenuation(void **state)
 {
     (void)state;
     light l = point_light(0.0f, 0.0f, 1.0f, INFINITY);
-    close_rel(d3d_attenuation(&l, 2.0f), 0.25, 1e-7);          /* 1/d^2 */
+    close_rel(d3d_attenuation(&l, 2.0f), 0.25, 1e-7); /* 1/d^2 */
     close_rel(d3d_attenuation(&l, 0.1f), 100.0, 1e-6);
     l = point_light(1.0f, 0.5f, 0.25f, 5.0f);
-    close_rel(d3d_attenuation(&l, 2.0f), 1.0 / 3.0, 1e-7);      /* 1/(1 + 1 + 1) */
-    close_rel(d3d_attenuation(&l, 5.0f), 1.0 / 9.75, 1e-7);     /* at range: 1/(1 + 2.5 + 6.25) */
-    assert_true(d3d_attenuation(&l, 5.0001f) == 0.0f);          /* beyond range */
+    close_rel(d3d_attenuation(&l, 2.0f), 1.0 / 3.0, 1e-7);  /* 1/(1 + 1 + 1) */
+    close_rel(d3d_attenuation(&l, 5.0f), 1.0 / 9.75, 1e-7); /* at range: 1/(1 + 2.5 + 6.25) */
+    assert_true(d3d_attenuation(&l, 5.0001f) == 0.0f);      /* beyond range */
     l = point_light(2.0f, 0.0f, 0.0f, INFINITY);
-    close_rel(d3d_attenuation(&l, 1e30f), 0.5, 1e-7);           /* constant only */
-    close_rel(d3d_attenuation(&l, INFINITY), 0.5, 1e-7);        /* 0 * Inf not formed */
+    close_rel(d3d_attenuation(&l, 1e30f), 0.5, 1e-7);    /* constant only */
+    close_rel(d3d_attenuation(&l, INFINITY), 0.5, 1e-7); /* 0 * Inf not formed */
     l.kind = LIGHT_SUN;
     assert_true(d3d_attenuation(&l, 123.0f) == 1.0f);
     /* a0 = a1 = a2 = 0 and d = 0 with 1/d^2: the documented cap, not Inf */
@@ -59,11 +58,11 @@ static light spot(spot_profile profile, float falloff)
 {
     light l = point_light(0.0f, 0.0f, 1.0f, INFINITY);
     l.kind = LIGHT_SPOT;
-    l.inner = (float)deg(40);   /* full angles: half angles 20 and 30 deg */
+    l.inner = (float)deg(40); /* full angles: half angles 20 and 30 deg */
     l.outer = (float)deg(60);
     l.falloff = falloff;
     l.profile = profile;
-    l.direction = v3(0.0f, -2.0f, 0.0f);   /* not unit on purpose */
+    l.direction = v3(0.0f, -2.0f, 0.0f); /* not unit on purpose */
     return l;
 }
 
@@ -84,12 +83,12 @@ static void test_spot(void **state)
     assert_true(d3d_spot(&l, off_axis(150)) == 0.0f);
     l.falloff = 0.0f;
     assert_true(d3d_spot(&l, off_axis(25)) == 1.0f);
-    l.falloff = -3.0f;   /* bad input acts as 0 */
+    l.falloff = -3.0f; /* bad input acts as 0 */
     assert_true(d3d_spot(&l, off_axis(29.999)) == 1.0f);
 
     l = spot(SPOT_SMOOTH, 1.0f);
     close_rel(d3d_spot(&l, off_axis(25)), 0.5166119191, 1e-5);
-    close_rel(d3d_spot(&l, off_axis(10)), cos(deg(10)), 1e-6);   /* inside: the extra cos */
+    close_rel(d3d_spot(&l, off_axis(10)), cos(deg(10)), 1e-6); /* inside: the extra cos */
     assert_true(d3d_spot(&l, off_axis(35)) == 0.0f);
     /* continuous at both edges */
     close_rel(d3d_spot(&l, off_axis(19.999)), cos(deg(20)), 1e-4);
@@ -109,9 +108,9 @@ static void test_lambert_blinn(void **state)
     close_rel(d3d_lambert(0.3f), 0.3, 1e-7);
     assert_true(d3d_lambert(-0.2f) == 0.0f);
     assert_true(d3d_lambert(1.5f) == 1.0f);
-    close_rel(d3d_blinn(0.9f, 10.0f), 0.3486784401, 1e-6);    /* 0.9^10 */
+    close_rel(d3d_blinn(0.9f, 10.0f), 0.3486784401, 1e-6); /* 0.9^10 */
     /* 0.9999^1e4 = exp(1e4 ln 0.9999) = exp(-1.000050003) = 0.3678610 */
-    close_rel(d3d_blinn(0.9999f, 1e4f), 0.3678610464, 5e-4);  /* 0.9999f = 0.99989998: 2.0e-4 lower */
+    close_rel(d3d_blinn(0.9999f, 1e4f), 0.3678610464, 5e-4); /* 0.9999f = 0.99989998: 2.0e-4 lower */
     assert_true(d3d_blinn(0.5f, 0.0f) == 1.0f);
     assert_true(d3d_blinn(0.0f, 0.0f) == 0.0f);
     assert_true(d3d_blinn(-0.5f, 20.0f) == 0.0f);
@@ -127,7 +126,7 @@ static void test_half_vector_local_vs_infinite(void **state)
 {
     (void)state;
     vec3 eye = v3(0.0f, 0.0f, 5.0f), x = v3(2.0f, 0.0f, 0.0f), n = v3(0.0f, 0.6f, 0.8f);
-    vec3 l = v3(0.0f, 3.0f, 0.0f);   /* not unit on purpose */
+    vec3 l = v3(0.0f, 3.0f, 0.0f); /* not unit on purpose */
     vec3 hl = d3d_half_vector(l, v3_sub(eye, x), v3(0.0f, 0.0f, 1.0f), 1);
     vec3 hi = d3d_half_vector(l, v3_sub(eye, x), v3(0.0f, 0.0f, 1.0f), 0);
     close_rel(hl.x, -0.2626128657, 1e-6);
@@ -139,7 +138,7 @@ static void test_half_vector_local_vs_infinite(void **state)
     float sl = d3d_blinn(v3_dot(n, hl), 20.0f), si = d3d_blinn(v3_dot(n, hi), 20.0f);
     close_rel(sl, 0.3546549895, 1e-5);
     close_rel(si, 0.8170728069, 1e-5);
-    assert_true(si - sl > 0.4f);   /* the infinite viewer misplaces this highlight */
+    assert_true(si - sl > 0.4f); /* the infinite viewer misplaces this highlight */
 }
 
 static void test_half_vector_degenerate(void **state)
@@ -155,8 +154,8 @@ static void test_half_vector_degenerate(void **state)
 }
 
 static const float extremes[] = {
-    -FLT_MAX, -1e30f, -1.0f, -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-12f, 1e-6f, 0.3f, 0.9999999f, 1.0f,
-    1.0000001f, 2.0f, 1e4f, 1e6f, 1e30f, FLT_MAX,
+    -FLT_MAX, -1e30f,     -1.0f, -1e-45f,    0.0f, 1e-45f, 1e-38f, 1e-12f, 1e-6f,
+    0.3f,     0.9999999f, 1.0f,  1.0000001f, 2.0f, 1e4f,   1e6f,   1e30f,  FLT_MAX,
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
@@ -182,7 +181,9 @@ static void test_extremes_finite(void **state)
                     n++;
                 }
                 l.kind = LIGHT_SPOT;
-                l.inner = a; l.outer = b; l.falloff = extremes[k];
+                l.inner = a;
+                l.outer = b;
+                l.falloff = extremes[k];
                 for (int p = 0; p < 2; p++) {
                     l.profile = p ? SPOT_SMOOTH : SPOT_D3D;
                     for (size_t m = 0; m < N_EXTREMES; m++) {
@@ -195,7 +196,8 @@ static void test_extremes_finite(void **state)
             }
         }
     }
-    if (bad) fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
+    if (bad)
+        fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
 }
 
 int main(void)

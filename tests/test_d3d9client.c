@@ -14,7 +14,6 @@
 
 #include "d3d9client.h"
 
-
 static void close_v3(vec3 got, double x, double y, double z, double rel)
 {
     close_rel(got.x, x, rel);
@@ -35,7 +34,7 @@ static void test_colour_norm(void **state)
     /* max is the only one with |lambda| <= 1 for every lambda in [0,1]^3 and = the largest */
     close_rel(d3d9client_colour_norm(v3(0.2f, 0.7f, 0.1f), NORM_MAX), 0.7, 1e-7);
     close_rel(d3d9client_colour_norm(v3s(1.0f), NORM_EUCLID), sqrt(3.0), 1e-7);
-    close_rel(d3d9client_colour_norm(v3s(1.0f), NORM_LUMINANCE), 1.0, 1e-6);   /* weights sum to 1 */
+    close_rel(d3d9client_colour_norm(v3s(1.0f), NORM_LUMINANCE), 1.0, 1e-6); /* weights sum to 1 */
     assert_true(isnan(d3d9client_colour_norm(v3(0.1f, NAN, 0.2f), NORM_MAX)));
 }
 
@@ -83,13 +82,14 @@ static void test_fresnel_ends(void **state)
 {
     (void)state;
     d3d9client_params p = params();
-    p.r0 = 0.1f; p.m = 0.7f;
+    p.r0 = 0.1f;
+    p.m = 0.7f;
     d3d9client_result r;
     d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), 1.0f, 0.0f, &r);
     close_rel(r.fresnel_R, 0.1, 1e-6);
     d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), 0.0f, 0.0f, &r);
     close_rel(r.fresnel_R, 0.8, 1e-6);
-    d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), -0.4f, 0.0f, &r);   /* back side clamps */
+    d3d9client_combine(&p, v3s(0.0f), 1.0f, v3s(1.0f), -0.4f, 0.0f, &r); /* back side clamps */
     close_rel(r.fresnel_R, 0.8, 1e-6);
 }
 
@@ -98,7 +98,9 @@ static void test_disabled(void **state)
 {
     (void)state;
     d3d9client_params p = params();
-    p.r0 = 0.0f; p.m = 0.0f; p.reflect = v3s(0.0f);
+    p.r0 = 0.0f;
+    p.m = 0.0f;
+    p.reflect = v3s(0.0f);
     d3d9client_result r;
     d3d9client_combine(&p, v3(0.2f, 0.3f, 0.4f), 0.7f, v3(5.0f, 6.0f, 7.0f), 0.3f, 0.2f, &r);
     close_v3(r.rgb, 0.2, 0.3, 0.4, 1e-7);
@@ -113,7 +115,9 @@ static void test_povray_form(void **state)
 {
     (void)state;
     d3d9client_params p = params();
-    p.r0 = 0.08f; p.m = 0.5f; p.p = 2.5f;
+    p.r0 = 0.08f;
+    p.m = 0.5f;
+    p.p = 2.5f;
     p.fresnel_colour = v3(1.0f, 0.9f, 0.7f);
     const float cs[] = {0.0f, 0.1f, 0.45f, 0.8f, 1.0f};
     const float lam[3] = {0.9f, 0.6f, 0.3f}, s[3] = {1.0f, 0.9f, 0.7f};
@@ -143,23 +147,23 @@ static void test_euclid_negative_weight(void **state)
     close_rel(r.diffuse_weight, 1.0 - sqrt(3.0), 1e-6);
     /* R = 0.04: lambda (1 - R) + R = 1 -> R_tot = 1; c = 1 + d (1 - sqrt 3) */
     close_v3(r.rgb, 1.0 - 0.5 * 0.7320508076, 1.0 - 0.25 * 0.7320508076, 1.0 - 0.125 * 0.7320508076, 1e-6);
-    close_rel(r.alpha, sqrt(3.0), 1e-6);   /* (7) |R_tot| with euclid too */
+    close_rel(r.alpha, sqrt(3.0), 1e-6); /* (7) |R_tot| with euclid too */
     p.norm = NORM_LUMINANCE;
     d3d9client_combine(&p, d, 1.0f, v3s(1.0f), 1.0f, 0.0f, &r);
     close_rel(r.diffuse_weight + 1.0, 1.0, 1e-6);
 }
 
 static const float extremes[] = {
-    -FLT_MAX, -1e30f, -1.0f, -1e-45f, 0.0f, 1e-45f, 1e-30f, 0.04f, 0.5f, 1.0f, 1.0000001f, 3.0f,
-    1e4f, 1e6f, 1e30f, FLT_MAX,
+    -FLT_MAX, -1e30f, -1.0f,      -1e-45f, 0.0f, 1e-45f, 1e-30f, 0.04f,
+    0.5f,     1.0f,   1.0000001f, 3.0f,    1e4f, 1e6f,   1e30f,  FLT_MAX,
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
 static int finite_result(const d3d9client_result *r)
 {
     return isfinite(r->rgb.x) && isfinite(r->rgb.y) && isfinite(r->rgb.z) && isfinite(r->alpha) &&
-           isfinite(r->r_tot.x) && isfinite(r->r_tot.y) && isfinite(r->r_tot.z) &&
-           isfinite(r->fresnel_R) && isfinite(r->diffuse_weight);
+           isfinite(r->r_tot.x) && isfinite(r->r_tot.y) && isfinite(r->r_tot.z) && isfinite(r->fresnel_R) &&
+           isfinite(r->diffuse_weight);
 }
 
 static void test_extremes_finite(void **state)
@@ -172,7 +176,9 @@ static void test_extremes_finite(void **state)
                 for (int norm = NORM_MAX; norm <= NORM_EUCLID; norm++) {
                     float a = extremes[i], b = extremes[j], c = extremes[k];
                     d3d9client_params p = params();
-                    p.r0 = a; p.m = b; p.p = c;
+                    p.r0 = a;
+                    p.m = b;
+                    p.p = c;
                     p.reflect = v3(b, a, 0.5f);
                     p.fresnel_colour = v3(c, 1.0f, a);
                     p.norm = (colour_norm)norm;
@@ -183,18 +189,16 @@ static void test_extremes_finite(void **state)
                     bad += !isfinite(d3d9client_colour_norm(v3(a, b, c), (colour_norm)norm));
                     n += 2;
                 }
-    if (bad) fail_msg("%zu of %zu evaluations were not finite", bad, n);
+    if (bad)
+        fail_msg("%zu of %zu evaluations were not finite", bad, n);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_colour_norm),
-        cmocka_unit_test(test_combine_point),
-        cmocka_unit_test(test_fresnel_ends),
-        cmocka_unit_test(test_disabled),
-        cmocka_unit_test(test_povray_form),
-        cmocka_unit_test(test_euclid_negative_weight),
+        cmocka_unit_test(test_colour_norm),     cmocka_unit_test(test_combine_point),
+        cmocka_unit_test(test_fresnel_ends),    cmocka_unit_test(test_disabled),
+        cmocka_unit_test(test_povray_form),     cmocka_unit_test(test_euclid_negative_weight),
         cmocka_unit_test(test_extremes_finite),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

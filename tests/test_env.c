@@ -116,11 +116,11 @@ static void test_check_texels(void **state)
     assert_int_equal(chk.n_nonfinite + chk.n_negative, 0);
     assert_int_equal(chk.first_nonfinite.x, -1);
 
-    img[3 * (2 * W + 5) + 1] = NAN;       /* (x 5, y 2) G */
-    img[3 * (3 * W + 7) + 2] = INFINITY;  /* (x 7, y 3) B */
-    img[3 * (1 * W + 6) + 0] = -0.5f;     /* (x 6, y 1) R */
-    img[3 * (3 * W + 0) + 0] = -1e-30f;   /* (x 0, y 3) R: tiny, still negative */
-    img[3 * (0 * W + 2) + 1] = -0.0f;     /* (x 2, y 0) G: -0 is not negative */
+    img[3 * (2 * W + 5) + 1] = NAN;      /* (x 5, y 2) G */
+    img[3 * (3 * W + 7) + 2] = INFINITY; /* (x 7, y 3) B */
+    img[3 * (1 * W + 6) + 0] = -0.5f;    /* (x 6, y 1) R */
+    img[3 * (3 * W + 0) + 0] = -1e-30f;  /* (x 0, y 3) R: tiny, still negative */
+    img[3 * (0 * W + 2) + 1] = -0.0f;    /* (x 2, y 0) G: -0 is not negative */
     assert_int_equal(env_check(&e, &chk), RC_ERR_RANGE);
     assert_int_equal(chk.n_nonfinite, 2);
     assert_int_equal(chk.n_negative, 2);
@@ -209,7 +209,8 @@ static void test_render_refuses_bad_texels(void **state)
 
     put_env(env, -0.5f, 0, 2, 0);
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);
-    assert_non_null(strstr(err, "0 non-finite and 1 negative texel values, the first at texel (x 0, y 2) channel R = -0.5"));
+    assert_non_null(
+        strstr(err, "0 non-finite and 1 negative texel values, the first at texel (x 0, y 2) channel R = -0.5"));
     /* A corrupt or missing environment image is bad input for render as for check (exit 2). */
     write_text(env, "this is not an EXR file\n");
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, out), 2);

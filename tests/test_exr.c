@@ -235,7 +235,9 @@ static void test_foreign_variants(void **state)
     /* DWAA on a smooth 16x40 ramp (DCT blocks need room); lossy, so 1 % of the value. */
     tmp_path(dst, sizeof dst, "dwaa.exr");
     assert_int_equal(run("oiiotool --pattern fill:top=0.2,0.4,0.6:bottom=0.8,0.6,0.3 16x40 3 -d float "
-                         "--compression dwaa --attrib reflcheck.tag dwa -o '%s'", dst), 0);
+                         "--compression dwaa --attrib reflcheck.tag dwa -o '%s'",
+                         dst),
+                     0);
     assert_int_equal(exr_read(dst, &img, err, sizeof err), RC_OK);
     assert_int_equal(img.width, 16);
     assert_int_equal(img.height, 40);
@@ -254,8 +256,8 @@ static long build_tiny_exr(unsigned char *b, int with_channel)
 {
     long n = 0;
 #define PUT(s, len) (memcpy(b + n, (s), (len)), n += (long)(len))
-#define ATTR(name, type, size) (PUT(name, strlen(name) + 1), PUT(type, strlen(type) + 1), \
-                                b[n++] = (size) & 255, b[n++] = 0, b[n++] = 0, b[n++] = 0)
+#define ATTR(name, type, size)                                                                                         \
+    (PUT(name, strlen(name) + 1), PUT(type, strlen(type) + 1), b[n++] = (size)&255, b[n++] = 0, b[n++] = 0, b[n++] = 0)
     const unsigned char box[16] = {0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0}; /* (0,0)-(1,0) */
     const unsigned char one[4] = {0, 0, 0x80, 0x3f}, zero8[8] = {0};
     /* channel "R": type 2 (float), pLinear 0, 3 reserved, x/y sampling 1; list ends with 0 */
@@ -544,15 +546,15 @@ static void test_renderer_povray_half_exr(void **state)
     assert_non_null(f);
     fputs("#version 3.7;\nglobal_settings{assumed_gamma 1.0 ambient_light 0}\n"
           "background{rgb <0.25,0.5,0.75>}\ncamera{location <0,0,-3> look_at 0}\n"
-          "light_source{<1,1,-3> rgb 1}\nsphere{0,1 pigment{rgb 1} finish{ambient 0 diffuse 1}}\n", f);
+          "light_source{<1,1,-3> rgb 1}\nsphere{0,1 pigment{rgb 1} finish{ambient 0 diffuse 1}}\n",
+          f);
     fclose(f);
     assert_int_equal(run("povray +I'%s' +O'%s' +FE +W16 +H8 -D -A >/dev/null 2>&1", pov, exr), 0);
     exr_image img;
     assert_int_equal(exr_read(exr, &img, err, sizeof err), RC_OK);
     assert_int_equal(img.width, 16);
     assert_int_equal(img.height, 8);
-    const float *r = exr_image_channel(&img, "R"), *g = exr_image_channel(&img, "G"),
-                *b = exr_image_channel(&img, "B");
+    const float *r = exr_image_channel(&img, "R"), *g = exr_image_channel(&img, "G"), *b = exr_image_channel(&img, "B");
     assert_non_null(r);
     assert_non_null(g);
     assert_non_null(b);
@@ -607,7 +609,10 @@ static void test_renderer_blender_float_exr(void **state)
     fclose(f);
     assert_int_equal(run("blender -b --factory-startup --python-exit-code 1 --python '%s' >/dev/null 2>&1", script), 0);
 
-    struct { const char *file, *prefix; double tol; } cases[] = {
+    struct {
+        const char *file, *prefix;
+        double tol;
+    } cases[] = {
         {"b_zip.exr", "", 1e-6},
         {"b_piz.exr", "ViewLayer.Combined.", 1e-6},
         {"b_dwaa.exr", "ViewLayer.Combined.", 2e-3}, /* lossy: about one half-float step */

@@ -16,7 +16,6 @@
 #include "check.h"
 #include "fileio.h"
 
-
 static void test_write_read_copy(void **state)
 {
     (void)state;
@@ -118,8 +117,7 @@ static void test_open_input(void **state)
     assert_true(w >= 0);
     assert_int_equal(ftruncate(w, (off_t)2 << 30), 0);
     close(w);
-    assert_int_equal(fileio_open_input(big, FILEIO_MESH_MAX_BYTES, "a mesh", &fd, NULL, err, sizeof err),
-                     RC_ERR_RANGE);
+    assert_int_equal(fileio_open_input(big, FILEIO_MESH_MAX_BYTES, "a mesh", &fd, NULL, err, sizeof err), RC_ERR_RANGE);
     assert_non_null(strstr(err, "2147483648 bytes is over the limit of 1073741824 bytes"));
     unlink(big);
 }
@@ -157,7 +155,10 @@ static void test_memory_limit(void **state)
     (void)state;
     char err[512];
     size_t bytes = 0;
-    struct { const char *text; size_t want; } ok[] = {
+    struct {
+        const char *text;
+        size_t want;
+    } ok[] = {
         {"12345", 12345}, {"3K", 3u << 10}, {"64M", (size_t)64 << 20}, {"2G", (size_t)2 << 30}, {"1t", (size_t)1 << 40},
     };
     for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
@@ -258,12 +259,9 @@ static void test_output_target(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_write_read_copy),
-        cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_open_input),
-        cmocka_unit_test(test_read_all_bounded),
-        cmocka_unit_test(test_memory_limit),
-        cmocka_unit_test(test_output_target),
+        cmocka_unit_test(test_write_read_copy), cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_open_input),      cmocka_unit_test(test_read_all_bounded),
+        cmocka_unit_test(test_memory_limit),    cmocka_unit_test(test_output_target),
     };
     return cmocka_run_group_tests_name("fileio", tests, NULL, NULL);
 }

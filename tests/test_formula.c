@@ -28,11 +28,11 @@
 
 #include "formula.h"
 
-#define U_F 0x1p-24
-#define U_D 0x1p-53
-#define SMATH_POW_REL_P1 4e-6     /* smath_pow, p <= 1 (smath.h) */
-#define SMATH_POW_REL 1.7e-5      /* smath_pow, p up to 1e4 (smath.h) */
-#define SAMPLES 20000
+#define U_F              0x1p-24
+#define U_D              0x1p-53
+#define SMATH_POW_REL_P1 4e-6   /* smath_pow, p <= 1 (smath.h) */
+#define SMATH_POW_REL    1.7e-5 /* smath_pow, p up to 1e4 (smath.h) */
+#define SAMPLES          20000
 
 /* A small LCG: asymmetric, reproducible inputs without libc's rand. */
 static uint64_t lcg_state = 0x9E3779B97F4A7C15ull;
@@ -48,8 +48,8 @@ static void agree(const char *what, int i, long double got, long double ref, dou
 {
     long double err = fabsl(got - ref);
     if (!(err <= (long double)rel * fabsl(ref) + (long double)abs_floor))
-        fail_msg("%s sample %d: got %.17Lg, reference %.17Lg, error %.3Lg > %.3g rel + %.3g", what, i, got, ref,
-                 err, rel, abs_floor);
+        fail_msg("%s sample %d: got %.17Lg, reference %.17Lg, error %.3Lg > %.3g rel + %.3g", what, i, got, ref, err,
+                 rel, abs_floor);
 }
 
 /* The constants each instance rounds from one literal, and the lane's literal ln(1e12f). */
@@ -85,8 +85,8 @@ static void test_hand_values(void **state)
     close_rel(formula_beckmann_d_d(0.5, 0.5, 1.0, formula_beckmann_log_norm_d(1.0, 0)), 1.4715177646857693, 1e-14);
     /* (4.10)/(4.11): 2 0.9 0.5 / 0.95 = 0.947368..., 2 0.9 0.8 / 0.95 = 1.5158 -> 0.94736842 */
     close_rel(formula_vcavity_g_d(0.9, 0.5, 0.8, 0.95), 0.9 / 0.95, 4 * U_D);
-    assert_true(formula_vcavity_g_d(0.9, 0.5, 0.8, 0.6) == 1.0);   /* both ratios above 1 */
-    assert_true(formula_vcavity_g_d(0.9, -0.1, 0.8, 0.6) == 0.0);  /* masked */
+    assert_true(formula_vcavity_g_d(0.9, 0.5, 0.8, 0.6) == 1.0);  /* both ratios above 1 */
+    assert_true(formula_vcavity_g_d(0.9, -0.1, 0.8, 0.6) == 0.0); /* masked */
     /* Walter G1, c = 0.5, m = 0.5: a = 1/(0.5 tan 60deg) = 1.1547005, a^2 = 4/3;
      * (3.535 a + 2.181 a^2) / (1 + 2.276 a + 2.577 a^2) = 6.9898663 / 7.0641 = 0.98949165 */
     close_rel(formula_smith_g1_walter_d(0.5, 0.5), 0.9894916495056011, 1e-14);
@@ -159,15 +159,16 @@ static void test_instances_agree(void **state)
         float ch = rnd(0.55, 1.0), mm = rnd(0.2, 1.0);
         float s2 = (1.0f - ch) * (1.0f + ch), c2 = ch * ch;
         int walter = i & 1;
-        long double dl = formula_beckmann_d_l(s2, c2, 1.0L / ((long double)mm * mm),
-                                              formula_beckmann_log_norm_l(mm, walter));
+        long double dl =
+            formula_beckmann_d_l(s2, c2, 1.0L / ((long double)mm * mm), formula_beckmann_log_norm_l(mm, walter));
         agree("beckmann _v", i,
               formula_beckmann_d_v(s2, c2, 1.0f / (mm * mm), (float)formula_beckmann_log_norm_d(mm, walter)), dl,
               8 * 60 * U_F + 1.2e-7 + 2 * 2.3e-7, 0);
         agree("beckmann _f", i, formula_beckmann_d_f(s2, c2, 1.0f / (mm * mm), formula_beckmann_log_norm_f(mm, walter)),
               dl, 8 * 60 * U_F + 2 * U_F, 0);
-        agree("beckmann _d", i, formula_beckmann_d_d(s2, c2, 1.0 / ((double)mm * mm), formula_beckmann_log_norm_d(mm, walter)),
-              dl, 8 * 60 * U_D + 2 * U_D, 0);
+        agree("beckmann _d", i,
+              formula_beckmann_d_d(s2, c2, 1.0 / ((double)mm * mm), formula_beckmann_log_norm_d(mm, walter)), dl,
+              8 * 60 * U_D + 2 * U_D, 0);
 
         /* (4.10)/(4.11): products and one reciprocal, k = 4 (a select picks 1 exactly). */
         float nh = rnd(0.01, 1.0), nv = rnd(0.01, 1.0), nl = rnd(0.01, 1.0), vh = rnd(0.01, 1.0);
@@ -201,7 +202,8 @@ static void test_instances_agree(void **state)
             long double conel = formula_spot_cone_l(ci, co);
             long double spl = formula_spot_d3d_l(rho, ci, co, conel, fo);
             agree("spot d3d _v", i, formula_spot_d3d_v(rho, ci, co, cone, fo), spl, SMATH_POW_REL + 4 * 34 * U_F, 0);
-            agree("spot d3d _d", i, formula_spot_d3d_d(rho, ci, co, formula_spot_cone_d(ci, co), fo), spl, 4 * 34 * U_D, 0);
+            agree("spot d3d _d", i, formula_spot_d3d_d(rho, ci, co, formula_spot_cone_d(ci, co), fo), spl, 4 * 34 * U_D,
+                  0);
             long double sml = formula_spot_smooth_l(rho, ci, co, conel);
             agree("spot smooth _v", i, formula_spot_smooth_v(rho, ci, co, cone), sml, 3 * 34 * U_F, 0);
             agree("spot smooth _d", i, formula_spot_smooth_d(rho, ci, co, formula_spot_cone_d(ci, co)), sml,
@@ -269,7 +271,8 @@ static void test_guards(void **state)
     /* Spot edges */
     assert_true(formula_spot_d3d_v(0.95f, 0.9f, 0.7f, 0.2f, 2.0f) == 1.0f);
     assert_true(formula_spot_d3d_v(0.7f, 0.9f, 0.7f, 0.2f, 2.0f) == 0.0f);
-    assert_true(formula_spot_smooth_d(-0.1, 0.9, -0.5, 1.4) == 0.0 && formula_spot_smooth_d(0.95, 0.9, 0.7, 0.2) == 0.95);
+    assert_true(formula_spot_smooth_d(-0.1, 0.9, -0.5, 1.4) == 0.0 &&
+                formula_spot_smooth_d(0.95, 0.9, 0.7, 0.2) == 0.95);
 }
 
 int main(void)

@@ -15,9 +15,6 @@
 
 #include "fresnel.h"
 
-
-
-
 /* (2): R0 = ((1 - n)/(1 + n))^2. 1.5: (-0.5/2.5)^2 = 0.04; 2: (1/3)^2 = 0.111111;
  * 1.33: (0.33/2.33)^2 = 0.1416309^2 = 0.0200593. */
 static void test_r0_from_ior(void **state)
@@ -95,7 +92,8 @@ static void test_dielectric_vs_amplitude_form(void **state)
     for (size_t e = 0; e < sizeof etas / sizeof etas[0]; e++)
         for (size_t a = 0; a < sizeof angles / sizeof angles[0]; a++) {
             double ti = deg(angles[a]);
-            if (sin(ti) / etas[e] >= 1.0) continue;   /* TIR: tested below */
+            if (sin(ti) / etas[e] >= 1.0)
+                continue; /* TIR: tested below */
             close_rel(fresnel_dielectric(cos(ti), etas[e]), fresnel_sine_tangent(ti, etas[e]), 1e-10);
         }
 }
@@ -170,8 +168,8 @@ static void test_conductor(void **state)
 }
 
 static const float extremes[] = {
-    -FLT_MAX, -1e30f, -1e6f, -1.0f, -0.5f, -1e-30f, -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-30f,
-    1e-7f, 1e-3f, 0.04f, 0.5f, 0.9999999f, 1.0f, 1.0000001f, 1.5f, 2.0f, 1e4f, 1e6f, 1e30f, FLT_MAX,
+    -FLT_MAX, -1e30f, -1e6f, -1.0f,      -0.5f, -1e-30f,    -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-30f, 1e-7f,
+    1e-3f,    0.04f,  0.5f,  0.9999999f, 1.0f,  1.0000001f, 1.5f,    2.0f, 1e4f,   1e6f,   1e30f,  FLT_MAX,
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
@@ -204,13 +202,16 @@ static void test_extremes_finite(void **state)
     for (size_t i = 0; i < N_EXTREMES; i++)
         for (size_t j = 0; j < N_EXTREMES; j++) {
             double r = fresnel_dielectric(extremes[i], extremes[j]);
-            if (!(r >= 0.0 && r <= 1.0)) bad++;
+            if (!(r >= 0.0 && r <= 1.0))
+                bad++;
             for (size_t k = 0; k < N_EXTREMES; k++) {
                 double c = fresnel_conductor(extremes[i], extremes[j], extremes[k]);
-                if (!(c >= 0.0 && c <= 1.0 + 1e-12)) bad++;
+                if (!(c >= 0.0 && c <= 1.0 + 1e-12))
+                    bad++;
             }
         }
-    if (bad) fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
+    if (bad)
+        fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
 }
 
 int main(void)

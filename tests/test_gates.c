@@ -51,9 +51,10 @@ static void image_flat(gate_image *im, float v)
 
 static void image_write(const char *path, const gate_image *im)
 {
-    static const char *const names[] = {"R", "G", "B", "diffuse.R", "diffuse.G", "diffuse.B", "specular.R",
-                                        "specular.G", "specular.B", "reflection.R", "reflection.G",
-                                        "reflection.B", "var.R", "var.G", "var.B", "coverage", "object"};
+    static const char *const names[] = {
+        "R",          "G",          "B",          "diffuse.R",    "diffuse.G",    "diffuse.B",
+        "specular.R", "specular.G", "specular.B", "reflection.R", "reflection.G", "reflection.B",
+        "var.R",      "var.G",      "var.B",      "coverage",     "object"};
     const float *planes[17] = {im->rgb[0], im->rgb[1], im->rgb[2]};
     for (int t = 0; t < 3; t++)
         for (int c = 0; c < 3; c++)
@@ -251,7 +252,8 @@ static void test_inf_layer_and_negative_fail(void **state)
              "materials:\n  m: {model: d3d}\n"
              "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
              "comparisons:\n  - reference: povray\n    thresholds:\n"
-             "      noise_rel_rms: {warn: 1, fail: 2, why: \"any finite noise passes\"}\n", W, H);
+             "      noise_rel_rms: {warn: 1, fail: 2, why: \"any finite noise passes\"}\n",
+             W, H);
     write_text(scn, text);
     image_flat(&r, 0.5f);
     for (int c3 = 0; c3 < 3; c3++)

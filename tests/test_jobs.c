@@ -40,16 +40,15 @@ static void fake(const char *name, const char *body)
     FILE *f = fopen(path, "w");
     assert_non_null(f);
     /* `--version` answers like the real program, so the version probe passes. */
-    fprintf(f, "#!/bin/sh\ncase \"$1\" in --version) echo 'POV-Ray 3.7.0.10.fake'; echo 'Blender 3.4.1'; exit 0;; esac\n%s\n",
-            body);
+    fprintf(
+        f,
+        "#!/bin/sh\ncase \"$1\" in --version) echo 'POV-Ray 3.7.0.10.fake'; echo 'Blender 3.4.1'; exit 0;; esac\n%s\n",
+        body);
     fclose(f);
     chmod(path, 0755);
 }
 
-static void use_path(const char *p)
-{
-    setenv("PATH", p, 1);
-}
+static void use_path(const char *p) { setenv("PATH", p, 1); }
 
 static void use_fake_path(void)
 {
@@ -83,8 +82,14 @@ static int teardown(void **state)
 
 static job_record run_job(int r, double timeout)
 {
-    job_spec j = {.scene_path = "scenes/d3d_spot.yaml", .renderer = r, .role = ROLE_TWIN, .variant = JOB_SMALL,
-                  .out_dir = out_dir, .cache_dir = NULL, .timeout_s = timeout, .threads = 1};
+    job_spec j = {.scene_path = "scenes/d3d_spot.yaml",
+                  .renderer = r,
+                  .role = ROLE_TWIN,
+                  .variant = JOB_SMALL,
+                  .out_dir = out_dir,
+                  .cache_dir = NULL,
+                  .timeout_s = timeout,
+                  .threads = 1};
     job_record rec;
     char err[1024];
     assert_int_equal(job_run(&j, &rec, err, sizeof err), RC_OK);
@@ -204,10 +209,7 @@ static const char *sized_scene(const char *name, int w, int h)
     return path;
 }
 
-static const char *tiny_scene(const char *name)
-{
-    return sized_scene(name, 8, 6);
-}
+static const char *tiny_scene(const char *name) { return sized_scene(name, 8, 6); }
 
 /* A fake POV-Ray that renders by copying an 8 x 6 image (what the tiny scene asks for). */
 static void fake_povray_ok(const char *extra)
@@ -242,10 +244,10 @@ static void record_field(const char *out, const char *name, const char *renderer
 }
 
 typedef struct {
-    const char *body;    /* the fake povray; NULL: none on PATH */
-    const char *extra;   /* more options */
+    const char *body;  /* the fake povray; NULL: none on PATH */
+    const char *extra; /* more options */
     int exit_status;
-    const char *status;  /* the record's */
+    const char *status; /* the record's */
 } exit_case;
 
 static void test_run_exit_status(void **state)
@@ -352,9 +354,8 @@ static int cached_run(const char *yaml, const char *cache)
 {
     char err[1024], cached[16], out[256];
     snprintf(out, sizeof out, "%s/keyed", out_dir);
-    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer raster --role twin --out %s --cache %s", yaml, out,
-                              cache),
-                     0);
+    assert_int_equal(
+        cli_exec(err, sizeof err, "run %s --renderer raster --role twin --out %s --cache %s", yaml, out, cache), 0);
     record_field(out, "tiny", "raster", "cached", cached, sizeof cached);
     assert_true(strcmp(cached, "true") == 0 || strcmp(cached, "false") == 0);
     return strcmp(cached, "true") == 0;

@@ -24,9 +24,9 @@
 #include "scene_file.h"
 
 #define MESHES "tests/fixtures/meshes/"
-#define PI 3.14159265358979323846
+#define PI     3.14159265358979323846
 /* Positions are float: 1e-6 relative is a few ulps at the sizes used here. */
-#define FTOL 2e-6
+#define FTOL   2e-6
 
 static scene *one_object(object o)
 {
@@ -250,8 +250,8 @@ static void test_box_rounded(void **state)
     scene *s = one_object(o);
     mesh m = {0};
     double smooth_area = 2 * (A * B + B * C + C * A) + 2 * PI * r * (A + B + C) + 4 * PI * r * r;
-    double smooth_vol = A * B * C + r * 2 * (A * B + B * C + C * A) + PI * r * r * (A + B + C) +
-                        4.0 / 3.0 * PI * r * r * r;
+    double smooth_vol =
+        A * B * C + r * 2 * (A * B + B * C + C * A) + PI * r * r * (A + B + C) + 4.0 / 3.0 * PI * r * r * r;
     double prev = 0;
     for (int T = 2; T <= 32; T *= 2) {
         s->objects[0].tessellation = T;
@@ -287,8 +287,8 @@ static void test_box_rounded(void **state)
                 v = dv3(v.x, cx * v.y + sx * v.z, -sx * v.y + cx * v.z);
                 *vs[k] = v;
             }
-            dvec3 q = dv3(fmax(-A / 2, fmin(A / 2, p.x)), fmax(-B / 2, fmin(B / 2, p.y)),
-                          fmax(-C / 2, fmin(C / 2, p.z)));
+            dvec3 q =
+                dv3(fmax(-A / 2, fmin(A / 2, p.x)), fmax(-B / 2, fmin(B / 2, p.y)), fmax(-C / 2, fmin(C / 2, p.z)));
             dvec3 d = dv3_sub(p, q);
             assert_float_equal(dv3_len(d), r, 1e-5);
             assert_true(dv3_dot(dv3_norm(d), n) > 1 - 1e-5);
@@ -601,8 +601,7 @@ static void test_scene_files(void **state)
     assert_int_equal(count[4], 4);           /* tetra.obj */
     mesh_free(&m);
 
-    assert_int_equal(scene_file_load("tests/fixtures/scenes/mesh_degenerate.yaml", s, err, sizeof err),
-                     RC_OK);
+    assert_int_equal(scene_file_load("tests/fixtures/scenes/mesh_degenerate.yaml", s, err, sizeof err), RC_OK);
     assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_ERR_RANGE);
     assert_non_null(strstr(err, "meshes/degenerate.obj:7:"));
     free(s);
@@ -613,8 +612,7 @@ static void test_scene_files(void **state)
 static void test_mesh_mutations(void **state)
 {
     (void)state;
-    static const char *const files[] = {"tetra.obj", "pentagon.obj", "tetra_ascii.ply",
-                                        "pyramid_binary.ply"};
+    static const char *const files[] = {"tetra.obj", "pentagon.obj", "tetra_ascii.ply", "pyramid_binary.ply"};
     static const char pool[] = "0123456789-+.eE /\n\r\tvnf#";
     srand(4242);
     for (size_t fi = 0; fi < sizeof files / sizeof *files; fi++) {
@@ -635,7 +633,7 @@ static void test_mesh_mutations(void **state)
             } else {
                 for (int e = 0; e < 1 + rand() % 3; e++)
                     buf[(size_t)rand() % len] = rand() % 3 ? (unsigned char)pool[rand() % (int)(sizeof pool - 1)]
-                                                          : (unsigned char)(rand() & 0xff);
+                                                           : (unsigned char)(rand() & 0xff);
             }
             f = fopen(dst, "wb");
             assert_non_null(f);
@@ -658,13 +656,19 @@ static void test_mesh_mutations(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sphere),       cmocka_unit_test(test_quad),
-        cmocka_unit_test(test_box_sharp),    cmocka_unit_test(test_box_rounded),
-        cmocka_unit_test(test_torus),        cmocka_unit_test(test_obj_tetra),
-        cmocka_unit_test(test_obj_pentagon), cmocka_unit_test(test_ply_ascii),
-        cmocka_unit_test(test_ply_binary),   cmocka_unit_test(test_mesh_errors),
+        cmocka_unit_test(test_sphere),
+        cmocka_unit_test(test_quad),
+        cmocka_unit_test(test_box_sharp),
+        cmocka_unit_test(test_box_rounded),
+        cmocka_unit_test(test_torus),
+        cmocka_unit_test(test_obj_tetra),
+        cmocka_unit_test(test_obj_pentagon),
+        cmocka_unit_test(test_ply_ascii),
+        cmocka_unit_test(test_ply_binary),
+        cmocka_unit_test(test_mesh_errors),
         cmocka_unit_test(test_mesh_file_limits),
-        cmocka_unit_test(test_scene_files),  cmocka_unit_test(test_mesh_mutations),
+        cmocka_unit_test(test_scene_files),
+        cmocka_unit_test(test_mesh_mutations),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,7 +18,7 @@
 #include "exr.h"
 #include "metrics.h"
 
-#define REL(a, b, tol) assert_true(fabs((a) - (b)) <= (tol) * fabs(b))
+#define REL(a, b, tol) assert_true(fabs((a) - (b)) <= (tol)*fabs(b))
 
 /* ---- 3x2 hand-worked fixture ----
  * Reference (row-major, row 0 on top); every value exact in binary so differences are exact.
@@ -53,12 +53,12 @@ static void test_hand_3x2(void **state)
     assert_int_equal(metrics_compare(&ref, &tst, NULL, &opt, &r, err, sizeof err), RC_OK);
     assert_int_equal(r.n_pixels, 6);
     assert_int_equal(r.n_nonfinite, 0);
-    REL(r.mae, 0.5 / 18.0, 1e-12);                 /* one error of 0.5 over 18 values */
-    REL(r.rmse, sqrt(0.25 / 18.0), 1e-12);         /* 0.11785113019775792 */
+    REL(r.mae, 0.5 / 18.0, 1e-12);                        /* one error of 0.5 over 18 values */
+    REL(r.rmse, sqrt(0.25 / 18.0), 1e-12);                /* 0.11785113019775792 */
     REL(r.rel_mse, 0.25 / (0.0625 + 0.01) / 18.0, 1e-12); /* r = 0.25 there: 0.19157088122605365 */
     REL(r.rel_rms, sqrt(0.25 / (0.0625 + 0.01) / 18.0), 1e-12);
-    REL(r.peak, 1.2f, 0.0);                        /* idiff: max(1, largest |value|) = 1.2 */
-    REL(r.psnr, 20.156950230411418, 1e-12);        /* 20 log10(1.2 / 0.117851...) */
+    REL(r.peak, 1.2f, 0.0);                 /* idiff: max(1, largest |value|) = 1.2 */
+    REL(r.psnr, 20.156950230411418, 1e-12); /* 20 log10(1.2 / 0.117851...) */
     assert_float_equal(r.max_abs, 0.5, 0.0);
     assert_int_equal(r.max_x, 1);
     assert_int_equal(r.max_y, 1);
@@ -73,7 +73,7 @@ static void test_hand_3x2(void **state)
     assert_int_equal(r.n_over, 1);
     REL(r.share_over, 1.0 / 6.0, 1e-12);
     assert_true(r.ssim < 1.0 && r.ssim > 0.0);
-    assert_float_equal(r.ssim_ch[0], 1.0, 1e-12);   /* R and B untouched */
+    assert_float_equal(r.ssim_ch[0], 1.0, 1e-12); /* R and B untouched */
     assert_float_equal(r.ssim_ch[2], 1.0, 1e-12);
     assert_true(r.ssim_ch[1] < 1.0);
 
@@ -241,8 +241,8 @@ static void test_ssim_gauss_direct(void **state)
     for (size_t k = 0; k < sizeof pts / sizeof pts[0]; k++) {
         double want = ssim_direct(GW, GH, x, y, pts[k][0], pts[k][1]);
         if (!(fabs(map[pts[k][1] * GW + pts[k][0]] - want) <= 1e-6 * fabs(want)))
-            fail_msg("SSIM at (%d, %d): %.9g, direct %.9g", pts[k][0], pts[k][1],
-                     map[pts[k][1] * GW + pts[k][0]], want);
+            fail_msg("SSIM at (%d, %d): %.9g, direct %.9g", pts[k][0], pts[k][1], map[pts[k][1] * GW + pts[k][0]],
+                     want);
     }
 }
 
@@ -253,13 +253,7 @@ static void test_classify(void **state)
      * half-covered pixel (7, 3) of object 2. Expected classes worked by hand from the 3x3
      * rule (B background, I interior, E edge): */
     static const char *want[7] = {
-        "EEEEEEEEBB",
-        "EEEEEEEEBB",
-        "EEIEEIEEEB",
-        "EEIEEIEEEB",
-        "EEIEEIEEEB",
-        "EEEEEEEEBB",
-        "EEEEEEEEBB",
+        "EEEEEEEEBB", "EEEEEEEEBB", "EEIEEIEEEB", "EEIEEIEEEB", "EEIEEIEEEB", "EEEEEEEEBB", "EEEEEEEEBB",
     };
     enum { CW = 10, CH = 7 };
     float cov[CW * CH] = {0}, id[CW * CH] = {0};
@@ -274,8 +268,9 @@ static void test_classify(void **state)
     metrics_classify(CW, CH, cov, id, cls);
     for (int y = 0; y < CH; y++)
         for (int x = 0; x < CW; x++) {
-            int e = want[y][x] == 'B' ? METRICS_PX_BACKGROUND : want[y][x] == 'I' ? METRICS_PX_INTERIOR
-                                                                                   : METRICS_PX_EDGE;
+            int e = want[y][x] == 'B'   ? METRICS_PX_BACKGROUND
+                    : want[y][x] == 'I' ? METRICS_PX_INTERIOR
+                                        : METRICS_PX_EDGE;
             if (cls[y * CW + x] != e)
                 fail_msg("pixel (%d, %d): class %d, want %c", x, y, cls[y * CW + x], want[y][x]);
         }
@@ -349,7 +344,7 @@ static void test_ztest(void **state)
      * z_crit = 3.635188198352098. */
     const double zc = 3.635188198352098;
     z_setup(&mean, &vr, &tst, &vt);
-    z_t[0][0] = (float)(0.01 * 1.01 * zc);      /* (0,0) R: just over  -> fails */
+    z_t[0][0] = (float)(0.01 * 1.01 * zc);       /* (0,0) R: just over  -> fails */
     z_t[2][ZN - 1] = (float)(-0.01 * 0.99 * zc); /* (3,2) B: just under -> passes */
     assert_int_equal(metrics_ztest(&mean, &vr, &tst, &vt, NULL, &opt, &r, err, sizeof err), RC_OK);
     assert_int_equal(r.n_tests, 36);
@@ -576,8 +571,8 @@ static void test_idiff_crosscheck(void **state)
         assert_int_equal(o.my, 3);
         assert_string_equal(o.mc, "R");
         assert_int_equal(r.n_over, o.nover);
-        print_message("idiff irregular: ours rmse %.9g psnr %.9g | idiff %.6g %.6g, %ld over 0.02\n",
-                      r.rmse, r.psnr, o.rms, o.psnr, o.nover);
+        print_message("idiff irregular: ours rmse %.9g psnr %.9g | idiff %.6g %.6g, %ld over 0.02\n", r.rmse, r.psnr,
+                      o.rms, o.psnr, o.nover);
     }
 }
 

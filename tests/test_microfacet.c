@@ -15,8 +15,6 @@
 
 #include "microfacet.h"
 
-
-
 /* (4.12) walter. m = 0.5, cos = 1: 1/(pi 0.25) = 1.2732395.
  * m = 0.5, cos = 0.8: tan^2 = 0.36/0.64 = 0.5625, /m^2 = 2.25, exp(-2.25) = 0.1053992;
  * pi m^2 cos^4 = pi * 0.25 * 0.4096 = 0.3216991 -> D = 0.3276330.
@@ -34,7 +32,8 @@ static void test_beckmann_points(void **state)
     for (size_t i = 0; i < 6; i++)
         for (size_t j = 0; j < 5; j++) {
             double w = microfacet_beckmann_d(cs[i], ms[j], CT_WALTER);
-            if (w == 0.0) continue;
+            if (w == 0.0)
+                continue;
             close_rel(microfacet_beckmann_d(cs[i], ms[j], CT_CT1982), TEST_PI * w, 1e-6);
         }
     assert_true(microfacet_beckmann_d(0.0f, 0.3f, CT_WALTER) == 0.0f);
@@ -50,7 +49,7 @@ static void test_beckmann_points(void **state)
  * Simpson; exactly 1 for walter (substitute u = tan^2/m^2). */
 static double projected_d_integral(float m, ct_normalisation norm)
 {
-    const int n = 200000;   /* even; step 7.9e-6 rad, 6000 steps across the m = 0.05 lobe */
+    const int n = 200000; /* even; step 7.9e-6 rad, 6000 steps across the m = 0.05 lobe */
     double h = 0.5 * TEST_PI / n, sum = 0.0;
     for (int i = 0; i <= n; i++) {
         double t = i * h;
@@ -66,7 +65,8 @@ static void test_beckmann_normalised(void **state)
     const float ms[] = {0.05f, 0.2f, 0.5f, 1.0f};
     for (size_t j = 0; j < 4; j++) {
         double w = projected_d_integral(ms[j], CT_WALTER);
-        if (fabs(w - 1.0) > 1e-3) fail_msg("m = %g: integral %.6f, want 1 +- 1e-3", ms[j], w);
+        if (fabs(w - 1.0) > 1e-3)
+            fail_msg("m = %g: integral %.6f, want 1 +- 1e-3", ms[j], w);
         close_rel(projected_d_integral(ms[j], CT_CT1982), TEST_PI * w, 1e-5);
     }
 }
@@ -125,7 +125,7 @@ static void test_smith_exact_vs_integral(void **state)
     (void)state;
     const double thetas[] = {30, 60, 75, 85};
     const double ms[] = {0.3, 0.5, 1.0};
-    const int nt = 1500, np = 720;   /* midpoint rule; converged to ~1e-6 at these m */
+    const int nt = 1500, np = 720; /* midpoint rule; converged to ~1e-6 at these m */
     for (size_t a = 0; a < 4; a++)
         for (size_t b = 0; b < 3; b++) {
             double tv = thetas[a] * TEST_PI / 180.0;
@@ -137,7 +137,8 @@ static void test_smith_exact_vs_integral(void **state)
                 for (int j = 0; j < np; j++) {
                     double ph = (j + 0.5) * dp;
                     double vh = vx * sin(th) * cos(ph) + vz * cos(th);
-                    if (vh > 0.0) sum += vh * d * sin(th);
+                    if (vh > 0.0)
+                        sum += vh * d * sin(th);
                 }
             }
             double want = cos(tv) / (sum * dt * dp);
@@ -158,11 +159,12 @@ static void test_smith_walter_accuracy(void **state)
         double e = microfacet_smith_g1_exact(c, 0.5);
         double w = microfacet_smith_g1_walter((float)c, 0.5f);
         double r = fabs(w - e) / e;
-        if (r > worst) worst = r;
+        if (r > worst)
+            worst = r;
     }
     print_message("Walter G1 max relative error vs exact: %.4f %%\n", 100.0 * worst);
     assert_true(worst < 0.0035);
-    assert_true(worst > 0.001);   /* it is an approximation: equality would mean a mix-up */
+    assert_true(worst > 0.001); /* it is an approximation: equality would mean a mix-up */
 }
 
 /* Integral of f cos over the hemisphere = 2 pi int_0^{pi/2} f cos sin dtheta (midpoint rule):
@@ -180,8 +182,8 @@ static void test_lambert(void **state)
 }
 
 static const float extremes[] = {
-    -FLT_MAX, -1e30f, -1.0f, -1e-45f, 0.0f, 1e-45f, 1e-38f, 1e-30f, 1e-12f, 1e-7f, 1e-3f, 0.05f,
-    0.5f, 0.9999999f, 1.0f, 1.0000001f, 2.0f, 1e4f, 1e6f, 1e30f, FLT_MAX,
+    -FLT_MAX, -1e30f, -1.0f,      -1e-45f, 0.0f,       1e-45f, 1e-38f, 1e-30f, 1e-12f, 1e-7f,   1e-3f,
+    0.05f,    0.5f,   0.9999999f, 1.0f,    1.0000001f, 2.0f,   1e4f,   1e6f,   1e30f,  FLT_MAX,
 };
 #define N_EXTREMES (sizeof extremes / sizeof extremes[0])
 
@@ -211,7 +213,8 @@ static void test_extremes_finite(void **state)
                 }
             }
         }
-    if (bad) fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
+    if (bad)
+        fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
 }
 
 int main(void)

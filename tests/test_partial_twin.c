@@ -78,8 +78,12 @@ static int teardown(void **state)
 
 static void run_job(const char *renderer)
 {
-    job_spec j = {.scene_path = scene_path, .renderer = registry_find(renderer), .role = ROLE_TWIN,
-                  .variant = JOB_FULL, .out_dir = run_dir, .threads = 2};
+    job_spec j = {.scene_path = scene_path,
+                  .renderer = registry_find(renderer),
+                  .role = ROLE_TWIN,
+                  .variant = JOB_FULL,
+                  .out_dir = run_dir,
+                  .threads = 2};
     job_record r;
     char err[1024];
     rc_status st = job_run(&j, &r, err, sizeof err);
@@ -115,8 +119,7 @@ static void check_record(const char *renderer, const char *because)
     assert_int_equal(cJSON_GetArraySize(gaps), 1);
     assert_string_equal(str_of(cJSON_GetArrayItem(gaps, 0), "term"), "specular");
     if (strstr(str_of(cJSON_GetArrayItem(gaps, 0), "reason"), because) == NULL)
-        fail_msg("%s: reason '%s' does not say '%s'", renderer, str_of(cJSON_GetArrayItem(gaps, 0), "reason"),
-                 because);
+        fail_msg("%s: reason '%s' does not say '%s'", renderer, str_of(cJSON_GetArrayItem(gaps, 0), "reason"), because);
     cJSON_Delete(rec);
 }
 
@@ -188,8 +191,8 @@ static void test_partial_twins(void **state)
     static const char *const rest[] = {"diffuse", "reflection", "emission", NULL};
     static const char *const full[] = {"", NULL};
     double pov_rest = rel_rms_against(&ras, &pov, rest), pov_full = rel_rms_against(&ras, &pov, full);
-    printf("# povray: rel_rms %.3g against diffuse + reflection + emission, %.3g against the full image\n",
-           pov_rest, pov_full);
+    printf("# povray: rel_rms %.3g against diffuse + reflection + emission, %.3g against the full image\n", pov_rest,
+           pov_full);
     assert_true(pov_rest < 1.0e-3);
     assert_true(pov_full > 1.0e-2);
     exr_image_free(&pov);

@@ -41,16 +41,15 @@ static int run(const char *args, char *err, size_t errlen)
 static void test_lambert_quad_closed_form(void **state)
 {
     (void)state;
-    const char *yaml =
-        "name: flat\n"
-        "image: {width: 40, height: 24, supersample: 3}\n"
-        "camera: {eye: [0.3, 3, 1.5], target: [0.1, 0, 0], hfov: 30}\n"
-        "lights:\n"
-        "  - {type: sun, direction: [0, -0.5, -0.8660254037844386], irradiance: [2, 3, 4]}\n"
-        "materials:\n"
-        "  m: {albedo: [0.7, 0.5, 0.3], model: d3d}\n"
-        "objects:\n"
-        "  - {shape: quad, center: [0, 0, 0], size: [20, 20], material: m}\n";
+    const char *yaml = "name: flat\n"
+                       "image: {width: 40, height: 24, supersample: 3}\n"
+                       "camera: {eye: [0.3, 3, 1.5], target: [0.1, 0, 0], hfov: 30}\n"
+                       "lights:\n"
+                       "  - {type: sun, direction: [0, -0.5, -0.8660254037844386], irradiance: [2, 3, 4]}\n"
+                       "materials:\n"
+                       "  m: {albedo: [0.7, 0.5, 0.3], model: d3d}\n"
+                       "objects:\n"
+                       "  - {shape: quad, center: [0, 0, 0], size: [20, 20], material: m}\n";
     FILE *f = fopen("/tmp/reflcheck-test-flat.yaml", "w");
     assert_non_null(f);
     fputs(yaml, f);

@@ -25,7 +25,7 @@
 #include "renderers/povray/povray.h"
 #include "renderers/registry.h"
 
-#define PI 3.14159265358979323846
+#define PI       3.14159265358979323846
 /* Half-float quantisation (<= 2.4e-4) plus POV-Ray's float arithmetic, with margin. */
 #define HALF_TOL 1e-3
 
@@ -114,7 +114,11 @@ static void base_scene(scene *s, int w, int h, vec3 eye, vec3 target, double hfo
 
 /* ---- an independent pinhole camera (canonical frame, CONVENTIONS.md) ---------------- */
 
-typedef struct { dvec3 eye, f, r, u; double tx, ty; int w, h; } cam;
+typedef struct {
+    dvec3 eye, f, r, u;
+    double tx, ty;
+    int w, h;
+} cam;
 
 static cam cam_make(const scene *s)
 {
@@ -172,23 +176,22 @@ static void povray_image_free(povray_image *img)
 }
 
 /* Renders through the renderer table's entry, the one production (harness/jobs.c) runs. */
-static renderer_result pov_entry(const scene *s, const mesh *m, const povray_options *o, const char *tag,
-                                 char *exr, size_t exrlen)
+static renderer_result pov_entry(const scene *s, const mesh *m, const povray_options *o, const char *tag, char *exr,
+                                 size_t exrlen)
 {
     char dir[512], log[600];
     snprintf(dir, sizeof dir, "%s/%s-work", tmpdir, tag);
     mkdir(dir, 0755);
     snprintf(exr, exrlen, "%s/%s.exr", tmpdir, tag);
     snprintf(log, sizeof log, "%s/%s.log", tmpdir, tag);
-    renderer_job j = {.s = s, .m = m, .role = o->role, .dir = dir, .exr = exr, .log = log, .timeout = 600.0,
-                      .options = o};
+    renderer_job j = {
+        .s = s, .m = m, .role = o->role, .dir = dir, .exr = exr, .log = log, .timeout = 600.0, .options = o};
     renderer_result r = {0};
     registry_row(registry_find("povray"))->render(&j, &r);
     return r;
 }
 
-static void pov_render(const scene *s, const mesh *m, const povray_options *o, const char *tag,
-                   povray_image *img)
+static void pov_render(const scene *s, const mesh *m, const povray_options *o, const char *tag, povray_image *img)
 {
     static const char *const names[3] = {"R", "G", "B"};
     char exr[512], log[600], err[512] = "";
@@ -227,7 +230,11 @@ static void pov_render(const scene *s, const mesh *m, const povray_options *o, c
 }
 
 /* Relative-error statistics over the checked pixels. */
-typedef struct { double *rel; int n, cap; double max; } errstat;
+typedef struct {
+    double *rel;
+    int n, cap;
+    double max;
+} errstat;
 
 static void stat_add(errstat *e, double got, double want)
 {
@@ -253,8 +260,7 @@ static void stat_report(errstat *e, const char *what)
 {
     assert_true(e->n > 0);
     qsort(e->rel, (size_t)e->n, sizeof *e->rel, cmp_double);
-    printf("  %s: %d values, relative error max %.3g median %.3g\n", what, e->n, e->max,
-           e->rel[e->n / 2]);
+    printf("  %s: %d values, relative error max %.3g median %.3g\n", what, e->n, e->max, e->rel[e->n / 2]);
     free(e->rel);
     memset(e, 0, sizeof *e);
 }
@@ -330,13 +336,12 @@ static void test_point_light(void **state)
             for (int t = 0; t < 2; t++)
                 for (int u = 0; u < 2; u++) {
                     dvec3 x;
-                    assert_true(cam_hit_plane(&c, i + 0.25 + 0.5 * u, j + 0.25 + 0.5 * t,
-                                              dv3(0, 0, 0), dv3(0, 1, 0), &x));
+                    assert_true(
+                        cam_hit_plane(&c, i + 0.25 + 0.5 * u, j + 0.25 + 0.5 * t, dv3(0, 0, 0), dv3(0, 1, 0), &x));
                     dvec3 d = dv3_sub(lp, x);
                     double d2 = dv3_dot(d, d), cosl = d.y / sqrt(d2);
                     for (int ch = 0; ch < 3; ch++)
-                        want[ch] += 0.25 * chan(albedo, ch) * chan(s.lights[0].intensity, ch) / PI *
-                                    cosl / d2;
+                        want[ch] += 0.25 * chan(albedo, ch) * chan(s.lights[0].intensity, ch) / PI * cosl / d2;
                 }
             for (int ch = 0; ch < 3; ch++) {
                 float got = img.rgb[ch][j * img.width + i];
@@ -529,8 +534,8 @@ static void test_d3d9client_reflection(void **state)
                 float got = img.rgb[ch][j * img.width + i];
                 stat_add(&e, got, want[ch]);
                 if (fabs(got - want[ch]) > HALF_TOL * want[ch])
-                    fail_msg("d3d9client: pixel (%d, %d) channel %d (%s) = %g, expected %g", i, j,
-                             ch, hit ? "plane" : "sky", (double)got, want[ch]);
+                    fail_msg("d3d9client: pixel (%d, %d) channel %d (%s) = %g, expected %g", i, j, ch,
+                             hit ? "plane" : "sky", (double)got, want[ch]);
             }
         }
     /* The fixture must span a wide range of N.V (the falloff) and show some sky. */
@@ -632,8 +637,7 @@ static void test_camera_projection(void **state)
                 double want = inside ? flat[ch] : 0.0;
                 float got = img.rgb[ch][j * img.width + i];
                 if (fabs(got - want) > HALF_TOL * fmax(want, 1e-3))
-                    fail_msg("camera: pixel (%d, %d) channel %d = %g, expected %g", i, j, ch,
-                             (double)got, want);
+                    fail_msg("camera: pixel (%d, %d) channel %d = %g, expected %g", i, j, ch, (double)got, want);
             }
             lit += inside;
         }
@@ -684,8 +688,7 @@ static void test_env_image(void **state)
                 float got = img.rgb[k][j * img.width + i];
                 stat_add(&e, got, want[k]);
                 if (fabs(got - want[k]) > HALF_TOL * want[k])
-                    fail_msg("env: pixel (%d, %d) channel %d = %g, expected %g", i, j, k,
-                             (double)got, want[k]);
+                    fail_msg("env: pixel (%d, %d) channel %d = %g, expected %g", i, j, k, (double)got, want[k]);
             }
         }
     stat_report(&e, "image environment (orientation, bilinear, scale)");
@@ -732,10 +735,7 @@ static void test_box_downsample(void **state)
     (void)state;
     /* 6x4 samples, k = 2 -> 3x2 pixels; each block's mean worked out by hand. */
     const float src[24] = {
-        1, 2, 3, 4, 5, 6,
-        7, 8, 9, 10, 11, 12,
-        0, 0, 1, 1, -4, 100,
-        0, 4, 1, 1, 4, 0,
+        1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 0, 0, 1, 1, -4, 100, 0, 4, 1, 1, 4, 0,
     };
     float dst[6];
     assert_int_equal(povray_box_downsample(src, 6, 4, 2, dst), RC_OK);
@@ -757,10 +757,23 @@ static void test_command_line(void **state)
     povray_argv cmd;
     char err[256];
     povray_options o = {.threads = 3};
-    assert_int_equal(povray_command(&o, "/tmp/a b.pov", "/tmp/out.exr", 32, 24, 2, &cmd, err,
-                                    sizeof err), RC_OK);
-    const char *want[] = {"povray", "+I/tmp/a b.pov", "+O/tmp/out.exr", "+FE", "+W64", "+H48",
-                          "-A", "-J", "-UA", "-D", "-V", "-P", "+Q9", "-GS", "-GR", "+WT3"};
+    assert_int_equal(povray_command(&o, "/tmp/a b.pov", "/tmp/out.exr", 32, 24, 2, &cmd, err, sizeof err), RC_OK);
+    const char *want[] = {"povray",
+                          "+I/tmp/a b.pov",
+                          "+O/tmp/out.exr",
+                          "+FE",
+                          "+W64",
+                          "+H48",
+                          "-A",
+                          "-J",
+                          "-UA",
+                          "-D",
+                          "-V",
+                          "-P",
+                          "+Q9",
+                          "-GS",
+                          "-GR",
+                          "+WT3"};
     assert_int_equal(cmd.argc, (int)(sizeof want / sizeof want[0]));
     for (int i = 0; i < cmd.argc; i++)
         assert_string_equal(cmd.argv[i], want[i]);
@@ -769,10 +782,8 @@ static void test_command_line(void **state)
     povray_command_string(&cmd, line, sizeof line);
     assert_string_equal(line, "povray '+I/tmp/a b.pov' +O/tmp/out.exr +FE +W64 +H48 -A -J -UA -D "
                               "-V -P +Q9 -GS -GR +WT3");
-    assert_int_equal(povray_command(&o, "a.pov", "out.png", 32, 24, 1, &cmd, err, sizeof err),
-                     RC_ERR_RANGE);
-    assert_int_equal(povray_command(&o, "a.pov", "out.exr", 0, 24, 1, &cmd, err, sizeof err),
-                     RC_ERR_RANGE);
+    assert_int_equal(povray_command(&o, "a.pov", "out.png", 32, 24, 1, &cmd, err, sizeof err), RC_ERR_RANGE);
+    assert_int_equal(povray_command(&o, "a.pov", "out.exr", 0, 24, 1, &cmd, err, sizeof err), RC_ERR_RANGE);
 }
 
 /* What cannot be translated is refused with a message, and nothing claims success. */
@@ -850,11 +861,22 @@ static void test_sdl_text(void **state)
     const char *ang = strstr(text, "angle ");
     assert_non_null(ang);
     assert_float_equal(atof(ang + 6), 40.0, 1e-5);
-    const char *need[] = {"#version 3.7;", "assumed_gamma 1.0 ambient_light 0 adc_bailout 0",
-                          "right -x*2\n", "up y\n", "ambient 0", "diffuse 1",
-                          "brilliance 1", "specular 0", "phong 0", "reflection 0", "no_shadow",
-                          "no_reflection", "map_type 1 interpolate 2 } rotate y*180",
-                          "emission rgb <2, 2, 2>", "vertex_vectors { 4", "face_indices { 2"};
+    const char *need[] = {"#version 3.7;",
+                          "assumed_gamma 1.0 ambient_light 0 adc_bailout 0",
+                          "right -x*2\n",
+                          "up y\n",
+                          "ambient 0",
+                          "diffuse 1",
+                          "brilliance 1",
+                          "specular 0",
+                          "phong 0",
+                          "reflection 0",
+                          "no_shadow",
+                          "no_reflection",
+                          "map_type 1 interpolate 2 } rotate y*180",
+                          "emission rgb <2, 2, 2>",
+                          "vertex_vectors { 4",
+                          "face_indices { 2"};
     for (size_t i = 0; i < sizeof need / sizeof need[0]; i++)
         if (!strstr(text, need[i]))
             fail_msg("SDL lacks '%s'", need[i]);

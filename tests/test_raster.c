@@ -17,10 +17,10 @@
 
 /* A full-frame copy of the samples, filled tile by tile from the callback. */
 typedef struct {
-    int sw, sh;            /* sample grid size */
+    int sw, sh; /* sample grid size */
     raster_sample *s;
-    int *tile_hits;        /* per pixel: how many tiles claimed it */
-    int *thread;           /* per pixel: the worker that delivered its tile */
+    int *tile_hits; /* per pixel: how many tiles claimed it */
+    int *thread;    /* per pixel: the worker that delivered its tile */
     int w, h;
 } frame;
 
@@ -73,12 +73,13 @@ static raster_vertex px_vertex(double px, double py, int w, int h)
 static void draw(const raster_vertex *v, int nv, const uint32_t *idx, int nt, raster_options o, frame *f)
 {
     assert_int_equal(raster_draw(v, nv, idx, nt, &o, frame_tile, f), RC_OK);
-    for (int i = 0; i < f->w * f->h; i++) assert_int_equal(f->tile_hits[i], 1);
+    for (int i = 0; i < f->w * f->h; i++)
+        assert_int_equal(f->tile_hits[i], 1);
 }
 
 /* Adds 1 to cov[] for every sample each triangle covers when drawn on its own. */
-static void coverage_per_triangle(const raster_vertex *v, int nv, const uint32_t *idx, int nt,
-                                  raster_options o, int *cov)
+static void coverage_per_triangle(const raster_vertex *v, int nv, const uint32_t *idx, int nt, raster_options o,
+                                  int *cov)
 {
     for (int t = 0; t < nt; t++) {
         frame f;
@@ -102,8 +103,8 @@ static void check_square_coverage(const int *cov, int sw, int sh)
     for (int sy = 0; sy < sh; sy++)
         for (int sx = 0; sx < sw; sx++) {
             int want = (sx <= 11 && sy <= 11) ? 1 : 0;
-            if (cov[sy * sw + sx] != want) fail_msg("sample (%d,%d): covered %d times, want %d", sx, sy,
-                                                    cov[sy * sw + sx], want);
+            if (cov[sy * sw + sx] != want)
+                fail_msg("sample (%d,%d): covered %d times, want %d", sx, sy, cov[sy * sw + sx], want);
         }
 }
 
@@ -112,8 +113,8 @@ static void test_shared_edge_quad(void **state)
     (void)state;
     const int w = 8, h = 8;
     raster_options o = {.width = w, .height = h, .supersample = 2, .threads = 2, .tile = 4};
-    raster_vertex v[4] = {px_vertex(0.25, 0.25, w, h), px_vertex(6.25, 0.25, w, h),
-                          px_vertex(6.25, 6.25, w, h), px_vertex(0.25, 6.25, w, h)};
+    raster_vertex v[4] = {px_vertex(0.25, 0.25, w, h), px_vertex(6.25, 0.25, w, h), px_vertex(6.25, 6.25, w, h),
+                          px_vertex(0.25, 6.25, w, h)};
     /* main diagonal 0-2; first triangle clockwise on screen, second anticlockwise */
     uint32_t idx_a[6] = {0, 1, 2, 0, 3, 2};
     /* other diagonal 1-3, which also passes through samples */
@@ -133,11 +134,15 @@ static void test_shared_edge_quad(void **state)
     for (int sy = 0; sy < 16; sy++)
         for (int sx = 0; sx < 16; sx++) {
             int tri = frame_at(&f, sx, sy)->tri;
-            if (sx > 11 || sy > 11) assert_int_equal(tri, -1);
+            if (sx > 11 || sy > 11)
+                assert_int_equal(tri, -1);
             /* below the diagonal (larger y) belongs to triangle 1 (0, 3, 2) */
-            else if (sy > sx) assert_int_equal(tri, 1);
-            else if (sy < sx) assert_int_equal(tri, 0);
-            else assert_true(tri == 0 || tri == 1);
+            else if (sy > sx)
+                assert_int_equal(tri, 1);
+            else if (sy < sx)
+                assert_int_equal(tri, 0);
+            else
+                assert_true(tri == 0 || tri == 1);
         }
     frame_free(&f);
 }
@@ -148,11 +153,9 @@ static void test_fan(void **state)
     const int w = 8, h = 8;
     raster_options o = {.width = w, .height = h, .supersample = 2, .threads = 3, .tile = 2};
     /* off-centre hub on a sample, eight rim vertices on the square's boundary */
-    raster_vertex v[9] = {px_vertex(3.25, 2.75, w, h),
-                          px_vertex(0.25, 0.25, w, h), px_vertex(3.25, 0.25, w, h),
-                          px_vertex(6.25, 0.25, w, h), px_vertex(6.25, 3.25, w, h),
-                          px_vertex(6.25, 6.25, w, h), px_vertex(3.25, 6.25, w, h),
-                          px_vertex(0.25, 6.25, w, h), px_vertex(0.25, 3.25, w, h)};
+    raster_vertex v[9] = {px_vertex(3.25, 2.75, w, h), px_vertex(0.25, 0.25, w, h), px_vertex(3.25, 0.25, w, h),
+                          px_vertex(6.25, 0.25, w, h), px_vertex(6.25, 3.25, w, h), px_vertex(6.25, 6.25, w, h),
+                          px_vertex(3.25, 6.25, w, h), px_vertex(0.25, 6.25, w, h), px_vertex(0.25, 3.25, w, h)};
     uint32_t idx[24];
     for (int i = 0; i < 8; i++) {
         uint32_t a = 1 + i, b = 1 + (i + 1) % 8;
@@ -187,15 +190,16 @@ static void test_top_left(void **state)
     uint32_t idx[3] = {0, 1, 2};
     frame_init(&f, w, h, 2);
     draw(a, 3, idx, 1, o, &f);
-    assert_true(covered(&f, 0.25, 0.25));   /* top-left corner */
-    assert_true(covered(&f, 2.25, 0.25));   /* on the top edge */
-    assert_true(covered(&f, 0.25, 2.25));   /* on the left edge */
-    assert_true(covered(&f, 1.75, 2.25));   /* inside, next to the hypotenuse */
-    assert_false(covered(&f, 2.25, 2.25));  /* on the hypotenuse (a right edge) */
-    assert_false(covered(&f, 4.25, 0.25));  /* end of the top edge on the right edge */
-    assert_false(covered(&f, 0.25, 4.25));  /* end of the left edge on the bottom */
+    assert_true(covered(&f, 0.25, 0.25));  /* top-left corner */
+    assert_true(covered(&f, 2.25, 0.25));  /* on the top edge */
+    assert_true(covered(&f, 0.25, 2.25));  /* on the left edge */
+    assert_true(covered(&f, 1.75, 2.25));  /* inside, next to the hypotenuse */
+    assert_false(covered(&f, 2.25, 2.25)); /* on the hypotenuse (a right edge) */
+    assert_false(covered(&f, 4.25, 0.25)); /* end of the top edge on the right edge */
+    assert_false(covered(&f, 0.25, 4.25)); /* end of the left edge on the bottom */
     int n = 0;
-    for (int i = 0; i < f.sw * f.sh; i++) n += f.s[i].tri >= 0;
+    for (int i = 0; i < f.sw * f.sh; i++)
+        n += f.s[i].tri >= 0;
     /* samples (m, n) with m, n >= 0 and m + n <= 7 (m + n = 8 is the hypotenuse) */
     assert_int_equal(n, 36);
     frame_free(&f);
@@ -210,7 +214,8 @@ static void test_top_left(void **state)
     assert_false(covered(&f, 2.25, 4.25));
     assert_false(covered(&f, 4.25, 4.25));
     n = 0;
-    for (int i = 0; i < f.sw * f.sh; i++) n += f.s[i].tri >= 0;
+    for (int i = 0; i < f.sw * f.sh; i++)
+        n += f.s[i].tri >= 0;
     /* m + n >= 8 with m, n <= 7: 1 + 2 + ... + 7 = 28 */
     assert_int_equal(n, 28);
     frame_free(&f);
@@ -233,7 +238,8 @@ static void test_asymmetric_pixels(void **state)
         for (int i = 0; i < 16; i++) {
             const raster_sample *s = frame_at(&f, i, j);
             bool want = last_i[j] >= 0 && i >= 2 && i <= last_i[j];
-            if ((s->tri == 0) != want) fail_msg("pixel (%d,%d): tri %d", i, j, s->tri);
+            if ((s->tri == 0) != want)
+                fail_msg("pixel (%d,%d): tri %d", i, j, s->tri);
             if (want) {
                 /* affine (w = 1): P = v0 + b1 (8, 0) + b2 (0, 4); 1e-6 covers the float
                  * output and the float clip coordinates (exact here) */
@@ -257,7 +263,8 @@ static bool ray_tri(dvec3 dir, const dvec3 p[3], double *t, double *b1, double *
     dvec3 e1 = dv3_sub(p[1], p[0]), e2 = dv3_sub(p[2], p[0]);
     dvec3 n = dv3_cross(e1, e2);
     double dn = dv3_dot(n, dir);
-    if (dn == 0) return false;
+    if (dn == 0)
+        return false;
     *t = dv3_dot(n, p[0]) / dn;
     dvec3 q = dv3_sub(dv3_scale(dir, *t), p[0]);
     /* solve q = b1 e1 + b2 e2 by projecting on n x e2 and e1 x n */
@@ -279,7 +286,8 @@ static void test_perspective(void **state)
     /* a quad receding from depth 1.5 to 6, off-centre; values exact in float */
     dvec3 p[4] = {dv3(-1.0, -0.5, 1.5), dv3(1.25, -0.5, 1.5), dv3(1.25, 0.375, 6.0), dv3(-1.0, 0.375, 6.0)};
     raster_vertex v[4];
-    for (int i = 0; i < 4; i++) v[i] = view_vertex(p[i]);
+    for (int i = 0; i < 4; i++)
+        v[i] = view_vertex(p[i]);
     uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
     const int w = 40, h = 24, k = 2;
     raster_options o = {.width = w, .height = h, .supersample = k, .threads = 2, .tile = 16};
@@ -290,7 +298,8 @@ static void test_perspective(void **state)
     for (int sy = 0; sy < f.sh; sy++)
         for (int sx = 0; sx < f.sw; sx++) {
             const raster_sample *s = frame_at(&f, sx, sy);
-            if (s->tri < 0) continue;
+            if (s->tri < 0)
+                continue;
             n++;
             const uint32_t *ti = idx + 3 * s->tri;
             dvec3 q[3] = {p[ti[0]], p[ti[1]], p[ti[2]]};
@@ -304,8 +313,10 @@ static void test_perspective(void **state)
              * triangle get clamped weights, so compare those only loosely */
             bool interior = a1 > 1e-4 && a2 > 1e-4 && 1 - a1 - a2 > 1e-4;
             double tol = interior ? 1e-5 : 1e-3;
-            if (fabs(pos.z - t) > tol * t) fail_msg("sample (%d,%d): depth %.9g, analytic %.9g", sx, sy, pos.z, t);
-            if (fabs(pos.x - dir.x * t) > tol * t) fail_msg("sample (%d,%d): x %.9g, analytic %.9g", sx, sy, pos.x, dir.x * t);
+            if (fabs(pos.z - t) > tol * t)
+                fail_msg("sample (%d,%d): depth %.9g, analytic %.9g", sx, sy, pos.z, t);
+            if (fabs(pos.x - dir.x * t) > tol * t)
+                fail_msg("sample (%d,%d): x %.9g, analytic %.9g", sx, sy, pos.x, dir.x * t);
         }
     /* the quad's screen area, by the shoelace formula on its projected corners
      * (-2/3,-1/3) (5/6,-1/3) (5/24,1/16) (-1/6,1/16), is 0.37109 of the 4 NDC units */
@@ -319,7 +330,8 @@ static void test_near_clip(void **state)
     /* vertex 0 behind the camera, the others in front; near plane at depth 0.5 */
     dvec3 p[3] = {dv3(-0.5, -0.25, -2.0), dv3(1.5, -0.25, 3.0), dv3(-0.75, 1.0, 4.0)};
     raster_vertex v[3];
-    for (int i = 0; i < 3; i++) v[i] = view_vertex(p[i]);
+    for (int i = 0; i < 3; i++)
+        v[i] = view_vertex(p[i]);
     uint32_t idx[3] = {0, 1, 2};
     const int w = 48, h = 32, k = 2;
     const double near = 0.5;
@@ -347,7 +359,8 @@ static void test_near_clip(void **state)
             }
             if (in) {
                 n_in++;
-                if (s->tri != 0) fail_msg("sample (%d,%d) should be covered", sx, sy);
+                if (s->tri != 0)
+                    fail_msg("sample (%d,%d) should be covered", sx, sy);
                 /* weights are float; 1e-5 is far above float rounding yet catches any
                  * screen-space (non-perspective) interpolation */
                 assert_float_equal(s->b1, a1, 1e-5);
@@ -421,7 +434,8 @@ static void test_supersample_positions(void **state)
     for (int sy = 0; sy < f.sh; sy++)
         for (int sx = 0; sx < f.sw; sx++) {
             bool want = sx >= 6 && sx <= 15 && sy >= 5 && sy <= 11;
-            if ((frame_at(&f, sx, sy)->tri >= 0) != want) fail_msg("sample (%d,%d)", sx, sy);
+            if ((frame_at(&f, sx, sy)->tri >= 0) != want)
+                fail_msg("sample (%d,%d)", sx, sy);
         }
     frame_free(&f);
 
@@ -456,7 +470,8 @@ static void test_thread_tile_invariance(void **state)
         double size = (t % 17 == 0) ? 1.5 : 0.15;
         for (int i = 0; i < 3; i++) {
             double w = 0.5 + 3 * lcg_unit(&seed);
-            if (t % 23 == 0 && i == 0) w = -1.0;
+            if (t % 23 == 0 && i == 0)
+                w = -1.0;
             double x = cx + size * (lcg_unit(&seed) - 0.5), y = cy + size * (lcg_unit(&seed) - 0.5);
             v[3 * t + i] = (raster_vertex){(float)(x * w), (float)(y * w), (float)w};
             idx[3 * t + i] = (uint32_t)(3 * t + i);
@@ -468,7 +483,8 @@ static void test_thread_tile_invariance(void **state)
     raster_options o = {.width = w, .height = h, .supersample = k, .threads = 1, .tile = 16};
     draw(v, 3 * NT, idx, NT, o, &ref);
     int n_cov = 0;
-    for (int i = 0; i < ref.sw * ref.sh; i++) n_cov += ref.s[i].tri >= 0;
+    for (int i = 0; i < ref.sw * ref.sh; i++)
+        n_cov += ref.s[i].tri >= 0;
     assert_true(n_cov > ref.sw * ref.sh / 2);
     static const int threads[3] = {1, 2, 3}, tiles[3] = {8, 16, 32};
     for (int a = 0; a < 3; a++)
@@ -495,11 +511,11 @@ static void test_bad_options(void **state)
     frame_init(&f, 4, 4, 1);
     raster_options ok = {.width = 4, .height = 4};
     raster_options o;
-#define EXPECT_RANGE(field, value)                                                   \
-    do {                                                                             \
-        o = ok;                                                                      \
-        o.field = value;                                                             \
-        assert_int_equal(raster_draw(v, 3, idx, 1, &o, frame_tile, &f), RC_ERR_RANGE); \
+#define EXPECT_RANGE(field, value)                                                                                     \
+    do {                                                                                                               \
+        o = ok;                                                                                                        \
+        o.field = value;                                                                                               \
+        assert_int_equal(raster_draw(v, 3, idx, 1, &o, frame_tile, &f), RC_ERR_RANGE);                                 \
     } while (0)
     EXPECT_RANGE(width, 0);
     EXPECT_RANGE(width, -3);
@@ -519,7 +535,8 @@ static void test_bad_options(void **state)
     /* the good options still work, and an empty draw hands over every tile */
     assert_int_equal(raster_draw(v, 3, idx, 1, &ok, frame_tile, &f), RC_OK);
     assert_int_equal(raster_draw(v, 3, idx, 0, &ok, frame_tile, &f), RC_OK);
-    for (int i = 0; i < 16; i++) assert_int_equal(f.tile_hits[i], 2);
+    for (int i = 0; i < 16; i++)
+        assert_int_equal(f.tile_hits[i], 2);
     frame_free(&f);
 
     raster_options t3 = {.width = 4, .height = 4, .threads = 3};

@@ -84,7 +84,6 @@ static void test_cpu_time(void **state)
     assert_true(r.cpu_s <= r.wall_s * 1.5 + 0.05);
 }
 
-
 static void test_exit_127_is_a_failure_not_a_skip(void **state)
 {
     (void)state;
@@ -183,9 +182,12 @@ static void test_sigkill_takes_the_renderer(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_ok_and_log),        cmocka_unit_test(test_failed_exit_code),
-        cmocka_unit_test(test_crash_is_recorded), cmocka_unit_test(test_timeout_kills_the_group),
-        cmocka_unit_test(test_missing_program),   cmocka_unit_test(test_cpu_time),
+        cmocka_unit_test(test_ok_and_log),
+        cmocka_unit_test(test_failed_exit_code),
+        cmocka_unit_test(test_crash_is_recorded),
+        cmocka_unit_test(test_timeout_kills_the_group),
+        cmocka_unit_test(test_missing_program),
+        cmocka_unit_test(test_cpu_time),
         cmocka_unit_test(test_exit_127_is_a_failure_not_a_skip),
         cmocka_unit_test(test_bad_interpreter_is_a_failure),
         cmocka_unit_test(test_which),

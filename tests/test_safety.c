@@ -73,11 +73,7 @@ static void expect_same_bytes(const char *path, const char *want, size_t want_le
     free(got);
 }
 
-
-static void path_in(char *out, size_t len, const char *name)
-{
-    snprintf(out, len, "%s/%s", dir, name);
-}
+static void path_in(char *out, size_t len, const char *name) { snprintf(out, len, "%s/%s", dir, name); }
 
 /* A small scene with a mesh and an environment image beside it, so that all three inputs exist. */
 static void write_scene(void)
@@ -181,8 +177,8 @@ static void test_failed_write_keeps_destination(void **state)
     const char *precious = "precious bytes the user already had\n";
     spit(out, precious);
     /* dash counts ulimit -f in 512-byte blocks: 2 KiB takes the EXR header but not the image. */
-    int rc = sh_exec(err, sizeof err, "ulimit -f 4; %s render %s/v.yaml -o %s --width 64 --height 64", rc_cmd(), dir,
-                     out);
+    int rc =
+        sh_exec(err, sizeof err, "ulimit -f 4; %s render %s/v.yaml -o %s --width 64 --height 64", rc_cmd(), dir, out);
     if (rc != 1 || strstr(err, "dest.exr") == NULL || strstr(err, "File too large") == NULL)
         fail_msg("render under ulimit -f: exit %d, want 1 with the system's reason; stderr: %s", rc, err);
     expect_same_bytes(out, precious, strlen(precious));

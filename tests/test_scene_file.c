@@ -242,9 +242,9 @@ static void test_derived_defaults(void **state)
     assert_v3(m->d3d.diffuse, 0.2, 0.4, 0.6); /* = albedo */
 
     m = &s->materials[find_material(s, "given_r0")];
-    assert_float_equal(m->d9.r0, 0.25, TOL);  /* given wins over ior 4 */
-    assert_float_equal(m->d9.m, 0.75, TOL);   /* 1 - the given r0 */
-    assert_v3(m->ct.f0, 0.36, 0.36, 0.36);    /* ((1-4)/(1+4))^2, ct.f0 still follows ior */
+    assert_float_equal(m->d9.r0, 0.25, TOL); /* given wins over ior 4 */
+    assert_float_equal(m->d9.m, 0.75, TOL);  /* 1 - the given r0 */
+    assert_v3(m->ct.f0, 0.36, 0.36, 0.36);   /* ((1-4)/(1+4))^2, ct.f0 still follows ior */
 
     m = &s->materials[find_material(s, "metal")];
     assert_int_equal(m->conductor, 1);
@@ -353,10 +353,10 @@ static void test_bad_fixtures(void **state)
         memcpy(s, before, sizeof *s);
         rc_status rc = scene_file_load(path, s, err, sizeof err);
         snprintf(want, sizeof want, "%s:%s", path, b->place);
-        if (rc != b->rc || strncmp(err, want, strlen(want)) != 0 || !strstr(err, b->words) ||
-            !strstr(err, "allowed") || strchr(err, '\n'))
-            fail_msg("%s: rc %d (want %d), message:\n  %s\nwant prefix '%s' and '%s'", b->file, rc,
-                     b->rc, err, want, b->words);
+        if (rc != b->rc || strncmp(err, want, strlen(want)) != 0 || !strstr(err, b->words) || !strstr(err, "allowed") ||
+            strchr(err, '\n'))
+            fail_msg("%s: rc %d (want %d), message:\n  %s\nwant prefix '%s' and '%s'", b->file, rc, b->rc, err, want,
+                     b->words);
         assert_memory_equal(s, before, sizeof *s); /* untouched on failure */
     }
     free(s);
@@ -447,13 +447,15 @@ static void test_hostile_inputs(void **state)
     expect_fail("---\n...\n", 8, RC_ERR_PARSE);
     expect_fail("[1, 2, 3]\n", 10, RC_ERR_PARSE);
     expect_fail("just text\n", 10, RC_ERR_PARSE);
-    expect_fail("? [a, b]\n: 1\n", 13, RC_ERR_PARSE);            /* a list as a key */
+    expect_fail("? [a, b]\n: 1\n", 13, RC_ERR_PARSE);                      /* a list as a key */
     expect_fail("image: {width: \"\\0\", height: 1}\n", 32, RC_ERR_PARSE); /* NUL in a scalar */
     const char *hdr = "image: {width: 8, height: 8}\ncamera: {eye: [0,0,1], target: [0,0,0], hfov: 30}\n";
     char text[4096];
     /* Alias bomb: the walk is bounded by the schema, so it ends at once. */
-    snprintf(text, sizeof text, "%sa: &a [1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a]\n"
-             "c: &c [*b,*b,*b,*b,*b,*b,*b,*b]\nd: [*c,*c,*c,*c,*c,*c,*c,*c]\n", hdr);
+    snprintf(text, sizeof text,
+             "%sa: &a [1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a]\n"
+             "c: &c [*b,*b,*b,*b,*b,*b,*b,*b]\nd: [*c,*c,*c,*c,*c,*c,*c,*c]\n",
+             hdr);
     expect_fail(text, strlen(text), RC_ERR_PARSE);
     snprintf(text, sizeof text, "%sambient: &x [1, 1, 1]\nlights: [{type: point, position: *x, intensity: *x}]\n", hdr);
     {
@@ -464,25 +466,42 @@ static void test_hostile_inputs(void **state)
         free(s);
     }
     /* Too many lights, a list where a map is expected at each level. */
-    snprintf(text, sizeof text, "%slights: [%s]\n", hdr,
-             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
-             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
-             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
-             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
-             "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]}");
+    snprintf(
+        text, sizeof text, "%slights: [%s]\n", hdr,
+        "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+        "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+        "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+        "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},{type: sun, direction: [0,-1,0], irradiance: [1,1,1]},"
+        "{type: sun, direction: [0,-1,0], irradiance: [1,1,1]}");
     expect_fail(text, strlen(text), RC_ERR_RANGE);
     static const char *const lists[] = {
-        "lights: {type: point}\n", "lights: [[1, 2]]\n", "materials: [a, b]\n", "materials: {a: [1]}\n",
-        "materials: {a: {d3d: [1]}}\n", "objects: [[sphere]]\n", "objects: {a: 1}\n",
-        "comparisons: [[povray]]\n", "comparisons: [{reference: povray, thresholds: [1]}]\n",
-        "comparisons: [{reference: povray, thresholds: {rel_rms: [1, 2]}}]\n", "environment: [1, 1, 1]\n",
-        "ambient: {r: 1}\n", "ambient: [1, 1]\n", "ambient: 1\n", "name: [a]\n", "name: \"a b\"\n",
-        "materials: {a: {albedo: [1, 1, [1]]}}\n", "lights: [{type: [point]}]\n", "lights: [{}]\n",
-        "materials: {a: {d3d: {local_viewer: maybe}}}\n", "materials: {a: {d3d9client: {norm: 2}}}\n",
+        "lights: {type: point}\n",
+        "lights: [[1, 2]]\n",
+        "materials: [a, b]\n",
+        "materials: {a: [1]}\n",
+        "materials: {a: {d3d: [1]}}\n",
+        "objects: [[sphere]]\n",
+        "objects: {a: 1}\n",
+        "comparisons: [[povray]]\n",
+        "comparisons: [{reference: povray, thresholds: [1]}]\n",
+        "comparisons: [{reference: povray, thresholds: {rel_rms: [1, 2]}}]\n",
+        "environment: [1, 1, 1]\n",
+        "ambient: {r: 1}\n",
+        "ambient: [1, 1]\n",
+        "ambient: 1\n",
+        "name: [a]\n",
+        "name: \"a b\"\n",
+        "materials: {a: {albedo: [1, 1, [1]]}}\n",
+        "lights: [{type: [point]}]\n",
+        "lights: [{}]\n",
+        "materials: {a: {d3d: {local_viewer: maybe}}}\n",
+        "materials: {a: {d3d9client: {norm: 2}}}\n",
         "comparisons: [{reference: povray, thresholds: {Bad-Name: {warn: 1, fail: 2}}}]\n",
         "comparisons: [{reference: povray, thresholds: {rel_rms: {warn: 1}}}]\n",
-        "materials: {a: {}, a: {}}\n", "environment: {image: nothing_here.exr}\n",
-        "environment: {image: sky.png}\n", "objects: [{shape: cone, material: a}]\n",
+        "materials: {a: {}, a: {}}\n",
+        "environment: {image: nothing_here.exr}\n",
+        "environment: {image: sky.png}\n",
+        "objects: [{shape: cone, material: a}]\n",
     };
     for (size_t i = 0; i < sizeof lists / sizeof *lists; i++) {
         scene *s = malloc(sizeof *s);
@@ -562,8 +581,7 @@ static void test_environment_image_paths(void **state)
     assert_v3(s->env.radiance, 2, 2, 2);
     assert_string_equal(s->name, "scene");
     /* Relative to the scene file, not the working directory. */
-    assert_int_equal(scene_file_parse(text, strlen(text), "elsewhere/scene.yaml", s, err, sizeof err),
-                     RC_ERR_IO);
+    assert_int_equal(scene_file_parse(text, strlen(text), "elsewhere/scene.yaml", s, err, sizeof err), RC_ERR_IO);
     assert_non_null(strstr(err, "elsewhere/scene.yaml:3:"));
     assert_non_null(strstr(err, "environment.image"));
     remove(exr);

@@ -73,10 +73,14 @@ static void test_d3d_point_blinn(void **state)
 
     /* At x = (0.5, 0, 0): to light (-0.5, 2, 1), d^2 = 5.25; A = 1/5.75. */
     double lx = -0.5, ly = 2, lz = 1, d = sqrt(5.25);
-    lx /= d; ly /= d; lz /= d;
+    lx /= d;
+    ly /= d;
+    lz /= d;
     double colour = 10.0 / 5.75 / PI;
     double vx = -0.5, vy = 1, vz = -1, vl = sqrt(2.25);
-    vx /= vl; vy /= vl; vz /= vl;
+    vx /= vl;
+    vy /= vl;
+    vz /= vl;
     double hx = lx + vx, hy = ly + vy, hz = lz + vz, hl = sqrt(hx * hx + hy * hy + hz * hz);
     double spec_local = 0.5 * colour * pow(hy / hl, 20.0);
     /* Infinite viewer: E = norm(eye - target) = (0, 1, -1)/sqrt 2. */
@@ -167,10 +171,14 @@ static void test_cooktorrance_terms(void **state)
 
     double l[3] = {0.3, 1.0, -0.2}, ll = sqrt(0.09 + 1 + 0.04);
     double vv[3] = {0.2, 0.7, -0.6}, vl = sqrt(0.04 + 0.49 + 0.36);
-    for (int i = 0; i < 3; i++) { l[i] /= ll; vv[i] /= vl; }
+    for (int i = 0; i < 3; i++) {
+        l[i] /= ll;
+        vv[i] /= vl;
+    }
     double h[3] = {l[0] + vv[0], l[1] + vv[1], l[2] + vv[2]};
     double hl = sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-    for (int i = 0; i < 3; i++) h[i] /= hl;
+    for (int i = 0; i < 3; i++)
+        h[i] /= hl;
     double nl = l[1], nv = vv[1], nh = h[1], vh = vv[0] * h[0] + vv[1] * h[1] + vv[2] * h[2];
     double tan2 = (1 - nh * nh) / (nh * nh);
     double D = exp(-tan2 / 0.09) / (PI * 0.09 * nh * nh * nh * nh);

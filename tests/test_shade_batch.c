@@ -10,9 +10,9 @@
  * once, the D3D9Client kernel (whole and non-whole p, sun_angle with a sun or a point main
  * light, every colour norm, constant, no and image environment), Cook-Torrance (the kernels
  * for Beckmann D with V-cavity or Walter's Smith G and Schlick or unit Fresnel, m from 0.001;
- * the exact G and Fresnel and m < 1e-6 on shade_batch_scalar, so bit-identical), partial batches (lanes past n stay untouched), and
- * batches with a light closer than 1e-15 m or farther than 1e15 m (the whole batch must be
- * redone by shade_eval: bit-identical). Every output must be finite.
+ * the exact G and Fresnel and m < 1e-6 on shade_batch_scalar, so bit-identical), partial batches (lanes past n stay
+ * untouched), and batches with a light closer than 1e-15 m or farther than 1e15 m (the whole batch must be redone by
+ * shade_eval: bit-identical). Every output must be finite.
  *
  * Tolerance: every term component (diffuse, specular, reflection, emission, alpha) must satisfy
  * |batch - scalar| <= REL * max(|scalar|, floor), REL = 2e-5, floor = a fraction of the largest
@@ -57,12 +57,12 @@
 #include "env.h"
 #include "shade.h"
 
-#define FLOOR_FRACTION 1e-2
+#define FLOOR_FRACTION      1e-2
 #define SPOT_FLOOR_FRACTION 0.2
-#define REL 2e-5
+#define REL                 2e-5
 /* env_lookup_n vs env_lookup: |difference| as a fraction of the channel's full texel spread
  * (measured 9.9e-7; env.h allows a 1e-4 texel position difference). */
-#define ENV_SPREAD_TOL 2e-6
+#define ENV_SPREAD_TOL      2e-6
 
 /* ---- deterministic random numbers ---- */
 
@@ -191,7 +191,6 @@ static void make_inputs(const shade_context *c, const material *m, int n, shade_
     }
 }
 
-
 /* ---- comparison ---- */
 
 enum { T_DIFFUSE, T_SPECULAR, T_REFLECTION, T_EMISSION, T_ALPHA, T_COUNT };
@@ -217,16 +216,16 @@ static int batch_values(const shade_batch_out *o, int i, int term, float v[3])
 }
 
 typedef struct {
-    double worst[T_COUNT];  /* worst |batch - scalar| / max(|scalar|, floor) */
-    long lanes;             /* lanes compared */
-    long lit;               /* lanes whose scalar diffuse is non-zero */
+    double worst[T_COUNT]; /* worst |batch - scalar| / max(|scalar|, floor) */
+    long lanes;            /* lanes compared */
+    long lit;              /* lanes whose scalar diffuse is non-zero */
     long failures;
 } check_stat;
 
 typedef struct {
     const char *name;
-    double spec_rel;        /* specular tolerance (the others are REL) */
-    int exact;              /* bit-identical required (the scalar fallback) */
+    double spec_rel; /* specular tolerance (the others are REL) */
+    int exact;       /* bit-identical required (the scalar fallback) */
 } check_spec;
 
 static void stat_merge(check_stat *into, const check_stat *s)
@@ -255,9 +254,9 @@ static void report_mismatch(check_stat *st, const check_spec *spec, const shade_
     vec3 x = shade_lane_get(&in->x, lane), n = shade_lane_get(&in->nrm, lane), v = shade_lane_get(&in->v, lane);
     print_error("%s: lane %d of %d, %s[%d]: batch %.9g (%a), scalar %.9g (%a), error %.3g\n"
                 "  x = (%a, %a, %a) n = (%a, %a, %a) v = (%a, %a, %a)\n",
-                spec->name, lane, in->n, term_names[term], comp, (double)got, (double)got, (double)want,
-                (double)want, err, (double)x.x, (double)x.y, (double)x.z, (double)n.x, (double)n.y, (double)n.z,
-                (double)v.x, (double)v.y, (double)v.z);
+                spec->name, lane, in->n, term_names[term], comp, (double)got, (double)got, (double)want, (double)want,
+                err, (double)x.x, (double)x.y, (double)x.z, (double)n.x, (double)n.y, (double)n.z, (double)v.x,
+                (double)v.y, (double)v.z);
 }
 
 enum { MAX_BATCHES = 16 };
@@ -299,7 +298,8 @@ static void run_case(const shade_context *c, const shade_plan *p, const check_sp
         make_inputs(c, p->mat, lanes, &work.in[b]);
         for (int i = 0; i < lanes; i++) {
             shade_terms *t = &work.want[b][i];
-            shade_eval(c, p, shade_lane_get(&work.in[b].x, i), shade_lane_get(&work.in[b].nrm, i), shade_lane_get(&work.in[b].v, i), t);
+            shade_eval(c, p, shade_lane_get(&work.in[b].x, i), shade_lane_get(&work.in[b].nrm, i),
+                       shade_lane_get(&work.in[b].v, i), t);
             for (int term = 0; term < T_COUNT; term++) {
                 float w[3];
                 int k = term_values(t, term, w);
@@ -362,7 +362,6 @@ static void plan_for(const scene *s, const env_map *env, shade_context *c, shade
     /* The case is only a test of its kernel if the plan picked that kernel. */
     assert_true(p->batch == want);
 }
-
 
 /* run_case from its own seed, its statistics merged into *all; returns its failures. */
 static int run_seeded(const shade_context *c, const shade_plan *p, const check_spec *spec, uint64_t seed, int lanes,
@@ -884,7 +883,11 @@ static void test_unsafe_lane_fallback(void **state)
  * the scale): the lookups differ by a texel-position error times the local gradient, and the
  * gradient is at most that difference per texel. Channels without texels (constant, none,
  * NULL, an image without rgb) must be bit-identical. */
-typedef struct { double worst_pos; double worst_rel; vec3 at; } env_stat;
+typedef struct {
+    double worst_pos;
+    double worst_rel;
+    vec3 at;
+} env_stat;
 
 static void env_check_dirs(const env_map *e, int n, const float *dx, const float *dy, const float *dz, env_stat *st,
                            int *failures)
@@ -953,7 +956,7 @@ static int make_env_dirs(void)
     int n = 0;
     const float z = 0.0f, nz = -0.0f;
     /* Exact poles with x = -0 are left to test_env_lookup_n_pole_negative_zero. */
-    const vec3 axes[] = {{1, z, z}, {-1, z, z}, {z, 1, z}, {z, -1, z}, {z, z, 1}, {z, z, -1}, {-1, nz, z},
+    const vec3 axes[] = {{1, z, z},   {-1, z, z},   {z, 1, z},  {z, -1, z},  {z, z, 1},   {z, z, -1}, {-1, nz, z},
                          {-1, z, nz}, {-1, nz, nz}, {z, 1, nz}, {z, -1, nz}, {nz, z, -1}, {1, nz, nz}};
     for (size_t i = 0; i < sizeof axes / sizeof axes[0]; i++)
         n = push_dir(n, axes[i]);
@@ -1064,10 +1067,11 @@ static void test_env_lookup_n_pole_negative_zero(void **state)
     shade_eval_n(&c, &p, in, o);
     shade_terms t;
     shade_eval(&c, &p, v3(0.0f, 0.0f, 0.0f), v3(nz, 1.0f, 0.0f), v3(0.0f, 1.0f, 0.0f), &t);
-    print_message("# d3d9client n = (-0, 1, 0), v = (0, 1, 0): reflection batch (%.9g, %.9g, %.9g), scalar (%.9g, %.9g, "
-                  "%.9g)\n",
-                  (double)o->reflection.x[0], (double)o->reflection.y[0], (double)o->reflection.z[0],
-                  (double)t.reflection.x, (double)t.reflection.y, (double)t.reflection.z);
+    print_message(
+        "# d3d9client n = (-0, 1, 0), v = (0, 1, 0): reflection batch (%.9g, %.9g, %.9g), scalar (%.9g, %.9g, "
+        "%.9g)\n",
+        (double)o->reflection.x[0], (double)o->reflection.y[0], (double)o->reflection.z[0], (double)t.reflection.x,
+        (double)t.reflection.y, (double)t.reflection.z);
     const float got[3] = {o->reflection.x[0], o->reflection.y[0], o->reflection.z[0]};
     const float want[3] = {t.reflection.x, t.reflection.y, t.reflection.z};
     for (int ch = 0; ch < 3; ch++)

@@ -37,15 +37,15 @@
 
 #include "smath.h"
 
-#define LOG_BOUND 2.4e-7
-#define EXP_BOUND 1.3e-7
+#define LOG_BOUND           2.4e-7
+#define EXP_BOUND           1.3e-7
 #define EXP_SUBNORMAL_BOUND 0.9
-#define ATAN2_BOUND 3.4e-7
+#define ATAN2_BOUND         3.4e-7
 /* The exact results pow is held to (smath.h's domain of the claim). */
-#define POW_MIN_RESULT 1e-30
+#define POW_MIN_RESULT      1e-30
 
 typedef struct {
-    double worst;   /* worst error seen */
+    double worst; /* worst error seen */
     float at_x, at_y;
     long points;
 } sweep_stat;
@@ -111,10 +111,7 @@ static void test_log(void **state)
     assert_true(s.worst <= LOG_BOUND);
 }
 
-static void exp_point(sweep_stat *s, float y)
-{
-    stat_add(s, rel_err(smath_exp(y), exp((double)y)), y, 0.0f);
-}
+static void exp_point(sweep_stat *s, float y) { stat_add(s, rel_err(smath_exp(y), exp((double)y)), y, 0.0f); }
 
 /* Subnormal results: error in units of their spacing, 2^-149. */
 static void exp_subnormal_point(sweep_stat *s, float y)
@@ -177,7 +174,12 @@ static void test_exp(void **state)
 /* Per power: the worst relative error an exhaustive search over every float x in [0, 1] found
  * (where x^p > 1e-30), its argument, and the asserted bound (about 1.1 times that). Every one
  * is above smath.h's claimed 1e-6 except p = 0 (exact). */
-typedef struct { float p; double measured; float worst_x; double bound; } pow_case;
+typedef struct {
+    float p;
+    double measured;
+    float worst_x;
+    double bound;
+} pow_case;
 static const pow_case pow_cases[] = {
     {0.0f, 0.0, 0.5f, 0.0},
     {0.5f, 2.012e-6, 0x1.03810ap-109f, 2.2e-6},
@@ -272,16 +274,16 @@ static void test_atan2(void **state)
         atan2_point(&s, -1.0f, t);
     }
     /* Axes: results 0, pi/2, pi, -pi/2 (non-zero on both sides of each axis). */
-    const float axes[][2] = {{0.0f, 1.0f}, {1.0f, 0.0f}, {0.0f, -1.0f}, {-1.0f, 0.0f}, {1.0f, -0.0f},
+    const float axes[][2] = {{0.0f, 1.0f},   {1.0f, 0.0f},   {0.0f, -1.0f}, {-1.0f, 0.0f}, {1.0f, -0.0f},
                              {-1.0f, -0.0f}, {0.0f, 3e-30f}, {2e20f, 0.0f}, {0.0f, -5e25f}};
     for (size_t i = 0; i < sizeof axes / sizeof axes[0]; i++)
         atan2_point(&s, axes[i][0], axes[i][1]);
     /* Extreme magnitudes: ratios that underflow or overflow, subnormal pairs, FLT_MAX pairs. */
     const float big = FLT_MAX, tiny = FLT_TRUE_MIN;
-    const float ext[][2] = {{big, big},   {-big, big},   {big, -big},   {-big, -big}, {tiny, tiny},
-                            {-tiny, tiny}, {tiny, -tiny}, {-tiny, -tiny}, {tiny, big},  {big, tiny},
-                            {-tiny, -big}, {-big, -tiny}, {tiny, -big},  {3 * tiny, 7 * tiny},
-                            {FLT_MIN, -FLT_MIN}, {1e-30f, 1e30f}, {-1e30f, -1e-30f}};
+    const float ext[][2] = {
+        {big, big},    {-big, big},          {big, -big},         {-big, -big},    {tiny, tiny},     {-tiny, tiny},
+        {tiny, -tiny}, {-tiny, -tiny},       {tiny, big},         {big, tiny},     {-tiny, -big},    {-big, -tiny},
+        {tiny, -big},  {3 * tiny, 7 * tiny}, {FLT_MIN, -FLT_MIN}, {1e-30f, 1e30f}, {-1e30f, -1e-30f}};
     for (size_t i = 0; i < sizeof ext / sizeof ext[0]; i++)
         atan2_point(&s, ext[i][0], ext[i][1]);
     /* The worst arguments the offline searches found. */

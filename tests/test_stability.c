@@ -18,14 +18,14 @@
 #include "cooktorrance.h"
 #include "stability.h"
 
-
 static stability_table *table;
 
 static int setup(void **state)
 {
     (void)state;
     table = malloc(sizeof *table);
-    if (!table) return -1;
+    if (!table)
+        return -1;
     /* 1000 samples per case: every log-spaced extreme is still visited (the sweeps span
      * their ranges end to end) and the run takes well under a second. */
     stability_options o = {.samples = 1000};
@@ -42,7 +42,8 @@ static int teardown(void **state)
 static const stability_row *row(const char *fn, const char *cs)
 {
     const stability_row *r = stability_find(table, fn, cs);
-    if (!r) fail_msg("no stability row %s / %s", fn, cs ? cs : "*");
+    if (!r)
+        fail_msg("no stability row %s / %s", fn, cs ? cs : "*");
     return r;
 }
 
@@ -56,8 +57,8 @@ static void test_no_nan_inf_negative(void **state)
     for (int i = 0; i < table->n_rows; i++) {
         const stability_row *r = &table->rows[i];
         if (r->nan || r->inf || r->negative)
-            fail_msg("%s / %s: %ld NaN, %ld Inf, %ld negative (worst at %s)", r->function, r->case_name, r->nan,
-                     r->inf, r->negative, r->where);
+            fail_msg("%s / %s: %ld NaN, %ld Inf, %ld negative (worst at %s)", r->function, r->case_name, r->nan, r->inf,
+                     r->negative, r->where);
         if (r->kind != STABILITY_PHYSICS) {
             assert_true(r->samples >= 1000);
             assert_true(isfinite(r->max_ulp));
@@ -89,7 +90,7 @@ static void test_fresnel_monotonic(void **state)
         if (r->kind == STABILITY_PHYSICS &&
             (strcmp(r->function, "fresnel_schlick") == 0 || strcmp(r->function, "fresnel_d3d9") == 0)) {
             assert_int_equal(r->check_ok, 1);
-            assert_true(r->value == 0.0);   /* not a single float step backwards */
+            assert_true(r->value == 0.0); /* not a single float step backwards */
         }
     }
     /* The check can fail: for n > 2 + sqrt(3) the exact reflectance dips below R0
@@ -181,7 +182,8 @@ static void assert_ulp_at_most(const char *fn, double bound)
     int seen = 0;
     for (int i = 0; i < table->n_rows; i++) {
         const stability_row *r = &table->rows[i];
-        if (r->kind != STABILITY_ROUNDING || strcmp(r->function, fn) != 0) continue;
+        if (r->kind != STABILITY_ROUNDING || strcmp(r->function, fn) != 0)
+            continue;
         seen++;
         if (!(r->max_ulp <= bound))
             fail_msg("%s / %s: %.4g ulp > %.4g at %s", fn, r->case_name, r->max_ulp, bound, r->where);
@@ -215,7 +217,7 @@ static void test_ulp_bounds(void **state)
      * few ulps from the other factors; 1000 bounds the random-geometry sweep. */
     const stability_row *r = row("cooktorrance_specular[walter]", "random geometry");
     assert_true(r->max_ulp <= 1000.0);
-    assert_true(r->max_ulp > 1.0);   /* the float rounding of N.H is visible, as derived */
+    assert_true(r->max_ulp > 1.0); /* the float rounding of N.H is visible, as derived */
 }
 
 static void test_options_and_writers(void **state)
@@ -234,7 +236,8 @@ static void test_options_and_writers(void **state)
     assert_int_equal(stability_write_csv(f, table), 0);
     rewind(f);
     int lines = 0, c;
-    while ((c = fgetc(f)) != EOF) lines += c == '\n';
+    while ((c = fgetc(f)) != EOF)
+        lines += c == '\n';
     assert_int_equal(lines, table->n_rows + 1);
     fclose(f);
 
@@ -251,12 +254,9 @@ static void test_options_and_writers(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_no_nan_inf_negative),
-        cmocka_unit_test(test_fresnel_monotonic),
-        cmocka_unit_test(test_walter_albedo),
-        cmocka_unit_test(test_ct1982_breaks),
-        cmocka_unit_test(test_euclid_negative_weight),
-        cmocka_unit_test(test_ulp_bounds),
+        cmocka_unit_test(test_no_nan_inf_negative),    cmocka_unit_test(test_fresnel_monotonic),
+        cmocka_unit_test(test_walter_albedo),          cmocka_unit_test(test_ct1982_breaks),
+        cmocka_unit_test(test_euclid_negative_weight), cmocka_unit_test(test_ulp_bounds),
         cmocka_unit_test(test_options_and_writers),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

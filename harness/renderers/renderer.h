@@ -34,28 +34,28 @@ enum {
 
 typedef struct {
     const scene *s;
-    const mesh *m;            /* the scene's mesh (mesh_build) */
-    const env_map *env;       /* the environment, loaded and checked */
+    const mesh *m;      /* the scene's mesh (mesh_build) */
+    const env_map *env; /* the environment, loaded and checked */
     comparison_role role;
-    int threads;              /* 0 = all cores */
-    int seeds;                /* stochastic renderers: seeds averaged, 0 = 2 */
-    int seed;                 /* first seed */
-    double timeout;           /* seconds before the renderer is killed; 0 = 600 */
-    int partial;              /* twin: terms it cannot reproduce may be left out (r->left_out) */
-    const char *dir;          /* a private work folder that exists */
-    const char *exr;          /* the image to write */
-    const char *log;          /* the renderer's console output */
-    const char *shown_log;    /* the log messages name; NULL = log */
-    const char *version;      /* the version line, stored in the image */
-    const void *options;      /* the translator's own options struct, NULL = derived from the above */
+    int threads;           /* 0 = all cores */
+    int seeds;             /* stochastic renderers: seeds averaged, 0 = 2 */
+    int seed;              /* first seed */
+    double timeout;        /* seconds before the renderer is killed; 0 = 600 */
+    int partial;           /* twin: terms it cannot reproduce may be left out (r->left_out) */
+    const char *dir;       /* a private work folder that exists */
+    const char *exr;       /* the image to write */
+    const char *log;       /* the renderer's console output */
+    const char *shown_log; /* the log messages name; NULL = log */
+    const char *version;   /* the version line, stored in the image */
+    const void *options;   /* the translator's own options struct, NULL = derived from the above */
 } renderer_job;
 
 typedef struct {
-    runner_status status;     /* RUNNER_OK, or why not (RUNNER_MISSING: cannot represent the scene) */
+    runner_status status; /* RUNNER_OK, or why not (RUNNER_MISSING: cannot represent the scene) */
     char message[512];
     double wall_s, cpu_s;
     char command[2048];
-    unsigned left_out;        /* RENDERER_TERM_* bits left out of the image */
+    unsigned left_out;               /* RENDERER_TERM_* bits left out of the image */
     char why[RENDERER_N_TERMS][200]; /* per left-out term (bit index), the reason */
 } renderer_result;
 
@@ -66,8 +66,7 @@ const char *renderer_term_name(int i);
 /* The bit of a term name, 0 if unknown. */
 unsigned renderer_term_from_name(const char *name);
 /* Sets the result's status and a formatted message. */
-void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 /* A renderer process that did not end well: status and a message naming the kind of end,
  * `what` appended inside the parentheses, the first error line of the log (`marker` picks
  * it: a line holding it; NULL = none) and the shown log. */

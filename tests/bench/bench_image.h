@@ -15,12 +15,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct { int32_t width, height, channels; float *data; } bench_image;
+typedef struct {
+    int32_t width, height, channels;
+    float *data;
+} bench_image;
 
 static inline int bench_image_write(const char *path, int w, int h, int n, const float *const *planes)
 {
     FILE *f = fopen(path, "wb");
-    if (!f) return -1;
+    if (!f)
+        return -1;
     int32_t hdr[3] = {w, h, n};
     int bad = fwrite("RCBENCH1", 1, 8, f) != 8 || fwrite(hdr, sizeof hdr, 1, f) != 1;
     for (int c = 0; c < n && !bad; c++)
@@ -32,7 +36,8 @@ static inline int bench_image_read(const char *path, bench_image *im)
 {
     memset(im, 0, sizeof *im);
     FILE *f = fopen(path, "rb");
-    if (!f) return -1;
+    if (!f)
+        return -1;
     char magic[8];
     int32_t hdr[3];
     if (fread(magic, 1, 8, f) != 8 || memcmp(magic, "RCBENCH1", 8) != 0 || fread(hdr, sizeof hdr, 1, f) != 1 ||

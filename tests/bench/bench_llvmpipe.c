@@ -30,15 +30,15 @@
 #include "render.h"
 
 /* Shared by both shading programs: env_lookup's mapping (env.h). */
-#define BENCH_GLSL_ENV \
-    "uniform sampler2D u_env;\n" \
-    "uniform vec3 u_env_scale;\n" \
-    "vec3 env(vec3 d) {\n" \
-    "    d = normalize(d);\n" \
-    "    float y = clamp(d.y, -1.0, 1.0);\n" \
-    "    float u = 0.5 + atan(d.z, d.x) / 6.28318530717958647692;\n" \
-    "    float v = 0.5 + asin(y) / 3.14159265358979323846;\n" \
-    "    return textureLod(u_env, vec2(u, 1.0 - v), 0.0).rgb * u_env_scale;\n" \
+#define BENCH_GLSL_ENV                                                                                                 \
+    "uniform sampler2D u_env;\n"                                                                                       \
+    "uniform vec3 u_env_scale;\n"                                                                                      \
+    "vec3 env(vec3 d) {\n"                                                                                             \
+    "    d = normalize(d);\n"                                                                                          \
+    "    float y = clamp(d.y, -1.0, 1.0);\n"                                                                           \
+    "    float u = 0.5 + atan(d.z, d.x) / 6.28318530717958647692;\n"                                                   \
+    "    float v = 0.5 + asin(y) / 3.14159265358979323846;\n"                                                          \
+    "    return textureLod(u_env, vec2(u, 1.0 - v), 0.0).rgb * u_env_scale;\n"                                         \
     "}\n"
 
 static const char *const bench_vs_mesh =
@@ -60,44 +60,41 @@ static const char *const bench_vs_mesh =
     "    v_nrm = a_nrm;\n"
     "}\n";
 
-static const char *const bench_fs_depth =
-    "#version 330 core\n"
-    "void main() {}\n";
+static const char *const bench_fs_depth = "#version 330 core\n"
+                                          "void main() {}\n";
 
 /* Lights: u_lpos.w = 0 for a sun (xyz = unit direction to the light), 1 for a point light
  * with 1/d^2 falloff; u_lint is I or E. */
-static const char *const bench_fs_shade =
-    "#version 330 core\n"
-    BENCH_GLSL_ENV
-    "in vec3 v_pos;\n"
-    "in vec3 v_nrm;\n"
-    "out vec4 o_rgba;\n"
-    "uniform vec3 u_eye;\n"
-    "uniform int u_nlights;\n"
-    "uniform vec4 u_lpos[8];\n"
-    "uniform vec3 u_lint[8];\n"
-    "uniform vec3 u_vd, u_vs, u_ve, u_lambda, u_fcol;\n"
-    "uniform float u_power, u_r0, u_m, u_fp, u_dw;\n"
-    "void main() {\n"
-    "    vec3 n = normalize(v_nrm);\n"
-    "    vec3 v = normalize(u_eye - v_pos);\n"
-    "    if (dot(n, v) < 0.0) n = -n;\n"
-    "    vec3 diff = vec3(0.0), spec = vec3(0.0);\n"
-    "    for (int i = 0; i < u_nlights; i++) {\n"
-    "        vec3 l, e;\n"
-    "        if (u_lpos[i].w == 0.0) { l = u_lpos[i].xyz; e = u_lint[i]; }\n"
-    "        else { vec3 d = u_lpos[i].xyz - v_pos; float dist = length(d); l = d / dist; e = u_lint[i] / (dist * dist); }\n"
-    "        float nl = dot(n, l);\n"
-    "        if (nl <= 0.0) continue;\n"
-    "        vec3 c = e * 0.318309886183790671538;\n"
-    "        diff += u_vd * c * min(nl, 1.0);\n"
-    "        float nh = dot(n, normalize(l + v));\n"
-    "        spec += u_vs * c * (nh > 0.0 ? pow(min(nh, 1.0), u_power) : 0.0);\n"
-    "    }\n"
-    "    float r = u_r0 + u_m * pow(1.0 - clamp(dot(n, v), 0.0, 1.0), u_fp);\n"
-    "    vec3 refl = (u_lambda * (1.0 - r) + u_fcol * r) * env(reflect(-v, n));\n"
-    "    o_rgba = vec4(diff * u_dw + spec + refl + u_ve, 1.0);\n"
-    "}\n";
+static const char *const bench_fs_shade = "#version 330 core\n" BENCH_GLSL_ENV "in vec3 v_pos;\n"
+                                          "in vec3 v_nrm;\n"
+                                          "out vec4 o_rgba;\n"
+                                          "uniform vec3 u_eye;\n"
+                                          "uniform int u_nlights;\n"
+                                          "uniform vec4 u_lpos[8];\n"
+                                          "uniform vec3 u_lint[8];\n"
+                                          "uniform vec3 u_vd, u_vs, u_ve, u_lambda, u_fcol;\n"
+                                          "uniform float u_power, u_r0, u_m, u_fp, u_dw;\n"
+                                          "void main() {\n"
+                                          "    vec3 n = normalize(v_nrm);\n"
+                                          "    vec3 v = normalize(u_eye - v_pos);\n"
+                                          "    if (dot(n, v) < 0.0) n = -n;\n"
+                                          "    vec3 diff = vec3(0.0), spec = vec3(0.0);\n"
+                                          "    for (int i = 0; i < u_nlights; i++) {\n"
+                                          "        vec3 l, e;\n"
+                                          "        if (u_lpos[i].w == 0.0) { l = u_lpos[i].xyz; e = u_lint[i]; }\n"
+                                          "        else { vec3 d = u_lpos[i].xyz - v_pos; float dist = length(d); l = "
+                                          "d / dist; e = u_lint[i] / (dist * dist); }\n"
+                                          "        float nl = dot(n, l);\n"
+                                          "        if (nl <= 0.0) continue;\n"
+                                          "        vec3 c = e * 0.318309886183790671538;\n"
+                                          "        diff += u_vd * c * min(nl, 1.0);\n"
+                                          "        float nh = dot(n, normalize(l + v));\n"
+                                          "        spec += u_vs * c * (nh > 0.0 ? pow(min(nh, 1.0), u_power) : 0.0);\n"
+                                          "    }\n"
+                                          "    float r = u_r0 + u_m * pow(1.0 - clamp(dot(n, v), 0.0, 1.0), u_fp);\n"
+                                          "    vec3 refl = (u_lambda * (1.0 - r) + u_fcol * r) * env(reflect(-v, n));\n"
+                                          "    o_rgba = vec4(diff * u_dw + spec + refl + u_ve, 1.0);\n"
+                                          "}\n";
 
 /* A triangle covering the screen at depth 1 (z = w): drawn after the mesh with GL_LEQUAL,
  * so only samples no triangle covers run it. */
@@ -108,22 +105,19 @@ static const char *const bench_vs_full =
     "    gl_Position = vec4(p, 1.0, 1.0);\n"
     "}\n";
 
-static const char *const bench_fs_background =
-    "#version 330 core\n"
-    BENCH_GLSL_ENV
-    "out vec4 o_rgba;\n"
-    "uniform vec3 u_right, u_up, u_fwd;\n"
-    "uniform vec2 u_tan;\n"
-    "uniform vec2 u_size;\n"   /* final image size in pixels */
-    "uniform float u_k;\n"
-    "void main() {\n"
-    "    float sx = gl_FragCoord.x / u_k;\n"
-    "    float sy = (u_size.y * u_k - gl_FragCoord.y) / u_k;\n"
-    "    float nx = 2.0 * sx / u_size.x - 1.0;\n"
-    "    float ny = 1.0 - 2.0 * sy / u_size.y;\n"
-    "    vec3 d = u_fwd + u_right * (nx * u_tan.x);\n"
-    "    o_rgba = vec4(env(d + u_up * (ny * u_tan.y)), 0.0);\n"
-    "}\n";
+static const char *const bench_fs_background = "#version 330 core\n" BENCH_GLSL_ENV "out vec4 o_rgba;\n"
+                                               "uniform vec3 u_right, u_up, u_fwd;\n"
+                                               "uniform vec2 u_tan;\n"
+                                               "uniform vec2 u_size;\n" /* final image size in pixels */
+                                               "uniform float u_k;\n"
+                                               "void main() {\n"
+                                               "    float sx = gl_FragCoord.x / u_k;\n"
+                                               "    float sy = (u_size.y * u_k - gl_FragCoord.y) / u_k;\n"
+                                               "    float nx = 2.0 * sx / u_size.x - 1.0;\n"
+                                               "    float ny = 1.0 - 2.0 * sy / u_size.y;\n"
+                                               "    vec3 d = u_fwd + u_right * (nx * u_tan.x);\n"
+                                               "    o_rgba = vec4(env(d + u_up * (ny * u_tan.y)), 0.0);\n"
+                                               "}\n";
 
 static const char *const bench_fs_down =
     "#version 330 core\n"
@@ -168,7 +162,8 @@ static GLuint bench_program(const char *vs, const char *fs)
     glLinkProgram(p);
     GLint ok = 0;
     glGetProgramiv(p, GL_LINK_STATUS, &ok);
-    if (!ok) bench_die("program link failed");
+    if (!ok)
+        bench_die("program link failed");
     return p;
 }
 
@@ -216,16 +211,25 @@ int main(int argc, char **argv)
     int size = 1024, k = 4, tris = 10000, threads = 1, reps = 3, prepass = 1;
     for (int i = 1; i + 1 < argc; i += 2) {
         const char *a = argv[i], *v = argv[i + 1];
-        if (!strcmp(a, "--scene")) scene_path = v;
-        else if (!strcmp(a, "--size")) size = atoi(v);
-        else if (!strcmp(a, "--k")) k = atoi(v);
-        else if (!strcmp(a, "--tris")) tris = atoi(v);
-        else if (!strcmp(a, "--threads")) threads = atoi(v);
-        else if (!strcmp(a, "--reps")) reps = atoi(v);
-        else if (!strcmp(a, "--prepass")) prepass = atoi(v);
-        else if (!strcmp(a, "--out")) out_path = v;
+        if (!strcmp(a, "--scene"))
+            scene_path = v;
+        else if (!strcmp(a, "--size"))
+            size = atoi(v);
+        else if (!strcmp(a, "--k"))
+            k = atoi(v);
+        else if (!strcmp(a, "--tris"))
+            tris = atoi(v);
+        else if (!strcmp(a, "--threads"))
+            threads = atoi(v);
+        else if (!strcmp(a, "--reps"))
+            reps = atoi(v);
+        else if (!strcmp(a, "--prepass"))
+            prepass = atoi(v);
+        else if (!strcmp(a, "--out"))
+            out_path = v;
         else {
-            fprintf(stderr, "bench_llvmpipe: unknown option %s; see the usage comment in tests/bench/bench_llvmpipe.c\n", a);
+            fprintf(stderr,
+                    "bench_llvmpipe: unknown option %s; see the usage comment in tests/bench/bench_llvmpipe.c\n", a);
             return 2;
         }
     }
@@ -244,7 +248,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_llvmpipe: %s\n", err);
         bench_die("scene, environment or mesh not loaded; see stderr");
     }
-    if (env.kind != ENV_IMAGE) bench_die("the GLSL twin needs an image environment");
+    if (env.kind != ENV_IMAGE)
+        bench_die("the GLSL twin needs an image environment");
     for (int o = 0; o < s.n_objects; o++) {
         const material *mt = &s.materials[s.objects[o].material];
         if (mt->model != MODEL_D3D9CLIENT || mt->d9.sun_angle || mt->d9.norm != NORM_MAX || mt->d3d.per_vertex ||
@@ -253,17 +258,29 @@ int main(int argc, char **argv)
     }
     for (int i = 0; i < s.n_lights; i++) {
         const light *l = &s.lights[i];
-        if (l->kind == LIGHT_SPOT || (l->kind == LIGHT_POINT && (l->a0 != 0 || l->a1 != 0 || l->a2 != 1 || isfinite(l->range))) ||
+        if (l->kind == LIGHT_SPOT ||
+            (l->kind == LIGHT_POINT && (l->a0 != 0 || l->a1 != 0 || l->a2 != 1 || isfinite(l->range))) ||
             v3_max_comp(l->ambient) != 0.0f || v3_max_comp(s.global_ambient) != 0.0f)
             bench_die("the GLSL twin handles sun and 1/d^2 point lights without ambient only");
     }
 
-    int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 0, OSMESA_PROFILE, OSMESA_CORE_PROFILE,
-                     OSMESA_CONTEXT_MAJOR_VERSION, 3, OSMESA_CONTEXT_MINOR_VERSION, 3, 0};
+    int attribs[] = {OSMESA_FORMAT,
+                     OSMESA_RGBA,
+                     OSMESA_DEPTH_BITS,
+                     0,
+                     OSMESA_PROFILE,
+                     OSMESA_CORE_PROFILE,
+                     OSMESA_CONTEXT_MAJOR_VERSION,
+                     3,
+                     OSMESA_CONTEXT_MINOR_VERSION,
+                     3,
+                     0};
     OSMesaContext ctx = OSMesaCreateContextAttribs(attribs, NULL);
-    if (!ctx) bench_die("OSMesaCreateContextAttribs failed (core 3.3)");
+    if (!ctx)
+        bench_die("OSMesaCreateContextAttribs failed (core 3.3)");
     static unsigned char dummy[4 * 16 * 16];
-    if (!OSMesaMakeCurrent(ctx, dummy, GL_UNSIGNED_BYTE, 16, 16)) bench_die("OSMesaMakeCurrent failed");
+    if (!OSMesaMakeCurrent(ctx, dummy, GL_UNSIGNED_BYTE, 16, 16))
+        bench_die("OSMesaMakeCurrent failed");
 
     int big_w = size * k, big_h = size * k;
     GLint max_rb = 0, max_tex = 0, max_vp[2] = {0, 0};
@@ -326,7 +343,8 @@ int main(int argc, char **argv)
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_big);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex_big, 0);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, rb_depth);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) bench_die("big FBO incomplete");
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        bench_die("big FBO incomplete");
 
     glGenTextures(1, &tex_small);
     glActiveTexture(GL_TEXTURE2);
@@ -335,14 +353,16 @@ int main(int argc, char **argv)
     glGenFramebuffers(1, &fbo_small);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo_small);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex_small, 0);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) bench_die("small FBO incomplete");
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        bench_die("small FBO incomplete");
     glActiveTexture(GL_TEXTURE0);
 
     glGenVertexArrays(1, &vao);
     glBindVertexArray(vao);
     glGenBuffers(2, vbo);
     float *inter = malloc((size_t)m.n_verts * 6 * sizeof *inter);
-    if (!inter) bench_die("out of memory");
+    if (!inter)
+        bench_die("out of memory");
     for (int i = 0; i < m.n_verts; i++) {
         memcpy(inter + 6 * (size_t)i, &m.pos[i], 3 * sizeof(float));
         memcpy(inter + 6 * (size_t)i + 3, &m.nrm[i], 3 * sizeof(float));
@@ -365,14 +385,17 @@ int main(int argc, char **argv)
     }
     for (int t = 0; t < m.n_tris; t++) {
         int o = m.tri_object[t];
-        if (first[o] < 0) first[o] = t;
-        if (first[o] + count[o] != t) bench_die("object triangles not contiguous");
+        if (first[o] < 0)
+            first[o] = t;
+        if (first[o] + count[o] != t)
+            bench_die("object triangles not contiguous");
         count[o]++;
     }
 
     float *px = malloc((size_t)size * size * 4 * sizeof *px);
     double *ms = malloc((size_t)(reps + 1) * sizeof *ms);
-    if (!px || !ms) bench_die("out of memory");
+    if (!px || !ms)
+        bench_die("out of memory");
     glDisable(GL_CULL_FACE);
     glEnable(GL_DEPTH_TEST);
     glClearDepth(1.0);
@@ -388,7 +411,9 @@ int main(int argc, char **argv)
             glDepthFunc(GL_LESS);
             glUseProgram(p_depth);
             for (int o = 0; o < s.n_objects; o++)
-                if (count[o]) glDrawElements(GL_TRIANGLES, 3 * count[o], GL_UNSIGNED_INT, (void *)(3 * sizeof(uint32_t) * (size_t)first[o]));
+                if (count[o])
+                    glDrawElements(GL_TRIANGLES, 3 * count[o], GL_UNSIGNED_INT,
+                                   (void *)(3 * sizeof(uint32_t) * (size_t)first[o]));
             glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
             glDepthFunc(GL_EQUAL);
             glDepthMask(GL_FALSE);
@@ -397,9 +422,11 @@ int main(int argc, char **argv)
         }
         glUseProgram(p_shade);
         for (int o = 0; o < s.n_objects; o++) {
-            if (!count[o]) continue;
+            if (!count[o])
+                continue;
             bench_set_material(p_shade, &s.materials[s.objects[o].material]);
-            glDrawElements(GL_TRIANGLES, 3 * count[o], GL_UNSIGNED_INT, (void *)(3 * sizeof(uint32_t) * (size_t)first[o]));
+            glDrawElements(GL_TRIANGLES, 3 * count[o], GL_UNSIGNED_INT,
+                           (void *)(3 * sizeof(uint32_t) * (size_t)first[o]));
         }
         glDepthFunc(GL_LEQUAL);
         glDepthMask(GL_FALSE);
@@ -414,7 +441,8 @@ int main(int argc, char **argv)
         glEnable(GL_DEPTH_TEST);
         ms[r] = 1e3 * (bench_now() - t0);
     }
-    if (glGetError() != GL_NO_ERROR) bench_die("GL error during the frame");
+    if (glGetError() != GL_NO_ERROR)
+        bench_die("GL error during the frame");
     double first_ms = ms[0];
     qsort(ms + 1, (size_t)reps, sizeof *ms, bench_cmp_double);
     double median = reps % 2 ? ms[1 + reps / 2] : 0.5 * (ms[reps / 2] + ms[1 + reps / 2]);
@@ -423,13 +451,15 @@ int main(int argc, char **argv)
         /* GL row 0 is the bottom; the bench image has row 0 at the top. */
         size_t n = (size_t)size * size;
         float *planes = malloc(3 * n * sizeof *planes);
-        if (!planes) bench_die("out of memory");
+        if (!planes)
+            bench_die("out of memory");
         for (int y = 0; y < size; y++)
             for (int x = 0; x < size; x++)
                 for (int c = 0; c < 3; c++)
                     planes[c * n + (size_t)y * size + x] = px[4 * ((size_t)(size - 1 - y) * size + x) + c];
         const float *ch[3] = {planes, planes + n, planes + 2 * n};
-        if (bench_image_write(out_path, size, size, 3, ch) != 0) bench_die("cannot write --out");
+        if (bench_image_write(out_path, size, size, 3, ch) != 0)
+            bench_die("cannot write --out");
         free(planes);
     }
     printf("{\"ok\": true, \"renderer\": \"%s\", \"gl_version\": \"%s\", \"size\": %d, \"k\": %d, \"tris\": %d, "

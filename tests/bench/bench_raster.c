@@ -35,10 +35,10 @@
 /* Floating-point operations per sample of the D3D9Client path with one point light and one
  * sun, counted from the formulas (README, "Flop count"): add/mul/compare-free arithmetic 1,
  * fma 2, div/sqrt 1, pow/atan2/asin at the cost of a minimax polynomial (~20). */
-#define BENCH_FLOP_SURFACE 360.0
+#define BENCH_FLOP_SURFACE    360.0
 #define BENCH_FLOP_BACKGROUND 100.0
-#define BENCH_MIB (1024.0 * 1024.0)
-#define BENCH_MAX_RUNS 128
+#define BENCH_MIB             (1024.0 * 1024.0)
+#define BENCH_MAX_RUNS        128
 
 typedef struct {
     int size, k, tris, threads, reps;
@@ -51,17 +51,17 @@ typedef struct {
     double first_ms, ms_median, ms_min, ms_max;
     long long shaded, samples;
     double peak_mib, fb_mib, input_mib;
-    double kernel_ns[2];   /* specialisation: ns per lane of shade_eval_n, specialised and general */
+    double kernel_ns[2]; /* specialisation: ns per lane of shade_eval_n, specialised and general */
 } bench_result;
 
 typedef struct {
     bench_cfg c;
-    bench_result r[2];     /* 1 and 2 threads */
-    int identical;         /* 1 = memcmp equal, 0 = differ, -1 = not compared */
+    bench_result r[2]; /* 1 and 2 threads */
+    int identical;     /* 1 = memcmp equal, 0 = differ, -1 = not compared */
     int has_peer;
     bench_result lp[2][2]; /* [threads-1][prepass] */
     double lp_peak_mib[2][2];
-    double diff_rel_rms, diff_max_abs, diff_share;   /* share of pixels with |d| > 1e-3 (1 + |ours|) */
+    double diff_rel_rms, diff_max_abs, diff_share; /* share of pixels with |d| > 1e-3 (1 + |ours|) */
 } bench_row;
 
 static const char *g_scene = "tests/bench/bench_scene.yaml";
@@ -109,7 +109,8 @@ static void bench_in_child(void (*fn)(const void *arg, bench_result *r), const v
     ssize_t got = 0;
     while (got < (ssize_t)sizeof *out) {
         ssize_t n = read(fd[0], (char *)out + got, sizeof *out - (size_t)got);
-        if (n <= 0) break;
+        if (n <= 0)
+            break;
         got += n;
     }
     close(fd[0]);
@@ -126,7 +127,7 @@ static void bench_in_child(void (*fn)(const void *arg, bench_result *r), const v
 
 typedef struct {
     bench_cfg c;
-    const char *out_path;   /* NULL: no image */
+    const char *out_path; /* NULL: no image */
 } bench_raster_arg;
 
 static void bench_raster_child(const void *varg, bench_result *r)
@@ -136,12 +137,17 @@ static void bench_raster_child(const void *varg, bench_result *r)
     env_map env;
     float *env_px = NULL;
     mesh m;
-    if (bench_frame_load(g_scene, BENCH_SCENE_REFLECT, a->c.tris, &s, &env, &env_px, &m, r->err, sizeof r->err) != RC_OK)
+    if (bench_frame_load(g_scene, BENCH_SCENE_REFLECT, a->c.tris, &s, &env, &env_px, &m, r->err, sizeof r->err) !=
+        RC_OK)
         return;
     r->n_tris = m.n_tris;
     r->input_mib = ((double)m.n_verts * 2 * sizeof(vec3) + (double)m.n_tris * (3 * sizeof(uint32_t) + sizeof(int)) +
-                    3.0 * sizeof(float) * env.width * env.height) / BENCH_MIB;
-    render_options o = {.threads = a->c.threads, .aovs = RENDER_AOV_NONE, .width = a->c.size, .height = a->c.size,
+                    3.0 * sizeof(float) * env.width * env.height) /
+                   BENCH_MIB;
+    render_options o = {.threads = a->c.threads,
+                        .aovs = RENDER_AOV_NONE,
+                        .width = a->c.size,
+                        .height = a->c.size,
                         .supersample = a->c.k};
     double ms[64];
     int reps = a->c.reps < 1 ? 1 : a->c.reps > 63 ? 63 : a->c.reps;
@@ -158,8 +164,10 @@ static void bench_raster_child(const void *varg, bench_result *r)
             return;
         }
         double t = 1e3 * (bench_now() - t0);
-        if (i == 0) r->first_ms = t;
-        if (i >= warm) ms[i - warm] = t;
+        if (i == 0)
+            r->first_ms = t;
+        if (i >= warm)
+            ms[i - warm] = t;
     }
     r->ms_median = bench_median(ms, reps);
     r->ms_min = ms[0];
@@ -169,7 +177,8 @@ static void bench_raster_child(const void *varg, bench_result *r)
     int n_fb = 0;
     const float *planes[RENDER_CHANNELS];
     for (int c = 0; c < RENDER_CHANNELS; c++)
-        if (img.chan[c]) planes[n_fb++] = img.chan[c];
+        if (img.chan[c])
+            planes[n_fb++] = img.chan[c];
     r->fb_mib = (double)n_fb * img.width * img.height * sizeof(float) / BENCH_MIB;
     if (a->out_path && bench_image_write(a->out_path, img.width, img.height, n_fb, planes) != 0)
         snprintf(r->err, sizeof r->err, "cannot write %s", a->out_path);
@@ -194,9 +203,11 @@ static const char *bench_json_value(const char *json, const char *key)
     char pat[64];
     snprintf(pat, sizeof pat, "\"%s\"", key);
     const char *p = strstr(json, pat);
-    if (!p) return NULL;
+    if (!p)
+        return NULL;
     p += strlen(pat);
-    while (*p == ' ' || *p == '\t' || *p == ':' || *p == '\n' || *p == '\r') p++;
+    while (*p == ' ' || *p == '\t' || *p == ':' || *p == '\n' || *p == '\r')
+        p++;
     return p;
 }
 
@@ -212,7 +223,8 @@ static void bench_lp_child(const void *varg, bench_result *r)
 {
     const bench_lp_arg *a = varg;
     int fd[2];
-    if (pipe(fd) != 0) return;
+    if (pipe(fd) != 0)
+        return;
     pid_t pid = fork();
     if (pid == 0) {
         dup2(fd[1], 1);
@@ -226,8 +238,8 @@ static void bench_lp_child(const void *varg, bench_result *r)
         snprintf(rp, sizeof rp, "%d", a->c.reps);
         snprintf(pp, sizeof pp, "%d", a->prepass);
         /* execv wants char *const[]; copies avoid casting const away. */
-        char *argv[32] = {strdup(a->bin), "--scene", strdup(g_scene), "--size", sz, "--k", k, "--tris", tr,
-                          "--threads", th, "--reps", rp, "--prepass", pp, NULL};
+        char *argv[32] = {strdup(a->bin), "--scene", strdup(g_scene), "--size", sz,          "--k", k,   "--tris", tr,
+                          "--threads",    th,        "--reps",        rp,       "--prepass", pp,    NULL};
         if (a->out_path) {
             argv[15] = "--out";
             argv[16] = strdup(a->out_path);
@@ -240,7 +252,8 @@ static void bench_lp_child(const void *varg, bench_result *r)
     char buf[2048];
     size_t got = 0;
     ssize_t n;
-    while (got + 1 < sizeof buf && (n = read(fd[0], buf + got, sizeof buf - 1 - got)) > 0) got += (size_t)n;
+    while (got + 1 < sizeof buf && (n = read(fd[0], buf + got, sizeof buf - 1 - got)) > 0)
+        got += (size_t)n;
     buf[got] = 0;
     close(fd[0]);
     int status = 0;
@@ -264,7 +277,8 @@ static void bench_lp_child(const void *varg, bench_result *r)
 static int bench_files_equal(const char *a, const char *b)
 {
     bench_image x, y;
-    if (bench_image_read(a, &x) != 0) return -1;
+    if (bench_image_read(a, &x) != 0)
+        return -1;
     if (bench_image_read(b, &y) != 0) {
         free(x.data);
         return -1;
@@ -287,9 +301,11 @@ static int bench_image_diff(const float *a, const float *b, size_t n, double *re
             double x = a[c * n + i], d = x - b[c * n + i];
             se += d * d;
             sr += x * x;
-            if (fabs(d) > mx) mx = fabs(d);
+            if (fabs(d) > mx)
+                mx = fabs(d);
             /* 1e-3 relative: far above float rounding (1e-7) and below a visible step. */
-            if (fabs(d) > 1e-3 * (1.0 + fabs(x)) && fabs(d) > worst) worst = fabs(d);
+            if (fabs(d) > 1e-3 * (1.0 + fabs(x)) && fabs(d) > worst)
+                worst = fabs(d);
         }
         bad += worst > 0;
     }
@@ -302,7 +318,8 @@ static int bench_image_diff(const float *a, const float *b, size_t n, double *re
 static int bench_diff_files(const char *ours, const char *theirs, double *rel_rms, double *max_abs, double *share)
 {
     bench_image x, y;
-    if (bench_image_read(ours, &x) != 0) return -1;
+    if (bench_image_read(ours, &x) != 0)
+        return -1;
     if (bench_image_read(theirs, &y) != 0 || x.width != y.width || x.height != y.height || y.channels < 3) {
         free(x.data);
         free(y.data);
@@ -318,7 +335,7 @@ static int bench_diff_files(const char *ours, const char *theirs, double *rel_rm
 
 /* The raster cost alone: every sample visited, nothing shaded. */
 typedef struct {
-    float *acc;             /* per pixel, the sum of its samples' b1 (keeps the visit alive) */
+    float *acc; /* per pixel, the sum of its samples' b1 (keeps the visit alive) */
     int width;
 } bench_spec_job;
 
@@ -332,7 +349,8 @@ static void bench_spec_tile(void *user, const raster_tile *tile)
             for (int t = 0; t < k; t++)
                 for (int s = 0; s < k; s++) {
                     const raster_sample *rs = &tile->samples[(size_t)(py * k + t) * stride + (size_t)(px * k + s)];
-                    if (rs->tri >= 0) sum += rs->b1;
+                    if (rs->tri >= 0)
+                        sum += rs->b1;
                 }
             j->acc[(size_t)(tile->y0 + py) * j->width + (size_t)(tile->x0 + px)] = sum;
         }
@@ -340,7 +358,7 @@ static void bench_spec_tile(void *user, const raster_tile *tile)
 
 typedef struct {
     bench_cfg c;
-    double ms[3];          /* raster only, specialised, general */
+    double ms[3]; /* raster only, specialised, general */
     int equal;
     char path_special[32], path_general[32];
     char path_reflect[32];
@@ -353,7 +371,8 @@ static int bench_same_beauty(const render_image *a, const render_image *b)
 {
     size_t n = (size_t)a->width * (size_t)a->height * sizeof(float);
     for (int c = RENDER_R; c <= RENDER_A; c++)
-        if (memcmp(a->chan[c], b->chan[c], n) != 0) return 0;
+        if (memcmp(a->chan[c], b->chan[c], n) != 0)
+            return 0;
     return 1;
 }
 
@@ -361,7 +380,7 @@ static int bench_same_beauty(const render_image *a, const render_image *b)
  * sphere (the visible half) and floor, as the shading loop hands them over; ns per lane,
  * medians of interleaved repetitions. */
 #define BENCH_KERNEL_BATCHES 256
-#define BENCH_KERNEL_PASSES 64
+#define BENCH_KERNEL_PASSES  64
 
 static void bench_spec_kernels(const scene *s, const env_map *env, int reps, double ns[2])
 {
@@ -392,7 +411,8 @@ static void bench_spec_kernels(const scene *s, const env_map *env, int reps, dou
                 n = v3(0.0f, 1.0f, 0.0f);
             }
             vec3 v = v3_norm(v3_sub(s->camera.eye, x));
-            if (v3_dot(n, v) < 0.0f) n = v3_neg(n);
+            if (v3_dot(n, v) < 0.0f)
+                n = v3_neg(n);
             shade_batch_set_input(&in[b], i, x, n, v);
         }
     }
@@ -407,10 +427,12 @@ static void bench_spec_kernels(const scene *s, const env_map *env, int reps, dou
                     sink += out.diffuse.x[b % SHADE_BATCH];
                 }
             if (rep >= 0)
-                t[k][rep] = 1e9 * (bench_now() - t0) / ((double)BENCH_KERNEL_PASSES * BENCH_KERNEL_BATCHES * SHADE_BATCH);
+                t[k][rep] =
+                    1e9 * (bench_now() - t0) / ((double)BENCH_KERNEL_PASSES * BENCH_KERNEL_BATCHES * SHADE_BATCH);
         }
     (void)sink;
-    for (int k = 0; k < 2; k++) ns[k] = bench_median(t[k], reps);
+    for (int k = 0; k < 2; k++)
+        ns[k] = bench_median(t[k], reps);
 }
 
 static void bench_spec_child(const void *varg, bench_result *r)
@@ -449,7 +471,11 @@ static void bench_spec_child(const void *varg, bench_result *r)
     raster_options ro = {.width = c->size, .height = c->size, .supersample = c->k, .threads = c->threads};
     render_options o[2] = {
         {.threads = c->threads, .aovs = RENDER_AOV_NONE, .width = c->size, .height = c->size, .supersample = c->k},
-        {.threads = c->threads, .aovs = RENDER_AOV_NONE, .width = c->size, .height = c->size, .supersample = c->k,
+        {.threads = c->threads,
+         .aovs = RENDER_AOV_NONE,
+         .width = c->size,
+         .height = c->size,
+         .supersample = c->k,
          .general = 1}};
     render_image img[2];
     memset(img, 0, sizeof img);
@@ -473,9 +499,11 @@ static void bench_spec_child(const void *varg, bench_result *r)
                     return;
                 }
             }
-            if (rep >= 0) t[kind][rep] = 1e3 * (bench_now() - t0);
+            if (rep >= 0)
+                t[kind][rep] = 1e3 * (bench_now() - t0);
         }
-    for (int kind = 0; kind < 3; kind++) out->ms[kind] = bench_median(t[kind], reps);
+    for (int kind = 0; kind < 3; kind++)
+        out->ms[kind] = bench_median(t[kind], reps);
     out->equal = bench_same_beauty(&img[0], &img[1]);
     bench_spec_kernels(&s, &env, reps, r->kernel_ns);
     /* The reflect scene's path, for the report. */
@@ -521,7 +549,8 @@ static void bench_machine_read(bench_machine *mc)
     char line[4096];
     while (f && fgets(line, sizeof line, f)) {
         char *colon = strchr(line, ':');
-        if (!colon) continue;
+        if (!colon)
+            continue;
         char *val = colon + 2 <= line + strlen(line) ? colon + 2 : colon + 1;
         if (!strncmp(line, "model name", 10) && !strcmp(mc->model, "unknown")) {
             snprintf(mc->model, sizeof mc->model, "%s", val);
@@ -535,14 +564,19 @@ static void bench_machine_read(bench_machine *mc)
             avx = strstr(val, " avx") != NULL;
         }
     }
-    if (f) fclose(f);
+    if (f)
+        fclose(f);
     mc->cores = (int)sysconf(_SC_NPROCESSORS_ONLN);
     /* Single precision, two FMA pipes per core (every AVX2/AVX-512 Xeon core since Haswell
      * has two; some AVX-512 parts have one 512-bit unit, which halves the AVX-512 figure). */
-    if (avx512 && fma) mc->flop_per_cycle = 64, snprintf(mc->isa, sizeof mc->isa, "avx512+fma");
-    else if (avx2 && fma) mc->flop_per_cycle = 32, snprintf(mc->isa, sizeof mc->isa, "avx2+fma");
-    else if (avx) mc->flop_per_cycle = 16, snprintf(mc->isa, sizeof mc->isa, "avx");
-    else mc->flop_per_cycle = 8, snprintf(mc->isa, sizeof mc->isa, "sse");
+    if (avx512 && fma)
+        mc->flop_per_cycle = 64, snprintf(mc->isa, sizeof mc->isa, "avx512+fma");
+    else if (avx2 && fma)
+        mc->flop_per_cycle = 32, snprintf(mc->isa, sizeof mc->isa, "avx2+fma");
+    else if (avx)
+        mc->flop_per_cycle = 16, snprintf(mc->isa, sizeof mc->isa, "avx");
+    else
+        mc->flop_per_cycle = 8, snprintf(mc->isa, sizeof mc->isa, "sse");
     mc->peak_gflops = mc->cores * mc->mhz * 1e-3 * mc->flop_per_cycle;
 }
 
@@ -552,7 +586,8 @@ static double bench_loadavg(void)
     double l = NAN;
     FILE *f = fopen("/proc/loadavg", "r");
     if (f) {
-        if (fscanf(f, "%lf", &l) != 1) l = NAN;
+        if (fscanf(f, "%lf", &l) != 1)
+            l = NAN;
         fclose(f);
     }
     return l;
@@ -570,11 +605,13 @@ static void bench_ref_read(const char *dir, const char *renderer, const char *ou
 {
     memset(ref, 0, sizeof *ref);
     ref->rel_rms = ref->max_abs = NAN;
-    if (!dir) return;
+    if (!dir)
+        return;
     char path[1024];
     snprintf(path, sizeof path, "%s/bench_reflect/%s-twin.json", dir, renderer);
     FILE *f = fopen(path, "r");
-    if (!f) return;
+    if (!f)
+        return;
     char buf[8192];
     size_t n = fread(buf, 1, sizeof buf - 1, f);
     buf[n] = 0;
@@ -582,19 +619,22 @@ static void bench_ref_read(const char *dir, const char *renderer, const char *ou
     ref->present = 1;
     ref->wall_s = bench_json_num(buf, "wall_s");
     const char *st = bench_json_value(buf, "status");
-    if (!st || sscanf(st, "\"%31[^\"]", ref->status) != 1) snprintf(ref->status, sizeof ref->status, "?");
+    if (!st || sscanf(st, "\"%31[^\"]", ref->status) != 1)
+        snprintf(ref->status, sizeof ref->status, "?");
     snprintf(path, sizeof path, "%s/bench_reflect/%s-twin.exr", dir, renderer);
     exr_image ex;
     char err[512];
     bench_image ours;
-    if (!ours_img || exr_read(path, &ex, err, sizeof err) != RC_OK) return;
+    if (!ours_img || exr_read(path, &ex, err, sizeof err) != RC_OK)
+        return;
     if (bench_image_read(ours_img, &ours) == 0) {
         const float *ch[3] = {exr_image_channel(&ex, "R"), exr_image_channel(&ex, "G"), exr_image_channel(&ex, "B")};
         size_t np = (size_t)ours.width * ours.height;
         if (ch[0] && ch[1] && ch[2] && ex.width == ours.width && ex.height == ours.height) {
             float *planes = malloc(3 * np * sizeof *planes);
             if (planes) {
-                for (int c = 0; c < 3; c++) memcpy(planes + c * np, ch[c], np * sizeof(float));
+                for (int c = 0; c < 3; c++)
+                    memcpy(planes + c * np, ch[c], np * sizeof(float));
                 double share;
                 bench_image_diff(ours.data, planes, np, &ref->rel_rms, &ref->max_abs, &share);
                 free(planes);
@@ -612,7 +652,8 @@ static double bench_slope(const double *x, const double *y, int n)
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
     int m = 0;
     for (int i = 0; i < n; i++) {
-        if (!(x[i] > 0) || !(y[i] > 0)) continue;
+        if (!(x[i] > 0) || !(y[i] > 0))
+            continue;
         double lx = log(x[i]), ly = log(y[i]);
         sx += lx;
         sy += ly;
@@ -630,23 +671,27 @@ static int g_n_rows;
 static bench_row *bench_find(int size, int k, int tris)
 {
     for (int i = 0; i < g_n_rows; i++)
-        if (g_rows[i].c.size == size && g_rows[i].c.k == k && g_rows[i].c.tris == tris) return &g_rows[i];
+        if (g_rows[i].c.size == size && g_rows[i].c.k == k && g_rows[i].c.tris == tris)
+            return &g_rows[i];
     return NULL;
 }
 
 static void bench_json_result(FILE *f, const bench_result *r)
 {
-    fprintf(f, "{\"ok\": %s, \"ms_median\": %.3f, \"ms_min\": %.3f, \"ms_max\": %.3f, \"first_ms\": %.3f, "
-               "\"shaded_samples\": %lld, \"samples\": %lld, \"peak_mib\": %.2f, \"framebuffer_mib\": %.2f, "
-               "\"input_mib\": %.2f, \"error\": \"%s\"}",
+    fprintf(f,
+            "{\"ok\": %s, \"ms_median\": %.3f, \"ms_min\": %.3f, \"ms_max\": %.3f, \"first_ms\": %.3f, "
+            "\"shaded_samples\": %lld, \"samples\": %lld, \"peak_mib\": %.2f, \"framebuffer_mib\": %.2f, "
+            "\"input_mib\": %.2f, \"error\": \"%s\"}",
             r->ok ? "true" : "false", r->ms_median, r->ms_min, r->ms_max, r->first_ms, r->shaded, r->samples,
             r->peak_mib, r->fb_mib, r->input_mib, r->ok ? "" : r->err);
 }
 
 static void bench_json_num_or_null(FILE *f, const char *key, double v, const char *sep)
 {
-    if (isfinite(v)) fprintf(f, "\"%s\": %.6g%s", key, v, sep);
-    else fprintf(f, "\"%s\": null%s", key, sep);
+    if (isfinite(v))
+        fprintf(f, "\"%s\": %.6g%s", key, v, sep);
+    else
+        fprintf(f, "\"%s\": null%s", key, sep);
 }
 
 int main(int argc, char **argv)
@@ -656,15 +701,23 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--quick")) quick = 1;
-        else if (v && !strcmp(a, "--scene")) g_scene = v, i++;
-        else if (v && !strcmp(a, "--llvmpipe")) lp_bin = v, i++;
-        else if (v && !strcmp(a, "--refs")) refs = v, i++;
-        else if (v && !strcmp(a, "--json")) json_path = v, i++;
-        else if (v && !strcmp(a, "--tmp")) g_tmp = v, i++;
+        if (!strcmp(a, "--quick"))
+            quick = 1;
+        else if (v && !strcmp(a, "--scene"))
+            g_scene = v, i++;
+        else if (v && !strcmp(a, "--llvmpipe"))
+            lp_bin = v, i++;
+        else if (v && !strcmp(a, "--refs"))
+            refs = v, i++;
+        else if (v && !strcmp(a, "--json"))
+            json_path = v, i++;
+        else if (v && !strcmp(a, "--tmp"))
+            g_tmp = v, i++;
         else {
-            fprintf(stderr, "bench_raster: unknown option '%s'; usage: bench_raster [--scene FILE] [--llvmpipe BIN] "
-                            "[--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n", a);
+            fprintf(stderr,
+                    "bench_raster: unknown option '%s'; usage: bench_raster [--scene FILE] [--llvmpipe BIN] "
+                    "[--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
+                    a);
             return 2;
         }
     }
@@ -686,9 +739,11 @@ int main(int argc, char **argv)
             memset(row, 0, sizeof *row);
             int sz = sizes[si];
             row->c = (bench_cfg){sz, 4, trisv[ti], 0, sz <= 512 ? 3 : sz <= 1024 ? 2 : 1};
-            if (sz == ref_size && trisv[ti] == ref_tris) row->c.reps = 3;
+            if (sz == ref_size && trisv[ti] == ref_tris)
+                row->c.reps = 3;
             row->has_peer = lp_bin && trisv[ti] == ref_tris && sz <= 1024;
-            if (lp_bin && sz == ref_size && trisv[ti] == (quick ? 100 : 1000000)) row->has_peer = 1;
+            if (lp_bin && sz == ref_size && trisv[ti] == (quick ? 100 : 1000000))
+                row->has_peer = 1;
         }
     for (int k = 1; k <= 2; k++) {
         bench_row *row = &g_rows[g_n_rows++];
@@ -708,22 +763,27 @@ int main(int argc, char **argv)
         for (int t = 0; t < 2; t++) {
             bench_raster_arg a = {row->c, paths[t]};
             a.c.threads = t + 1;
-            snprintf(paths[t], sizeof paths[t], "%s/raster-%d-%d-%d-t%d.img", g_tmp, row->c.size, row->c.k, row->c.tris, t + 1);
+            snprintf(paths[t], sizeof paths[t], "%s/raster-%d-%d-%d-t%d.img", g_tmp, row->c.size, row->c.k, row->c.tris,
+                     t + 1);
             bench_in_child(bench_raster_child, &a, &row->r[t]);
             failures += !row->r[t].ok;
             const bench_result *r = &row->r[t];
             double s = r->ms_median * 1e-3;
-            printf("%-6d %-2d %-8d %-3d %12.1f %12.1f %10.2f %9.2f %9.1f %9.1f %s\n", row->c.size, row->c.k, r->n_tris, t + 1,
-                   r->ms_median, r->ms_min, r->shaded / s * 1e-6, r->samples / s * 1e-6, r->peak_mib, r->peak_mib - r->fb_mib,
-                   r->ok ? (t == 0 ? "" : "") : r->err);
+            printf("%-6d %-2d %-8d %-3d %12.1f %12.1f %10.2f %9.2f %9.1f %9.1f %s\n", row->c.size, row->c.k, r->n_tris,
+                   t + 1, r->ms_median, r->ms_min, r->shaded / s * 1e-6, r->samples / s * 1e-6, r->peak_mib,
+                   r->peak_mib - r->fb_mib, r->ok ? (t == 0 ? "" : "") : r->err);
         }
         row->identical = row->r[0].ok && row->r[1].ok ? bench_files_equal(paths[0], paths[1]) : -1;
-        printf("%58s bit-identical: %s\n", "", row->identical == 1 ? "yes" : row->identical == 0 ? "NO" : "not compared");
+        printf("%58s bit-identical: %s\n", "",
+               row->identical == 1   ? "yes"
+               : row->identical == 0 ? "NO"
+                                     : "not compared");
         if (row->has_peer) {
             for (int t = 0; t < 2; t++)
                 for (int pp = 0; pp < 2; pp++) {
                     char lp_path[1100];
-                    snprintf(lp_path, sizeof lp_path, "%s/llvmpipe-%d-%d-%d.img", g_tmp, row->c.size, row->c.k, row->c.tris);
+                    snprintf(lp_path, sizeof lp_path, "%s/llvmpipe-%d-%d-%d.img", g_tmp, row->c.size, row->c.k,
+                             row->c.tris);
                     bench_lp_arg a = {lp_bin, row->c, pp, (t == 1 && pp == 0) ? lp_path : NULL};
                     a.c.threads = t + 1;
                     a.c.reps = row->c.size > 1024 ? 1 : 3;
@@ -734,7 +794,8 @@ int main(int argc, char **argv)
                            row->c.size, row->c.k, row->lp[t][pp].n_tris, t + 1, pp, row->lp[t][pp].ms_median,
                            row->lp[t][pp].ms_min, row->lp[t][pp].peak_mib, row->lp[t][pp].ok ? "" : row->lp[t][pp].err);
                     if (a.out_path && row->lp[t][pp].ok) {
-                        if (bench_diff_files(paths[1], lp_path, &row->diff_rel_rms, &row->diff_max_abs, &row->diff_share) != 0)
+                        if (bench_diff_files(paths[1], lp_path, &row->diff_rel_rms, &row->diff_max_abs,
+                                             &row->diff_share) != 0)
                             row->diff_rel_rms = row->diff_max_abs = row->diff_share = NAN;
                         remove(lp_path);
                     }
@@ -756,22 +817,26 @@ int main(int argc, char **argv)
     bench_in_child(bench_spec_child, &spec_cfg, &spec_r);
     failures += !spec_r.ok;
     char p_special[32] = "?", p_general[32] = "?", p_reflect[32] = "?";
-    if (spec_r.ok) sscanf(spec_r.err, "%31[^|]|%31[^|]|%31s", p_special, p_general, p_reflect);
+    if (spec_r.ok)
+        sscanf(spec_r.err, "%31[^|]|%31[^|]|%31s", p_special, p_general, p_reflect);
     double sp_frame = spec_r.ms_max / spec_r.ms_median;
     double sp_shade = (spec_r.ms_max - spec_r.ms_min) / (spec_r.ms_median - spec_r.ms_min);
 
     bench_ref pov, cyc;
     bench_ref_read(refs, "povray", img_ref_path[0] ? img_ref_path : NULL, &pov);
     bench_ref_read(refs, "cycles", img_ref_path[0] ? img_ref_path : NULL, &cyc);
-    if (img_ref_path[0]) remove(img_ref_path);
+    if (img_ref_path[0])
+        remove(img_ref_path);
 
     /* ---- summary tables ---- */
-    printf("\nPeer: same scene, same k x k samples, llvmpipe (OSMesa, GLSL twin); ratio = llvmpipe ms / ours (> 1: we are faster)\n");
+    printf("\nPeer: same scene, same k x k samples, llvmpipe (OSMesa, GLSL twin); ratio = llvmpipe ms / ours (> 1: we "
+           "are faster)\n");
     printf("%-6s %-2s %-8s %-3s %10s %12s %12s %8s %10s %10s %10s\n", "size", "k", "tris", "thr", "ours ms", "lp ms",
            "lp+pre ms", "ratio", "rel_rms", "max_abs", "px>1e-3");
     for (int i = 0; i < g_n_rows; i++) {
         bench_row *row = &g_rows[i];
-        if (!row->has_peer) continue;
+        if (!row->has_peer)
+            continue;
         for (int t = 0; t < 2; t++) {
             double best = fmin(row->lp[t][0].ms_median, row->lp[t][1].ms_median);
             printf("%-6d %-2d %-8d %-3d %10.1f %12.1f %12.1f %8.2f %10.2e %10.2e %9.3f%%\n", row->c.size, row->c.k,
@@ -781,64 +846,76 @@ int main(int argc, char **argv)
     }
     const bench_row *refrow = bench_find(ref_size, 4, ref_tris);
     printf("References at %dx%d k=4 (%s): ", ref_size, ref_size, refs ? refs : "no --refs");
-    if (quick) printf("(quick: the reference files are for the full-size scene; sizes differ)\n");
-    printf("POV-Ray %s, Cycles %s\n", pov.present ? "" : "pending (no record)", cyc.present ? "" : "pending (no record)");
+    if (quick)
+        printf("(quick: the reference files are for the full-size scene; sizes differ)\n");
+    printf("POV-Ray %s, Cycles %s\n", pov.present ? "" : "pending (no record)",
+           cyc.present ? "" : "pending (no record)");
     const bench_ref *refv[2] = {&pov, &cyc};
     const char *refn[2] = {"POV-Ray", "Cycles"};
     for (int i = 0; i < 2; i++)
         if (refv[i]->present)
-            printf("  %-8s status %-8s wall %.2f s (%.0fx ours at 2 threads)  rel_rms vs ours %.3e  max_abs %.3e\n", refn[i],
-                   refv[i]->status, refv[i]->wall_s, refrow ? refv[i]->wall_s * 1e3 / refrow->r[1].ms_median : NAN,
-                   refv[i]->rel_rms, refv[i]->max_abs);
+            printf("  %-8s status %-8s wall %.2f s (%.0fx ours at 2 threads)  rel_rms vs ours %.3e  max_abs %.3e\n",
+                   refn[i], refv[i]->status, refv[i]->wall_s,
+                   refrow ? refv[i]->wall_s * 1e3 / refrow->r[1].ms_median : NAN, refv[i]->rel_rms, refv[i]->max_abs);
 
     printf("\nGrowth (log-log slopes of ms/frame; 1 = linear):\n");
     double gx[8], gy[8], g_pix[2] = {NAN, NAN}, g_tri[2] = {NAN, NAN}, g_tri_hi[2] = {NAN, NAN}, g_smp[2] = {NAN, NAN},
-           g_mem_pix = NAN, g_mem_tri = NAN;
+                         g_mem_pix = NAN, g_mem_tri = NAN;
     for (int t = 0; t < 2; t++) {
         int n = 0;
         for (int si = 0; si < n_sizes; si++) {
             const bench_row *r = bench_find(sizes[si], 4, ref_tris);
-            if (r && r->r[t].ok) gx[n] = (double)sizes[si] * sizes[si], gy[n++] = r->r[t].ms_median;
+            if (r && r->r[t].ok)
+                gx[n] = (double)sizes[si] * sizes[si], gy[n++] = r->r[t].ms_median;
         }
         g_pix[t] = bench_slope(gx, gy, n);
         n = 0;
         for (int ti = 0; ti < n_tris; ti++) {
             const bench_row *r = bench_find(ref_size, 4, trisv[ti]);
-            if (r && r->r[t].ok) gx[n] = r->r[t].n_tris, gy[n++] = r->r[t].ms_median;
+            if (r && r->r[t].ok)
+                gx[n] = r->r[t].n_tris, gy[n++] = r->r[t].ms_median;
         }
         g_tri[t] = bench_slope(gx, gy, n);
         g_tri_hi[t] = n >= 2 ? bench_slope(gx + n - 2, gy + n - 2, 2) : NAN;
         n = 0;
         for (int k = 1; k <= 4; k *= 2) {
             const bench_row *r = bench_find(ref_size, k, ref_tris);
-            if (r && r->r[t].ok) gx[n] = (double)k * k, gy[n++] = r->r[t].ms_median;
+            if (r && r->r[t].ok)
+                gx[n] = (double)k * k, gy[n++] = r->r[t].ms_median;
         }
         g_smp[t] = bench_slope(gx, gy, n);
-        printf("  %d thread%s: pixels %.2f (at k=4, %d tris), samples k^2 %.2f, triangles %.2f overall, %.2f between the two largest counts\n",
+        printf("  %d thread%s: pixels %.2f (at k=4, %d tris), samples k^2 %.2f, triangles %.2f overall, %.2f between "
+               "the two largest counts\n",
                t + 1, t ? "s" : " ", g_pix[t], ref_tris, g_smp[t], g_tri[t], g_tri_hi[t]);
     }
     {
         int n = 0;
         for (int si = 0; si < n_sizes; si++) {
             const bench_row *r = bench_find(sizes[si], 4, ref_tris);
-            if (r && r->r[1].ok) gx[n] = (double)sizes[si] * sizes[si], gy[n++] = r->r[1].peak_mib;
+            if (r && r->r[1].ok)
+                gx[n] = (double)sizes[si] * sizes[si], gy[n++] = r->r[1].peak_mib;
         }
         g_mem_pix = bench_slope(gx, gy, n);
         n = 0;
         for (int ti = 0; ti < n_tris; ti++) {
             const bench_row *r = bench_find(ref_size, 4, trisv[ti]);
-            if (r && r->r[1].ok) gx[n] = r->r[1].n_tris, gy[n++] = r->r[1].peak_mib - r->r[1].fb_mib;
+            if (r && r->r[1].ok)
+                gx[n] = r->r[1].n_tris, gy[n++] = r->r[1].peak_mib - r->r[1].fb_mib;
         }
         g_mem_tri = bench_slope(gx, gy, n);
-        printf("  memory: peak vs pixels %.2f; memory beyond the framebuffers vs triangles %.2f\n", g_mem_pix, g_mem_tri);
+        printf("  memory: peak vs pixels %.2f; memory beyond the framebuffers vs triangles %.2f\n", g_mem_pix,
+               g_mem_tri);
     }
 
-    printf("\nSpecialisation (%dx%d k=%d, %d tris, 1 thread, diffuse-only scene; reflect scene path: %s):\n", spec_cfg.size,
-           spec_cfg.size, spec_cfg.k, ref_tris, p_reflect);
-    printf("  raster only %.1f ms; specialised '%s' %.1f ms; general '%s' %.1f ms; frame speed-up %.2fx, shading speed-up %.2fx; "
-           "outputs %s\n", spec_r.ms_min, p_special, spec_r.ms_median, p_general, spec_r.ms_max, sp_frame, sp_shade,
+    printf("\nSpecialisation (%dx%d k=%d, %d tris, 1 thread, diffuse-only scene; reflect scene path: %s):\n",
+           spec_cfg.size, spec_cfg.size, spec_cfg.k, ref_tris, p_reflect);
+    printf("  raster only %.1f ms; specialised '%s' %.1f ms; general '%s' %.1f ms; frame speed-up %.2fx, shading "
+           "speed-up %.2fx; "
+           "outputs %s\n",
+           spec_r.ms_min, p_special, spec_r.ms_median, p_general, spec_r.ms_max, sp_frame, sp_shade,
            spec_r.shaded ? "bit-identical" : "DIFFER");
-    printf("  kernels alone (shade_eval_n, full batches): specialised %.2f ns/lane, general %.2f ns/lane: speed-up %.2fx\n",
+    printf("  kernels alone (shade_eval_n, full batches): specialised %.2f ns/lane, general %.2f ns/lane: speed-up "
+           "%.2fx\n",
            spec_r.kernel_ns[0], spec_r.kernel_ns[1], spec_r.kernel_ns[1] / spec_r.kernel_ns[0]);
 
     double target_ours = NAN, target_lp = NAN, achieved = NAN, frac = NAN, mem_over = NAN;
@@ -849,14 +926,17 @@ int main(int argc, char **argv)
             if (g_rows[i].r[t].ok) {
                 double over = g_rows[i].r[t].peak_mib - g_rows[i].r[t].fb_mib;
                 mem_ok &= over <= 64.0;
-                if (!(over <= mem_over)) mem_over = over;
+                if (!(over <= mem_over))
+                    mem_over = over;
             }
     }
     if (refrow && refrow->r[1].ok) {
         const bench_result *r = &refrow->r[1];
         target_ours = r->ms_median;
-        if (refrow->has_peer) target_lp = fmin(refrow->lp[1][0].ms_median, refrow->lp[1][1].ms_median);
-        achieved = (r->shaded * BENCH_FLOP_SURFACE + (r->samples - r->shaded) * BENCH_FLOP_BACKGROUND) / (r->ms_median * 1e-3) * 1e-9;
+        if (refrow->has_peer)
+            target_lp = fmin(refrow->lp[1][0].ms_median, refrow->lp[1][1].ms_median);
+        achieved = (r->shaded * BENCH_FLOP_SURFACE + (r->samples - r->shaded) * BENCH_FLOP_BACKGROUND) /
+                   (r->ms_median * 1e-3) * 1e-9;
         frac = achieved / mc.peak_gflops;
     }
     printf("\nMachine: %s, %d cores, %.0f MHz, %s: peak %.0f GFLOP/s single precision (%d flop/cycle/core)\n", mc.model,
@@ -864,29 +944,40 @@ int main(int argc, char **argv)
     printf("Targets at %dx%d, 4x4 samples, 2 threads, %d tris:\n", ref_size, ref_size, ref_tris);
     printf("  speed: ours %.1f ms, llvmpipe %.1f ms -> %s (ratio %.2f)\n", target_ours, target_lp,
            target_ours <= target_lp ? "MET" : "MISSED", target_lp / target_ours);
-    printf("  machine limit: ~%.0f flop per surface sample, %.0f per background sample -> %.2f GFLOP/s = %.2f%% of peak\n",
-           BENCH_FLOP_SURFACE, BENCH_FLOP_BACKGROUND, achieved, 100.0 * frac);
+    printf(
+        "  machine limit: ~%.0f flop per surface sample, %.0f per background sample -> %.2f GFLOP/s = %.2f%% of peak\n",
+        BENCH_FLOP_SURFACE, BENCH_FLOP_BACKGROUND, achieved, 100.0 * frac);
     printf("  bit-identical 1 vs 2 threads in every configuration: %s\n", all_identical ? "MET" : "MISSED");
-    printf("  memory beyond the framebuffers, worst case: %.1f MiB (limit 64): %s\n", mem_over, mem_ok ? "MET" : "MISSED");
+    printf("  memory beyond the framebuffers, worst case: %.1f MiB (limit 64): %s\n", mem_over,
+           mem_ok ? "MET" : "MISSED");
     double load_end = bench_loadavg();
-    printf("Total bench time %.0f s; load average %.2f at the start, %.2f at the end%s\n", bench_now() - t_start, load_start,
-           load_end, load_end > 0.5 * mc.cores ? " (other work was running: times are pessimistic and noisy)" : "");
+    printf("Total bench time %.0f s; load average %.2f at the start, %.2f at the end%s\n", bench_now() - t_start,
+           load_start, load_end,
+           load_end > 0.5 * mc.cores ? " (other work was running: times are pessimistic and noisy)" : "");
 
     /* ---- JSON ---- */
     FILE *f = fopen(json_path, "w");
     if (!f) {
-        fprintf(stderr, "bench_raster: cannot write %s: %s; create the directory or pass --json\n", json_path, strerror(errno));
+        fprintf(stderr, "bench_raster: cannot write %s: %s; create the directory or pass --json\n", json_path,
+                strerror(errno));
         return 1;
     }
     fprintf(f, "{\n  \"scene\": \"%s\", \"quick\": %s,\n", g_scene, quick ? "true" : "false");
-    fprintf(f, "  \"machine\": {\"cpu\": \"%s\", \"cores\": %d, \"mhz\": %.1f, \"isa\": \"%s\", \"flop_per_cycle_per_core\": %d, "
-               "\"peak_gflops\": %.1f},\n", mc.model, mc.cores, mc.mhz, mc.isa, mc.flop_per_cycle, mc.peak_gflops);
-    fprintf(f, "  \"flop_per_sample\": {\"surface\": %.0f, \"background\": %.0f},\n", BENCH_FLOP_SURFACE, BENCH_FLOP_BACKGROUND);
+    fprintf(f,
+            "  \"machine\": {\"cpu\": \"%s\", \"cores\": %d, \"mhz\": %.1f, \"isa\": \"%s\", "
+            "\"flop_per_cycle_per_core\": %d, "
+            "\"peak_gflops\": %.1f},\n",
+            mc.model, mc.cores, mc.mhz, mc.isa, mc.flop_per_cycle, mc.peak_gflops);
+    fprintf(f, "  \"flop_per_sample\": {\"surface\": %.0f, \"background\": %.0f},\n", BENCH_FLOP_SURFACE,
+            BENCH_FLOP_BACKGROUND);
     fprintf(f, "  \"runs\": [\n");
     for (int i = 0; i < g_n_rows; i++) {
         const bench_row *row = &g_rows[i];
-        fprintf(f, "    {\"size\": %d, \"k\": %d, \"tris\": %d, \"reps\": %d, \"identical_1_2\": %s,\n", row->c.size, row->c.k,
-                row->r[0].n_tris, row->c.reps, row->identical == 1 ? "true" : row->identical == 0 ? "false" : "null");
+        fprintf(f, "    {\"size\": %d, \"k\": %d, \"tris\": %d, \"reps\": %d, \"identical_1_2\": %s,\n", row->c.size,
+                row->c.k, row->r[0].n_tris, row->c.reps,
+                row->identical == 1   ? "true"
+                : row->identical == 0 ? "false"
+                                      : "null");
         for (int t = 0; t < 2; t++) {
             fprintf(f, "     \"threads_%d\": ", t + 1);
             bench_json_result(f, &row->r[t]);
@@ -918,9 +1009,11 @@ int main(int argc, char **argv)
     }
     bench_json_num_or_null(f, "memory_vs_pixels", g_mem_pix, ", ");
     bench_json_num_or_null(f, "memory_over_fb_vs_triangles", g_mem_tri, "");
-    fprintf(f, "},\n  \"specialisation\": {\"size\": %d, \"k\": %d, \"tris\": %d, \"threads\": 1, \"path_specialised\": \"%s\", "
-               "\"path_general\": \"%s\", \"path_reflect_scene\": \"%s\", ", spec_cfg.size, spec_cfg.k, ref_tris, p_special,
-            p_general, p_reflect);
+    fprintf(f,
+            "},\n  \"specialisation\": {\"size\": %d, \"k\": %d, \"tris\": %d, \"threads\": 1, \"path_specialised\": "
+            "\"%s\", "
+            "\"path_general\": \"%s\", \"path_reflect_scene\": \"%s\", ",
+            spec_cfg.size, spec_cfg.k, ref_tris, p_special, p_general, p_reflect);
     bench_json_num_or_null(f, "raster_only_ms", spec_r.ms_min, ", ");
     bench_json_num_or_null(f, "specialised_ms", spec_r.ms_median, ", ");
     bench_json_num_or_null(f, "general_ms", spec_r.ms_max, ", ");
@@ -932,8 +1025,8 @@ int main(int argc, char **argv)
     fprintf(f, "\"identical\": %s},\n", spec_r.ok && spec_r.shaded ? "true" : "false");
     fprintf(f, "  \"references\": {");
     for (int i = 0; i < 2; i++) {
-        fprintf(f, "\"%s\": {\"present\": %s, \"status\": \"%s\", ", i ? "cycles" : "povray", refv[i]->present ? "true" : "false",
-                refv[i]->status);
+        fprintf(f, "\"%s\": {\"present\": %s, \"status\": \"%s\", ", i ? "cycles" : "povray",
+                refv[i]->present ? "true" : "false", refv[i]->status);
         bench_json_num_or_null(f, "wall_s", refv[i]->present ? refv[i]->wall_s : NAN, ", ");
         bench_json_num_or_null(f, "rel_rms_vs_raster", refv[i]->rel_rms, ", ");
         bench_json_num_or_null(f, "max_abs_vs_raster", refv[i]->max_abs, "");

@@ -38,7 +38,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (ftruncate(fuzz_exr_fd, 0) != 0 || (size && pwrite(fuzz_exr_fd, data, size, 0) != (ssize_t)size))
-        abort();   /* the harness itself failed, not the reader */
+        abort(); /* the harness itself failed, not the reader */
     exr_image img;
     char err[512];
     err[0] = '\0';

@@ -23,7 +23,8 @@ static void fuzz_scene_check(const scene *s, int m, const char *path, int i, con
     if (fuzz_scene_finite(t->diffuse) && fuzz_scene_finite(t->specular) && fuzz_scene_finite(t->reflection) &&
         fuzz_scene_finite(t->emission) && isfinite(t->alpha))
         return;
-    fprintf(stderr, "fuzz_scene: accepted scene gives non-finite shading (%s): material %d (%s, path %s) "
+    fprintf(stderr,
+            "fuzz_scene: accepted scene gives non-finite shading (%s): material %d (%s, path %s) "
             "at point %d: diffuse %g %g %g specular %g %g %g reflection %g %g %g alpha %g\n",
             form, m, s->materials[m].name, path, i, t->diffuse.x, t->diffuse.y, t->diffuse.z, t->specular.x,
             t->specular.y, t->specular.z, t->reflection.x, t->reflection.y, t->reflection.z, t->alpha);
@@ -33,8 +34,8 @@ static void fuzz_scene_check(const scene *s, int m, const char *path, int i, con
 static void fuzz_scene_shade(const scene *s)
 {
     /* A constant environment stands in for any image: the models only see its radiance. */
-    env_map env = {.kind = s->env.kind == ENV_NONE ? ENV_NONE : ENV_CONSTANT, .constant = s->env.radiance,
-                   .scale = v3s(1.0f)};
+    env_map env = {
+        .kind = s->env.kind == ENV_NONE ? ENV_NONE : ENV_CONSTANT, .constant = s->env.radiance, .scale = v3s(1.0f)};
     shade_context c;
     shade_context_make(s, &env, &c);
     static const float pts[3][3] = {{0.0f, 0.0f, 0.0f}, {0.3f, -0.2f, 0.1f}, {-1.0f, 0.5f, 2.0f}};
@@ -49,8 +50,10 @@ static void fuzz_scene_shade(const scene *s)
             vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
             vec3 n = v3(nrm[i][0], nrm[i][1], nrm[i][2]);
             vec3 v = v3_norm(v3_sub(s->camera.eye, x));
-            if (v3_dot(v, v) == 0.0f) v = n;   /* eye at the point: look along the normal */
-            if (v3_dot(n, v) < 0.0f) n = v3_neg(n);   /* shade_eval wants n facing the viewer */
+            if (v3_dot(v, v) == 0.0f)
+                v = n; /* eye at the point: look along the normal */
+            if (v3_dot(n, v) < 0.0f)
+                n = v3_neg(n); /* shade_eval wants n facing the viewer */
             shade_terms t;
             shade_eval(&c, &p, x, n, v, &t);
             fuzz_scene_check(s, m, p.path, i, "shade_eval", &t);
@@ -67,12 +70,14 @@ static void fuzz_scene_shade(const scene *s)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static scene s;   /* ~100 KB: static, not on the fuzzer's stack */
+    static scene s; /* ~100 KB: static, not on the fuzzer's stack */
     char err[512];
     /* A copy of exactly size bytes, so ASan sees any read past the end. */
     char *text = malloc(size ? size : 1);
-    if (!text) return 0;
-    if (size) memcpy(text, data, size);
+    if (!text)
+        return 0;
+    if (size)
+        memcpy(text, data, size);
     err[0] = '\0';
     rc_status st = scene_file_parse(text, size, NULL, &s, err, sizeof err);
     if (st != RC_OK) {

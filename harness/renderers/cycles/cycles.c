@@ -21,20 +21,19 @@
 #include "fileio.h"
 #include "runner.h"
 
-
-
 /* ------------------------------------------------------------------ JSON writing */
 
 typedef struct {
     FILE *fp;
-    int bad;            /* a non-finite number was asked for: JSON cannot hold it */
+    int bad; /* a non-finite number was asked for: JSON cannot hold it */
     const char *bad_key;
 } jw;
 
 static void jw_num(jw *w, const char *key, double x)
 {
     if (!isfinite(x)) {
-        if (!w->bad) w->bad_key = key;
+        if (!w->bad)
+            w->bad_key = key;
         w->bad = 1;
         x = 0.0;
     }
@@ -90,11 +89,11 @@ typedef struct {
     const scene *s;
     const mesh *m;
     const cycles_options *o;
-    int twin;                 /* twin or agree-as-twin translation */
+    int twin; /* twin or agree-as-twin translation */
     int agree;
-    char missing[8][160];     /* terms left out under options.partial */
+    char missing[8][160]; /* terms left out under options.partial */
     int n_missing;
-    unsigned missing_terms;   /* their RENDERER_TERM_* bits */
+    unsigned missing_terms; /* their RENDERER_TERM_* bits */
     char *err;
     size_t errlen;
 } cycles_ctx;
@@ -120,7 +119,8 @@ static rc_status cycles_cannot(cycles_ctx *c, unsigned term, const char *what, c
 static int cycles_material_used(const scene *s, int mi)
 {
     for (int i = 0; i < s->n_objects; i++)
-        if (s->objects[i].material == mi) return 1;
+        if (s->objects[i].material == mi)
+            return 1;
     return 0;
 }
 
@@ -140,31 +140,33 @@ static rc_status cycles_check_light(cycles_ctx *c, int i)
         status_message(c->err, c->errlen, "%s: lights[%d]: intensity must be finite and >= 0", c->s->path, i);
         return RC_ERR_RANGE;
     }
-    if (l->kind == LIGHT_SUN) return RC_OK;
+    if (l->kind == LIGHT_SUN)
+        return RC_OK;
     if (l->a0 != 0.0f || l->a1 != 0.0f || !(l->a2 > 0.0f)) {
         status_message(c->err, c->errlen,
-                   "%s: lights[%d]: Cycles lights fall off as 1/d^2 only (a0 = %g, a1 = %g, a2 = %g); "
-                   "set a0 = a1 = 0 and a2 > 0 for a Cycles comparison", c->s->path, i,
-                   (double)l->a0, (double)l->a1, (double)l->a2);
+                       "%s: lights[%d]: Cycles lights fall off as 1/d^2 only (a0 = %g, a1 = %g, a2 = %g); "
+                       "set a0 = a1 = 0 and a2 > 0 for a Cycles comparison",
+                       c->s->path, i, (double)l->a0, (double)l->a1, (double)l->a2);
         return RC_ERR_RANGE;
     }
     if (isfinite(l->range) && (double)l->range < cycles_max_dist(c->m, l->position)) {
         status_message(c->err, c->errlen,
-                   "%s: lights[%d]: range %g cuts through the geometry and Cycles lights have no range; "
-                   "raise the range beyond %g or remove it", c->s->path, i, (double)l->range,
-                   cycles_max_dist(c->m, l->position));
+                       "%s: lights[%d]: range %g cuts through the geometry and Cycles lights have no range; "
+                       "raise the range beyond %g or remove it",
+                       c->s->path, i, (double)l->range, cycles_max_dist(c->m, l->position));
         return RC_ERR_RANGE;
     }
     if (l->kind == LIGHT_SPOT) {
         if (l->profile != SPOT_SMOOTH) {
             status_message(c->err, c->errlen,
-                       "%s: lights[%d]: the D3D spot power law has no Cycles equivalent; use profile smooth",
-                       c->s->path, i);
+                           "%s: lights[%d]: the D3D spot power law has no Cycles equivalent; use profile smooth",
+                           c->s->path, i);
             return RC_ERR_RANGE;
         }
         if (!(l->outer > 0.0f && l->outer <= (float)FORMULA_PI_D && l->inner >= 0.0f && l->inner <= l->outer)) {
             status_message(c->err, c->errlen,
-                       "%s: lights[%d]: spot cones need 0 <= inner <= outer <= 180 degrees, outer > 0", c->s->path, i);
+                           "%s: lights[%d]: spot cones need 0 <= inner <= outer <= 180 degrees, outer > 0", c->s->path,
+                           i);
             return RC_ERR_RANGE;
         }
     }
@@ -233,13 +235,14 @@ static void cycles_write_fresnel_of(jw *w, const material *mat)
 static const light *cycles_main_light(const scene *s)
 {
     for (int i = 0; i < s->n_lights; i++)
-        if (s->lights[i].kind == LIGHT_SUN) return &s->lights[i];
+        if (s->lights[i].kind == LIGHT_SUN)
+            return &s->lights[i];
     return s->n_lights > 0 ? &s->lights[0] : NULL;
 }
 
 typedef struct {
-    int mirror;       /* a SHARP glossy closure that must see the environment */
-    int glossy;       /* a Beckmann closure lit by the lamps */
+    int mirror; /* a SHARP glossy closure that must see the environment */
+    int glossy; /* a Beckmann closure lit by the lamps */
 } cycles_usage;
 
 static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usage *u)
@@ -260,8 +263,9 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
         /* Roughness 0 is a mirror (the glossy closure becomes SHARP). */
         if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f) && used) {
             status_message(c->err, c->errlen,
-                       "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
-                       "to 1, so use a roughness in [0, 1]", s->path, mi, mat->name, (double)mat->roughness);
+                           "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
+                           "to 1, so use a roughness in [0, 1]",
+                           s->path, mi, mat->name, (double)mat->roughness);
             return RC_ERR_RANGE;
         }
         if (!mat->conductor) {
@@ -308,24 +312,29 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
     const d3d_params *d = &mat->d3d;
     if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT)) {
         int amb_light = 0;
-        for (int i = 0; i < s->n_lights; i++) amb_light |= cycles_nonzero(s->lights[i].ambient);
+        for (int i = 0; i < s->n_lights; i++)
+            amb_light |= cycles_nonzero(s->lights[i].ambient);
         if (cycles_nonzero(d->specular)) {
             snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK)
+                return rc;
         }
         if (cycles_nonzero(d->ambient) && (amb_light || cycles_nonzero(s->global_ambient))) {
             snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK)
+                return rc;
         }
         if (d->per_vertex) {
             snprintf(what, sizeof what, "materials[%d] '%s': Gouraud (per-vertex) shading", mi, mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "shade per pixel")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "shade per pixel")) != RC_OK)
+                return rc;
         }
         if (d->clamp) {
             snprintf(what, sizeof what, "materials[%d] '%s': D3D clamping to [0, 1]", mi, mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
+                return rc;
         }
     }
 
@@ -388,13 +397,16 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
             snprintf(what, sizeof what,
                      "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
                      mat->name);
-            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set ct g smith_walter, f one, norm walter")) != RC_OK) return rc;
+            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set ct g smith_walter, f one, norm walter")) !=
+                RC_OK)
+                return rc;
             lobe = 0;
         }
         if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
             status_message(c->err, c->errlen,
-                       "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
-                       "so use m in (0, 1]", s->path, mi, mat->name, (double)p->m);
+                           "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
+                           "so use m in (0, 1]",
+                           s->path, mi, mat->name, (double)p->m);
             return RC_ERR_RANGE;
         }
         if (lobe) {
@@ -438,18 +450,22 @@ static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *rema
     for (int oi = 0; oi < s->n_objects; oi++) {
         int n_tris = 0, n_verts = 0;
         for (int t = 0; t < m->n_tris; t++) {
-            if (m->tri_object[t] != oi) continue;
+            if (m->tri_object[t] != oi)
+                continue;
             n_tris++;
             for (int k = 0; k < 3; k++) {
                 uint32_t v = m->idx[3 * t + k];
-                if (remap[v] < 0) remap[v] = n_verts++;
+                if (remap[v] < 0)
+                    remap[v] = n_verts++;
             }
         }
-        if (n_tris == 0) continue;
+        if (n_tris == 0)
+            continue;
         /* Object-local vertex order: the order of first use, so the list can be written in one pass. */
         int *order = remap + m->n_verts;
         for (int v = 0; v < m->n_verts; v++)
-            if (remap[v] >= 0) order[remap[v]] = v;
+            if (remap[v] >= 0)
+                order[remap[v]] = v;
         fprintf(fp, "%s    {\"name\": ", first_obj ? "" : ",\n");
         first_obj = 0;
         char name[32];
@@ -462,22 +478,25 @@ static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *rema
         fputs("],\n     \"tris\": [", fp);
         int first = 1;
         for (int t = 0; t < m->n_tris; t++) {
-            if (m->tri_object[t] != oi) continue;
+            if (m->tri_object[t] != oi)
+                continue;
             fprintf(fp, "%s%d, %d, %d", first ? "" : ", ", remap[m->idx[3 * t]], remap[m->idx[3 * t + 1]],
                     remap[m->idx[3 * t + 2]]);
             first = 0;
         }
         fputs("]}", fp);
-        for (int i = 0; i < n_verts; i++) remap[order[i]] = -1;
+        for (int i = 0; i < n_verts; i++)
+            remap[order[i]] = -1;
     }
     fputs("\n", fp);
 }
 
-rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path,
-                           char *err, size_t errlen)
+rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,
+                           size_t errlen)
 {
     cycles_options defaults = {0};
-    if (o == NULL) o = &defaults;
+    if (o == NULL)
+        o = &defaults;
     cycles_ctx c = {.s = s, .m = m, .o = o, .err = err, .errlen = errlen};
     c.agree = o->role == ROLE_AGREE;
     c.twin = o->role == ROLE_TWIN || c.agree;
@@ -492,12 +511,12 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     /* Blender refuses images smaller than 4 pixels (CONVENTIONS.md). */
     if (width < 4 || height < 4 || width > 65536 || height > 65536) {
         status_message(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
-                   s->path, width, height);
+                       s->path, width, height);
         return RC_ERR_RANGE;
     }
     if (samples < 1 || n_seeds > 64) {
-        status_message(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path, samples,
-                   n_seeds);
+        status_message(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path,
+                       samples, n_seeds);
         return RC_ERR_RANGE;
     }
     if (m->n_tris > 0 && (m->tri_object == NULL || m->idx == NULL || m->pos == NULL || m->nrm == NULL)) {
@@ -507,19 +526,20 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     for (int t = 0; t < m->n_tris; t++) {
         if (m->tri_object[t] < 0 || m->tri_object[t] >= s->n_objects) {
             status_message(err, errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path, t,
-                       m->tri_object[t], s->n_objects);
+                           m->tri_object[t], s->n_objects);
             return RC_ERR_RANGE;
         }
         for (int k = 0; k < 3; k++)
             if (m->idx[3 * t + k] >= (uint32_t)m->n_verts) {
                 status_message(err, errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path, t,
-                           m->idx[3 * t + k], m->n_verts);
+                               m->idx[3 * t + k], m->n_verts);
                 return RC_ERR_RANGE;
             }
     }
     rc_status rc;
     for (int i = 0; i < s->n_lights; i++)
-        if ((rc = cycles_check_light(&c, i)) != RC_OK) return rc;
+        if ((rc = cycles_check_light(&c, i)) != RC_OK)
+            return rc;
     if (c.twin && !c.agree) {
         char what[160];
         for (int i = 0; i < s->n_lights; i++) {
@@ -529,7 +549,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
                           cycles_nonzero(s->materials[mi].d3d.ambient);
             if (cycles_nonzero(s->lights[i].ambient) && any_va) {
                 snprintf(what, sizeof what, "lights[%d]: D3D light ambient La", i);
-                if ((rc = cycles_cannot(&c, 0, what, "set the light ambient to 0")) != RC_OK) return rc;
+                if ((rc = cycles_cannot(&c, 0, what, "set the light ambient to 0")) != RC_OK)
+                    return rc;
             }
         }
     }
@@ -539,7 +560,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         /* Blender resolves relative paths against its own idea of the .blend directory. */
         if (realpath(s->env.path, env_path) == NULL) {
             status_message(err, errlen, "%s: environment '%s': %s; check the path (relative to the working directory)",
-                       s->path, s->env.path, strerror(errno));
+                           s->path, s->env.path, strerror(errno));
             return RC_ERR_IO;
         }
     }
@@ -547,7 +568,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     FILE *fp = fopen(job_json_path, "w");
     if (fp == NULL) {
         status_message(err, errlen, "%s: cannot write the Cycles job: %s; check the output directory", job_json_path,
-                   strerror(errno));
+                       strerror(errno));
         return RC_ERR_IO;
     }
     jw w = {.fp = fp};
@@ -558,7 +579,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     fprintf(fp, ", \"scene_hash\": \"%016llx\",\n \"role\": \"%s\", \"width\": %d, \"height\": %d, \"samples\": %d,",
             (unsigned long long)s->hash, c.agree ? "agree" : (c.twin ? "twin" : "validate"), width, height, samples);
     fputs(" \"seeds\": [", fp);
-    for (int i = 0; i < n_seeds; i++) fprintf(fp, "%s%u", i ? ", " : "", o->seed + (unsigned)i);
+    for (int i = 0; i < n_seeds; i++)
+        fprintf(fp, "%s%u", i ? ", " : "", o->seed + (unsigned)i);
     fputs("],\n", fp);
 
     /* Camera rays start at clip_start: keep it far below any scene distance. */
@@ -582,9 +604,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     }
     fputs(" ],\n \"environment\": ", fp);
     switch (s->env.kind) {
-    case ENV_NONE:
-        fputs("{\"type\": \"none\"}", fp);
-        break;
+    case ENV_NONE: fputs("{\"type\": \"none\"}", fp); break;
     case ENV_CONSTANT:
         fputs("{\"type\": \"constant\", \"radiance\": ", fp);
         jw_vec(&w, "environment.radiance", s->env.radiance);
@@ -616,8 +636,9 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         fclose(fp);
         remove(job_json_path);
         status_message(err, errlen,
-                   "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
-                   "(reflection) under one environment; put them in separate scenes", s->path);
+                       "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
+                       "(reflection) under one environment; put them in separate scenes",
+                       s->path);
         return RC_ERR_RANGE;
     }
     int world_diffuse = !c.twin, world_glossy = !c.twin || u.mirror;
@@ -642,7 +663,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         status_message(err, errlen, "%s: out of memory for the vertex map", job_json_path);
         return RC_ERR_NOMEM;
     }
-    for (int i = 0; i < m->n_verts; i++) remap[i] = -1;
+    for (int i = 0; i < m->n_verts; i++)
+        remap[i] = -1;
     cycles_write_objects(&w, s, m, remap);
     free(remap);
     fputs(" ]\n}\n", fp);
@@ -665,7 +687,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
 static const char *cycles_put(cycles_argv *a, size_t *used, const char *s)
 {
     size_t n = strlen(s) + 1;
-    if (*used + n > sizeof a->buf || a->argc >= CYCLES_ARGV_MAX) return NULL;
+    if (*used + n > sizeof a->buf || a->argc >= CYCLES_ARGV_MAX)
+        return NULL;
     char *p = a->buf + *used;
     memcpy(p, s, n);
     *used += n;
@@ -674,11 +697,12 @@ static const char *cycles_put(cycles_argv *a, size_t *used, const char *s)
     return p;
 }
 
-rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path,
-                         cycles_argv *out, char *err, size_t errlen)
+rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path, cycles_argv *out,
+                         char *err, size_t errlen)
 {
     cycles_options defaults = {0};
-    if (o == NULL) o = &defaults;
+    if (o == NULL)
+        o = &defaults;
     size_t used = 0;
     out->argc = 0;
     out->argv[0] = NULL;
@@ -687,7 +711,8 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
     const char *list[] = {o->blender ? o->blender : "blender", "-b", "--factory-startup",
                           /* without this a Python exception still exits 0 */
                           "--python-exit-code", "1", "-t", threads, "-P",
-                          o->script ? o->script : "harness/renderers/cycles/cycles_render.py", "--", job_json_path, out_exr_path};
+                          o->script ? o->script : "harness/renderers/cycles/cycles_render.py", "--", job_json_path,
+                          out_exr_path};
     for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
         if (cycles_put(out, &used, list[i]) == NULL) {
             status_message(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
@@ -696,11 +721,11 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
     return RC_OK;
 }
 
-
 static size_t cycles_stem_len(const char *out)
 {
     size_t n = strlen(out);
-    if (n >= 4 && (strcmp(out + n - 4, ".exr") == 0 || strcmp(out + n - 4, ".EXR") == 0)) n -= 4;
+    if (n >= 4 && (strcmp(out + n - 4, ".exr") == 0 || strcmp(out + n - 4, ".EXR") == 0))
+        n -= 4;
     return n;
 }
 
@@ -722,14 +747,15 @@ const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len)
 }
 
 /* reflcheck's names and where they come from in the raw file. */
-static const struct { const char *aov; char c; } cycles_layout[] = {
-    {"", 'R'}, {"", 'G'}, {"", 'B'}, {"", 'A'},
-    {"diffuse", 'R'}, {"diffuse", 'G'}, {"diffuse", 'B'},
-    {"specular", 'R'}, {"specular", 'G'}, {"specular", 'B'},
-    {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'},
-    {"emission", 'R'}, {"emission", 'G'}, {"emission", 'B'},
-    {"background", 'R'}, {"background", 'G'}, {"background", 'B'},
-    {"coverage", 0}, {"object", 0},
+static const struct {
+    const char *aov;
+    char c;
+} cycles_layout[] = {
+    {"", 'R'},           {"", 'G'},           {"", 'B'},           {"", 'A'},           {"diffuse", 'R'},
+    {"diffuse", 'G'},    {"diffuse", 'B'},    {"specular", 'R'},   {"specular", 'G'},   {"specular", 'B'},
+    {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'}, {"emission", 'R'},   {"emission", 'G'},
+    {"emission", 'B'},   {"background", 'R'}, {"background", 'G'}, {"background", 'B'}, {"coverage", 0},
+    {"object", 0},
 };
 #define CYCLES_LAYOUT_N ((int)(sizeof cycles_layout / sizeof cycles_layout[0]))
 
@@ -751,7 +777,8 @@ static double cycles_timing_value(const cJSON *doc, const char *key)
 rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char *err, size_t errlen)
 {
     cycles_options defaults = {0};
-    if (o == NULL) o = &defaults;
+    if (o == NULL)
+        o = &defaults;
     int n = o->n_seeds > 0 ? o->n_seeds : 1;
     if (n > 64) {
         status_message(err, errlen, "cycles: %d seeds; at most 64", n);
@@ -770,11 +797,12 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
             break;
         }
         rc = exr_read(path, &img[i], err, errlen);
-        if (rc != RC_OK) break;
+        if (rc != RC_OK)
+            break;
         loaded++;
         if (img[i].width != img[0].width || img[i].height != img[0].height) {
             status_message(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
-                       img[i].height, img[0].width, img[0].height);
+                           img[i].height, img[0].width, img[0].height);
             rc = RC_ERR_PARSE;
         }
     }
@@ -816,16 +844,20 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
                 if (is_object) {
                     /* An index is not averaged: seed 0's first sample names the object. */
                     mean[p] = src[0][k][p];
-                    if (var) var[p] = 0.0f;
+                    if (var)
+                        var[p] = 0.0f;
                     continue;
                 }
                 double s1 = 0.0;
-                for (int i = 0; i < n; i++) s1 += src[i][k][p];
+                for (int i = 0; i < n; i++)
+                    s1 += src[i][k][p];
                 double mu = s1 / n, s2 = 0.0;
-                for (int i = 0; i < n; i++) s2 += (src[i][k][p] - mu) * (src[i][k][p] - mu);
+                for (int i = 0; i < n; i++)
+                    s2 += (src[i][k][p] - mu) * (src[i][k][p] - mu);
                 mean[p] = (float)mu;
                 /* Variance of the mean: sample variance over the seeds (n - 1 dof) / n. */
-                if (var) var[p] = (float)(s2 / (n - 1) / n);
+                if (var)
+                    var[p] = (float)(s2 / (n - 1) / n);
             }
             ch[k].name = names[k];
             ch[k].data = mean;
@@ -852,10 +884,12 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
         rc = exr_write(out_exr_path, img[0].width, img[0].height, ch, nch, at, 4, err, errlen);
     }
     free(data);
-    for (int i = 0; i < loaded; i++) exr_image_free(&img[i]);
+    for (int i = 0; i < loaded; i++)
+        exr_image_free(&img[i]);
     if (rc == RC_OK && !o->keep_raw) {
         for (int i = 0; i < n; i++)
-            if (cycles_raw_path(out_exr_path, i, path, sizeof path) == RC_OK) remove(path);
+            if (cycles_raw_path(out_exr_path, i, path, sizeof path) == RC_OK)
+                remove(path);
         snprintf(path, sizeof path, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
         remove(path);
     }
@@ -915,7 +949,7 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
         runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
         if (st == RC_ERR_IO && cycles_raw_readable(&o, j->exr))
             why = RUNNER_ERROR;
-        renderer_fail(r, why, "%s: %s", why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable",
-                      err);
+        renderer_fail(r, why, "%s: %s",
+                      why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable", err);
     }
 }

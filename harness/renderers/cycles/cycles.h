@@ -53,32 +53,32 @@
 #include "../renderer.h"
 
 typedef struct {
-    comparison_role role;   /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE */
-    int samples;            /* per seed; 0 = the scene's samples */
-    int n_seeds;            /* renders with seeds seed, seed+1, ...; 0 = 1 */
-    unsigned seed;          /* first seed, default 0 */
-    int width, height;      /* 0 = the scene's */
-    int threads;            /* blender -t; 0 = all cores */
-    int partial;            /* nonzero: leave out whole terms Cycles cannot reproduce */
+    comparison_role role;      /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE */
+    int samples;               /* per seed; 0 = the scene's samples */
+    int n_seeds;               /* renders with seeds seed, seed+1, ...; 0 = 1 */
+    unsigned seed;             /* first seed, default 0 */
+    int width, height;         /* 0 = the scene's */
+    int threads;               /* blender -t; 0 = all cores */
+    int partial;               /* nonzero: leave out whole terms Cycles cannot reproduce */
     renderer_result *left_out; /* partial: receives the terms left out and why (may be NULL) */
-    int keep_raw;           /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
-    const char *blender;    /* executable; NULL = "blender" (searched in PATH) */
-    const char *script;     /* NULL = "harness/renderers/cycles/cycles_render.py" */
+    int keep_raw;              /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
+    const char *blender;       /* executable; NULL = "blender" (searched in PATH) */
+    const char *script;        /* NULL = "harness/renderers/cycles/cycles_render.py" */
 } cycles_options;
 
-rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path,
-                           char *err, size_t errlen);
+rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,
+                           size_t errlen);
 
 #define CYCLES_ARGV_MAX 16
 typedef struct {
     int argc;
-    const char *argv[CYCLES_ARGV_MAX + 1];  /* NULL-terminated; points into buf */
+    const char *argv[CYCLES_ARGV_MAX + 1]; /* NULL-terminated; points into buf */
     char buf[4096];
 } cycles_argv;
 
 /* blender -b --factory-startup --python-exit-code 1 [-t N] -P SCRIPT -- JOB OUT */
-rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path,
-                         cycles_argv *out, char *err, size_t errlen);
+rc_status cycles_command(const cycles_options *o, const char *job_json_path, const char *out_exr_path, cycles_argv *out,
+                         char *err, size_t errlen);
 
 /* The raw file cycles_render.py writes for seed index i: OUT without ".exr" + ".cyc<i>.exr". */
 rc_status cycles_raw_path(const char *out_exr_path, int seed_index, char *buf, size_t len);

@@ -25,12 +25,10 @@
 #include "exr.h"
 #include "runner.h"
 
-
-
 /* ---- resolved options ---------------------------------------------------------------- */
 
 typedef struct {
-    int validate;         /* physical material instead of the model twin */
+    int validate; /* physical material instead of the model twin */
     unsigned term;
     int k;
     int max_trace_level;
@@ -38,8 +36,8 @@ typedef struct {
     double scale;
 } povray_resolved;
 
-static rc_status povray_resolve(const scene *s, const povray_options *o, povray_resolved *r,
-                                const char *where, char *err, size_t errlen)
+static rc_status povray_resolve(const scene *s, const povray_options *o, povray_resolved *r, const char *where,
+                                char *err, size_t errlen)
 {
     povray_options zero = {0};
     if (!o)
@@ -50,13 +48,12 @@ static rc_status povray_resolve(const scene *s, const povray_options *o, povray_
     r->max_trace_level = o->max_trace_level > 0 ? o->max_trace_level : 2;
     r->fade_ratio = o->fade_ratio > 0.0 ? o->fade_ratio : 1e-3;
     r->scale = o->output_scale > 0.0 ? o->output_scale : 1.0;
-    if ((r->term & ~(unsigned)POVRAY_TERM_ALL) || o->supersample < 0 || o->threads < 0 ||
-        o->max_trace_level < 0 || !(o->fade_ratio >= 0.0 && o->fade_ratio < 1.0) ||
-        !(o->output_scale >= 0.0 && isfinite(o->output_scale))) {
+    if ((r->term & ~(unsigned)POVRAY_TERM_ALL) || o->supersample < 0 || o->threads < 0 || o->max_trace_level < 0 ||
+        !(o->fade_ratio >= 0.0 && o->fade_ratio < 1.0) || !(o->output_scale >= 0.0 && isfinite(o->output_scale))) {
         status_message(err, errlen,
-                   "%s: povray_options: term must be a POVRAY_TERM_* mask, supersample/threads/"
-                   "max_trace_level >= 0, fade_ratio in [0, 1), output_scale finite >= 0",
-                   where);
+                       "%s: povray_options: term must be a POVRAY_TERM_* mask, supersample/threads/"
+                       "max_trace_level >= 0, fade_ratio in [0, 1), output_scale finite >= 0",
+                       where);
         return RC_ERR_RANGE;
     }
     return RC_OK;
@@ -151,23 +148,24 @@ typedef struct {
     dvec3 colour;         /* POV-Ray light colour */
     double fade_distance; /* 0 = no fade */
     int fade_power;
-    int constant_atten;   /* A does not depend on the distance */
-    double atten;         /* that constant A */
+    int constant_atten; /* A does not depend on the distance */
+    double atten;       /* that constant A */
 } povray_light;
 
-static rc_status povray_light_convert(const scene *s, const mesh *m, int i, const povray_resolved *r,
-                                      povray_light *pl, char *err, size_t errlen)
+static rc_status povray_light_convert(const scene *s, const mesh *m, int i, const povray_resolved *r, povray_light *pl,
+                                      char *err, size_t errlen)
 {
     const light *l = &s->lights[i];
     memset(pl, 0, sizeof *pl);
     int needs_dir = l->kind == LIGHT_SUN || l->kind == LIGHT_SPOT;
     /* POV-Ray's falloff is a half angle, which must stay below 90 degrees. */
-    if (!povray_finite3(l->intensity) || !povray_finite3(l->position) ||
-        !povray_finite3(l->direction) || (needs_dir && v3_len(l->direction) == 0.0f) ||
+    if (!povray_finite3(l->intensity) || !povray_finite3(l->position) || !povray_finite3(l->direction) ||
+        (needs_dir && v3_len(l->direction) == 0.0f) ||
         (l->kind == LIGHT_SPOT && !(l->inner >= 0.0f && l->inner <= l->outer && (double)l->outer < FORMULA_PI_D))) {
         status_message(err, errlen,
-                   "%s: lights[%d]: intensity/position/direction must be finite, a sun or spot "
-                   "direction non-zero, and a spot's 0 <= inner <= outer < 180 degrees", s->path, i);
+                       "%s: lights[%d]: intensity/position/direction must be finite, a sun or spot "
+                       "direction non-zero, and a spot's 0 <= inner <= outer < 180 degrees",
+                       s->path, i);
         return RC_ERR_RANGE;
     }
     dvec3 c = dv3_scale(dv3_from(l->intensity), r->scale / FORMULA_PI_D);
@@ -179,8 +177,9 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
     }
     if (l->kind == LIGHT_SPOT && l->profile != SPOT_SMOOTH) {
         status_message(err, errlen,
-                   "%s: lights[%d]: a spot with profile d3d (power law) has no POV-Ray equivalent; "
-                   "use profile smooth", s->path, i);
+                       "%s: lights[%d]: a spot with profile d3d (power law) has no POV-Ray equivalent; "
+                       "use profile smooth",
+                       s->path, i);
         return RC_ERR_RANGE;
     }
     double dmin, dmax;
@@ -192,9 +191,9 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
         }
         if (dmax > l->range) {
             status_message(err, errlen,
-                       "%s: lights[%d]: range %g m cuts through the geometry (%g..%g m away) and "
-                       "POV-Ray has no light range; set range to infinity or beyond %g m",
-                       s->path, i, (double)l->range, dmin, dmax, dmax);
+                           "%s: lights[%d]: range %g m cuts through the geometry (%g..%g m away) and "
+                           "POV-Ray has no light range; set range to infinity or beyond %g m",
+                           s->path, i, (double)l->range, dmin, dmax, dmax);
             return RC_ERR_RANGE;
         }
     }
@@ -202,8 +201,7 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
     /* The nearest geometry sets the fade distance when a0 = 0: (D/d)^2 <= fade_ratio^2. */
     double dfade = r->fade_ratio * (dmin > 0.0 ? dmin : 1.0);
     if (a0 < 0.0 || a1 < 0.0 || a2 < 0.0 || !(a0 + a1 + a2 > 0.0)) {
-        status_message(err, errlen, "%s: lights[%d]: attenuation a0, a1, a2 must be >= 0 and not all 0",
-                   s->path, i);
+        status_message(err, errlen, "%s: lights[%d]: attenuation a0, a1, a2 must be >= 0 and not all 0", s->path, i);
         return RC_ERR_RANGE;
     }
     if (a1 == 0.0 && a2 > 0.0) {
@@ -222,8 +220,9 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
         pl->atten = 1.0 / a0;
     } else {
         status_message(err, errlen,
-                   "%s: lights[%d]: attenuation with both a1 and a2 non-zero has no POV-Ray "
-                   "fade law; set a1 = 0 or a2 = 0", s->path, i);
+                       "%s: lights[%d]: attenuation with both a1 and a2 non-zero has no POV-Ray "
+                       "fade law; set a1 = 0 or a2 = 0",
+                       s->path, i);
         return RC_ERR_RANGE;
     }
     return RC_OK;
@@ -234,9 +233,9 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
 typedef struct {
     dvec3 pigment;
     double diffuse;
-    dvec3 emission;       /* POV-Ray's emission, which it multiplies by the pigment */
+    dvec3 emission; /* POV-Ray's emission, which it multiplies by the pigment */
     double specular, roughness;
-    int reflection;       /* 0 none, 1 { min, max falloff p }, 2 { 0, 1 fresnel on } */
+    int reflection; /* 0 none, 1 { min, max falloff p }, 2 { 0, 1 fresnel on } */
     dvec3 rmin, rmax;
     double falloff, ior;
 } povray_finish;
@@ -245,30 +244,32 @@ static double povray_comp(dvec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y 
 
 static int povray_is_zero(vec3 v) { return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f; }
 
-static rc_status povray_material_twin(const scene *s, int mi, const povray_light *lights,
-                                      const povray_resolved *r, povray_finish *f, char *err,
-                                      size_t errlen)
+static rc_status povray_material_twin(const scene *s, int mi, const povray_light *lights, const povray_resolved *r,
+                                      povray_finish *f, char *err, size_t errlen)
 {
     const material *mat = &s->materials[mi];
     const d3d_params *d = &mat->d3d;
     const char *name = mat->name[0] ? mat->name : "(unnamed)";
     if (mat->model == MODEL_COOK_TORRANCE) {
         status_message(err, errlen,
-                   "%s: materials[%d] '%s': model cook_torrance has no POV-Ray twin (no Beckmann "
-                   "lobe); compare it against cycles, or use role validate", s->path, mi, name);
+                       "%s: materials[%d] '%s': model cook_torrance has no POV-Ray twin (no Beckmann "
+                       "lobe); compare it against cycles, or use role validate",
+                       s->path, mi, name);
         return RC_ERR_RANGE;
     }
     if (d->per_vertex || d->clamp) {
         status_message(err, errlen,
-                   "%s: materials[%d] '%s': d3d.per_vertex and d3d.clamp have no POV-Ray twin; "
-                   "set both to false for a twin comparison", s->path, mi, name);
+                       "%s: materials[%d] '%s': d3d.per_vertex and d3d.clamp have no POV-Ray twin; "
+                       "set both to false for a twin comparison",
+                       s->path, mi, name);
         return RC_ERR_RANGE;
     }
     int d9 = mat->model == MODEL_D3D9CLIENT;
     if (d9 && mat->d9.sun_angle) {
         status_message(err, errlen,
-                   "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
-                   "set it to false", s->path, mi, name);
+                       "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
+                       "set it to false",
+                       s->path, mi, name);
         return RC_ERR_RANGE;
     }
     double keep = d9 ? formula_d3d9_diffuse_weight_d(d3d9client_colour_norm_d(mat->d9.reflect, mat->d9.norm)) : 1.0;
@@ -283,9 +284,10 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
             continue;
         if (!lights[i].constant_atten) {
             status_message(err, errlen,
-                       "%s: materials[%d] '%s' with lights[%d]: the D3D ambient term Va*La*A(d) "
-                       "varies with distance and POV-Ray cannot express it; set the light's ambient "
-                       "or the material's d3d.ambient to 0", s->path, mi, name, i);
+                           "%s: materials[%d] '%s' with lights[%d]: the D3D ambient term Va*La*A(d) "
+                           "varies with distance and POV-Ray cannot express it; set the light's ambient "
+                           "or the material's d3d.ambient to 0",
+                           s->path, mi, name, i);
             return RC_ERR_RANGE;
         }
         amb = dv3_add(amb, dv3_scale(dv3_from(s->lights[i].ambient), lights[i].atten));
@@ -304,10 +306,10 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
             e[c] = k / p;
         else {
             status_message(err, errlen,
-                       "%s: materials[%d] '%s': emissive/ambient colour on channel %d where the "
-                       "POV-Ray pigment (d3d.diffuse%s) is 0; POV-Ray multiplies emission by the "
-                       "pigment, so give that channel a non-zero diffuse", s->path, mi, name, c,
-                       d9 ? " * (1 - |reflect|)" : "");
+                           "%s: materials[%d] '%s': emissive/ambient colour on channel %d where the "
+                           "POV-Ray pigment (d3d.diffuse%s) is 0; POV-Ray multiplies emission by the "
+                           "pigment, so give that channel a non-zero diffuse",
+                           s->path, mi, name, c, d9 ? " * (1 - |reflect|)" : "");
             return RC_ERR_RANGE;
         }
     }
@@ -318,16 +320,17 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     if ((r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
         if (!(d->specular.x == d->specular.y && d->specular.y == d->specular.z)) {
             status_message(err, errlen,
-                       "%s: materials[%d] '%s': d3d.specular (%g, %g, %g) is not grey, and POV-Ray's "
-                       "specular is a scalar times the light colour: this scene cannot be twinned; "
-                       "use a grey specular", s->path, mi, name, (double)d->specular.x,
-                       (double)d->specular.y, (double)d->specular.z);
+                           "%s: materials[%d] '%s': d3d.specular (%g, %g, %g) is not grey, and POV-Ray's "
+                           "specular is a scalar times the light colour: this scene cannot be twinned; "
+                           "use a grey specular",
+                           s->path, mi, name, (double)d->specular.x, (double)d->specular.y, (double)d->specular.z);
             return RC_ERR_RANGE;
         }
         if (!d->local_viewer) {
             status_message(err, errlen,
-                       "%s: materials[%d] '%s': d3d.local_viewer false (infinite viewer) has no "
-                       "POV-Ray twin; set it to true", s->path, mi, name);
+                           "%s: materials[%d] '%s': d3d.local_viewer false (infinite viewer) has no "
+                           "POV-Ray twin; set it to true",
+                           s->path, mi, name);
             return RC_ERR_RANGE;
         }
         f->specular = d->specular.x;
@@ -349,16 +352,16 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     return RC_OK;
 }
 
-static rc_status povray_material_physical(const scene *s, int mi, const povray_resolved *r,
-                                          povray_finish *f, char *err, size_t errlen)
+static rc_status povray_material_physical(const scene *s, int mi, const povray_resolved *r, povray_finish *f, char *err,
+                                          size_t errlen)
 {
     const material *mat = &s->materials[mi];
     if (mat->conductor) {
         status_message(err, errlen,
-                   "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
-                   "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
-                   "against cycles or the exact reference instead",
-                   s->path, mi, mat->name[0] ? mat->name : "(unnamed)");
+                       "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
+                       "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
+                       "against cycles or the exact reference instead",
+                       s->path, mi, mat->name[0] ? mat->name : "(unnamed)");
         return RC_ERR_RANGE;
     }
     f->pigment = dv3_from(mat->albedo);
@@ -374,8 +377,10 @@ static rc_status povray_material_physical(const scene *s, int mi, const povray_r
     f->falloff = 1.0;
     f->ior = mat->ior;
     if (f->reflection && !(mat->ior >= 1.0f && isfinite(mat->ior))) {
-        status_message(err, errlen, "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
-                   "fresnel reflection", s->path, mi, (double)mat->ior);
+        status_message(err, errlen,
+                       "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
+                       "fresnel reflection",
+                       s->path, mi, (double)mat->ior);
         return RC_ERR_RANGE;
     }
     return RC_OK;
@@ -393,13 +398,14 @@ static void povray_put_fvec(FILE *fp, vec3 v)
 static rc_status povray_check_path(const char *p, const char *what, char *err, size_t errlen)
 {
     if (strchr(p, '"') || strchr(p, '\\')) {
-        status_message(err, errlen, "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
-                   "hold unescaped; rename the file", what, p);
+        status_message(err, errlen,
+                       "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
+                       "hold unescaped; rename the file",
+                       what, p);
         return RC_ERR_RANGE;
     }
     return RC_OK;
 }
-
 
 static void povray_write_finish(FILE *fp, const povray_finish *f)
 {
@@ -408,8 +414,8 @@ static void povray_write_finish(FILE *fp, const povray_finish *f)
     fprintf(fp, " }\n      finish {\n        ambient 0\n        emission rgb ");
     povray_put_vec(fp, f->emission);
     fprintf(fp, "\n        diffuse %.9g\n        brilliance 1\n        crand 0\n", f->diffuse);
-    fprintf(fp, "        specular %.9g\n        roughness %.9g\n        phong 0\n        metallic 0\n",
-            f->specular, f->roughness);
+    fprintf(fp, "        specular %.9g\n        roughness %.9g\n        phong 0\n        metallic 0\n", f->specular,
+            f->roughness);
     if (f->reflection == 1) {
         fprintf(fp, "        reflection { color rgb ");
         povray_put_vec(fp, f->rmin);
@@ -426,8 +432,8 @@ static void povray_write_finish(FILE *fp, const povray_finish *f)
         fprintf(fp, "    interior { ior %.9g }\n", f->ior);
 }
 
-rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o,
-                             const char *sdl_path, char *err, size_t errlen)
+rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
+                             size_t errlen)
 {
     povray_resolved r;
     rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
@@ -435,10 +441,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         return st;
     /* A perspective angle must stay below 180 degrees (tan(hfov/2) finite). */
     if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < FORMULA_PI_D) ||
-        !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) ||
-        !povray_finite3(s->camera.up)) {
-        status_message(err, errlen, "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
-                   "eye/target/up finite", s->path);
+        !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) || !povray_finite3(s->camera.up)) {
+        status_message(err, errlen,
+                       "%s: camera: width/height must be > 0, hfov in (0, 180) degrees, "
+                       "eye/target/up finite",
+                       s->path);
         return RC_ERR_RANGE;
     }
     if (s->n_lights < 0 || s->n_lights > SCENE_MAX_LIGHTS || s->n_materials < 0 ||
@@ -448,10 +455,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     }
     for (int t = 0; t < m->n_tris; t++) {
         int ob = m->tri_object[t];
-        if (ob < 0 || ob >= s->n_objects || s->objects[ob].material < 0 ||
-            s->objects[ob].material >= s->n_materials) {
-            status_message(err, errlen, "%s: mesh triangle %d: object %d or its material is out of range; "
-                       "build the mesh from this scene", s->path, t, ob);
+        if (ob < 0 || ob >= s->n_objects || s->objects[ob].material < 0 || s->objects[ob].material >= s->n_materials) {
+            status_message(err, errlen,
+                           "%s: mesh triangle %d: object %d or its material is out of range; "
+                           "build the mesh from this scene",
+                           s->path, t, ob);
             return RC_ERR_RANGE;
         }
     }
@@ -492,16 +500,17 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     if (!fp) {
         free(remap);
         free(local);
-        status_message(err, errlen, "%s: cannot write: %s; check the output directory", sdl_path,
-                   strerror(errno));
+        status_message(err, errlen, "%s: cannot write: %s; check the output directory", sdl_path, strerror(errno));
         return RC_ERR_IO;
     }
 
-    fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n",
-            s->name, r.validate ? "validate" : "twin", r.term, r.scale);
+    fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n", s->name,
+            r.validate ? "validate" : "twin", r.term, r.scale);
     fprintf(fp, "#version 3.7;\n");
-    fprintf(fp, "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
-                "max_trace_level %d }\n\n", r.max_trace_level);
+    fprintf(fp,
+            "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
+            "max_trace_level %d }\n\n",
+            r.max_trace_level);
 
     /* Right-handed Y-up canonical frame: POV-Ray keeps it with a negative right vector. */
     fprintf(fp, "camera {\n  perspective\n  location ");
@@ -520,8 +529,10 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         fprintf(fp, " } }\n\n");
     } else {
         /* rotate y*180: POV-Ray's map_type 1 otherwise shows the image's -x along +x. */
-        fprintf(fp, "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
-                    "rotate y*180 }\n  emission rgb ", s->env.path);
+        fprintf(fp,
+                "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
+                "rotate y*180 }\n  emission rgb ",
+                s->env.path);
         povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
         fprintf(fp, "\n}\n\n");
     }
@@ -560,8 +571,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                 fprintf(fp, "\n");
             }
             if (pl->fade_power > 0)
-                fprintf(fp, "  fade_distance %.9g\n  fade_power %d\n", pl->fade_distance,
-                        pl->fade_power);
+                fprintf(fp, "  fade_distance %.9g\n  fade_power %d\n", pl->fade_distance, pl->fade_power);
         }
         fprintf(fp, "}\n\n");
     }
@@ -584,8 +594,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         }
         if (nt == 0)
             continue;
-        fprintf(fp, "// objects[%d], material %d\nmesh2 {\n  vertex_vectors { %d", ob,
-                s->objects[ob].material, nv);
+        fprintf(fp, "// objects[%d], material %d\nmesh2 {\n  vertex_vectors { %d", ob, s->objects[ob].material, nv);
         for (int v = 0; v < nv; v++) {
             fprintf(fp, ",\n    ");
             povray_put_fvec(fp, m->pos[local[v]]);
@@ -604,8 +613,10 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         }
         fprintf(fp, "\n  }\n");
         if (coverage)
-            fprintf(fp, "  texture {\n    pigment { color rgb <1, %d, 0> }\n    finish { ambient 0 diffuse 0 "
-                        "specular 0 phong 0 reflection 0 emission 1 }\n  }\n", ob + 1);
+            fprintf(fp,
+                    "  texture {\n    pigment { color rgb <1, %d, 0> }\n    finish { ambient 0 diffuse 0 "
+                    "specular 0 phong 0 reflection 0 emission 1 }\n  }\n",
+                    ob + 1);
         else
             povray_write_finish(fp, &fin[s->objects[ob].material]);
         fprintf(fp, "  no_shadow\n  no_reflection\n}\n\n");
@@ -622,33 +633,36 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
 
 /* ---- command line and running ---------------------------------------------------------- */
 
-rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out,
-                         int width_px, int height_px, int supersample, povray_argv *cmd,
-                         char *err, size_t errlen)
+rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out, int width_px,
+                         int height_px, int supersample, povray_argv *cmd, char *err, size_t errlen)
 {
     povray_options zero = {0};
     if (!o)
         o = &zero;
     int k = supersample > 0 ? supersample : 1;
-    if (width_px <= 0 || height_px <= 0 || supersample < 0 || o->threads < 0 ||
-        width_px > 65536 / k || height_px > 65536 / k) {
-        status_message(err, errlen, "povray_command: size %dx%d with supersample %d is out of range "
-                   "(positive, k*size <= 65536)", width_px, height_px, supersample);
+    if (width_px <= 0 || height_px <= 0 || supersample < 0 || o->threads < 0 || width_px > 65536 / k ||
+        height_px > 65536 / k) {
+        status_message(err, errlen,
+                       "povray_command: size %dx%d with supersample %d is out of range "
+                       "(positive, k*size <= 65536)",
+                       width_px, height_px, supersample);
         return RC_ERR_RANGE;
     }
     size_t n = strlen(exr_out);
     if (n < 4 || strcmp(exr_out + n - 4, ".exr") != 0) {
-        status_message(err, errlen, "povray_command: output '%s' must end in .exr (POV-Ray would "
-                   "append its own extension)", exr_out);
+        status_message(err, errlen,
+                       "povray_command: output '%s' must end in .exr (POV-Ray would "
+                       "append its own extension)",
+                       exr_out);
         return RC_ERR_RANGE;
     }
     char tmp[POVRAY_ARGV_MAX][64];
     const char *args[POVRAY_ARGV_MAX];
     int argc = 0;
     args[argc++] = o->povray ? o->povray : "povray";
-    args[argc++] = "+I";   /* joined with the path below */
+    args[argc++] = "+I"; /* joined with the path below */
     args[argc++] = "+O";
-    args[argc++] = "+FE";  /* OpenEXR, half float */
+    args[argc++] = "+FE"; /* OpenEXR, half float */
     snprintf(tmp[argc], sizeof tmp[argc], "+W%d", width_px * k);
     args[argc] = tmp[argc];
     argc++;
@@ -670,8 +684,7 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
         const char *tail = i == 1 ? sdl_path : (i == 2 ? exr_out : "");
         size_t len = strlen(args[i]) + strlen(tail) + 1;
         if (used + len > sizeof cmd->buf) {
-            status_message(err, errlen, "povray_command: paths too long (over %d bytes in all)",
-                       POVRAY_ARGV_BUF);
+            status_message(err, errlen, "povray_command: paths too long (over %d bytes in all)", POVRAY_ARGV_BUF);
             return RC_ERR_NOMEM;
         }
         cmd->argv[i] = cmd->buf + used;
@@ -808,7 +821,8 @@ static int povray_pass(const renderer_job *j, renderer_result *r, const povray_o
     for (int i = 0; ok && i < 3; i++) {
         const float *src = exr_image_channel(&img, names[i]);
         planes[i] = malloc((size_t)w * (size_t)h * sizeof(float));
-        ok = src != NULL && planes[i] != NULL && povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
+        ok = src != NULL && planes[i] != NULL &&
+             povray_box_downsample(src, img.width, img.height, k, planes[i]) == RC_OK;
         for (size_t p = 0; ok && p < (size_t)w * (size_t)h; p++)
             planes[i][p] = (float)(planes[i][p] / scale);
         if (ok && var != NULL) {
@@ -869,7 +883,7 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
         size_t np = (size_t)j->s->width * (size_t)j->s->height;
         for (size_t p = 0; p < np; p++)
             cov[1][p] = cov[0][p] > 0.5f ? floorf(cov[1][p] / cov[0][p] + 0.5f) - 1.0f : -1.0f;
-        exr_channel ch[8] = {{"R", rgb[0]},        {"G", rgb[1]},      {"B", rgb[2]},      {"coverage", cov[0]},
+        exr_channel ch[8] = {{"R", rgb[0]},      {"G", rgb[1]},     {"B", rgb[2]},     {"coverage", cov[0]},
                              {"object", cov[1]}, {"var.R", var[0]}, {"var.G", var[1]}, {"var.B", var[2]}};
         exr_attr at[] = {{"reflcheck.renderer", j->version ? j->version : "povray"}};
         char err[1024];

@@ -61,30 +61,30 @@ enum {
 };
 
 typedef struct {
-    comparison_role role;   /* ROLE_TWIN (0, default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
-    unsigned term;          /* POVRAY_TERM_* mask, 0 = POVRAY_TERM_ALL */
-    int supersample;        /* k, 0 = the scene's supersample (at least 1) */
-    int threads;            /* +WT<n>; 0 = POV-Ray's default (all cores) */
-    int max_trace_level;    /* 0 = 2: the camera ray plus one reflection ray to the sky */
-    double fade_ratio;      /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
-    double output_scale;    /* multiplies every radiance source; 0 = 1 */
-    const char *povray;     /* executable, NULL = "povray" (found on PATH) */
-    int coverage;           /* nonzero: a geometry pass instead: no lights, black background,
-                               every object emits rgb <1, object index + 1, 0>, so the box-
-                               filtered R is coverage and G/R the object index + 1 */
+    comparison_role role; /* ROLE_TWIN (0, default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
+    unsigned term;        /* POVRAY_TERM_* mask, 0 = POVRAY_TERM_ALL */
+    int supersample;      /* k, 0 = the scene's supersample (at least 1) */
+    int threads;          /* +WT<n>; 0 = POV-Ray's default (all cores) */
+    int max_trace_level;  /* 0 = 2: the camera ray plus one reflection ray to the sky */
+    double fade_ratio;    /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
+    double output_scale;  /* multiplies every radiance source; 0 = 1 */
+    const char *povray;   /* executable, NULL = "povray" (found on PATH) */
+    int coverage;         /* nonzero: a geometry pass instead: no lights, black background,
+                             every object emits rgb <1, object index + 1, 0>, so the box-
+                             filtered R is coverage and G/R the object index + 1 */
 } povray_options;
 
 /* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the
  * same triangles and per-vertex normals the rasterizer draws (printed with %.9g, exact for
  * floats). Objects without triangles are skipped. */
-rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o,
-                             const char *sdl_path, char *err, size_t errlen);
+rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
+                             size_t errlen);
 
 #define POVRAY_ARGV_MAX 24
 #define POVRAY_ARGV_BUF 4096
 typedef struct {
     int argc;
-    char *argv[POVRAY_ARGV_MAX + 1];   /* NULL-terminated, pointing into buf */
+    char *argv[POVRAY_ARGV_MAX + 1]; /* NULL-terminated, pointing into buf */
     char buf[POVRAY_ARGV_BUF];
 } povray_argv;
 
@@ -92,9 +92,8 @@ typedef struct {
  * k*width_px x k*height_px, without antialiasing, display, verbose output or pausing:
  *   povray +I<sdl> +O<exr> +FE +W<kW> +H<kH> -A -J -UA -D -V -P +Q9 -GS -GR [+WT<n>]
  * Returns RC_ERR_RANGE for non-positive sizes or k, RC_ERR_NOMEM if the paths do not fit. */
-rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out,
-                         int width_px, int height_px, int supersample, povray_argv *cmd,
-                         char *err, size_t errlen);
+rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out, int width_px,
+                         int height_px, int supersample, povray_argv *cmd, char *err, size_t errlen);
 
 /* The command as one shell-quoted line (for logs and reports). */
 void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen);
