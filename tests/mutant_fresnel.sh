@@ -10,12 +10,13 @@ expected="d3d9_glass d3d9_metal grazing_plane"
 rm -rf "$work"
 mkdir -p "$work"
 cp -r model harness scenes tests Makefile "$work"/
-# fresnel_d3d9_power is the one definition of the exponent, used by the scalar model and the
-# SIMD kernels the renders run (model/shade_batch.c).
-sed -i 's/static inline float fresnel_d3d9_power(float p) { return p < 0.0f ? 0.0f : p; }/static inline float fresnel_d3d9_power(float p) { return p < 0.0f ? 0.0f : p + 1.0f; }/' \
-    "$work/model/fresnel.h"
-if ! grep -q 'return p < 0.0f ? 0.0f : p + 1.0f; }' "$work/model/fresnel.h"; then
-    echo "mutant: the Fresnel exponent line was not found in model/fresnel.h; update this test" >&2
+# formula_d3d9_power (model/formula.h) is the one definition of the exponent: every instance
+# of it (the scalar model's double, the SIMD kernels' float, the long-double check) is compiled
+# from that line.
+sed -i 's/FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p; }/FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p + 1; }/' \
+    "$work/model/formula.h"
+if ! grep -q 'FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p + 1; }' "$work/model/formula.h"; then
+    echo "mutant: the Fresnel exponent line was not found in model/formula.h; update this test" >&2
     exit 1
 fi
 make -s -C "$work" build/reflcheck >/dev/null || { echo "mutant: build failed" >&2; exit 1; }
