@@ -11,6 +11,9 @@
 #include "shade.h"
 #include "smath.h"
 
+const char *const render_stage_names[RENDER_STAGE_COUNT] = {"rasterize", "queue",      "interpolate",
+                                                            "shade",     "background", "resolve"};
+
 const char *const render_channel_names[RENDER_CHANNELS] = {
     "R",
     "G",
@@ -98,6 +101,8 @@ typedef struct {
     shade_batch_out res;
     int per_px, centre;                                   /* samples per pixel; the centre sample's index */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
+    int profile;                                          /* 1: add stage times below (render_profile) */
+    double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
 } render_scratch;
 
 typedef struct {
@@ -112,6 +117,16 @@ typedef struct {
     long long *shaded;       /* per worker */
     render_scratch *scratch; /* per worker */
 } render_job;
+
+static double render_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The clock, read only when the frame is profiled (a read costs ~20 ns; batches are 64 samples). */
+static double render_clock(const render_scratch *w) { return w->profile ? render_now() : 0.0; }
 
 static vec3 render_terms_sum(const shade_terms *t)
 {
@@ -178,8 +193,13 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b1[i] = qu->b1[n - 1];
         qu->b2[i] = qu->b2[n - 1];
     }
+    double t0 = render_clock(w);
     render_interpolate(j->m, j->cam->eye, qu, w->in.n, &w->in);
+    double t1 = render_clock(w);
     shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
+    double t2 = render_clock(w);
+    w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
+    w->stage[RENDER_STAGE_SHADE] += t2 - t1;
     for (int i = 0; i < n; i++) {
         /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
         if (qu->slot[i] % w->per_px == w->centre) {
@@ -206,7 +226,9 @@ static void render_flush_background(const render_job *j, render_scratch *w)
     const int n = w->bg_n, padded = render_padded(n);
     for (int i = n; i < padded; i++)
         shade_lane_set(&w->bg_dir, i, shade_lane_get(&w->bg_dir, n - 1));
+    double t0 = render_clock(w);
     env_lookup_n(j->sc.env, padded, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
+    w->stage[RENDER_STAGE_BACKGROUND] += render_clock(w) - t0;
     for (int i = 0; i < w->bg_n; i++)
         w->bg[w->bg_slot[i]] = shade_lane_get(&w->bg_rad, i);
     w->bg_n = 0;
@@ -269,12 +291,14 @@ static void render_tile(void *user, const raster_tile *tile)
     const int cols = tile->w * per_px <= RENDER_SPAN ? tile->w : RENDER_SPAN / per_px;
     const int rows = cols == tile->w ? RENDER_SPAN / (tile->w * per_px) : 1;
     long long shaded = 0;
+    const double t_tile = render_clock(w);
 
     for (int py0 = tile->y0; py0 < tile->y0 + tile->h; py0 += rows) {
         int py1 = py0 + rows < tile->y0 + tile->h ? py0 + rows : tile->y0 + tile->h;
         for (int px0 = tile->x0; px0 < tile->x0 + tile->w; px0 += cols) {
             int px1 = px0 + cols < tile->x0 + tile->w ? px0 + cols : tile->x0 + tile->w;
             render_span_shade(j, tile, w, py0, py1, px0, px1);
+            const double t_resolve = render_clock(w);
             const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
             for (int pi = 0; pi < span_px; pi++) {
                 const int py = py0 + pi / span_w, px = px0 + pi % span_w;
@@ -346,16 +370,11 @@ static void render_tile(void *user, const raster_tile *tile)
                     c[2][i] = aov[a]->z * inv;
                 }
             }
+            w->stage[RENDER_STAGE_RESOLVE] += render_clock(w) - t_resolve;
         }
     }
+    w->stage[RENDER_STAGE_RASTER] += render_clock(w) - t_tile;
     j->shaded[tile->thread] += shaded;
-}
-
-static double render_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 void render_image_free(render_image *img)
@@ -535,10 +554,34 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     j.vertex_terms = vt;
     j.shaded = shaded;
     j.scratch = scratch;
+    const int n_threads = raster_thread_count(&ro);
+    for (int i = 0; i < n_threads; i++)
+        scratch[i].profile = opt->profile != NULL;
 
+    double t_draw = render_now();
     st = raster_draw(rv, m->n_verts, m->idx, m->n_tris, &ro, render_tile, &j);
-    for (int i = 0; i < raster_thread_count(&ro); i++)
+    t_draw = render_now() - t_draw;
+    for (int i = 0; i < n_threads; i++)
         out->shaded_samples += shaded[i];
+    if (opt->profile != NULL && st == RC_OK) {
+        /* Per worker, the tiles' time less what the stages inside took is queueing; the workers'
+         * share of the draw's wall time outside tiles is the rasterizer's (and waiting). */
+        render_profile *p = opt->profile;
+        memset(p, 0, sizeof *p);
+        double in_tiles = 0.0;
+        for (int i = 0; i < n_threads; i++) {
+            const double *g = scratch[i].stage;
+            in_tiles += g[RENDER_STAGE_RASTER];
+            double inner = 0.0;
+            for (int k = RENDER_STAGE_INTERPOLATE; k < RENDER_STAGE_COUNT; k++) {
+                p->seconds[k] += g[k];
+                inner += g[k];
+            }
+            p->seconds[RENDER_STAGE_QUEUE] += g[RENDER_STAGE_RASTER] - inner;
+        }
+        p->seconds[RENDER_STAGE_RASTER] = fmax((double)n_threads * t_draw - in_tiles, 0.0);
+        p->threads = n_threads;
+    }
     free(rv);
     free(vt);
     free(shaded);
@@ -549,5 +592,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
         return st;
     }
     out->seconds = render_now() - t0;
+    if (opt->profile != NULL)
+        opt->profile->wall = out->seconds;
     return RC_OK;
 }

@@ -71,14 +71,38 @@ enum {
     RENDER_AOV_NONE = 16
 };
 
+/* Where a frame's time goes (render_options.profile), in seconds of worker time summed over the
+ * workers: the rasterizer's own work (binning, edge functions, coverage; it includes a worker's
+ * wait for the others), queueing samples per object, interpolating their attributes, shading
+ * them (shade_eval_n), looking up the background, and resolving k x k samples into pixels. */
+typedef enum {
+    RENDER_STAGE_RASTER,
+    RENDER_STAGE_QUEUE,
+    RENDER_STAGE_INTERPOLATE,
+    RENDER_STAGE_SHADE,
+    RENDER_STAGE_BACKGROUND,
+    RENDER_STAGE_RESOLVE,
+    RENDER_STAGE_COUNT
+} render_stage;
+
 typedef struct {
-    int threads;       /* 0 = all cores */
-    int tile;          /* 0 = rasterizer default */
-    unsigned aovs;     /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
-    int width, height; /* 0 = the scene's */
-    int supersample;   /* 0 = the scene's */
-    int general;       /* 1 = every object through shade_plan_make_general: the unspecialised
-                          path, for the specialisation benchmark; same output */
+    double seconds[RENDER_STAGE_COUNT];
+    double wall; /* the frame's wall time */
+    int threads;
+} render_profile;
+
+extern const char *const render_stage_names[RENDER_STAGE_COUNT];
+
+typedef struct {
+    int threads;             /* 0 = all cores */
+    int tile;                /* 0 = rasterizer default */
+    unsigned aovs;           /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
+    int width, height;       /* 0 = the scene's */
+    int supersample;         /* 0 = the scene's */
+    int general;             /* 1 = every object through shade_plan_make_general: the unspecialised
+                                path, for the specialisation benchmark; same output */
+    render_profile *profile; /* NULL = off; else filled with the frame's stage times (a clock read
+                                around each batch: a few per cent slower; same output) */
 } render_options;
 
 typedef struct {
