@@ -51,7 +51,8 @@ typedef struct {
     double first_ms, ms_median, ms_min, ms_max;
     long long shaded, samples;
     double peak_mib, fb_mib, input_mib;
-    double kernel_ns[2]; /* specialisation: ns per lane of shade_eval_n, specialised and general */
+    double kernel_ns[2];    /* specialisation: ns per lane of shade_eval_n, specialised and general */
+    render_profile profile; /* where the time went (bench_profile_child) */
 } bench_result;
 
 typedef struct {
@@ -185,6 +186,32 @@ static void bench_raster_child(const void *varg, bench_result *r)
     else
         r->ok = 1;
     render_image_free(&img);
+    mesh_free(&m);
+    free(env_px);
+}
+
+/* The reference frame once more, profiled (render_options.profile): the stages' thread-seconds.
+ * One untimed frame first, as for the timed runs. */
+static void bench_profile_child(const void *varg, bench_result *r)
+{
+    const bench_cfg *c = varg;
+    scene s;
+    env_map env;
+    float *env_px = NULL;
+    mesh m;
+    if (bench_frame_load(g_scene, BENCH_SCENE_REFLECT, c->tris, &s, &env, &env_px, &m, r->err, sizeof r->err) != RC_OK)
+        return;
+    render_options o = {
+        .threads = c->threads, .aovs = RENDER_AOV_NONE, .width = c->size, .height = c->size, .supersample = c->k};
+    render_image img;
+    int ok = 1;
+    for (int i = 0; i < 2 && ok; i++) {
+        o.profile = i == 1 ? &r->profile : NULL;
+        ok = render_scene(&s, &m, &env, &o, &img, r->err, sizeof r->err) == RC_OK;
+        if (ok)
+            render_image_free(&img);
+    }
+    r->ok = ok;
     mesh_free(&m);
     free(env_px);
 }
@@ -950,6 +977,22 @@ int main(int argc, char **argv)
     printf("  bit-identical 1 vs 2 threads in every configuration: %s\n", all_identical ? "MET" : "MISSED");
     printf("  memory beyond the framebuffers, worst case: %.1f MiB (limit 64): %s\n", mem_over,
            mem_ok ? "MET" : "MISSED");
+    /* Where the rest of the time goes: the same frame once more with the stage profile on. */
+    bench_cfg pc = {.size = ref_size, .k = 4, .tris = ref_tris, .threads = 2, .reps = 1};
+    bench_result pr;
+    bench_in_child(bench_profile_child, &pc, &pr);
+    if (pr.ok) {
+        double total = 0.0;
+        for (int k = 0; k < RENDER_STAGE_COUNT; k++)
+            total += pr.profile.seconds[k];
+        printf("  where the time goes (the same frame profiled: %.1f ms wall, %d threads, %.1f thread-ms in the "
+               "draw):\n",
+               1e3 * pr.profile.wall, pr.profile.threads, 1e3 * total);
+        for (int k = 0; k < RENDER_STAGE_COUNT; k++)
+            printf("    %-12s %8.1f thread-ms  %5.1f%%\n", render_stage_names[k], 1e3 * pr.profile.seconds[k],
+                   total > 0.0 ? 100.0 * pr.profile.seconds[k] / total : 0.0);
+    } else
+        printf("  stage profile failed: %s\n", pr.err);
     double load_end = bench_loadavg();
     printf("Total bench time %.0f s; load average %.2f at the start, %.2f at the end%s\n", bench_now() - t_start,
            load_start, load_end,
