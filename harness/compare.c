@@ -411,13 +411,18 @@ static void compare_put_js_string(FILE *f, const char *text)
 /* view.js: every render of this scene as interleaved RGB floats, plus coverage and N.V. */
 static rc_status compare_write_view(const scene *s, const char *run, char *err, size_t errlen)
 {
-    char path[1024], tmp[1100];
+    char path[1024], target[FILEIO_PATH_MAX], tmp[FILEIO_PATH_MAX];
     snprintf(path, sizeof path, "%s/%s/view.js", run, s->name);
-    fileio_temp_name(path, tmp, sizeof tmp);
-    FILE *f = fopen(tmp, "w");
+    int fd = -1;
+    rc_status st = fileio_output_target(path, target, sizeof target, err, errlen);
+    if (st == RC_OK)
+        st = fileio_temp_open(target, tmp, sizeof tmp, &fd, err, errlen);
+    if (st != RC_OK)
+        return st;
+    FILE *f = fdopen(fd, "w");
     if (f == NULL) {
-        snprintf(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
-        return RC_ERR_IO;
+        snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+        return fileio_temp_finish(fd, tmp, target, 1, err, errlen);
     }
     fputs("window.REFLCHECK_VIEW = {\"scene\": ", f);
     compare_put_js_string(f, s->name);
@@ -470,12 +475,11 @@ static rc_status compare_write_view(const scene *s, const char *run, char *err, 
     if (have_raster)
         exr_image_free(&raster);
     free(buf);
-    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+    /* fclose closed the descriptor: fileio_temp_finish renames the temporary, or removes it. */
+    int failed = fclose(f) != 0;
+    if (failed)
         snprintf(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-        unlink(tmp);
-        return RC_ERR_IO;
-    }
-    return RC_OK;
+    return fileio_temp_finish(-1, tmp, target, failed, err, errlen);
 }
 
 /* Non-finite and negative values of one image over the layers a comparison reads. */

@@ -10,11 +10,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-void fileio_temp_name(const char *path, char *buf, size_t len)
-{
-    snprintf(buf, len, "%s.tmp%ld", path, (long)getpid());
-}
-
 int fileio_same_file(const char *a, const char *b)
 {
     struct stat sa, sb;

@@ -71,7 +71,5 @@ rc_status fileio_temp_finish(int fd, const char *tmp, const char *target, int fa
 rc_status fileio_write_atomic(const char *path, const char *text, char *err, size_t errlen);
 char *fileio_read_all(const char *path, size_t *len);
 int fileio_copy(const char *from, const char *to);
-/* The temporary name used for path (path + ".tmp" + pid), for writers that stream. */
-void fileio_temp_name(const char *path, char *buf, size_t len);
 
 #endif
