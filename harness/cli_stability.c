@@ -11,25 +11,37 @@
 
 #include "cli.h"
 #include "fileio.h"
+#include "jsonio.h"
 #include "stability.h"
 
 static int cli_stability_write(const char *path, const stability_table *t, int json)
 {
     char *text = NULL, err[1200];
-    size_t len = 0;
-    FILE *f = open_memstream(&text, &len);
-    if (!f) {
-        fprintf(stderr, "reflcheck: stability: out of memory for '%s'\n", path);
-        return CLI_FAILED;
-    }
-    int bad = json ? stability_write_json(f, t) : stability_write_csv(f, t);
-    if (fclose(f) != 0 || bad || text == NULL) {
+    rc_status st;
+    if (json) {
+        cJSON *doc = stability_json(t);
+        if (doc == NULL) {
+            fprintf(stderr, "reflcheck: stability: out of memory for '%s'\n", path);
+            return CLI_FAILED;
+        }
+        st = jsonio_write_file(doc, path, err, sizeof err);
+        cJSON_Delete(doc);
+    } else {
+        size_t len = 0;
+        FILE *f = open_memstream(&text, &len);
+        if (!f) {
+            fprintf(stderr, "reflcheck: stability: out of memory for '%s'\n", path);
+            return CLI_FAILED;
+        }
+        int bad = stability_write_csv(f, t);
+        if (fclose(f) != 0 || bad || text == NULL) {
+            free(text);
+            fprintf(stderr, "reflcheck: stability: cannot format '%s'; out of memory\n", path);
+            return CLI_FAILED;
+        }
+        st = fileio_write_atomic(path, text, err, sizeof err);
         free(text);
-        fprintf(stderr, "reflcheck: stability: cannot format '%s'; out of memory\n", path);
-        return CLI_FAILED;
     }
-    rc_status st = fileio_write_atomic(path, text, err, sizeof err);
-    free(text);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: stability: %s\n", err);
         return st == RC_ERR_RANGE ? CLI_BAD_INPUT : CLI_FAILED;

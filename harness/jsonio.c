@@ -1,5 +1,7 @@
 #include "jsonio.h"
 
+#include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -42,4 +44,23 @@ int jsonio_print(FILE *f, const cJSON *doc)
     int ok = fputs(text, f) >= 0;
     free(text);
     return ok ? 0 : -1;
+}
+
+cJSON *jsonio_number(double x, int digits)
+{
+    if (!isfinite(x))
+        return cJSON_CreateNull();
+    /* The decimal text and back: the double nearest the rounded decimal, which cJSON's
+     * shortest-round-trip printing ("%1.15g", checked) then writes as that decimal. */
+    char text[40];
+    snprintf(text, sizeof text, "%.*g", digits < 1 ? 1 : digits > 17 ? 17 : digits, x);
+    return cJSON_CreateNumber(strtod(text, NULL));
+}
+
+int jsonio_add(cJSON *object, const char *key, cJSON *item)
+{
+    if (item != NULL && cJSON_AddItemToObject(object, key, item))
+        return 1;
+    cJSON_Delete(item);
+    return 0;
 }

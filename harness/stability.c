@@ -22,6 +22,7 @@
 #include "env.h"
 #include "formula.h"
 #include "fresnel.h"
+#include "jsonio.h"
 #include "microfacet.h"
 #include "scene.h"
 #include "shade.h"
@@ -1479,61 +1480,71 @@ static const char *kind_name(stability_kind k)
     return k == STABILITY_ROUNDING ? "rounding" : k == STABILITY_APPROX ? "approx" : "physics";
 }
 
-static void json_str(FILE *f, const char *s)
+/* Figures carry 6 significant digits (the table's own precision; enough to tell 0.5 ulp from
+ * 1); a non-finite figure (never expected) is null, as JSON has no Inf/NaN. */
+#define STABILITY_JSON_DIGITS 6
+
+static cJSON *stability_json_row(const stability_row *r)
 {
-    fputc('"', f);
-    for (; *s; s++) {
-        if (*s == '"' || *s == '\\')
-            fprintf(f, "\\%c", *s);
-        else if ((unsigned char)*s < 0x20)
-            fprintf(f, "\\u%04x", (unsigned)(unsigned char)*s);
-        else
-            fputc(*s, f);
+    cJSON *o = cJSON_CreateObject();
+    if (o == NULL)
+        return NULL;
+    int ok = cJSON_AddStringToObject(o, "function", r->function) != NULL &&
+             cJSON_AddStringToObject(o, "case", r->case_name) != NULL &&
+             cJSON_AddStringToObject(o, "kind", kind_name(r->kind)) != NULL &&
+             cJSON_AddNumberToObject(o, "precision_bits", r->precision) != NULL &&
+             cJSON_AddNumberToObject(o, "samples", (double)r->samples) != NULL &&
+             jsonio_add(o, "max_ulp", jsonio_number(r->max_ulp, STABILITY_JSON_DIGITS)) &&
+             jsonio_add(o, "max_rel", jsonio_number(r->max_rel, STABILITY_JSON_DIGITS)) &&
+             jsonio_add(o, "max_abs", jsonio_number(r->max_abs, STABILITY_JSON_DIGITS)) &&
+             cJSON_AddStringToObject(o, "where", r->where) != NULL &&
+             cJSON_AddStringToObject(o, "where_abs", r->where_abs) != NULL &&
+             cJSON_AddNumberToObject(o, "nan", (double)r->nan) != NULL &&
+             cJSON_AddNumberToObject(o, "inf", (double)r->inf) != NULL &&
+             cJSON_AddNumberToObject(o, "negative", (double)r->negative) != NULL &&
+             cJSON_AddNumberToObject(o, "check_ok", r->check_ok) != NULL &&
+             cJSON_AddBoolToObject(o, "gating", r->expect_ok) != NULL &&
+             jsonio_add(o, "value", jsonio_number(r->value, STABILITY_JSON_DIGITS)) &&
+             jsonio_add(o, "aux", jsonio_number(r->aux, STABILITY_JSON_DIGITS)) &&
+             cJSON_AddStringToObject(o, "note", r->note) != NULL &&
+             cJSON_AddBoolToObject(o, "fails", row_fails(r)) != NULL;
+    if (!ok) {
+        cJSON_Delete(o);
+        return NULL;
     }
-    fputc('"', f);
+    return o;
 }
 
-/* JSON has no Inf/NaN: such a figure (never expected) is written as null. */
-static void json_num(FILE *f, double x)
+cJSON *stability_json(const stability_table *t)
 {
-    if (isfinite(x))
-        fprintf(f, "%.6g", x);
-    else
-        fputs("null", f);
+    cJSON *doc = cJSON_CreateObject(), *rows = NULL;
+    int ok = doc != NULL && cJSON_AddNumberToObject(doc, "reference_mantissa_bits", t->ldbl_mant_dig) != NULL &&
+             cJSON_AddNumberToObject(doc, "samples", t->samples) != NULL &&
+             cJSON_AddNumberToObject(doc, "failures", stability_failures(t)) != NULL &&
+             jsonio_add(doc, "rows", rows = cJSON_CreateArray());
+    if (!ok) {
+        cJSON_Delete(doc);
+        return NULL;
+    }
+    for (int i = 0; i < t->n_rows; i++) {
+        cJSON *row = stability_json_row(&t->rows[i]);
+        if (row == NULL || !cJSON_AddItemToArray(rows, row)) {
+            cJSON_Delete(row);
+            cJSON_Delete(doc);
+            return NULL;
+        }
+    }
+    return doc;
 }
 
 int stability_write_json(FILE *f, const stability_table *t)
 {
-    fprintf(f, "{\"reference_mantissa_bits\": %d, \"samples\": %d, \"failures\": %d, \"rows\": [\n", t->ldbl_mant_dig,
-            t->samples, stability_failures(t));
-    for (int i = 0; i < t->n_rows; i++) {
-        const stability_row *r = &t->rows[i];
-        fputs("  {\"function\": ", f);
-        json_str(f, r->function);
-        fputs(", \"case\": ", f);
-        json_str(f, r->case_name);
-        fprintf(f, ", \"kind\": \"%s\", \"precision_bits\": %d, \"samples\": %ld, \"max_ulp\": ", kind_name(r->kind),
-                r->precision, r->samples);
-        json_num(f, r->max_ulp);
-        fputs(", \"max_rel\": ", f);
-        json_num(f, r->max_rel);
-        fputs(", \"max_abs\": ", f);
-        json_num(f, r->max_abs);
-        fputs(", \"where\": ", f);
-        json_str(f, r->where);
-        fputs(", \"where_abs\": ", f);
-        json_str(f, r->where_abs);
-        fprintf(f, ", \"nan\": %ld, \"inf\": %ld, \"negative\": %ld, \"check_ok\": %d, \"gating\": %s, \"value\": ",
-                r->nan, r->inf, r->negative, r->check_ok, r->expect_ok ? "true" : "false");
-        json_num(f, r->value);
-        fputs(", \"aux\": ", f);
-        json_num(f, r->aux);
-        fputs(", \"note\": ", f);
-        json_str(f, r->note);
-        fprintf(f, ", \"fails\": %s}%s\n", row_fails(r) ? "true" : "false", i + 1 < t->n_rows ? "," : "");
-    }
-    fputs("]}\n", f);
-    return ferror(f) ? -1 : 0;
+    cJSON *doc = stability_json(t);
+    if (doc == NULL)
+        return -1;
+    int rc = jsonio_print(f, doc);
+    cJSON_Delete(doc);
+    return rc;
 }
 
 static void csv_str(FILE *f, const char *s)

@@ -8,6 +8,7 @@
  *   stability_table t;
  *   if (stability_run(&o, &t) != RC_OK) ...            only fails on bad options
  *   stability_write_csv(stdout, &t); stability_write_json(f, &t);
+ *   cJSON *doc = stability_json(&t); ... cJSON_Delete(doc);    the same JSON as a document
  *   if (stability_failures(&t)) ...                    NaN/Inf/negative for finite input
  * The table is a plain struct (no heap); stability_run fills it completely.
  *
@@ -28,6 +29,8 @@
 #define REFLCHECK_STABILITY_H
 
 #include <stdio.h>
+
+#include <cJSON.h>
 
 #include "status.h"
 
@@ -81,8 +84,13 @@ int stability_failures(const stability_table *t);
 /* The first row whose function and case start with the given prefixes (NULL = any), or NULL. */
 const stability_row *stability_find(const stability_table *t, const char *function, const char *case_prefix);
 
-/* Writers: JSON object {"reference_mantissa_bits", "samples", "rows": [...]}, CSV with a
- * header line, and a fixed-width text table for the terminal. Return 0, or -1 on a write error. */
+/* The table as a JSON document (cJSON, through harness/jsonio): {"reference_mantissa_bits",
+ * "samples", "failures", "rows": [{"function", "case", "kind", ...}]}, figures to 6 significant
+ * digits, null where not finite. NULL when memory runs out; free with cJSON_Delete. */
+cJSON *stability_json(const stability_table *t);
+
+/* Writers: that JSON document, CSV with a header line, and a fixed-width text table for the
+ * terminal. Return 0, or -1 on a write error (or no memory for the JSON). */
 int stability_write_json(FILE *f, const stability_table *t);
 int stability_write_csv(FILE *f, const stability_table *t);
 int stability_write_text(FILE *f, const stability_table *t);

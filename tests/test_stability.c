@@ -15,6 +15,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <cJSON.h>
+
 #include "cooktorrance.h"
 #include "stability.h"
 
@@ -240,15 +242,91 @@ static void test_options_and_writers(void **state)
         lines += c == '\n';
     assert_int_equal(lines, table->n_rows + 1);
     fclose(f);
+}
 
-    f = tmpfile();
+static const cJSON *json_key(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (v == NULL)
+        fail_msg("stability JSON: key '%s' missing", key);
+    return v;
+}
+
+static double json_num(const cJSON *o, const char *key)
+{
+    const cJSON *v = json_key(o, key);
+    if (!cJSON_IsNumber(v))
+        fail_msg("stability JSON: key '%s' is not a number", key);
+    return v->valuedouble;
+}
+
+/* The JSON written to a stream parses back to the table: every row, key and type the report
+ * reads (harness/report/load.py), figures to the 6 significant digits written, null for a
+ * figure that is not finite. */
+static void test_json_parses_back(void **state)
+{
+    (void)state;
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
     assert_non_null(f);
     assert_int_equal(stability_write_json(f, table), 0);
-    rewind(f);
-    char head[64] = {0};
-    assert_true(fread(head, 1, sizeof head - 1, f) > 0);
-    assert_true(strncmp(head, "{\"reference_mantissa_bits\": ", 28) == 0);
-    fclose(f);
+    assert_int_equal(fclose(f), 0);
+    assert_true(len > 0 && text[len - 1] == '\n');
+    cJSON *doc = cJSON_Parse(text);
+    free(text);
+    assert_non_null(doc);
+    assert_int_equal((int)json_num(doc, "reference_mantissa_bits"), table->ldbl_mant_dig);
+    assert_int_equal((int)json_num(doc, "samples"), table->samples);
+    assert_int_equal((int)json_num(doc, "failures"), stability_failures(table));
+    const cJSON *rows = json_key(doc, "rows");
+    assert_true(cJSON_IsArray(rows));
+    assert_int_equal(cJSON_GetArraySize(rows), table->n_rows);
+    stability_table *one = calloc(1, sizeof *one);
+    assert_non_null(one);
+    one->n_rows = 1;
+    int i = 0;
+    const cJSON *o;
+    cJSON_ArrayForEach(o, rows)
+    {
+        const stability_row *r = &table->rows[i++];
+        one->rows[0] = *r;
+        assert_string_equal(json_key(o, "function")->valuestring, r->function);
+        assert_string_equal(json_key(o, "case")->valuestring, r->case_name);
+        assert_string_equal(json_key(o, "where")->valuestring, r->where);
+        assert_string_equal(json_key(o, "note")->valuestring, r->note);
+        const char *kind = json_key(o, "kind")->valuestring;
+        assert_string_equal(kind, r->kind == STABILITY_ROUNDING ? "rounding"
+                                  : r->kind == STABILITY_APPROX ? "approx"
+                                                                : "physics");
+        assert_int_equal((long)json_num(o, "samples"), r->samples);
+        assert_int_equal((int)json_num(o, "precision_bits"), r->precision);
+        assert_int_equal((long)json_num(o, "nan"), r->nan);
+        assert_int_equal((int)json_num(o, "check_ok"), r->check_ok);
+        /* 6 significant digits: within half a unit of the 6th digit. */
+        close_rel(json_num(o, "max_ulp"), r->max_ulp, 5e-6);
+        close_rel(json_num(o, "max_abs"), r->max_abs, 5e-6);
+        assert_true(cJSON_IsBool(json_key(o, "gating")));
+        assert_int_equal(cJSON_IsTrue(json_key(o, "gating")), r->expect_ok != 0);
+        assert_true(cJSON_IsBool(json_key(o, "fails")));
+        assert_int_equal(cJSON_IsTrue(json_key(o, "fails")), stability_failures(one) != 0);
+    }
+    cJSON_Delete(doc);
+
+    /* A row whose figure is not finite is written as null, and the row is flagged failing. */
+    one->rows[0] = table->rows[0];
+    one->rows[0].max_ulp = INFINITY;
+    one->rows[0].value = NAN;
+    one->rows[0].inf = 1;
+    doc = stability_json(one);
+    assert_non_null(doc);
+    const cJSON *r0 = cJSON_GetArrayItem(json_key(doc, "rows"), 0);
+    assert_true(cJSON_IsNull(json_key(r0, "max_ulp")));
+    assert_true(cJSON_IsNull(json_key(r0, "value")));
+    assert_true(cJSON_IsTrue(json_key(r0, "fails")));
+    assert_int_equal((int)json_num(doc, "failures"), 1);
+    cJSON_Delete(doc);
+    free(one);
 }
 
 int main(void)
@@ -257,7 +335,7 @@ int main(void)
         cmocka_unit_test(test_no_nan_inf_negative),    cmocka_unit_test(test_fresnel_monotonic),
         cmocka_unit_test(test_walter_albedo),          cmocka_unit_test(test_ct1982_breaks),
         cmocka_unit_test(test_euclid_negative_weight), cmocka_unit_test(test_ulp_bounds),
-        cmocka_unit_test(test_options_and_writers),
+        cmocka_unit_test(test_options_and_writers),    cmocka_unit_test(test_json_parses_back),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
