@@ -83,6 +83,12 @@ typedef struct {
     int reflection;        /* environment reflection term CM * Fr, default 1 */
 } ct_params;
 
+/* Material texture slots (model/texture.h): the diffuse colour with alpha multiplies the
+ * diffuse and emission terms and the alpha (D3D's texture stage MODULATE of Dv; the D3D9Client
+ * "colour of the diffuse material or a texture" and "material/texture alpha" of eqs. 6-7); the
+ * specular colour map multiplies the specular term (D3D Vs, Cook-Torrance ks). */
+typedef enum { MAT_TEX_DIFFUSE, MAT_TEX_SPECULAR, MAT_TEX_SLOTS } material_texture_slot;
+
 typedef struct {
     char name[SCENE_NAME_MAX];
     /* physical intent */
@@ -95,6 +101,7 @@ typedef struct {
     d3d_params d3d; /* also the lit diffuse d of the D3D9Client model */
     d3d9client_params d9;
     ct_params ct;
+    char texture[MAT_TEX_SLOTS][SCENE_PATH_MAX]; /* image files, resolved like mesh paths; "" = none */
 } material;
 
 typedef enum { SHAPE_SPHERE, SHAPE_QUAD, SHAPE_BOX, SHAPE_TORUS, SHAPE_MESH } shape_kind;
@@ -102,13 +109,14 @@ typedef enum { SHAPE_SPHERE, SHAPE_QUAD, SHAPE_BOX, SHAPE_TORUS, SHAPE_MESH } sh
 typedef struct {
     shape_kind shape;
     vec3 center;
-    vec3 rotate;               /* Euler angles [rad], applied X then Y then Z */
-    float radius;              /* sphere; box edge rounding; torus tube radius */
-    float major;               /* torus ring radius */
-    vec3 size;                 /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */
-    int tessellation;          /* segments; default 32 */
-    char path[SCENE_PATH_MAX]; /* mesh: OBJ or PLY */
-    int material;              /* index into scene.materials */
+    vec3 rotate;                 /* Euler angles [rad], applied X then Y then Z */
+    float radius;                /* sphere; box edge rounding; torus tube radius */
+    float major;                 /* torus ring radius */
+    vec3 size;                   /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */
+    int tessellation;            /* segments; default 32 */
+    char path[SCENE_PATH_MAX];   /* mesh: OBJ or PLY */
+    int material;                /* index into scene.materials */
+    char usemtl[SCENE_NAME_MAX]; /* mesh, OBJ only: just the faces after `usemtl NAME`; "" = all */
 } object;
 
 typedef enum { ROLE_TWIN, ROLE_VALIDATE, ROLE_AGREE } comparison_role;

@@ -1,0 +1,314 @@
+/* texture.c - texture images (libpng, libjpeg) and their bilinear, repeat-wrapped lookup.
+ *
+ * PNG and JPEG are decoded by Debian's libpng 1.6 (simplified API) and libjpeg-turbo, the
+ * libraries every engine's tool chain carries; OpenImageIO's C++ API would add DDS, but a C++
+ * shim and its link for one format the canonical scenes do not use is not worth it (README,
+ * "Textures and real content"). */
+#include "texture.h"
+
+#include <limits.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <jpeglib.h>
+#include <png.h>
+
+#include "fileio.h"
+
+float texture_srgb_to_linear(float c)
+{
+    double x = c;
+    /* IEC 61966-2-1: the linear segment below 0.04045, the 2.4 power above. */
+    double y = x <= 0.04045 ? x / 12.92 : pow((x + 0.055) / 1.055, 2.4);
+    return (float)y;
+}
+
+void texture_free(texture *t)
+{
+    free(t->rgba);
+    t->rgba = NULL;
+    t->width = t->height = 0;
+}
+
+void texture_set_free(texture_set *ts)
+{
+    for (int m = 0; m < SCENE_MAX_MATERIALS; m++)
+        for (int k = 0; k < MAT_TEX_SLOTS; k++)
+            texture_free(&ts->map[m][k]);
+}
+
+static rc_status texture_alloc(const char *path, int w, int h, texture *t, char *err, size_t errlen)
+{
+    if (w <= 0 || h <= 0 || w > TEXTURE_MAX_SIDE || h > TEXTURE_MAX_SIDE) {
+        status_message(err, errlen, "%s: image is %d x %d pixels; give a texture of 1..%d pixels a side", path, w, h,
+                       TEXTURE_MAX_SIDE);
+        return RC_ERR_RANGE;
+    }
+    size_t limit = 0;
+    char why[256];
+    if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
+        status_message(err, errlen, "%s: %s", path, why);
+        return RC_ERR_RANGE;
+    }
+    double need = (double)w * (double)h * 4.0 * sizeof(float);
+    if (need > (double)limit) {
+        status_message(err, errlen,
+                       "%s: a %d x %d texture needs %.2f GiB as float RGBA, over the memory limit; give a smaller "
+                       "image or raise REFLCHECK_MEMORY_LIMIT",
+                       path, w, h, need / 1073741824.0);
+        return RC_ERR_RANGE;
+    }
+    t->rgba = malloc((size_t)w * (size_t)h * 4 * sizeof(float));
+    if (t->rgba == NULL) {
+        status_message(err, errlen, "%s: out of memory for a %d x %d texture", path, w, h);
+        return RC_ERR_NOMEM;
+    }
+    t->width = w;
+    t->height = h;
+    return RC_OK;
+}
+
+/* 8-bit sRGB RGBA (or RGB when channels is 3) into linear floats, through a 256-entry table. */
+static void texture_decode8(const unsigned char *src, int channels, texture *t)
+{
+    float lut[256];
+    for (int i = 0; i < 256; i++)
+        lut[i] = texture_srgb_to_linear((float)i / 255.0f);
+    size_t n = (size_t)t->width * (size_t)t->height;
+    for (size_t i = 0; i < n; i++) {
+        const unsigned char *p = src + i * (size_t)channels;
+        float *q = t->rgba + 4 * i;
+        q[0] = lut[p[0]];
+        q[1] = lut[p[1]];
+        q[2] = lut[p[2]];
+        q[3] = channels == 4 ? (float)p[3] / 255.0f : 1.0f;
+    }
+}
+
+static rc_status texture_read_file(const char *path, unsigned char **out, size_t *len, char *err, size_t errlen)
+{
+    int fd;
+    long long size = 0;
+    rc_status rc = fileio_open_input(path, TEXTURE_MAX_BYTES, "a PNG or JPEG texture", &fd, &size, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    unsigned char *buf = malloc((size_t)size + 1);
+    if (buf == NULL) {
+        close(fd);
+        status_message(err, errlen, "%s: out of memory for %lld bytes", path, size);
+        return RC_ERR_NOMEM;
+    }
+    size_t n = 0;
+    while (n < (size_t)size) {
+        ssize_t r = read(fd, buf + n, (size_t)size - n);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            break;
+        n += (size_t)r;
+    }
+    close(fd);
+    *out = buf;
+    *len = n;
+    return RC_OK;
+}
+
+static rc_status texture_png(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
+                             size_t errlen)
+{
+    png_image img;
+    memset(&img, 0, sizeof img);
+    img.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_memory(&img, buf, len)) {
+        status_message(err, errlen, "%s: not a readable PNG (%s); give a valid PNG or JPEG file", path, img.message);
+        return RC_ERR_PARSE;
+    }
+    /* 8-bit sRGB RGBA whatever the file holds (grey, palette, 16 bit): our own decode follows. */
+    img.format = PNG_FORMAT_RGBA;
+    rc_status rc = texture_alloc(path, (int)img.width, (int)img.height, t, err, errlen);
+    if (rc != RC_OK) {
+        png_image_free(&img);
+        return rc;
+    }
+    unsigned char *px = malloc(PNG_IMAGE_SIZE(img));
+    if (px == NULL) {
+        png_image_free(&img);
+        texture_free(t);
+        status_message(err, errlen, "%s: out of memory decoding the PNG", path);
+        return RC_ERR_NOMEM;
+    }
+    if (!png_image_finish_read(&img, NULL, px, 0, NULL)) {
+        status_message(err, errlen, "%s: corrupt PNG (%s); give a valid PNG file", path, img.message);
+        free(px);
+        texture_free(t);
+        return RC_ERR_PARSE;
+    }
+    texture_decode8(px, 4, t);
+    free(px);
+    return RC_OK;
+}
+
+typedef struct {
+    struct jpeg_error_mgr pub;
+    jmp_buf jump;
+    char msg[JMSG_LENGTH_MAX];
+} texture_jpeg_err;
+
+static void texture_jpeg_fail(j_common_ptr cinfo)
+{
+    texture_jpeg_err *e = (texture_jpeg_err *)cinfo->err;
+    (*cinfo->err->format_message)(cinfo, e->msg);
+    longjmp(e->jump, 1);
+}
+
+/* libjpeg's warnings (e.g. extraneous bytes) do not stop a decode; they are not printed. */
+static void texture_jpeg_quiet(j_common_ptr cinfo, int level)
+{
+    (void)cinfo;
+    (void)level;
+}
+
+static rc_status texture_jpeg(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
+                              size_t errlen)
+{
+    struct jpeg_decompress_struct ci;
+    texture_jpeg_err je;
+    unsigned char *volatile px = NULL;
+    ci.err = jpeg_std_error(&je.pub);
+    je.pub.error_exit = texture_jpeg_fail;
+    je.pub.emit_message = texture_jpeg_quiet;
+    je.msg[0] = '\0';
+    if (setjmp(je.jump)) {
+        jpeg_destroy_decompress(&ci);
+        free(px);
+        texture_free(t);
+        status_message(err, errlen, "%s: corrupt JPEG (%s); give a valid PNG or JPEG file", path, je.msg);
+        return RC_ERR_PARSE;
+    }
+    jpeg_create_decompress(&ci);
+    jpeg_mem_src(&ci, buf, (unsigned long)len);
+    jpeg_read_header(&ci, TRUE);
+    ci.out_color_space = JCS_RGB;
+    jpeg_start_decompress(&ci);
+    rc_status rc = texture_alloc(path, (int)ci.output_width, (int)ci.output_height, t, err, errlen);
+    if (rc != RC_OK) {
+        jpeg_destroy_decompress(&ci);
+        return rc;
+    }
+    size_t row = (size_t)ci.output_width * 3;
+    px = malloc(row * ci.output_height);
+    if (px == NULL) {
+        jpeg_destroy_decompress(&ci);
+        texture_free(t);
+        status_message(err, errlen, "%s: out of memory decoding the JPEG", path);
+        return RC_ERR_NOMEM;
+    }
+    while (ci.output_scanline < ci.output_height) {
+        JSAMPROW r = px + row * ci.output_scanline;
+        jpeg_read_scanlines(&ci, &r, 1);
+    }
+    jpeg_finish_decompress(&ci);
+    jpeg_destroy_decompress(&ci);
+    texture_decode8(px, 3, t);
+    free(px);
+    return RC_OK;
+}
+
+rc_status texture_load(const char *path, texture *t, char *err, size_t errlen)
+{
+    memset(t, 0, sizeof *t);
+    unsigned char *buf = NULL;
+    size_t len = 0;
+    rc_status rc = texture_read_file(path, &buf, &len, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    static const unsigned char png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    /* By content, not by name: a .jpg that holds a PNG still loads. */
+    if (len >= 8 && memcmp(buf, png_sig, 8) == 0)
+        rc = texture_png(path, buf, len, t, err, errlen);
+    else if (len >= 3 && buf[0] == 0xff && buf[1] == 0xd8 && buf[2] == 0xff)
+        rc = texture_jpeg(path, buf, len, t, err, errlen);
+    else {
+        status_message(err, errlen, "%s: neither a PNG nor a JPEG file; give a PNG, JPEG or linear EXR texture", path);
+        rc = RC_ERR_PARSE;
+    }
+    free(buf);
+    return rc;
+}
+
+rc_status texture_from_planes(int w, int h, const float *r, const float *g, const float *b, const float *a, texture *t,
+                              char *err, size_t errlen)
+{
+    memset(t, 0, sizeof *t);
+    rc_status rc = texture_alloc("texture", w, h, t, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    size_t n = (size_t)w * (size_t)h;
+    for (size_t i = 0; i < n; i++) {
+        float *q = t->rgba + 4 * i;
+        q[0] = r[i];
+        q[1] = g[i];
+        q[2] = b[i];
+        q[3] = a != NULL ? a[i] : 1.0f;
+    }
+    return RC_OK;
+}
+
+/* The texel column (or row) pair and weight of coordinate s in [0, 1) over n texels: centres
+ * at (i + 0.5)/n, repeat wrap. */
+static inline void texture_axis(float s, int n, int *i0, int *i1, float *f)
+{
+    float x = s * (float)n - 0.5f;
+    float fl = floorf(x);
+    int i = (int)fl;
+    *f = x - fl;
+    /* x is in [-0.5, n - 0.5): i is -1 .. n - 1, so one wrap each way suffices. */
+    *i0 = i < 0 ? i + n : i;
+    *i1 = i + 1 >= n ? i + 1 - n : i + 1;
+}
+
+/* u, v to [0, 1) image coordinates with v flipped to rows from the top; a non-finite input
+ * goes to 0 (floorf of Inf would give NaN and an index out of the image). */
+static inline float texture_frac(float s)
+{
+    float f = s - floorf(s);
+    /* s - floor(s) rounds up to 1.0 for tiny negative s (-1e-9 + 1 in float). */
+    return (f >= 0.0f && f < 1.0f) ? f : 0.0f;
+}
+
+void texture_sample(const texture *t, float u, float v, float out[4])
+{
+    if (t == NULL || t->width <= 0 || t->rgba == NULL) {
+        out[0] = out[1] = out[2] = out[3] = 1.0f;
+        return;
+    }
+    int x0, x1, y0, y1;
+    float fx, fy;
+    texture_axis(texture_frac(u), t->width, &x0, &x1, &fx);
+    texture_axis(texture_frac(1.0f - texture_frac(v)), t->height, &y0, &y1, &fy);
+    const float *p00 = t->rgba + 4 * ((size_t)y0 * (size_t)t->width + (size_t)x0);
+    const float *p10 = t->rgba + 4 * ((size_t)y0 * (size_t)t->width + (size_t)x1);
+    const float *p01 = t->rgba + 4 * ((size_t)y1 * (size_t)t->width + (size_t)x0);
+    const float *p11 = t->rgba + 4 * ((size_t)y1 * (size_t)t->width + (size_t)x1);
+    for (int c = 0; c < 4; c++) {
+        float top = p00[c] + (p10[c] - p00[c]) * fx;
+        float bot = p01[c] + (p11[c] - p01[c]) * fx;
+        out[c] = top + (bot - top) * fy;
+    }
+}
+
+void texture_sample_n(const texture *t, int n, const float *u, const float *v, float *r, float *g, float *b, float *a)
+{
+    for (int i = 0; i < n; i++) {
+        float c[4];
+        texture_sample(t, u[i], v[i], c);
+        r[i] = c[0];
+        g[i] = c[1];
+        b[i] = c[2];
+        a[i] = c[3];
+    }
+}
