@@ -23,6 +23,10 @@
 
 #include <cmocka.h>
 
+#include <cJSON.h>
+
+#include "check.h"
+
 #include "renderers/cycles/cycles.h"
 #include "renderers/registry.h"
 #include "exr.h"
@@ -832,16 +836,53 @@ static void test_validate_role(void **state)
 
 /* ------------------------------------------------------------------ job file and errors (no render) */
 
-static int file_contains(const char *path, const char *needle)
+/* The job file parsed back (cJSON); fails the test when it is not JSON. */
+static cJSON *job_parse(const char *path)
 {
     FILE *fp = fopen(path, "r");
     if (fp == NULL)
-        return 0;
+        fail_msg("%s: cannot open the job", path);
     static char buf[1 << 16];
     size_t n = fread(buf, 1, sizeof buf - 1, fp);
     buf[n] = '\0';
     fclose(fp);
-    return strstr(buf, needle) != NULL;
+    cJSON *doc = cJSON_Parse(buf);
+    if (doc == NULL)
+        fail_msg("%s: not JSON near '%.40s'", path, cJSON_GetErrorPtr() ? cJSON_GetErrorPtr() : "");
+    return doc;
+}
+
+/* The item at a path of keys and array indices ("lights", "#1", "energy"), or a failure. */
+static const cJSON *job_at(const cJSON *doc, int n, ...)
+{
+    va_list ap;
+    va_start(ap, n);
+    const cJSON *v = doc;
+    for (int i = 0; i < n; i++) {
+        const char *k = va_arg(ap, const char *);
+        v = k[0] == '#' ? cJSON_GetArrayItem(v, atoi(k + 1)) : cJSON_GetObjectItemCaseSensitive(v, k);
+        if (v == NULL)
+            fail_msg("job.json: no '%s' (step %d of the path)", k, i + 1);
+    }
+    va_end(ap);
+    return v;
+}
+
+static double job_num(const cJSON *v)
+{
+    if (!cJSON_IsNumber(v))
+        fail_msg("job.json: a number expected");
+    return v->valuedouble;
+}
+
+/* A three-number array equal to (x, y, z) within rel (the file keeps 9 digits). */
+static void job_vec(const cJSON *v, double x, double y, double z, double rel)
+{
+    assert_true(cJSON_IsArray(v));
+    assert_int_equal(cJSON_GetArraySize(v), 3);
+    close_rel(job_num(cJSON_GetArrayItem(v, 0)), x, rel);
+    close_rel(job_num(cJSON_GetArrayItem(v, 1)), y, rel);
+    close_rel(job_num(cJSON_GetArrayItem(v, 2)), z, rel);
 }
 
 static void test_job_contents_and_refusals(void **state)
@@ -865,26 +906,45 @@ static void test_job_contents_and_refusals(void **state)
     snprintf(job, sizeof job, "%s/contents.json", g_dir);
     cycles_options o = {0};
     assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
-    /* P = 4 pi max(I) = 8 pi = 25.1327412; colour carries the ratio. */
-    assert_true(file_contains(job, "\"energy\": 25.1327412"));
-    assert_true(file_contains(job, "\"color\": [1, 0.5, 0.25]"));
+    cJSON *doc = job_parse(job);
+    assert_string_equal(job_at(doc, 1, "format")->valuestring, "reflcheck-cycles-job");
+    assert_string_equal(job_at(doc, 1, "role")->valuestring, "twin");
+    assert_int_equal((int)job_num(job_at(doc, 1, "width")), 16);
+    assert_int_equal(cJSON_GetArraySize(job_at(doc, 1, "lights")), 2);
+    /* P = 4 pi max(I) = 8 pi; the colour carries the ratio; 9 digits in the file. */
+    close_rel(job_num(job_at(doc, 3, "lights", "#0", "energy")), 8.0 * PI, 1e-8);
+    assert_string_equal(job_at(doc, 3, "lights", "#0", "type")->valuestring, "POINT");
+    job_vec(job_at(doc, 3, "lights", "#0", "color"), 1.0, 0.5, 0.25, 0.0);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 2, "lights", "#0"), "direction"));
     /* blend = (cos 30 - cos 45) / (1 - cos 45) = 0.5576118... */
-    char want[64];
-    snprintf(want, sizeof want, "\"spot_blend\": %.6f", (cos(PI / 6) - cos(PI / 4)) / (1 - cos(PI / 4)));
-    want[strlen(want) - 1] = '\0'; /* compare 5 decimals: the file has %.9g */
-    assert_true(file_contains(job, want));
-    assert_true(file_contains(job, "\"tris\": [0, 1, 2, 0, 2, 3]"));
+    assert_string_equal(job_at(doc, 3, "lights", "#1", "type")->valuestring, "SPOT");
+    close_rel(job_num(job_at(doc, 3, "lights", "#1", "spot_blend")), (cos(PI / 6) - cos(PI / 4)) / (1 - cos(PI / 4)),
+              1e-8);
+    close_rel(job_num(job_at(doc, 3, "lights", "#1", "spot_size")), PI / 2.0, 1e-7);
+    const cJSON *tris = job_at(doc, 3, "objects", "#0", "tris");
+    assert_int_equal(cJSON_GetArraySize(tris), 6);
+    static const int want_tris[6] = {0, 1, 2, 0, 2, 3};
+    for (int i = 0; i < 6; i++)
+        assert_int_equal((int)job_num(cJSON_GetArrayItem(tris, i)), want_tris[i]);
+    assert_int_equal(cJSON_GetArraySize(job_at(doc, 3, "objects", "#0", "verts")), 3 * 4);
+    assert_int_equal((int)job_num(job_at(doc, 3, "objects", "#0", "pass_index")), 1);
+    cJSON_Delete(doc);
     /* D3D9Client eq. (6): Vd (1 - |lambda|), |lambda| = max component by default: 0.5 (1 - 0.4). */
     s.materials[0].model = MODEL_D3D9CLIENT;
     s.materials[0].d3d.diffuse = v3s(0.5f);
     s.materials[0].d9.reflect = v3(0.1f, 0.4f, 0.2f);
     s.env.kind = ENV_CONSTANT;
     assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
-    assert_true(file_contains(job, "\"diffuse\": {\"color\": [0.300000012, 0.300000012, 0.300000012]}"));
-    assert_true(file_contains(job, "\"mirror\": {\"kind\": \"d3d9client\""));
-    assert_true(
-        file_contains(job, "\"world_visibility\": {\"diffuse\": false, \"glossy\": true, \"light_sampling\": false}"));
-    assert_true(file_contains(job, "\"glossy_aov\": \"reflection\""));
+    doc = job_parse(job);
+    /* (float) 0.3 written to 9 digits: 0.300000012 */
+    job_vec(job_at(doc, 4, "materials", "#0", "diffuse", "color"), 0.3, 0.3, 0.3, 1e-7);
+    assert_string_equal(job_at(doc, 4, "materials", "#0", "mirror", "kind")->valuestring, "d3d9client");
+    assert_true(cJSON_IsFalse(job_at(doc, 2, "world_visibility", "diffuse")));
+    assert_true(cJSON_IsTrue(job_at(doc, 2, "world_visibility", "glossy")));
+    assert_true(cJSON_IsFalse(job_at(doc, 2, "world_visibility", "light_sampling")));
+    assert_string_equal(job_at(doc, 1, "glossy_aov")->valuestring, "reflection");
+    assert_int_equal(cJSON_GetArraySize(job_at(doc, 1, "missing")), 0);
+    cJSON_Delete(doc);
     /* ... and a Cook-Torrance lobe beside that mirror cannot be separated: refused. */
     s.n_materials = 2;
     s.n_objects = 2;
@@ -908,8 +968,12 @@ static void test_job_contents_and_refusals(void **state)
     assert_non_null(strstr(err, "Blinn-Phong"));
     o.partial = 1;
     assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
-    assert_true(file_contains(job, "\"missing\": [\"materials[0] 'scene'") ||
-                file_contains(job, "\"missing\": [\"materials[0]"));
+    doc = job_parse(job);
+    const cJSON *missing = job_at(doc, 1, "missing");
+    assert_int_equal(cJSON_GetArraySize(missing), 1);
+    assert_non_null(strstr(cJSON_GetArrayItem(missing, 0)->valuestring, "materials[0]"));
+    assert_non_null(strstr(cJSON_GetArrayItem(missing, 0)->valuestring, "Blinn-Phong"));
+    cJSON_Delete(doc);
     /* Non-inverse-square attenuation is refused in every role. */
     s.lights[0].a0 = 1.0f;
     o.role = ROLE_VALIDATE;

@@ -19,17 +19,23 @@
 #include "d3d9client.h"
 #include "exr.h"
 #include "fileio.h"
+#include "jsonio.h"
 #include "runner.h"
 
 /* ------------------------------------------------------------------ JSON writing */
 
+/* The job is a cJSON document written through harness/jsonio. Numbers keep 9 significant
+ * digits: every float round-trips (Blender stores float32), and the file stays as short as
+ * the text of "%.9g". */
+#define CYCLES_JSON_DIGITS 9
+
 typedef struct {
-    FILE *fp;
     int bad; /* a non-finite number was asked for: JSON cannot hold it */
     const char *bad_key;
+    int nomem; /* an allocation or an attachment failed */
 } jw;
 
-static void jw_num(jw *w, const char *key, double x)
+static cJSON *jw_num(jw *w, const char *key, double x)
 {
     if (!isfinite(x)) {
         if (!w->bad)
@@ -37,46 +43,84 @@ static void jw_num(jw *w, const char *key, double x)
         w->bad = 1;
         x = 0.0;
     }
-    fprintf(w->fp, "%.9g", x);
+    return jsonio_number(x, CYCLES_JSON_DIGITS);
 }
 
-/* The vectors v[order[0..n-1]] as one flat list x, y, z, x, y, z, ... (no brackets). */
-static void jw_flat(jw *w, const char *key, const vec3 *v, const int *order, int n)
+/* item under name in obj; any failure (obj or item NULL) is remembered and item freed. */
+static void jw_put(jw *w, cJSON *obj, const char *name, cJSON *item)
 {
-    for (int i = 0; i < n; i++) {
+    if (!jsonio_add(obj, name, item))
+        w->nomem = 1;
+}
+
+static void jw_push(jw *w, cJSON *arr, cJSON *item)
+{
+    if (arr == NULL || item == NULL || !cJSON_AddItemToArray(arr, item)) {
+        cJSON_Delete(item);
+        w->nomem = 1;
+    }
+}
+
+/* A new object or array under name in parent (pushed when name is NULL); NULL on failure, which
+ * the later additions into it then record. */
+static cJSON *jw_add_new(jw *w, cJSON *parent, const char *name, cJSON *item)
+{
+    cJSON *keep = item;
+    if (name != NULL)
+        jw_put(w, parent, name, item);
+    else
+        jw_push(w, parent, item);
+    return w->nomem ? NULL : keep;
+}
+
+static cJSON *jw_obj(jw *w, cJSON *parent, const char *name)
+{
+    return jw_add_new(w, parent, name, cJSON_CreateObject());
+}
+
+static cJSON *jw_arr(jw *w, cJSON *parent, const char *name)
+{
+    return jw_add_new(w, parent, name, cJSON_CreateArray());
+}
+
+static void jw_put_num(jw *w, cJSON *obj, const char *name, const char *key, double x)
+{
+    jw_put(w, obj, name, jw_num(w, key, x));
+}
+
+static void jw_put_str(jw *w, cJSON *obj, const char *name, const char *s)
+{
+    jw_put(w, obj, name, cJSON_CreateString(s));
+}
+
+static void jw_put_int(jw *w, cJSON *obj, const char *name, long x)
+{
+    jw_put(w, obj, name, cJSON_CreateNumber((double)x));
+}
+
+static void jw_put_bool(jw *w, cJSON *obj, const char *name, int b) { jw_put(w, obj, name, cJSON_CreateBool(b)); }
+
+static void jw_push_num(jw *w, cJSON *arr, const char *key, double x) { jw_push(w, arr, jw_num(w, key, x)); }
+
+/* [x, y, z] under name. */
+static void jw_put_vec(jw *w, cJSON *obj, const char *name, const char *key, vec3 v)
+{
+    cJSON *a = jw_arr(w, obj, name);
+    jw_push_num(w, a, key, v.x);
+    jw_push_num(w, a, key, v.y);
+    jw_push_num(w, a, key, v.z);
+}
+
+/* The vectors v[order[0..n-1]] as one flat list x, y, z, x, y, z, ... under name. */
+static void jw_put_flat(jw *w, cJSON *obj, const char *name, const char *key, const vec3 *v, const int *order, int n)
+{
+    cJSON *a = jw_arr(w, obj, name);
+    for (int i = 0; i < n && !w->nomem; i++) {
         vec3 p = v[order[i]];
-        fputs(i ? ", " : "", w->fp);
-        jw_num(w, key, p.x);
-        fputs(", ", w->fp);
-        jw_num(w, key, p.y);
-        fputs(", ", w->fp);
-        jw_num(w, key, p.z);
+        jw_push_num(w, a, key, p.x);
+        jw_push_num(w, a, key, p.y);
+        jw_push_num(w, a, key, p.z);
     }
-}
-
-static void jw_vec(jw *w, const char *key, vec3 v)
-{
-    fputc('[', w->fp);
-    jw_num(w, key, v.x);
-    fputs(", ", w->fp);
-    jw_num(w, key, v.y);
-    fputs(", ", w->fp);
-    jw_num(w, key, v.z);
-    fputc(']', w->fp);
-}
-
-static void jw_str(jw *w, const char *s)
-{
-    fputc('"', w->fp);
-    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
-        if (*p == '"' || *p == '\\')
-            fprintf(w->fp, "\\%c", *p);
-        else if (*p < 0x20)
-            fprintf(w->fp, "\\u%04x", *p);
-        else
-            fputc(*p, w->fp);
-    }
-    fputc('"', w->fp);
 }
 
 /* ------------------------------------------------------------------ translation checks */
@@ -175,59 +219,47 @@ static rc_status cycles_check_light(cycles_ctx *c, int i)
 
 /* ------------------------------------------------------------------ job sections */
 
-static void cycles_write_light(jw *w, const light *l)
+static void cycles_write_light(jw *w, cJSON *lights, const light *l)
 {
     /* Cycles takes a scalar power times a colour; the colour carries the RGB ratio. */
     float mx = v3_max_comp(l->intensity);
     vec3 col = mx > 0.0f ? v3_scale(l->intensity, 1.0f / mx) : v3s(1.0f);
     /* 1/(a2 d^2) is pure inverse square with intensity I/a2. */
     double inv_a2 = l->kind == LIGHT_SUN ? 1.0 : 1.0 / (double)l->a2;
-    FILE *fp = w->fp;
-    fputs("    {\"type\": ", fp);
+    cJSON *o = jw_obj(w, lights, NULL);
     if (l->kind == LIGHT_SUN) {
         /* Sun strength is irradiance at normal incidence. */
-        jw_str(w, "SUN");
-        fputs(", \"energy\": ", fp);
-        jw_num(w, "lights.energy", mx);
+        jw_put_str(w, o, "type", "SUN");
+        jw_put_num(w, o, "energy", "lights.energy", mx);
     } else {
         /* Point energy P [W] radiates P / (4 pi) W/sr; spots keep the point's intensity. */
-        jw_str(w, l->kind == LIGHT_SPOT ? "SPOT" : "POINT");
-        fputs(", \"energy\": ", fp);
-        jw_num(w, "lights.energy", 4.0 * FORMULA_PI_D * (double)mx * inv_a2);
-        fputs(", \"position\": ", fp);
-        jw_vec(w, "lights.position", l->position);
+        jw_put_str(w, o, "type", l->kind == LIGHT_SPOT ? "SPOT" : "POINT");
+        jw_put_num(w, o, "energy", "lights.energy", 4.0 * FORMULA_PI_D * (double)mx * inv_a2);
+        jw_put_vec(w, o, "position", "lights.position", l->position);
     }
-    fputs(", \"color\": ", fp);
-    jw_vec(w, "lights.color", col);
-    if (l->kind != LIGHT_POINT) {
-        fputs(", \"direction\": ", fp);
-        jw_vec(w, "lights.direction", v3_norm(l->direction));
-    }
+    jw_put_vec(w, o, "color", "lights.color", col);
+    if (l->kind != LIGHT_POINT)
+        jw_put_vec(w, o, "direction", "lights.direction", v3_norm(l->direction));
     if (l->kind == LIGHT_SPOT) {
         /* Cycles: cos * smoothstep from cos(size/2) over (1 - cos(size/2)) * blend, which is
          * POV-Ray's radius/falloff pair with half angles inner/2, outer/2 (CONVENTIONS.md). */
         double cf = cos(0.5 * (double)l->outer), cr = cos(0.5 * (double)l->inner);
-        fputs(", \"spot_size\": ", fp);
-        jw_num(w, "lights.spot_size", l->outer);
-        fputs(", \"spot_blend\": ", fp);
-        jw_num(w, "lights.spot_blend", cf < 1.0 ? (cr - cf) / (1.0 - cf) : 0.0);
+        jw_put_num(w, o, "spot_size", "lights.spot_size", l->outer);
+        jw_put_num(w, o, "spot_blend", "lights.spot_blend", cf < 1.0 ? (cr - cf) / (1.0 - cf) : 0.0);
     }
-    fputs("}", fp);
 }
 
-static void cycles_write_fresnel_of(jw *w, const material *mat)
+/* {"kind": "conductor", "eta", "k"} or {"kind": "dielectric", "ior"} under name. */
+static void cycles_write_fresnel_of(jw *w, cJSON *parent, const char *name, const material *mat)
 {
-    FILE *fp = w->fp;
+    cJSON *f = jw_obj(w, parent, name);
     if (mat->conductor) {
-        fputs("{\"kind\": \"conductor\", \"eta\": ", fp);
-        jw_vec(w, "materials.eta", mat->eta);
-        fputs(", \"k\": ", fp);
-        jw_vec(w, "materials.k", mat->k);
-        fputs("}", fp);
+        jw_put_str(w, f, "kind", "conductor");
+        jw_put_vec(w, f, "eta", "materials.eta", mat->eta);
+        jw_put_vec(w, f, "k", "materials.k", mat->k);
     } else {
-        fputs("{\"kind\": \"dielectric\", \"ior\": ", fp);
-        jw_num(w, "materials.ior", mat->ior);
-        fputs("}", fp);
+        jw_put_str(w, f, "kind", "dielectric");
+        jw_put_num(w, f, "ior", "materials.ior", mat->ior);
     }
 }
 
@@ -245,18 +277,17 @@ typedef struct {
     int glossy; /* a Beckmann closure lit by the lamps */
 } cycles_usage;
 
-static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usage *u)
+static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, int mi, cycles_usage *u)
 {
     const scene *s = c->s;
     const material *mat = &s->materials[mi];
     int has_env = s->env.kind != ENV_NONE;
     int used = cycles_material_used(s, mi);
-    FILE *fp = w->fp;
+    cJSON *o = jw_obj(w, materials, NULL);
     char what[160];
     rc_status rc = RC_OK;
 
-    fputs("    {\"name\": ", fp);
-    jw_str(w, mat->name);
+    jw_put_str(w, o, "name", mat->name);
 
     if (!c->twin) {
         /* Physical intent (validate): a dielectric coating over Lambert, or a bare conductor. */
@@ -269,22 +300,16 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
             return RC_ERR_RANGE;
         }
         if (!mat->conductor) {
-            fputs(", \"diffuse\": {\"color\": ", fp);
-            jw_vec(w, "materials.albedo", mat->albedo);
-            fputs(", \"fresnel_ior\": ", fp);
-            jw_num(w, "materials.ior", mat->ior);
-            fputs("}", fp);
+            cJSON *dif = jw_obj(w, o, "diffuse");
+            jw_put_vec(w, dif, "color", "materials.albedo", mat->albedo);
+            jw_put_num(w, dif, "fresnel_ior", "materials.ior", mat->ior);
         }
-        fputs(", \"glossy\": {\"roughness\": ", fp);
-        jw_num(w, "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
-        fputs(", \"color\": [1, 1, 1], \"fresnel\": ", fp);
-        cycles_write_fresnel_of(w, mat);
-        fputs("}", fp);
-        if (cycles_nonzero(mat->d3d.emissive)) {
-            fputs(", \"emission\": ", fp);
-            jw_vec(w, "materials.emissive", mat->d3d.emissive);
-        }
-        fputs("}", fp);
+        cJSON *gl = jw_obj(w, o, "glossy");
+        jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
+        jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(1.0f));
+        cycles_write_fresnel_of(w, gl, "fresnel", mat);
+        if (cycles_nonzero(mat->d3d.emissive))
+            jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
         u->glossy |= used;
         return RC_OK;
     }
@@ -292,19 +317,13 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
     if (c->agree) {
         /* What POV-Ray's validate/agree scene holds: Lambert albedo plus an exact-Fresnel mirror
          * of the environment (no highlight of the lamps, no diffuse environment light). */
-        fputs(", \"diffuse\": {\"color\": ", fp);
-        jw_vec(w, "materials.albedo", mat->conductor ? v3s(0.0f) : mat->albedo);
-        fputs("}", fp);
+        jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->conductor ? v3s(0.0f) : mat->albedo);
         if (has_env) {
-            fputs(", \"mirror\": ", fp);
-            cycles_write_fresnel_of(w, mat);
+            cycles_write_fresnel_of(w, o, "mirror", mat);
             u->mirror |= used;
         }
-        if (cycles_nonzero(mat->d3d.emissive)) {
-            fputs(", \"emission\": ", fp);
-            jw_vec(w, "materials.emissive", mat->d3d.emissive);
-        }
-        fputs("}", fp);
+        if (cycles_nonzero(mat->d3d.emissive))
+            jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
         return RC_OK;
     }
 
@@ -339,17 +358,13 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
     }
 
     switch (mat->model) {
-    case MODEL_D3D:
-        fputs(", \"diffuse\": {\"color\": ", fp);
-        jw_vec(w, "materials.d3d.diffuse", d->diffuse);
-        fputs("}", fp);
-        break;
+    case MODEL_D3D: jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.d3d.diffuse", d->diffuse); break;
     case MODEL_D3D9CLIENT: {
         const d3d9client_params *p = &mat->d9;
         /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
         float weight = 1.0f - d3d9client_colour_norm(p->reflect, p->norm);
-        fputs(", \"diffuse\": {\"color\": ", fp);
-        jw_vec(w, "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
+        cJSON *dif = jw_obj(w, o, "diffuse");
+        jw_put_vec(w, dif, "color", "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
         if (p->sun_angle) {
             const light *ml = cycles_main_light(s);
             if (ml != NULL && ml->kind != LIGHT_SUN && used) {
@@ -359,39 +374,28 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
                 if ((rc = cycles_cannot(c, 0, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
                     return rc;
             } else if (ml != NULL) {
-                fputs(", \"sun_angle\": {\"to_sun\": ", fp);
-                jw_vec(w, "lights.direction", v3_neg(v3_norm(ml->direction)));
-                fputs(", \"r0\": ", fp);
-                jw_num(w, "materials.d9.r0", p->r0);
-                fputs(", \"m\": ", fp);
-                jw_num(w, "materials.d9.m", p->m);
-                fputs(", \"p\": ", fp);
-                jw_num(w, "materials.d9.p", p->p);
-                fputs("}", fp);
+                cJSON *sa = jw_obj(w, dif, "sun_angle");
+                jw_put_vec(w, sa, "to_sun", "lights.direction", v3_neg(v3_norm(ml->direction)));
+                jw_put_num(w, sa, "r0", "materials.d9.r0", p->r0);
+                jw_put_num(w, sa, "m", "materials.d9.m", p->m);
+                jw_put_num(w, sa, "p", "materials.d9.p", p->p);
             }
         }
-        fputs("}", fp);
         if (has_env) {
-            fputs(", \"mirror\": {\"kind\": \"d3d9client\", \"lambda\": ", fp);
-            jw_vec(w, "materials.d9.reflect", p->reflect);
-            fputs(", \"s\": ", fp);
-            jw_vec(w, "materials.d9.fresnel_colour", p->fresnel_colour);
-            fputs(", \"r0\": ", fp);
-            jw_num(w, "materials.d9.r0", p->r0);
-            fputs(", \"m\": ", fp);
-            jw_num(w, "materials.d9.m", p->m);
-            fputs(", \"p\": ", fp);
-            jw_num(w, "materials.d9.p", p->p);
-            fputs("}", fp);
+            cJSON *mir = jw_obj(w, o, "mirror");
+            jw_put_str(w, mir, "kind", "d3d9client");
+            jw_put_vec(w, mir, "lambda", "materials.d9.reflect", p->reflect);
+            jw_put_vec(w, mir, "s", "materials.d9.fresnel_colour", p->fresnel_colour);
+            jw_put_num(w, mir, "r0", "materials.d9.r0", p->r0);
+            jw_put_num(w, mir, "m", "materials.d9.m", p->m);
+            jw_put_num(w, mir, "p", "materials.d9.p", p->p);
             u->mirror |= used;
         }
         break;
     }
     case MODEL_COOK_TORRANCE: {
         const ct_params *p = &mat->ct;
-        fputs(", \"diffuse\": {\"color\": ", fp);
-        jw_vec(w, "materials.albedo", mat->albedo);
-        fputs("}", fp);
+        jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->albedo);
         int lobe = cycles_nonzero(p->ks);
         if (lobe && used && (p->g != G_SMITH_WALTER || p->f != F_ONE || p->norm != CT_WALTER)) {
             snprintf(what, sizeof what,
@@ -411,43 +415,35 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, int mi, cycles_usag
         }
         if (lobe) {
             /* Cycles: alpha = Roughness^2 and alpha is Beckmann's m. */
-            fputs(", \"glossy\": {\"roughness\": ", fp);
-            jw_num(w, "materials.ct.m", sqrt((double)p->m));
-            fputs(", \"color\": ", fp);
-            jw_vec(w, "materials.ct.ks", p->ks);
-            fputs("}", fp);
+            cJSON *gl = jw_obj(w, o, "glossy");
+            jw_put_num(w, gl, "roughness", "materials.ct.m", sqrt((double)p->m));
+            jw_put_vec(w, gl, "color", "materials.ct.ks", p->ks);
             u->glossy |= used;
         }
         if (p->reflection && has_env) {
             /* env(reflect(-V, N)) * Fr(N.V), Fr as cooktorrance_reflection_weight picks it. */
-            fputs(", \"reflection_lookup\": {\"fresnel\": ", fp);
+            cJSON *rl = jw_obj(w, o, "reflection_lookup");
             if (p->f == F_ONE) {
-                fputs("{\"kind\": \"one\"}", fp);
+                jw_put_str(w, jw_obj(w, rl, "fresnel"), "kind", "one");
             } else if (p->f == F_EXACT) {
-                cycles_write_fresnel_of(w, mat);
+                cycles_write_fresnel_of(w, rl, "fresnel", mat);
             } else {
-                fputs("{\"kind\": \"schlick\", \"f0\": ", fp);
-                jw_vec(w, "materials.ct.f0", p->f0);
-                fputs("}", fp);
+                cJSON *f = jw_obj(w, rl, "fresnel");
+                jw_put_str(w, f, "kind", "schlick");
+                jw_put_vec(w, f, "f0", "materials.ct.f0", p->f0);
             }
-            fputs("}", fp);
         }
         break;
     }
     }
-    if (cycles_nonzero(d->emissive)) {
-        fputs(", \"emission\": ", fp);
-        jw_vec(w, "materials.d3d.emissive", d->emissive);
-    }
-    fputs("}", fp);
+    if (cycles_nonzero(d->emissive))
+        jw_put_vec(w, o, "emission", "materials.d3d.emissive", d->emissive);
     return RC_OK;
 }
 
-static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *remap)
+static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const mesh *m, int *remap)
 {
-    FILE *fp = w->fp;
-    int first_obj = 1;
-    for (int oi = 0; oi < s->n_objects; oi++) {
+    for (int oi = 0; oi < s->n_objects && !w->nomem; oi++) {
         int n_tris = 0, n_verts = 0;
         for (int t = 0; t < m->n_tris; t++) {
             if (m->tri_object[t] != oi)
@@ -466,29 +462,24 @@ static void cycles_write_objects(jw *w, const scene *s, const mesh *m, int *rema
         for (int v = 0; v < m->n_verts; v++)
             if (remap[v] >= 0)
                 order[remap[v]] = v;
-        fprintf(fp, "%s    {\"name\": ", first_obj ? "" : ",\n");
-        first_obj = 0;
+        cJSON *o = jw_obj(w, objects, NULL);
         char name[32];
         snprintf(name, sizeof name, "object_%d", oi);
-        jw_str(w, name);
-        fprintf(fp, ", \"material\": %d, \"pass_index\": %d,\n     \"verts\": [", s->objects[oi].material, oi + 1);
-        jw_flat(w, "mesh.pos", m->pos, order, n_verts);
-        fputs("],\n     \"normals\": [", fp);
-        jw_flat(w, "mesh.nrm", m->nrm, order, n_verts);
-        fputs("],\n     \"tris\": [", fp);
-        int first = 1;
-        for (int t = 0; t < m->n_tris; t++) {
+        jw_put_str(w, o, "name", name);
+        jw_put_int(w, o, "material", s->objects[oi].material);
+        jw_put_int(w, o, "pass_index", oi + 1);
+        jw_put_flat(w, o, "verts", "mesh.pos", m->pos, order, n_verts);
+        jw_put_flat(w, o, "normals", "mesh.nrm", m->nrm, order, n_verts);
+        cJSON *tris = jw_arr(w, o, "tris");
+        for (int t = 0; t < m->n_tris && !w->nomem; t++) {
             if (m->tri_object[t] != oi)
                 continue;
-            fprintf(fp, "%s%d, %d, %d", first ? "" : ", ", remap[m->idx[3 * t]], remap[m->idx[3 * t + 1]],
-                    remap[m->idx[3 * t + 2]]);
-            first = 0;
+            for (int k = 0; k < 3; k++)
+                jw_push(w, tris, cJSON_CreateNumber(remap[m->idx[3 * t + k]]));
         }
-        fputs("]}", fp);
         for (int i = 0; i < n_verts; i++)
             remap[order[i]] = -1;
     }
-    fputs("\n", fp);
 }
 
 rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,
@@ -565,76 +556,61 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         }
     }
 
-    FILE *fp = fopen(job_json_path, "w");
-    if (fp == NULL) {
-        status_message(err, errlen, "%s: cannot write the Cycles job: %s; check the output directory", job_json_path,
-                       strerror(errno));
-        return RC_ERR_IO;
-    }
-    jw w = {.fp = fp};
-    fputs("{\"format\": \"reflcheck-cycles-job\", \"version\": 1,\n \"scene\": ", fp);
-    jw_str(&w, s->name);
-    fputs(", \"scene_path\": ", fp);
-    jw_str(&w, s->path);
-    fprintf(fp, ", \"scene_hash\": \"%016llx\",\n \"role\": \"%s\", \"width\": %d, \"height\": %d, \"samples\": %d,",
-            (unsigned long long)s->hash, c.agree ? "agree" : (c.twin ? "twin" : "validate"), width, height, samples);
-    fputs(" \"seeds\": [", fp);
+    jw w = {0};
+    cJSON *doc = cJSON_CreateObject();
+    jw_put_str(&w, doc, "format", "reflcheck-cycles-job");
+    jw_put_int(&w, doc, "version", 1);
+    jw_put_str(&w, doc, "scene", s->name);
+    jw_put_str(&w, doc, "scene_path", s->path);
+    char hash[24];
+    snprintf(hash, sizeof hash, "%016llx", (unsigned long long)s->hash);
+    jw_put_str(&w, doc, "scene_hash", hash);
+    jw_put_str(&w, doc, "role", c.agree ? "agree" : (c.twin ? "twin" : "validate"));
+    jw_put_int(&w, doc, "width", width);
+    jw_put_int(&w, doc, "height", height);
+    jw_put_int(&w, doc, "samples", samples);
+    cJSON *seeds = jw_arr(&w, doc, "seeds");
     for (int i = 0; i < n_seeds; i++)
-        fprintf(fp, "%s%u", i ? ", " : "", o->seed + (unsigned)i);
-    fputs("],\n", fp);
+        jw_push(&w, seeds, cJSON_CreateNumber(o->seed + (unsigned)i));
 
     /* Camera rays start at clip_start: keep it far below any scene distance. */
     double far = cycles_max_dist(m, s->camera.eye);
-    fputs(" \"camera\": {\"eye\": ", fp);
-    jw_vec(&w, "camera.eye", s->camera.eye);
-    fputs(", \"target\": ", fp);
-    jw_vec(&w, "camera.target", s->camera.target);
-    fputs(", \"up\": ", fp);
-    jw_vec(&w, "camera.up", s->camera.up);
-    fputs(", \"hfov\": ", fp);
-    jw_num(&w, "camera.hfov", s->camera.hfov);
-    fputs(", \"clip_start\": ", fp);
-    jw_num(&w, "camera.clip_start", fmax(1e-6, 1e-5 * far));
-    fputs(", \"clip_end\": ", fp);
-    jw_num(&w, "camera.clip_end", fmax(1.0, 4.0 * far));
-    fputs("},\n \"lights\": [\n", fp);
-    for (int i = 0; i < s->n_lights; i++) {
-        cycles_write_light(&w, &s->lights[i]);
-        fputs(i + 1 < s->n_lights ? ",\n" : "\n", fp);
-    }
-    fputs(" ],\n \"environment\": ", fp);
+    cJSON *cam = jw_obj(&w, doc, "camera");
+    jw_put_vec(&w, cam, "eye", "camera.eye", s->camera.eye);
+    jw_put_vec(&w, cam, "target", "camera.target", s->camera.target);
+    jw_put_vec(&w, cam, "up", "camera.up", s->camera.up);
+    jw_put_num(&w, cam, "hfov", "camera.hfov", s->camera.hfov);
+    jw_put_num(&w, cam, "clip_start", "camera.clip_start", fmax(1e-6, 1e-5 * far));
+    jw_put_num(&w, cam, "clip_end", "camera.clip_end", fmax(1.0, 4.0 * far));
+    cJSON *lights = jw_arr(&w, doc, "lights");
+    for (int i = 0; i < s->n_lights; i++)
+        cycles_write_light(&w, lights, &s->lights[i]);
+    cJSON *env = jw_obj(&w, doc, "environment");
     switch (s->env.kind) {
-    case ENV_NONE: fputs("{\"type\": \"none\"}", fp); break;
+    case ENV_NONE: jw_put_str(&w, env, "type", "none"); break;
     case ENV_CONSTANT:
-        fputs("{\"type\": \"constant\", \"radiance\": ", fp);
-        jw_vec(&w, "environment.radiance", s->env.radiance);
-        fputs("}", fp);
+        jw_put_str(&w, env, "type", "constant");
+        jw_put_vec(&w, env, "radiance", "environment.radiance", s->env.radiance);
         break;
     case ENV_IMAGE:
-        fputs("{\"type\": \"image\", \"path\": ", fp);
-        jw_str(&w, env_path);
-        fputs(", \"scale\": ", fp);
-        jw_vec(&w, "environment.radiance", s->env.radiance);
-        fputs("}", fp);
+        jw_put_str(&w, env, "type", "image");
+        jw_put_str(&w, env, "path", env_path);
+        jw_put_vec(&w, env, "scale", "environment.radiance", s->env.radiance);
         break;
     }
-    fputs(",\n \"materials\": [\n", fp);
+    cJSON *materials = jw_arr(&w, doc, "materials");
     cycles_usage u = {0};
     for (int mi = 0; mi < s->n_materials; mi++) {
-        if ((rc = cycles_write_material(&c, &w, mi, &u)) != RC_OK) {
-            fclose(fp);
-            remove(job_json_path);
+        if ((rc = cycles_write_material(&c, &w, materials, mi, &u)) != RC_OK) {
+            cJSON_Delete(doc);
             return rc;
         }
-        fputs(mi + 1 < s->n_materials ? ",\n" : "\n", fp);
     }
-    fputs(" ],\n", fp);
 
     /* Glossy passes hold every glossy closure: they can be routed to one AOV only. A Beckmann
      * lobe also sees the environment whenever a mirror needs the world visible to glossy rays. */
     if (c.twin && !c.agree && u.mirror && u.glossy) {
-        fclose(fp);
-        remove(job_json_path);
+        cJSON_Delete(doc);
         status_message(err, errlen,
                        "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
                        "(reflection) under one environment; put them in separate scenes",
@@ -645,41 +621,38 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     /* Light-sampling the world only helps closures that sample lights: diffuse and Beckmann,
      * not a mirror. Skipping it saves the importance map (~1.7 s for a 1024 x 512 image). */
     int world_sampled = s->env.kind != ENV_NONE && (world_diffuse || (world_glossy && u.glossy));
-    fprintf(fp,
-            " \"world_visibility\": {\"diffuse\": %s, \"glossy\": %s, \"light_sampling\": %s},\n"
-            " \"glossy_aov\": \"%s\",\n",
-            world_diffuse ? "true" : "false", world_glossy ? "true" : "false", world_sampled ? "true" : "false",
-            u.mirror ? "reflection" : "specular");
-    fputs(" \"missing\": [", fp);
-    for (int i = 0; i < c.n_missing; i++) {
-        fputs(i ? ", " : "", fp);
-        jw_str(&w, c.missing[i]);
-    }
-    fputs("],\n \"objects\": [\n", fp);
+    cJSON *vis = jw_obj(&w, doc, "world_visibility");
+    jw_put_bool(&w, vis, "diffuse", world_diffuse);
+    jw_put_bool(&w, vis, "glossy", world_glossy);
+    jw_put_bool(&w, vis, "light_sampling", world_sampled);
+    jw_put_str(&w, doc, "glossy_aov", u.mirror ? "reflection" : "specular");
+    cJSON *missing = jw_arr(&w, doc, "missing");
+    for (int i = 0; i < c.n_missing; i++)
+        jw_push(&w, missing, cJSON_CreateString(c.missing[i]));
+    cJSON *objects = jw_arr(&w, doc, "objects");
     int *remap = malloc(sizeof(int) * 2 * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
     if (remap == NULL) {
-        fclose(fp);
-        remove(job_json_path);
+        cJSON_Delete(doc);
         status_message(err, errlen, "%s: out of memory for the vertex map", job_json_path);
         return RC_ERR_NOMEM;
     }
     for (int i = 0; i < m->n_verts; i++)
         remap[i] = -1;
-    cycles_write_objects(&w, s, m, remap);
+    cycles_write_objects(&w, objects, s, m, remap);
     free(remap);
-    fputs(" ]\n}\n", fp);
-    int werr = ferror(fp);
-    if (fclose(fp) != 0 || werr) {
-        remove(job_json_path);
-        status_message(err, errlen, "%s: write failed; check disk space", job_json_path);
-        return RC_ERR_IO;
-    }
     if (w.bad) {
-        remove(job_json_path);
+        cJSON_Delete(doc);
         status_message(err, errlen, "%s: %s is NaN or infinite; fix the scene value", s->path, w.bad_key);
         return RC_ERR_RANGE;
     }
-    return RC_OK;
+    if (doc == NULL || w.nomem) {
+        cJSON_Delete(doc);
+        status_message(err, errlen, "%s: out of memory for the Cycles job", job_json_path);
+        return RC_ERR_NOMEM;
+    }
+    rc = jsonio_write_file(doc, job_json_path, err, errlen);
+    cJSON_Delete(doc);
+    return rc;
 }
 
 /* ------------------------------------------------------------------ running */
