@@ -1184,6 +1184,113 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
+/* A light mask: `all`, `none`, or a list of light indices (each < the number of lights). */
+static rc_status sf_light_mask(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, unsigned *out)
+{
+    char allowed[96], child[SF_PATHLEN];
+    snprintf(allowed, sizeof allowed, "all, none, or a list of light indices 0..%d", s->n_lights - 1);
+    if (n->type == YAML_SCALAR_NODE) {
+        static const char *const words[] = {"all", "none"};
+        int w;
+        rc_status rc = sf_enum(c, n, path, words, 2, &w);
+        if (rc)
+            return rc;
+        *out = w == 0 ? PHYSICS_ALL_LIGHTS : 0u;
+        return RC_OK;
+    }
+    if (n->type != YAML_SEQUENCE_NODE)
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected a word or a list, got %s; allowed: %s", sf_kind(n), allowed);
+    unsigned mask = 0;
+    int i = 0;
+    for (yaml_node_item_t *it = n->data.sequence.items.start; it < n->data.sequence.items.top; it++, i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, *it);
+        int li;
+        sf_index(child, path, i);
+        if (!e)
+            return sf_fail(c, RC_ERR_PARSE, n, child, "missing item; allowed: %s", allowed);
+        if (s->n_lights == 0)
+            return sf_fail(c, RC_ERR_RANGE, e, child, "the scene has no lights; allowed: all or none");
+        rc_status rc = sf_int(c, e, child, 0, s->n_lights - 1, &li);
+        if (rc)
+            return rc;
+        if (mask & (1u << li))
+            return sf_fail(c, RC_ERR_PARSE, e, child, "light %d listed twice; allowed: each index once", li);
+        mask |= 1u << li;
+    }
+    *out = mask;
+    return RC_OK;
+}
+
+enum {
+    PK_DIFFUSE_LIGHTS,
+    PK_SPECULAR_LIGHTS,
+    PK_ENV_DIFFUSE,
+    PK_ENV_SPECULAR,
+    PK_BOUNCES,
+    PK_SHADOWS,
+    PK_INTERREFLECTION,
+    PK_FRESNEL_SPECULAR,
+    PK_FRESNEL_REFLECTION,
+    PK_DIFFUSE_WEIGHT,
+    PK_COUNT
+};
+
+/* After the lights: a light mask names light indices. */
+static rc_status sf_physics(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[PK_COUNT] = {
+        "diffuse_lights", "specular_lights", "env_diffuse",      "env_specular",       "bounces",
+        "shadows",        "interreflection", "fresnel_specular", "fresnel_reflection", "diffuse_weight"};
+    physics *p = &s->physics;
+    sf_kv f[PK_COUNT];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    int v;
+    if ((rc = sf_map(c, n, "physics", keys, PK_COUNT, f)))
+        return rc;
+    if (f[PK_DIFFUSE_LIGHTS].v &&
+        (rc = sf_light_mask(c, f[PK_DIFFUSE_LIGHTS].v, "physics.diffuse_lights", s, &p->diffuse_lights)))
+        return rc;
+    if (f[PK_SPECULAR_LIGHTS].v &&
+        (rc = sf_light_mask(c, f[PK_SPECULAR_LIGHTS].v, "physics.specular_lights", s, &p->specular_lights)))
+        return rc;
+    if (f[PK_ENV_DIFFUSE].v && (rc = sf_bool(c, f[PK_ENV_DIFFUSE].v, "physics.env_diffuse", &p->env_diffuse)))
+        return rc;
+    if (f[PK_ENV_SPECULAR].v && (rc = sf_bool(c, f[PK_ENV_SPECULAR].v, "physics.env_specular", &p->env_specular)))
+        return rc;
+    if (f[PK_BOUNCES].v && (rc = sf_int(c, f[PK_BOUNCES].v, "physics.bounces", 1, 64, &p->bounces)))
+        return rc;
+    if (f[PK_SHADOWS].v && (rc = sf_bool(c, f[PK_SHADOWS].v, "physics.shadows", &p->shadows)))
+        return rc;
+    if (f[PK_INTERREFLECTION].v &&
+        (rc = sf_bool(c, f[PK_INTERREFLECTION].v, "physics.interreflection", &p->interreflection)))
+        return rc;
+    if (f[PK_FRESNEL_SPECULAR].v) {
+        if ((rc = sf_enum(c, f[PK_FRESNEL_SPECULAR].v, "physics.fresnel_specular", physics_fresnel_names, 4, &v)))
+            return rc;
+        p->fresnel_specular = (physics_fresnel)v;
+    }
+    if (f[PK_FRESNEL_REFLECTION].v) {
+        if ((rc = sf_enum(c, f[PK_FRESNEL_REFLECTION].v, "physics.fresnel_reflection", physics_fresnel_names, 4, &v)))
+            return rc;
+        p->fresnel_reflection = (physics_fresnel)v;
+    }
+    if (f[PK_DIFFUSE_WEIGHT].v) {
+        if ((rc = sf_enum(c, f[PK_DIFFUSE_WEIGHT].v, "physics.diffuse_weight", physics_diffuse_weight_names, 2, &v)))
+            return rc;
+        p->diffuse_weight = (physics_diffuse_weight)v;
+    }
+    /* Without inter-reflection a second scattering event has nothing to hit. */
+    if (p->bounces > 1 && !p->interreflection) {
+        sf_child(child, "physics", "bounces");
+        return sf_fail(c, RC_ERR_RANGE, f[PK_BOUNCES].v, child,
+                       "%d bounces without inter-reflection reach nothing; allowed: 1, or set "
+                       "interreflection: true",
+                       p->bounces);
+    }
+    return RC_OK;
+}
+
 enum {
     TK_NAME,
     TK_IMAGE,
@@ -1194,13 +1301,14 @@ enum {
     TK_MATERIALS,
     TK_OBJECTS,
     TK_COMPARISONS,
+    TK_PHYSICS,
     TK_COUNT
 };
 
 static rc_status sf_top(sf_ctx *c, yaml_node_t *root, scene *s)
 {
-    static const char *const keys[TK_COUNT] = {"name",   "image",     "camera",  "ambient",    "environment",
-                                               "lights", "materials", "objects", "comparisons"};
+    static const char *const keys[TK_COUNT] = {"name",   "image",     "camera",  "ambient",     "environment",
+                                               "lights", "materials", "objects", "comparisons", "physics"};
     sf_kv f[TK_COUNT];
     rc_status rc;
     if ((rc = sf_map(c, root, "", keys, TK_COUNT, f)) || (rc = sf_need(c, root, "", &f[TK_IMAGE], "image")) ||
@@ -1215,6 +1323,8 @@ static rc_status sf_top(sf_ctx *c, yaml_node_t *root, scene *s)
     if (f[TK_ENV].v && (rc = sf_environment(c, f[TK_ENV].v, s)))
         return rc;
     if (f[TK_LIGHTS].v && (rc = sf_lights(c, f[TK_LIGHTS].v, s)))
+        return rc;
+    if (f[TK_PHYSICS].v && (rc = sf_physics(c, f[TK_PHYSICS].v, s)))
         return rc;
     /* Materials before objects, whatever the order in the file: objects refer to them by name. */
     if (f[TK_MATERIALS].v && (rc = sf_materials(c, f[TK_MATERIALS].v, s)))

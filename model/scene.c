@@ -5,6 +5,7 @@
  * ior or roughness re-derives them after the whole material is read (harness/scene_file.c).
  */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "scene.h"
@@ -67,6 +68,54 @@ void object_init(object *o)
     o->tessellation = 32;
 }
 
+const char *const physics_fresnel_names[4] = {"exact", "nv", "one", "schlick"};
+const char *const physics_diffuse_weight_names[2] = {"plain", "one_minus_f"};
+
+static size_t physics_mask_text(unsigned mask, int n_lights, char *buf, size_t len)
+{
+    unsigned all = n_lights >= 32 ? ~0u : (1u << n_lights) - 1u;
+    mask &= all;
+    if (mask == all)
+        return (size_t)snprintf(buf, len, "all");
+    if (mask == 0)
+        return (size_t)snprintf(buf, len, "none");
+    size_t used = 0;
+    buf[0] = 0;
+    for (int i = 0; i < n_lights && used < len; i++)
+        if (mask & (1u << i))
+            used += (size_t)snprintf(buf + used, len - used, "%s%d", used ? "+" : "", i);
+    return used;
+}
+
+const char *physics_describe(const physics *p, int n_lights, char *buf, size_t len)
+{
+    char dl[40], sl[40];
+    physics_mask_text(p->diffuse_lights, n_lights, dl, sizeof dl);
+    physics_mask_text(p->specular_lights, n_lights, sl, sizeof sl);
+    int fs = p->fresnel_specular >= 0 && p->fresnel_specular < 4 ? (int)p->fresnel_specular : 0;
+    int fr = p->fresnel_reflection >= 0 && p->fresnel_reflection < 4 ? (int)p->fresnel_reflection : 0;
+    int dw = p->diffuse_weight >= 0 && p->diffuse_weight < 2 ? (int)p->diffuse_weight : 0;
+    snprintf(buf, len,
+             "diffuse_lights=%s specular_lights=%s env_diffuse=%d env_specular=%d bounces=%d shadows=%d "
+             "interreflection=%d fresnel_specular=%s fresnel_reflection=%s diffuse_weight=%s",
+             dl, sl, p->env_diffuse, p->env_specular, p->bounces, p->shadows, p->interreflection,
+             physics_fresnel_names[fs], physics_fresnel_names[fr], physics_diffuse_weight_names[dw]);
+    return buf;
+}
+
+void physics_init(physics *p)
+{
+    memset(p, 0, sizeof *p);
+    p->diffuse_lights = PHYSICS_ALL_LIGHTS;
+    p->specular_lights = PHYSICS_ALL_LIGHTS;
+    p->env_diffuse = 0;
+    p->env_specular = 1;
+    p->bounces = 1;
+    p->fresnel_specular = PHYS_FRESNEL_EXACT;
+    p->fresnel_reflection = PHYS_FRESNEL_EXACT;
+    p->diffuse_weight = PHYS_DIFFUSE_PLAIN;
+}
+
 void scene_init(scene *s)
 {
     memset(s, 0, sizeof *s);
@@ -81,6 +130,7 @@ void scene_init(scene *s)
     s->camera.hfov = scene_deg(40.0);
     s->env.kind = ENV_NONE;
     s->env.radiance = v3s(1.0f); /* the image scale default; unused while kind is ENV_NONE */
+    physics_init(&s->physics);
     for (int i = 0; i < SCENE_MAX_LIGHTS; i++)
         light_init(&s->lights[i]);
     for (int i = 0; i < SCENE_MAX_MATERIALS; i++)

@@ -13,6 +13,7 @@
 #ifndef REFLCHECK_SCENE_H
 #define REFLCHECK_SCENE_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include "vec.h"
 
@@ -119,6 +120,36 @@ typedef struct {
     char usemtl[SCENE_NAME_MAX]; /* mesh, OBJ only: just the faces after `usemtl NAME`; "" = all */
 } object;
 
+/* The physics manifest: what every validate (and agree) reference of the scene renders, written
+ * once (scene-file key `physics`, scenes/FORMAT.md) so that two references of one scene compute
+ * the same physics or say precisely what they cannot. It describes the reference, never the
+ * model under test. Zero is not the default for every field: scene_init fills the defaults. */
+typedef enum {
+    PHYS_FRESNEL_EXACT,  /* exact unpolarised F(V.H) per microfacet (= F(N.V) on a mirror) */
+    PHYS_FRESNEL_NV,     /* exact F(N.V) tinting the whole lobe: a bias on a rough lobe, never exact */
+    PHYS_FRESNEL_ONE,    /* F = 1 */
+    PHYS_FRESNEL_SCHLICK /* Schlick's F0 + (1 - F0)(1 - V.H)^5 per microfacet */
+} physics_fresnel;
+typedef enum {
+    PHYS_DIFFUSE_PLAIN,      /* Lambert albedo, not weighted */
+    PHYS_DIFFUSE_ONE_MINUS_F /* Lambert albedo * (1 - F_dielectric(N.V)) of the material's ior */
+} physics_diffuse_weight;
+
+#define PHYSICS_ALL_LIGHTS 0xffu /* light mask: bit i is scene.lights[i] (SCENE_MAX_LIGHTS = 8) */
+
+typedef struct {
+    unsigned diffuse_lights;               /* lights that reach the Lambert term; default all */
+    unsigned specular_lights;              /* lights whose highlight the specular lobe reflects; default all */
+    int env_diffuse;                       /* the environment lights the Lambert term; default 0 */
+    int env_specular;                      /* the specular lobe reflects the environment; default 1 */
+    int bounces;                           /* scattering events on a path; default 1 (direct light only) */
+    int shadows;                           /* objects block light; default 0 */
+    int interreflection;                   /* objects are seen by reflected and diffuse rays; default 0 */
+    physics_fresnel fresnel_specular;      /* of the lobe lit by the lights; default exact */
+    physics_fresnel fresnel_reflection;    /* of the lobe reflecting the environment; default exact */
+    physics_diffuse_weight diffuse_weight; /* default plain; conductors have no Lambert term */
+} physics;
+
 typedef enum { ROLE_TWIN, ROLE_VALIDATE, ROLE_AGREE } comparison_role;
 
 #define METRIC_MAX 8
@@ -159,6 +190,7 @@ typedef struct {
     } camera;            /* hfov [rad] */
     vec3 global_ambient; /* D3D Ia, default 0 */
     environment env;
+    physics physics; /* what the validate references render */
     int n_lights, n_materials, n_objects, n_comparisons;
     light lights[SCENE_MAX_LIGHTS];
     material materials[SCENE_MAX_MATERIALS];
@@ -171,5 +203,15 @@ void scene_init(scene *s);
 void light_init(light *l);
 void material_init(material *m);
 void object_init(object *o);
+void physics_init(physics *p);
+
+/* The file words of the enums above, indexed by value. */
+extern const char *const physics_fresnel_names[4];        /* exact, nv, one, schlick */
+extern const char *const physics_diffuse_weight_names[2]; /* plain, one_minus_f */
+
+/* The manifest as one canonical line ("diffuse_lights=all specular_lights=all env_diffuse=0 ...",
+ * keys in struct order, masks restricted to the scene's n_lights as all, none or 0+2): equal
+ * physics give equal text, so references compare manifests by string. Returns buf. */
+const char *physics_describe(const physics *p, int n_lights, char *buf, size_t len);
 
 #endif

@@ -208,6 +208,61 @@ static void test_good_minimal_defaults(void **state)
     assert_v3(s->global_ambient, 0, 0, 0);
     assert_int_equal(s->env.kind, ENV_NONE);
     assert_int_equal(s->n_lights + s->n_materials + s->n_objects + s->n_comparisons, 0);
+    /* The physics manifest's defaults (scene.h, scenes/FORMAT.md). */
+    const physics *p = &s->physics;
+    assert_int_equal(p->diffuse_lights, PHYSICS_ALL_LIGHTS);
+    assert_int_equal(p->specular_lights, PHYSICS_ALL_LIGHTS);
+    assert_int_equal(p->env_diffuse, 0);
+    assert_int_equal(p->env_specular, 1);
+    assert_int_equal(p->bounces, 1);
+    assert_int_equal(p->shadows, 0);
+    assert_int_equal(p->interreflection, 0);
+    assert_int_equal(p->fresnel_specular, PHYS_FRESNEL_EXACT);
+    assert_int_equal(p->fresnel_reflection, PHYS_FRESNEL_EXACT);
+    assert_int_equal(p->diffuse_weight, PHYS_DIFFUSE_PLAIN);
+    free(s);
+}
+
+/* Every physics key read, masks by index, and the canonical text the references compare. */
+static void test_physics_manifest(void **state)
+{
+    (void)state;
+    static const char text[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "physics: {diffuse_lights: [2, 0], specular_lights: none, env_diffuse: true,\n"
+                               "  env_specular: false, bounces: 4, shadows: true, interreflection: true,\n"
+                               "  fresnel_specular: nv, fresnel_reflection: schlick, diffuse_weight: one_minus_f}\n"
+                               "lights:\n"
+                               "  - {type: point, position: [2, 4, 3], intensity: [1, 1, 1]}\n"
+                               "  - {type: point, position: [2, 4, 3], intensity: [1, 1, 1]}\n"
+                               "  - {type: sun, direction: [0, -1, 0], irradiance: [1, 1, 1]}\n";
+    scene *s = malloc(sizeof *s);
+    char err[600] = "", buf[400];
+    assert_non_null(s);
+    rc_status rc = scene_file_parse(text, sizeof text - 1, "mem.yaml", s, err, sizeof err);
+    if (rc != RC_OK)
+        fail_msg("%s", err);
+    const physics *p = &s->physics;
+    assert_int_equal(p->diffuse_lights, 5u); /* lights 0 and 2: bits 0b101, listed before `lights:` */
+    assert_int_equal(p->specular_lights, 0u);
+    assert_int_equal(p->env_diffuse, 1);
+    assert_int_equal(p->env_specular, 0);
+    assert_int_equal(p->bounces, 4);
+    assert_int_equal(p->shadows, 1);
+    assert_int_equal(p->interreflection, 1);
+    assert_int_equal(p->fresnel_specular, PHYS_FRESNEL_NV);
+    assert_int_equal(p->fresnel_reflection, PHYS_FRESNEL_SCHLICK);
+    assert_int_equal(p->diffuse_weight, PHYS_DIFFUSE_ONE_MINUS_F);
+    assert_string_equal(physics_describe(p, s->n_lights, buf, sizeof buf),
+                        "diffuse_lights=0+2 specular_lights=none env_diffuse=1 env_specular=0 bounces=4 shadows=1 "
+                        "interreflection=1 fresnel_specular=nv fresnel_reflection=schlick diffuse_weight=one_minus_f");
+    /* A mask covering every light of the scene reads as all, whatever bits lie beyond. */
+    physics q;
+    physics_init(&q);
+    q.diffuse_lights = 7u;
+    assert_non_null(strstr(physics_describe(&q, 3, buf, sizeof buf), "diffuse_lights=all specular_lights=all"));
+    q.diffuse_lights = 2u;
+    assert_non_null(strstr(physics_describe(&q, 3, buf, sizeof buf), "diffuse_lights=1 "));
     free(s);
 }
 
@@ -323,6 +378,9 @@ static const bad_case bad_cases[] = {
     {"bad_neg_albedo.yaml", RC_ERR_RANGE, "4:21: materials.a.albedo[1]", ">= 0"},
     {"bad_neg_intensity.yaml", RC_ERR_RANGE, "4:55: lights[0].intensity[1]", ">= 0"},
     {"bad_neg_roughness.yaml", RC_ERR_RANGE, "5:16: materials.rough.roughness", ">= 0"},
+    {"bad_physics_bounces.yaml", RC_ERR_RANGE, "3:20: physics.bounces", "interreflection: true"},
+    {"bad_physics_fresnel.yaml", RC_ERR_PARSE, "4:21: physics.fresnel_specular", "allowed: exact, nv, one, schlick"},
+    {"bad_physics_light.yaml", RC_ERR_RANGE, "5:31: physics.diffuse_lights[1]", "allowed: 0..0"},
     {"bad_quad_radius.yaml", RC_ERR_PARSE, "5:33: objects[0].radius", "not used by a quad"},
     {"bad_r0.yaml", RC_ERR_RANGE, "5:22: materials.m.d3d9client.r0", "[0, 1]"},
     {"bad_spot_cone.yaml", RC_ERR_RANGE, "4:91: lights[0].inner", "inner <= outer"},
@@ -598,6 +656,7 @@ int main(void)
         cmocka_unit_test(test_good_minimal_defaults),
         cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_derived_defaults),
+        cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
         cmocka_unit_test(test_fixture_list_complete),
         cmocka_unit_test(test_hostile_inputs),
