@@ -70,6 +70,12 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen)
 {
+    return frame_write_as(path, s, m, img, "reflcheck-raster", err, errlen);
+}
+
+rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const render_image *img, const char *renderer,
+                         char *err, size_t errlen)
+{
     exr_channel ch[RENDER_CHANNELS];
     int n = 0;
     for (int c = 0; c < RENDER_CHANNELS; c++)
@@ -82,12 +88,8 @@ rc_status frame_write(const char *path, const scene *s, const mesh *m, const ren
     snprintf(tris, sizeof tris, "%d", m->n_tris);
     snprintf(samples, sizeof samples, "%lld", img->shaded_samples);
     exr_attr at[] = {
-        {"reflcheck.scene", s->name},
-        {"reflcheck.scene_hash", hash},
-        {"reflcheck.renderer", "reflcheck-raster"},
-        {"reflcheck.render_ms", ms},
-        {"reflcheck.supersample", k},
-        {"reflcheck.triangles", tris},
+        {"reflcheck.scene", s->name},          {"reflcheck.scene_hash", hash}, {"reflcheck.renderer", renderer},
+        {"reflcheck.render_ms", ms},           {"reflcheck.supersample", k},   {"reflcheck.triangles", tris},
         {"reflcheck.shaded_samples", samples},
     };
     return exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);

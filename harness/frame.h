@@ -10,8 +10,8 @@
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
  * frame_write stores every layer the render produced as 32-bit float, with the scene's name
- * and hash, the renderer, the render time, k, the triangle and shaded-sample counts in the
- * header.
+ * and hash, the renderer (reflcheck-raster; frame_write_as names another), the render time, k,
+ * the triangle and shaded-sample counts in the header.
  */
 #ifndef REFLCHECK_FRAME_H
 #define REFLCHECK_FRAME_H
@@ -25,5 +25,8 @@
 rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen);
+/* frame_write naming another in-process renderer in the header ("reflcheck-exact"). */
+rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const render_image *img, const char *renderer,
+                         char *err, size_t errlen);
 
 #endif

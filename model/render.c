@@ -502,11 +502,14 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
         const material *mat = &s->materials[s->objects[i].material];
-        if (opt->general)
+        if (opt->plans != NULL)
+            plans[i] = opt->plans[i];
+        else if (opt->general)
             shade_plan_make_general(&j.sc, mat, &plans[i]);
         else
             shade_plan_make(&j.sc, mat, &plans[i]);
-        per_vertex[i] = (unsigned char)(mat->d3d.per_vertex != 0);
+        /* Gouraud belongs to the D3D model; a caller's plan is another model, shaded per sample. */
+        per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
         any_per_vertex |= per_vertex[i];
     }
     j.plans = plans;

@@ -32,6 +32,7 @@
 #include "env.h"
 #include "mesh.h"
 #include "scene.h"
+#include "shade.h"
 #include "status.h"
 
 typedef enum {
@@ -103,6 +104,10 @@ typedef struct {
                                 path, for the specialisation benchmark; same output */
     render_profile *profile; /* NULL = off; else filled with the frame's stage times (a clock read
                                 around each batch: a few per cent slower; same output) */
+    const shade_plan *plans; /* NULL = each object's material through shade_plan_make; else one
+                                plan per object made by the caller (e.g. model/physical.h's
+                                physical model in place of the scene's): shaded per sample,
+                                never per vertex */
 } render_options;
 
 typedef struct {

@@ -179,6 +179,7 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
     for (int i = 0; i < s->n_lights; i++)
         light_ambient |= shade_nonzero(s->lights[i].ambient);
     p->mat = m;
+    p->params = NULL;
     p->terms = SHADE_TERM_DIFFUSE | (shade_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     switch (m->model) {
     case MODEL_D3D: {

@@ -96,6 +96,8 @@ struct shade_plan {
     shade_fn fn;
     shade_batch_fn batch; /* the same path over a batch */
     const char *path;     /* the specialised path's name, for reports and benchmarks */
+    const void *params;   /* a model adapter's own parameters (model/physical.h); NULL for the
+                             scene's models, which read everything from mat */
 };
 
 void shade_context_make(const scene *s, const env_map *env, shade_context *c);

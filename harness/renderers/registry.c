@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cycles/cycles.h"
+#include "exact/exact.h"
 #include "povray/povray.h"
 #include "raster/raster_render.h"
 
@@ -39,6 +40,12 @@ static const renderer_row registry_rows[] = {
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
      .render = cycles_render_job},
+    {.name = "exact",
+     .title = "reflcheck exact (physics)",
+     .version = "reflcheck-exact-1",
+     .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
+               "the diffuse (they need an integral), shadows, inter-reflection",
+     .render = exact_render_job},
 };
 
 #define REGISTRY_N ((int)(sizeof registry_rows / sizeof registry_rows[0]))

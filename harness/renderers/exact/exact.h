@@ -1,0 +1,31 @@
+/* exact.h - the deterministic exact reference: the scene's physics through our own pipeline,
+ * a renderer of the table (registry.h).
+ *
+ * Usage:
+ *   renderer_job j = {.s = &scn, .m = &msh, .env = &env, .role = ROLE_VALIDATE, .exr = "out.exr"};
+ *   renderer_result r = {0};
+ *   exact_render_job(&j, &r);          r.status RUNNER_OK, or RUNNER_MISSING with what it cannot
+ *   exact_options o = {.physics = {.lobe_fresnel = PHYSICAL_FRESNEL_NV}, .set = 1};
+ *   j.options = &o;                    tests: another physics than the scene's
+ * Every material is replaced by the physical BRDF (model/physical.h) and rendered by the
+ * rasterizer (model/render.h) with the scene's k x k box-filtered samples, in double precision
+ * per sample: noise-free, no variance but that of the k x k samples inside each pixel (the
+ * var.* layers, as the rasterizer writes them). Geometry and interpolation are float, shading
+ * double. A twin has no meaning for a physical reference (it is refused, RUNNER_MISSING); so
+ * are scenes whose physics needs an integral (a rough lobe under an environment, an
+ * environment image on the diffuse): the message says which material and why.
+ */
+#ifndef REFLCHECK_EXACT_H
+#define REFLCHECK_EXACT_H
+
+#include "../renderer.h"
+#include "physical.h"
+
+typedef struct {
+    physical_options physics; /* used when set */
+    int set;                  /* 0 = the scene's physics */
+} exact_options;
+
+void exact_render_job(const renderer_job *j, renderer_result *r);
+
+#endif

@@ -1,0 +1,346 @@
+/* test_exact.c - the exact reference renderer and its physical model, against closed forms
+ * computed here by other formulas than model/formula.h's:
+ *   - the Beckmann lobe at one (N, V, L) by hand: D from tan and cos, Smith G1 through the
+ *     Lambda form 1/(1 + Lambda), the dielectric Fresnel in Walter et al.'s g-form, the
+ *     conductor Fresnel with complex arithmetic (Snell's law in <complex.h>);
+ *   - energy: a dielectric's R + T = 1 with T from the transmission amplitudes; the lobe's
+ *     furnace (its directional albedo by quadrature over the hemisphere: <= 1 with F = 1, and
+ *     near F(0) with the exact Fresnel at a small roughness);
+ *   - whole renders through the registry entry: a Lambert plane under a sun (rho E cos / pi in
+ *     every covered pixel), a mirror conductor in a constant environment (L F(N.V) at the
+ *     centre), and the refusals (twin, a rough lobe under an environment).
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "exr.h"
+#include "frame.h"
+#include "mesh.h"
+#include "physical.h"
+#include "renderers/exact/exact.h"
+#include "renderers/registry.h"
+#include "scene_file.h"
+
+/* ---- second formulas ------------------------------------------------------------------ */
+
+/* Dielectric Fresnel, Walter et al. 2007 eq. 22: g = sqrt(n^2 - 1 + c^2). */
+static double ref_fresnel_dielectric(double c, double n)
+{
+    double g2 = n * n - 1.0 + c * c;
+    if (g2 < 0.0)
+        return 1.0;
+    double g = sqrt(g2);
+    double a = (g - c) / (g + c), b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+    return 0.5 * a * a * (1.0 + b * b);
+}
+
+/* Conductor Fresnel from the complex amplitudes: cos_t = sqrt(1 - sin^2 / n^2), n = eta + ik. */
+static double ref_fresnel_conductor(double c, double eta, double k)
+{
+    double complex n = eta + k * I;
+    double s2 = 1.0 - c * c;
+    double complex ct = csqrt(1.0 - s2 / (n * n));
+    double complex rs = (c - n * ct) / (c + n * ct);
+    double complex rp = (n * c - ct) / (n * c + ct);
+    return 0.5 * (creal(rs * conj(rs)) + creal(rp * conj(rp)));
+}
+
+/* Smith G1 for Beckmann through Lambda: a = 1/(m tan), Lambda = (erf(a) - 1)/2 + exp(-a^2)/(2 a sqrt(pi)). */
+static double ref_g1(double c, double m)
+{
+    double a = c / (m * sqrt(1.0 - c * c));
+    double lambda = 0.5 * (erf(a) - 1.0) + exp(-a * a) / (2.0 * a * sqrt(TEST_PI));
+    return 1.0 / (1.0 + lambda);
+}
+
+static double ref_beckmann(double n_h, double m)
+{
+    double t2 = (1.0 - n_h * n_h) / (n_h * n_h);
+    return exp(-t2 / (m * m)) / (TEST_PI * m * m * pow(n_h, 4));
+}
+
+static dvec3 unit(double x, double y, double z) { return dv3_norm(dv3(x, y, z)); }
+
+/* ---- the lobe and the Fresnel ------------------------------------------------------------ */
+
+static void test_lobe_by_hand(void **state)
+{
+    (void)state;
+    material mat;
+    material_init(&mat);
+    mat.roughness = 0.3f;
+    mat.ior = 1.5f;
+    dvec3 n = dv3(0, 0, 1), v = unit(0.3, 0.1, 0.8), l = unit(-0.4, 0.2, 0.7);
+    dvec3 h = dv3_norm(dv3_add(v, l));
+    double n_v = dv3_dot(n, v), n_l = dv3_dot(n, l), n_h = dv3_dot(n, h), v_h = dv3_dot(v, h);
+    double m = 0.3f; /* the float roughness the material holds */
+    double common = ref_beckmann(n_h, m) * ref_g1(n_v, m) * ref_g1(n_l, m) / (4.0 * n_v);
+    physical_options o = {0};
+    dvec3 got = physical_lobe(&mat, &o, n, v, l);
+    /* Double arithmetic on both sides, different orders: a few ulps of erf/exp. */
+    close_rel(got.x, common * ref_fresnel_dielectric(v_h, 1.5f), 1e-12);
+    o.lobe_fresnel = PHYSICAL_FRESNEL_NV;
+    close_rel(physical_lobe(&mat, &o, n, v, l).y, common * ref_fresnel_dielectric(n_v, 1.5f), 1e-12);
+    o.lobe_fresnel = PHYSICAL_FRESNEL_ONE;
+    close_rel(physical_lobe(&mat, &o, n, v, l).z, common, 1e-12);
+
+    /* Aluminium: per channel, the complex-amplitude Fresnel of V.H. */
+    mat.conductor = 1;
+    mat.eta = v3(1.66f, 0.88f, 0.52f);
+    mat.k = v3(9.22f, 6.27f, 4.84f);
+    o.lobe_fresnel = PHYSICAL_FRESNEL_VH;
+    got = physical_lobe(&mat, &o, n, v, l);
+    close_rel(got.x, common * ref_fresnel_conductor(v_h, 1.66f, 9.22f), 1e-12);
+    close_rel(got.y, common * ref_fresnel_conductor(v_h, 0.88f, 6.27f), 1e-12);
+    close_rel(got.z, common * ref_fresnel_conductor(v_h, 0.52f, 4.84f), 1e-12);
+
+    /* Below the horizon on either side: nothing. */
+    assert_true(physical_lobe(&mat, &o, n, v, unit(0.5, 0, -0.1)).x == 0.0);
+    assert_true(physical_lobe(&mat, &o, n, unit(0.5, 0, -0.1), l).x == 0.0);
+}
+
+static void test_fresnel_second_formula_and_energy(void **state)
+{
+    (void)state;
+    material d;
+    material_init(&d);
+    d.ior = 1.5f;
+    for (int i = 0; i <= 100; i++) {
+        double c = i / 100.0;
+        double r = physical_fresnel_exact(&d, c).x;
+        if (c > 0.0)
+            close_rel(r, ref_fresnel_dielectric(c, 1.5f), 1e-12);
+        /* R + T = 1: T_s,p = (n cos_t / cos_i) t^2 with t_s = 2 ci/(ci + n ct), t_p = 2 ci/(n ci + ct). */
+        if (c > 0.0) {
+            double n = 1.5f, ct = sqrt(1.0 - (1.0 - c * c) / (n * n));
+            double ts = 2.0 * c / (c + n * ct), tp = 2.0 * c / (n * c + ct);
+            double t = 0.5 * (n * ct / c) * (ts * ts + tp * tp);
+            close_rel(r + t, 1.0, 1e-13);
+        }
+    }
+    material a = d;
+    a.conductor = 1;
+    a.eta = v3(0.166f, 0.424f, 1.468f); /* gold */
+    a.k = v3(3.15f, 2.36f, 1.80f);
+    for (int i = 0; i <= 100; i++) {
+        double c = i / 100.0;
+        dvec3 r = physical_fresnel_exact(&a, c);
+        if (c > 0.0) {
+            close_rel(r.x, ref_fresnel_conductor(c, 0.166f, 3.15f), 1e-12);
+            close_rel(r.z, ref_fresnel_conductor(c, 1.468f, 1.80f), 1e-12);
+        }
+        assert_true(r.x > 0.0 && r.x <= 1.0);
+    }
+}
+
+/* The lobe's directional albedo: integral of f cos over the light's hemisphere, by the midpoint
+ * rule in (cos theta, phi). */
+static double lobe_albedo(const material *mat, const physical_options *o, dvec3 v)
+{
+    const int nt = 2000, np = 400;
+    double sum = 0.0;
+    for (int i = 0; i < nt; i++) {
+        double ct = (i + 0.5) / nt, st = sqrt(1.0 - ct * ct);
+        for (int j = 0; j < np; j++) {
+            double ph = 2.0 * TEST_PI * (j + 0.5) / np;
+            /* physical_lobe includes N.L: the albedo is its plain integral over solid angle. */
+            sum += physical_lobe(mat, o, dv3(0, 0, 1), v, dv3(st * cos(ph), st * sin(ph), ct)).x;
+        }
+    }
+    return sum * (1.0 / nt) * (2.0 * TEST_PI / np);
+}
+
+static void test_furnace(void **state)
+{
+    (void)state;
+    material mat;
+    material_init(&mat);
+    mat.ior = 1.5f;
+    physical_options one = {.lobe_fresnel = PHYSICAL_FRESNEL_ONE}, exact = {0};
+    /* F = 1: Smith masking only loses energy; at normal view and m = 0.1 it loses under 1 %
+     * (the quadrature resolves the lobe: 2000 steps in cos over a lobe of width ~ m^2). */
+    mat.roughness = 0.1f;
+    double a = lobe_albedo(&mat, &one, dv3(0, 0, 1));
+    assert_true(a <= 1.0 + 1e-3);
+    assert_true(a > 0.99);
+    /* At grazing view the masking loses more, and never gains. */
+    mat.roughness = 0.5f;
+    double g = lobe_albedo(&mat, &one, unit(0.95, 0, 0.3122));
+    assert_true(g < 1.0 && g > 0.5);
+    /* Exact Fresnel at normal view and a narrow lobe: F(V.H) stays near F(0) = 0.04. */
+    mat.roughness = 0.1f;
+    double e = lobe_albedo(&mat, &exact, dv3(0, 0, 1));
+    close_rel(e, a * ref_fresnel_dielectric(1.0, 1.5f), 2e-3);
+}
+
+/* ---- whole renders ---------------------------------------------------------------------- */
+
+typedef struct {
+    scene *s;
+    mesh m;
+    env_map env;
+    float *px;
+} fixture;
+
+static void fixture_load(fixture *f, const char *text)
+{
+    char err[1024];
+    f->s = malloc(sizeof *f->s);
+    assert_non_null(f->s);
+    memset(&f->m, 0, sizeof f->m);
+    f->px = NULL;
+    if (scene_file_parse(text, strlen(text), "exact.yaml", f->s, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+    assert_int_equal(mesh_build(f->s, &f->m, err, sizeof err), RC_OK);
+    assert_int_equal(frame_env_load(f->s, &f->env, &f->px, err, sizeof err), RC_OK);
+}
+
+static void fixture_free(fixture *f)
+{
+    free(f->px);
+    mesh_free(&f->m);
+    free(f->s);
+}
+
+static char tmpdir[] = "/tmp/reflcheck-exact-XXXXXX";
+
+static void render_exact(fixture *f, comparison_role role, const exact_options *o, renderer_result *r, exr_image *img)
+{
+    char exr[512], err[512];
+    snprintf(exr, sizeof exr, "%s/out.exr", tmpdir);
+    unlink(exr);
+    renderer_job j = {.s = f->s,
+                      .m = &f->m,
+                      .env = &f->env,
+                      .role = role,
+                      .threads = 2,
+                      .dir = tmpdir,
+                      .exr = exr,
+                      .log = "/dev/null",
+                      .options = o};
+    memset(r, 0, sizeof *r);
+    registry_row(registry_find("exact"))->render(&j, r);
+    if (img != NULL && r->status == RUNNER_OK && exr_read(exr, img, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+}
+
+static void test_render_lambert_sun(void **state)
+{
+    (void)state;
+    /* A plane seen from above under a sun at 60 degrees from the normal: every covered pixel is
+     * rho E cos(60) / pi, whatever the sample positions. */
+    fixture f;
+    fixture_load(&f, "image: {width: 24, height: 16, supersample: 2}\n"
+                     "camera: {eye: [0, 3, 0.01], target: [0, 0, 0], hfov: 40}\n"
+                     "lights:\n  - {type: sun, direction: [0.8660254037844386, -0.5, 0], irradiance: [2, 3, 4]}\n"
+                     "materials:\n  m: {albedo: [0.5, 0.25, 0.75], roughness: 0, model: d3d9client}\n"
+                     "objects:\n  - {shape: quad, size: [20, 20], material: m}\n");
+    renderer_result r;
+    exr_image img = {0};
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    const float *R = exr_image_channel(&img, "R"), *G = exr_image_channel(&img, "G"), *B = exr_image_channel(&img, "B");
+    assert_non_null(R);
+    /* E cos as the float sun direction gives it; the sums are double, the output float. */
+    double cosl = 0.5f / sqrt(0.8660254037844386f * 0.8660254037844386f + 0.25);
+    for (int i = 0; i < img.width * img.height; i++) {
+        close_rel(R[i], 0.5f * 2.0 * cosl / TEST_PI, 1e-6);
+        close_rel(G[i], 0.25f * 3.0 * cosl / TEST_PI, 1e-6);
+        close_rel(B[i], 0.75f * 4.0 * cosl / TEST_PI, 1e-6);
+    }
+    exr_image_free(&img);
+    fixture_free(&f);
+}
+
+static void test_render_point_and_mirror(void **state)
+{
+    (void)state;
+    /* A gold mirror sphere in a constant environment: the centre pixel looks straight at it, so
+     * reflection = L F_gold(1); a point light adds nothing to a mirror (its delta lobe). */
+    fixture f;
+    fixture_load(&f, "image: {width: 33, height: 33, supersample: 1}\n"
+                     "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 30}\n"
+                     "environment: {constant: [1.5, 1.0, 0.5]}\n"
+                     "lights:\n  - {type: point, position: [0, 0, 4], intensity: [100, 100, 100]}\n"
+                     "materials:\n  gold: {conductor: {eta: [0.166, 0.424, 1.468], k: [3.15, 2.36, 1.80]},\n"
+                     "    roughness: 0, model: d3d9client}\n"
+                     "objects:\n  - {shape: sphere, radius: 1, tessellation: 64, material: gold}\n");
+    renderer_result r;
+    exr_image img = {0};
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    int c = 16 * 33 + 16;
+    /* The centre sample's normal is the tessellated sphere's at its pole: N.V = 1 to float. */
+    close_rel(exr_image_channel(&img, "reflection.R")[c], 1.5 * ref_fresnel_conductor(1.0, 0.166f, 3.15f), 1e-5);
+    close_rel(exr_image_channel(&img, "reflection.B")[c], 0.5 * ref_fresnel_conductor(1.0, 1.468f, 1.80f), 1e-5);
+    assert_true(exr_image_channel(&img, "specular.R")[c] == 0.0f);
+    assert_true(exr_image_channel(&img, "diffuse.R")[c] == 0.0f);
+    exr_image_free(&img);
+    fixture_free(&f);
+
+    /* A rough dielectric under a point light straight above the view axis: the centre pixel is
+     * rho I/(pi d^2) + the lobe at N = V = L (D(0) G1(1)^2 F(1) / 4 = F0 / (4 pi m^2)) I/d^2. */
+    fixture_load(&f, "image: {width: 33, height: 33, supersample: 1}\n"
+                     "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 30}\n"
+                     "lights:\n  - {type: point, position: [0, 0, 3], intensity: [8, 8, 8]}\n"
+                     "materials:\n  p: {albedo: [0.2, 0.4, 0.6], ior: 1.5, roughness: 0.25, model: d3d}\n"
+                     "objects:\n  - {shape: sphere, radius: 1, tessellation: 64, material: p}\n");
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    double e = 8.0 / 4.0; /* I / d^2 at distance 2 */
+    close_rel(exr_image_channel(&img, "diffuse.G")[c], 0.4f * e / TEST_PI, 1e-5);
+    double m = 0.25f;
+    close_rel(exr_image_channel(&img, "specular.G")[c], 0.04 / (4.0 * TEST_PI * m * m) * e, 1e-4);
+    exr_image_free(&img);
+    fixture_free(&f);
+}
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    fixture f;
+    fixture_load(&f, "image: {width: 8, height: 8}\n"
+                     "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 30}\n"
+                     "environment: {constant: [1, 1, 1]}\n"
+                     "materials:\n  p: {roughness: 0.3, model: cook_torrance}\n"
+                     "objects:\n  - {shape: sphere, radius: 1, material: p}\n");
+    renderer_result r;
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, NULL);
+    assert_int_equal(r.status, RUNNER_MISSING);
+    assert_non_null(strstr(r.message, "rough lobe"));
+    render_exact(&f, ROLE_TWIN, NULL, &r, NULL);
+    assert_int_equal(r.status, RUNNER_MISSING);
+    assert_non_null(strstr(r.message, "twin"));
+    fixture_free(&f);
+}
+
+int main(void)
+{
+    if (mkdtemp(tmpdir) == NULL)
+        return 1;
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_lobe_by_hand),
+        cmocka_unit_test(test_fresnel_second_formula_and_energy),
+        cmocka_unit_test(test_furnace),
+        cmocka_unit_test(test_render_lambert_sun),
+        cmocka_unit_test(test_render_point_and_mirror),
+        cmocka_unit_test(test_refusals),
+    };
+    int rc = cmocka_run_group_tests(tests, NULL, NULL);
+    char p[600];
+    snprintf(p, sizeof p, "%s/out.exr", tmpdir);
+    unlink(p);
+    rmdir(tmpdir);
+    return rc;
+}
