@@ -43,7 +43,22 @@ dvec3 physical_fresnel_exact(const material *mat, double c)
     return dv3(f, f, f);
 }
 
-dvec3 physical_lobe(const material *mat, const physical_options *o, dvec3 n, dvec3 v, dvec3 l)
+dvec3 physical_fresnel(const material *mat, physics_fresnel f, double c)
+{
+    switch (f) {
+    case PHYS_FRESNEL_ONE: return dv3(1, 1, 1);
+    case PHYS_FRESNEL_SCHLICK: {
+        /* F0 is the exact reflectance at normal incidence, of the ior or of eta + ik. */
+        dvec3 f0 = physical_fresnel_exact(mat, 1.0);
+        return dv3(formula_schlick_d(f0.x, c), formula_schlick_d(f0.y, c), formula_schlick_d(f0.z, c));
+    }
+    case PHYS_FRESNEL_EXACT:
+    case PHYS_FRESNEL_NV:
+    default: return physical_fresnel_exact(mat, c);
+    }
+}
+
+dvec3 physical_lobe(const material *mat, physics_fresnel f, dvec3 n, dvec3 v, dvec3 l)
 {
     double m = mat->roughness;
     double n_l = dv3_dot(n, l), n_v = dv3_dot(n, v);
@@ -63,29 +78,20 @@ dvec3 physical_lobe(const material *mat, const physical_options *o, dvec3 n, dve
     double d = formula_beckmann_d_d(dv3_dot(nxh, nxh), n_h * n_h, 1.0 / (m * m), formula_beckmann_log_norm_d(m, 1));
     double g = microfacet_smith_g_exact(n_v, n_l, m);
     double lobe = formula_ct_lobe_d(d, g, formula_ct_k_d(1), formula_cos_floor_d(n_v));
-    dvec3 f;
-    switch (o->lobe_fresnel) {
-    case PHYSICAL_FRESNEL_ONE: f = dv3(1, 1, 1); break;
-    case PHYSICAL_FRESNEL_NV: f = physical_fresnel_exact(mat, n_v); break;
-    case PHYSICAL_FRESNEL_VH:
-    default: {
-        /* V.H = |L + V|/2 >= 0 exactly; only rounding can leave [0, 1]. */
-        double v_h = dv3_dot(v, h);
-        f = physical_fresnel_exact(mat, v_h < 0.0 ? 0.0 : (v_h > 1.0 ? 1.0 : v_h));
-        break;
-    }
-    }
-    return dv3_scale(f, lobe);
+    /* V.H = |L + V|/2 >= 0 exactly; only rounding can leave [0, 1]. */
+    double v_h = dv3_dot(v, h);
+    v_h = v_h < 0.0 ? 0.0 : (v_h > 1.0 ? 1.0 : v_h);
+    return dv3_scale(physical_fresnel(mat, f, f == PHYS_FRESNEL_NV ? n_v : v_h), lobe);
 }
 
-/* The Lambert weight per channel: albedo/pi (0 for a bare conductor) under the diffuse rule. */
-static dvec3 physical_kd(const material *mat, const physical_options *o, double n_v)
+/* The Lambert weight per channel: albedo/pi (0 for a conductor) under the diffuse weight. */
+static dvec3 physical_kd(const material *mat, const physics *ph, double n_v)
 {
-    if (mat->conductor && !o->conductor_diffuse)
+    if (mat->conductor)
         return dv3(0, 0, 0);
     dvec3 kd = dv3(formula_lambert_brdf_d(mat->albedo.x), formula_lambert_brdf_d(mat->albedo.y),
                    formula_lambert_brdf_d(mat->albedo.z));
-    if (o->diffuse == PHYSICAL_DIFFUSE_ONE_MINUS_F_NV && !mat->conductor)
+    if (ph->diffuse_weight == PHYS_DIFFUSE_ONE_MINUS_F)
         kd = dv3_scale(kd, 1.0 - fresnel_dielectric(n_v < 0.0 ? 0.0 : n_v, mat->ior));
     return kd;
 }
@@ -99,11 +105,11 @@ static void physical_shade(const shade_context *c, const shade_plan *p, vec3 x, 
 {
     (void)v; /* the viewer direction is formed again in double from the eye */
     const material *mat = p->mat;
-    const physical_options *o = p->params;
+    const physics *ph = p->params;
     dvec3 xd = dv3_from(x), nd = dv3_norm(dv3_from(n));
     dvec3 vd = dv3_norm(dv3_sub(dv3_from(c->eye), xd));
     double n_v = dv3_dot(nd, vd);
-    dvec3 kd = physical_kd(mat, o, n_v);
+    dvec3 kd = physical_kd(mat, ph, n_v);
     dvec3 diffuse = dv3(0, 0, 0), spec = dv3(0, 0, 0), refl = dv3(0, 0, 0);
     int lobe = (p->terms & SHADE_TERM_SPECULAR) != 0;
     for (int i = 0; i < c->s->n_lights; i++) {
@@ -113,18 +119,19 @@ static void physical_shade(const shade_context *c, const shade_plan *p, vec3 x, 
         double n_l = dv3_dot(nd, to_l);
         if (n_l <= 0.0)
             continue;
-        diffuse = dv3_add(diffuse, dv3_scale(dv3_mul(kd, e), n_l));
-        if (lobe)
-            spec = dv3_add(spec, dv3_mul(physical_lobe(mat, o, nd, vd, to_l), e));
+        if (ph->diffuse_lights & (1u << i))
+            diffuse = dv3_add(diffuse, dv3_scale(dv3_mul(kd, e), n_l));
+        if (lobe && (ph->specular_lights & (1u << i)))
+            spec = dv3_add(spec, dv3_mul(physical_lobe(mat, ph->fresnel_specular, nd, vd, to_l), e));
     }
-    if (o->env_diffuse && c->env != NULL && c->env->kind == ENV_CONSTANT)
+    if (ph->env_diffuse && c->env != NULL && c->env->kind == ENV_CONSTANT)
         diffuse = dv3_add(diffuse, dv3_scale(dv3_mul(kd, dv3_from(c->env->constant)), FORMULA_PI_D));
     if (p->terms & SHADE_TERM_REFLECTION) {
         /* The mirror direction 2 (N.V) N - V in double; the lookup itself is the float bilinear
          * one every renderer's environment is checked against. */
         dvec3 r = dv3_sub(dv3_scale(nd, 2.0 * n_v), vd);
         dvec3 phi = dv3_from(env_lookup(c->env, v3_from_d(r)));
-        refl = dv3_mul(phi, physical_fresnel_exact(mat, n_v < 0.0 ? 0.0 : (n_v > 1.0 ? 1.0 : n_v)));
+        refl = dv3_mul(phi, physical_fresnel(mat, ph->fresnel_reflection, n_v < 0.0 ? 0.0 : (n_v > 1.0 ? 1.0 : n_v)));
     }
     out->diffuse = physical_to_float(diffuse);
     out->specular = physical_to_float(spec);
@@ -135,34 +142,41 @@ static void physical_shade(const shade_context *c, const shade_plan *p, vec3 x, 
 
 static int physical_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
 
-rc_status physical_plan_make(const shade_context *c, const material *m, const physical_options *o, shade_plan *p,
-                             char *why, size_t whylen)
+rc_status physical_plan_make(const shade_context *c, const material *m, const physics *ph, shade_plan *p, char *why,
+                             size_t whylen)
 {
     int env = c->env != NULL && c->env->kind != ENV_NONE;
-    int diffuse = physical_nonzero(m->albedo) && (!m->conductor || o->conductor_diffuse);
+    int diffuse = physical_nonzero(m->albedo) && !m->conductor;
     p->mat = m;
-    p->params = o;
+    p->params = ph;
     p->fn = physical_shade;
     p->batch = shade_batch_scalar;
     p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (physical_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
+    p->path = m->roughness > 0.0f ? "physical-lobe" : "physical-mirror";
+    if (ph->shadows || ph->interreflection || ph->bounces > 1) {
+        snprintf(why, whylen,
+                 "physics: %s; the exact reference renders direct light without shadows or inter-reflection "
+                 "(bounces 1)",
+                 ph->shadows ? "shadows: true" : (ph->interreflection ? "interreflection: true" : "bounces > 1"));
+        return RC_ERR_RANGE;
+    }
     if (m->roughness > 0.0f) {
         p->terms |= SHADE_TERM_SPECULAR;
-        p->path = "physical-lobe";
-        if (env) {
+        if (env && ph->env_specular) {
             snprintf(why, whylen,
-                     "material '%s': a rough lobe (roughness %g) lit by the environment needs an integral over "
-                     "it; the exact reference renders rough lobes under point, spot and sun lights only",
+                     "material '%s': a rough lobe (roughness %g) reflecting the environment needs an integral over "
+                     "it; the exact reference renders rough lobes under point, spot and sun lights (or set physics "
+                     "env_specular: false)",
                      m->name, (double)m->roughness);
             return RC_ERR_RANGE;
         }
-    } else {
-        p->terms |= env ? SHADE_TERM_REFLECTION : 0u;
-        p->path = "physical-mirror";
+    } else if (env && ph->env_specular) {
+        p->terms |= SHADE_TERM_REFLECTION;
     }
-    if (diffuse && env && o->env_diffuse && c->env->kind == ENV_IMAGE) {
+    if (diffuse && env && ph->env_diffuse && c->env->kind == ENV_IMAGE) {
         snprintf(why, whylen,
-                 "material '%s': an environment image lighting the diffuse needs an integral over it; the exact "
-                 "reference renders a constant environment on the diffuse only",
+                 "material '%s': an environment image lighting the diffuse (physics env_diffuse: true) needs an "
+                 "integral over it; the exact reference renders a constant environment on the diffuse only",
                  m->name);
         return RC_ERR_RANGE;
     }

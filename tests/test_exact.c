@@ -86,28 +86,26 @@ static void test_lobe_by_hand(void **state)
     double n_v = dv3_dot(n, v), n_l = dv3_dot(n, l), n_h = dv3_dot(n, h), v_h = dv3_dot(v, h);
     double m = 0.3f; /* the float roughness the material holds */
     double common = ref_beckmann(n_h, m) * ref_g1(n_v, m) * ref_g1(n_l, m) / (4.0 * n_v);
-    physical_options o = {0};
-    dvec3 got = physical_lobe(&mat, &o, n, v, l);
+    dvec3 got = physical_lobe(&mat, PHYS_FRESNEL_EXACT, n, v, l);
     /* Double arithmetic on both sides, different orders: a few ulps of erf/exp. */
     close_rel(got.x, common * ref_fresnel_dielectric(v_h, 1.5f), 1e-12);
-    o.lobe_fresnel = PHYSICAL_FRESNEL_NV;
-    close_rel(physical_lobe(&mat, &o, n, v, l).y, common * ref_fresnel_dielectric(n_v, 1.5f), 1e-12);
-    o.lobe_fresnel = PHYSICAL_FRESNEL_ONE;
-    close_rel(physical_lobe(&mat, &o, n, v, l).z, common, 1e-12);
+    close_rel(physical_lobe(&mat, PHYS_FRESNEL_NV, n, v, l).y, common * ref_fresnel_dielectric(n_v, 1.5f), 1e-12);
+    close_rel(physical_lobe(&mat, PHYS_FRESNEL_ONE, n, v, l).z, common, 1e-12);
+    double f0 = (0.5 / 2.5) * (0.5 / 2.5);
+    close_rel(physical_lobe(&mat, PHYS_FRESNEL_SCHLICK, n, v, l).x, common * (f0 + (1 - f0) * pow(1 - v_h, 5)), 1e-12);
 
     /* Aluminium: per channel, the complex-amplitude Fresnel of V.H. */
     mat.conductor = 1;
     mat.eta = v3(1.66f, 0.88f, 0.52f);
     mat.k = v3(9.22f, 6.27f, 4.84f);
-    o.lobe_fresnel = PHYSICAL_FRESNEL_VH;
-    got = physical_lobe(&mat, &o, n, v, l);
+    got = physical_lobe(&mat, PHYS_FRESNEL_EXACT, n, v, l);
     close_rel(got.x, common * ref_fresnel_conductor(v_h, 1.66f, 9.22f), 1e-12);
     close_rel(got.y, common * ref_fresnel_conductor(v_h, 0.88f, 6.27f), 1e-12);
     close_rel(got.z, common * ref_fresnel_conductor(v_h, 0.52f, 4.84f), 1e-12);
 
     /* Below the horizon on either side: nothing. */
-    assert_true(physical_lobe(&mat, &o, n, v, unit(0.5, 0, -0.1)).x == 0.0);
-    assert_true(physical_lobe(&mat, &o, n, unit(0.5, 0, -0.1), l).x == 0.0);
+    assert_true(physical_lobe(&mat, PHYS_FRESNEL_EXACT, n, v, unit(0.5, 0, -0.1)).x == 0.0);
+    assert_true(physical_lobe(&mat, PHYS_FRESNEL_EXACT, n, unit(0.5, 0, -0.1), l).x == 0.0);
 }
 
 static void test_fresnel_second_formula_and_energy(void **state)
@@ -146,7 +144,7 @@ static void test_fresnel_second_formula_and_energy(void **state)
 
 /* The lobe's directional albedo: integral of f cos over the light's hemisphere, by the midpoint
  * rule in (cos theta, phi). */
-static double lobe_albedo(const material *mat, const physical_options *o, dvec3 v)
+static double lobe_albedo(const material *mat, physics_fresnel f, dvec3 v)
 {
     const int nt = 2000, np = 400;
     double sum = 0.0;
@@ -155,7 +153,7 @@ static double lobe_albedo(const material *mat, const physical_options *o, dvec3 
         for (int j = 0; j < np; j++) {
             double ph = 2.0 * TEST_PI * (j + 0.5) / np;
             /* physical_lobe includes N.L: the albedo is its plain integral over solid angle. */
-            sum += physical_lobe(mat, o, dv3(0, 0, 1), v, dv3(st * cos(ph), st * sin(ph), ct)).x;
+            sum += physical_lobe(mat, f, dv3(0, 0, 1), v, dv3(st * cos(ph), st * sin(ph), ct)).x;
         }
     }
     return sum * (1.0 / nt) * (2.0 * TEST_PI / np);
@@ -167,20 +165,19 @@ static void test_furnace(void **state)
     material mat;
     material_init(&mat);
     mat.ior = 1.5f;
-    physical_options one = {.lobe_fresnel = PHYSICAL_FRESNEL_ONE}, exact = {0};
     /* F = 1: Smith masking only loses energy; at normal view and m = 0.1 it loses under 1 %
      * (the quadrature resolves the lobe: 2000 steps in cos over a lobe of width ~ m^2). */
     mat.roughness = 0.1f;
-    double a = lobe_albedo(&mat, &one, dv3(0, 0, 1));
+    double a = lobe_albedo(&mat, PHYS_FRESNEL_ONE, dv3(0, 0, 1));
     assert_true(a <= 1.0 + 1e-3);
     assert_true(a > 0.99);
     /* At grazing view the masking loses more, and never gains. */
     mat.roughness = 0.5f;
-    double g = lobe_albedo(&mat, &one, unit(0.95, 0, 0.3122));
+    double g = lobe_albedo(&mat, PHYS_FRESNEL_ONE, unit(0.95, 0, 0.3122));
     assert_true(g < 1.0 && g > 0.5);
     /* Exact Fresnel at normal view and a narrow lobe: F(V.H) stays near F(0) = 0.04. */
     mat.roughness = 0.1f;
-    double e = lobe_albedo(&mat, &exact, dv3(0, 0, 1));
+    double e = lobe_albedo(&mat, PHYS_FRESNEL_EXACT, dv3(0, 0, 1));
     close_rel(e, a * ref_fresnel_dielectric(1.0, 1.5f), 2e-3);
 }
 
@@ -306,6 +303,52 @@ static void test_render_point_and_mirror(void **state)
     fixture_free(&f);
 }
 
+static void test_render_manifest(void **state)
+{
+    (void)state;
+    /* The manifest's switches on a plane seen from above: only the sun (light 1) reaches the
+     * diffuse, the constant environment lights it too (rho L), and then the coating weight
+     * 1 - F(N.V) of n = 1.5, from the centre sample's N.V (k = 1: the pixel's only sample). */
+    fixture f;
+    fixture_load(&f, "image: {width: 16, height: 12, supersample: 1}\n"
+                     "camera: {eye: [0, 3, 0.01], target: [0, 0, 0], hfov: 40}\n"
+                     "environment: {constant: [0.5, 0.5, 0.5]}\n"
+                     "physics: {diffuse_lights: [1], env_diffuse: true, env_specular: false}\n"
+                     "lights:\n  - {type: point, position: [0, 1, 0], intensity: [50, 50, 50]}\n"
+                     "  - {type: sun, direction: [0, -1, 0], irradiance: [2, 2, 2]}\n"
+                     "materials:\n  m: {albedo: [0.5, 0.5, 0.5], ior: 1.5, roughness: 0.2, model: d3d}\n"
+                     "objects:\n  - {shape: quad, size: [20, 20], material: m}\n");
+    renderer_result r;
+    exr_image img = {0};
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    const float *d = exr_image_channel(&img, "diffuse.G"), *nv = exr_image_channel(&img, "ndotv");
+    for (int i = 0; i < img.width * img.height; i++)
+        close_rel(d[i], 0.5f * (2.0 / TEST_PI + 0.5), 1e-6);
+    exact_options o = {.physics = f.s->physics, .set = 1};
+    o.physics.diffuse_weight = PHYS_DIFFUSE_ONE_MINUS_F;
+    exr_image_free(&img);
+    render_exact(&f, ROLE_VALIDATE, &o, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    d = exr_image_channel(&img, "diffuse.G");
+    nv = exr_image_channel(&img, "ndotv");
+    for (int i = 0; i < img.width * img.height; i++)
+        /* N.V of the image is float; F moves by 1e-8 per 1e-7 of N.V near normal incidence. */
+        close_rel(d[i], 0.5f * (2.0 / TEST_PI + 0.5) * (1.0 - ref_fresnel_dielectric(nv[i], 1.5f)), 1e-6);
+    /* The point light (light 0) still lights the lobe: specular_lights is all. */
+    assert_true(exr_image_channel(&img, "specular.G")[6 * 16 + 8] > 0.0f);
+    o.physics.specular_lights = 0;
+    exr_image_free(&img);
+    render_exact(&f, ROLE_VALIDATE, &o, &r, &img);
+    assert_true(exr_image_channel(&img, "specular.G")[6 * 16 + 8] == 0.0f);
+    exr_image_free(&img);
+    o.physics.shadows = 1;
+    render_exact(&f, ROLE_VALIDATE, &o, &r, NULL);
+    assert_int_equal(r.status, RUNNER_MISSING);
+    assert_non_null(strstr(r.message, "shadows"));
+    fixture_free(&f);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -335,6 +378,7 @@ int main(void)
         cmocka_unit_test(test_furnace),
         cmocka_unit_test(test_render_lambert_sun),
         cmocka_unit_test(test_render_point_and_mirror),
+        cmocka_unit_test(test_render_manifest),
         cmocka_unit_test(test_refusals),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);

@@ -5,21 +5,10 @@
 #include "frame.h"
 #include "render.h"
 
-/* The physics the scene asks its validate references for. */
-static void exact_scene_physics(const scene *s, physical_options *o)
-{
-    (void)s;
-    *o = (physical_options){0};
-}
-
 void exact_render_job(const renderer_job *j, renderer_result *r)
 {
     const exact_options *eo = j->options;
-    physical_options phys;
-    if (eo != NULL && eo->set)
-        phys = eo->physics;
-    else
-        exact_scene_physics(j->s, &phys);
+    const physics *phys = eo != NULL && eo->set ? &eo->physics : &j->s->physics;
     snprintf(r->command, sizeof r->command, "reflcheck exact reference (in process)");
     if (j->role == ROLE_TWIN) {
         renderer_fail(r, RUNNER_MISSING,
@@ -32,7 +21,7 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
     shade_plan plans[SCENE_MAX_OBJECTS];
     char why[400];
     for (int i = 0; i < j->s->n_objects; i++)
-        if (physical_plan_make(&c, &j->s->materials[j->s->objects[i].material], &phys, &plans[i], why, sizeof why) !=
+        if (physical_plan_make(&c, &j->s->materials[j->s->objects[i].material], phys, &plans[i], why, sizeof why) !=
             RC_OK) {
             renderer_fail(r, RUNNER_MISSING, "exact cannot represent this scene: objects[%d]: %s", i, why);
             return;

@@ -5,9 +5,10 @@
  *   renderer_job j = {.s = &scn, .m = &msh, .env = &env, .role = ROLE_VALIDATE, .exr = "out.exr"};
  *   renderer_result r = {0};
  *   exact_render_job(&j, &r);          r.status RUNNER_OK, or RUNNER_MISSING with what it cannot
- *   exact_options o = {.physics = {.lobe_fresnel = PHYSICAL_FRESNEL_NV}, .set = 1};
- *   j.options = &o;                    tests: another physics than the scene's
- * Every material is replaced by the physical BRDF (model/physical.h) and rendered by the
+ *   exact_options o = {.physics = scn.physics, .set = 1};  o.physics.fresnel_specular = PHYS_FRESNEL_NV;
+ *   j.options = &o;                    tests: another physics than the scene's manifest
+ * It renders the scene's physics manifest (scene.physics): every material is replaced by the
+ * physical BRDF (model/physical.h) and rendered by the
  * rasterizer (model/render.h) with the scene's k x k box-filtered samples, in double precision
  * per sample: noise-free, no variance but that of the k x k samples inside each pixel (the
  * var.* layers, as the rasterizer writes them). Geometry and interpolation are float, shading
@@ -22,8 +23,8 @@
 #include "physical.h"
 
 typedef struct {
-    physical_options physics; /* used when set */
-    int set;                  /* 0 = the scene's physics */
+    physics physics; /* used when set */
+    int set;         /* 0 = the scene's manifest (scene.physics) */
 } exact_options;
 
 void exact_render_job(const renderer_job *j, renderer_result *r);
