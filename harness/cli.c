@@ -43,6 +43,8 @@ int cli_load_scene(const char *path, scene *s, mesh *m)
         /* The mesh error names the mesh file and line; say which scene asked for it too. */
         if (st != RC_OK)
             snprintf(err, sizeof err, "%s: objects: %s", path, why);
+        else if (mesh_repair_note(s, m, why, sizeof why))
+            fprintf(stderr, "reflcheck: note: %s: %s\n", path, why);
     }
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: %s\n", err);

@@ -8,7 +8,7 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
       libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2
       procps)
 # Textures (model/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
-# read /usr/share/assimp/models/...).
+# read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: README "Real meshes").
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
 # The renderers' packages come from their rows in the renderer table (.package = "..."), read
 # from the source because this runs before anything is built.

@@ -296,6 +296,13 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddNumberToObject(o, "seed", row->stochastic ? c->j->seed : 0);
     cJSON_AddNumberToObject(o, "tessellation", s->n_objects > 0 ? s->objects[0].tessellation : 0);
     cJSON_AddBoolToObject(o, "per_vertex", c->j->per_vertex);
+    /* What the mesh readers repaired: the figures were measured on this mesh, not the file's. */
+    int dropped, recomputed;
+    mesh_repair_totals(c->m, &dropped, &recomputed);
+    cJSON *mo = cJSON_AddObjectToObject(o, "mesh");
+    cJSON_AddNumberToObject(mo, "triangles", c->m->n_tris);
+    cJSON_AddNumberToObject(mo, "degenerate_dropped", dropped);
+    cJSON_AddNumberToObject(mo, "normals_recomputed", recomputed);
     cJSON_AddStringToObject(o, "tag", c->j->tag ? c->j->tag : "");
     cJSON_AddStringToObject(o, "key", keyhex);
     cJSON_AddStringToObject(o, "exr", r->exr);
@@ -557,6 +564,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         st = mesh_build(s, &m, why, sizeof why);
         if (st != RC_OK)
             snprintf(err, errlen, "%s: objects: %s", j->scene_path, why);
+        else if (mesh_repair_note(s, &m, why, sizeof why))
+            fprintf(stderr, "reflcheck: note: %s: %s\n", j->scene_path, why);
     }
     /* The environment is checked here for every renderer, so POV-Ray and Cycles never get one
      * the rasterizer would refuse. */

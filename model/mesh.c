@@ -452,10 +452,75 @@ static int mesh_parse_doubles(char **cur, double *v, int max)
     return n;
 }
 
+/* A zero or non-finite file normal becomes (0, 0, 0): the mark mesh_soup_emit replaces by the
+ * normal computed from the faces (mesh_soup_normal_bad). */
+static void mesh_normal_screen(double v[3])
+{
+    double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!isfinite(l) || l == 0.0)
+        v[0] = v[1] = v[2] = 0.0;
+}
+
+/* The message for a 'v' line that is not 'v x y z [w | r g b]': names the first token that is
+ * not a number, or says how many numbers there are. */
+static void mesh_obj_bad_vertex(const char *text, const char *label, int line, char *err, size_t errlen)
+{
+    const char *q = text;
+    while (*q == ' ' || *q == '\t')
+        q++;
+    q++; /* the 'v' */
+    int count = 0;
+    for (;;) {
+        while (*q == ' ' || *q == '\t')
+            q++;
+        if (!*q)
+            break;
+        const char *e = q;
+        while (*e && *e != ' ' && *e != '\t')
+            e++;
+        char tok[40];
+        size_t n = (size_t)(e - q) < sizeof tok - 1 ? (size_t)(e - q) : sizeof tok - 1;
+        memcpy(tok, q, n);
+        tok[n] = '\0';
+        char *end;
+        strtod(tok, &end);
+        if (end == tok || *end) {
+            status_message(err, errlen, "%s:%d: bad vertex: '%s' is not a number; fix: write 'v x y z' with 3 numbers",
+                           label, line, tok);
+            return;
+        }
+        count++;
+        q = e;
+    }
+    status_message(err, errlen, "%s:%d: bad vertex: %d numbers; fix: write 'v x y z' (optionally w, or r g b)", label,
+                   line, count);
+}
+
+/* A byte-order mark: UTF-8's is skipped (the text after it is plain OBJ); UTF-16 and UTF-32
+ * text is refused by name. Returns the bytes to skip, or -1 (message in err). */
+static int mesh_obj_bom(const char *buf, size_t len, const char *label, char *err, size_t errlen)
+{
+    const unsigned char *u = (const unsigned char *)buf;
+    if (len >= 3 && u[0] == 0xEF && u[1] == 0xBB && u[2] == 0xBF)
+        return 3;
+    if (len >= 2 && ((u[0] == 0xFE && u[1] == 0xFF) || (u[0] == 0xFF && u[1] == 0xFE))) {
+        status_message(err, errlen,
+                       "%s:1: UTF-16 or UTF-32 text (byte-order mark %02X %02X) is not supported; fix: save "
+                       "the OBJ as UTF-8 or ASCII",
+                       label, u[0], u[1]);
+        return -1;
+    }
+    return 0;
+}
+
 static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     int line = 0;
     char *p = buf, *endbuf = buf + len;
+    int skip = mesh_obj_bom(buf, len, label, err, errlen);
+    if (skip < 0)
+        return RC_ERR_PARSE;
+    p += skip;
     while (p < endbuf) {
         char *nl = memchr(p, '\n', (size_t)(endbuf - p));
         char *le = nl ? nl : endbuf;
@@ -483,7 +548,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         if (kwlen == 1 && kw[0] == 'v') {
             int n = mesh_parse_doubles(&cur, v, 7);
             if (n < 3) {
-                status_message(err, errlen, "%s:%d: bad vertex; fix: write 'v x y z' with 3 numbers", label, line);
+                mesh_obj_bad_vertex(p, label, line, err, errlen);
                 return RC_ERR_PARSE;
             }
             if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 || fabs(v[1]) > 1e30 ||
@@ -502,14 +567,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                 status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label, line);
                 return RC_ERR_PARSE;
             }
-            double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            if (!isfinite(l) || l == 0.0) {
-                status_message(err, errlen,
-                               "%s:%d: normal is zero or not finite; fix: a nonzero finite "
-                               "'vn', or drop normals to have them computed",
-                               label, line);
-                return RC_ERR_RANGE;
-            }
+            mesh_normal_screen(v);
             if (!mesh_soup_nrm(s, v))
                 return RC_ERR_NOMEM;
         } else if (kwlen == 1 && kw[0] == 'f') {
@@ -667,6 +725,23 @@ static int ply_read(ply_reader *r, ply_type t, double *out)
     return *e == '\0';
 }
 
+static int ply_keyword(const char *w)
+{
+    static const char *const k[] = {"comment", "obj_info", "format", "element", "property", "end_header"};
+    for (size_t i = 0; i < sizeof k / sizeof *k; i++)
+        if (strcmp(w, k[i]) == 0)
+            return 1;
+    return 0;
+}
+
+static int ply_has_element(const ply_element *el, int n, const char *name)
+{
+    for (int i = 0; i < n; i++)
+        if (strcmp(el[i].name, name) == 0)
+            return 1;
+    return 0;
+}
+
 static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     ply_element el[PLY_MAX_ELEMENTS];
@@ -705,6 +780,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 break;
             }
             strcpy(w[nw++], tk);
+        }
+        if (nw > 0 && line > 1 && !ply_keyword(w[0])) {
+            status_message(err, errlen,
+                           "%s:%d: '%s' is not a PLY header keyword (malformed header; a comment needs "
+                           "'comment'); fix: format, element, property, comment, obj_info, end_header",
+                           label, line, w[0]);
+            return RC_ERR_PARSE;
         }
         if (long_word && !(nw > 0 && (strcmp(w[0], "comment") == 0 || strcmp(w[0], "obj_info") == 0))) {
             status_message(err, errlen,
@@ -781,6 +863,13 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
     }
     if (binary < 0) {
         status_message(err, errlen, "%s: PLY header has no format line; fix: 'format ascii 1.0'", label);
+        return RC_ERR_PARSE;
+    }
+    if (!ply_has_element(el, n_el, "face")) {
+        status_message(err, errlen,
+                       "%s: PLY has no face element (a point cloud, or faces declared inside another "
+                       "element); fix: vertex and face elements",
+                       label);
         return RC_ERR_PARSE;
     }
 
@@ -871,8 +960,8 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 }
             }
             if (is_vertex) {
-                for (int c = 0; c < 6; c++)
-                    if ((c < 3 || have_vertex == 2) && (!isfinite(vals[c]) || fabs(vals[c]) > 1e30)) {
+                for (int c = 0; c < 3; c++)
+                    if (!isfinite(vals[c]) || fabs(vals[c]) > 1e30) {
                         status_message(err, errlen,
                                        "%s: vertex %ld: %s not finite or beyond 1e30; fix: "
                                        "finite values",
@@ -882,13 +971,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 if (!mesh_soup_pos(s, vals))
                     return RC_ERR_NOMEM;
                 if (have_vertex == 2) {
-                    if (vals[3] == 0.0 && vals[4] == 0.0 && vals[5] == 0.0) {
-                        status_message(err, errlen,
-                                       "%s: vertex %ld: zero normal; fix: nonzero nx ny nz, or "
-                                       "drop them to have normals computed",
-                                       label, i);
-                        return RC_ERR_RANGE;
-                    }
+                    mesh_normal_screen(vals + 3);
                     if (!mesh_soup_nrm(s, vals + 3))
                         return RC_ERR_NOMEM;
                 }
@@ -911,121 +994,166 @@ truncated:
     return RC_ERR_PARSE;
 }
 
+/* A file normal that is zero or not finite (stored as zero by the readers): its vertex gets the
+ * normal computed from its faces instead, as renderers do. */
+static int mesh_soup_normal_bad(const mesh_soup *s, int ni)
+{
+    const double *nn = &s->nrm[3 * (size_t)ni];
+    return nn[0] == 0.0 && nn[1] == 0.0 && nn[2] == 0.0;
+}
+
+/* Fan triangle k of face f: its three corners. */
+static void mesh_soup_fan(const mesh_soup *s, int f, int k, int c[3])
+{
+    c[0] = s->face_start[f];
+    c[1] = k;
+    c[2] = k + 1;
+}
+
+static dvec3 mesh_soup_cross(const mesh_soup *s, const int c[3])
+{
+    dvec3 pv[3];
+    for (int q = 0; q < 3; q++) {
+        const double *pp = &s->pos[3 * (size_t)s->cv[c[q]]];
+        pv[q] = dv3(pp[0], pp[1], pp[2]);
+    }
+    return dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
+}
+
+/* Output vertices shared per (position, file normal or computed): an open-addressing table. */
+typedef struct {
+    size_t cap;
+    int64_t *key;
+    uint32_t *val;
+} mesh_vtable;
+
+/* The output vertex of corner i, made on first use; RC_ERR_RANGE when it needs a computed normal
+ * and its faces' normals cancel. */
+static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtable *t, const dvec3 *acc, int i,
+                                  const char *label, int is_obj, uint32_t *out, char *err, size_t errlen)
+{
+    int vi = s->cv[i], ni = s->cn[i];
+    int bad = ni >= 0 && mesh_soup_normal_bad(s, ni);
+    if (bad)
+        ni = -1;
+    int64_t key = (int64_t)vi * ((int64_t)s->n_nrm + 1) + (ni + 1);
+    size_t h = (size_t)((uint64_t)key * 0x9E3779B97F4A7C15ull >> 20) & (t->cap - 1);
+    while (t->key[h] != -1 && t->key[h] != key)
+        h = (h + 1) & (t->cap - 1);
+    if (t->key[h] == -1) {
+        const double *pp = &s->pos[3 * (size_t)vi];
+        dvec3 n;
+        if (ni >= 0) {
+            const double *nn = &s->nrm[3 * (size_t)ni];
+            n = dv3_norm(dv3(nn[0], nn[1], nn[2]));
+        } else {
+            n = acc[vi];
+            if (dv3_len(n) == 0.0) {
+                status_message(err, errlen,
+                               "%s: vertex %d: its triangles' normals cancel, so no "
+                               "normal can be computed; fix: give normals or remove back-to-back "
+                               "faces",
+                               label, vi + is_obj);
+                return RC_ERR_RANGE;
+            }
+            n = dv3_norm(n);
+        }
+        t->key[h] = key;
+        t->val[h] = mesh_vert(b, dv3(pp[0], pp[1], pp[2]), n);
+        if (bad)
+            b->m->recomputed[b->object]++;
+    }
+    *out = t->val[h];
+    return RC_OK;
+}
+
 /* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
- * Vertices are shared per (position, normal) pair. */
+ * Vertices are shared per (position, normal) pair. Zero-area triangles (in double, or once the
+ * positions are stored as float) are left out and counted, as every renderer skips them; only a
+ * mesh left with none is refused. */
 static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj, char *err,
                                 size_t errlen)
 {
     mesh *m = b->m;
-    size_t ntri = 0;
+    size_t ntri = 0, kept = 0, dropped = 0;
     for (int f = 0; f < s->n_face; f++)
         ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
     if (ntri == 0) {
-        status_message(err, errlen, "%s: no triangles; fix: a mesh with at least one face", label);
+        status_message(err, errlen,
+                       "%s: no faces (points and lines are not drawn); fix: a mesh with at least one "
+                       "triangle or polygon",
+                       label);
         return RC_ERR_RANGE;
     }
     dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
-    /* Output vertex per (position, file normal or computed): two slots per position for the
-     * common cases, a linear probe table otherwise. */
-    size_t tcap = 16;
-    while (tcap < 2 * (size_t)s->n_corner)
-        tcap *= 2;
-    int64_t *tkey = malloc(tcap * sizeof *tkey);
-    uint32_t *tval = malloc(tcap * sizeof *tval);
+    mesh_vtable t = {16, NULL, NULL};
+    while (t.cap < 2 * (size_t)s->n_corner)
+        t.cap *= 2;
+    t.key = malloc(t.cap * sizeof *t.key);
+    t.val = malloc(t.cap * sizeof *t.val);
     rc_status rc = RC_OK;
-    if (!acc || !tkey || !tval) {
+    if (!acc || !t.key || !t.val) {
         rc = RC_ERR_NOMEM;
         goto done;
     }
-    for (size_t i = 0; i < tcap; i++)
-        tkey[i] = -1;
+    for (size_t i = 0; i < t.cap; i++)
+        t.key[i] = -1;
 
     for (int f = 0; f < s->n_face; f++)
         for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1]; k++) {
-            int c[3] = {s->face_start[f], k, k + 1};
-            dvec3 pv[3];
-            for (int q = 0; q < 3; q++) {
-                const double *pp = &s->pos[3 * (size_t)s->cv[c[q]]];
-                pv[q] = dv3(pp[0], pp[1], pp[2]);
-            }
-            dvec3 cr = dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
-            if (dv3_len(cr) == 0.0) {
-                if (is_obj)
-                    status_message(err, errlen,
-                                   "%s:%d: face has a zero-area triangle (corners %d, %d, %d "
-                                   "coincide or are collinear); fix: remove the degenerate face",
-                                   label, s->face_line[f], s->cv[c[0]] + 1, s->cv[c[1]] + 1, s->cv[c[2]] + 1);
-                else
-                    status_message(err, errlen,
-                                   "%s: face %d has a zero-area triangle (vertices %d, %d, %d "
-                                   "coincide or are collinear); fix: remove the degenerate face",
-                                   label, s->face_line[f], s->cv[c[0]], s->cv[c[1]], s->cv[c[2]]);
-                rc = RC_ERR_RANGE;
-                goto done;
-            }
+            int c[3];
+            mesh_soup_fan(s, f, k, c);
+            dvec3 cr = mesh_soup_cross(s, c);
+            if (dv3_len(cr) == 0.0)
+                continue;
+            kept++;
             /* |cross| is twice the area: summing it weights normals by area. */
             for (int q = 0; q < 3; q++)
                 acc[s->cv[c[q]]] = dv3_add(acc[s->cv[c[q]]], cr);
         }
-
-    if ((rc = mesh_reserve(m, (size_t)s->n_corner, ntri)) != RC_OK)
-        goto done;
-    uint32_t *corner_vert = malloc((size_t)s->n_corner * sizeof *corner_vert);
-    if (!corner_vert) {
-        rc = RC_ERR_NOMEM;
+    if (kept == 0) {
+        status_message(err, errlen,
+                       "%s: all %zu triangles have zero area (corners coincide or are collinear); fix: "
+                       "a mesh with at least one proper face",
+                       label, ntri);
+        rc = RC_ERR_RANGE;
         goto done;
     }
-    for (int i = 0; i < s->n_corner; i++) {
-        int vi = s->cv[i], ni = s->cn[i];
-        int64_t key = (int64_t)vi * ((int64_t)s->n_nrm + 1) + (ni + 1);
-        size_t h = (size_t)((uint64_t)key * 0x9E3779B97F4A7C15ull >> 20) & (tcap - 1);
-        while (tkey[h] != -1 && tkey[h] != key)
-            h = (h + 1) & (tcap - 1);
-        if (tkey[h] == -1) {
-            const double *pp = &s->pos[3 * (size_t)vi];
-            dvec3 n;
-            if (ni >= 0) {
-                const double *nn = &s->nrm[3 * (size_t)ni];
-                n = dv3_norm(dv3(nn[0], nn[1], nn[2]));
-            } else {
-                n = acc[vi];
-                if (dv3_len(n) == 0.0) {
-                    status_message(err, errlen,
-                                   "%s: vertex %d: its triangles' normals cancel, so no "
-                                   "normal can be computed; fix: give normals or remove back-to-back "
-                                   "faces",
-                                   label, vi + is_obj);
-                    free(corner_vert);
-                    rc = RC_ERR_RANGE;
-                    goto done;
-                }
-                n = dv3_norm(n);
-            }
-            tkey[h] = key;
-            tval[h] = mesh_vert(b, dv3(pp[0], pp[1], pp[2]), n);
-        }
-        corner_vert[i] = tval[h];
-    }
+    if ((rc = mesh_reserve(m, (size_t)s->n_corner, kept)) != RC_OK)
+        goto done;
     for (int f = 0; f < s->n_face && rc == RC_OK; f++)
-        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1]; k++) {
-            uint32_t a = corner_vert[s->face_start[f]], bb = corner_vert[k], c = corner_vert[k + 1];
+        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1] && rc == RC_OK; k++) {
+            int c[3];
+            uint32_t v[3];
+            mesh_soup_fan(s, f, k, c);
+            if (dv3_len(mesh_soup_cross(s, c)) == 0.0) {
+                dropped++;
+                continue;
+            }
+            for (int q = 0; q < 3 && rc == RC_OK; q++)
+                rc = mesh_soup_vertex(s, b, &t, acc, c[q], label, is_obj, &v[q], err, errlen);
+            if (rc != RC_OK)
+                break;
             dvec3 cr;
             /* Nonzero in the file's precision can still collapse once stored as float. */
-            if (mesh_tri_area2(m, a, bb, c, &cr) == 0.0) {
-                status_message(err, errlen,
-                               "%s%s%d: face has a zero-area triangle in single precision "
-                               "(tiny or huge coordinates); fix: rescale the mesh or remove the face",
-                               label, is_obj ? ":" : ": face ", s->face_line[f]);
-                rc = RC_ERR_RANGE;
-                break;
+            if (mesh_tri_area2(m, v[0], v[1], v[2], &cr) == 0.0) {
+                dropped++;
+                continue;
             }
-            mesh_tri(m, a, bb, c, b->object);
+            mesh_tri(m, v[0], v[1], v[2], b->object);
         }
-    free(corner_vert);
+    m->dropped[b->object] += (int)dropped;
+    if (rc == RC_OK && dropped == ntri) {
+        status_message(err, errlen,
+                       "%s: all %zu triangles have zero area once stored in single precision (tiny or "
+                       "huge coordinates); fix: rescale the mesh",
+                       label, ntri);
+        rc = RC_ERR_RANGE;
+    }
 done:
     free(acc);
-    free(tkey);
-    free(tval);
+    free(t.key);
+    free(t.val);
     return rc;
 }
 
@@ -1173,6 +1301,8 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
     if (rc != RC_OK) {
         out->n_verts = nv0;
         out->n_tris = nt0;
+        out->dropped[object_index] = 0;
+        out->recomputed[object_index] = 0;
     }
     return rc;
 }
@@ -1181,6 +1311,8 @@ rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen)
 {
     out->n_verts = 0;
     out->n_tris = 0;
+    memset(out->dropped, 0, sizeof out->dropped);
+    memset(out->recomputed, 0, sizeof out->recomputed);
     for (int i = 0; i < s->n_objects; i++) {
         rc_status rc = mesh_add_object(s, i, out, err, errlen);
         if (rc != RC_OK) {
@@ -1198,4 +1330,40 @@ void mesh_free(mesh *m)
     free(m->idx);
     free(m->tri_object);
     memset(m, 0, sizeof *m);
+}
+
+void mesh_repair_totals(const mesh *m, int *dropped, int *recomputed)
+{
+    *dropped = *recomputed = 0;
+    for (int i = 0; i < SCENE_MAX_OBJECTS; i++) {
+        *dropped += m->dropped[i];
+        *recomputed += m->recomputed[i];
+    }
+}
+
+int mesh_repair_note(const scene *s, const mesh *m, char *buf, size_t len)
+{
+    size_t used = 0;
+    int n = 0;
+    if (len > 0)
+        buf[0] = '\0';
+    for (int i = 0; i < s->n_objects && i < SCENE_MAX_OBJECTS; i++) {
+        int d = m->dropped[i], r = m->recomputed[i];
+        if (d == 0 && r == 0)
+            continue;
+        char one[SCENE_PATH_MAX + 160], part[2][80] = {"", ""};
+        if (d > 0)
+            snprintf(part[0], sizeof part[0], "%d zero-area triangle%s left out", d, d == 1 ? "" : "s");
+        if (r > 0)
+            snprintf(part[1], sizeof part[1], "%d zero or non-finite normal%s recomputed from the faces", r,
+                     r == 1 ? "" : "s");
+        int w = snprintf(one, sizeof one, "%sobjects[%d] (%s): %s%s%s", n ? "; " : "", i, s->objects[i].path, part[0],
+                         d > 0 && r > 0 ? ", " : "", part[1]);
+        if (w > 0 && used + (size_t)w < len) {
+            memcpy(buf + used, one, (size_t)w + 1);
+            used += (size_t)w;
+        }
+        n++;
+    }
+    return n;
 }

@@ -11,6 +11,10 @@
  * Mesh files are read only when they are regular files of at most FILEIO_MESH_MAX_BYTES (1 GiB,
  * model/fileio.h), checked before reading: a device, FIFO or directory, or a larger file, is
  * RC_ERR_RANGE with its kind or size in the message.
+ * The readers are lenient where renderers are: a zero-area triangle in a file is left out and a
+ * zero or non-finite file normal is replaced by the area-weighted normal of the vertex's faces;
+ * both are counted per object (m.dropped, m.recomputed; mesh_repair_note says it in one line).
+ * Malformed files are still refused with a one-line error naming file, line and fix.
  */
 #ifndef REFLCHECK_MESH_H
 #define REFLCHECK_MESH_H
@@ -27,11 +31,20 @@ typedef struct {
     vec3 *nrm;
     uint32_t *idx;   /* 3 per triangle */
     int *tri_object; /* index into scene.objects, per triangle */
+    /* Per object, what the file readers repaired: zero-area triangles left out (in the file's
+     * double precision or once stored as float), and vertices whose zero or non-finite file
+     * normal was recomputed from the faces. */
+    int dropped[SCENE_MAX_OBJECTS], recomputed[SCENE_MAX_OBJECTS];
 } mesh;
 
 rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen);
 /* One object, appended to out, in world space. */
 rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err, size_t errlen);
 void mesh_free(mesh *m);
+/* Totals of m.dropped and m.recomputed over the objects. */
+void mesh_repair_totals(const mesh *m, int *dropped, int *recomputed);
+/* One line naming each object the readers repaired, e.g. "objects[0] (a.obj): 2 zero-area
+ * triangles left out, 1 normal recomputed from the faces"; returns 0 (and "") when none was. */
+int mesh_repair_note(const scene *s, const mesh *m, char *buf, size_t len);
 
 #endif

@@ -290,6 +290,35 @@ static void test_run_exit_status(void **state)
     free(ok_script);
 }
 
+/* A mesh the reader repairs: the record says how many triangles were left out, stderr notes it. */
+static void test_record_mesh_repairs(void **state)
+{
+    (void)state;
+    char err[1024], path[256], rec[512], cwd[400];
+    assert_non_null(getcwd(cwd, sizeof cwd));
+    snprintf(path, sizeof path, "%s/repaired.yaml", work);
+    char text[1024];
+    snprintf(text, sizeof text,
+             "image: {width: 8, height: 6}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "materials: {m: {}}\nobjects:\n  - {shape: mesh, path: %s/tests/fixtures/meshes/degenerate.obj, "
+             "material: m}\n",
+             cwd);
+    write_text(path, text);
+    assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer raster --no-cache --out %s", path, out_dir), 0);
+    assert_non_null(strstr(err, "note:"));
+    assert_non_null(strstr(err, "1 zero-area triangle left out"));
+    snprintf(rec, sizeof rec, "%s/repaired/raster-validate.json", out_dir);
+    char *json = fileio_read_all(rec, NULL);
+    assert_non_null(json);
+    cJSON *doc = cJSON_Parse(json);
+    const cJSON *mo = cJSON_GetObjectItemCaseSensitive(doc, "mesh");
+    assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "triangles")->valueint, 1);
+    assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "degenerate_dropped")->valueint, 1);
+    assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "normals_recomputed")->valueint, 0);
+    cJSON_Delete(doc);
+    free(json);
+}
+
 static void test_run_bad_input_is_2(void **state)
 {
     (void)state;
@@ -536,6 +565,7 @@ int main(void)
         cmocka_unit_test(test_renderer_missing_and_results_kept),
         cmocka_unit_test(test_run_exit_status),
         cmocka_unit_test(test_run_bad_input_is_2),
+        cmocka_unit_test(test_record_mesh_repairs),
         cmocka_unit_test(test_cache_folder_error_is_recorded),
         cmocka_unit_test(test_full_disk_is_an_error),
         cmocka_unit_test(test_cache_key_covers_referenced_files),
