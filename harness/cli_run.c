@@ -1,6 +1,9 @@
 /* reflcheck run: one scene in one renderer and role, cached and recorded (harness/jobs.h).
  * Exit status 0 when the job is ok or skipped, 1 when it failed, crashed, timed out or hit
- * an error on our side, 2 for bad input (options, scene file, a file it references). */
+ * an error on our side, 2 for bad input (options, scene file, a file it references).
+ * --record-status S [--record-message M --record-log F --slurm-job ID] renders nothing and
+ * writes the record of a job the scheduler ended (harness/slurm/finish.sh); its exit status is
+ * that of a job with status S (1). */
 #include <getopt.h>
 #include <stdio.h>
 #include <string.h>
@@ -11,14 +14,26 @@
 int cli_run(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"renderer", required_argument, NULL, 'r'}, {"role", required_argument, NULL, 'R'},
-        {"small", no_argument, NULL, 's'},          {"out", required_argument, NULL, 'o'},
-        {"cache", required_argument, NULL, 'c'},    {"no-cache", no_argument, NULL, 'n'},
-        {"timeout", required_argument, NULL, 'T'},  {"threads", required_argument, NULL, 't'},
-        {"seeds", required_argument, NULL, 'S'},    {"supersample", required_argument, NULL, 'k'},
-        {"samples", required_argument, NULL, 'N'},  {"tessellation", required_argument, NULL, 'e'},
-        {"per-vertex", no_argument, NULL, 'v'},     {"tag", required_argument, NULL, 'g'},
-        {"seed", required_argument, NULL, 'E'},     {NULL, 0, NULL, 0},
+        {"renderer", required_argument, NULL, 'r'},
+        {"role", required_argument, NULL, 'R'},
+        {"small", no_argument, NULL, 's'},
+        {"out", required_argument, NULL, 'o'},
+        {"cache", required_argument, NULL, 'c'},
+        {"no-cache", no_argument, NULL, 'n'},
+        {"timeout", required_argument, NULL, 'T'},
+        {"threads", required_argument, NULL, 't'},
+        {"seeds", required_argument, NULL, 'S'},
+        {"supersample", required_argument, NULL, 'k'},
+        {"samples", required_argument, NULL, 'N'},
+        {"tessellation", required_argument, NULL, 'e'},
+        {"per-vertex", no_argument, NULL, 'v'},
+        {"tag", required_argument, NULL, 'g'},
+        {"seed", required_argument, NULL, 'E'},
+        {"slurm-job", required_argument, NULL, 'J'},
+        {"record-status", required_argument, NULL, 'X'},
+        {"record-message", required_argument, NULL, 'M'},
+        {"record-log", required_argument, NULL, 'L'},
+        {NULL, 0, NULL, 0},
     };
     job_spec j = {.renderer = registry_model(),
                   .role = ROLE_VALIDATE,
@@ -63,6 +78,26 @@ int cli_run(int argc, char **argv)
         case 'e': rc = cli_parse_int("--tessellation", optarg, 3, 4096, &j.tessellation); break;
         case 'v': j.per_vertex = 1; break;
         case 'E': rc = cli_parse_int("--seed", optarg, 0, 1 << 20, &j.seed); break;
+        case 'J': j.slurm_job = optarg; break;
+        case 'X':
+            /* Only the verdicts a scheduler gives a job that ended without its record. */
+            j.record_only = 1;
+            if (strcmp(optarg, "failed") == 0)
+                j.record_status = RUNNER_FAILED;
+            else if (strcmp(optarg, "crashed") == 0)
+                j.record_status = RUNNER_CRASHED;
+            else if (strcmp(optarg, "timeout") == 0)
+                j.record_status = RUNNER_TIMEOUT;
+            else if (strcmp(optarg, "error") == 0)
+                j.record_status = RUNNER_ERROR;
+            else {
+                fprintf(stderr, "reflcheck: run: --record-status '%s': use failed, crashed, timeout or error\n",
+                        optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            break;
+        case 'M': j.record_message = optarg; break;
+        case 'L': j.record_log = optarg; break;
         case 'g':
             if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
                 fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);

@@ -266,6 +266,30 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
     va_end(ap);
 }
 
+/* The Slurm id of the job (README "Slurm"): the spec's, else the environment's: an array task
+ * as ARRAY_TASK (what scontrol and sacct take), a step as JOB.STEP, else JOB. 0 outside Slurm. */
+static int job_slurm_id(const job_spec *j, char *buf, size_t len)
+{
+    if (j->slurm_job != NULL) {
+        snprintf(buf, len, "%s", j->slurm_job);
+        return buf[0] != '\0';
+    }
+    const char *job = getenv("SLURM_JOB_ID"), *array = getenv("SLURM_ARRAY_JOB_ID"),
+               *task = getenv("SLURM_ARRAY_TASK_ID"), *step = getenv("SLURM_STEP_ID");
+    if (job == NULL || job[0] == '\0')
+        return 0;
+    if (array != NULL && task != NULL && array[0] != '\0' && task[0] != '\0')
+        snprintf(buf, len, "%s_%s", array, task);
+    else
+        snprintf(buf, len, "%s", job);
+    /* The batch script itself is no step of ours: only srun steps (0, 1, ...) are named. */
+    if (step != NULL && step[0] >= '0' && step[0] <= '9') {
+        size_t n = strlen(buf);
+        snprintf(buf + n, len - n, ".%s", step);
+    }
+    return 1;
+}
+
 static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key, char *err,
                                   size_t errlen)
 {
@@ -317,6 +341,15 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
         cJSON_AddStringToObject(g, "reason", c->res.why[t]);
         cJSON_AddItemToArray(gaps, g);
     }
+    char slurm[128];
+    if (job_slurm_id(c->j, slurm, sizeof slurm)) {
+        cJSON *sl = cJSON_AddObjectToObject(o, "slurm");
+        const char *node = getenv("SLURMD_NODENAME");
+        cJSON_AddStringToObject(sl, "job_id", slurm);
+        /* A record written for a job Slurm ended is not written on that job's node. */
+        cJSON_AddStringToObject(sl, "node", c->j->slurm_job == NULL && node != NULL ? node : "");
+    } else
+        cJSON_AddNullToObject(o, "slurm");
     cJSON_AddNumberToObject(o, "finished_unix", (double)time(NULL));
     rc_status st = jsonio_write_file(o, path, err, errlen);
     cJSON_Delete(o);
@@ -622,7 +655,13 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     c.shown_log = dest_log;
     int lock_fd = -1;
     char work[1100] = "";
-    if (rec->status == RUNNER_OK && j->cache_dir != NULL)
+    if (j->record_only) {
+        /* The scheduler's verdict: its output file is the only log the job left. */
+        job_fail(rec, j->record_status, "%s", j->record_message ? j->record_message : "");
+        snprintf(c.command, sizeof c.command, "(record written for the scheduler)");
+        if (j->record_log != NULL)
+            snprintf(c.log, sizeof c.log, "%s", j->record_log);
+    } else if (rec->status == RUNNER_OK && j->cache_dir != NULL)
         job_cached(&c, rec, keyhex, &lock_fd, work, sizeof work);
     else if (rec->status == RUNNER_OK) {
         /* Without a cache the job still locks itself (in OUT), so that the work folders a

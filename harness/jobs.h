@@ -7,7 +7,8 @@
  *   rc_status st = job_run(&j, &r, err, sizeof err);
  *   exit status: job_exit_status(st, &r)     0 ok or skipped, 1 anything else, 2 bad input
  * Results land in OUT/<scene>/<renderer>-<role>.exr with a record .json (status, wall and CPU
- * time, renderer version, command, cache key, terms_left_out) and the renderer's .log.
+ * time, renderer version, command, cache key, terms_left_out, slurm: {job_id, node} or null)
+ * and the renderer's .log.
  * The job asks the renderer table (harness/renderers/registry.h) for everything about the
  * renderer: its program, package, version, sources and render entry. A twin lets the renderer
  * leave out whole terms it cannot reproduce; the record names them (terms_left_out).
@@ -65,6 +66,16 @@ typedef struct {
      * set, outputs are named <renderer>-<role>-<tag> so sweeps do not overwrite each other. */
     int supersample, samples, tessellation, per_vertex;
     const char *tag;
+    /* The batch scheduler's id of this job (Slurm: "JOB", "ARRAY_TASK" or "JOB.STEP"), kept in
+     * the record; NULL = from the environment (SLURM_ARRAY_JOB_ID, SLURM_ARRAY_TASK_ID,
+     * SLURM_JOB_ID, SLURM_STEP_ID), none when run outside Slurm. */
+    const char *slurm_job;
+    /* A job that ended without writing its own record (Slurm cancelled it, timed it out or lost
+     * its node): record_only writes the record with record_status and record_message and
+     * renders nothing; record_log (the scheduler's output file of the job) becomes its log. */
+    int record_only;
+    runner_status record_status;
+    const char *record_message, *record_log;
 } job_spec;
 
 typedef struct {
