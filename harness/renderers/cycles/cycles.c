@@ -3,6 +3,7 @@
 #define _XOPEN_SOURCE 700
 
 #include "cycles.h"
+#include "cycles_worker.h"
 
 #include <errno.h>
 #include <limits.h>
@@ -908,7 +909,15 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
     for (int i = 0; i < a.argc && used < sizeof r->command; i++)
         used += (size_t)snprintf(r->command + used, sizeof r->command - used, "%s%s", i ? " " : "", a.argv[i]);
     runner_result rr;
-    runner_exec(a.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    /* A running Blender worker (worker_pool.py) saves Blender's start-up; with none, or with
+     * another Blender or script than the worker's, Blender starts for this job. */
+    const char *worker = o.blender == NULL && o.script == NULL ? getenv(CYCLES_WORKER_ENV) : NULL;
+    if (cycles_worker_run(worker, job, j->exr, o.threads, j->timeout, j->log, &rr)) {
+        char via[2100];
+        snprintf(via, sizeof via, "(blender worker %s) %s", worker, r->command);
+        snprintf(r->command, sizeof r->command, "%s", via);
+    } else
+        runner_exec(a.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
     r->wall_s = rr.wall_s;
     r->cpu_s = rr.cpu_s;
     if (rr.status != RUNNER_OK) {

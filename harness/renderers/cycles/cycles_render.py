@@ -2,6 +2,8 @@
 
 Usage:
     blender -b --factory-startup [-t THREADS] -P harness/cycles_render.py -- JOB.json OUT.exr
+    render_job(JOB.json, OUT.exr, threads) from another script in Blender: one job per call
+    (worker.py renders many jobs in one Blender that way)
 
 For every seed i in the job it renders once and writes the raw multilayer EXR OUT.cyc<i>.exr
 (32-bit float, ZIP) with these channels (harness/cycles.c renames them and averages the seeds):
@@ -592,12 +594,11 @@ def setup_compositor(job, base_path):
     return fo
 
 
-def main():
+def render_job(job_path, out_path, threads=None):
+    """One job: the whole scene is rebuilt from factory settings, so a process may render many
+    jobs in turn (worker.py) with the same result as one Blender per job. threads: None keeps
+    Blender's setting (its -t option), 0 all cores, N > 0 exactly N."""
     t0 = time.monotonic()
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-    if len(argv) != 2:
-        raise JobError("usage: blender -b --factory-startup -P cycles_render.py -- JOB.json OUT.exr")
-    job_path, out_path = argv
     try:
         with open(job_path) as fh:
             job = json.load(fh)
@@ -607,6 +608,11 @@ def main():
         raise JobError("%s: not a version 1 reflcheck Cycles job" % job_path)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     setup_render(job)
+    if threads is not None:
+        r = bpy.context.scene.render
+        r.threads_mode = 'FIXED' if threads > 0 else 'AUTO'
+        if threads > 0:
+            r.threads = threads
     setup_camera(job)
     setup_lights(job)
     env = setup_world(job)
@@ -640,6 +646,13 @@ def main():
     with open(stem + ".timing.json", "w") as fh:
         json.dump(timing, fh)
     print("reflcheck-cycles: build %.3f s, render %s s" % (t_build, " ".join("%.3f" % r for r in render_s)))
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+    if len(argv) != 2:
+        raise JobError("usage: blender -b --factory-startup -P cycles_render.py -- JOB.json OUT.exr")
+    render_job(argv[0], argv[1])
 
 
 if __name__ == "__main__":

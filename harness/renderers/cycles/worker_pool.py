@@ -1,0 +1,117 @@
+"""worker_pool.py - N Blender processes that render Cycles jobs without starting Blender per job.
+
+Usage (Python 3 standard library; harness/sweep.py uses it):
+    with WorkerPool(n=2) as pool:
+        env = dict(os.environ, **pool.env())        REFLCHECK_CYCLES_WORKER=<socket>
+        subprocess.run([bin, 'run', scene, '--renderer', 'cycles', ...], env=env)
+`reflcheck run` hands its Blender step to an idle worker through the socket (harness/
+renderers/cycles/cycles_worker.c) instead of starting Blender; everything else about the job
+(cache, key, collection of the seeds, record, log) is the same code as without a pool. The
+workers (worker.py) share one listening socket, so a job goes to whichever is idle. A worker
+that dies (a client timed out or was killed mid-render, Blender crashed) is started again.
+Leaving the `with` block stops every worker; they also die with this process (SIGKILL via
+PR_SET_PDEATHSIG), so no Blender outlives the sweep.
+"""
+
+import ctypes
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ENV_VAR = 'REFLCHECK_CYCLES_WORKER'
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent():
+    """In the child before exec: SIGKILL when the pool's process dies, however it dies."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+
+
+class WorkerPool:
+    def __init__(self, n, blender='blender', log_dir=None):
+        self.n = n
+        self.blender = blender
+        self.dir = tempfile.mkdtemp(prefix='reflcheck-workers-')
+        self.path = os.path.join(self.dir, 'socket')
+        self.log_dir = log_dir or self.dir
+        self.sock = None
+        self.procs = []
+        self.starts = 0
+        self.stopping = threading.Event()
+        self.lock = threading.Lock()
+        self.monitor = None
+
+    def env(self):
+        return {ENV_VAR: self.path}
+
+    def _start_one(self):
+        log = open(os.path.join(self.log_dir, 'worker-%d.log' % self.starts), 'ab')
+        self.starts += 1
+        fd = self.sock.fileno()
+        p = subprocess.Popen(
+            [
+                self.blender,
+                '-b',
+                '--factory-startup',
+                '--python-exit-code',
+                '1',
+                '-P',
+                os.path.join(HERE, 'worker.py'),
+                '--',
+                str(fd),
+            ],
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            pass_fds=(fd,),
+            preexec_fn=_die_with_parent,
+        )
+        log.close()
+        return p
+
+    def _watch(self):
+        while not self.stopping.wait(0.2):
+            with self.lock:
+                for i, p in enumerate(self.procs):
+                    if p.poll() is not None and not self.stopping.is_set():
+                        self.procs[i] = self._start_one()
+
+    def __enter__(self):
+        if shutil.which(self.blender) is None:
+            raise OSError('%s is not installed; install it with: apt-get install blender' % self.blender)
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.sock.bind(self.path)
+        # Every job of the sweep may wait in the backlog at once; the kernel caps it anyway.
+        self.sock.listen(4096)
+        with self.lock:
+            self.procs = [self._start_one() for _ in range(self.n)]
+        self.monitor = threading.Thread(target=self._watch, daemon=True)
+        self.monitor.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stopping.set()
+        if self.monitor:
+            self.monitor.join()
+        with self.lock:
+            for p in self.procs:
+                if p.poll() is None:
+                    p.terminate()
+            deadline = time.monotonic() + 5.0
+            for p in self.procs:
+                try:
+                    p.wait(max(0.1, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+        if self.sock:
+            self.sock.close()
+        shutil.rmtree(self.dir, ignore_errors=True)
+        return False
