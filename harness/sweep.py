@@ -5,6 +5,7 @@ Usage (Python 3 standard library only; run from the project root after `make bui
   /usr/bin/python3 harness/sweep.py --run reports/runs/<id> --cache reports/cache/sweep
                                     [--scenes scenes/a.yaml ...] [--quick] [--full-size]
                                     [--jobs 2] [--threads 1] [--clock wall|cpu] [--bin build/reflcheck]
+                                    [--scheduler local|slurm] [--no-worker]
 
 What it renders (in the scene's sweep role, below, through `reflcheck run --small --tag T
 --threads 1`, two jobs at a time; outputs in RUN/timing/renders/<scene>/<tag>/):
@@ -22,6 +23,12 @@ model: raster error is sampling and harness error); scenes with neither are left
 Size: the scene's small variant (`reflcheck run --small`; 96 pixels wide unless the scene says
 otherwise), or the full size with --full-size (`reflcheck run` has no width/height option).
 Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region.
+Blender: Cycles jobs render in a pool of --jobs Blender workers (harness/renderers/cycles/
+worker_pool.py), so Blender starts once per worker, not per job, and a Cycles job's time is its
+scene build and render without Blender's start-up (--no-worker: one Blender per job, as before;
+the images are the same bit for bit). Worker logs go to RUN/worker-N.log.
+Slurm (--scheduler slurm, inside the allocation the nightly submits): every job is an srun step
+of its own (its id, JOB.STEP, in its record); the workers run in the allocation's batch step.
 
 Writes RUN/timing/<scene>.json (read by harness/report.py; format below), RUN/sweep.json (the
 sweep's own cost: wall time, job count, cached jobs) and prints one line per scene.
@@ -76,6 +83,7 @@ swept (reference or raster as-is missing), 2 bad usage.
 
 import argparse
 import concurrent.futures as cf
+import contextlib
 import json
 import math
 import os
@@ -87,6 +95,9 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, 'harness', 'renderers', 'cycles'))
+from worker_pool import WorkerPool  # noqa: E402  (needs the path above)
+
 FORMAT = 'reflcheck-sweep-1'
 CYCLES_SPP = (16, 64, 256, 1024)
 REF_SPP = 4096
@@ -328,6 +339,13 @@ class Runner:
         self.bin = args.bin
         self.cache = args.cache
         self.threads = args.threads
+        # Under Slurm (inside the sweep's allocation) every job is a step of its own.
+        self.prefix = (
+            ['srun', '--exact', '--quiet', '-N1', '-n1', f'-c{args.threads}', '--job-name=reflcheck-sweep']
+            if args.scheduler == 'slurm'
+            else []
+        )
+        self.env = None  # the Blender worker pool's variable, once it runs (main)
         self.small = not args.full_size
         self.renders = os.path.join(args.run, 'timing', 'renders')
         self.seed_opt = self.cli_has_seed()
@@ -370,7 +388,7 @@ class Runner:
         cmd += ['--no-cache'] if repeats > 1 else ['--cache', self.cache]
         best, t0 = None, time.monotonic()
         for _ in range(repeats):
-            r = subprocess.run(cmd, capture_output=True, text=True, timeout=JOB_TIMEOUT_S)
+            r = subprocess.run(self.prefix + cmd, capture_output=True, text=True, timeout=JOB_TIMEOUT_S, env=self.env)
             rec_path = self.out(scene, tag, renderer) + '.json'
             try:
                 with open(rec_path, encoding='utf-8') as f:
@@ -766,7 +784,25 @@ def main(argv=None):
         help="time_s: the job's wall time (default) or its CPU time (robust when other work "
         "shares the cores; equal to wall on an idle core with --threads 1)",
     )
+    ap.add_argument(
+        '--scheduler',
+        choices=('local', 'slurm'),
+        default='local',
+        help='slurm: run inside a Slurm allocation (the nightly submits the sweep), each job an srun step',
+    )
+    ap.add_argument(
+        '--no-worker',
+        action='store_true',
+        help='start Blender for every Cycles job (the way before the worker pool; for comparisons)',
+    )
     args = ap.parse_args(argv)
+    if args.scheduler == 'slurm' and not os.environ.get('SLURM_JOB_ID'):
+        print(
+            'sweep.py: --scheduler slurm runs inside a Slurm allocation; submit it with sbatch '
+            '(SCHEDULER=slurm make report does)',
+            file=sys.stderr,
+        )
+        return 2
     if not os.path.isfile(args.bin) or not os.access(args.bin, os.X_OK):
         print(f'sweep.py: --bin {args.bin}: not an executable; build it with `make build/reflcheck`', file=sys.stderr)
         return 2
@@ -809,7 +845,13 @@ def main(argv=None):
         work += [(sp, name, j) for j in jobs]
     work.sort(key=lambda w: -expected_cost(w[2]))
     recs = {}
-    with cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
+    # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
+    # start-up is paid once per worker, not once per job, and job times no longer include it.
+    use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
+    pool = WorkerPool(args.jobs, log_dir=args.run) if use_pool else contextlib.nullcontext()
+    with pool, cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
+        if use_pool:
+            runner.env = dict(os.environ, **pool.env())
         futs = {
             ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
             for sp, name, j in work
@@ -831,6 +873,8 @@ def main(argv=None):
         'job_time_sum_s': sum(r.get('sweep_elapsed_s') or 0 for r in recs.values()),
         'threads_per_job': args.threads,
         'parallel_jobs': args.jobs,
+        'blender_worker': use_pool,
+        'scheduler': args.scheduler,
         'quick': args.quick,
         'size': 'full' if args.full_size else 'small',
         'nested_reference': nested,
