@@ -39,7 +39,7 @@ LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 
 .PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
-        bench report fuzz deps clean
+        test-slurm bench report fuzz deps clean
 all: $(CLI) $(TEST_BIN)
 
 deps:
@@ -75,7 +75,7 @@ test: deps
 	$(MAKE) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer
+	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer test-slurm
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
@@ -104,6 +104,13 @@ test-fuzz:
 	$(MAKE) fuzz FUZZ_TIME=$(TEST_FUZZ_TIME)
 TEST_FUZZ_TIME ?= 15
 
+# The nightly through a one-node Slurm cluster it starts and stops itself: the same verdicts,
+# metrics and images as with make, every job a Slurm job; failed and cancelled jobs recorded.
+# Then a Blender worker's images against a fresh Blender's, bit for bit.
+test-slurm: $(CLI)
+	@bash tests/slurm_nightly.sh $(BUILD)
+	@bash tests/slurm_worker.sh $(BUILD)
+
 # The report generator, and the report opened in headless Chromium.
 test-report:
 	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py
@@ -113,9 +120,11 @@ test-scenes: $(CLI)
 	@bash tests/run_scenes.sh $(BUILD)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.
+# SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (README "Slurm").
+SCHEDULER ?= make
 report: deps
 	$(MAKE) all
-	@bash harness/nightly.sh
+	@SCHEDULER=$(SCHEDULER) bash harness/nightly.sh
 
 # Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
 # to tests/regress/ once fixed. FUZZ_TIME seconds per target. The fuzz targets link the whole

@@ -10,6 +10,8 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
 # Textures (model/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
 # read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: README "Real meshes").
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
+# The Slurm backend and its local test cluster (harness/slurm/, README "Slurm").
+pkgs+=(slurm-wlm munge)
 # The renderers' packages come from their rows in the renderer table (.package = "..."), read
 # from the source because this runs before anything is built.
 registry="$(dirname "$0")/renderers/registry.c"

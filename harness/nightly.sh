@@ -11,7 +11,14 @@
 # renderers included, before it exits.
 #
 # Settings (environment): BIN, JOBS, RUNS, HISTORY, LATEST, CACHE, SCENES, RUN_ID, SMALL=1
-# (test-size renders), NO_SWEEP=1, NO_SCREENSHOT=1 (any non-empty value).
+# (test-size renders), NO_SWEEP=1, NO_SCREENSHOT=1 (any non-empty value), SCHEDULER.
+#
+# SCHEDULER=slurm (default make): the render jobs, the sweep and the compare step run as Slurm
+# jobs (README "Slurm"): `plan --scheduler slurm` submits one array task per render; the sweep
+# is one job of JOBS CPUs on one node (SWEEP_MINUTES, default 240) whose renders are srun steps;
+# compare runs after all of them (afterany), first writing the records of jobs Slurm ended;
+# stability, the plot and the report run here. RUN and CACHE must be on a filesystem every node
+# shares, at the same path. Interrupted, the nightly cancels its Slurm jobs (scancel).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 bin=${BIN:-build/reflcheck}
@@ -23,6 +30,18 @@ cache=${CACHE:-reports/cache}
 small=${SMALL:+--small}                 # SMALL=1: the test-size renders (used by the kill test)
 screenshot=--screenshot
 [ -n "${NO_SCREENSHOT:-}" ] && screenshot=
+scheduler=${SCHEDULER:-make}
+case $scheduler in
+    make | slurm) ;;
+    *)
+        echo "reflcheck nightly: SCHEDULER '$scheduler': use make (the default) or slurm" >&2
+        exit 2 ;;
+esac
+if [ "$scheduler" = slurm ] && ! sinfo -h > /dev/null 2>&1; then
+    echo "reflcheck nightly: SCHEDULER=slurm, but no Slurm cluster answers (sinfo failed); set SLURM_CONF," \
+        "or start a local one: eval \"\$(harness/slurm/local_cluster.sh start)\"" >&2
+    exit 2
+fi
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo nogit)
 # Two runs started in the same second (two users, a cluster) must not share a folder: the
 # pid and a random number follow the time and commit (report.py reads those two).
@@ -51,9 +70,19 @@ descendants() {
         descendants "$c"
     done
 }
+# The Slurm jobs this run submitted: render arrays (RUN/slurm/arrays), sweep and compare.
+slurm_jobs() {
+    [ -r "$run/slurm/arrays" ] && cut -d' ' -f1 "$run/slurm/arrays"
+    [ -r "$run/slurm/steps" ] && cat "$run/slurm/steps"
+}
 stop_all() {
     trap '' INT TERM HUP
-    local pids
+    local pids ids
+    if [ "$scheduler" = slurm ]; then
+        ids=$(slurm_jobs 2>/dev/null)
+        # shellcheck disable=SC2086
+        [ -n "$ids" ] && scancel $ids 2>/dev/null
+    fi
     pids=$(descendants $$)
     # shellcheck disable=SC2086
     [ -n "$pids" ] && kill -TERM $pids 2>/dev/null
@@ -70,29 +99,84 @@ step() {
     wait $!
 }
 
+# Waits until Slurm job $1 has left the queue (finished in any way).
+slurm_wait() {
+    local state
+    while :; do
+        state=$(squeue -h -j "$1" -o %T 2>/dev/null) || state=unknown
+        [ -z "$state" ] && return 0
+        step sleep 2
+    done
+}
+
 rc=0
 t0=$(date +%s)
+plan_out=$run/jobs.mk
+[ "$scheduler" = slurm ] && plan_out=$run/submit.sh
 # shellcheck disable=SC2086
-step "$bin" plan $scenes --out "$run" --cache "$cache" --bin "$bin" $small > "$run/jobs.mk"
+step "$bin" plan $scenes --out "$run" --cache "$cache" --bin "$bin" $small --scheduler "$scheduler" > "$plan_out"
 st=$?
 if [ $st -ne 0 ]; then
     echo "reflcheck nightly: plan refused the scenes (exit $st); nothing rendered" >&2
     exit $st
 fi
-step make -k -j"$jobs" -f "$run/jobs.mk" all || { echo "reflcheck nightly: some render jobs failed" >&2; rc=1; }
-t1=$(date +%s)
-echo "$((t1 - t0))" > "$run/render_wall_s"
-# Error against time (harness/sweep.py): quality knobs of every renderer on the scenes that list
-# cycles validate, small size, one thread per job, $jobs jobs at a time.
-if [ -z "${NO_SWEEP:-}" ]; then
-    # shellcheck disable=SC2086
-    step /usr/bin/python3 harness/sweep.py --run "$run" --cache "$cache/sweep" --bin "$bin" --jobs "$jobs" \
-        --scenes $scenes ${SMALL:+--quick} > "$run/sweep.txt" 2>&1 ||
-        { echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2; rc=1; }
-fi
 # shellcheck disable=SC2086
-step "$bin" compare $scenes --run "$run" > "$run/compare.txt"
-st=$?
+sweep_args=(--run "$run" --cache "$cache/sweep" --bin "$bin" --jobs "$jobs" --scenes $scenes ${SMALL:+--quick})
+if [ "$scheduler" = make ]; then
+    step make -k -j"$jobs" -f "$run/jobs.mk" all || { echo "reflcheck nightly: some render jobs failed" >&2; rc=1; }
+    t1=$(date +%s)
+    echo "$((t1 - t0))" > "$run/render_wall_s"
+    # Error against time (harness/sweep.py): quality knobs of every renderer on the scenes that list
+    # cycles validate, small size, one thread per job, $jobs jobs at a time.
+    if [ -z "${NO_SWEEP:-}" ]; then
+        step /usr/bin/python3 harness/sweep.py "${sweep_args[@]}" > "$run/sweep.txt" 2>&1 ||
+            { echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2; rc=1; }
+    fi
+    # shellcheck disable=SC2086
+    step "$bin" compare $scenes --run "$run" > "$run/compare.txt"
+    st=$?
+else
+    mkdir -p "$run/slurm"
+    step bash "$run/submit.sh" > "$run/slurm/render_ids"
+    st=$?
+    deps=$(cat "$run/slurm/render_ids")
+    if [ $st -ne 0 ] || [ -z "$deps" ]; then
+        echo "reflcheck nightly: submitting the render jobs to Slurm failed (exit $st)" >&2
+        ids=$(slurm_jobs)
+        # shellcheck disable=SC2086
+        [ -n "$ids" ] && scancel $ids
+        exit 1
+    fi
+    if [ -z "${NO_SWEEP:-}" ]; then
+        # One node, JOBS CPUs: the sweep's Blender workers and their srun steps share the node.
+        sweep_id=$(sbatch --parsable -N1 -n1 -c "$jobs" --time="${SWEEP_MINUTES:-240}" --job-name=reflcheck-sweep \
+            --output="$run/sweep.txt" harness/slurm/step.sh "$run/sweep.rc" \
+            /usr/bin/python3 harness/sweep.py "${sweep_args[@]}" --scheduler slurm) ||
+            { echo "reflcheck nightly: submitting the sweep to Slurm failed" >&2; rc=1; }
+        sweep_id=${sweep_id%%;*}
+        [ -n "$sweep_id" ] && { echo "$sweep_id" >> "$run/slurm/steps"; deps=$deps:$sweep_id; }
+    fi
+    # shellcheck disable=SC2086
+    compare_id=$(sbatch --parsable --dependency="afterany:$deps" -n1 -c1 --time=60 --job-name=reflcheck-compare \
+        --output="$run/slurm/compare.out" harness/slurm/compare.sh "$run" "$bin" $scenes)
+    compare_id=${compare_id%%;*}
+    if [ -z "$compare_id" ]; then
+        echo "reflcheck nightly: submitting the compare step to Slurm failed" >&2
+        exit 1
+    fi
+    echo "$compare_id" >> "$run/slurm/steps"
+    echo "reflcheck nightly: Slurm jobs: renders $(cut -d' ' -f1 "$run/slurm/arrays" | paste -sd' '), sweep ${sweep_id:--}, compare $compare_id"
+    slurm_wait "$compare_id"
+    t1=$(date +%s)
+    echo "$((t1 - t0))" > "$run/render_wall_s"
+    [ "$(cat "$run/slurm/finish.rc" 2>/dev/null)" = 0 ] ||
+        { echo "reflcheck nightly: some render jobs failed; see $run/slurm/finish.txt" >&2; rc=1; }
+    if [ -n "${sweep_id:-}" ] && [ "$(cat "$run/sweep.rc" 2>/dev/null)" != 0 ]; then
+        echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2
+        rc=1
+    fi
+    st=$(cat "$run/compare.rc" 2>/dev/null || echo 1)
+fi
 cat "$run/compare.txt"
 [ $st -ne 0 ] && { echo "reflcheck nightly: comparisons failed or errored (compare exit $st)" >&2; rc=1; }
 step "$bin" stability --json "$run/stability.json" > "$run/stability.txt" ||

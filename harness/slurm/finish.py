@@ -19,7 +19,8 @@ and that left no output file never ran: cancelled while pending (crashed).
 Slurm's state comes from sacct where accounting is set up, else from scontrol (which keeps
 finished jobs for MinJobAge; the local cluster keeps them an hour).
 
-Exit status: 0 every job has a record, 1 a record could not be written, 2 bad usage.
+Exit status: 0 every job has a record and is ok or skipped; 1 a job failed (in any way, its
+record says how) or a record could not be written; 2 bad usage.
 """
 
 import json
@@ -68,14 +69,18 @@ def slurm_state(job_id):
     return fields.get('JobState'), fields.get('ExitCode', '')
 
 
-def record_job_id(path):
-    """The Slurm id in a job record, '' without one, None without a readable record."""
+def read_record(path):
     try:
         with open(path, encoding='utf-8') as f:
-            rec = json.load(f)
+            return json.load(f)
     except (OSError, ValueError):
         return None
-    return (rec.get('slurm') or {}).get('job_id', '')
+
+
+def record_job_id(path):
+    """The Slurm id in a job record, '' without one, None without a readable record."""
+    rec = read_record(path)
+    return None if rec is None else (rec.get('slurm') or {}).get('job_id', '')
 
 
 def verdict(job_id, state, code, started):
@@ -106,6 +111,7 @@ def finish(run):
         return 2
     rc = 0
     repaired = 0
+    failed = 0
     for array_id, listfile in entries:
         with open(listfile, encoding='utf-8') as f:
             lines = f.read().splitlines()
@@ -114,6 +120,7 @@ def finish(run):
             record, cmd = words[0], words[1:]
             job_id = f'{array_id}_{task}'
             if record_job_id(record) == job_id:
+                failed += (read_record(record) or {}).get('status') not in ('ok', 'skipped')
                 continue
             log = os.path.join(run, 'slurm', f'{job_id}.out')
             state, code = slurm_state(job_id)
@@ -129,9 +136,10 @@ def finish(run):
                 rc = 1
                 continue
             repaired += 1
+            failed += 1
             print(f'finish: {record}: {status}: {message}')
-    print(f'finish: {repaired} job(s) recorded for Slurm')
-    return rc
+    print(f'finish: {repaired} job(s) recorded for Slurm; {failed} job(s) neither ok nor skipped')
+    return 1 if rc or failed else 0
 
 
 def main(argv):
