@@ -12,6 +12,8 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
 # The Slurm backend and its local test cluster (harness/slurm/, README "Slurm").
 pkgs+=(slurm-wlm munge)
+# EEVEE's OpenGL context (harness/renderers/eevee/): Xvfb with Mesa's llvmpipe.
+pkgs+=(xvfb xauth libgl1-mesa-dri)
 # The renderers' packages come from their rows in the renderer table (.package = "..."), read
 # from the source because this runs before anything is built.
 registry="$(dirname "$0")/renderers/registry.c"

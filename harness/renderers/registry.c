@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cycles/cycles.h"
+#include "eevee/eevee.h"
 #include "exact/exact.h"
 #include "povray/povray.h"
 #include "raster/raster_render.h"
@@ -15,6 +16,15 @@ static const char *const registry_povray_sources[] = {"harness/renderers/povray/
 static const char *const registry_cycles_sources[] = {"harness/renderers/cycles/cycles.c",
                                                       "harness/renderers/cycles/cycles.h",
                                                       "harness/renderers/cycles/cycles_render.py", NULL};
+
+/* EEVEE renders Cycles' translation: its sources are part of EEVEE's key. */
+static const char *const registry_eevee_sources[] = {"harness/renderers/eevee/eevee.c",
+                                                     "harness/renderers/eevee/eevee.h",
+                                                     "harness/renderers/eevee/eevee_render.py",
+                                                     "harness/renderers/cycles/cycles.c",
+                                                     "harness/renderers/cycles/cycles.h",
+                                                     "harness/renderers/cycles/cycles_render.py",
+                                                     NULL};
 
 static const renderer_row registry_rows[] = {
     {.name = "raster",
@@ -46,6 +56,18 @@ static const renderer_row registry_rows[] = {
      .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
                "the diffuse (they need an integral), shadows, inter-reflection",
      .render = exact_render_job},
+    /* A real-time engine, judged like our model: validate against Cycles, agree with the raster.
+     * Deterministic (TAA), so not stochastic: its samples reach the key through the scene. */
+    {.name = "eevee",
+     .title = "Blender 3.4 EEVEE",
+     .program = "blender",
+     .package = "blender",
+     .sources = registry_eevee_sources,
+     .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
+     .cannot = "a Beckmann lobe (GGX only, split-sum with LTC lights), exact mirrors (pre-filtered world probe), "
+               "per-closure world visibility (the world always lights diffuse), shadows and inter-reflection are "
+               "off; as twin only Lambert under lamps; plus what Cycles cannot",
+     .render = eevee_render_job},
 };
 
 #define REGISTRY_N ((int)(sizeof registry_rows / sizeof registry_rows[0]))

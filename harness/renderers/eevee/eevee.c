@@ -1,0 +1,263 @@
+/* eevee.c - EEVEE jobs: Cycles' job file, the xvfb-run blender command line, the collected EXR. */
+#define _XOPEN_SOURCE 700
+
+#include "eevee.h"
+
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cJSON.h>
+
+#include "../cycles/cycles.h"
+#include "exr.h"
+#include "fileio.h"
+#include "runner.h"
+
+#define EEVEE_INSTALL "apt-get install xvfb xauth"
+
+static int eevee_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
+
+static int eevee_material_used(const scene *s, int mi)
+{
+    for (int i = 0; i < s->n_objects; i++)
+        if (s->objects[i].material == mi)
+            return 1;
+    return 0;
+}
+
+/* Twin: EEVEE computes what our model computes only for Lambert under lamps. 1 and a message
+ * naming what it cannot twin, else 0. */
+static int eevee_twin_refused(const scene *s, char *why, size_t len)
+{
+    if (s->env.kind != ENV_NONE && eevee_nonzero(s->env.radiance)) {
+        snprintf(why, len,
+                 "%s: environment: EEVEE lights every diffuse surface with the world (its probe), which our "
+                 "model does not; compare EEVEE in validate or agree",
+                 s->path);
+        return 1;
+    }
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == LIGHT_SPOT) {
+            snprintf(why, len,
+                     "%s: lights[%d]: EEVEE's spot cone is the smoothstep alone, without the cos(angle) factor "
+                     "of Cycles' and our smooth profile (measured +3 %% mean); compare EEVEE in validate or agree",
+                     s->path, i);
+            return 1;
+        }
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        const material *m = &s->materials[mi];
+        if (!eevee_material_used(s, mi))
+            continue;
+        if (m->model == MODEL_COOK_TORRANCE && (eevee_nonzero(m->ct.ks) || m->ct.reflection)) {
+            snprintf(why, len,
+                     "%s: materials[%d] '%s': EEVEE's glossy lobe is GGX with split-sum and LTC lights, not a "
+                     "twin of Beckmann; compare EEVEE in validate or agree",
+                     s->path, mi, m->name);
+            return 1;
+        }
+    }
+    return 0;
+}
+
+rc_status eevee_raw_path(const char *out_exr_path, char *buf, size_t len)
+{
+    size_t n = strlen(out_exr_path);
+    if (n >= 4 && (strcmp(out_exr_path + n - 4, ".exr") == 0 || strcmp(out_exr_path + n - 4, ".EXR") == 0))
+        n -= 4;
+    int k = snprintf(buf, len, "%.*s.eevee.exr", (int)n, out_exr_path);
+    return k < 0 || (size_t)k >= len ? RC_ERR_RANGE : RC_OK;
+}
+
+static void eevee_timing_path(const char *out_exr_path, char *buf, size_t len)
+{
+    size_t n = strlen(out_exr_path);
+    if (n >= 4 && (strcmp(out_exr_path + n - 4, ".exr") == 0 || strcmp(out_exr_path + n - 4, ".EXR") == 0))
+        n -= 4;
+    snprintf(buf, len, "%.*s.timing.json", (int)n, out_exr_path);
+}
+
+/* reflcheck's layers as eevee_render.py names them ("" = the full image). */
+static const struct {
+    const char *aov;
+    char c;
+} eevee_layout[] = {
+    {"", 'R'},           {"", 'G'},           {"", 'B'},           {"", 'A'},           {"diffuse", 'R'},
+    {"diffuse", 'G'},    {"diffuse", 'B'},    {"specular", 'R'},   {"specular", 'G'},   {"specular", 'B'},
+    {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'}, {"emission", 'R'},   {"emission", 'G'},
+    {"emission", 'B'},   {"background", 'R'}, {"background", 'G'}, {"background", 'B'}, {"coverage", 0},
+};
+#define EEVEE_LAYOUT_N ((int)(sizeof eevee_layout / sizeof eevee_layout[0]))
+
+rc_status eevee_collect(const char *out_exr_path, int keep_raw, char *err, size_t errlen)
+{
+    char raw[PATH_MAX], tpath[PATH_MAX];
+    if (eevee_raw_path(out_exr_path, raw, sizeof raw) != RC_OK) {
+        status_message(err, errlen, "%s: path too long", out_exr_path);
+        return RC_ERR_RANGE;
+    }
+    exr_image img;
+    rc_status rc = exr_read(raw, &img, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    exr_channel ch[EEVEE_LAYOUT_N];
+    char names[EEVEE_LAYOUT_N][32], rname[64];
+    for (int k = 0; k < EEVEE_LAYOUT_N && rc == RC_OK; k++) {
+        const char *aov = eevee_layout[k].aov;
+        char c = eevee_layout[k].c;
+        cycles_channel_name(aov, c, rname, sizeof rname);
+        ch[k].data = exr_image_channel(&img, rname);
+        if (ch[k].data == NULL) {
+            status_message(err, errlen, "%s: channel %s missing; the file is not from eevee_render.py", raw, rname);
+            rc = RC_ERR_PARSE;
+        }
+        if (aov[0] == '\0')
+            snprintf(names[k], sizeof names[k], "%c", c);
+        else if (c == 0)
+            snprintf(names[k], sizeof names[k], "%s", aov);
+        else
+            snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
+        ch[k].name = names[k];
+    }
+    if (rc == RC_OK) {
+        char build[32] = "", render[32] = "", samples[32] = "";
+        eevee_timing_path(out_exr_path, tpath, sizeof tpath);
+        char *text = fileio_read_all(tpath, NULL);
+        cJSON *timing = text != NULL ? cJSON_Parse(text) : NULL;
+        const cJSON *v;
+        if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(timing, "build_s")))
+            snprintf(build, sizeof build, "%.3f", v->valuedouble);
+        if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(timing, "render_s")))
+            snprintf(render, sizeof render, "%.3f", v->valuedouble);
+        if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(timing, "samples")))
+            snprintf(samples, sizeof samples, "%d", v->valueint);
+        cJSON_Delete(timing);
+        free(text);
+        exr_attr at[] = {{"reflcheck.renderer", "eevee"},
+                         {"reflcheck.eevee_taa_samples", samples},
+                         {"reflcheck.eevee_build_s", build},
+                         {"reflcheck.eevee_render_s", render}};
+        rc = exr_write(out_exr_path, img.width, img.height, ch, EEVEE_LAYOUT_N, at, 4, err, errlen);
+    }
+    exr_image_free(&img);
+    if (rc == RC_OK && !keep_raw) {
+        remove(raw);
+        eevee_timing_path(out_exr_path, tpath, sizeof tpath);
+        remove(tpath);
+    }
+    return rc;
+}
+
+/* The first line of the log that starts with prefix, into buf ("" if none). */
+static void eevee_log_line(const char *log, const char *prefix, char *buf, size_t len)
+{
+    buf[0] = '\0';
+    FILE *f = fopen(log, "r");
+    char line[512];
+    while (f != NULL && fgets(line, sizeof line, f) != NULL)
+        if (strncmp(line, prefix, strlen(prefix)) == 0) {
+            line[strcspn(line, "\r\n")] = '\0';
+            snprintf(buf, len, "%s", line);
+            break;
+        }
+    if (f != NULL)
+        fclose(f);
+}
+
+void eevee_render_job(const renderer_job *j, renderer_result *r)
+{
+    eevee_options o = {0};
+    if (j->options != NULL)
+        o = *(const eevee_options *)j->options;
+    const char *xvfb = o.xvfb_run ? o.xvfb_run : "xvfb-run";
+    char where[PATH_MAX], why[600], err[1024], job[1100];
+    if (!runner_which(xvfb, where, sizeof where)) {
+        renderer_fail(r, RUNNER_MISSING, "%s is not installed: EEVEE needs a display; install it with: %s", xvfb,
+                      EEVEE_INSTALL);
+        return;
+    }
+    if (j->role == ROLE_TWIN && eevee_twin_refused(j->s, why, sizeof why)) {
+        renderer_fail(r, RUNNER_MISSING, "eevee cannot twin this scene: %s", why);
+        return;
+    }
+    /* Agree: EEVEE renders the physical material, as against Cycles; the other side (our
+     * model) is the second approximation of it. */
+    cycles_options co = {.role = j->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE,
+                         .samples = o.samples,
+                         .n_seeds = 1,
+                         .width = o.width,
+                         .height = o.height,
+                         .partial = j->partial,
+                         .left_out = r};
+    snprintf(job, sizeof job, "%s/job.json", j->dir);
+    rc_status st = cycles_write_job(j->s, j->m, &co, job, err, sizeof err);
+    if (st != RC_OK) {
+        r->left_out = 0;
+        if (st == RC_ERR_RANGE)
+            renderer_fail(r, RUNNER_MISSING, "eevee cannot represent this scene: %s", err);
+        else
+            renderer_fail(r, RUNNER_ERROR, "cannot write the EEVEE job: %s", err);
+        return;
+    }
+    /* xvfb-run -a searches upwards from -n for a free display: starting from a number of our
+     * own keeps two jobs started at once (make -j2) from racing for the same one. */
+    char display[32], threads[48];
+    snprintf(display, sizeof display, "%d", 100 + (int)(getpid() % 800));
+    const char *argv[24];
+    int n = 0;
+    argv[n++] = xvfb;
+    argv[n++] = "-a";
+    argv[n++] = "-n";
+    argv[n++] = display;
+    argv[n++] = "-s";
+    argv[n++] = "-screen 0 640x480x24";
+    if (j->threads > 0) {
+        /* llvmpipe draws with LP_NUM_THREADS threads, unset one per core (0 would mean none). */
+        snprintf(threads, sizeof threads, "LP_NUM_THREADS=%d", j->threads);
+        argv[n++] = "env";
+        argv[n++] = threads;
+    }
+    argv[n++] = o.blender ? o.blender : "blender";
+    argv[n++] = "-b";
+    argv[n++] = "--factory-startup";
+    /* without this a Python exception still exits 0 */
+    argv[n++] = "--python-exit-code";
+    argv[n++] = "1";
+    argv[n++] = "-P";
+    argv[n++] = o.script ? o.script : "harness/renderers/eevee/eevee_render.py";
+    argv[n++] = "--";
+    argv[n++] = job;
+    argv[n++] = j->exr;
+    argv[n] = NULL;
+    size_t used = 0;
+    for (int i = 0; argv[i] != NULL && used < sizeof r->command; i++)
+        used += (size_t)snprintf(r->command + used, sizeof r->command - used, "%s%s", i ? " " : "", argv[i]);
+    runner_result rr;
+    runner_exec(argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    r->wall_s = rr.wall_s;
+    r->cpu_s = rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        char line[300];
+        eevee_log_line(j->log, "xvfb-run: error", line, sizeof line);
+        if (line[0] != '\0' && rr.status == RUNNER_FAILED) {
+            renderer_fail(r, RUNNER_MISSING, "no display for EEVEE (%s); install Xvfb with: %s", line, EEVEE_INSTALL);
+            return;
+        }
+        renderer_fail_run(r, &rr, "blender", "blender", " under xvfb-run", j->log, "error:", j->shown_log);
+        return;
+    }
+    char raw[PATH_MAX];
+    if (eevee_raw_path(j->exr, raw, sizeof raw) != RC_OK || access(raw, R_OK) != 0) {
+        renderer_fail(r, RUNNER_FAILED, "blender under xvfb-run wrote no image %s; see %s", raw,
+                      j->shown_log ? j->shown_log : j->log);
+        return;
+    }
+    st = eevee_collect(j->exr, o.keep_raw, err, sizeof err);
+    if (st != RC_OK)
+        renderer_fail(r, st == RC_ERR_NOMEM || st == RC_ERR_IO ? RUNNER_ERROR : RUNNER_FAILED, "%s: %s",
+                      st == RC_ERR_IO ? "cannot write the EEVEE image" : "eevee output unreadable", err);
+    if (!o.keep_raw)
+        remove(job);
+}

@@ -1,0 +1,247 @@
+"""eevee_render.py - render a reflcheck Cycles job (harness/renderers/cycles/cycles.c) in EEVEE.
+
+Usage (an OpenGL context is needed: headless, under Xvfb with Mesa's llvmpipe):
+    xvfb-run -a blender -b --factory-startup --python-exit-code 1 \
+        -P harness/renderers/eevee/eevee_render.py -- JOB.json OUT.exr
+
+The scene translation is Cycles' own (cycles_render.py, imported from beside this folder):
+camera, lights, world, material node trees and meshes are built by the same functions, so
+EEVEE and Cycles render one Blender scene and differ only in the engine. What is EEVEE's:
+  - the light units: EEVEE draws a point or spot as a sphere light and a sun as a disc, each
+    normalised to Cycles' power for its radius (eevee_lights.c, light_shape_power_get);
+    Blender clamps a zero radius to 0.001, whose relative error at 1 m is 1e-6;
+  - the settings below, fixed (EEVEE_SETTINGS, also written to the timing file);
+  - the passes: EEVEE has Diffuse Light and Specular Light (direct and indirect in one) and
+    their colours, Emission, Environment and shader AOVs; no object index.
+
+It writes OUT.eevee.exr (32-bit float multilayer, ZIP) with the channels
+    R G B A              Combined + Environment; A = alpha (coverage)
+    diffuse.RGBA         Diffuse Light * Diffuse Colour
+    specular.RGBA        Specular Light * Specular Colour when the job routes glossy there
+    reflection.RGBA      the same when routed to "reflection", plus the shader AOV "refl"
+    emission.RGBA        Emission
+    background.RGBA      Environment (the world seen by camera rays)
+    coverage.V           Alpha
+and OUT.timing.json (build and render seconds, the settings). harness/renderers/eevee/eevee.c
+renames the channels. Any failure prints "eevee_render.py: error: ..." and exits with 1.
+"""
+
+import json
+import os
+import sys
+import time
+import traceback
+
+import bpy
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cycles"))
+import cycles_render as cr  # noqa: E402  (the shared Blender scene translation)
+
+# Fixed EEVEE settings (README, "EEVEE"). Samples come from the job (the scene's samples).
+EEVEE_SETTINGS = {
+    # A light's influence ends where its intensity falls below this; 1e-6 puts that beyond
+    # 100 m for every canonical light (their intensities are >= 1e-2 W/sr), where 0.01, the
+    # default, would cut a 1 W/sr light at 10 m.
+    "light_threshold": 1e-6,
+    "use_soft_shadows": False,
+    "use_ssr": False,
+    "use_gtao": False,
+    "use_bloom": False,
+    "use_motion_blur": False,
+    "use_volumetric_lights": False,
+    "use_taa_reprojection": False,
+    # Reflection cubemap of the world: the largest size, no glossy clamp.
+    "gi_cubemap_resolution": "512",
+    "gi_glossy_clamp": 0.0,
+    "gi_filter_quality": 0.25,
+    "gi_diffuse_bounces": 0,
+    "use_overscan": False,
+    "use_shadow_high_bitdepth": True,
+    # EEVEE jitters TAA samples by a Blackman-Harris distribution over +-2 filter_size pixels
+    # (eevee_temporal_sampling.c); its deviation is 0.554 filter_size, and 0.52 gives the
+    # 0.289 px of the rasterizer's one-pixel box.
+    "filter_size": 0.52,
+}
+
+
+def setup_eevee(job):
+    """EEVEE on top of cycles_render.setup_render (size, film, colour management)."""
+    cr.setup_render(job)
+    sc = bpy.context.scene
+    sc.render.engine = 'BLENDER_EEVEE'
+    ee = sc.eevee
+    ee.taa_render_samples = int(cr.need(job, "samples", "job"))
+    for k, v in EEVEE_SETTINGS.items():
+        if k == "filter_size":
+            sc.render.filter_size = v
+        else:
+            setattr(ee, k, v)
+    # Standard view transform, no look, exposure 0, gamma 1 (set by setup_render); the EXR is
+    # written linear by the compositor's file output whatever the view transform says.
+    sc.display_settings.display_device = 'sRGB'
+
+
+def setup_eevee_lights():
+    """No shadow of any kind (the real-time models have none)."""
+    for ob in bpy.context.scene.objects:
+        if ob.type != 'LIGHT':
+            continue
+        ob.data.use_shadow = False
+        ob.data.use_contact_shadow = False
+        ob.data.use_custom_distance = False
+        ob.data.specular_factor = 1.0
+        ob.data.diffuse_factor = 1.0
+
+
+def setup_eevee_materials():
+    for m in bpy.data.materials:
+        m.shadow_method = 'NONE'
+        m.blend_method = 'OPAQUE'
+        m.use_screen_refraction = False
+        if m.node_tree is not None:
+            for n in m.node_tree.nodes:
+                if n.bl_idname == 'ShaderNodeOutputMaterial':
+                    n.target = 'ALL'
+
+
+def setup_compositor(job, base_path):
+    sc = bpy.context.scene
+    vl = sc.view_layers[0]
+    vl.use_pass_combined = True
+    vl.use_pass_z = False
+    vl.use_pass_diffuse_direct = True
+    vl.use_pass_diffuse_color = True
+    vl.use_pass_glossy_direct = True
+    vl.use_pass_glossy_color = True
+    vl.use_pass_emit = True
+    vl.use_pass_environment = True
+    aov = vl.aovs.add()
+    aov.name = "refl"
+    aov.type = 'COLOR'
+    sc.use_nodes = True
+    nt = sc.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    rl = nt.nodes.new('CompositorNodeRLayers')
+    rl.layer = vl.name
+    o = rl.outputs
+
+    def mix(kind, a, b):
+        n = nt.nodes.new('CompositorNodeMixRGB')
+        n.blend_type = kind
+        n.use_clamp = False
+        n.use_alpha = False
+        n.inputs[0].default_value = 1.0
+        for sock, val in ((n.inputs[1], a), (n.inputs[2], b)):
+            if isinstance(val, tuple):
+                sock.default_value = val
+            else:
+                nt.links.new(val, sock)
+        return n.outputs[0]
+
+    black = (0.0, 0.0, 0.0, 1.0)
+    diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol'])
+    glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol'])
+    route = cr.need(job, "glossy_aov", "job")
+    if route not in ("specular", "reflection"):
+        raise cr.JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
+    specular = glossy if route == "specular" else mix('MULTIPLY', glossy, black)
+    reflection = mix('ADD', o['refl'], glossy if route == "reflection" else black)
+    full = mix('ADD', o['Image'], o['Env'])
+    seta = nt.nodes.new('CompositorNodeSetAlpha')
+    seta.mode = 'REPLACE_ALPHA'
+    nt.links.new(full, seta.inputs['Image'])
+    nt.links.new(o['Alpha'], seta.inputs['Alpha'])
+
+    fo = nt.nodes.new('CompositorNodeOutputFile')
+    fo.base_path = base_path
+    f = fo.format
+    f.file_format = 'OPEN_EXR_MULTILAYER'
+    f.color_depth = '32'
+    f.exr_codec = 'ZIP'
+    fo.layer_slots.clear()
+    layers = [
+        ("", seta.outputs[0]),
+        ("diffuse", diffuse),
+        ("specular", specular),
+        ("reflection", reflection),
+        ("emission", o['Emit']),
+        ("background", o['Env']),
+        ("coverage", o['Alpha']),
+    ]
+    for name, src in layers:
+        fo.layer_slots.new(name)
+        nt.links.new(src, fo.inputs[len(fo.inputs) - 1])
+    comp = nt.nodes.new('CompositorNodeComposite')
+    nt.links.new(seta.outputs[0], comp.inputs['Image'])
+    return fo
+
+
+def gl_renderer():
+    """The OpenGL renderer EEVEE drew with (here Mesa's llvmpipe), for the record."""
+    try:
+        import gpu
+
+        return gpu.platform.renderer_get()
+    except (ImportError, AttributeError, RuntimeError):
+        return ""
+
+
+def main():
+    t0 = time.monotonic()
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+    if len(argv) != 2:
+        raise cr.JobError("usage: blender -b --factory-startup -P eevee_render.py -- JOB.json OUT.exr")
+    job_path, out_path = argv
+    try:
+        with open(job_path) as fh:
+            job = json.load(fh)
+    except (OSError, ValueError) as e:
+        raise cr.JobError("%s: cannot read the job: %s; render it again" % (job_path, e))
+    if job.get("format") != "reflcheck-cycles-job" or job.get("version") != 1:
+        raise cr.JobError("%s: not a version 1 reflcheck Cycles job" % job_path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    setup_eevee(job)
+    cr.setup_camera(job)
+    cr.setup_lights(job)
+    setup_eevee_lights()
+    env = cr.setup_world(job)
+    mats = [cr.build_material(i, m, env) for i, m in enumerate(cr.need(job, "materials", "job"))]
+    cr.setup_objects(job, mats)
+    setup_eevee_materials()
+    stem = out_path[:-4] if out_path.lower().endswith(".exr") else out_path
+    tmp_base = "%s.tmp%d_" % (stem, os.getpid())
+    setup_compositor(job, tmp_base)
+    t_build = time.monotonic() - t0
+    t1 = time.monotonic()
+    bpy.ops.render.render(write_still=False)
+    render_s = time.monotonic() - t1
+    written = tmp_base + "%04d.exr" % bpy.context.scene.frame_current
+    if not os.path.isfile(written):
+        raise cr.JobError("the compositor wrote no file %s; check disk space and permissions" % written)
+    os.replace(written, stem + ".eevee.exr")
+    timing = {
+        "blender": bpy.app.version_string,
+        "opengl": gl_renderer(),
+        "build_s": t_build,
+        "render_s": render_s,
+        "samples": job["samples"],
+        "settings": EEVEE_SETTINGS,
+    }
+    with open(stem + ".timing.json", "w") as fh:
+        json.dump(timing, fh)
+    print("reflcheck-eevee: build %.3f s, render %.3f s, %s" % (t_build, render_s, timing["opengl"]))
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except cr.JobError as e:
+        print("eevee_render.py: error: %s" % e, file=sys.stderr)
+        sys.stderr.flush()
+        sys.exit(1)
+    except Exception:
+        traceback.print_exc()
+        print("eevee_render.py: error: unexpected failure (traceback above)", file=sys.stderr)
+        sys.stderr.flush()
+        sys.exit(1)
