@@ -16,6 +16,8 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
              Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times without the
              cache and the fastest time is kept (the usual benchmark minimum: noise only adds).
   povray     k = 1, 2, 4 where POV-Ray can express the validate scene (a skipped job is listed).
+  eevee      TAA samples 1, 4, 16, 64 (--quick 1, 16): Blender's real-time engine on the same
+             Blender scene as Cycles (validate), or where it twins our model (Lambert only).
 Scenes: those of --scenes (default scenes/*.yaml). The role is `validate` where the comparisons
 list `reference: cycles, role: validate` (the physical reference: raster error is the
 approximation's), else `twin` where they list Cycles twin (the converged render of our own
@@ -106,6 +108,9 @@ RASTER_K = (1, 2, 4, 8)
 RASTER_TESS = (8, 16, 32, 64, 128)
 POV_K = (1, 2, 4)
 QUICK_K, QUICK_TESS, QUICK_POV = (1, 2, 4), (16, 64), (1, 2)
+# EEVEE's TAA samples per pixel: deterministic, so one render per level (no seeds).
+EEVEE_TAA = (1, 4, 16, 64)
+QUICK_EEVEE = (1, 16)
 SEEDS = 2
 RASTER_REPEATS = 3
 JOB_TIMEOUT_S = 3600
@@ -550,6 +555,18 @@ def plan(quick, seed_opt):
                 series='povray k',
             )
         )
+    for n in QUICK_EEVEE if quick else EEVEE_TAA:
+        jobs.append(
+            dict(
+                key=f'ee{n}',
+                renderer='eevee',
+                tag=f'eevee-taa{n}',
+                label=f'{n} TAA',
+                opts=['--samples', str(n)],
+                series='eevee taa',
+                samples=n,
+            )
+        )
     return jobs, ref
 
 
@@ -557,6 +574,8 @@ def expected_cost(job):
     """Longest jobs first keeps both workers busy to the end (LPT scheduling)."""
     if job['renderer'] == 'cycles':
         return 2.0 + job['samples'] * 0.02
+    if job['renderer'] == 'eevee':  # shader compilation on llvmpipe, then about 0.1 s a sample
+        return 10.0 + job['samples'] * 0.1
     return 1.5 if job['renderer'] == 'povray' else 0.1
 
 
@@ -573,7 +592,8 @@ def point_of(job, rec, d, noise, err, clock='wall_s'):
         'wall_s': rec.get('wall_s'),
         'cpu_s': rec.get('cpu_s'),
         'render_s': rec.get('render_s'),
-        'samples': rec.get('samples'),
+        # The job's own knob where it has one: EEVEE's record keeps no samples (not stochastic).
+        'samples': job.get('samples', rec.get('samples')),
         'seeds': rec.get('seeds'),
         'supersample': rec.get('supersample'),
         'tessellation': rec.get('tessellation'),
@@ -623,6 +643,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
                     'povray k': 'supersample',
                     'raster tessellation': 'tessellation',
                     'raster shading': 'per_vertex',
+                    'eevee taa': 'samples',
                 }[job['series']],
                 'points': [],
             },
@@ -631,7 +652,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
     # The as-is raster point is also the k = (small default) point of the k series.
     as_is = next((p for p in all_pts if p['tag'] == 'raster-as-is'), None)
     out_series = []
-    for label in ('cycles spp', 'raster k', 'raster tessellation', 'raster shading', 'povray k'):
+    for label in ('cycles spp', 'raster k', 'raster tessellation', 'raster shading', 'povray k', 'eevee taa'):
         sr = series.get(label)
         if not sr:
             continue
