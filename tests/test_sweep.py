@@ -251,6 +251,10 @@ def synthetic(nested=True):
         elif j['renderer'] == 'raster':
             recs[j['key']] = {'status': 'ok', 'wall_s': 0.01, 'supersample': 2}
             nr = 0.1
+        elif j['renderer'] == 'eevee':
+            # Not stochastic: its record keeps samples 0, the knob comes from the job.
+            recs[j['key']] = {'status': 'ok', 'wall_s': 12.0 + 0.1 * j['samples'], 'samples': 0}
+            nr = {1: 0.3, 16: 0.13}[j['samples']]
         else:
             recs[j['key']] = {'status': 'skipped', 'message': 'povray cannot represent this'}
             continue
@@ -283,6 +287,12 @@ def test_analyse_end_to_end():
     assert eq['10 s']['cycles_fit_error'] == pytest.approx(0.8 / math.sqrt(800))  # (10 - 2)/0.01 spp
     assert eq['1 s']['cycles_fit_error'] is None  # inside start-up
     assert [s['label'] for s in t['skipped']] == ['povray k k=1', 'povray k k=2']
+    # EEVEE: its own series over TAA samples; a deterministic point takes the reference noise
+    # out in quadrature: sqrt(0.13^2 - 0.06^2) = 0.1153; none fits a 10 s budget (12.1 s).
+    ee = next(s for s in t['series'] if s['label'] == 'eevee taa')
+    assert ee['knob'] == 'samples' and [p['samples'] for p in ee['points']] == [1, 16]
+    assert ee['points'][1]['error'] == pytest.approx(math.sqrt(0.13**2 - 0.06**2))
+    assert eq['10 s']['best']['eevee'] is None
     # frontier: raster k=1 (0.005 s, 0.2), a raster 0.01 s point (0.08); Cycles 16 and 64 spp
     # (0.2, 0.1) lose to it, 256 spp (0.05) wins, the reference (its noise 0.06) loses to 256
     front = [(p['renderer'], p['label']) for p in t['pareto']]
