@@ -320,3 +320,17 @@ def test_report_shows_sweep(tmp_path):
         text = svg.read_text(encoding='utf-8')
         assert 'Pareto frontier' in text and 'spp^-0.50' in text and 'raster as-is error' in text
         assert 'plots/timing-synth.svg' in html
+
+
+def test_eevee_swept_only_where_named(tmp_path):
+    """EEVEE jobs go to the scenes whose comparisons name it, not to one that only mentions it."""
+    named = tmp_path / 'named.yaml'
+    named.write_text(
+        'name: a\ncomparisons:\n  - reference: cycles\n    role: validate\n  - test: eevee\n    reference: cycles\n'
+    )
+    other = tmp_path / 'other.yaml'
+    other.write_text(
+        '# eevee is not judged here; test: eevee in a comment\nname: b\ncomparisons:\n  - reference: cycles\n'
+    )
+    assert sweep.names_renderer(str(named), 'eevee') and not sweep.names_renderer(str(other), 'eevee')
+    assert [j['samples'] for j in sweep.plan(quick=False, seed_opt=False)[0] if j['renderer'] == 'eevee'] == [1, 16]
