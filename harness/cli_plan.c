@@ -1,8 +1,9 @@
 /* reflcheck plan: the render jobs the scenes' comparisons need, as a Makefile, so that
  * `make -j` runs them in parallel and each scene renders only the renderers and roles its
  * comparisons list; with --scheduler slurm, the same jobs as a script that submits each one
- * as a Slurm array task (README "Slurm"). Each role has its own renders: twin switches our Cook-Torrance to Smith
- * G and F = 1, agree sets both references up the one way both can represent.
+ * as a Slurm array task (README "Slurm"). Twin and validate have their own renders (twin
+ * switches our Cook-Torrance to Smith G and F = 1; validate renders the scene's physics);
+ * agree compares exactly the two validate renders, so it adds no render of its own.
  *
  * Paths reach /bin/sh through make: every path in a recipe is single-quoted for the shell
  * and its `$` doubled for make, and comes after `--` so a name starting with `-` is not an
@@ -99,7 +100,7 @@ static int plan_load(char **paths, int i, int first, const char *out, plan_scene
     memset(p->need, 0, sizeof p->need);
     for (int k = 0; rc == CLI_OK && k < s->n_comparisons; k++) {
         const comparison *cp = &s->comparisons[k];
-        int role = cp->role;
+        int role = cp->role == ROLE_AGREE ? ROLE_VALIDATE : cp->role;
         p->need[cp->test][role] = p->need[cp->reference][role] = 1;
         /* Masks (surface, edges) come from the model renderer's coverage and object layers. */
         if (registry_model() >= 0)

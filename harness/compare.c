@@ -706,7 +706,8 @@ static void compare_partial_free(compare_partial *p)
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
-    comparison_role rr = c->role;
+    /* agree compares the two validate renders themselves, never a third setup. */
+    comparison_role rr = c->role == ROLE_AGREE ? ROLE_VALIDATE : c->role;
     snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
              job_role_names[c->role]);
     cJSON *o = cJSON_CreateObject();
@@ -733,6 +734,26 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         state = "error";
         snprintf(reason, sizeof reason, "image sizes differ: %s is %dx%d, %s is %dx%d", t.path, t.img.width,
                  t.img.height, r.path, r.img.width, r.img.height);
+    }
+    /* A validate's references must render the scene's one physics: a record that says
+     * otherwise (a translator drifted, or an old run) is an error, never a figure. */
+    char want_physics[400];
+    physics_describe(&s->physics, s->n_lights, want_physics, sizeof want_physics);
+    if (rr == ROLE_VALIDATE)
+        cJSON_AddStringToObject(o, "physics", want_physics);
+    const compare_side *both[2] = {&t, &r};
+    for (int sd = 0; sd < 2 && state == NULL && rr == ROLE_VALIDATE; sd++) {
+        const renderer_row *row = registry_row(both[sd]->renderer);
+        if (row == NULL || row->physics == NULL)
+            continue;
+        const char *got = compare_json_str(both[sd]->record, "physics");
+        if (strcmp(got, want_physics) != 0) {
+            state = "error";
+            snprintf(reason, sizeof reason,
+                     "%s validate rendered physics '%s', the scene's is '%s'; every validate reference must "
+                     "render the scene's physics: re-render it",
+                     row->name, got[0] ? got : "(not recorded)", want_physics);
+        }
     }
     /* A partial twin: the terms either side left out are removed from the other (its own
      * layers), so both images hold the same sum of terms. */

@@ -331,6 +331,14 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddStringToObject(o, "key", keyhex);
     cJSON_AddStringToObject(o, "exr", r->exr);
     cJSON_AddStringToObject(o, "log", r->log);
+    /* A physical reference: the physics it renders, read back from its translator
+     * (renderer.h), which compare.c holds against the scene's and the other reference's. */
+    if (c->j->role != ROLE_TWIN && row->physics != NULL) {
+        physics got;
+        char text[400], why[600];
+        if (row->physics(s, &got, why, sizeof why) == RC_OK)
+            cJSON_AddStringToObject(o, "physics", physics_describe(&got, s->n_lights, text, sizeof text));
+    }
     /* A partial twin: the terms the renderer left out of its image, and why. */
     cJSON *gaps = cJSON_AddArrayToObject(o, "terms_left_out");
     for (int t = 0; r->status == RUNNER_OK && t < RENDERER_N_TERMS; t++) {

@@ -103,6 +103,44 @@ const char *physics_describe(const physics *p, int n_lights, char *buf, size_t l
     return buf;
 }
 
+/* Splits a canonical description into its key=value words (at most 16). */
+static int physics_words(char *text, char **words)
+{
+    int n = 0;
+    char *t = text;
+    while (*t != '\0' && n < 16) {
+        words[n++] = t;
+        t += strcspn(t, " ");
+        if (*t == ' ')
+            *t++ = '\0';
+    }
+    return n;
+}
+
+int physics_diff(const physics *want, const physics *rendered, int n_lights, char *buf, size_t len)
+{
+    char a[400], b[400];
+    char *wa[16], *wb[16];
+    physics_describe(want, n_lights, a, sizeof a);
+    physics_describe(rendered, n_lights, b, sizeof b);
+    int na = physics_words(a, wa), nb = physics_words(b, wb), n = 0;
+    size_t used = 0;
+    buf[0] = '\0';
+    for (int i = 0; i < na && i < nb; i++) {
+        if (strcmp(wa[i], wb[i]) == 0)
+            continue;
+        char *eq_a = strchr(wa[i], '='), *eq_b = strchr(wb[i], '=');
+        if (eq_a == NULL || eq_b == NULL)
+            continue;
+        *eq_a = '\0';
+        if (used < len)
+            used += (size_t)snprintf(buf + used, len - used, "%s%s: %s wanted, %s rendered", n ? "; " : "", wa[i],
+                                     eq_a + 1, eq_b + 1);
+        n++;
+    }
+    return n;
+}
+
 void physics_init(physics *p)
 {
     memset(p, 0, sizeof *p);

@@ -214,4 +214,8 @@ extern const char *const physics_diffuse_weight_names[2]; /* plain, one_minus_f 
  * physics give equal text, so references compare manifests by string. Returns buf. */
 const char *physics_describe(const physics *p, int n_lights, char *buf, size_t len);
 
+/* The fields in which `rendered` differs from `want`, as "env_diffuse: 1 wanted, 0 rendered; ..."
+ * in buf (empty when equal). Returns the number of differing fields. */
+int physics_diff(const physics *want, const physics *rendered, int n_lights, char *buf, size_t len);
+
 #endif

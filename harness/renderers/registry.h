@@ -34,6 +34,8 @@ typedef struct {
                                    cannot reproduce them; the record names those it did */
     const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
     renderer_render_fn render;
+    renderer_physics_fn physics; /* a physical reference: the physics its validate renders (renderer.h);
+                                    NULL = it computes the model, not a physics */
 } renderer_row;
 
 int registry_count(void);

@@ -78,3 +78,19 @@ void renderer_fail_run(renderer_result *r, const runner_result *rr, const char *
         renderer_fail(r, RUNNER_FAILED, "%s failed (exit status %d%s)%s; see %s", program, rr->exit_code, what, tail,
                       shown_log);
 }
+
+rc_status renderer_physics_check(renderer_physics_fn fn, const scene *s, char *err, size_t errlen)
+{
+    physics got;
+    char diff[700];
+    if (fn == NULL)
+        return RC_OK;
+    rc_status st = fn(s, &got, err, errlen);
+    if (st != RC_OK)
+        return st;
+    if (physics_diff(&s->physics, &got, s->n_lights, diff, sizeof diff) == 0)
+        return RC_OK;
+    status_message(err, errlen, "%s: physics: %s; change the scene's physics or compare another reference", s->path,
+                   diff);
+    return RC_ERR_RANGE;
+}

@@ -61,6 +61,17 @@ typedef struct {
 
 typedef void (*renderer_render_fn)(const renderer_job *j, renderer_result *r);
 
+/* A reference's physics (model/scene.h, `physics`): what its validate render of s computes,
+ * read back from the settings its translator would write, into *rendered. RC_ERR_RANGE with
+ * one line in err when it cannot render the scene physically at all (e.g. POV-Ray and a
+ * conductor). The render entry refuses a validate whose rendered physics differs from
+ * s->physics (renderer_physics_check), so two references of one scene never compute two. */
+typedef rc_status (*renderer_physics_fn)(const scene *s, physics *rendered, char *err, size_t errlen);
+
+/* RC_OK when fn renders exactly s->physics, else RC_ERR_RANGE and why ("renders env_diffuse 0,
+ * the scene wants 1; ...") in err. fn NULL (the model) is RC_OK. */
+rc_status renderer_physics_check(renderer_physics_fn fn, const scene *s, char *err, size_t errlen);
+
 /* The name of term bit i (0..3): diffuse, specular, reflection, emission. */
 const char *renderer_term_name(int i);
 /* The bit of a term name, 0 if unknown. */

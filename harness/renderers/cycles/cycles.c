@@ -134,8 +134,7 @@ typedef struct {
     const scene *s;
     const mesh *m;
     const cycles_options *o;
-    int twin; /* twin or agree-as-twin translation */
-    int agree;
+    int twin;             /* the model's terms; else (validate, agree) the scene's physics */
     char missing[8][160]; /* terms left out under options.partial */
     int n_missing;
     unsigned missing_terms; /* their RENDERER_TERM_* bits */
@@ -273,6 +272,71 @@ static const light *cycles_main_light(const scene *s)
     return s->n_lights > 0 ? &s->lights[0] : NULL;
 }
 
+/* The material's physical normal-incidence reflectance: dielectric ((n-1)/(n+1))^2, conductor
+ * ((eta-1)^2 + k^2)/((eta+1)^2 + k^2) per channel. */
+static vec3 cycles_f0(const material *mat)
+{
+    if (!mat->conductor) {
+        float r = (mat->ior - 1.0f) / (mat->ior + 1.0f);
+        return v3s(r * r);
+    }
+    float e[3] = {mat->eta.x, mat->eta.y, mat->eta.z}, k[3] = {mat->k.x, mat->k.y, mat->k.z}, f[3];
+    for (int c = 0; c < 3; c++)
+        f[c] = ((e[c] - 1.0f) * (e[c] - 1.0f) + k[c] * k[c]) / ((e[c] + 1.0f) * (e[c] + 1.0f) + k[c] * k[c]);
+    return v3(f[0], f[1], f[2]);
+}
+
+rc_status cycles_physics(const scene *s, physics *out, char *err, size_t errlen)
+{
+    const physics *want = &s->physics;
+    int any_rough = 0;
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        const material *mat = &s->materials[mi];
+        if (!cycles_material_used(s, mi))
+            continue;
+        if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f)) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
+                           "to 1, so use a roughness in [0, 1]",
+                           s->path, mi, mat->name, (double)mat->roughness);
+            return RC_ERR_RANGE;
+        }
+        any_rough |= mat->roughness > 0.0f;
+    }
+    unsigned all = s->n_lights >= 32 ? ~0u : (1u << s->n_lights) - 1u;
+    /* A mirror's highlight of a point or sun light is a delta (zero in the image): only a rough
+     * lobe is lit by the lamps. */
+    int lamps_on_lobe = any_rough && (want->specular_lights & all) != 0;
+    int env_on_lobe = want->env_specular && s->env.kind != ENV_NONE;
+    *out = *want;
+    if (lamps_on_lobe && env_on_lobe && want->fresnel_specular != want->fresnel_reflection) {
+        status_message(err, errlen,
+                       "%s: physics: fresnel_specular %s and fresnel_reflection %s: one Cycles Glossy closure "
+                       "reflects the lamps and the environment; give both one form",
+                       s->path, physics_fresnel_names[want->fresnel_specular],
+                       physics_fresnel_names[want->fresnel_reflection]);
+        return RC_ERR_RANGE;
+    }
+    if (!any_rough)
+        return RC_OK; /* on a mirror F(N.V) is F(V.H): every form is rendered as asked */
+    /* The Glossy BSDF's colour tints the whole Beckmann lobe: Fresnel of N.V, not per
+     * microfacet. So exact becomes nv (a bias, measured against the exact reference), and a
+     * per-microfacet Schlick has no form at all. */
+    if ((lamps_on_lobe && want->fresnel_specular == PHYS_FRESNEL_SCHLICK) ||
+        (env_on_lobe && want->fresnel_reflection == PHYS_FRESNEL_SCHLICK)) {
+        status_message(err, errlen,
+                       "%s: physics: Schlick per microfacet on a rough lobe: Blender 3.4's Glossy BSDF has no "
+                       "per-microfacet Fresnel; use fresnel one, or nv (a bias), or the exact reference",
+                       s->path);
+        return RC_ERR_RANGE;
+    }
+    if (lamps_on_lobe && want->fresnel_specular == PHYS_FRESNEL_EXACT)
+        out->fresnel_specular = PHYS_FRESNEL_NV;
+    if (env_on_lobe && want->fresnel_reflection == PHYS_FRESNEL_EXACT)
+        out->fresnel_reflection = PHYS_FRESNEL_NV;
+    return RC_OK;
+}
+
 typedef struct {
     int mirror; /* a SHARP glossy closure that must see the environment */
     int glossy; /* a Beckmann closure lit by the lamps */
@@ -291,40 +355,33 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     jw_put_str(w, o, "name", mat->name);
 
     if (!c->twin) {
-        /* Physical intent (validate): a dielectric coating over Lambert, or a bare conductor. */
-        /* Roughness 0 is a mirror (the glossy closure becomes SHARP). */
-        if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f) && used) {
-            status_message(c->err, c->errlen,
-                           "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
-                           "to 1, so use a roughness in [0, 1]",
-                           s->path, mi, mat->name, (double)mat->roughness);
-            return RC_ERR_RANGE;
-        }
+        /* The scene's physics (cycles_physics has checked it is renderable): a dielectric
+         * coating over Lambert, or a bare conductor. Roughness 0 is a mirror (SHARP). */
+        const physics *ph = &s->physics;
         if (!mat->conductor) {
             cJSON *dif = jw_obj(w, o, "diffuse");
             jw_put_vec(w, dif, "color", "materials.albedo", mat->albedo);
-            jw_put_num(w, dif, "fresnel_ior", "materials.ior", mat->ior);
+            if (ph->diffuse_weight == PHYS_DIFFUSE_ONE_MINUS_F)
+                jw_put_num(w, dif, "fresnel_ior", "materials.ior", mat->ior);
         }
         cJSON *gl = jw_obj(w, o, "glossy");
         jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
         jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(1.0f));
-        cycles_write_fresnel_of(w, gl, "fresnel", mat);
-        if (cycles_nonzero(mat->d3d.emissive))
-            jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
-        u->glossy |= used;
-        return RC_OK;
-    }
-
-    if (c->agree) {
-        /* What POV-Ray's validate/agree scene holds: Lambert albedo plus an exact-Fresnel mirror
-         * of the environment (no highlight of the lamps, no diffuse environment light). */
-        jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->conductor ? v3s(0.0f) : mat->albedo);
-        if (has_env) {
-            cycles_write_fresnel_of(w, o, "mirror", mat);
-            u->mirror |= used;
+        /* One closure reflects lamps and environment: a rough lobe takes the lamps' form
+         * (cycles_physics refuses two forms on one lobe), a mirror the environment's. */
+        physics_fresnel form = mat->roughness > 0.0f ? ph->fresnel_specular : ph->fresnel_reflection;
+        if (form == PHYS_FRESNEL_ONE) {
+            jw_put_str(w, jw_obj(w, gl, "fresnel"), "kind", "one");
+        } else if (form == PHYS_FRESNEL_SCHLICK) {
+            cJSON *f = jw_obj(w, gl, "fresnel");
+            jw_put_str(w, f, "kind", "schlick");
+            jw_put_vec(w, f, "f0", "materials.f0", cycles_f0(mat));
+        } else {
+            cycles_write_fresnel_of(w, gl, "fresnel", mat);
         }
         if (cycles_nonzero(mat->d3d.emissive))
             jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
+        u->glossy |= used;
         return RC_OK;
     }
 
@@ -490,8 +547,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     if (o == NULL)
         o = &defaults;
     cycles_ctx c = {.s = s, .m = m, .o = o, .err = err, .errlen = errlen};
-    c.agree = o->role == ROLE_AGREE;
-    c.twin = o->role == ROLE_TWIN || c.agree;
+    /* agree compares the two validate renders: the same translation. */
+    c.twin = o->role == ROLE_TWIN;
     if (o->role != ROLE_TWIN && o->role != ROLE_VALIDATE && o->role != ROLE_AGREE) {
         status_message(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
         return RC_ERR_RANGE;
@@ -532,7 +589,9 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     for (int i = 0; i < s->n_lights; i++)
         if ((rc = cycles_check_light(&c, i)) != RC_OK)
             return rc;
-    if (c.twin && !c.agree) {
+    if (!c.twin && (rc = renderer_physics_check(cycles_physics, s, err, errlen)) != RC_OK)
+        return rc;
+    if (c.twin) {
         char what[160];
         for (int i = 0; i < s->n_lights; i++) {
             int any_va = 0;
@@ -566,7 +625,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     char hash[24];
     snprintf(hash, sizeof hash, "%016llx", (unsigned long long)s->hash);
     jw_put_str(&w, doc, "scene_hash", hash);
-    jw_put_str(&w, doc, "role", c.agree ? "agree" : (c.twin ? "twin" : "validate"));
+    jw_put_str(&w, doc, "role", c.twin ? "twin" : "validate");
     jw_put_int(&w, doc, "width", width);
     jw_put_int(&w, doc, "height", height);
     jw_put_int(&w, doc, "samples", samples);
@@ -586,6 +645,19 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     cJSON *lights = jw_arr(&w, doc, "lights");
     for (int i = 0; i < s->n_lights; i++)
         cycles_write_light(&w, lights, &s->lights[i]);
+    /* The physics (validate): which closures each lamp lights, shadows, inter-reflection and
+     * bounces. A twin computes the model: every lamp on every closure, nothing else. */
+    const physics *ph = &s->physics;
+    cJSON *phj = jw_obj(&w, doc, "physics");
+    cJSON *lv = jw_arr(&w, phj, "light_visibility");
+    for (int i = 0; i < s->n_lights; i++) {
+        cJSON *e = jw_obj(&w, lv, NULL);
+        jw_put_bool(&w, e, "diffuse", c.twin || (ph->diffuse_lights & (1u << i)) != 0);
+        jw_put_bool(&w, e, "glossy", c.twin || (ph->specular_lights & (1u << i)) != 0);
+    }
+    jw_put_bool(&w, phj, "shadows", !c.twin && ph->shadows);
+    jw_put_bool(&w, phj, "interreflection", !c.twin && ph->interreflection);
+    jw_put_int(&w, phj, "bounces", c.twin ? 1 : ph->bounces);
     cJSON *env = jw_obj(&w, doc, "environment");
     switch (s->env.kind) {
     case ENV_NONE: jw_put_str(&w, env, "type", "none"); break;
@@ -610,7 +682,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
 
     /* Glossy passes hold every glossy closure: they can be routed to one AOV only. A Beckmann
      * lobe also sees the environment whenever a mirror needs the world visible to glossy rays. */
-    if (c.twin && !c.agree && u.mirror && u.glossy) {
+    if (c.twin && u.mirror && u.glossy) {
         cJSON_Delete(doc);
         status_message(err, errlen,
                        "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
@@ -618,7 +690,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
                        s->path);
         return RC_ERR_RANGE;
     }
-    int world_diffuse = !c.twin, world_glossy = !c.twin || u.mirror;
+    int world_diffuse = !c.twin && ph->env_diffuse, world_glossy = c.twin ? u.mirror : ph->env_specular;
     /* Light-sampling the world only helps closures that sample lights: diffuse and Beckmann,
      * not a mirror. Skipping it saves the importance map (~1.7 s for a 1024 x 512 image). */
     int world_sampled = s->env.kind != ENV_NONE && (world_diffuse || (world_glossy && u.glossy));

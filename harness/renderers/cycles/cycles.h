@@ -22,12 +22,15 @@
  *             naming the fix, unless it is a whole term (the Blinn-Phong specular, a Cook-
  *             Torrance lobe without Cycles' switches) and options.partial is set: then the
  *             term is left out, listed in the job's "missing" and in options.left_out.
- *   validate: the material's physical intent: Lambert albedo * (1 - F_dielectric(N.V)) +
- *             Glossy 'BECKMANN' sqrt(roughness) coloured by the exact Fresnel of N.V
- *             (dielectric ior, or conductor eta + ik without diffuse); world fully visible.
- *   agree:    what POV-Ray's validate/agree scene holds: Lambert albedo (conductors 0) plus a
- *             Glossy 'SHARP' mirror of the environment coloured by the exact Fresnel of N.V;
- *             no highlight of the lamps, no environment light on diffuse.
+ *   validate, agree (the same render): the scene's physics (model/scene.h) as cycles_physics
+ *             says it renders it, refused (RC_ERR_RANGE naming the fields) where the scene
+ *             asks otherwise: Lambert albedo (times 1 - F_dielectric(N.V) under diffuse_weight
+ *             one_minus_f; conductors none) + Glossy 'BECKMANN' sqrt(roughness) (SHARP at 0)
+ *             coloured by the Fresnel form asked, of N.V: on a rough lobe exact is rendered as
+ *             nv, the F(N.V) tint (a bias), and per-microfacet Schlick is refused; each lamp
+ *             reaches the diffuse and glossy closures its masks say (light ray visibility), the
+ *             world those env_diffuse and env_specular say; shadows, inter-reflection and
+ *             bounces as asked.
  * Noise: a mirror beside a non-zero diffuse closure carries closure-selection noise (Cycles
  * picks one closure per bounce); the "var." channels measure it.
  *
@@ -53,7 +56,7 @@
 #include "../renderer.h"
 
 typedef struct {
-    comparison_role role;      /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE */
+    comparison_role role;      /* ROLE_TWIN (default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
     int samples;               /* per seed; 0 = the scene's samples */
     int n_seeds;               /* renders with seeds seed, seed+1, ...; 0 = 1 */
     unsigned seed;             /* first seed, default 0 */
@@ -89,6 +92,9 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
 /* The raw (Blender) channel name for one of reflcheck's layers: ("", 'R') -> "R",
  * ("diffuse", 'G') -> "diffuse.G", ("coverage", 0) -> "coverage.V". Returns buf. */
 const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len);
+
+/* The physics its validate job renders (renderer.h, renderer_physics_fn; see validate above). */
+rc_status cycles_physics(const scene *s, physics *rendered, char *err, size_t errlen);
 
 /* The render entry (renderer.h): job, blender, collect into j->exr. Options from j->options
  * (role and partial from j), else seeds, seed and threads from j. Refusals are

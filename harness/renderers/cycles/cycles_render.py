@@ -71,12 +71,13 @@ def setup_render(job):
     cy.auto_scrambling_distance = False
     cy.scrambling_distance = 1.0
     cy.use_guiding = False
-    # One bounce so that a mirror (SHARP) closure sees the environment and MIS keeps both
-    # halves of environment lighting; objects are invisible to secondary rays, so a bounce
-    # can only reach the world.
-    cy.max_bounces = 1
-    cy.diffuse_bounces = 1
-    cy.glossy_bounces = 1
+    # One bounce (the default physics) so that a mirror (SHARP) closure sees the environment
+    # and MIS keeps both halves of environment lighting; objects are invisible to secondary
+    # rays unless the physics asks for inter-reflection, so a bounce can only reach the world.
+    bounces = int(need(need(job, "physics", "job"), "bounces", "physics"))
+    cy.max_bounces = bounces
+    cy.diffuse_bounces = bounces
+    cy.glossy_bounces = bounces
     cy.transmission_bounces = 0
     cy.volume_bounces = 0
     cy.transparent_max_bounces = 0
@@ -135,7 +136,12 @@ def setup_camera(job):
 
 
 def setup_lights(job):
-    for i, l in enumerate(need(job, "lights", "job")):
+    physics = need(job, "physics", "job")
+    visibility = need(physics, "light_visibility", "physics")
+    lights = need(job, "lights", "job")
+    if len(visibility) != len(lights):
+        raise JobError("physics.light_visibility: %d entries for %d lights" % (len(visibility), len(lights)))
+    for i, l in enumerate(lights):
         where = "lights[%d]" % i
         kind = need(l, "type", where)
         if kind not in ("POINT", "SUN", "SPOT"):
@@ -143,9 +149,10 @@ def setup_lights(job):
         data = bpy.data.lights.new("reflcheck_light_%d" % i, kind)
         data.energy = float(need(l, "energy", where))
         data.color = need(l, "color", where)
+        shadows = bool(need(physics, "shadows", "physics"))
         if hasattr(data, "use_shadow"):
-            data.use_shadow = False
-        data.cycles.cast_shadow = False
+            data.use_shadow = shadows
+        data.cycles.cast_shadow = shadows
         data.cycles.max_bounces = 1024
         if kind == "SUN":
             data.angle = 0.0
@@ -161,6 +168,11 @@ def setup_lights(job):
             d = to_blender(need(l, "direction", where))
             ob.rotation_mode = 'QUATERNION'
             ob.rotation_quaternion = d.to_track_quat('-Z', 'Y')
+        # Which closures the lamp lights (the physics' light masks): Cycles skips an excluded
+        # closure in the lamp's direct-light evaluation.
+        vis = visibility[i]
+        ob.visible_diffuse = bool(need(vis, "diffuse", "physics.light_visibility[%d]" % i))
+        ob.visible_glossy = bool(need(vis, "glossy", "physics.light_visibility[%d]" % i))
         bpy.context.scene.collection.objects.link(ob)
 
 
@@ -498,11 +510,14 @@ def setup_objects(job, materials):
         me.materials.append(materials[mi])
         ob = bpy.data.objects.new(o.get("name", "reflcheck_object_%d" % i), me)
         ob.pass_index = int(need(o, "pass_index", where))
-        # The real-time models have no shadows and no inter-reflection (harness/CONTRACT.md).
+        # The real-time models have no shadows and no inter-reflection (harness/CONTRACT.md);
+        # a validate has them when its physics asks.
+        physics = need(job, "physics", "job")
+        inter = bool(need(physics, "interreflection", "physics"))
         ob.visible_camera = True
-        ob.visible_shadow = False
-        ob.visible_glossy = False
-        ob.visible_diffuse = False
+        ob.visible_shadow = bool(need(physics, "shadows", "physics"))
+        ob.visible_glossy = inter
+        ob.visible_diffuse = inter
         ob.visible_transmission = False
         ob.visible_volume_scatter = False
         bpy.context.scene.collection.objects.link(ob)

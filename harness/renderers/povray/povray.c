@@ -352,31 +352,106 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     return RC_OK;
 }
 
+/* The conductor refusal, shared by the material writer and povray_physics. */
+static rc_status povray_conductor_refusal(const scene *s, int mi, char *err, size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    status_message(err, errlen,
+                   "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
+                   "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
+                   "against cycles or the exact reference instead",
+                   s->path, mi, mat->name[0] ? mat->name : "(unnamed)");
+    return RC_ERR_RANGE;
+}
+
+static int povray_material_used(const scene *s, int mi)
+{
+    for (int ob = 0; ob < s->n_objects; ob++)
+        if (s->objects[ob].material == mi)
+            return 1;
+    return 0;
+}
+
+rc_status povray_physics(const scene *s, physics *out, char *err, size_t errlen)
+{
+    const physics *want = &s->physics;
+    int any_rough = 0, any_diffuse = 0;
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        if (!povray_material_used(s, mi))
+            continue;
+        const material *mat = &s->materials[mi];
+        if (mat->conductor)
+            return povray_conductor_refusal(s, mi, err, errlen);
+        any_rough |= mat->roughness > 0.0f;
+        any_diffuse |= !povray_is_zero(mat->albedo);
+    }
+    unsigned all = s->n_lights >= 32 ? ~0u : (1u << s->n_lights) - 1u;
+    int has_env = s->env.kind != ENV_NONE;
+    *out = *want;
+    /* `diffuse 1` takes every light, `diffuse 0` none: no mask in between. */
+    if (any_diffuse)
+        out->diffuse_lights = (want->diffuse_lights & all) ? PHYSICS_ALL_LIGHTS : 0u;
+    /* No Beckmann lobe (`specular` is Phong-like): a rough lobe gets no highlight. A mirror's
+     * highlight of a point or sun light is a delta, zero in every image, so any mask holds. */
+    if (any_rough)
+        out->specular_lights = 0u;
+    /* `reflection` is a mirror: a rough lobe reflects no environment rather than a sharp one. */
+    if (any_rough && has_env)
+        out->env_specular = 0;
+    /* No radiosity: the environment never lights the diffuse, nor does another object. */
+    if (any_diffuse && has_env)
+        out->env_diffuse = 0;
+    out->interreflection = 0;
+    out->bounces = 1;
+    /* The diffuse is not weighted by what the reflection takes (checked: `fresnel on` over a
+     * black sky leaves a lit plane's diffuse unchanged). */
+    if (any_diffuse)
+        out->diffuse_weight = PHYS_DIFFUSE_PLAIN;
+    /* On a mirror every Fresnel form is rendered as asked (`fresnel on` is the exact F(N.V),
+     * which is F(V.H) there; Schlick through falloff 5; F = 1 as reflection 1); on a rough lobe
+     * the lobes are gone (above), so their Fresnel form is moot. Shadows as asked. */
+    return RC_OK;
+}
+
 static rc_status povray_material_physical(const scene *s, int mi, const povray_resolved *r, povray_finish *f, char *err,
                                           size_t errlen)
 {
     const material *mat = &s->materials[mi];
-    if (mat->conductor) {
-        status_message(err, errlen,
-                       "%s: materials[%d] '%s': a conductor needs the complex Fresnel equations, which "
-                       "POV-Ray does not have (its `metallic` is an empirical curve); validate it "
-                       "against cycles or the exact reference instead",
-                       s->path, mi, mat->name[0] ? mat->name : "(unnamed)");
-        return RC_ERR_RANGE;
-    }
+    const physics *ph = &s->physics;
+    unsigned all = s->n_lights >= 32 ? ~0u : (1u << s->n_lights) - 1u;
+    if (mat->conductor)
+        return povray_conductor_refusal(s, mi, err, errlen);
     f->pigment = dv3_from(mat->albedo);
-    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
+    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) && (ph->diffuse_lights & all) ? 1.0 : 0.0;
     f->emission = dv3(0, 0, 0);
     /* A smooth dielectric's highlight from a point or sun light is a delta lobe: nothing to
-     * render with `specular`, so it is left out. */
+     * render with `specular`, so it is left out (povray_physics says so for a rough lobe). */
     f->specular = 0.0;
     f->roughness = 1.0;
-    f->reflection = (r->term & POVRAY_TERM_REFLECTION) ? 2 : 0;
+    f->reflection = 0;
     f->rmin = dv3(0, 0, 0);
     f->rmax = dv3(1, 1, 1);
     f->falloff = 1.0;
     f->ior = mat->ior;
-    if (f->reflection && !(mat->ior >= 1.0f && isfinite(mat->ior))) {
+    if (!(r->term & POVRAY_TERM_REFLECTION) || !ph->env_specular || mat->roughness > 0.0f)
+        return RC_OK;
+    switch (ph->fresnel_reflection) {
+    case PHYS_FRESNEL_EXACT:
+    case PHYS_FRESNEL_NV: f->reflection = 2; break;
+    case PHYS_FRESNEL_ONE:
+        f->reflection = 1;
+        f->rmin = dv3(1, 1, 1);
+        break;
+    case PHYS_FRESNEL_SCHLICK: {
+        /* POV-Ray's Rmin + (Rmax - Rmin)(1 - cos)^falloff is Schlick's form exactly. */
+        double f0 = ((double)mat->ior - 1.0) / ((double)mat->ior + 1.0);
+        f->reflection = 1;
+        f->rmin = dv3(f0 * f0, f0 * f0, f0 * f0);
+        f->falloff = 5.0;
+        break;
+    }
+    }
+    if (f->reflection == 2 && !(mat->ior >= 1.0f && isfinite(mat->ior))) {
         status_message(err, errlen,
                        "%s: materials[%d]: ior %g must be finite and >= 1 for POV-Ray's "
                        "fresnel reflection",
@@ -465,6 +540,8 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     }
 
     int coverage = o != NULL && o->coverage;
+    if (r.validate && !coverage && (st = renderer_physics_check(povray_physics, s, err, errlen)) != RC_OK)
+        return st;
     povray_light lights[SCENE_MAX_LIGHTS];
     for (int i = 0; i < s->n_lights && !coverage; i++)
         if ((st = povray_light_convert(s, m, i, &r, &lights[i], err, errlen)) != RC_OK)
@@ -506,6 +583,10 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
 
     fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n", s->name,
             r.validate ? "validate" : "twin", r.term, r.scale);
+    if (r.validate) {
+        char ph[400];
+        fprintf(fp, "// physics: %s\n", physics_describe(&s->physics, s->n_lights, ph, sizeof ph));
+    }
     fprintf(fp, "#version 3.7;\n");
     fprintf(fp,
             "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
@@ -619,7 +700,8 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                     ob + 1);
         else
             povray_write_finish(fp, &fin[s->objects[ob].material]);
-        fprintf(fp, "  no_shadow\n  no_reflection\n}\n\n");
+        /* The model has no shadows; a physical reference has them when its physics asks. */
+        fprintf(fp, "%s  no_reflection\n}\n\n", r.validate && s->physics.shadows ? "" : "  no_shadow\n");
     }
     free(remap);
     free(local);

@@ -20,12 +20,12 @@
  *   D3D spot profile, D3D ambient La on a distance-attenuated light, a range that cuts through
  *   the geometry, a1 and a2 both non-zero, Ve on a channel whose pigment is 0) -> RC_ERR_RANGE
  *   with a message naming the material or light: the harness skips that comparison.
- * - role ROLE_VALIDATE / ROLE_AGREE: the physical intent: Lambert albedo and, for dielectrics,
- *   the exact unpolarised Fresnel reflection of the environment (`fresnel on`, `interior { ior }`).
- *   Conductors -> RC_ERR_RANGE (POV-Ray has no complex Fresnel). The mirror highlight of a
- *   point or sun light is not represented (a delta lobe; specular 0).
- * - no shadows, no inter-reflection: every object has no_shadow and no_reflection, so a
- *   reflection ray sees only the environment (sky_sphere).
+ * - role ROLE_VALIDATE / ROLE_AGREE: the scene's physics (model/scene.h) as povray_physics
+ *   says it renders it; a scene whose physics differs from that -> RC_ERR_RANGE naming the
+ *   fields. Lambert albedo and, for dielectric mirrors, the environment's reflection with the
+ *   Fresnel form asked (`fresnel on`, `interior { ior }`). Conductors -> RC_ERR_RANGE.
+ * - no inter-reflection: every object has no_reflection, so a reflection ray sees only the
+ *   environment (sky_sphere); no_shadow too, unless a validate's physics asks for shadows.
  * - lights: colour I/pi (E/pi for a sun); D3D attenuation 1/(a0 + a2 d^2) or 1/(a0 + a1 d) is
  *   exact through fade_distance/fade_power; a0 = 0 uses fade_distance D = fade_ratio * (the
  *   nearest light-to-geometry distance), leaving a relative error (D/d)^2 (fade_power 2) or
@@ -103,6 +103,13 @@ void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen);
  * positive multiples of k. Sums in double, so the result is the float nearest the exact mean
  * up to one rounding of each sample's addition (k*k <= 65536). */
 rc_status povray_box_downsample(const float *src, int kw, int kh, int k, float *dst);
+
+/* The physics its validate SDL renders (renderer.h, renderer_physics_fn): Lambert albedo lit by
+ * all lights or none, never by the environment (no radiosity), unweighted; a mirror reflection
+ * of the environment with the Fresnel form asked (exact = `fresnel on`, Schlick through
+ * falloff 5, F = 1); no rough lobe (no highlight, no environment on it); shadows as asked; no
+ * inter-reflection. Conductors -> RC_ERR_RANGE. */
+rc_status povray_physics(const scene *s, physics *rendered, char *err, size_t errlen);
 
 /* The render entry (renderer.h): SDL, POV-Ray, box filter and the geometry pass into j->exr.
  * Refusals are RUNNER_MISSING ("povray cannot represent this scene: ..."). */

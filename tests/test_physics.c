@@ -1,0 +1,353 @@
+/* test_physics.c - one physics per scene: every validate reference of a canonical scene renders
+ * the scene's physics manifest or refuses with the fields it cannot; two references of one
+ * scene never compute two physics; agree compares exactly the two validate renders; a record
+ * whose physics differs from the scene's is an error, never a figure.
+ * The translators are asked without rendering (their physics functions and job writers); the
+ * compare side uses run folders built by hand, 8x4 flat images whose metrics are known.
+ * Runs from the repository root. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <glob.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cJSON.h>
+
+#include "cli_exec.h"
+#include "exr.h"
+#include "jobs.h"
+#include "mesh.h"
+#include "renderers/cycles/cycles.h"
+#include "scene_file.h"
+
+static char dir[256];
+
+static scene *parse_ok(const char *text)
+{
+    scene *s = malloc(sizeof *s);
+    char err[1024] = "";
+    assert_non_null(s);
+    if (scene_file_parse(text, strlen(text), "mem.yaml", s, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+    return s;
+}
+
+/* Every canonical scene: the references its validate and agree comparisons name either
+ * render exactly the scene's physics or refuse; those that render agree with each other. The
+ * grazing plane's two references must both render (the issue's case). */
+static void test_canonical_scenes_one_physics(void **state)
+{
+    (void)state;
+    glob_t g;
+    assert_int_equal(glob("scenes/*.yaml", 0, NULL, &g), 0);
+    int grazing_rendered = 0;
+    for (size_t i = 0; i < g.gl_pathc; i++) {
+        scene *s = malloc(sizeof *s);
+        char err[1024] = "", want[400], first[400] = "", first_name[32] = "";
+        assert_non_null(s);
+        if (scene_file_load(g.gl_pathv[i], s, err, sizeof err) != RC_OK)
+            fail_msg("%s", err);
+        physics_describe(&s->physics, s->n_lights, want, sizeof want);
+        for (int k = 0; k < s->n_comparisons; k++) {
+            const comparison *c = &s->comparisons[k];
+            if (c->role == ROLE_TWIN)
+                continue;
+            int sides[2] = {c->test, c->reference};
+            for (int sd = 0; sd < 2; sd++) {
+                const renderer_row *row = registry_row(sides[sd]);
+                if (row->physics == NULL)
+                    continue;
+                physics got;
+                char text[400], why[1024];
+                rc_status st = row->physics(s, &got, why, sizeof why);
+                rc_status chk = renderer_physics_check(row->physics, s, why, sizeof why);
+                if (st != RC_OK || chk != RC_OK) {
+                    /* A refusal names the file and says why; the comparison is skipped. */
+                    assert_non_null(strstr(why, g.gl_pathv[i]));
+                    print_message("%s refuses: %s\n", row->name, why);
+                    continue;
+                }
+                physics_describe(&got, s->n_lights, text, sizeof text);
+                assert_string_equal(text, want);
+                if (first[0] == '\0') {
+                    snprintf(first, sizeof first, "%s", text);
+                    snprintf(first_name, sizeof first_name, "%s", row->name);
+                } else if (strcmp(first, text) != 0) {
+                    fail_msg("%s: %s renders '%s', %s renders '%s'", g.gl_pathv[i], first_name, first, row->name, text);
+                }
+                if (strcmp(s->name, "grazing_plane") == 0)
+                    grazing_rendered |= 1 << sides[sd];
+            }
+        }
+        free(s);
+    }
+    globfree(&g);
+    assert_int_equal(grazing_rendered, (1 << registry_find("povray")) | (1 << registry_find("cycles")));
+}
+
+/* Refusals name the fields: the environment on the diffuse (POV-Ray has no radiosity), a rough
+ * lobe's exact F(V.H) (Cycles tints by F(N.V): it renders nv, a bias), per-microfacet Schlick on
+ * a rough lobe, two Fresnel forms on Cycles' one glossy closure, a conductor in POV-Ray. */
+static void test_refusals_name_fields(void **state)
+{
+    (void)state;
+    static const char base[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 1, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "environment: {constant: [0.2, 0.2, 0.2]}\n"
+                               "lights:\n  - {type: sun, direction: [0, -1, 0], irradiance: [1, 1, 1]}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], material: m}\n";
+    const renderer_row *pov = registry_row(registry_find("povray")), *cyc = registry_row(registry_find("cycles"));
+    char text[2048], err[1024];
+    struct {
+        const char *material, *physics;
+        int pov_ok, cyc_ok;
+        const char *pov_words, *cyc_words;
+    } cases[] = {
+        /* A mirror plane, the manifest's defaults: both render it. */
+        {"{roughness: 0, albedo: [0.1, 0.1, 0.1]}", "{}", 1, 1, NULL, NULL},
+        {"{roughness: 0}", "{env_diffuse: true}", 0, 1, "env_diffuse: 1 wanted, 0 rendered", NULL},
+        {"{roughness: 0}", "{diffuse_weight: one_minus_f}", 0, 1, "diffuse_weight: one_minus_f wanted, plain rendered",
+         NULL},
+        {"{roughness: 0}", "{fresnel_reflection: schlick}", 1, 1, NULL, NULL},
+        {"{roughness: 0}", "{diffuse_lights: none}", 1, 1, NULL, NULL},
+        {"{roughness: 0.3}", "{}", 0, 0, "specular_lights: all wanted, none rendered",
+         "fresnel_specular: exact wanted, nv rendered"},
+        {"{roughness: 0.3}", "{fresnel_specular: nv, fresnel_reflection: nv}", 0, 1, "env_specular: 1 wanted, 0", NULL},
+        {"{roughness: 0.3}", "{specular_lights: none, env_specular: false}", 1, 1, NULL, NULL},
+        {"{roughness: 0.3}", "{fresnel_specular: schlick, fresnel_reflection: schlick}", 0, 0, NULL,
+         "no per-microfacet Fresnel"},
+        {"{roughness: 0.3}", "{fresnel_specular: one, fresnel_reflection: nv}", 0, 0, NULL, "give both one form"},
+        {"{roughness: 0, conductor: {eta: [1, 1, 1], k: [3, 3, 3]}}", "{}", 0, 1, "complex Fresnel", NULL},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        snprintf(text, sizeof text, "%smaterials:\n  m: %s\nphysics: %s\n", base, cases[i].material, cases[i].physics);
+        scene *s = parse_ok(text);
+        err[0] = '\0';
+        rc_status st = renderer_physics_check(pov->physics, s, err, sizeof err);
+        if ((st == RC_OK) != cases[i].pov_ok || (cases[i].pov_words && !strstr(err, cases[i].pov_words)))
+            fail_msg("case %zu povray: rc %d: %s", i, st, err);
+        err[0] = '\0';
+        st = renderer_physics_check(cyc->physics, s, err, sizeof err);
+        if ((st == RC_OK) != cases[i].cyc_ok || (cases[i].cyc_words && !strstr(err, cases[i].cyc_words)))
+            fail_msg("case %zu cycles: rc %d: %s", i, st, err);
+        free(s);
+    }
+}
+
+static cJSON *read_json(const char *path)
+{
+    FILE *f = fopen(path, "r");
+    if (f == NULL)
+        fail_msg("no %s", path);
+    static char buf[1 << 22];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    cJSON *j = cJSON_Parse(buf);
+    assert_non_null(j);
+    return j;
+}
+
+/* The Cycles job of a validate carries the physics: per-lamp closure visibility, the world on
+ * the diffuse or not, shadows, bounces; agree writes the very same job as validate. */
+static void test_cycles_job_follows_physics(void **state)
+{
+    (void)state;
+    static const char text[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 1, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "environment: {constant: [0.2, 0.2, 0.2]}\n"
+                               "lights:\n  - {type: sun, direction: [0, -1, 0], irradiance: [1, 1, 1]}\n"
+                               "  - {type: point, position: [0, 2, 0], intensity: [1, 1, 1]}\n"
+                               "materials:\n  m: {roughness: 0.2, albedo: [0.5, 0.5, 0.5]}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], material: m}\n"
+                               "physics: {diffuse_lights: [1], specular_lights: [0], env_diffuse: true, "
+                               "shadows: true, fresnel_specular: one, fresnel_reflection: one, "
+                               "diffuse_weight: one_minus_f}\n";
+    scene *s = parse_ok(text);
+    mesh m = {0};
+    char why[512], pv[600], pa[600], pt[600];
+    assert_int_equal(mesh_build(s, &m, why, sizeof why), RC_OK);
+    snprintf(pv, sizeof pv, "%s/v.json", dir);
+    snprintf(pa, sizeof pa, "%s/a.json", dir);
+    snprintf(pt, sizeof pt, "%s/t.json", dir);
+    cycles_options ov = {.role = ROLE_VALIDATE}, oa = {.role = ROLE_AGREE}, ot = {.role = ROLE_TWIN};
+    assert_int_equal(cycles_write_job(s, &m, &ov, pv, why, sizeof why), RC_OK);
+    assert_int_equal(cycles_write_job(s, &m, &oa, pa, why, sizeof why), RC_OK);
+    assert_int_equal(cycles_write_job(s, &m, &ot, pt, why, sizeof why), RC_OK);
+    cJSON *v = read_json(pv), *a = read_json(pa), *t = read_json(pt);
+    assert_true(cJSON_Compare(v, a, 1));
+    const cJSON *ph = cJSON_GetObjectItemCaseSensitive(v, "physics");
+    const cJSON *lv = cJSON_GetObjectItemCaseSensitive(ph, "light_visibility");
+    assert_int_equal(cJSON_GetArraySize(lv), 2);
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(cJSON_GetArrayItem(lv, 0), "diffuse")));
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(cJSON_GetArrayItem(lv, 0), "glossy")));
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(cJSON_GetArrayItem(lv, 1), "diffuse")));
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(cJSON_GetArrayItem(lv, 1), "glossy")));
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(ph, "shadows")));
+    assert_int_equal(cJSON_GetObjectItem(ph, "bounces")->valueint, 1);
+    const cJSON *wv = cJSON_GetObjectItemCaseSensitive(v, "world_visibility");
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(wv, "diffuse")));
+    const cJSON *mat = cJSON_GetArrayItem(cJSON_GetObjectItem(v, "materials"), 0);
+    assert_string_equal(
+        cJSON_GetObjectItem(cJSON_GetObjectItem(cJSON_GetObjectItem(mat, "glossy"), "fresnel"), "kind")->valuestring,
+        "one");
+    assert_true(cJSON_IsNumber(cJSON_GetObjectItem(cJSON_GetObjectItem(mat, "diffuse"), "fresnel_ior")));
+    /* The twin computes the model: every lamp on every closure, no shadows, no world on the
+     * diffuse, whatever the physics says. */
+    const cJSON *tph = cJSON_GetObjectItemCaseSensitive(t, "physics");
+    assert_true(cJSON_IsTrue(
+        cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(tph, "light_visibility"), 0), "diffuse")));
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(tph, "shadows")));
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(cJSON_GetObjectItem(t, "world_visibility"), "diffuse")));
+    cJSON_Delete(v);
+    cJSON_Delete(a);
+    cJSON_Delete(t);
+    mesh_free(&m);
+    free(s);
+}
+
+enum { W = 8, H = 4, NP = W * H };
+
+/* A job record (with `physics` when not NULL) and a flat, fully covered image of value v. */
+static void put_job(const char *run, const char *name, int r, comparison_role role, const char *physics_text, float v)
+{
+    char sd[600], path[1024], err[512];
+    snprintf(sd, sizeof sd, "%s/%s", run, name);
+    mkdir(run, 0755);
+    mkdir(sd, 0755);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "status", "ok");
+    cJSON_AddStringToObject(o, "message", "");
+    if (physics_text != NULL)
+        cJSON_AddStringToObject(o, "physics", physics_text);
+    char *txt = cJSON_Print(o);
+    job_output_path(run, name, r, role, "json", path, sizeof path);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(txt, f);
+    assert_int_equal(fclose(f), 0);
+    free(txt);
+    cJSON_Delete(o);
+    static float rgb[NP], cov[NP], obj[NP], var[NP];
+    for (int i = 0; i < NP; i++) {
+        rgb[i] = v;
+        cov[i] = 1.0f;
+        obj[i] = 0.0f;
+        var[i] = 1e-4f;
+    }
+    exr_channel ch[8] = {{"R", rgb},      {"G", rgb},     {"B", rgb},     {"coverage", cov},
+                         {"object", obj}, {"var.R", var}, {"var.G", var}, {"var.B", var}};
+    job_output_path(run, name, r, role, "exr", path, sizeof path);
+    assert_int_equal(exr_write(path, W, H, ch, 8, NULL, 0, err, sizeof err), RC_OK);
+}
+
+static const cJSON *comparison_at(const cJSON *j, int i)
+{
+    const cJSON *c = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(j, "comparisons"), i);
+    assert_non_null(c);
+    return c;
+}
+
+static const char *jstr(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    return cJSON_IsString(v) ? v->valuestring : "";
+}
+
+/* agree reads the validate renders (there are no agree files at all), records the manifest,
+ * and a reference whose recorded physics differs from the scene's makes the comparison an
+ * error naming both. */
+static void test_compare_holds_records_to_the_physics(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048], want[400], path[1024];
+    snprintf(scn, sizeof scn, "%s/ph.yaml", dir);
+    snprintf(run, sizeof run, "%s/run", dir);
+    FILE *f = fopen(scn, "w");
+    assert_non_null(f);
+    fputs("name: ph\nimage: {width: 8, height: 4}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+          "lights:\n  - {type: sun, direction: [0, 0, -1], irradiance: [1, 1, 1]}\n"
+          "materials:\n  m: {roughness: 0}\n"
+          "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+          "comparisons:\n"
+          "  - {reference: cycles, role: validate, thresholds: {nrmse: {warn: 0.1, fail: 0.2, why: \"t\"}}}\n"
+          "  - {test: povray, reference: cycles, role: agree,\n"
+          "     thresholds: {nrmse: {warn: 0.1, fail: 0.2, why: \"t\"}}}\n",
+          f);
+    assert_int_equal(fclose(f), 0);
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_int_equal(scene_file_load(scn, s, err, sizeof err), RC_OK);
+    physics_describe(&s->physics, s->n_lights, want, sizeof want);
+    free(s);
+    int raster = registry_find("raster"), pov = registry_find("povray"), cyc = registry_find("cycles");
+    put_job(run, "ph", raster, ROLE_VALIDATE, NULL, 0.5f);
+    put_job(run, "ph", pov, ROLE_VALIDATE, want, 0.5f);
+    put_job(run, "ph", cyc, ROLE_VALIDATE, want, 0.5f);
+    job_output_path(run, "ph", cyc, ROLE_AGREE, "json", path, sizeof path);
+    assert_int_not_equal(access(path, F_OK), 0);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
+    snprintf(path, sizeof path, "%s/ph/compare.json", run);
+    cJSON *j = read_json(path);
+    for (int i = 0; i < 2; i++) {
+        assert_string_equal(jstr(comparison_at(j, i), "status"), "pass");
+        assert_string_equal(jstr(comparison_at(j, i), "physics"), want);
+    }
+    cJSON_Delete(j);
+
+    /* POV-Ray's record says it lit the diffuse with the environment: not the scene's physics. */
+    char other[400];
+    snprintf(other, sizeof other, "%s", want);
+    char *p = strstr(other, "env_diffuse=0");
+    assert_non_null(p);
+    p[strlen("env_diffuse=")] = '1';
+    put_job(run, "ph", pov, ROLE_VALIDATE, other, 0.5f);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_json(path);
+    assert_string_equal(jstr(comparison_at(j, 0), "status"), "pass"); /* raster vs cycles */
+    assert_string_equal(jstr(comparison_at(j, 1), "status"), "error");
+    assert_non_null(strstr(jstr(comparison_at(j, 1), "reason"), "povray validate rendered physics"));
+    assert_non_null(strstr(jstr(comparison_at(j, 1), "reason"), "env_diffuse=1"));
+    cJSON_Delete(j);
+
+    /* A record without physics (an older run) is no figure either. */
+    put_job(run, "ph", pov, ROLE_VALIDATE, NULL, 0.5f);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    j = read_json(path);
+    assert_non_null(strstr(jstr(comparison_at(j, 1), "reason"), "(not recorded)"));
+    cJSON_Delete(j);
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(dir, sizeof dir, "/tmp/reflcheck-physics-%ld", (long)getpid());
+    mkdir(dir, 0755);
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_canonical_scenes_one_physics),
+        cmocka_unit_test(test_refusals_name_fields),
+        cmocka_unit_test(test_cycles_job_follows_physics),
+        cmocka_unit_test(test_compare_holds_records_to_the_physics),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
