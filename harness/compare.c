@@ -163,6 +163,115 @@ static cJSON *compare_region(const metrics_image *ref, const metrics_image *test
     cJSON *o = compare_metrics_json(&r);
     cJSON_AddNumberToObject(o, "nrmse", n > 0 && sum > 0.0 ? r.rmse / (sum / (double)n) : 0.0);
     cJSON_AddNumberToObject(o, "nrmse_mean_n", (double)n);
+    /* How the figure spreads over the pixels (metrics_robust): a headline a handful of pixels
+     * carries shows as a large worst1_share and an nrmse_trim1 far below nrmse. */
+    metrics_robust_options ro = {.rel_eps = COMPARE_REL_EPS, .trim = 0.01};
+    metrics_robust_result rb;
+    if (metrics_robust(ref, test, mask, &ro, &rb, e, sizeof e) == RC_OK) {
+        cJSON_AddNumberToObject(o, "rel_median", rb.rel_median);
+        cJSON_AddNumberToObject(o, "rel_p95", rb.rel_p95);
+        cJSON_AddNumberToObject(o, "nrmse_trim1", rb.nrmse_trim);
+        cJSON_AddNumberToObject(o, "worst1_share", rb.worst_share);
+        cJSON_AddNumberToObject(o, "trim1_n", (double)rb.n_trimmed);
+    }
+    return o;
+}
+
+/* Mean of (R + G + B) / 3 over the mask. */
+static double compare_mean(const metrics_image *m, const unsigned char *mask)
+{
+    double sum = 0.0;
+    long n = 0;
+    size_t np = (size_t)m->width * (size_t)m->height;
+    for (size_t i = 0; i < np; i++) {
+        double v = ((double)m->c[0][i] + (double)m->c[1][i] + (double)m->c[2][i]) / 3.0;
+        if (mask[i] && isfinite(v)) {
+            sum += v;
+            n++;
+        }
+    }
+    return n > 0 ? sum / (double)n : 0.0;
+}
+
+/* One term (the sum of `layers`, each "name" of a .R/.G/.B triple) of one image into out (3
+ * planes of np). Returns 0 when the image has none of the layers. */
+static int compare_term_planes(const exr_image *img, const char *const *layers, int n_layers, float *out[3])
+{
+    size_t np = (size_t)img->width * (size_t)img->height;
+    int found = 0;
+    for (int c = 0; c < 3; c++)
+        memset(out[c], 0, np * sizeof(float));
+    for (int l = 0; l < n_layers; l++) {
+        metrics_image m = compare_planes(img, layers[l]);
+        if (!m.c[0] || !m.c[1] || !m.c[2])
+            continue;
+        found = 1;
+        for (int c = 0; c < 3; c++)
+            for (size_t i = 0; i < np; i++)
+                out[c][i] += m.c[c][i];
+    }
+    return found;
+}
+
+typedef struct {
+    const char *name;
+    const char *layers[2];
+    int n;
+    unsigned bits; /* RENDERER_TERM_* it holds */
+} compare_term;
+
+/* Error by term on the surface, from the layers both sides have: each term's mean on both
+ * sides and its RMSE over the whole reference image's mean (so the terms' figures share one
+ * scale with the image's nrmse). A twin splits its light as the model does: diffuse, specular,
+ * reflection. A physical reference files its glossy closures its own way (Cycles puts lamps
+ * and environment under specular), so validate and agree compare diffuse and glossy =
+ * specular + reflection. */
+static cJSON *compare_terms(const exr_image *t, const exr_image *r, const metrics_image *rfull, unsigned left_out,
+                            int twin, const unsigned char *mask)
+{
+    static const compare_term twin_terms[3] = {{"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
+                                               {"specular", {"specular"}, 1, RENDERER_TERM_SPECULAR},
+                                               {"reflection", {"reflection"}, 1, RENDERER_TERM_REFLECTION}};
+    static const compare_term phys_terms[2] = {
+        {"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
+        {"glossy", {"specular", "reflection"}, 2, RENDERER_TERM_SPECULAR | RENDERER_TERM_REFLECTION}};
+    const compare_term *terms = twin ? twin_terms : phys_terms;
+    int n_terms = twin ? 3 : 2;
+    cJSON *o = cJSON_CreateObject();
+    size_t np = (size_t)t->width * (size_t)t->height;
+    float *buf = malloc(6 * np * sizeof(float));
+    double scale = compare_mean(rfull, mask);
+    for (int k = 0; buf != NULL && k < n_terms; k++) {
+        if (left_out & terms[k].bits)
+            continue;
+        float *tp[3] = {buf, buf + np, buf + 2 * np}, *rp[3] = {buf + 3 * np, buf + 4 * np, buf + 5 * np};
+        if (!compare_term_planes(t, terms[k].layers, terms[k].n, tp) ||
+            !compare_term_planes(r, terms[k].layers, terms[k].n, rp))
+            continue;
+        metrics_image tm = {t->width, t->height, {tp[0], tp[1], tp[2]}};
+        metrics_image rm = {t->width, t->height, {rp[0], rp[1], rp[2]}};
+        double se = 0.0;
+        long cnt = 0;
+        for (size_t i = 0; i < np; i++) {
+            if (!mask[i])
+                continue;
+            double e = 0.0;
+            for (int c = 0; c < 3; c++) {
+                double d = (double)tp[c][i] - (double)rp[c][i];
+                e += d * d;
+            }
+            if (isfinite(e)) {
+                se += e;
+                cnt++;
+            }
+        }
+        cJSON *m = cJSON_AddObjectToObject(o, terms[k].name);
+        cJSON_AddNumberToObject(m, "test_mean", compare_mean(&tm, mask));
+        cJSON_AddNumberToObject(m, "ref_mean", compare_mean(&rm, mask));
+        cJSON_AddNumberToObject(m, "nrmse", cnt > 0 && scale > 0.0 ? sqrt(se / (3.0 * (double)cnt)) / scale : 0.0);
+        cJSON_AddNumberToObject(m, "n_pixels", (double)cnt);
+    }
+    free(buf);
     return o;
 }
 
@@ -310,6 +419,8 @@ static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
         const cJSON *grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "regions"), head);
         if (grp == NULL)
             grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "aovs"), head);
+        if (grp == NULL)
+            grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "terms"), head);
         x = cJSON_GetObjectItemCaseSensitive(grp, dot + 1);
     } else {
         x = cJSON_GetObjectItemCaseSensitive(
@@ -869,6 +980,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
             if (m != NULL)
                 cJSON_AddItemToObject(aovs, compare_aovs[a], m);
         }
+        cJSON_AddItemToObject(o, "terms",
+                              compare_terms(&t.img, &r.img, &rm, part.left_out, c->role == ROLE_TWIN, mask[0]));
         const float *rc = exr_image_channel(&r.img, "coverage"), *tc = exr_image_channel(&t.img, "coverage");
         if (rc != NULL && tc != NULL) {
             long agree = 0;

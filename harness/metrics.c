@@ -558,3 +558,115 @@ rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mea
         }
     return RC_OK;
 }
+
+/* ---------------------------------------------------------------- robust error */
+
+/* The share of pixels metrics_robust trims by default: the "worst 1 %". */
+#define METRICS_TRIM 0.01
+
+typedef struct {
+    double key;
+    size_t index;
+} metrics_ranked;
+
+/* Descending by key, ties ascending by index: the worst first, deterministically. */
+static int metrics_rank_desc(const void *a, const void *b)
+{
+    const metrics_ranked *x = a, *y = b;
+    if (x->key != y->key)
+        return x->key < y->key ? 1 : -1;
+    return x->index < y->index ? -1 : (x->index > y->index);
+}
+
+static int metrics_double_asc(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Nearest rank: the value of rank ceil(p n) (1-based) in ascending order. */
+static double metrics_rank_value(const double *sorted, long n, double p)
+{
+    long rank = (long)ceil(p * (double)n);
+    rank = rank < 1 ? 1 : (rank > n ? n : rank);
+    return sorted[rank - 1];
+}
+
+rc_status metrics_robust(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                         const metrics_robust_options *opt, metrics_robust_result *out, char *err, size_t errlen)
+{
+    if (!out) {
+        status_message(err, errlen, "metrics_robust: result pointer is NULL; pass a metrics_robust_result");
+        return RC_ERR_RANGE;
+    }
+    memset(out, 0, sizeof *out);
+    if (!check_image(ref, "reference", 0, 0, err, errlen) ||
+        !check_image(test, "test", ref->width, ref->height, err, errlen))
+        return RC_ERR_RANGE;
+    if (opt && (!(opt->rel_eps >= 0.0) || !(opt->trim >= 0.0 && opt->trim < 1.0))) {
+        status_message(err, errlen, "metrics_robust: rel_eps %g must be >= 0 and trim %g in [0, 1); 0 = default",
+                       opt->rel_eps, opt->trim);
+        return RC_ERR_RANGE;
+    }
+    double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
+    double trim = opt && opt->trim > 0 ? opt->trim : METRICS_TRIM;
+    size_t np = (size_t)ref->width * (size_t)ref->height;
+    metrics_ranked *rank = malloc(np * sizeof *rank);
+    double *rel = malloc(np * sizeof *rel), *refmean = malloc(np * sizeof *refmean);
+    if (!rank || !rel || !refmean) {
+        free(rank);
+        free(rel);
+        free(refmean);
+        status_message(err, errlen, "metrics_robust: out of memory for %zu pixels", np);
+        return RC_ERR_NOMEM;
+    }
+    long n = 0;
+    double sum_e = 0.0, sum_ref = 0.0;
+    for (size_t i = 0; i < np; i++) {
+        if (mask && !mask[i])
+            continue;
+        double e = 0.0, q = 0.0, a = 0.0;
+        int finite = 1;
+        for (int c = 0; c < 3; c++) {
+            double r = ref->c[c][i], t = test->c[c][i], d = t - r;
+            finite &= isfinite(r) && isfinite(t);
+            e += d * d;
+            q += d * d / (r * r + eps);
+            a += fabs(r);
+        }
+        if (!finite)
+            continue;
+        rank[n] = (metrics_ranked){e, i};
+        rel[n] = sqrt(q / 3.0);
+        refmean[i] = a / 3.0;
+        sum_e += e;
+        sum_ref += a / 3.0;
+        n++;
+    }
+    out->n_pixels = n;
+    if (n > 0) {
+        qsort(rank, (size_t)n, sizeof *rank, metrics_rank_desc);
+        qsort(rel, (size_t)n, sizeof *rel, metrics_double_asc);
+        long k = (long)ceil(trim * (double)n);
+        k = k > n - 1 ? n - 1 : k;
+        double worst_e = 0.0;
+        for (long j = 0; j < k; j++)
+            worst_e += rank[j].key;
+        /* Kept sums by subtraction would cancel when the worst pixels hold nearly everything. */
+        double kept_e = 0.0, kept_ref = 0.0;
+        for (long j = k; j < n; j++) {
+            kept_e += rank[j].key;
+            kept_ref += refmean[rank[j].index];
+        }
+        out->n_trimmed = k;
+        out->nrmse = sum_ref > 0.0 ? sqrt(sum_e / (3.0 * (double)n)) / (sum_ref / (double)n) : 0.0;
+        out->nrmse_trim = kept_ref > 0.0 ? sqrt(kept_e / (3.0 * (double)(n - k))) / (kept_ref / (double)(n - k)) : 0.0;
+        out->worst_share = sum_e > 0.0 ? worst_e / sum_e : 0.0;
+        out->rel_median = metrics_rank_value(rel, n, 0.5);
+        out->rel_p95 = metrics_rank_value(rel, n, 0.95);
+    }
+    free(rank);
+    free(rel);
+    free(refmean);
+    return RC_OK;
+}

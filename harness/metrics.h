@@ -10,6 +10,8 @@
  *   metrics_mask_from_class(w, h, cls, METRICS_PX_INTERIOR, object_id, 3.0f, m);   object 3 only
  *   metrics_compare(&ref, &tst, m, NULL, &res, err, sizeof err);
  *
+ *   metrics_robust(&ref, &tst, m, NULL, &rob, err, sizeof err);       median, p95, trimmed NRMSE, worst 1 %
+ *
  *   metrics_seed_stats(seeds, k, mean, var, err, sizeof err);   reference mean, variance of the mean
  *   metrics_ztest(&mean, &var, &tst, NULL, mask, NULL, &z, err, sizeof err);
  *
@@ -65,6 +67,30 @@ typedef struct {
 
 rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
                           const metrics_options *opt, metrics_result *out, char *err, size_t errlen);
+
+/* ---- robust error: how a figure is spread over the pixels ---- */
+typedef struct {
+    double rel_eps; /* per-pixel relative error denominator r^2 + rel_eps; 0 -> 1e-2 (as metrics_compare) */
+    double trim;    /* share of pixels trimmed as the worst, in (0, 1); 0 -> 0.01 */
+} metrics_robust_options;
+
+typedef struct {
+    long n_pixels;      /* included finite pixels N */
+    long n_trimmed;     /* k = min(ceil(trim N), N - 1) worst pixels by squared error */
+    double nrmse;       /* sqrt(sum e / 3N) / mean_ref: e = sum over R, G, B of (t - r)^2 per pixel,
+                           mean_ref = mean over pixels of (|R| + |G| + |B|) / 3 of the reference */
+    double nrmse_trim;  /* the same over the N - k pixels left after the k worst (their own mean_ref) */
+    double worst_share; /* share of sum e held by the k worst pixels, in [0, 1]; 0 when sum e = 0 */
+    double rel_median;  /* per-pixel relative error q = sqrt(sum_c (t - r)^2 / (r^2 + rel_eps) / 3): */
+    double rel_p95;     /* nearest-rank percentiles, the value of rank ceil(p N) in ascending order */
+} metrics_robust_result;
+
+/* Robust, spread-aware figures of the included finite pixels (NaN/Inf pixels left out, as in
+ * metrics_compare): a headline NRMSE that a handful of pixels carries shows as a large
+ * worst_share and an nrmse_trim far below nrmse. N = 0 gives every figure 0. Ties among equal
+ * errors are broken by pixel index, so the trimmed set is deterministic. */
+rc_status metrics_robust(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                         const metrics_robust_options *opt, metrics_robust_result *out, char *err, size_t errlen);
 
 /* Per-pixel SSIM of one plane pair (w*h each) into map (w*h; 0 where mask excludes the pixel).
  * Windows are truncated at the image border and at excluded pixels, with the remaining

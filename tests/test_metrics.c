@@ -603,6 +603,61 @@ static void test_scan_values(void **state)
     assert_int_equal(sc.first_nonfinite, -1);
 }
 
+/* Robust figures on 7 pixels, worked by hand (rel_eps 1e-12, so q is (t - r)^2 / r^2):
+ *   pixel  ref          test         e = sum_c d^2   rel q               |ref| mean
+ *   0      1 1 1        1 1 1        0               0                   1
+ *   1      2 2 2        2.2 2.2 2.2  0.12            0.1                 2
+ *   2      1 1 1        .5 .5 .5     0.75            0.5                 1
+ *   3      4 4 4        7 7 7        27              0.75                4
+ *   4      1 2 3        1 2 4        1               sqrt(1/27) = 0.192  2
+ *   5      1 1 1        NaN 1 1      left out (non-finite)
+ *   6      1 1 1        100 100 100  left out (mask)
+ * N = 5, sum e = 28.87, mean ref = 10 / 5 = 2: nrmse = sqrt(28.87 / 15) / 2.
+ * k = ceil(0.01 * 5) = 1: pixel 3; worst share 27 / 28.87; kept e 1.87 over 4 pixels of
+ * mean ref 6 / 4: nrmse_trim = sqrt(1.87 / 12) / 1.5.
+ * Sorted q: 0, 0.1, 0.192, 0.5, 0.75: median rank ceil(2.5) = 3 -> sqrt(1/27); p95 rank 5 -> 0.75. */
+static void test_robust_hand(void **state)
+{
+    (void)state;
+    float r[3][7] = {{1, 2, 1, 4, 1, 1, 1}, {1, 2, 1, 4, 2, 1, 1}, {1, 2, 1, 4, 3, 1, 1}};
+    float t[3][7] = {{1, 2.2f, .5f, 7, 1, NAN, 100}, {1, 2.2f, .5f, 7, 2, 1, 100}, {1, 2.2f, .5f, 7, 4, 1, 100}};
+    unsigned char mask[7] = {1, 1, 1, 1, 1, 1, 0};
+    metrics_image ref = {7, 1, {r[0], r[1], r[2]}}, tst = {7, 1, {t[0], t[1], t[2]}};
+    metrics_robust_options o = {.rel_eps = 1e-12};
+    metrics_robust_result res;
+    char err[256];
+    assert_int_equal(metrics_robust(&ref, &tst, mask, &o, &res, err, sizeof err), RC_OK);
+    /* 2.2f and .5f are not exact in float: 1e-6 relative covers their rounding. */
+    assert_int_equal(res.n_pixels, 5);
+    assert_int_equal(res.n_trimmed, 1);
+    assert_float_equal(res.nrmse, sqrt(28.87 / 15.0) / 2.0, 1e-6);
+    assert_float_equal(res.nrmse_trim, sqrt(1.87 / 12.0) / 1.5, 1e-6);
+    assert_float_equal(res.worst_share, 27.0 / 28.87, 1e-6);
+    assert_float_equal(res.rel_median, sqrt(1.0 / 27.0), 1e-6);
+    assert_float_equal(res.rel_p95, 0.75, 1e-6);
+
+    /* trim 0.5: k = ceil(2.5) = 3, pixels 3, 4 and 2 (e 27, 1, 0.75); kept 0 and 1: e 0.12
+     * over 2 pixels of mean ref 3 / 2. */
+    o.trim = 0.5;
+    assert_int_equal(metrics_robust(&ref, &tst, mask, &o, &res, err, sizeof err), RC_OK);
+    assert_int_equal(res.n_trimmed, 3);
+    assert_float_equal(res.worst_share, 28.75 / 28.87, 1e-6);
+    assert_float_equal(res.nrmse_trim, sqrt(0.12 / 6.0) / 1.5, 1e-6);
+
+    /* Identical images: every figure 0; one pixel: nothing to trim. */
+    assert_int_equal(metrics_robust(&ref, &ref, mask, NULL, &res, err, sizeof err), RC_OK);
+    assert_true(res.nrmse == 0.0 && res.worst_share == 0.0 && res.rel_p95 == 0.0 && res.n_trimmed == 1);
+    unsigned char one[7] = {0, 0, 0, 1, 0, 0, 0};
+    assert_int_equal(metrics_robust(&ref, &tst, one, NULL, &res, err, sizeof err), RC_OK);
+    assert_int_equal(res.n_trimmed, 0);
+    assert_float_equal(res.nrmse_trim, res.nrmse, 0.0);
+    assert_float_equal(res.nrmse, 3.0 / 4.0, 1e-7);
+
+    o.trim = 1.0;
+    assert_int_equal(metrics_robust(&ref, &tst, mask, &o, &res, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "trim"));
+}
+
 int main(void)
 {
     snprintf(g_dir, sizeof g_dir, "/tmp/test_metrics_XXXXXX");
@@ -621,6 +676,7 @@ int main(void)
         cmocka_unit_test(test_seed_stats),
         cmocka_unit_test(test_idiff_crosscheck),
         cmocka_unit_test(test_scan_values),
+        cmocka_unit_test(test_robust_hand),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     char cmd[128];

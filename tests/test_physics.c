@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include <glob.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -215,8 +216,10 @@ static void test_cycles_job_follows_physics(void **state)
 
 enum { W = 8, H = 4, NP = W * H };
 
-/* A job record (with `physics` when not NULL) and a flat, fully covered image of value v. */
-static void put_job(const char *run, const char *name, int r, comparison_role role, const char *physics_text, float v)
+/* A job record (with `physics` when not NULL) and a flat, fully covered image of value v with
+ * diffuse and specular layers dif and spec, and pixel `odd` (-1: none) set to odd_v. */
+static void put_job_layers(const char *run, const char *name, int r, comparison_role role, const char *physics_text,
+                           float v, float dif, float spec, int odd, float odd_v)
 {
     char sd[600], path[1024], err[512];
     snprintf(sd, sizeof sd, "%s/%s", run, name);
@@ -235,17 +238,26 @@ static void put_job(const char *run, const char *name, int r, comparison_role ro
     assert_int_equal(fclose(f), 0);
     free(txt);
     cJSON_Delete(o);
-    static float rgb[NP], cov[NP], obj[NP], var[NP];
+    static float rgb[NP], cov[NP], obj[NP], var[NP], dl[NP], sl[NP];
     for (int i = 0; i < NP; i++) {
-        rgb[i] = v;
+        rgb[i] = i == odd ? odd_v : v;
         cov[i] = 1.0f;
         obj[i] = 0.0f;
         var[i] = 1e-4f;
+        dl[i] = dif;
+        sl[i] = spec;
     }
-    exr_channel ch[8] = {{"R", rgb},      {"G", rgb},     {"B", rgb},     {"coverage", cov},
-                         {"object", obj}, {"var.R", var}, {"var.G", var}, {"var.B", var}};
+    exr_channel ch[14] = {{"R", rgb},         {"G", rgb},        {"B", rgb},        {"coverage", cov},
+                          {"object", obj},    {"var.R", var},    {"var.G", var},    {"var.B", var},
+                          {"diffuse.R", dl},  {"diffuse.G", dl}, {"diffuse.B", dl}, {"specular.R", sl},
+                          {"specular.G", sl}, {"specular.B", sl}};
     job_output_path(run, name, r, role, "exr", path, sizeof path);
-    assert_int_equal(exr_write(path, W, H, ch, 8, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(exr_write(path, W, H, ch, 14, NULL, 0, err, sizeof err), RC_OK);
+}
+
+static void put_job(const char *run, const char *name, int r, comparison_role role, const char *physics_text, float v)
+{
+    put_job_layers(run, name, r, role, physics_text, v, v, 0.0f, -1, 0.0f);
 }
 
 static const cJSON *comparison_at(const cJSON *j, int i)
@@ -325,6 +337,71 @@ static void test_compare_holds_records_to_the_physics(void **state)
     cJSON_Delete(j);
 }
 
+static double jnum(const cJSON *o, const char *key)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (!cJSON_IsNumber(v))
+        fail_msg("%s is not a number", key);
+    return v->valuedouble;
+}
+
+/* The robust figures and the error by term in compare.json, and thresholds on them. 32
+ * surface pixels of 0.5 on both sides but one raster pixel at 1.5: sum e = 3 (1 per channel),
+ * nrmse = sqrt(3 / 96) / 0.5; k = ceil(0.32) = 1 trims that pixel: nrmse_trim1 = 0, its share
+ * of the squared error 1; per-pixel relative errors are 31 zeros and 2 (1 / 0.5), so the
+ * median and the 95th percentile (rank ceil(30.4) = 31) are 0. Terms: raster diffuse 0.3 and
+ * specular 0.2, Cycles 0.2 and 0.3: each nrmse 0.1 / 0.5 (the whole reference's mean). */
+static void test_compare_robust_and_terms(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048], path[1024];
+    snprintf(scn, sizeof scn, "%s/rb.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-rb", dir);
+    FILE *f = fopen(scn, "w");
+    assert_non_null(f);
+    fputs("name: rb\nimage: {width: 8, height: 4}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+          "materials:\n  m: {roughness: 0}\n"
+          "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+          "comparisons:\n"
+          "  - reference: cycles\n    role: validate\n    thresholds:\n"
+          "      nrmse_trim1: {warn: 0.01, fail: 0.02, why: \"t\"}\n"
+          "      diffuse.nrmse: {warn: 0.3, fail: 0.4, why: \"t\"}\n"
+          "      glossy.nrmse: {warn: 0.1, fail: 0.15, why: \"the glossy term\"}\n",
+          f);
+    assert_int_equal(fclose(f), 0);
+    scene *s = malloc(sizeof *s);
+    char want[400];
+    assert_non_null(s);
+    assert_int_equal(scene_file_load(scn, s, err, sizeof err), RC_OK);
+    physics_describe(&s->physics, s->n_lights, want, sizeof want);
+    free(s);
+    put_job_layers(run, "rb", registry_find("raster"), ROLE_VALIDATE, NULL, 0.5f, 0.3f, 0.2f, 5, 1.5f);
+    put_job_layers(run, "rb", registry_find("cycles"), ROLE_VALIDATE, want, 0.5f, 0.2f, 0.3f, -1, 0.0f);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+    snprintf(path, sizeof path, "%s/rb/compare.json", run);
+    cJSON *j = read_json(path);
+    const cJSON *c = comparison_at(j, 0);
+    const cJSON *surf = cJSON_GetObjectItem(cJSON_GetObjectItem(c, "regions"), "surface");
+    assert_int_equal((int)jnum(surf, "n_pixels"), 32);
+    assert_float_equal(jnum(surf, "nrmse"), sqrt(3.0 / 96.0) / 0.5, 1e-9);
+    assert_float_equal(jnum(surf, "nrmse_trim1"), 0.0, 0.0);
+    assert_float_equal(jnum(surf, "worst1_share"), 1.0, 1e-12);
+    assert_float_equal(jnum(surf, "rel_median"), 0.0, 0.0);
+    assert_float_equal(jnum(surf, "rel_p95"), 0.0, 0.0);
+    assert_int_equal((int)jnum(surf, "trim1_n"), 1);
+    const cJSON *terms = cJSON_GetObjectItem(c, "terms");
+    const cJSON *d = cJSON_GetObjectItem(terms, "diffuse"), *g = cJSON_GetObjectItem(terms, "glossy");
+    /* Float layers: 0.3f and 0.2f hold 1e-7 relative rounding. */
+    assert_float_equal(jnum(d, "test_mean"), 0.3, 1e-7);
+    assert_float_equal(jnum(d, "ref_mean"), 0.2, 1e-7);
+    assert_float_equal(jnum(d, "nrmse"), 0.2, 1e-6);
+    assert_float_equal(jnum(g, "nrmse"), 0.2, 1e-6);
+    assert_null(cJSON_GetObjectItem(terms, "specular")); /* validate: glossy, not the model's split */
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_non_null(strstr(err, "glossy.nrmse"));
+    cJSON_Delete(j);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -348,6 +425,7 @@ int main(void)
         cmocka_unit_test(test_refusals_name_fields),
         cmocka_unit_test(test_cycles_job_follows_physics),
         cmocka_unit_test(test_compare_holds_records_to_the_physics),
+        cmocka_unit_test(test_compare_robust_and_terms),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
