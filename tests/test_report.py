@@ -656,3 +656,36 @@ def test_partial_twin_terms_shown(tmp_path):
         r'<span class="mono">specular</span> \(cycles: Cycles has no Blinn-Phong lobe\)',
         page,
     )
+
+
+def test_physics_robust_and_terms_shown(tmp_path):
+    """A validate's physics manifest, its robust figures and its error by term reach the index,
+    the scene page, summary.json and summary.csv."""
+    run = make_run(str(tmp_path), RUN1)
+    cpath = os.path.join(run, 'alpha', 'compare.json')
+    comp = json.loads(read(cpath))
+    c = comp['comparisons'][1]
+    physics = 'diffuse_lights=all specular_lights=all env_diffuse=0 env_specular=1 bounces=1'
+    c['physics'] = physics
+    c['regions']['surface'].update({'nrmse': 0.75, 'nrmse_trim1': 0.25, 'worst1_share': 0.875, 'rel_median': 0.0625})
+    c['terms'] = {'diffuse': {'test_mean': 0.032, 'ref_mean': 0.06, 'nrmse': 0.5, 'n_pixels': 10}}
+    with open(cpath, 'w', encoding='utf-8') as f:
+        json.dump(comp, f)
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    page = read(os.path.join(run, 'scene-alpha.html'))
+    assert f'<span class="mono physics">{physics}</span>' in page
+    assert re.search(r'<td class="dim">term</td><td>diffuse</td>', page)
+    index = read(os.path.join(run, 'index.html'))
+    assert f'title="physics: {physics}"' in index
+    assert '87.5%' in index  # worst 1 % share
+    summ = json.loads(read(os.path.join(run, 'summary.json')))
+    got = summ['scenes'][0]['comparisons'][1]
+    assert got['physics'] == physics and got['terms'] == c['terms']
+    assert got['regions']['surface']['nrmse_trim1'] == 0.25
+    with open(os.path.join(run, 'summary.csv'), encoding='utf-8') as f:
+        rows = list(csv.DictReader(f))
+    mine = [x for x in rows if x['comparison'] == c['id']]
+    assert any(x['group'] == 'term' and x['name'] == 'diffuse' and x['metric'] == 'ref_mean' for x in mine)
+    assert any(x['metric'] == 'physics' and x['value'] == physics for x in mine)
+    assert any(x['metric'] == 'worst1_share' and float(x['value']) == 0.875 for x in mine)

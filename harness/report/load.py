@@ -89,6 +89,7 @@ def norm_comparison(c, path, problems, scene, index):
             'reason': f'{os.path.basename(path)}: comparisons[{index}] is not an object',
             'regions': {},
             'aovs': {},
+            'terms': {},
             'thresholds': [],
             'times': {},
         }
@@ -99,17 +100,17 @@ def norm_comparison(c, path, problems, scene, index):
         problems.add(path, f'comparison {out["id"]}: unknown status "{status}" (pass|warn|fail|skipped|error)', scene)
         status = 'error'
     out['status'] = status
-    for key in ('regions', 'aovs', 'times', 'noise'):
+    for key in ('regions', 'aovs', 'terms', 'times', 'noise'):
         if not isinstance(out.get(key), dict):
             out[key] = {}
-    for key in ('regions', 'aovs'):
+    for key in ('regions', 'aovs', 'terms'):
         out[key] = {k: v for k, v in out[key].items() if isinstance(v, dict)}
     th = out.get('thresholds')
     out['thresholds'] = [t for t in th if isinstance(t, dict) and 'metric' in t] if isinstance(th, list) else []
     for key in ('angle_bins', 'angle_bins_ndotl'):
         b = out.get(key)
         out[key] = [x for x in b if isinstance(x, dict)] if isinstance(b, list) else []
-    for key in ('role', 'test', 'reference', 'reason'):
+    for key in ('role', 'test', 'reference', 'reason', 'physics'):
         out[key] = '' if out.get(key) is None else str(out[key])
     return out
 
@@ -159,6 +160,7 @@ def load_scene(run, name, problems):
                 'reason': f'{name}/compare.json {why}: no comparison could be read',
                 'regions': {},
                 'aovs': {},
+                'terms': {},
                 'thresholds': [],
                 'times': {},
                 'noise': {},
@@ -344,6 +346,10 @@ def flat_metrics(c):
         for k, v in ms.items():
             if is_num(v):
                 out[f'aov.{aov}.{k}'] = v
+    for term, ms in c.get('terms', {}).items():
+        for k, v in ms.items():
+            if is_num(v):
+                out[f'term.{term}.{k}'] = v
     if is_num(c.get('coverage_agreement')):
         out['coverage_agreement'] = c['coverage_agreement']
     noise = c.get('noise') or {}

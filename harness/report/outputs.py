@@ -22,8 +22,10 @@ def summary_object(R):
                     'role',
                     'status',
                     'reason',
+                    'physics',
                     'regions',
                     'aovs',
+                    'terms',
                     'coverage_agreement',
                     'noise',
                     'thresholds',
@@ -132,6 +134,11 @@ def summary_csv(R):
         for aov, ms in c['aovs'].items():
             for k, v in ms.items():
                 row('aov', aov, k, v)
+        for term, ms in c.get('terms', {}).items():
+            for k, v in ms.items():
+                row('term', term, k, v)
+        if c.get('physics'):
+            row('comparison', 'all', 'physics', c['physics'])
         if c.get('coverage_agreement') is not None:
             row('comparison', 'all', 'coverage_agreement', c['coverage_agreement'])
         noise = c.get('noise') or {}

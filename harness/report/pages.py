@@ -317,6 +317,7 @@ def index_html(R, trends, timing_plots, history_note):
 def metric_table(c):
     """(groups, keys): one row per region, AOV and object; one column per figure."""
     groups = [('region', k, v) for k, v in c['regions'].items()] + [('aov', k, v) for k, v in c['aovs'].items()]
+    groups += [('term', k, v) for k, v in c.get('terms', {}).items()]
     objs = c.get('objects') if isinstance(c.get('objects'), list) else []
     groups += [
         (
