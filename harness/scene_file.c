@@ -19,6 +19,7 @@
 
 #include "fileio.h"
 #include "formula.h"
+#include "mesh.h"
 #include "scene_file.h"
 
 /* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
@@ -707,15 +708,17 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
 
 enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_COUNT };
 
-static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given)
+static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
+                        yaml_node_t **normalize_node)
 {
-    static const char *const keys[] = {"ambient", "diffuse",      "specular",   "emissive",
-                                       "power",   "local_viewer", "per_vertex", "clamp"};
-    sf_kv f[8];
+    static const char *const keys[] = {"ambient",      "diffuse",    "specular", "emissive",         "power",
+                                       "local_viewer", "per_vertex", "clamp",    "normalize_normals"};
+    sf_kv f[9];
     char child[SF_PATHLEN];
     rc_status rc;
-    if ((rc = sf_map(c, n, path, keys, 8, f)))
+    if ((rc = sf_map(c, n, path, keys, 9, f)))
         return rc;
+    *normalize_node = f[8].v;
     vec3 *col[4] = {&d->ambient, &d->diffuse, &d->specular, &d->emissive};
     for (int i = 0; i < 4; i++) {
         sf_child(child, path, keys[i]);
@@ -726,8 +729,8 @@ static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params 
     sf_child(child, path, "power");
     if (f[4].v && (rc = sf_float(c, f[4].v, child, 0.0, INFINITY, 0, "a finite exponent >= 0", &d->power)))
         return rc;
-    int *flag[3] = {&d->local_viewer, &d->per_vertex, &d->clamp};
-    for (int i = 0; i < 3; i++) {
+    int *flag[4] = {&d->local_viewer, &d->per_vertex, &d->clamp, &d->normalize_normals};
+    for (int i = 0; i < 4; i++) {
         sf_child(child, path, keys[5 + i]);
         if (f[5 + i].v && (rc = sf_bool(c, f[5 + i].v, child, flag[i])))
             return rc;
@@ -867,8 +870,18 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         m->model = (model_kind)e;
     }
-    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given)))
+    yaml_node_t *normalize_node = NULL;
+    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, &normalize_node)))
         return rc;
+    /* D3DRS_NORMALIZENORMALS is fixed-function state: the D3D9Client and Cook-Torrance models
+     * are shaders, which take the normal they are given (unit here). */
+    if (!m->d3d.normalize_normals && m->model != MODEL_D3D) {
+        sf_child(sub, path, "d3d");
+        sf_child(child, sub, "normalize_normals");
+        return sf_fail(c, RC_ERR_RANGE, normalize_node, child,
+                       "false applies to the fixed-function model d3d only (D3DRS_NORMALIZENORMALS); "
+                       "allowed: true, or model: d3d");
+    }
     if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
         return rc;
     if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
@@ -924,22 +937,52 @@ static rc_status sf_materials(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { OK_SHAPE, OK_CENTER, OK_ROTATE, OK_RADIUS, OK_MAJOR, OK_SIZE, OK_TESS, OK_PATH, OK_MATERIAL, OK_COUNT };
+enum {
+    OK_SHAPE,
+    OK_CENTER,
+    OK_ROTATE,
+    OK_SCALE,
+    OK_RADIUS,
+    OK_MAJOR,
+    OK_SIZE,
+    OK_TESS,
+    OK_PATH,
+    OK_MATERIAL,
+    OK_COUNT
+};
+
+/* `scale: k` or `scale: [sx, sy, sz]`, each in [MESH_SCALE_MIN, MESH_SCALE_MAX]. */
+static rc_status sf_object_scale(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    static const char allowed[] = "a number or [sx, sy, sz], each in [1e-06, 1e+06] (no mirroring)";
+    if (n->type == YAML_SEQUENCE_NODE) {
+        float k[3];
+        rc_status rc = sf_floats(c, n, path, 3, MESH_SCALE_MIN, MESH_SCALE_MAX, 0, allowed, k);
+        if (rc == RC_OK)
+            *out = v3(k[0], k[1], k[2]);
+        return rc;
+    }
+    float k;
+    rc_status rc = sf_float(c, n, path, MESH_SCALE_MIN, MESH_SCALE_MAX, 0, allowed, &k);
+    if (rc == RC_OK)
+        *out = v3s(k);
+    return rc;
+}
 
 static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
 {
-    static const char *const keys[OK_COUNT] = {"shape", "center",       "rotate", "radius",  "major",
-                                               "size",  "tessellation", "path",   "material"};
+    static const char *const keys[OK_COUNT] = {"shape", "center", "rotate",       "scale", "radius",
+                                               "major", "size",   "tessellation", "path",  "material"};
     static const char *const shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
     static const char *const mesh_exts[] = {".obj", ".ply"};
     /* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
     static const unsigned char use[5][OK_COUNT] = {
-        /*          shape center rotate radius major size tess path material */
-        /* sphere */ {2, 1, 1, 2, 0, 0, 1, 0, 2},
-        /* quad   */ {2, 1, 1, 0, 0, 2, 0, 0, 2},
-        /* box    */ {2, 1, 1, 1, 0, 2, 1, 0, 2},
-        /* torus  */ {2, 1, 1, 2, 2, 0, 1, 0, 2},
-        /* mesh   */ {2, 1, 1, 0, 0, 0, 0, 2, 2},
+        /*          shape center rotate scale radius major size tess path material */
+        /* sphere */ {2, 1, 1, 1, 2, 0, 0, 1, 0, 2},
+        /* quad   */ {2, 1, 1, 1, 0, 0, 2, 0, 0, 2},
+        /* box    */ {2, 1, 1, 1, 1, 0, 2, 1, 0, 2},
+        /* torus  */ {2, 1, 1, 1, 2, 2, 0, 1, 0, 2},
+        /* mesh   */ {2, 1, 1, 1, 0, 0, 0, 0, 2, 2},
     };
     /* Tessellation limits: a sphere needs 2 rings (segments/2), a torus tube 3 segments. */
     static const int tess_lo[5] = {4, 0, 1, 3, 0}, tess_hi[5] = {1024, 0, 256, 1024, 0};
@@ -982,6 +1025,8 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
             return rc;
         o->rotate = v3_scale(v3(r[0], r[1], r[2]), (float)(FORMULA_PI_D / 180.0));
     }
+    if (f[OK_SCALE].v && (rc = sf_object_scale(c, f[OK_SCALE].v, SF_CHILD("scale"), &o->scale)))
+        return rc;
     if (f[OK_MAJOR].v && (rc = sf_float(c, f[OK_MAJOR].v, SF_CHILD("major"), 0.0, INFINITY, SF_LO_OPEN,
                                         "a finite ring radius > 0 [m]", &o->major)))
         return rc;

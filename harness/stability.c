@@ -24,6 +24,7 @@
 #include "fresnel.h"
 #include "jsonio.h"
 #include "microfacet.h"
+#include "mesh.h"
 #include "scene.h"
 #include "shade.h"
 
@@ -1156,6 +1157,105 @@ static void sweep_shade(sweep *s)
     free(sc);
 }
 
+/* D3DRS_NORMALIZENORMALS off under scale (seed 003), the stiff case of scaled meshes: an object
+ * scaled by 10 (D3D's normal a tenth long: N.L and N.H shrink) and by 0.1 (ten times long: both
+ * pass 1 and D3D's clamp to [0, 1] must hold them). Each scale also varies per axis by up to
+ * 2x and the rotation is random, so the length 1/|S R^T n| (mesh_normal_length_of, float) is
+ * checked against its long double value, and the D3D shading (scalar and SIMD lane) on that
+ * float normal against the long double model on the same input. */
+static void sweep_unnormalised(sweep *s)
+{
+    static const struct {
+        const char *name;
+        double scale;
+    } sc_case[] = {{"normalize_normals false, scale 10", 10.0}, {"normalize_normals false, scale 0.1", 0.1}};
+    static const char *tname[4] = {"diffuse", "specular", "reflection", "emission"};
+    int n = s->n;
+    scene *sc = malloc(sizeof *sc);
+    if (!sc)
+        abort();
+    for (size_t k = 0; k < sizeof sc_case / sizeof *sc_case; k++) {
+        stability_row *lrow = row_begin(s, "mesh_normal_length_of", sc_case[k].name, STABILITY_ROUNDING, 24);
+        stability_row *row = row_begin(s, "shade_eval[d3d]", sc_case[k].name, STABILITY_ROUNDING, 24);
+        stability_row *brow = row_begin(s, "shade_eval_n[d3d]", sc_case[k].name, STABILITY_ROUNDING, 24);
+        for (int i = 0; i < n; i++) {
+            scene_init(sc);
+            sc->camera.eye = v3(0.3f, 1.7f, 4.1f);
+            sc->global_ambient = v3(0.05f, 0.04f, 0.03f);
+            material *m = &sc->materials[0];
+            shade_material(0, m);
+            m->d3d.normalize_normals = 0;
+            m->d3d.power = (float)rng_log(&s->r, 1.0, 1e4);
+            sc->n_materials = 1;
+            object *o = &sc->objects[0];
+            o->scale = v3((float)(sc_case[k].scale * rng_log(&s->r, 0.5, 2.0)),
+                          (float)(sc_case[k].scale * rng_log(&s->r, 0.5, 2.0)),
+                          (float)(sc_case[k].scale * rng_log(&s->r, 0.5, 2.0)));
+            o->rotate = v3((float)rng_range(&s->r, -3.2, 3.2), (float)rng_range(&s->r, -3.2, 3.2),
+                           (float)rng_range(&s->r, -3.2, 3.2));
+            sc->n_objects = 1;
+            sc->n_lights = 1;
+            light *l = &sc->lights[0];
+            l->kind = (light_kind)(i % 3);
+            l->intensity = v3(10.0f, 8.0f, 6.0f);
+            l->ambient = v3(0.1f, 0.1f, 0.1f);
+            vec3 x = v3((float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1), (float)rng_range(&s->r, -1, 1));
+            /* A unit world normal in any direction, the viewer on its side (as the shading loop
+             * turns it), the light anywhere around. */
+            vec3 ax = rng_dir_upper(&s->r, -1.0, 1.0), v = rng_dir_upper(&s->r, -1.0, 1.0);
+            if (v3_dot(ax, v) < 0.0f)
+                v = v3_neg(v);
+            vec3 ldir = rng_dir_upper(&s->r, -1.0, 1.0);
+            l->position = v3_add(x, v3_scale(ldir, (float)rng_log(&s->r, 0.1, 10.0)));
+            l->direction = v3_neg(ldir);
+            l->inner = 1.0f;
+            l->outer = 2.0f;
+
+            mesh_normal_length nl;
+            mesh_normal_length_make(o, &nl);
+            float len = mesh_normal_length_of(&nl, ax);
+            /* Long double: 1/|S R^T n| with R from the same Euler angles (Rz Ry Rx). */
+            ld cx = cosl(o->rotate.x), sx = sinl(o->rotate.x), cy = cosl(o->rotate.y), sy = sinl(o->rotate.y);
+            ld cz = cosl(o->rotate.z), sz = sinl(o->rotate.z);
+            ld r[3][3] = {{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
+                          {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
+                          {-sy, cy * sx, cy * cx}};
+            ld3 a = l3_from(ax);
+            ld rt[3] = {r[0][0] * a.x + r[1][0] * a.y + r[2][0] * a.z, r[0][1] * a.x + r[1][1] * a.y + r[2][1] * a.z,
+                        r[0][2] * a.x + r[1][2] * a.y + r[2][2] * a.z};
+            ld3 srt = l3(o->scale.x * rt[0], o->scale.y * rt[1], o->scale.z * rt[2]);
+            ADD(lrow, len, 1 / l3_len(srt), "scale=(%.4g,%.4g,%.4g)", o->scale.x, o->scale.y, o->scale.z);
+
+            vec3 nn = v3_scale(ax, len);
+            shade_context ctx;
+            shade_context_make(sc, NULL, &ctx);
+            shade_plan plan;
+            shade_plan_make(&ctx, m, &plan);
+            shade_terms t[2];
+            shade_eval(&ctx, &plan, x, nn, v, &t[0]);
+            shade_eval_one_lane(&ctx, &plan, x, nn, v, &t[1]);
+            ref_terms e;
+            ref_shade(sc, v3s(0.0f), m, x, nn, v, &e);
+            const ld3 ev[4] = {e.diffuse, e.specular, e.reflection, e.emission};
+            for (int b = 0; b < 2; b++) {
+                stability_row *rw = b ? brow : row;
+                const vec3 gv[4] = {t[b].diffuse, t[b].specular, t[b].reflection, t[b].emission};
+                for (int j = 0; j < 4; j++) {
+                    const float g3[3] = {gv[j].x, gv[j].y, gv[j].z};
+                    const ld w3[3] = {ev[j].x, ev[j].y, ev[j].z};
+                    for (int c = 0; c < 3; c++)
+                        ADD(rw, g3[c], w3[c], "%s.%c |N|=%.6g N.L=%.6g P=%.6g light %d", tname[j], "rgb"[c], v3_len(nn),
+                            v3_dot(nn, ldir), m -> d3d.power, (int)l->kind);
+                }
+            }
+        }
+        row_end(lrow);
+        row_end(row);
+        row_end(brow);
+    }
+    free(sc);
+}
+
 /* -------------------------------------------------------------------- physics checks */
 
 /* Largest decrease, in ulps of the result's precision, of f over increasing angle. Near
@@ -1441,6 +1541,7 @@ rc_status stability_run(const stability_options *o, stability_table *out)
     sweep_d3d9client(&s);
     sweep_cooktorrance(&s);
     sweep_shade(&s);
+    sweep_unnormalised(&s);
     check_physics(&s, d.albedo_grid);
     memcpy(out, t, sizeof *t);
     free(t);

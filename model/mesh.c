@@ -32,6 +32,7 @@
 typedef struct {
     double r[3][3];
     dvec3 t;
+    dvec3 s, inv_s; /* the object's scale and its reciprocal (normals: the inverse transpose) */
 } mesh_xform;
 
 static mesh_xform mesh_make_xform(const object *o)
@@ -43,7 +44,9 @@ static mesh_xform mesh_make_xform(const object *o)
     mesh_xform x = {{{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
                      {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
                      {-sy, cy * sx, cy * cx}},
-                    dv3_from(o->center)};
+                    dv3_from(o->center),
+                    dv3_from(o->scale),
+                    dv3(1.0 / (double)o->scale.x, 1.0 / (double)o->scale.y, 1.0 / (double)o->scale.z)};
     return x;
 }
 
@@ -101,8 +104,10 @@ typedef struct {
 static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
 {
     mesh *m = b->m;
-    m->pos[m->n_verts] = v3_from_d(dv3_add(mesh_rotate(&b->x, p), b->x.t));
-    m->nrm[m->n_verts] = v3_from_d(dv3_norm(mesh_rotate(&b->x, n)));
+    /* Scale, then rotate, then translate; a normal goes through the inverse transpose of the
+     * linear part, (R S)^-T = R S^-1, and is renormalised. */
+    m->pos[m->n_verts] = v3_from_d(dv3_add(mesh_rotate(&b->x, dv3_mul(p, b->x.s)), b->x.t));
+    m->nrm[m->n_verts] = v3_from_d(dv3_norm(mesh_rotate(&b->x, dv3_mul(n, b->x.inv_s))));
     return (uint32_t)m->n_verts++;
 }
 
@@ -1220,6 +1225,8 @@ static const char *mesh_shape_name(shape_kind k)
     return (unsigned)k < 5 ? n[k] : "?";
 }
 
+static int mesh_scale_ok(float k) { return k >= MESH_SCALE_MIN && k <= MESH_SCALE_MAX; }
+
 /* Geometry the scene file already validates; checked again for scenes built in code. */
 static int mesh_valid(const object *o, char *why, size_t whylen)
 {
@@ -1228,6 +1235,8 @@ static int mesh_valid(const object *o, char *why, size_t whylen)
     if (!(fabsf(o->center.x) < big && fabsf(o->center.y) < big && fabsf(o->center.z) < big) ||
         !(isfinite(o->rotate.x) && isfinite(o->rotate.y) && isfinite(o->rotate.z)))
         return snprintf(why, whylen, "center and rotate must be finite"), 0;
+    if (!(mesh_scale_ok(o->scale.x) && mesh_scale_ok(o->scale.y) && mesh_scale_ok(o->scale.z)))
+        return snprintf(why, whylen, "scale must be in [%g, %g] per axis", MESH_SCALE_MIN, MESH_SCALE_MAX), 0;
     switch (o->shape) {
     case SHAPE_SPHERE:
         if (!(o->radius > 0 && o->radius < big) || o->tessellation < 4 || o->tessellation > 1024)
@@ -1366,4 +1375,26 @@ int mesh_repair_note(const scene *s, const mesh *m, char *buf, size_t len)
         n++;
     }
     return n;
+}
+
+void mesh_normal_length_make(const object *o, mesh_normal_length *out)
+{
+    mesh_xform x = mesh_make_xform(o);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            out->a[i][j] = (float)((i == 0 ? x.s.x : i == 1 ? x.s.y : x.s.z) * x.r[j][i]);
+    out->unit = o->scale.x == 1.0f && o->scale.y == 1.0f && o->scale.z == 1.0f;
+}
+
+int mesh_material_unnormalised(const scene *s, int mi)
+{
+    const material *m = &s->materials[mi];
+    if (m->model != MODEL_D3D || m->d3d.normalize_normals)
+        return 0;
+    for (int i = 0; i < s->n_objects; i++) {
+        const object *o = &s->objects[i];
+        if (o->material == mi && !(o->scale.x == 1.0f && o->scale.y == 1.0f && o->scale.z == 1.0f))
+            return 1;
+    }
+    return 0;
 }

@@ -19,6 +19,7 @@
 #ifndef REFLCHECK_MESH_H
 #define REFLCHECK_MESH_H
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include "scene.h"
@@ -36,6 +37,39 @@ typedef struct {
      * normal was recomputed from the faces. */
     int dropped[SCENE_MAX_OBJECTS], recomputed[SCENE_MAX_OBJECTS];
 } mesh;
+
+/* Object scale limits per axis. A bound on scene scale, not a precision limit: a million either
+ * way takes a metre-sized mesh from micrometre detail to a thousand kilometres; zero, negative
+ * (a mirror, which would flip the winding), NaN and Inf are refused. */
+#define MESH_SCALE_MIN 1e-6
+#define MESH_SCALE_MAX 1e6
+
+/* D3DRS_NORMALIZENORMALS off (material d3d.normalize_normals = 0): Direct3D transforms an
+ * object's unit normal n_o by the inverse transpose of the world matrix, (R S)^-T = R S^-1, and
+ * uses it unnormalised. The mesh holds the unit world normal n, the direction of R S^-1 n_o;
+ * the length D3D's normal has there is 1/|S R^T n|. Usage:
+ *   mesh_normal_length L; mesh_normal_length_make(&obj, &L);
+ *   vec3 n_d3d = v3_scale(n, mesh_normal_length_of(&L, n));
+ * An unscaled object gives exactly 1. */
+typedef struct {
+    float a[3][3]; /* S R^T */
+    int unit;      /* scale (1, 1, 1): the length is 1 */
+} mesh_normal_length;
+void mesh_normal_length_make(const object *o, mesh_normal_length *out);
+/* Whether material mi's D3D lighting sees normals that are not unit: model d3d with
+ * normalize_normals off on an object whose scale is not (1, 1, 1). No reference renderer
+ * represents that (they all normalise); the translators refuse it for a twin. */
+int mesh_material_unnormalised(const scene *s, int mi);
+static inline float mesh_normal_length_of(const mesh_normal_length *l, vec3 n)
+{
+    if (l->unit)
+        return 1.0f;
+    float x = l->a[0][0] * n.x + l->a[0][1] * n.y + l->a[0][2] * n.z;
+    float y = l->a[1][0] * n.x + l->a[1][1] * n.y + l->a[1][2] * n.z;
+    float z = l->a[2][0] * n.x + l->a[2][1] * n.y + l->a[2][2] * n.z;
+    /* |S R^T n| >= MESH_SCALE_MIN for a unit n: no division by zero. */
+    return 1.0f / sqrtf(x * x + y * y + z * z);
+}
 
 rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen);
 /* One object, appended to out, in world space. */

@@ -113,6 +113,9 @@ typedef struct {
     const shade_plan *plans;         /* one per object */
     const shade_terms *vertex_terms; /* Gouraud: per vertex, NULL where per-pixel */
     const unsigned char *per_vertex; /* per object */
+    /* Per object, D3DRS_NORMALIZENORMALS off: the length D3D's normal has (mesh.h), NULL where
+     * the normal stays unit. */
+    const mesh_normal_length *const *normal_length;
     render_image *out;
     long long *shaded;       /* per worker */
     render_scratch *scratch; /* per worker */
@@ -153,7 +156,7 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
  * face normal, the only direction left) and the unit direction to the viewer. */
 SMATH_CLONES
 static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n,
-                               shade_batch_in *restrict in)
+                               const mesh_normal_length *len, shade_batch_in *restrict in)
 {
     /* Vertex arrays as flat floats (vec3 is three packed floats): a gather takes an element
      * index times 4 bytes, not a 12-byte struct stride. */
@@ -176,6 +179,11 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         nn = v3_norm(v3_dot(nn, nn) < 1e-12f ? face : nn);
         vec3 v = v3_norm(v3_sub(eye, x));
         nn = v3_dot(nn, v) < 0.0f ? v3_neg(nn) : nn;
+        /* D3DRS_NORMALIZENORMALS off, per pixel: the unit normal at the sample scaled to the
+         * length D3D's vertex stage would give a vertex with that normal (1/|S R^T n|). The D3D
+         * lanes take any length: N.L and N.H are clamped to [0, 1] as the seed says. */
+        if (len != NULL)
+            nn = v3_scale(nn, mesh_normal_length_of(len, nn));
         shade_batch_set_input(in, i, x, nn, v);
     }
 }
@@ -194,7 +202,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b2[i] = qu->b2[n - 1];
     }
     double t0 = render_clock(w);
-    render_interpolate(j->m, j->cam->eye, qu, w->in.n, &w->in);
+    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], &w->in);
     double t1 = render_clock(w);
     shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
     double t2 = render_clock(w);
@@ -204,6 +212,8 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
         if (qu->slot[i] % w->per_px == w->centre) {
             vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
+            if (j->normal_length[obj] != NULL)
+                nn = v3_norm(nn); /* the angle channels are cosines */
             int px = qu->slot[i] / w->per_px;
             w->centre_nv[px] = v3_dot(nn, shade_lane_get(&w->in.v, i));
             w->centre_nl[px] = 0.0f;
@@ -498,6 +508,8 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     shade_context_make(s, env, &j.sc);
 
     shade_plan plans[SCENE_MAX_OBJECTS];
+    mesh_normal_length lengths[SCENE_MAX_OBJECTS];
+    const mesh_normal_length *normal_length[SCENE_MAX_OBJECTS];
     unsigned char per_vertex[SCENE_MAX_OBJECTS] = {0};
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
@@ -510,9 +522,15 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
             shade_plan_make(&j.sc, mat, &plans[i]);
         /* Gouraud belongs to the D3D model; a caller's plan is another model, shaded per sample. */
         per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
+        normal_length[i] = NULL;
+        if (opt->plans == NULL && mat->model == MODEL_D3D && !mat->d3d.normalize_normals) {
+            mesh_normal_length_make(&s->objects[i], &lengths[i]);
+            normal_length[i] = &lengths[i];
+        }
         any_per_vertex |= per_vertex[i];
     }
     j.plans = plans;
+    j.normal_length = normal_length;
     j.per_vertex = per_vertex;
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
@@ -550,6 +568,9 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                 vec3 n = m->nrm[vi];
                 if (v3_dot(n, v) < 0.0f)
                     n = v3_neg(n);
+                /* D3D per vertex with NORMALIZENORMALS off: exactly its unnormalised normal. */
+                if (normal_length[obj] != NULL)
+                    n = v3_scale(n, mesh_normal_length_of(normal_length[obj], n));
                 shade_eval(&j.sc, &plans[obj], x, n, v, &vt[vi]);
             }
         }

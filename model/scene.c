@@ -40,6 +40,7 @@ void material_init(material *m)
 
     m->d3d.diffuse = m->albedo;
     m->d3d.local_viewer = 1;
+    m->d3d.normalize_normals = 1;
 
     float r = (1.0f - m->ior) / (1.0f + m->ior);
     m->d9.p = 3.0f;
@@ -65,6 +66,7 @@ void object_init(object *o)
     o->radius = 0.5f;
     o->major = 1.0f;
     o->size = v3s(1.0f);
+    o->scale = v3s(1.0f);
     o->tessellation = 32;
 }
 

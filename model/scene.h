@@ -61,6 +61,10 @@ typedef struct {
     int local_viewer; /* D3DRS_LOCALVIEWER, default 1 */
     int per_vertex;   /* Gouraud, default 0 (per pixel) */
     int clamp;        /* clamp Dv + Sv to [0, 1], default 0 */
+    /* D3DRS_NORMALIZENORMALS, default 1. With 0 (model d3d only) the world normal is the object
+     * normal times the inverse transpose of the object's scale and rotation, not renormalised:
+     * N.L and N.H scale with its length (mesh_d3d_normal_length). */
+    int normalize_normals;
 } d3d_params;
 
 typedef struct {
@@ -111,6 +115,7 @@ typedef struct {
     shape_kind shape;
     vec3 center;
     vec3 rotate;                 /* Euler angles [rad], applied X then Y then Z */
+    vec3 scale;                  /* per-axis scale > 0, default 1: applied before rotate and translate */
     float radius;                /* sphere; box edge rounding; torus tube radius */
     float major;                 /* torus ring radius */
     vec3 size;                   /* quad: x, z extents (in its XZ plane, normal +Y); box: full extents */

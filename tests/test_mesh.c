@@ -643,6 +643,69 @@ static void test_assimp_models(void **state)
     }
 }
 
+/* scale [2, 1, 0.5] then rotate 90 degrees about Z then translate: the unit sphere becomes the
+ * ellipsoid (qy/2)^2 + qx^2 + (qz/0.5)^2 = 1 around the centre (the X axis, scaled 2, turns into
+ * +Y), whose outward normal is the gradient (qx, qy/4, qz/0.25) normalised: an analytic
+ * reference that a wrong order (rotate before scale) or a normal transformed by the scale
+ * itself instead of its inverse would miss. The D3D length of that normal, 1/|S R^T n|, is
+ * checked against the unnormalised R S^-1 n_object worked from the sphere's own normal. */
+static void test_scale(void **state)
+{
+    (void)state;
+    object o;
+    object_init(&o);
+    o.radius = 1.0f;
+    o.tessellation = 24;
+    o.scale = v3(2.0f, 1.0f, 0.5f);
+    o.rotate = v3(0.0f, 0.0f, (float)(PI / 2));
+    o.center = v3(0.25f, -0.5f, 1.0f);
+    scene *s = one_object(o);
+    mesh m = {0};
+    build_ok(s, &m);
+    check_basic(&m);
+    mesh_normal_length L;
+    mesh_normal_length_make(&s->objects[0], &L);
+    assert_false(L.unit);
+    for (int i = 0; i < m.n_verts; i++) {
+        dvec3 q = dv3_sub(dv3_from(m.pos[i]), dv3(0.25, -0.5, 1.0));
+        assert_float_equal(q.y / 2 * q.y / 2 + q.x * q.x + q.z / 0.5 * q.z / 0.5, 1.0, 1e-5);
+        dvec3 g = dv3_norm(dv3(q.x, q.y / 4, q.z / 0.25));
+        assert_dv3(dv3_from(m.nrm[i]), g.x, g.y, g.z, 1e-5);
+        /* The object-space point (and unit normal) of the sphere: undo translate, rotate, scale. */
+        dvec3 p = dv3(q.y / 2, -q.x / 1, q.z / 0.5);
+        /* D3D: R S^-1 p, R the 90 degree turn (x, y, z) -> (-y, x, z). */
+        dvec3 d3d = dv3(-(p.y / 1), p.x / 2, p.z / 0.5);
+        assert_float_equal(mesh_normal_length_of(&L, m.nrm[i]), dv3_len(d3d), 1e-5 * dv3_len(d3d));
+    }
+    mesh_free(&m);
+    free(s);
+
+    /* The scene file's scalar form; an unscaled object's D3D length is exactly 1. */
+    const char *yaml = "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n"
+                       "materials: {m: {}}\nobjects:\n  - {shape: quad, size: [1, 1], scale: 3, material: m}\n"
+                       "  - {shape: quad, size: [1, 1], material: m}\n";
+    char path[128], err[600];
+    snprintf(path, sizeof path, "/tmp/reflcheck_scale_%ld.yaml", (long)getpid());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(yaml, f);
+    fclose(f);
+    s = malloc(sizeof *s);
+    assert_int_equal(scene_file_load(path, s, err, sizeof err), RC_OK);
+    remove(path);
+    assert_float_equal(s->objects[0].scale.x, 3.0, 0);
+    assert_float_equal(s->objects[0].scale.z, 3.0, 0);
+    build_ok(s, &m);
+    assert_float_equal(total_area(&m), 9.0 + 1.0, 1e-5);
+    mesh_normal_length_make(&s->objects[1], &L);
+    assert_true(L.unit);
+    assert_true(mesh_normal_length_of(&L, v3(0.6f, 0.8f, 0.0f)) == 1.0f);
+    mesh_normal_length_make(&s->objects[0], &L);
+    assert_float_equal(mesh_normal_length_of(&L, v3(0.0f, 1.0f, 0.0f)), 1.0 / 3.0, 1e-7);
+    mesh_free(&m);
+    free(s);
+}
+
 /* mesh_build on path in a child: exit 0 when it returns RC_ERR_RANGE with want in the
  * message. The alarm turns a blocking open (FIFO) into a failure instead of a hang; the
  * address-space cap turns an unbounded read (/dev/zero) into one instead of the OOM killer
@@ -776,21 +839,14 @@ static void test_mesh_mutations(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sphere),
-        cmocka_unit_test(test_quad),
-        cmocka_unit_test(test_box_sharp),
-        cmocka_unit_test(test_box_rounded),
-        cmocka_unit_test(test_torus),
-        cmocka_unit_test(test_obj_tetra),
-        cmocka_unit_test(test_obj_pentagon),
-        cmocka_unit_test(test_ply_ascii),
-        cmocka_unit_test(test_ply_binary),
-        cmocka_unit_test(test_mesh_errors),
-        cmocka_unit_test(test_mesh_lenient),
-        cmocka_unit_test(test_assimp_models),
-        cmocka_unit_test(test_mesh_file_limits),
-        cmocka_unit_test(test_scene_files),
-        cmocka_unit_test(test_mesh_mutations),
+        cmocka_unit_test(test_sphere),        cmocka_unit_test(test_quad),
+        cmocka_unit_test(test_box_sharp),     cmocka_unit_test(test_box_rounded),
+        cmocka_unit_test(test_torus),         cmocka_unit_test(test_obj_tetra),
+        cmocka_unit_test(test_obj_pentagon),  cmocka_unit_test(test_ply_ascii),
+        cmocka_unit_test(test_ply_binary),    cmocka_unit_test(test_mesh_errors),
+        cmocka_unit_test(test_mesh_lenient),  cmocka_unit_test(test_scale),
+        cmocka_unit_test(test_assimp_models), cmocka_unit_test(test_mesh_file_limits),
+        cmocka_unit_test(test_scene_files),   cmocka_unit_test(test_mesh_mutations),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -220,6 +220,16 @@ static void test_ulp_bounds(void **state)
     const stability_row *r = row("cooktorrance_specular[walter]", "random geometry");
     assert_true(r->max_ulp <= 1000.0);
     assert_true(r->max_ulp > 1.0); /* the float rounding of N.H is visible, as derived */
+    /* D3D's unnormalised normal length 1/|S R^T n| in float: a 3x3 product of float entries
+     * (each within 0.5 ulp, the rotation's cos/sin rounded once), a sum of three squares, a
+     * sqrt and a division: under 5 ulp (measured 3). The stiff rows themselves are gated by
+     * test_no_nan_inf_negative; here they must exist, for both scales and both paths. */
+    static const char *const cases[] = {"normalize_normals false, scale 10", "normalize_normals false, scale 0.1"};
+    for (int i = 0; i < 2; i++) {
+        assert_true(row("mesh_normal_length_of", cases[i])->max_ulp <= 5.0);
+        assert_true(row("shade_eval[d3d]", cases[i])->samples > 0);
+        assert_true(row("shade_eval_n[d3d]", cases[i])->samples > 0);
+    }
 }
 
 static void test_options_and_writers(void **state)

@@ -413,6 +413,14 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
                 return rc;
         }
+        if (mesh_material_unnormalised(s, mi)) {
+            snprintf(what, sizeof what,
+                     "materials[%d] '%s': d3d.normalize_normals false on a scaled object (Cycles normalises every "
+                     "normal)",
+                     mi, mat->name);
+            if ((rc = cycles_cannot(c, 0, what, "judge it with role validate")) != RC_OK)
+                return rc;
+        }
     }
 
     switch (mat->model) {

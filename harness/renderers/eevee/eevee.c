@@ -51,6 +51,13 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
         const material *m = &s->materials[mi];
         if (!eevee_material_used(s, mi))
             continue;
+        if (mesh_material_unnormalised(s, mi)) {
+            snprintf(why, len,
+                     "%s: materials[%d] '%s': d3d.normalize_normals false on a scaled object (D3D's unnormalised "
+                     "normals); EEVEE normalises every normal; compare EEVEE in validate or agree",
+                     s->path, mi, m->name);
+            return 1;
+        }
         if (m->model == MODEL_COOK_TORRANCE && (eevee_nonzero(m->ct.ks) || m->ct.reflection)) {
             snprintf(why, len,
                      "%s: materials[%d] '%s': EEVEE's glossy lobe is GGX with split-sum and LTC lights, not a "

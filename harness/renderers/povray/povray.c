@@ -264,6 +264,14 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                        s->path, mi, name);
         return RC_ERR_RANGE;
     }
+    if (mesh_material_unnormalised(s, mi)) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': d3d.normalize_normals false on a scaled object (D3D's "
+                       "unnormalised normals) has no POV-Ray twin: POV-Ray normalises every normal; judge it "
+                       "with role validate",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
     int d9 = mat->model == MODEL_D3D9CLIENT;
     if (d9 && mat->d9.sun_angle) {
         status_message(err, errlen,
