@@ -99,10 +99,14 @@ int cli_check(int argc, char **argv)
     mesh m = {0};
     env_map env;
     float *env_pixels = NULL;
+    texture_set tex;
+    memset(&tex, 0, sizeof tex);
     int rc = cli_load_scene(argv[1], s, &m);
     if (rc == CLI_OK) {
         char err[1024];
         rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
+        if (st == RC_OK)
+            st = frame_textures_load(s, &tex, err, sizeof err);
         if (st != RC_OK) {
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
@@ -137,6 +141,7 @@ int cli_check(int argc, char **argv)
                s->n_lights, s->n_materials, envs);
     }
     free(env_pixels);
+    texture_set_free(&tex);
     mesh_free(&m);
     free(s);
     return rc;

@@ -90,6 +90,9 @@ int cli_render(int argc, char **argv)
     mesh m = {0};
     env_map env;
     float *env_pixels = NULL;
+    texture_set tex;
+    memset(&tex, 0, sizeof tex);
+    ro.textures = &tex;
     render_image img = {0};
     if (s == NULL)
         return CLI_FAILED;
@@ -98,6 +101,8 @@ int cli_render(int argc, char **argv)
         rc = cli_render_check_inputs(out, s);
     if (rc == CLI_OK) {
         rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
+        if (st == RC_OK)
+            st = frame_textures_load(s, &tex, err, sizeof err);
         if (st != RC_OK) {
             /* The environment image is the user's input: missing, unreadable or with bad texels
              * is bad input (exit 2), as `check` says for the same file; only memory is ours. */
@@ -126,6 +131,7 @@ int cli_render(int argc, char **argv)
     }
     render_image_free(&img);
     free(env_pixels);
+    texture_set_free(&tex);
     mesh_free(&m);
     free(s);
     return rc;

@@ -2,8 +2,10 @@
 
 #include <inttypes.h>
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "exr.h"
 
@@ -93,4 +95,58 @@ rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const 
         {"reflcheck.shaded_samples", samples},
     };
     return exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);
+}
+
+static int frame_is_exr(const char *p)
+{
+    size_t n = strlen(p);
+    return n >= 4 && (strcmp(p + n - 4, ".exr") == 0 || strcmp(p + n - 4, ".EXR") == 0);
+}
+
+static rc_status frame_texture_exr(const char *path, texture *t, char *err, size_t errlen)
+{
+    exr_image img;
+    rc_status st = exr_read(path, &img, err, errlen);
+    if (st != RC_OK)
+        return st;
+    const float *r = exr_image_channel(&img, "R"), *g = exr_image_channel(&img, "G"), *b = exr_image_channel(&img, "B");
+    if (r == NULL || g == NULL || b == NULL) {
+        snprintf(err, errlen, "%s: no R, G, B channels; give a linear RGB(A) EXR texture", path);
+        exr_image_free(&img);
+        return RC_ERR_PARSE;
+    }
+    st = texture_from_planes(img.width, img.height, r, g, b, exr_image_channel(&img, "A"), t, err, errlen);
+    exr_image_free(&img);
+    return st;
+}
+
+rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen)
+{
+    memset(ts, 0, sizeof *ts);
+    static const char *const slot[MAT_TEX_SLOTS] = {"diffuse", "specular"};
+    for (int i = 0; i < s->n_materials; i++)
+        for (int k = 0; k < MAT_TEX_SLOTS; k++) {
+            const char *p = s->materials[i].texture[k];
+            if (p[0] == '\0')
+                continue;
+            char why[1024];
+            texture *t = &ts->map[i][k];
+            rc_status st =
+                frame_is_exr(p) ? frame_texture_exr(p, t, why, sizeof why) : texture_load(p, t, why, sizeof why);
+            /* A NaN, Inf or negative texel has no colour meaning and bilinear filtering spreads it. */
+            size_t n = st == RC_OK ? (size_t)t->width * (size_t)t->height * 4 : 0;
+            for (size_t j = 0; j < n && st == RC_OK; j++)
+                if (!(isfinite(t->rgba[j]) && t->rgba[j] >= 0.0f)) {
+                    snprintf(why, sizeof why,
+                             "%s: texel (x %zu, y %zu) channel %c is %g; give texels that are finite and >= 0", p,
+                             j / 4 % (size_t)t->width, j / 4 / (size_t)t->width, "RGBA"[j % 4], (double)t -> rgba[j]);
+                    st = RC_ERR_RANGE;
+                }
+            if (st != RC_OK) {
+                snprintf(err, errlen, "%s: materials.%s.texture.%s: %s", s->path, s->materials[i].name, slot[k], why);
+                texture_set_free(ts);
+                return st;
+            }
+        }
+    return RC_OK;
 }

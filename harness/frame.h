@@ -6,6 +6,7 @@
  *   ... env_lookup(&e, dir), render_scene(&scn, &msh, &e, ...) ...
  *   free(pixels);                       the caller owns the interleaved RGB pixels
  *   frame_write("out.exr", &scn, &msh, &img, err, sizeof err);
+ *   texture_set ts; frame_textures_load(&scn, &ts, err, sizeof err); ... texture_set_free(&ts);
  * An environment image must have R, G and B channels and finite texels >= 0 (RC_ERR_RANGE
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
@@ -21,8 +22,13 @@
 #include "mesh.h"
 #include "render.h"
 #include "status.h"
+#include "texture.h"
 
 rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
+/* Every material texture of the scene into ts (zeroed first): PNG/JPEG through model/texture.c,
+ * linear EXR (R, G, B, optional A) through exr.c; texels must be finite and >= 0. On error
+ * nothing stays allocated; free with texture_set_free. */
+rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen);
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen);
 /* frame_write naming another in-process renderer in the header ("reflcheck-exact"). */

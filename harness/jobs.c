@@ -167,6 +167,10 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
     for (int i = 0; st == RC_OK && i < s->n_objects; i++)
         if (s->objects[i].shape == SHAPE_MESH)
             st = job_key_file(h, "objects.path", s->objects[i].path, err, errlen);
+    for (int i = 0; st == RC_OK && i < s->n_materials; i++)
+        for (int k = 0; st == RC_OK && k < MAT_TEX_SLOTS; k++)
+            if (s->materials[i].texture[k][0] != '\0')
+                st = job_key_file(h, "materials.texture", s->materials[i].texture[k], err, errlen);
     return st;
 }
 
@@ -177,9 +181,10 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
  * stands in for them. */
 static void job_key_code(const renderer_row *row, uint64_t *key)
 {
-    static const char *const common[] = {"harness/jobs.c", "harness/scene_file.c", "model/scene.c",
-                                         "model/scene.h",  "model/mesh.c",         "model/mesh.h",
-                                         "model/vec.h",    "harness/exr.c",        "harness/renderers/renderer.c"};
+    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c",
+                                         "model/scene.h",   "model/mesh.c",         "model/mesh.h",
+                                         "model/vec.h",     "harness/exr.c",        "harness/renderers/renderer.c",
+                                         "model/texture.c", "harness/frame.c"};
     const char *const *own = row->sources;
     int have = own != NULL;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
@@ -254,6 +259,7 @@ typedef struct {
     double timeout;
     const char *shown_log; /* the log messages point to: the copy in OUT, which stays */
     env_map env;           /* loaded and checked once, before any renderer runs */
+    texture_set tex;       /* the materials' textures, likewise */
     renderer_result res;   /* the render entry's result: left-out terms for the record */
 } job_ctx;
 
@@ -498,6 +504,7 @@ static void job_render(job_ctx *c, job_record *rec)
     renderer_job rj = {.s = c->s,
                        .m = c->m,
                        .env = &c->env,
+                       .tex = &c->tex,
                        .role = c->j->role,
                        .threads = c->j->threads,
                        .seeds = c->j->seeds,
@@ -612,6 +619,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
      * the rasterizer would refuse. */
     if (st == RC_OK)
         st = frame_env_load(s, &c.env, &env_pixels, err, errlen);
+    if (st == RC_OK)
+        st = frame_textures_load(s, &c.tex, err, errlen);
     if (st == RC_OK && j->role == ROLE_TWIN)
         job_twin_switches(s);
 
@@ -636,6 +645,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         rec->bad_input = st != RC_ERR_NOMEM;
         rec->status = RUNNER_ERROR;
         free(env_pixels);
+        texture_set_free(&c.tex);
         mesh_free(&m);
         free(s);
         return st;
@@ -655,6 +665,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
                  strerror(errno));
         rec->status = RUNNER_ERROR;
         free(env_pixels);
+        texture_set_free(&c.tex);
         mesh_free(&m);
         free(s);
         return RC_ERR_IO;
@@ -704,6 +715,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     snprintf(rec->record, sizeof rec->record, "%s", dest_json);
     st = job_write_record(&c, rec, dest_json, key, err, errlen);
     free(env_pixels);
+    texture_set_free(&c.tex);
     mesh_free(&m);
     free(s);
     return st;

@@ -18,6 +18,7 @@
 #include <yaml.h>
 
 #include "fileio.h"
+#include "texture.h"
 #include "formula.h"
 #include "mesh.h"
 #include "scene_file.h"
@@ -706,7 +707,7 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_COUNT };
+enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_COUNT };
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
                         yaml_node_t **normalize_node)
@@ -823,10 +824,29 @@ static float sf_f0(double eta, double k)
     return (float)(((eta - 1) * (eta - 1) + k * k) / ((eta + 1) * (eta + 1) + k * k));
 }
 
+/* texture: {diffuse: file, specular: file}: PNG/JPEG (sRGB) or linear EXR images, each optional
+ * (model/texture.h; the slots' meaning is scene.h's material_texture_slot). */
+static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
+{
+    static const char *const keys[MAT_TEX_SLOTS] = {"diffuse", "specular"};
+    static const char *const exts[] = {".png", ".jpg", ".jpeg", ".exr"};
+    sf_kv f[MAT_TEX_SLOTS];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, keys, MAT_TEX_SLOTS, f)))
+        return rc;
+    for (int k = 0; k < MAT_TEX_SLOTS; k++) {
+        sf_child(child, path, keys[k]);
+        if (f[k].v && (rc = sf_file(c, f[k].v, child, exts, 4, "texture image", TEXTURE_MAX_BYTES, m->texture[k])))
+            return rc;
+    }
+    return RC_OK;
+}
+
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo", "ior", "conductor",  "roughness",
-                                               "model",  "d3d", "d3d9client", "cook_torrance"};
+    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
+                                               "d3d",    "d3d9client", "cook_torrance", "texture"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
@@ -885,6 +905,8 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
         return rc;
     if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
+        return rc;
+    if (f[MK_TEXTURE].v && (rc = sf_texture(c, f[MK_TEXTURE].v, SF_CHILD("texture"), m)))
         return rc;
 #undef SF_CHILD
 
@@ -948,6 +970,7 @@ enum {
     OK_TESS,
     OK_PATH,
     OK_MATERIAL,
+    OK_USEMTL,
     OK_COUNT
 };
 
@@ -971,18 +994,18 @@ static rc_status sf_object_scale(sf_ctx *c, yaml_node_t *n, const char *path, ve
 
 static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
 {
-    static const char *const keys[OK_COUNT] = {"shape", "center", "rotate",       "scale", "radius",
-                                               "major", "size",   "tessellation", "path",  "material"};
+    static const char *const keys[OK_COUNT] = {"shape", "center",       "rotate", "scale",    "radius", "major",
+                                               "size",  "tessellation", "path",   "material", "usemtl"};
     static const char *const shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
     static const char *const mesh_exts[] = {".obj", ".ply"};
     /* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
     static const unsigned char use[5][OK_COUNT] = {
-        /*          shape center rotate scale radius major size tess path material */
-        /* sphere */ {2, 1, 1, 1, 2, 0, 0, 1, 0, 2},
-        /* quad   */ {2, 1, 1, 1, 0, 0, 2, 0, 0, 2},
-        /* box    */ {2, 1, 1, 1, 1, 0, 2, 1, 0, 2},
-        /* torus  */ {2, 1, 1, 1, 2, 2, 0, 1, 0, 2},
-        /* mesh   */ {2, 1, 1, 1, 0, 0, 0, 0, 2, 2},
+        /*          shape center rotate scale radius major size tess path material usemtl */
+        /* sphere */ {2, 1, 1, 1, 2, 0, 0, 1, 0, 2, 0},
+        /* quad   */ {2, 1, 1, 1, 0, 0, 2, 0, 0, 2, 0},
+        /* box    */ {2, 1, 1, 1, 1, 0, 2, 1, 0, 2, 0},
+        /* torus  */ {2, 1, 1, 1, 2, 2, 0, 1, 0, 2, 0},
+        /* mesh   */ {2, 1, 1, 1, 0, 0, 0, 0, 2, 2, 1},
     };
     /* Tessellation limits: a sphere needs 2 rings (segments/2), a torus tube 3 segments. */
     static const int tess_lo[5] = {4, 0, 1, 3, 0}, tess_hi[5] = {1024, 0, 256, 1024, 0};
@@ -1061,6 +1084,14 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
     if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2, "triangle mesh",
                                       FILEIO_MESH_MAX_BYTES, o->path)))
         return rc;
+    if (f[OK_USEMTL].v) {
+        if ((rc = sf_name(c, f[OK_USEMTL].v, SF_CHILD("usemtl"), o->usemtl, sizeof o->usemtl)))
+            return rc;
+        if (!sf_ends_with(o->path, ".obj"))
+            return sf_fail(c, RC_ERR_PARSE, f[OK_USEMTL].v, child,
+                           "usemtl selects faces of an OBJ file, and this mesh is a PLY; allowed: usemtl with an "
+                           ".obj path");
+    }
 
     const char *mt = sf_text(f[OK_MATERIAL].v);
     int mi = -1;

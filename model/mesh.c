@@ -75,6 +75,10 @@ static rc_status mesh_reserve(mesh *m, size_t add_verts, size_t add_tris)
         if (!n)
             return RC_ERR_NOMEM;
         m->nrm = n;
+        float *uv = realloc(m->uv, cap * 2 * sizeof *uv);
+        if (!uv)
+            return RC_ERR_NOMEM;
+        m->uv = uv;
         m->cap_verts = (int)cap;
     }
     if (nt > (size_t)m->cap_tris) {
@@ -99,6 +103,7 @@ typedef struct {
     mesh *m;
     mesh_xform x;
     int object;
+    int textured; /* the object's material has a texture: a mesh file must give UVs */
 } mesh_builder;
 
 static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
@@ -108,7 +113,16 @@ static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
      * linear part, (R S)^-T = R S^-1, and is renormalised. */
     m->pos[m->n_verts] = v3_from_d(dv3_add(mesh_rotate(&b->x, dv3_mul(p, b->x.s)), b->x.t));
     m->nrm[m->n_verts] = v3_from_d(dv3_norm(mesh_rotate(&b->x, dv3_mul(n, b->x.inv_s))));
+    m->uv[2 * (size_t)m->n_verts] = m->uv[2 * (size_t)m->n_verts + 1] = 0.0f;
     return (uint32_t)m->n_verts++;
+}
+
+/* Sets the texture coordinates of vertex i. */
+static uint32_t mesh_uv(mesh_builder *b, uint32_t i, double u, double v)
+{
+    b->m->uv[2 * (size_t)i] = (float)u;
+    b->m->uv[2 * (size_t)i + 1] = (float)v;
+    return i;
 }
 
 static double mesh_tri_area2(const mesh *m, uint32_t a, uint32_t b, uint32_t c, dvec3 *cross)
@@ -153,25 +167,33 @@ static int mesh_sphere(mesh_builder *b, const object *o)
 {
     int seg = o->tessellation, rings = seg / 2;
     double r = o->radius;
-    uint32_t top = mesh_vert(b, dv3(0, r, 0), dv3(0, 1, 0));
+    /* u = 1 - phi/2pi (phi from +X toward +Z, so the image reads unmirrored from outside),
+     * v = 1 - theta/pi; the seam column (j = seg, u = 0) and each pole triangle's own pole
+     * vertex (at the mid u of its triangle) carry the texture coordinates a shared vertex
+     * cannot. */
+    uint32_t top = (uint32_t)b->m->n_verts;
+    for (int j = 0; j < seg; j++)
+        mesh_uv(b, mesh_vert(b, dv3(0, r, 0), dv3(0, 1, 0)), 1.0 - (j + 0.5) / seg, 1.0);
     uint32_t first = (uint32_t)b->m->n_verts;
     for (int i = 1; i < rings; i++) {
         double th = FORMULA_PI_D * i / rings;
-        for (int j = 0; j < seg; j++) {
-            double ph = 2.0 * FORMULA_PI_D * j / seg;
+        for (int j = 0; j <= seg; j++) {
+            double ph = 2.0 * FORMULA_PI_D * (j % seg) / seg;
             dvec3 n = dv3(sin(th) * cos(ph), cos(th), sin(th) * sin(ph));
-            mesh_vert(b, dv3_scale(n, r), n);
+            mesh_uv(b, mesh_vert(b, dv3_scale(n, r), n), 1.0 - (double)j / seg, 1.0 - (double)i / rings);
         }
     }
-    uint32_t bottom = mesh_vert(b, dv3(0, -r, 0), dv3(0, -1, 0));
-#define RING(i, j) (first + (uint32_t)(((i)-1) * seg + ((j) % seg)))
+    uint32_t bottom = (uint32_t)b->m->n_verts;
+    for (int j = 0; j < seg; j++)
+        mesh_uv(b, mesh_vert(b, dv3(0, -r, 0), dv3(0, -1, 0)), 1.0 - (j + 0.5) / seg, 0.0);
+#define RING(i, j) (first + (uint32_t)(((i)-1) * (seg + 1) + (j)))
     for (int j = 0; j < seg; j++) {
-        if (!mesh_tri_out(b, top, RING(1, j + 1), RING(1, j)))
+        if (!mesh_tri_out(b, top + (uint32_t)j, RING(1, j + 1), RING(1, j)))
             return 0;
         for (int i = 1; i + 1 < rings; i++)
             if (!mesh_quad_out(b, RING(i, j), RING(i, j + 1), RING(i + 1, j + 1), RING(i + 1, j)))
                 return 0;
-        if (!mesh_tri_out(b, RING(rings - 1, j), RING(rings - 1, j + 1), bottom))
+        if (!mesh_tri_out(b, RING(rings - 1, j), RING(rings - 1, j + 1), bottom + (uint32_t)j))
             return 0;
     }
 #undef RING
@@ -182,14 +204,30 @@ static int mesh_quad(mesh_builder *b, const object *o)
 {
     double hx = 0.5 * o->size.x, hz = 0.5 * o->size.z;
     dvec3 up = dv3(0, 1, 0);
-    uint32_t a = mesh_vert(b, dv3(-hx, 0, -hz), up);
-    uint32_t bb = mesh_vert(b, dv3(-hx, 0, hz), up);
-    uint32_t c = mesh_vert(b, dv3(hx, 0, hz), up);
-    uint32_t d = mesh_vert(b, dv3(hx, 0, -hz), up);
+    /* u along +X, v along -Z: seen from above with -Z up the screen, the image reads unmirrored. */
+    uint32_t a = mesh_uv(b, mesh_vert(b, dv3(-hx, 0, -hz), up), 0, 1);
+    uint32_t bb = mesh_uv(b, mesh_vert(b, dv3(-hx, 0, hz), up), 0, 0);
+    uint32_t c = mesh_uv(b, mesh_vert(b, dv3(hx, 0, hz), up), 1, 0);
+    uint32_t d = mesh_uv(b, mesh_vert(b, dv3(hx, 0, -hz), up), 1, 1);
     return mesh_quad_out(b, a, bb, c, d);
 }
 
 static dvec3 mesh_axis(int a, double s) { return dv3(a == 0 ? s : 0.0, a == 1 ? s : 0.0, a == 2 ? s : 0.0); }
+
+/* A box vertex with its texture coordinates: the face of the normal's largest component maps
+ * the whole image, u along the face's first in-plane axis p and v along the second q of the
+ * right-handed (p, q, a) (flipped in u on the face toward -a), so every face reads unmirrored
+ * from outside. The rounding takes the coordinates its normal's face gives (clamped to the
+ * face), so a rounded edge changes face at 45 degrees. */
+static uint32_t mesh_box_vert(mesh_builder *b, const object *o, dvec3 pos, dvec3 n)
+{
+    double an[3] = {fabs(n.x), fabs(n.y), fabs(n.z)}, pc[3] = {pos.x, pos.y, pos.z}, nc[3] = {n.x, n.y, n.z};
+    double sz[3] = {o->size.x, o->size.y, o->size.z};
+    int a = an[0] >= an[1] && an[0] >= an[2] ? 0 : (an[1] >= an[2] ? 1 : 2);
+    int p = (a + 1) % 3, q = (a + 2) % 3;
+    double u = (nc[a] < 0.0 ? -pc[p] : pc[p]) / sz[p] + 0.5, v = pc[q] / sz[q] + 0.5;
+    return mesh_uv(b, mesh_vert(b, pos, n), fmin(fmax(u, 0.0), 1.0), fmin(fmax(v, 0.0), 1.0));
+}
 
 static int mesh_box(mesh_builder *b, const object *o)
 {
@@ -211,7 +249,7 @@ static int mesh_box(mesh_builder *b, const object *o)
             for (int k = 0; k < 4; k++) {
                 double sp = (k == 0 || k == 3) ? -1.0 : 1.0, sq = (k < 2) ? -1.0 : 1.0;
                 dvec3 pos = dv3_add(c, dv3_add(mesh_axis(p, sp * h[p]), mesh_axis(q, sq * h[q])));
-                v[k] = mesh_vert(b, pos, n);
+                v[k] = mesh_box_vert(b, o, pos, n);
             }
             if (!mesh_quad_out(b, v[0], v[1], v[2], v[3]))
                 return 0;
@@ -233,8 +271,8 @@ static int mesh_box(mesh_builder *b, const object *o)
                     double al = 0.5 * FORMULA_PI_D * k / seg;
                     dvec3 n = dv3_add(mesh_axis(p, sp * cos(al)), mesh_axis(q, sq * sin(al)));
                     dvec3 rim = dv3_add(c, dv3_scale(n, r));
-                    mesh_vert(b, dv3_add(rim, mesh_axis(a, -h[a])), n);
-                    mesh_vert(b, dv3_add(rim, mesh_axis(a, h[a])), n);
+                    mesh_box_vert(b, o, dv3_add(rim, mesh_axis(a, -h[a])), n);
+                    mesh_box_vert(b, o, dv3_add(rim, mesh_axis(a, h[a])), n);
                 }
                 for (int k = 0; k < seg; k++) {
                     uint32_t v = start + 2u * (uint32_t)k;
@@ -256,7 +294,7 @@ static int mesh_box(mesh_builder *b, const object *o)
                     for (int j = 0; j <= k; j++) {
                         double ph = k ? 0.5 * FORMULA_PI_D * j / k : 0.0;
                         dvec3 n = dv3(sx * sin(th) * cos(ph), sy * cos(th), sz * sin(th) * sin(ph));
-                        mesh_vert(b, dv3_add(c, dv3_scale(n, r)), n);
+                        mesh_box_vert(b, o, dv3_add(c, dv3_scale(n, r)), n);
                     }
                 }
 #define ROW(k) (start + (uint32_t)((k) * ((k) + 1) / 2))
@@ -280,16 +318,19 @@ static int mesh_torus(mesh_builder *b, const object *o)
     int nu = o->tessellation, nv = o->tessellation / 2 < 3 ? 3 : o->tessellation / 2;
     double big = o->major, r = o->radius;
     uint32_t start = (uint32_t)b->m->n_verts;
-    for (int i = 0; i < nu; i++) {
-        double u = 2.0 * FORMULA_PI_D * i / nu;
+    /* u = 1 - (angle around the ring)/2pi as the sphere's, v = (angle around the tube)/2pi from
+     * the outer equator, upward; the seam row and column (u = 0, v = 1) have their own vertices. */
+    for (int i = 0; i <= nu; i++) {
+        double u = 2.0 * FORMULA_PI_D * (i % nu) / nu;
         dvec3 radial = dv3(cos(u), 0, sin(u));
-        for (int j = 0; j < nv; j++) {
-            double v = 2.0 * FORMULA_PI_D * j / nv;
+        for (int j = 0; j <= nv; j++) {
+            double v = 2.0 * FORMULA_PI_D * (j % nv) / nv;
             dvec3 n = dv3_add(dv3_scale(radial, cos(v)), dv3(0, sin(v), 0));
-            mesh_vert(b, dv3_add(dv3_scale(radial, big), dv3_scale(n, r)), n);
+            mesh_uv(b, mesh_vert(b, dv3_add(dv3_scale(radial, big), dv3_scale(n, r)), n), 1.0 - (double)i / nu,
+                    (double)j / nv);
         }
     }
-#define TV(i, j) (start + (uint32_t)(((i) % nu) * nv + ((j) % nv)))
+#define TV(i, j) (start + (uint32_t)((i) * (nv + 1) + (j)))
     for (int i = 0; i < nu; i++)
         for (int j = 0; j < nv; j++)
             if (!mesh_quad_out(b, TV(i, j), TV(i + 1, j), TV(i + 1, j + 1), TV(i, j + 1)))
@@ -305,7 +346,11 @@ typedef struct {
     double *pos; /* 3 per position */
     double *nrm; /* 3 per file normal */
     int n_pos, cap_pos, n_nrm, cap_nrm;
-    int *cv, *cn; /* per face corner: position index, normal index or -1 */
+    double *tex; /* 2 per file texture coordinate (OBJ vt; PLY: one per position) */
+    int n_tex, cap_tex;
+    int *ct;            /* per face corner: texture coordinate index or -1 */
+    const char *usemtl; /* OBJ: only faces after `usemtl` with this name; NULL or "" = all */
+    int *cv, *cn;       /* per face corner: position index, normal index or -1 */
     int n_corner, cap_corner;
     int *face_start; /* n_face + 1 entries into the corner arrays */
     int *face_line;  /* OBJ line or PLY face number, for messages */
@@ -316,6 +361,8 @@ static void mesh_soup_free(mesh_soup *s)
 {
     free(s->pos);
     free(s->nrm);
+    free(s->tex);
+    free(s->ct);
     free(s->cv);
     free(s->cn);
     free(s->face_start);
@@ -356,6 +403,14 @@ static int mesh_soup_nrm(mesh_soup *s, const double v[3])
     return 1;
 }
 
+static int mesh_soup_tex(mesh_soup *s, const double v[2])
+{
+    if (!mesh_grow((void **)&s->tex, &s->cap_tex, s->n_tex + 1, 2 * sizeof(double)))
+        return 0;
+    memcpy(&s->tex[2 * (size_t)s->n_tex++], v, 2 * sizeof(double));
+    return 1;
+}
+
 static int mesh_soup_corner(mesh_soup *s, int v, int n)
 {
     int cap = s->cap_corner;
@@ -364,6 +419,10 @@ static int mesh_soup_corner(mesh_soup *s, int v, int n)
     cap = s->cap_corner;
     if (!mesh_grow((void **)&s->cn, &cap, s->n_corner + 1, sizeof(int)))
         return 0;
+    cap = s->cap_corner;
+    if (!mesh_grow((void **)&s->ct, &cap, s->n_corner + 1, sizeof(int)))
+        return 0;
+    s->ct[s->n_corner] = -1;
     s->cap_corner = cap;
     s->cv[s->n_corner] = v;
     s->cn[s->n_corner++] = n;
@@ -521,6 +580,7 @@ static int mesh_obj_bom(const char *buf, size_t len, const char *label, char *er
 static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     int line = 0;
+    int take = s->usemtl == NULL || s->usemtl[0] == '\0'; /* faces are kept (usemtl filter) */
     char *p = buf, *endbuf = buf + len;
     int skip = mesh_obj_bom(buf, len, label, err, errlen);
     if (skip < 0)
@@ -575,6 +635,29 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
             mesh_normal_screen(v);
             if (!mesh_soup_nrm(s, v))
                 return RC_ERR_NOMEM;
+        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 't') {
+            /* u [v [w]]: a missing v is 0 (the OBJ default); w has no meaning for 2D images. */
+            int n = mesh_parse_doubles(&cur, v, 3);
+            if (n < 1 || !isfinite(v[0]) || (n > 1 && !isfinite(v[1]))) {
+                status_message(err, errlen, "%s:%d: bad texture coordinate; fix: write 'vt u v' with finite numbers",
+                               label, line);
+                return RC_ERR_PARSE;
+            }
+            if (n < 2)
+                v[1] = 0.0;
+            if (!mesh_soup_tex(s, v))
+                return RC_ERR_NOMEM;
+        } else if (kwlen == 6 && strncmp(kw, "usemtl", 6) == 0) {
+            if (s->usemtl != NULL && s->usemtl[0] != '\0') {
+                while (*cur == ' ' || *cur == '\t')
+                    cur++;
+                char *e = cur + strlen(cur);
+                while (e > cur && (e[-1] == ' ' || e[-1] == '\t'))
+                    *--e = '\0';
+                take = strcmp(cur, s->usemtl) == 0;
+            }
+        } else if (kwlen == 1 && kw[0] == 'f' && !take) {
+            /* a face of another material (usemtl filter): not this object's */
         } else if (kwlen == 1 && kw[0] == 'f') {
             int corners = 0;
             for (;;) {
@@ -583,12 +666,12 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                 if (!*cur)
                     break;
                 char *e;
-                long vi = strtol(cur, &e, 10), ni = 0;
+                long vi = strtol(cur, &e, 10), ni = 0, ti = 0;
                 int ok = e != cur;
                 if (ok && *e == '/') {
                     cur = e + 1;
-                    if (*cur != '/') { /* texture index: checked for syntax, not used */
-                        strtol(cur, &e, 10);
+                    if (*cur != '/') {
+                        ti = strtol(cur, &e, 10);
                         ok = e != cur;
                     } else {
                         e = cur;
@@ -620,8 +703,17 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                                    label, line, ni, s->n_nrm, s->n_nrm);
                     return RC_ERR_RANGE;
                 }
+                int pt = -1;
+                if (ti != 0 && (pt = mesh_obj_index(ti, s->n_tex)) < 0) {
+                    status_message(err, errlen,
+                                   "%s:%d: texture coordinate index %ld out of range (%d so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, ti, s->n_tex, s->n_tex);
+                    return RC_ERR_RANGE;
+                }
                 if (!mesh_soup_corner(s, pv, pn))
                     return RC_ERR_NOMEM;
+                s->ct[s->n_corner - 1] = pt;
                 corners++;
             }
             if (corners < 3) {
@@ -631,7 +723,7 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
             if (!mesh_soup_face(s, line))
                 return RC_ERR_NOMEM;
         }
-        /* Everything else (vt, o, g, s, usemtl, mtllib, l, ...) carries nothing we shade with. */
+        /* Everything else (o, g, s, mtllib, l, ...) carries nothing we shade with. */
         p = le + 1;
     }
     return RC_OK;
@@ -879,7 +971,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
     }
 
     ply_reader r = {(const unsigned char *)p, (const unsigned char *)end, binary};
-    int have_vertex = 0, have_face = 0;
+    int have_vertex = 0, have_face = 0, ply_uv = 0;
     for (int e = 0; e < n_el; e++) {
         ply_element *x = &el[e];
         int is_vertex = strcmp(x->name, "vertex") == 0, is_face = strcmp(x->name, "face") == 0;
@@ -889,10 +981,18 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             status_message(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header", label, x->name);
             return RC_ERR_PARSE;
         }
+        /* Texture coordinates: the names the PLY writers use (Blender s t, others u v or
+         * texture_u texture_v). */
+        static const char *const uvn[3][2] = {{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"}};
+        int iuv[2] = {-1, -1};
         for (int k = 0; k < x->n_props; k++) {
             for (int c = 0; c < 6; c++)
                 if (!x->props[k].is_list && strcmp(x->props[k].name, vn[c]) == 0)
                     ix[c] = k;
+            for (int q = 0; q < 3; q++)
+                for (int c = 0; c < 2; c++)
+                    if (!x->props[k].is_list && strcmp(x->props[k].name, uvn[q][c]) == 0)
+                        iuv[c] = k;
             if (x->props[k].is_list &&
                 (strcmp(x->props[k].name, "vertex_indices") == 0 || strcmp(x->props[k].name, "vertex_index") == 0))
                 iface = k;
@@ -909,6 +1009,14 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 return RC_ERR_PARSE;
             }
             have_vertex = 1 + (nn == 3);
+            if ((iuv[0] >= 0) != (iuv[1] >= 0)) {
+                status_message(err, errlen,
+                               "%s: vertex has only one texture coordinate; fix: both of u v (or s t, "
+                               "texture_u texture_v) or neither",
+                               label);
+                return RC_ERR_PARSE;
+            }
+            ply_uv = iuv[0] >= 0;
         }
         if (is_face) {
             if (!have_vertex || have_face || iface < 0) {
@@ -924,7 +1032,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             have_face = 1;
         }
         for (long i = 0; i < x->count; i++) {
-            double vals[6] = {0, 0, 0, 0, 0, 0};
+            double vals[6] = {0, 0, 0, 0, 0, 0}, uvv[2] = {0, 0};
             for (int k = 0; k < x->n_props; k++) {
                 ply_prop *pr = &x->props[k];
                 double d;
@@ -934,6 +1042,9 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                     for (int c = 0; c < 6; c++)
                         if (ix[c] == k)
                             vals[c] = d;
+                    for (int c = 0; c < 2; c++)
+                        if (is_vertex && iuv[c] == k)
+                            uvv[c] = d;
                     continue;
                 }
                 double cnt;
@@ -961,6 +1072,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                         int vi = (int)d;
                         if (!mesh_soup_corner(s, vi, have_vertex == 2 ? vi : -1))
                             return RC_ERR_NOMEM;
+                        s->ct[s->n_corner - 1] = ply_uv ? vi : -1;
                     }
                 }
             }
@@ -975,6 +1087,15 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                     }
                 if (!mesh_soup_pos(s, vals))
                     return RC_ERR_NOMEM;
+                if (ply_uv) {
+                    if (!isfinite(uvv[0]) || !isfinite(uvv[1])) {
+                        status_message(err, errlen, "%s: vertex %ld: texture coordinate not finite; fix: finite values",
+                                       label, i);
+                        return RC_ERR_RANGE;
+                    }
+                    if (!mesh_soup_tex(s, uvv))
+                        return RC_ERR_NOMEM;
+                }
                 if (have_vertex == 2) {
                     mesh_normal_screen(vals + 3);
                     if (!mesh_soup_nrm(s, vals + 3))
@@ -1025,10 +1146,12 @@ static dvec3 mesh_soup_cross(const mesh_soup *s, const int c[3])
     return dv3_cross(dv3_sub(pv[1], pv[0]), dv3_sub(pv[2], pv[0]));
 }
 
-/* Output vertices shared per (position, file normal or computed): an open-addressing table. */
+/* Output vertices shared per (position, file normal or computed, texture coordinate): an
+ * open-addressing table. */
 typedef struct {
     size_t cap;
-    int64_t *key;
+    int64_t *key; /* position and normal */
+    int *tex;     /* texture coordinate index, -1 for none */
     uint32_t *val;
 } mesh_vtable;
 
@@ -1037,13 +1160,14 @@ typedef struct {
 static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtable *t, const dvec3 *acc, int i,
                                   const char *label, int is_obj, uint32_t *out, char *err, size_t errlen)
 {
-    int vi = s->cv[i], ni = s->cn[i];
+    int vi = s->cv[i], ni = s->cn[i], ti = s->ct[i];
     int bad = ni >= 0 && mesh_soup_normal_bad(s, ni);
     if (bad)
         ni = -1;
     int64_t key = (int64_t)vi * ((int64_t)s->n_nrm + 1) + (ni + 1);
-    size_t h = (size_t)((uint64_t)key * 0x9E3779B97F4A7C15ull >> 20) & (t->cap - 1);
-    while (t->key[h] != -1 && t->key[h] != key)
+    uint64_t mix = (uint64_t)key * 0x9E3779B97F4A7C15ull ^ (uint64_t)(uint32_t)(ti + 1) * 0xC2B2AE3D27D4EB4Full;
+    size_t h = (size_t)(mix >> 20) & (t->cap - 1);
+    while (t->key[h] != -1 && !(t->key[h] == key && t->tex[h] == ti))
         h = (h + 1) & (t->cap - 1);
     if (t->key[h] == -1) {
         const double *pp = &s->pos[3 * (size_t)vi];
@@ -1064,7 +1188,10 @@ static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtab
             n = dv3_norm(n);
         }
         t->key[h] = key;
+        t->tex[h] = ti;
         t->val[h] = mesh_vert(b, dv3(pp[0], pp[1], pp[2]), n);
+        if (ti >= 0)
+            mesh_uv(b, t->val[h], s->tex[2 * (size_t)ti], s->tex[2 * (size_t)ti + 1]);
         if (bad)
             b->m->recomputed[b->object]++;
     }
@@ -1073,7 +1200,7 @@ static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtab
 }
 
 /* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
- * Vertices are shared per (position, normal) pair. Zero-area triangles (in double, or once the
+ * Vertices are shared per (position, normal, texture coordinate). Zero-area triangles (in double, or once the
  * positions are stored as float) are left out and counted, as every renderer skips them; only a
  * mesh left with none is refused. */
 static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj, char *err,
@@ -1083,6 +1210,11 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
     size_t ntri = 0, kept = 0, dropped = 0;
     for (int f = 0; f < s->n_face; f++)
         ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
+    if (ntri == 0 && s->usemtl != NULL && s->usemtl[0] != '\0') {
+        status_message(err, errlen, "%s: no face after `usemtl %s`; fix: a material name from the file's usemtl lines",
+                       label, s->usemtl);
+        return RC_ERR_RANGE;
+    }
     if (ntri == 0) {
         status_message(err, errlen,
                        "%s: no faces (points and lines are not drawn); fix: a mesh with at least one "
@@ -1090,14 +1222,22 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
                        label);
         return RC_ERR_RANGE;
     }
+    if (b->textured && s->n_tex == 0) {
+        status_message(err, errlen,
+                       "%s: has no texture coordinates (OBJ vt, PLY u v or s t) and its material has a texture; "
+                       "fix: a mesh with UVs, or a material without texture",
+                       label);
+        return RC_ERR_RANGE;
+    }
     dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
-    mesh_vtable t = {16, NULL, NULL};
+    mesh_vtable t = {16, NULL, NULL, NULL};
     while (t.cap < 2 * (size_t)s->n_corner)
         t.cap *= 2;
     t.key = malloc(t.cap * sizeof *t.key);
+    t.tex = malloc(t.cap * sizeof *t.tex);
     t.val = malloc(t.cap * sizeof *t.val);
     rc_status rc = RC_OK;
-    if (!acc || !t.key || !t.val) {
+    if (!acc || !t.key || !t.tex || !t.val) {
         rc = RC_ERR_NOMEM;
         goto done;
     }
@@ -1158,6 +1298,7 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
 done:
     free(acc);
     free(t.key);
+    free(t.tex);
     free(t.val);
     return rc;
 }
@@ -1169,6 +1310,7 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
     size_t len = 0;
     mesh_soup s;
     memset(&s, 0, sizeof s);
+    s.usemtl = o->usemtl;
     snprintf(label, sizeof label, "%s", o->path);
     size_t pl = strlen(o->path);
     int is_obj = pl >= 4 && (strcmp(o->path + pl - 4, ".obj") == 0 || strcmp(o->path + pl - 4, ".OBJ") == 0);
@@ -1200,7 +1342,7 @@ static void mesh_counts(const object *o, size_t *nv, size_t *nt)
     size_t s = (size_t)o->tessellation;
     switch (o->shape) {
     case SHAPE_SPHERE:
-        *nv = 2 + s * (s / 2);
+        *nv = 2 * s + (s + 1) * (s / 2);
         *nt = 2 * s * (s / 2);
         break;
     case SHAPE_QUAD:
@@ -1212,8 +1354,8 @@ static void mesh_counts(const object *o, size_t *nv, size_t *nt)
         *nt = 12 + 24 * s + 8 * s * s;
         break;
     case SHAPE_TORUS:
-        *nv = s * (s / 2 < 3 ? 3 : s / 2);
-        *nt = 2 * *nv;
+        *nv = (s + 1) * ((s / 2 < 3 ? 3 : s / 2) + 1);
+        *nt = 2 * s * (s / 2 < 3 ? 3 : s / 2);
         break;
     default: *nv = *nt = 0;
     }
@@ -1279,7 +1421,9 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
         return RC_ERR_RANGE;
     }
     int nv0 = out->n_verts, nt0 = out->n_tris;
-    mesh_builder b = {out, mesh_make_xform(o), object_index};
+    mesh_builder b = {out, mesh_make_xform(o), object_index, 0};
+    for (int k = 0; k < MAT_TEX_SLOTS && o->material >= 0 && o->material < s->n_materials; k++)
+        b.textured |= s->materials[o->material].texture[k][0] != '\0';
     rc_status rc;
     if (o->shape == SHAPE_MESH) {
         rc = mesh_file(&b, o, object_index, err, errlen);
@@ -1336,6 +1480,7 @@ void mesh_free(mesh *m)
 {
     free(m->pos);
     free(m->nrm);
+    free(m->uv);
     free(m->idx);
     free(m->tri_object);
     memset(m, 0, sizeof *m);

@@ -3,11 +3,15 @@
  * Usage:
  *   mesh m = {0};
  *   if (mesh_build(&scn, &m, err, sizeof err) != RC_OK) ...;   all objects, world space
- *   ... m.pos[m.idx[3*t + c]], m.nrm[...], m.tri_object[t] ...
+ *   ... m.pos[m.idx[3*t + c]], m.nrm[...], m.uv[2*i], m.uv[2*i + 1], m.tri_object[t] ...
  *   mesh_free(&m);
  * Triangles wind counter-clockwise seen from the side their normals point to.
  * Normals are unit per-vertex shading normals (smooth where the shape is smooth,
  * duplicated vertices along creases). The mesh owns its arrays.
+ * Texture coordinates (u right, v up, model/texture.h) are per vertex: generated for the shapes
+ * (scenes/FORMAT.md says how), read from OBJ `vt` and PLY `u v`, `s t` or `texture_u texture_v`;
+ * (0, 0) where a file has none. A seam (the sphere's and torus's u = 0 = 1, the poles) has its
+ * own vertices, with the same position and normal, on each side.
  * Mesh files are read only when they are regular files of at most FILEIO_MESH_MAX_BYTES (1 GiB,
  * model/fileio.h), checked before reading: a device, FIFO or directory, or a larger file, is
  * RC_ERR_RANGE with its kind or size in the message.
@@ -30,6 +34,7 @@ typedef struct {
     int cap_verts, cap_tris;
     vec3 *pos;
     vec3 *nrm;
+    float *uv;       /* 2 per vertex; NULL in meshes built by hand without UVs */
     uint32_t *idx;   /* 3 per triangle */
     int *tri_object; /* index into scene.objects, per triangle */
     /* Per object, what the file readers repaired: zero-area triangles left out (in the file's

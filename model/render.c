@@ -149,6 +149,14 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
     t->emission = RENDER_BLEND(emission);
 #undef RENDER_BLEND
     t->alpha = a->alpha * b0 + b->alpha * rs->b1 + c->alpha * rs->b2;
+    /* D3D applies the texture stage per pixel, after Gouraud interpolation of Dv and Sv. */
+    const shade_plan *p = &j->plans[j->m->tri_object[rs->tri]];
+    if (p->textured && j->m->uv != NULL) {
+        const float *uv = j->m->uv;
+        float u = uv[2 * tri[0]] * b0 + uv[2 * tri[1]] * rs->b1 + uv[2 * tri[2]] * rs->b2;
+        float v = uv[2 * tri[0] + 1] * b0 + uv[2 * tri[1] + 1] * rs->b1 + uv[2 * tri[2] + 1] * rs->b2;
+        shade_texture_apply(p, u, v, t);
+    }
 }
 
 /* A queue's samples, one per SIMD lane: the interpolated world point, the unit normal facing
@@ -185,6 +193,17 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         if (len != NULL)
             nn = v3_scale(nn, mesh_normal_length_of(len, nn));
         shade_batch_set_input(in, i, x, nn, v);
+    }
+    if (m->uv == NULL)
+        return;
+    const float *uv = m->uv;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        int t = qu->tri[i];
+        int i0 = 2 * (int)idx[3 * t], i1 = 2 * (int)idx[3 * t + 1], i2 = 2 * (int)idx[3 * t + 2];
+        float b1 = qu->b1[i], b2 = qu->b2[i], b0 = 1.0f - b1 - b2;
+        in->tu[i] = uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2;
+        in->tv[i] = uv[i0 + 1] * b0 + uv[i1 + 1] * b1 + uv[i2 + 1] * b2;
     }
 }
 
@@ -445,7 +464,10 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
     total += raster_thread_count(&ro) * per_thread;
     /* The inputs stay resident: the mesh and the environment's float RGB. */
     double nv = m->n_verts, nt = m->n_tris;
-    total += nv * (2.0 * sizeof(vec3)) + nt * (3.0 * sizeof(uint32_t) + sizeof(int));
+    total += nv * (2.0 * sizeof(vec3) + 2.0 * sizeof(float)) + nt * (3.0 * sizeof(uint32_t) + sizeof(int));
+    for (int i = 0; opt->textures != NULL && i < s->n_materials; i++)
+        for (int t = 0; t < MAT_TEX_SLOTS; t++)
+            total += (double)opt->textures->map[i][t].width * opt->textures->map[i][t].height * 4.0 * sizeof(float);
     if (env != NULL && env->kind == ENV_IMAGE)
         total += (double)env->width * env->height * 3.0 * sizeof(float);
     /* Projected vertices (and Gouraud terms at most one per vertex); the rasterizer's tile
@@ -506,6 +528,18 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     render_camera_make(s, out->width, out->height, &cam);
     render_job j = {.s = s, .m = m, .cam = &cam, .out = out};
     shade_context_make(s, env, &j.sc);
+    j.sc.tex = opt->textures;
+    for (int i = 0; i < s->n_materials; i++)
+        for (int k = 0; k < MAT_TEX_SLOTS; k++)
+            if (s->materials[i].texture[k][0] != '\0' &&
+                (opt->textures == NULL || opt->textures->map[i][k].width <= 0 || m->uv == NULL)) {
+                render_image_free(out);
+                snprintf(err, errlen,
+                         "%s: materials '%s': texture %s is not loaded (or the mesh has no UVs); load it with "
+                         "frame_textures_load and pass it in render_options.textures",
+                         s->path, s->materials[i].name, s->materials[i].texture[k]);
+                return RC_ERR_RANGE;
+            }
 
     shade_plan plans[SCENE_MAX_OBJECTS];
     mesh_normal_length lengths[SCENE_MAX_OBJECTS];
@@ -571,7 +605,8 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                 /* D3D per vertex with NORMALIZENORMALS off: exactly its unnormalised normal. */
                 if (normal_length[obj] != NULL)
                     n = v3_scale(n, mesh_normal_length_of(normal_length[obj], n));
-                shade_eval(&j.sc, &plans[obj], x, n, v, &vt[vi]);
+                /* Per vertex: the lighting only; the texture is applied per sample. */
+                plans[obj].fn(&j.sc, &plans[obj], x, n, v, &vt[vi]);
             }
         }
     }

@@ -34,6 +34,7 @@
 #include "scene.h"
 #include "shade.h"
 #include "status.h"
+#include "texture.h"
 
 typedef enum {
     RENDER_R,
@@ -95,19 +96,21 @@ typedef struct {
 extern const char *const render_stage_names[RENDER_STAGE_COUNT];
 
 typedef struct {
-    int threads;             /* 0 = all cores */
-    int tile;                /* 0 = rasterizer default */
-    unsigned aovs;           /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
-    int width, height;       /* 0 = the scene's */
-    int supersample;         /* 0 = the scene's */
-    int general;             /* 1 = every object through shade_plan_make_general: the unspecialised
-                                path, for the specialisation benchmark; same output */
-    render_profile *profile; /* NULL = off; else filled with the frame's stage times (a clock read
-                                around each batch: a few per cent slower; same output) */
-    const shade_plan *plans; /* NULL = each object's material through shade_plan_make; else one
-                                plan per object made by the caller (e.g. model/physical.h's
-                                physical model in place of the scene's): shaded per sample,
-                                never per vertex */
+    int threads;                 /* 0 = all cores */
+    int tile;                    /* 0 = rasterizer default */
+    unsigned aovs;               /* 0 = RENDER_AOV_ALL; RENDER_AOV_NONE for beauty only */
+    int width, height;           /* 0 = the scene's */
+    int supersample;             /* 0 = the scene's */
+    int general;                 /* 1 = every object through shade_plan_make_general: the unspecialised
+                                    path, for the specialisation benchmark; same output */
+    render_profile *profile;     /* NULL = off; else filled with the frame's stage times (a clock read
+                                    around each batch: a few per cent slower; same output) */
+    const shade_plan *plans;     /* NULL = each object's material through shade_plan_make; else one
+                                    plan per object made by the caller (e.g. model/physical.h's
+                                    physical model in place of the scene's): shaded per sample,
+                                    never per vertex */
+    const texture_set *textures; /* the materials' textures (harness/frame.h frame_textures_load);
+                                    NULL = none, and then a textured material is refused */
 } render_options;
 
 typedef struct {

@@ -14,6 +14,73 @@ void shade_context_make(const scene *s, const env_map *env, shade_context *c)
     c->env = env;
     c->eye = s->camera.eye;
     c->e_inf = v3_norm(v3_sub(s->camera.eye, s->camera.target));
+    c->tex = NULL;
+}
+
+/* The plan's textures from the context's set, by the material's index in the scene. */
+void shade_plan_textures(const shade_context *c, const material *m, shade_plan *p)
+{
+    p->textured = 0;
+    long mi = m - c->s->materials;
+    for (int k = 0; k < MAT_TEX_SLOTS; k++) {
+        p->tex[k] = NULL;
+        if (c->tex != NULL && mi >= 0 && mi < c->s->n_materials && c->tex->map[mi][k].width > 0) {
+            p->tex[k] = &c->tex->map[mi][k];
+            p->textured = 1;
+        }
+    }
+}
+
+/* The lane-independent part of shade_texture_apply: one sample's terms times its texels. */
+static inline void shade_texture_mul(const shade_plan *p, const float *dif, const float *spec, shade_terms *t)
+{
+    if (dif != NULL) {
+        vec3 c = v3(dif[0], dif[1], dif[2]);
+        t->diffuse = v3_mul(t->diffuse, c);
+        t->emission = v3_mul(t->emission, c);
+        if (p->mat->model == MODEL_D3D9CLIENT) {
+            /* eq. (7) again with the texture's alpha: |R_tot| from the reflection term it made. */
+            float rn = d3d9client_colour_norm(t->reflection, p->mat->d9.norm);
+            t->alpha = formula_d3d9_alpha_f(p->mat->d9.alpha * dif[3], rn);
+        } else {
+            t->alpha *= dif[3];
+        }
+    }
+    if (spec != NULL)
+        t->specular = v3_mul(t->specular, v3(spec[0], spec[1], spec[2]));
+}
+
+void shade_texture_apply(const shade_plan *p, float u, float v, shade_terms *t)
+{
+    float dif[4], spec[4];
+    if (p->tex[MAT_TEX_DIFFUSE] != NULL)
+        texture_sample(p->tex[MAT_TEX_DIFFUSE], u, v, dif);
+    if (p->tex[MAT_TEX_SPECULAR] != NULL)
+        texture_sample(p->tex[MAT_TEX_SPECULAR], u, v, spec);
+    shade_texture_mul(p, p->tex[MAT_TEX_DIFFUSE] ? dif : NULL, p->tex[MAT_TEX_SPECULAR] ? spec : NULL, t);
+}
+
+void shade_texture_apply_n(const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    /* Texels gathered for the batch first (texture_sample_n), then applied lane by lane. */
+    float dif[4][SHADE_BATCH], spec[4][SHADE_BATCH];
+    const int n = in->n;
+    const texture *td = p->tex[MAT_TEX_DIFFUSE], *ts = p->tex[MAT_TEX_SPECULAR];
+    if (td != NULL)
+        texture_sample_n(td, n, in->tu, in->tv, dif[0], dif[1], dif[2], dif[3]);
+    if (ts != NULL)
+        texture_sample_n(ts, n, in->tu, in->tv, spec[0], spec[1], spec[2], spec[3]);
+    for (int i = 0; i < n; i++) {
+        shade_terms t;
+        float d[4] = {1, 1, 1, 1}, s[4] = {1, 1, 1, 1};
+        for (int k = 0; k < 4; k++) {
+            d[k] = td ? dif[k][i] : 1.0f;
+            s[k] = ts ? spec[k][i] : 1.0f;
+        }
+        shade_batch_get_terms(out, i, &t);
+        shade_texture_mul(p, td ? d : NULL, ts ? s : NULL, &t);
+        shade_batch_set_terms(out, i, &t);
+    }
 }
 
 int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, float *atten)
@@ -180,6 +247,7 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         light_ambient |= shade_nonzero(s->lights[i].ambient);
     p->mat = m;
     p->params = NULL;
+    shade_plan_textures(c, m, p);
     p->terms = SHADE_TERM_DIFFUSE | (shade_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     switch (m->model) {
     case MODEL_D3D: {

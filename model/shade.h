@@ -25,6 +25,7 @@
 
 #include "env.h"
 #include "scene.h"
+#include "texture.h"
 
 typedef struct {
     vec3 diffuse, specular, reflection, emission;
@@ -35,7 +36,8 @@ typedef struct {
     const scene *s;
     const env_map *env;
     vec3 eye;
-    vec3 e_inf; /* unit vector from the target toward the eye: D3D's infinite viewer */
+    vec3 e_inf;             /* unit vector from the target toward the eye: D3D's infinite viewer */
+    const texture_set *tex; /* the materials' textures; NULL (shade_context_make's default) = none */
 } shade_context;
 
 enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 4, SHADE_TERM_EMISSION = 8 };
@@ -47,8 +49,9 @@ typedef struct {
     float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH];
 } shade_vec3_n;
 typedef struct {
-    int n;                  /* lanes in use, 0..SHADE_BATCH */
-    shade_vec3_n x, nrm, v; /* as shade_eval's x, n, v */
+    int n;                                  /* lanes in use, 0..SHADE_BATCH */
+    shade_vec3_n x, nrm, v;                 /* as shade_eval's x, n, v */
+    float tu[SHADE_BATCH], tv[SHADE_BATCH]; /* texture coordinates, read only for textured plans */
 } shade_batch_in;
 typedef struct {
     shade_vec3_n diffuse, specular, reflection, emission;
@@ -98,6 +101,10 @@ struct shade_plan {
     const char *path;     /* the specialised path's name, for reports and benchmarks */
     const void *params;   /* a model adapter's own parameters (model/physical.h); NULL for the
                              scene's models, which read everything from mat */
+    /* The material's textures (c->tex), NULL per slot where none; any non-NULL makes the plan
+     * textured: shade_eval_uv and shade_eval_n then multiply the terms by the texels. */
+    const texture *tex[MAT_TEX_SLOTS];
+    int textured;
 };
 
 void shade_context_make(const scene *s, const env_map *env, shade_context *c);
@@ -111,10 +118,34 @@ static inline void shade_eval(const shade_context *c, const shade_plan *p, vec3 
     p->fn(c, p, x, n, v, out);
 }
 
+/* Textures (model/texture.h, scene.h's slots) enter after the model, because every model is
+ * linear in what they scale: the diffuse texel's colour multiplies the diffuse and emission
+ * terms (D3D's texture stage MODULATE of Dv; Cook-Torrance's albedo; the D3D9Client's lit d of
+ * eq. 6, whose weight 1 - |lambda| does not depend on d), its alpha the material alpha (D3D:
+ * alpha = texel alpha; D3D9Client eq. 7: max(d_a * texel alpha, |R_tot|)), and the specular
+ * texel multiplies the specular term (D3D Vs, Cook-Torrance ks). Exact, not an approximation:
+ * tests/test_texture.c compares with materials whose colours are the texel's. */
+void shade_texture_apply(const shade_plan *p, float u, float v, shade_terms *t);
+/* Sets p->tex and p->textured from c->tex for material m (shade_plan_make does it; a model
+ * adapter making its own plans, model/physical.c, calls it too). */
+void shade_plan_textures(const shade_context *c, const material *m, shade_plan *p);
+void shade_texture_apply_n(const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+
+/* shade_eval at texture coordinates (u, v): the same for an untextured plan. */
+static inline void shade_eval_uv(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu,
+                                 float tv, shade_terms *out)
+{
+    p->fn(c, p, x, n, v, out);
+    if (p->textured)
+        shade_texture_apply(p, tu, tv, out);
+}
+
 static inline void shade_eval_n(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
                                 shade_batch_out *out)
 {
     p->batch(c, p, in, out);
+    if (p->textured)
+        shade_texture_apply_n(p, in, out);
 }
 
 /* The batch kernels (shade_batch.c), one per specialised path, that shade_plan_make installs;

@@ -129,7 +129,7 @@ static void test_sphere(void **state)
     mesh m = {0};
     build_ok(s, &m);
     check_basic(&m);
-    assert_int_equal(m.n_verts, 2 + 32 * 15);
+    assert_int_equal(m.n_verts, 2 * 32 + 33 * 15); /* pole vertices per triangle, a seam column */
     assert_int_equal(m.n_tris, 2 * 32 * 15);
     dvec3 c = dv3_from(o.center);
     for (int i = 0; i < m.n_verts; i++) {
@@ -386,10 +386,12 @@ static const double tetra_cross[4][3] = {{0, 0, -6}, {0, -2, 0}, {-3, 0, 0}, {3,
 /* Area-weighted vertex normals: sums of the cross products of each vertex's faces. */
 static const double tetra_n[4][3] = {{-3 / 7.0, -2 / 7.0, -6 / 7.0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
 
-static void check_tetra(const mesh *m, dvec3 shift)
+/* n_verts: 4 when shared (one normal per position); tetra.obj's second face gives its corners
+ * texture coordinates, so they are vertices of their own there (7). */
+static void check_tetra(const mesh *m, dvec3 shift, int n_verts)
 {
     assert_int_equal(m->n_tris, 4);
-    assert_int_equal(m->n_verts, 4); /* shared: one normal per position */
+    assert_int_equal(m->n_verts, n_verts);
     for (int t = 0; t < 4; t++) {
         for (int c = 0; c < 3; c++) {
             const double *v = tetra_v[tetra_faces[t][c]], *n = tetra_n[tetra_faces[t][c]];
@@ -408,7 +410,14 @@ static void test_obj_tetra(void **state)
     mesh m = {0};
     build_ok(s, &m);
     check_basic(&m);
-    check_tetra(&m, dv3(10, -1, 0.5));
+    check_tetra(&m, dv3(10, -1, 0.5), 7);
+    /* The v/vt face's corners carry vt 1..3; the others none, so (0, 0). */
+    for (int c = 0; c < 3; c++) {
+        uint32_t i = m.idx[3 * 1 + c];
+        const float want[3][2] = {{0, 0}, {1, 0}, {0, 1}};
+        assert_float_equal(m.uv[2 * i], want[c][0], 0);
+        assert_float_equal(m.uv[2 * i + 1], want[c][1], 0);
+    }
     mesh_free(&m);
     /* Rz(90): (2,0,0) -> (0,2,0), its normal +X -> +Y. */
     s->objects[0].rotate = v3(0, 0, (float)(PI / 2));
@@ -452,7 +461,7 @@ static void test_ply_ascii(void **state)
     mesh m = {0};
     build_ok(s, &m);
     check_basic(&m);
-    check_tetra(&m, dv3(0, 0, 0)); /* the file's normals are the area-weighted ones, rounded */
+    check_tetra(&m, dv3(0, 0, 0), 4); /* the file's normals are the area-weighted ones, rounded */
     mesh_free(&m);
     free(s);
 }

@@ -17,6 +17,11 @@
 #include <png.h>
 
 #include "check.h"
+#include "frame.h"
+#include "mesh.h"
+#include "render.h"
+#include "scene_file.h"
+#include "shade.h"
 #include "texture.h"
 
 static void test_srgb_curve(void **state)
@@ -253,6 +258,280 @@ static void test_refusals(void **state)
     assert_int_equal(texture_load("/dev/zero", &t, err, sizeof err), RC_ERR_RANGE);
 }
 
+/* A textured material's terms equal those of the same material with the texel's colour folded
+ * into its parameters (the models are linear in them): D3D with ambient, emission and a
+ * specular map; D3D9Client with eq. 7's alpha; Cook-Torrance; scalar and SIMD lanes. */
+static void shade_pair(model_kind model, float tu, float tv)
+{
+    static scene s, s2;
+    scene_init(&s);
+    s.camera.eye = v3(0.3f, 1.0f, 2.0f);
+    s.camera.target = v3(0, 0, 0);
+    s.global_ambient = v3(0.1f, 0.2f, 0.3f);
+    s.n_lights = 1;
+    light_init(&s.lights[0]);
+    s.lights[0].kind = LIGHT_POINT;
+    s.lights[0].position = v3(1.0f, 2.0f, 1.5f);
+    s.lights[0].intensity = v3(5, 4, 3);
+    s.n_materials = 1;
+    material *m = &s.materials[0];
+    material_init(m);
+    m->model = model;
+    m->albedo = v3(0.9f, 0.7f, 0.5f);
+    m->d3d.diffuse = v3(0.6f, 0.5f, 0.4f);
+    m->d3d.ambient = v3(0.3f, 0.3f, 0.3f);
+    m->d3d.emissive = v3(0.05f, 0.02f, 0.01f);
+    m->d3d.specular = v3(0.5f, 0.4f, 0.3f);
+    m->d3d.power = 20.0f;
+    m->d9.p = 3;
+    m->d9.r0 = 0.04f;
+    m->d9.m = 0.96f;
+    m->d9.reflect = v3(0.2f, 0.1f, 0.05f);
+    m->d9.fresnel_colour = v3s(1.0f);
+    m->d9.alpha = 0.8f;
+    m->ct.m = 0.3f;
+    m->ct.f0 = v3s(0.04f);
+    m->ct.ks = v3(1, 1, 1);
+    snprintf(m->texture[MAT_TEX_DIFFUSE], SCENE_PATH_MAX, "grid");
+    snprintf(m->texture[MAT_TEX_SPECULAR], SCENE_PATH_MAX, "grid");
+    texture t = make_tex();
+    /* colours within [0, 1]: scale the test image's channels */
+    static float px[W * H * 4];
+    for (int i = 0; i < W * H * 4; i++)
+        px[i] = t.rgba[i] / (i % 4 == 2 ? 20.0f : 4.0f) + (i % 4 == 3 ? 0.2f : 0.0f);
+    t.rgba = px;
+    static texture_set ts;
+    memset(&ts, 0, sizeof ts);
+    ts.map[0][MAT_TEX_DIFFUSE] = t;
+    ts.map[0][MAT_TEX_SPECULAR] = t;
+    env_map env = {.kind = ENV_CONSTANT, .constant = v3(0.5f, 0.6f, 0.7f)};
+
+    float dif[4], spe[4];
+    texture_sample(&t, tu, tv, dif);
+    texture_sample(&t, tu, tv, spe);
+    /* The same material without textures, the texel folded into its parameters. */
+    s2 = s;
+    material *m2 = &s2.materials[0];
+    memset(m2->texture, 0, sizeof m2->texture);
+    vec3 dc = v3(dif[0], dif[1], dif[2]), sc = v3(spe[0], spe[1], spe[2]);
+    m2->d3d.diffuse = v3_mul(m2->d3d.diffuse, dc);
+    m2->d3d.ambient = v3_mul(m2->d3d.ambient, dc);
+    m2->d3d.emissive = v3_mul(m2->d3d.emissive, dc);
+    m2->albedo = v3_mul(m2->albedo, dc);
+    m2->d3d.specular = v3_mul(m2->d3d.specular, sc);
+    m2->ct.ks = v3_mul(m2->ct.ks, sc);
+    m2->d9.alpha *= dif[3];
+
+    shade_context c, c2;
+    shade_context_make(&s, &env, &c);
+    c.tex = &ts;
+    shade_context_make(&s2, &env, &c2);
+    shade_plan p, p2;
+    shade_plan_make(&c, m, &p);
+    shade_plan_make(&c2, m2, &p2);
+    assert_true(p.textured && !p2.textured);
+    vec3 x = v3(0.1f, 0.0f, -0.2f), n = v3_norm(v3(0.1f, 1.0f, 0.2f)), v = v3_norm(v3_sub(s.camera.eye, x));
+    shade_terms a, b;
+    shade_eval_uv(&c, &p, x, n, v, tu, tv, &a);
+    shade_eval(&c2, &p2, x, n, v, &b);
+    const vec3 *ta[4] = {&a.diffuse, &a.specular, &a.reflection, &a.emission};
+    const vec3 *tb[4] = {&b.diffuse, &b.specular, &b.reflection, &b.emission};
+    for (int k = 0; k < 4; k++) {
+        assert_float_equal(ta[k]->x, tb[k]->x, 2e-6 * fmaxf(1.0f, fabsf(tb[k]->x)));
+        assert_float_equal(ta[k]->y, tb[k]->y, 2e-6 * fmaxf(1.0f, fabsf(tb[k]->y)));
+        assert_float_equal(ta[k]->z, tb[k]->z, 2e-6 * fmaxf(1.0f, fabsf(tb[k]->z)));
+    }
+    /* D3D and Cook-Torrance: alpha = the texel's; D3D9Client: eq. 7 with d_a times it. */
+    assert_float_equal(a.alpha, b.alpha * (model == MODEL_D3D9CLIENT ? 1.0f : dif[3]), 1e-6);
+    assert_true(fabsf(a.diffuse.x) > 0.0f && fabsf(a.specular.x) > 0.0f);
+
+    /* The SIMD lanes, a lane per sample with its own UV, against the scalar path. */
+    shade_batch_in in;
+    shade_batch_out out;
+    memset(&in, 0, sizeof in);
+    in.n = 16;
+    for (int i = 0; i < in.n; i++) {
+        shade_batch_set_input(&in, i, x, n, v);
+        in.tu[i] = tu + 0.07f * (float)i;
+        in.tv[i] = tv - 0.05f * (float)i;
+    }
+    shade_eval_n(&c, &p, &in, &out);
+    for (int i = 0; i < in.n; i++) {
+        shade_terms l, r;
+        shade_batch_get_terms(&out, i, &l);
+        shade_eval_uv(&c, &p, x, n, v, in.tu[i], in.tv[i], &r);
+        /* shade.h's lane bound: 1.3e-5 relative for Blinn powers up to 40 */
+        close_rel(l.diffuse.y, r.diffuse.y, 2e-5);
+        close_rel(l.specular.z, r.specular.z, 2e-5);
+        close_rel(l.alpha, r.alpha, 2e-5);
+    }
+}
+
+static void test_shade_textured(void **state)
+{
+    (void)state;
+    const model_kind models[3] = {MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE};
+    for (int k = 0; k < 3; k++) {
+        shade_pair(models[k], 0.3f, 0.7f);
+        shade_pair(models[k], 1.0f / W, 0.25f); /* between texels */
+    }
+}
+
+/* Generated UVs: the quad's corners, the sphere's u = 1 - phi/2pi, v = 1 - theta/pi at every
+ * vertex off the seam and poles. */
+static void test_generated_uvs(void **state)
+{
+    (void)state;
+    static scene s;
+    scene_init(&s);
+    s.n_materials = 1;
+    material_init(&s.materials[0]);
+    s.n_objects = 2;
+    object_init(&s.objects[0]);
+    s.objects[0].shape = SHAPE_SPHERE;
+    s.objects[0].radius = 2.0f;
+    s.objects[0].tessellation = 16;
+    object_init(&s.objects[1]);
+    s.objects[1].shape = SHAPE_QUAD;
+    s.objects[1].size = v3(2, 0, 4);
+    s.objects[1].center = v3(0, -5, 0);
+    mesh m = {0};
+    char err[512];
+    assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_OK);
+    int checked = 0;
+    for (int i = 0; i < m.n_verts; i++) {
+        vec3 p = m.pos[i];
+        float u = m.uv[2 * i], v = m.uv[2 * i + 1];
+        if (p.y < -4.0f) { /* quad: u = x/2 + 0.5, v = 0.5 - z/4 */
+            assert_float_equal(u, p.x / 2.0f + 0.5f, 1e-6);
+            assert_float_equal(v, 0.5f - p.z / 4.0f, 1e-6);
+            checked++;
+            continue;
+        }
+        if (fabsf(p.y) > 1.999f || u == 0.0f)
+            continue; /* poles and the seam column */
+        double phi = atan2(p.z, p.x);
+        if (phi < 0)
+            phi += 2 * TEST_PI;
+        assert_float_equal(u, 1.0 - phi / (2 * TEST_PI), 1e-5);
+        assert_float_equal(v, 0.5 + asin(p.y / 2.0) / TEST_PI, 1e-5);
+        checked++;
+    }
+    assert_true(checked > 100);
+    mesh_free(&m);
+}
+
+/* Real UVs: cube_uv.ply's `s t` (Blender's names) and an OBJ's vt with usemtl selecting faces. */
+static void test_file_uvs(void **state)
+{
+    (void)state;
+    static scene s;
+    scene_init(&s);
+    s.n_materials = 1;
+    material_init(&s.materials[0]);
+    s.n_objects = 1;
+    object_init(&s.objects[0]);
+    s.objects[0].shape = SHAPE_MESH;
+    snprintf(s.objects[0].path, SCENE_PATH_MAX, "/usr/share/assimp/models/PLY/cube_uv.ply");
+    mesh m = {0};
+    char err[512];
+    assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_OK);
+    /* The file's third vertex: -1 -1 -1, normal 0 0 -1, s 1 t 1; its fourth -1 1 -1 ... s 0 t 1. */
+    int found = 0;
+    for (int i = 0; i < m.n_verts; i++)
+        if (m.nrm[i].z < -0.99f && m.pos[i].x == -1.0f && m.pos[i].z == -1.0f) {
+            assert_float_equal(m.uv[2 * i], m.pos[i].y < 0.0f ? 1.0f : 0.0f, 1e-6);
+            assert_float_equal(m.uv[2 * i + 1], 1.0f, 1e-6);
+            found++;
+        }
+    assert_int_equal(found, 2);
+    mesh_free(&m);
+
+    char path[256];
+    snprintf(path, sizeof path, "%s/two.obj", tmpdir);
+    FILE *f = fopen(path, "w");
+    fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 0.25 0.75\n"
+          "usemtl red\nf 1/1 2/2 3/3\nusemtl blue \nf 2/2 4/4 3/3\nf 1 2 4\nusemtl red\nf 3/4 2 4\n",
+          f);
+    fclose(f);
+    snprintf(s.objects[0].path, SCENE_PATH_MAX, "%s", path);
+    int counts[3];
+    const char *names[3] = {"", "red", "blue"};
+    for (int k = 0; k < 3; k++) {
+        snprintf(s.objects[0].usemtl, SCENE_NAME_MAX, "%s", names[k]);
+        assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_OK);
+        counts[k] = m.n_tris;
+        if (k == 2) { /* blue's first face: 2/2 4/4 3/3 */
+            assert_float_equal(m.uv[2 * m.idx[1]], 0.25f, 0);
+            assert_float_equal(m.uv[2 * m.idx[1] + 1], 0.75f, 0);
+        }
+        mesh_free(&m);
+    }
+    assert_int_equal(counts[0], 4);
+    assert_int_equal(counts[1], 2);
+    assert_int_equal(counts[2], 2);
+    snprintf(s.objects[0].usemtl, SCENE_NAME_MAX, "green");
+    assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "usemtl green"));
+    /* A textured material on a mesh without UVs is refused by name. */
+    s.objects[0].usemtl[0] = '\0';
+    snprintf(s.objects[0].path, SCENE_PATH_MAX, "/usr/share/assimp/models/OBJ/box.obj");
+    snprintf(s.materials[0].texture[MAT_TEX_DIFFUSE], SCENE_PATH_MAX, "x.png");
+    assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "texture coordinates"));
+}
+
+/* The scene keys, the loader, and a render that refuses textures it was not given. */
+static void test_scene_keys(void **state)
+{
+    (void)state;
+    char path[256], err[1024];
+    snprintf(path, sizeof path, "%s/t.png", tmpdir); /* written by test_png */
+    char text[2048];
+    snprintf(text, sizeof text,
+             "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  a: {texture: {diffuse: %s}}\n"
+             "objects:\n  - {shape: quad, size: [1, 1], rotate: [90, 0, 0], material: a}\n",
+             path);
+    static scene s;
+    assert_int_equal(scene_file_parse(text, strlen(text), "t.yaml", &s, err, sizeof err), RC_OK);
+    assert_string_equal(s.materials[0].texture[MAT_TEX_DIFFUSE], path);
+    assert_true(s.materials[0].texture[MAT_TEX_SPECULAR][0] == '\0');
+    texture_set ts;
+    assert_int_equal(frame_textures_load(&s, &ts, err, sizeof err), RC_OK);
+    assert_int_equal(ts.map[0][MAT_TEX_DIFFUSE].width, 3);
+    mesh m = {0};
+    assert_int_equal(mesh_build(&s, &m, err, sizeof err), RC_OK);
+    render_options o = {.threads = 1};
+    render_image img;
+    assert_int_equal(render_scene(&s, &m, NULL, &o, &img, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "not loaded"));
+    o.textures = &ts;
+    assert_int_equal(render_scene(&s, &m, NULL, &o, &img, err, sizeof err), RC_OK);
+    render_image_free(&img);
+    mesh_free(&m);
+    texture_set_free(&ts);
+
+    /* Refusals, each one line naming the key. */
+    const char *bad[] = {"{texture: {diffuse: x.bmp}}", "{texture: {normal: x.png}}", "{texture: {diffuse: nope.png}}"};
+    const char *want[] = {"unsupported extension", "normal", "nope.png"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(text, sizeof text,
+                 "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+                 "materials:\n  a: %s\nobjects:\n  - {shape: quad, size: [1, 1], material: a}\n",
+                 bad[i]);
+        assert_int_not_equal(scene_file_parse(text, strlen(text), "t.yaml", &s, err, sizeof err), RC_OK);
+        assert_non_null(strstr(err, want[i]));
+        assert_non_null(strstr(err, "materials.a.texture"));
+    }
+    snprintf(text, sizeof text,
+             "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  a: {}\nobjects:\n  - {shape: mesh, path: /usr/share/assimp/models/PLY/cube_uv.ply, "
+             "usemtl: x, material: a}\n");
+    assert_int_equal(scene_file_parse(text, strlen(text), "t.yaml", &s, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "usemtl"));
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -272,7 +551,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_srgb_curve), cmocka_unit_test(test_sample_centres), cmocka_unit_test(test_sample_wrap),
         cmocka_unit_test(test_png),        cmocka_unit_test(test_jpeg),           cmocka_unit_test(test_real_asset),
-        cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_refusals),   cmocka_unit_test(test_shade_textured), cmocka_unit_test(test_generated_uvs),
+        cmocka_unit_test(test_file_uvs),   cmocka_unit_test(test_scene_keys),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

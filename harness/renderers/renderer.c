@@ -2,7 +2,10 @@
 
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+
+#include "exr.h"
 
 static const char *const renderer_terms[RENDERER_N_TERMS] = {"diffuse", "specular", "reflection", "emission"};
 
@@ -93,4 +96,34 @@ rc_status renderer_physics_check(renderer_physics_fn fn, const scene *s, char *e
     status_message(err, errlen, "%s: physics: %s; change the scene's physics or compare another reference", s->path,
                    diff);
     return RC_ERR_RANGE;
+}
+
+rc_status renderer_write_textures(const renderer_job *j, char *err, size_t errlen)
+{
+    static const char *const slot[MAT_TEX_SLOTS] = {"diffuse", "specular"};
+    for (int mi = 0; j->tex != NULL && mi < j->s->n_materials; mi++)
+        for (int k = 0; k < MAT_TEX_SLOTS; k++) {
+            const texture *t = &j->tex->map[mi][k];
+            if (t->width <= 0)
+                continue;
+            size_t n = (size_t)t->width * (size_t)t->height;
+            float *pl = malloc(4 * n * sizeof *pl);
+            if (pl == NULL) {
+                snprintf(err, errlen, "out of memory for a %d x %d texture", t->width, t->height);
+                return RC_ERR_NOMEM;
+            }
+            for (size_t i = 0; i < n; i++)
+                for (int c = 0; c < 4; c++)
+                    pl[(size_t)c * n + i] = t->rgba[4 * i + (size_t)c];
+            char path[1200];
+            snprintf(path, sizeof path, "%s/tex%d_%s.exr", j->dir, mi, slot[k]);
+            /* No alpha channel: POV-Ray would make the surface transparent and Blender reads an
+             * EXR's alpha as premultiplied; the texture's alpha enters only our A layer. */
+            exr_channel ch[3] = {{"R", pl}, {"G", pl + n}, {"B", pl + 2 * n}};
+            rc_status st = exr_write(path, t->width, t->height, ch, 3, NULL, 0, err, errlen);
+            free(pl);
+            if (st != RC_OK)
+                return st;
+        }
+    return RC_OK;
 }

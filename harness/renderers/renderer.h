@@ -22,6 +22,7 @@
 #include "mesh.h"
 #include "runner.h"
 #include "scene.h"
+#include "texture.h"
 
 enum {
     RENDERER_TERM_DIFFUSE = 1,
@@ -34,8 +35,9 @@ enum {
 
 typedef struct {
     const scene *s;
-    const mesh *m;      /* the scene's mesh (mesh_build) */
-    const env_map *env; /* the environment, loaded and checked */
+    const mesh *m;          /* the scene's mesh (mesh_build) */
+    const env_map *env;     /* the environment, loaded and checked */
+    const texture_set *tex; /* the materials' textures, loaded and checked; NULL = none */
     comparison_role role;
     int threads;           /* 0 = all cores */
     int seeds;             /* stochastic renderers: seeds averaged, 0 = 2 */
@@ -83,6 +85,10 @@ void renderer_fail(renderer_result *r, runner_status st, const char *fmt, ...) _
  * it: a line holding it; NULL = none) and the shown log. */
 void renderer_fail_run(renderer_result *r, const runner_result *rr, const char *program, const char *package,
                        const char *what, const char *log, const char *marker, const char *shown_log);
+/* Writes every texture of j->tex into j->dir as tex<material>_<slot>.exr (slots diffuse,
+ * specular): linear float R, G, B (no alpha), our decoded texels, so that a reference filters exactly
+ * what the rasterizer samples. RC_OK, or an error with one line in err. */
+rc_status renderer_write_textures(const renderer_job *j, char *err, size_t errlen);
 /* Records term bit `term` as left out, with its reason (the first reason is kept). */
 void renderer_leave_out(renderer_result *r, unsigned term, const char *why);
 

@@ -18,6 +18,7 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
     }
     shade_context c;
     shade_context_make(j->s, j->env, &c);
+    c.tex = j->tex;
     shade_plan plans[SCENE_MAX_OBJECTS];
     char why[400];
     for (int i = 0; i < j->s->n_objects; i++)
@@ -28,7 +29,7 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
         }
     render_image img = {0};
     char err[1024];
-    render_options ro = {.threads = j->threads, .plans = plans};
+    render_options ro = {.threads = j->threads, .plans = plans, .textures = j->tex};
     rc_status st = render_scene(j->s, j->m, j->env, &ro, &img, err, sizeof err);
     if (st != RC_OK) {
         renderer_fail(r, st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED, "%s", err);

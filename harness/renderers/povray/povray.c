@@ -238,6 +238,7 @@ typedef struct {
     int reflection; /* 0 none, 1 { min, max falloff p }, 2 { 0, 1 fresnel on } */
     dvec3 rmin, rmax;
     double falloff, ior;
+    char texture[1200]; /* the diffuse texture's EXR, "" = the pigment colour */
 } povray_finish;
 
 static double povray_comp(dvec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y : v.z); }
@@ -490,11 +491,59 @@ static rc_status povray_check_path(const char *p, const char *what, char *err, s
     return RC_OK;
 }
 
+/* A textured material: the pigment becomes the texture (texel colour), and the material colour
+ * the finish's diffuse, which must then be grey; emission and ambient, which POV-Ray multiplies
+ * by the pigment, stay as the unscaled colour, since our texture multiplies those terms too. */
+static rc_status povray_material_texture(const scene *s, int mi, const povray_options *o, const mesh *m,
+                                         povray_finish *f, char *err, size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    const char *name = mat->name[0] ? mat->name : "(unnamed)";
+    f->texture[0] = '\0';
+    if (mat->texture[MAT_TEX_SPECULAR][0] != '\0') {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': texture.specular has no POV-Ray form (its specular is one "
+                       "number per finish); compare it against cycles",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
+    if (mat->texture[MAT_TEX_DIFFUSE][0] == '\0')
+        return RC_OK;
+    if (o == NULL || o->texture_dir == NULL || m->uv == NULL) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': textured, but no texture folder (povray_options.texture_dir) or "
+                       "mesh UVs were given; render it through povray_render_job",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
+    dvec3 p = f->pigment;
+    if (!(p.x == p.y && p.y == p.z)) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': a texture times the non-grey colour (%g, %g, %g) has no POV-Ray "
+                       "form (the image is the pigment, the colour a scalar diffuse); use a grey diffuse colour",
+                       s->path, mi, name, p.x, p.y, p.z);
+        return RC_ERR_RANGE;
+    }
+    if (povray_check_path(o->texture_dir, "texture folder", err, errlen) != RC_OK)
+        return RC_ERR_RANGE;
+    f->emission = dv3_mul(f->emission, f->pigment);
+    f->diffuse *= p.x;
+    f->pigment = dv3(1, 1, 1);
+    snprintf(f->texture, sizeof f->texture, "%s/tex%d_diffuse.exr", o->texture_dir, mi);
+    return RC_OK;
+}
+
 static void povray_write_finish(FILE *fp, const povray_finish *f)
 {
-    fprintf(fp, "    texture {\n      pigment { color rgb ");
-    povray_put_vec(fp, f->pigment);
-    fprintf(fp, " }\n      finish {\n        ambient 0\n        emission rgb ");
+    if (f->texture[0] != '\0') {
+        /* interpolate 2: bilinear; repeat is image_map's default (no `once`). */
+        fprintf(fp, "    texture {\n      uv_mapping pigment { image_map { exr \"%s\" interpolate 2 } }", f->texture);
+    } else {
+        fprintf(fp, "    texture {\n      pigment { color rgb ");
+        povray_put_vec(fp, f->pigment);
+        fprintf(fp, " }");
+    }
+    fprintf(fp, "\n      finish {\n        ambient 0\n        emission rgb ");
     povray_put_vec(fp, f->emission);
     fprintf(fp, "\n        diffuse %.9g\n        brilliance 1\n        crand 0\n", f->diffuse);
     fprintf(fp, "        specular %.9g\n        roughness %.9g\n        phong 0\n        metallic 0\n", f->specular,
@@ -564,6 +613,8 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             continue;
         st = r.validate ? povray_material_physical(s, mi, &r, &fin[mi], err, errlen)
                         : povray_material_twin(s, mi, lights, &r, &fin[mi], err, errlen);
+        if (st == RC_OK)
+            st = povray_material_texture(s, mi, o, m, &fin[mi], err, errlen);
         if (st != RC_OK)
             return st;
     }
@@ -693,7 +744,15 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             fprintf(fp, ",\n    ");
             povray_put_fvec(fp, m->nrm[local[v]]);
         }
-        fprintf(fp, "\n  }\n  face_indices { %d", nt);
+        fprintf(fp, "\n  }\n");
+        if (m->uv != NULL && !coverage && fin[s->objects[ob].material].texture[0] != '\0') {
+            /* Without uv_indices POV-Ray indexes uv_vectors with face_indices, as here. */
+            fprintf(fp, "  uv_vectors { %d", nv);
+            for (int v = 0; v < nv; v++)
+                fprintf(fp, ",\n    <%.9g, %.9g>", (double)m->uv[2 * local[v]], (double)m->uv[2 * local[v] + 1]);
+            fprintf(fp, "\n  }\n");
+        }
+        fprintf(fp, "  face_indices { %d", nt);
         for (int t = 0; t < m->n_tris; t++) {
             if (m->tri_object[t] != ob)
                 continue;
@@ -964,6 +1023,14 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
     else
         o.threads = j->threads;
     o.role = j->role;
+    if (j->tex != NULL) {
+        char err[1024];
+        if (renderer_write_textures(j, err, sizeof err) != RC_OK) {
+            renderer_fail(r, RUNNER_ERROR, "%s", err);
+            return;
+        }
+        o.texture_dir = j->dir;
+    }
     povray_choose_terms(j, &o, r);
     povray_options geo = o;
     geo.coverage = 1;

@@ -26,6 +26,12 @@
  *   Fresnel form asked (`fresnel on`, `interior { ior }`). Conductors -> RC_ERR_RANGE.
  * - no inter-reflection: every object has no_reflection, so a reflection ray sees only the
  *   environment (sky_sphere); no_shadow too, unless a validate's physics asks for shadows.
+ * - textures: the diffuse texture as `uv_mapping` `image_map { exr ... interpolate 2 }` over the
+ *   mesh's uv_vectors, fed our decoded linear texels (so sRGB decoding is ours in both), times a
+ *   grey finish diffuse (POV-Ray's pigment holds the texel; a non-grey material colour with a
+ *   texture -> RC_ERR_RANGE); POV-Ray multiplies emission by the pigment as our texture multiplies
+ *   the emission term. The texture's alpha is not used (our A layer is not compared). A specular
+ *   map has no POV-Ray form -> RC_ERR_RANGE.
  * - lights: colour I/pi (E/pi for a sun); D3D attenuation 1/(a0 + a2 d^2) or 1/(a0 + a1 d) is
  *   exact through fade_distance/fade_power; a0 = 0 uses fade_distance D = fade_ratio * (the
  *   nearest light-to-geometry distance), leaving a relative error (D/d)^2 (fade_power 2) or
@@ -61,17 +67,20 @@ enum {
 };
 
 typedef struct {
-    comparison_role role; /* ROLE_TWIN (0, default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
-    unsigned term;        /* POVRAY_TERM_* mask, 0 = POVRAY_TERM_ALL */
-    int supersample;      /* k, 0 = the scene's supersample (at least 1) */
-    int threads;          /* +WT<n>; 0 = POV-Ray's default (all cores) */
-    int max_trace_level;  /* 0 = 2: the camera ray plus one reflection ray to the sky */
-    double fade_ratio;    /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
-    double output_scale;  /* multiplies every radiance source; 0 = 1 */
-    const char *povray;   /* executable, NULL = "povray" (found on PATH) */
-    int coverage;         /* nonzero: a geometry pass instead: no lights, black background,
-                             every object emits rgb <1, object index + 1, 0>, so the box-
-                             filtered R is coverage and G/R the object index + 1 */
+    comparison_role role;    /* ROLE_TWIN (0, default), ROLE_VALIDATE, ROLE_AGREE (= validate) */
+    unsigned term;           /* POVRAY_TERM_* mask, 0 = POVRAY_TERM_ALL */
+    int supersample;         /* k, 0 = the scene's supersample (at least 1) */
+    int threads;             /* +WT<n>; 0 = POV-Ray's default (all cores) */
+    int max_trace_level;     /* 0 = 2: the camera ray plus one reflection ray to the sky */
+    double fade_ratio;       /* fade_distance / nearest light distance when a0 = 0; 0 = 1e-3 */
+    double output_scale;     /* multiplies every radiance source; 0 = 1 */
+    const char *povray;      /* executable, NULL = "povray" (found on PATH) */
+    const char *texture_dir; /* folder holding tex<material>_<slot>.exr, the materials' textures as
+                                linear float (povray_render_job writes them from j->tex); NULL with a
+                                textured material -> RC_ERR_RANGE */
+    int coverage;            /* nonzero: a geometry pass instead: no lights, black background,
+                                every object emits rgb <1, object index + 1, 0>, so the box-
+                                filtered R is coverage and G/R the object index + 1 */
 } povray_options;
 
 /* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the

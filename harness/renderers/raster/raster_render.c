@@ -9,7 +9,7 @@ void raster_render_job(const renderer_job *j, renderer_result *r)
 {
     render_image img = {0};
     char err[1024];
-    render_options ro = {.threads = j->threads};
+    render_options ro = {.threads = j->threads, .textures = j->tex};
     snprintf(r->command, sizeof r->command, "reflcheck render (in process)");
     rc_status st = render_scene(j->s, j->m, j->env, &ro, &img, err, sizeof err);
     if (st != RC_OK) {
