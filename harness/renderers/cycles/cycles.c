@@ -342,6 +342,43 @@ typedef struct {
     int glossy; /* a Beckmann closure lit by the lamps */
 } cycles_usage;
 
+/* Textures (model/texture.h): an Image Texture node, Linear interpolation, repeat, on the mesh's
+ * UVs, reading our decoded texels as linear float (renderer_write_textures), multiplies the
+ * diffuse and emission colours (diffuse map) or the glossy colour (specular map), as the
+ * rasterizer multiplies those terms. */
+static rc_status cycles_write_textures(cycles_ctx *c, jw *w, cJSON *o, int mi)
+{
+    const material *mat = &c->s->materials[mi];
+    static const char *const slot[MAT_TEX_SLOTS] = {"diffuse", "specular"};
+    static const char *const closure[MAT_TEX_SLOTS] = {"diffuse", "glossy"};
+    for (int k = 0; k < MAT_TEX_SLOTS; k++) {
+        if (mat->texture[k][0] == '\0')
+            continue;
+        if (c->o->texture_dir == NULL || c->m->uv == NULL) {
+            status_message(c->err, c->errlen,
+                           "%s: materials[%d] '%s': textured, but no texture folder (cycles_options.texture_dir) or "
+                           "mesh UVs were given; render it through cycles_render_job",
+                           c->s->path, mi, mat->name);
+            return RC_ERR_RANGE;
+        }
+        if (k == MAT_TEX_SPECULAR && !c->twin) {
+            status_message(c->err, c->errlen,
+                           "%s: materials[%d] '%s': texture.specular scales an approximation's specular term and has "
+                           "no place in the physics; validate without it",
+                           c->s->path, mi, mat->name);
+            return RC_ERR_RANGE;
+        }
+        char path[1200];
+        snprintf(path, sizeof path, "%s/tex%d_%s.exr", c->o->texture_dir, mi, slot[k]);
+        cJSON *target = cJSON_GetObjectItemCaseSensitive(o, closure[k]);
+        if (target != NULL)
+            jw_put_str(w, target, "texture", path);
+        if (k == MAT_TEX_DIFFUSE && cJSON_GetObjectItemCaseSensitive(o, "emission") != NULL)
+            jw_put_str(w, o, "emission_texture", path);
+    }
+    return RC_OK;
+}
+
 static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, int mi, cycles_usage *u)
 {
     const scene *s = c->s;
@@ -382,7 +419,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         if (cycles_nonzero(mat->d3d.emissive))
             jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
         u->glossy |= used;
-        return RC_OK;
+        return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
     }
 
     /* Twin: the rasterizer's own terms (harness/CONTRACT.md). */
@@ -504,7 +541,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     }
     if (cycles_nonzero(d->emissive))
         jw_put_vec(w, o, "emission", "materials.d3d.emissive", d->emissive);
-    return RC_OK;
+    return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
 }
 
 static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const mesh *m, int *remap)
@@ -536,6 +573,17 @@ static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const me
         jw_put_int(w, o, "pass_index", oi + 1);
         jw_put_flat(w, o, "verts", "mesh.pos", m->pos, order, n_verts);
         jw_put_flat(w, o, "normals", "mesh.nrm", m->nrm, order, n_verts);
+        const material *mat = &s->materials[s->objects[oi].material];
+        int textured = 0;
+        for (int k = 0; k < MAT_TEX_SLOTS; k++)
+            textured |= mat->texture[k][0] != '\0';
+        if (textured && m->uv != NULL) {
+            cJSON *uv = jw_arr(w, o, "uvs");
+            for (int i = 0; i < n_verts && !w->nomem; i++) {
+                jw_push_num(w, uv, "mesh.uv", m->uv[2 * order[i]]);
+                jw_push_num(w, uv, "mesh.uv", m->uv[2 * order[i] + 1]);
+            }
+        }
         cJSON *tris = jw_arr(w, o, "tris");
         for (int t = 0; t < m->n_tris && !w->nomem; t++) {
             if (m->tri_object[t] != oi)
@@ -973,6 +1021,13 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
     o.role = j->role;
     o.partial = j->partial;
     o.left_out = r;
+    if (j->tex != NULL) {
+        if (renderer_write_textures(j, err, sizeof err) != RC_OK) {
+            renderer_fail(r, RUNNER_ERROR, "%s", err);
+            return;
+        }
+        o.texture_dir = j->dir;
+    }
     rc_status st = cycles_write_job(j->s, j->m, &o, job, err, sizeof err);
     cycles_argv a;
     if (st == RC_OK)

@@ -67,6 +67,8 @@ typedef struct {
     int keep_raw;              /* nonzero: keep OUT.cyc<i>.exr and OUT.timing.json */
     const char *blender;       /* executable; NULL = "blender" (searched in PATH) */
     const char *script;        /* NULL = "harness/renderers/cycles/cycles_render.py" */
+    const char *texture_dir;   /* folder holding tex<material>_<slot>.exr (renderer_write_textures);
+                                  NULL with a textured material -> RC_ERR_RANGE */
 } cycles_options;
 
 rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,

@@ -373,6 +373,28 @@ def build_material(i, spec, env):
         else:
             nt.links.new(val, sock)
 
+    def textured(val, path):
+        """val (a colour tuple or socket) times the texture at path: an Image Texture on the
+        mesh's UVs, bilinear ('Linear'), repeat, the texels as written (linear float EXR)."""
+        if path is None:
+            return val
+        tex = nt.nodes.new('ShaderNodeTexImage')
+        tex.image = bpy.data.images.load(path, check_existing=True)
+        tex.image.colorspace_settings.name = 'Linear'
+        tex.image.alpha_mode = 'NONE'
+        tex.interpolation = 'Linear'
+        tex.extension = 'REPEAT'
+        uv = nt.nodes.new('ShaderNodeUVMap')
+        uv.uv_map = "UVMap"
+        nt.links.new(uv.outputs['UV'], tex.inputs['Vector'])
+        mix = nt.nodes.new('ShaderNodeMixRGB')
+        mix.blend_type = 'MULTIPLY'
+        mix.use_clamp = False
+        mix.inputs['Fac'].default_value = 1.0
+        set_colour(mix.inputs['Color1'], val)
+        nt.links.new(tex.outputs['Color'], mix.inputs['Color2'])
+        return mix.outputs['Color']
+
     def fresnel_factor(fr, at):
         """None (no factor), or one socket, or three sockets (per channel) of N.V."""
         if fr is None or fr["kind"] == "one":
@@ -398,7 +420,9 @@ def build_material(i, spec, env):
             factor = t if factor is None else e.mul(factor, t)
         n = nt.nodes.new('ShaderNodeBsdfDiffuse')
         n.inputs['Roughness'].default_value = 0.0
-        set_colour(n.inputs['Color'], colour_times(need(d, "color", where + ".diffuse"), factor))
+        set_colour(
+            n.inputs['Color'], textured(colour_times(need(d, "color", where + ".diffuse"), factor), d.get("texture"))
+        )
         shaders.append(n.outputs[0])
 
     g = spec.get("glossy")
@@ -409,7 +433,9 @@ def build_material(i, spec, env):
         n.distribution = 'SHARP' if rough == 0.0 else 'BECKMANN'
         n.inputs['Roughness'].default_value = rough
         factor = fresnel_factor(g.get("fresnel"), where + ".glossy.fresnel")
-        set_colour(n.inputs['Color'], colour_times(need(g, "color", where + ".glossy"), factor))
+        set_colour(
+            n.inputs['Color'], textured(colour_times(need(g, "color", where + ".glossy"), factor), g.get("texture"))
+        )
         shaders.append(n.outputs[0])
 
     m = spec.get("mirror")
@@ -468,7 +494,7 @@ def build_material(i, spec, env):
     em = spec.get("emission")
     if em is not None:
         n = nt.nodes.new('ShaderNodeEmission')
-        n.inputs['Color'].default_value = (em[0], em[1], em[2], 1.0)
+        set_colour(n.inputs['Color'], textured((em[0], em[1], em[2], 1.0), spec.get("emission_texture")))
         n.inputs['Strength'].default_value = 1.0
         shaders.append(n.outputs[0])
 
@@ -504,6 +530,17 @@ def setup_objects(job, materials):
         me.use_auto_smooth = True
         me.auto_smooth_angle = math.pi
         me.normals_split_custom_set_from_vertices(normals)
+        uvs = o.get("uvs")
+        if uvs is not None:
+            if len(uvs) != 2 * len(verts):
+                raise JobError("%s: uvs must hold one (u, v) pair per vertex" % where)
+            layer = me.uv_layers.new(name="UVMap")
+            vi = [0] * len(me.loops)
+            me.loops.foreach_get("vertex_index", vi)
+            flat = []
+            for k in vi:
+                flat += (uvs[2 * k], uvs[2 * k + 1])
+            layer.data.foreach_set("uv", flat)
         mi = int(need(o, "material", where))
         if mi < 0 or mi >= len(materials):
             raise JobError("%s: material %d out of range" % (where, mi))
