@@ -35,10 +35,10 @@ from .util import (
 ROLE_LEGEND = {
     'twin': 'the reference renderer is set up to compute exactly our model; any difference is a '
     'translation or renderer bug',
-    'validate': 'our real-time approximation against a physically based render; the difference '
-    'is the approximation\'s own error',
-    'agree': 'POV-Ray against Cycles on the same physical scene; how far the references agree '
-    '(the floor under every validate figure)',
+    'validate': 'our real-time approximation against a physically based render of the scene\'s one '
+    'physics (printed beside the figure); the difference is the approximation\'s own error',
+    'agree': 'POV-Ray\'s validate render against Cycles\' validate render, the same two jobs; how far '
+    'the references agree (the floor under every validate figure)',
 }
 
 TEMPLATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'templates')
