@@ -107,6 +107,8 @@ int cli_check(int argc, char **argv)
         rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
         if (st == RC_OK)
             st = frame_textures_load(s, &tex, err, sizeof err);
+        if (st == RC_OK)
+            st = frame_env_split_sun(s, env_pixels, &env, NULL, err, sizeof err);
         if (st != RC_OK) {
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;

@@ -69,6 +69,60 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
     return RC_OK;
 }
 
+rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen)
+{
+    env_sun local;
+    if (sun == NULL)
+        sun = &local;
+    memset(sun, 0, sizeof *sun);
+    if (s->env.kind != ENV_IMAGE || !(s->env.sun_threshold > 0.0f) || pixels == NULL)
+        return RC_OK;
+    if (s->n_lights >= SCENE_MAX_LIGHTS) {
+        snprintf(err, errlen,
+                 "%s: environment.sun_threshold: the extracted sun needs a light and the scene has %d (the most); "
+                 "remove a light or the sun_threshold",
+                 s->path, s->n_lights);
+        return RC_ERR_RANGE;
+    }
+    rc_status st = env_extract_sun(pixels, e->width, e->height, s->env.radiance, s->env.sun_threshold, sun);
+    if (st == RC_ERR_NOMEM) {
+        snprintf(err, errlen, "%s: environment.sun_threshold: out of memory for a %dx%d image", s->path, e->width,
+                 e->height);
+        return st;
+    }
+    if (st != RC_OK || !(v3_dot(sun->irradiance, sun->irradiance) > 0.0f)) {
+        snprintf(err, errlen,
+                 "%s: environment.sun_threshold: no texel of %s is brighter than %g (its brightest: luminance %g); "
+                 "give a threshold between the sky's and the sun's luminance",
+                 s->path, s->env.path, (double)s->env.sun_threshold, (double)sun->peak);
+        return RC_ERR_RANGE;
+    }
+    light *l = &s->lights[s->n_lights++];
+    light_init(l);
+    l->kind = LIGHT_SUN;
+    l->direction = v3_neg(sun->direction);
+    l->intensity = sun->irradiance;
+    return RC_OK;
+}
+
+rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t errlen)
+{
+    size_t n = (size_t)e->width * (size_t)e->height;
+    float *p[3] = {malloc(n * sizeof(float)), malloc(n * sizeof(float)), malloc(n * sizeof(float))};
+    rc_status st = RC_ERR_NOMEM;
+    if (p[0] && p[1] && p[2]) {
+        for (size_t i = 0; i < n; i++)
+            for (int c = 0; c < 3; c++)
+                p[c][i] = e->rgb[3 * i + (size_t)c];
+        exr_channel ch[3] = {{"R", p[0]}, {"G", p[1]}, {"B", p[2]}};
+        st = exr_write(path, e->width, e->height, ch, 3, NULL, 0, err, errlen);
+    } else
+        snprintf(err, errlen, "%s: out of memory for a %dx%d environment", path, e->width, e->height);
+    for (int c = 0; c < 3; c++)
+        free(p[c]);
+    return st;
+}
+
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen)
 {

@@ -10,6 +10,7 @@
  * An environment image must have R, G and B channels and finite texels >= 0 (RC_ERR_RANGE
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
+ *   frame_env_split_sun(&scn, pixels, &e, &sun, err, sizeof err);   environment.sun_threshold
  * frame_write stores every layer the render produced as 32-bit float, with the scene's name
  * and hash, the renderer (reflcheck-raster; frame_write_as names another), the render time, k,
  * the triangle and shaded-sample counts in the header.
@@ -29,6 +30,15 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
  * linear EXR (R, G, B, optional A) through exr.c; texels must be finite and >= 0. On error
  * nothing stays allocated; free with texture_set_free. */
 rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen);
+/* The scene's sun extraction (environment.sun_threshold > 0 on an image; else nothing): moves
+ * the sun out of pixels (frame_env_load's) into a sun light appended to s->lights, as every
+ * renderer must receive it (model/env.h env_extract_sun); *sun (may be NULL) describes it.
+ * RC_ERR_RANGE with one line naming the scene, key and fix when no texel is above the
+ * threshold or the lights are full. */
+rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen);
+/* Writes the environment's pixels (interleaved RGB) as a 32-bit float RGB EXR, for renderers
+ * that read the image from a file (the split environment). */
+rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t errlen);
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen);
 /* frame_write naming another in-process renderer in the header ("reflcheck-exact"). */

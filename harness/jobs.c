@@ -184,7 +184,8 @@ static void job_key_code(const renderer_row *row, uint64_t *key)
     static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c",
                                          "model/scene.h",   "model/mesh.c",         "model/mesh.h",
                                          "model/vec.h",     "harness/exr.c",        "harness/renderers/renderer.c",
-                                         "model/texture.c", "harness/frame.c"};
+                                         "model/texture.c", "harness/frame.c",      "model/env.c",
+                                         "model/env.h"};
     const char *const *own = row->sources;
     int have = own != NULL;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
@@ -501,6 +502,19 @@ static int job_entry_complete(const char *entry, job_record *rec, renderer_resul
 /* The table row's render entry, the same one the renderers' tests call. */
 static void job_render(job_ctx *c, job_record *rec)
 {
+    /* A renderer that reads the environment from its file gets the split one (frame_env_split_sun),
+     * written into its work folder. The cache key covers the original image, the threshold (the
+     * scene file) and the code that splits it (model/env.c, harness/frame.c). */
+    if (registry_row(c->j->renderer)->program != NULL && c->s->env.kind == ENV_IMAGE &&
+        c->s->env.sun_threshold > 0.0f) {
+        char path[1100], why[600];
+        snprintf(path, sizeof path, "%s/environment-split.exr", c->dir);
+        if (frame_env_write(path, &c->env, why, sizeof why) != RC_OK) {
+            job_fail(rec, RUNNER_ERROR, "the split environment: %s; check the work folder and its space", why);
+            return;
+        }
+        snprintf(c->s->env.path, sizeof c->s->env.path, "%s", path);
+    }
     renderer_job rj = {.s = c->s,
                        .m = c->m,
                        .env = &c->env,
@@ -621,6 +635,9 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
         st = frame_env_load(s, &c.env, &env_pixels, err, errlen);
     if (st == RC_OK)
         st = frame_textures_load(s, &c.tex, err, errlen);
+    /* Every renderer gets the same split sky: the sun moved into a light here, once. */
+    if (st == RC_OK)
+        st = frame_env_split_sun(s, env_pixels, &c.env, NULL, err, errlen);
     if (st == RC_OK && j->role == ROLE_TWIN)
         job_twin_switches(s);
 

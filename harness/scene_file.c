@@ -525,18 +525,20 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
 
 static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
 {
-    static const char *const keys[] = {"constant", "image", "scale"};
+    static const char *const keys[] = {"constant", "image", "scale", "sun_threshold"};
     static const char *const exts[] = {".exr"};
-    sf_kv f[3];
+    sf_kv f[4];
     rc_status rc;
-    if ((rc = sf_map(c, n, "environment", keys, 3, f)))
+    if ((rc = sf_map(c, n, "environment", keys, 4, f)))
         return rc;
     if (!!f[0].v == !!f[1].v)
         return sf_fail(c, RC_ERR_PARSE, n, "environment",
                        "give exactly one of 'constant' and 'image'; allowed: {constant: [r, g, b]} "
                        "or {image: file.exr, scale: s}, or omit environment for none");
     if (f[0].v) {
-        if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment", "constant: [r, g, b] alone")))
+        if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment", "constant: [r, g, b] alone")) ||
+            (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a constant environment",
+                            "constant: [r, g, b] alone")))
             return rc;
         s->env.kind = ENV_CONSTANT;
         return sf_colour(c, f[0].v, "environment.constant", &s->env.radiance);
@@ -553,6 +555,15 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
         if ((rc = sf_float(c, f[2].v, "environment.scale", 0.0, INFINITY, 0, "a finite number >= 0 or [r, g, b]", &k)))
             return rc;
         s->env.radiance = v3s(k);
+    }
+    if (f[3].v) {
+        if ((rc =
+                 sf_float(c, f[3].v, "environment.sun_threshold", 0.0, INFINITY, 0,
+                          "a finite luminance > 0 [W/m^2/sr] above the sky's, below the sun's", &s->env.sun_threshold)))
+            return rc;
+        if (!(s->env.sun_threshold > 0.0f))
+            return sf_fail(c, RC_ERR_RANGE, f[3].v, "environment.sun_threshold",
+                           "0 is not a threshold; allowed: a finite luminance > 0, or omit sun_threshold for no split");
     }
     return RC_OK;
 }

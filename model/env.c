@@ -2,6 +2,8 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "formula.h"
 #include "smath.h"
@@ -118,4 +120,94 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
         g[i] = cg * k.y;
         b[i] = cb * k.z;
     }
+}
+
+/* Rec. 709 luminance of a texel, the image scale applied. */
+static double env_luminance(const float *p, vec3 scale)
+{
+    return 0.2126 * p[0] * scale.x + 0.7152 * p[1] * scale.y + 0.0722 * p[2] * scale.z;
+}
+
+rc_status env_extract_sun(float *rgb, int width, int height, vec3 scale, float lum_min, env_sun *out)
+{
+    memset(out, 0, sizeof *out);
+    size_t n = (size_t)width * (size_t)height, peak = 0;
+    double best = -1.0;
+    for (size_t i = 0; i < n; i++) {
+        double y = env_luminance(rgb + 3 * i, scale);
+        if (y > best) {
+            best = y;
+            peak = i;
+        }
+    }
+    if (!(best > lum_min))
+        return RC_ERR_RANGE;
+    /* 1: in the sun, 2: bordering it. */
+    unsigned char *mark = calloc(n, 1);
+    size_t *queue = malloc(n * sizeof *queue);
+    if (mark == NULL || queue == NULL) {
+        free(mark);
+        free(queue);
+        return RC_ERR_NOMEM;
+    }
+    size_t head = 0, tail = 0;
+    mark[peak] = 1;
+    queue[tail++] = peak;
+    dvec3 border = dv3(0, 0, 0);
+    long n_border = 0;
+    while (head < tail) {
+        size_t i = queue[head++];
+        int x = (int)(i % (size_t)width), y = (int)(i / (size_t)width);
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                int yy = y + dy, xx = (x + dx + width) % width;
+                if ((dx == 0 && dy == 0) || yy < 0 || yy >= height)
+                    continue;
+                size_t k = (size_t)yy * (size_t)width + (size_t)xx;
+                if (mark[k])
+                    continue;
+                const float *p = rgb + 3 * k;
+                if (env_luminance(p, scale) > lum_min) {
+                    mark[k] = 1;
+                    queue[tail++] = k;
+                } else {
+                    mark[k] = 2;
+                    border = dv3_add(border, dv3(p[0], p[1], p[2]));
+                    n_border++;
+                }
+            }
+    }
+    /* A region with no border is the whole image: nothing is left around it. */
+    dvec3 fill = n_border > 0 ? dv3_scale(border, 1.0 / (double)n_border) : dv3(0, 0, 0);
+    dvec3 e = dv3(0, 0, 0), dir = dv3(0, 0, 0);
+    double omega = 0.0;
+    const double pi = FORMULA_PI_D, dphi = 2.0 * pi / width;
+    for (size_t q = 0; q < tail; q++) {
+        size_t i = queue[q];
+        int x = (int)(i % (size_t)width), y = (int)(i / (size_t)width);
+        /* Row y spans latitudes pi (0.5 - (y + 1)/H) .. pi (0.5 - y/H); u = (x + 0.5)/W is
+         * atan2(z, x)/(2 pi) + 0.5 (env.h). */
+        double lat_top = pi * (0.5 - (double)y / height), lat_bot = pi * (0.5 - (double)(y + 1) / height);
+        double d_omega = dphi * (sin(lat_top) - sin(lat_bot));
+        double lat = pi * (0.5 - ((double)y + 0.5) / height), phi = 2.0 * pi * (((double)x + 0.5) / width - 0.5);
+        float *p = rgb + 3 * i;
+        dvec3 moved = dv3(p[0] - fmin(fill.x, p[0]), p[1] - fmin(fill.y, p[1]), p[2] - fmin(fill.z, p[2]));
+        p[0] = (float)fmin(fill.x, p[0]);
+        p[1] = (float)fmin(fill.y, p[1]);
+        p[2] = (float)fmin(fill.z, p[2]);
+        dvec3 scaled = dv3_mul(moved, dv3_from(scale));
+        e = dv3_add(e, dv3_scale(scaled, d_omega));
+        double w = (0.2126 * scaled.x + 0.7152 * scaled.y + 0.0722 * scaled.z) * d_omega;
+        dir = dv3_add(dir, dv3_scale(dv3(cos(lat) * cos(phi), sin(lat), cos(lat) * sin(phi)), w));
+        omega += d_omega;
+    }
+    out->direction = v3_from_d(dv3_norm(dir));
+    out->irradiance = v3_from_d(e);
+    out->solid_angle = omega;
+    out->n_texels = (int)tail;
+    out->peak = (float)best;
+    out->fill = v3_from_d(fill);
+    free(mark);
+    free(queue);
+    return RC_OK;
 }

@@ -52,6 +52,30 @@ vec3 env_lookup(const env_map *e, vec3 dir);
  * 1e-15 to 1e15: beyond, squares leave float's range, as in env_lookup); a zero one gives 0. */
 void env_lookup_n(const env_map *e, int n, const float *dx, const float *dy, const float *dz, float *r, float *g,
                   float *b);
+/* The sun of an environment image moved into a directional light (env_extract_sun). */
+typedef struct {
+    vec3 direction;     /* unit, from the scene toward the sun */
+    vec3 irradiance;    /* E [W/m^2] at normal incidence, the image scale applied */
+    double solid_angle; /* of the texels it took [sr] */
+    int n_texels;
+    float peak; /* the brightest texel's luminance (scale applied) */
+    vec3 fill;  /* the radiance left in its texels (unscaled): the mean of the texels around it */
+} env_sun;
+
+/* Finds the sun of an equirectangular image (interleaved RGB, row 0 at the top, the map's
+ * orientation) and moves it into a directional light, as engines split an HDR sky: the sun is
+ * the 8-connected region (wrapping in u) of texels whose luminance (Rec. 709, times scale) is
+ * above lum_min, grown from the brightest texel. Each of its texels keeps the mean of the
+ * texels bordering the region (per channel, never more than its own value); what it gives up,
+ * sum of (L - fill) dOmega over the region with each texel's exact solid angle
+ * (2 pi / W)(sin lat_top - sin lat_bottom), is the light's irradiance at normal incidence, and
+ * its direction is the luminance-weighted mean of the texel centres' directions. So the texel
+ * sums of remainder + sun equal the image's: energy is conserved; the sun becomes a point on
+ * the sky (a surface facing it receives sum L dOmega, not sum L cos dOmega: 1 - cos of the
+ * region's radius, 3e-4 for 1.4 degrees). rgb is changed in place. RC_ERR_RANGE when no texel
+ * is above lum_min (nothing written), RC_ERR_NOMEM. */
+rc_status env_extract_sun(float *rgb, int width, int height, vec3 scale, float lum_min, env_sun *out);
+
 /* The image coordinates (in texels, x right, y down from the top edge) of a direction. */
 void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty);
 

@@ -44,6 +44,9 @@ typedef struct {
     env_kind kind;
     vec3 radiance;             /* constant radiance, or scale for the image (default 1) */
     char path[SCENE_PATH_MAX]; /* equirectangular linear EXR, resolved relative to the scene file */
+    float sun_threshold;       /* image: > 0 moves the sun (texels of luminance above it, scale applied)
+                                  into a sun light appended to the lights (model/env.h env_extract_sun);
+                                  0 = off (default) */
 } environment;
 
 typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
