@@ -57,7 +57,8 @@ static const renderer_row registry_rows[] = {
      .version = "reflcheck-exact-1",
      .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
                "the diffuse (they need an integral), shadows, inter-reflection",
-     .render = exact_render_job},
+     .render = exact_render_job,
+     .physics = exact_physics},
     /* A real-time engine, judged like our model: validate against Cycles, agree with the raster.
      * Deterministic (TAA), so not stochastic: its samples reach the key through the scene. */
     {.name = "eevee",

@@ -5,6 +5,30 @@
 #include "frame.h"
 #include "render.h"
 
+/* Whether the physical model can render s's objects under ph: why names what it cannot. */
+static rc_status exact_plans(const scene *s, const env_map *env, const physics *ph, shade_plan *plans, char *why,
+                             size_t whylen)
+{
+    shade_context c;
+    shade_context_make(s, env, &c);
+    char one[400];
+    for (int i = 0; i < s->n_objects; i++)
+        if (physical_plan_make(&c, &s->materials[s->objects[i].material], ph, &plans[i], one, sizeof one) != RC_OK) {
+            snprintf(why, whylen, "exact cannot represent this scene: objects[%d]: %s", i, one);
+            return RC_ERR_RANGE;
+        }
+    return RC_OK;
+}
+
+rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t errlen)
+{
+    /* The plans look at the environment's kind only. */
+    env_map env = {.kind = s->env.kind};
+    shade_plan plans[SCENE_MAX_OBJECTS];
+    *rendered = s->physics;
+    return exact_plans(s, &env, &s->physics, plans, err, errlen);
+}
+
 void exact_render_job(const renderer_job *j, renderer_result *r)
 {
     const exact_options *eo = j->options;
@@ -16,17 +40,12 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
                       "compare it with role validate");
         return;
     }
-    shade_context c;
-    shade_context_make(j->s, j->env, &c);
-    c.tex = j->tex;
     shade_plan plans[SCENE_MAX_OBJECTS];
-    char why[400];
-    for (int i = 0; i < j->s->n_objects; i++)
-        if (physical_plan_make(&c, &j->s->materials[j->s->objects[i].material], phys, &plans[i], why, sizeof why) !=
-            RC_OK) {
-            renderer_fail(r, RUNNER_MISSING, "exact cannot represent this scene: objects[%d]: %s", i, why);
-            return;
-        }
+    char why[500];
+    if (exact_plans(j->s, j->env, phys, plans, why, sizeof why) != RC_OK) {
+        renderer_fail(r, RUNNER_MISSING, "%s", why);
+        return;
+    }
     render_image img = {0};
     char err[1024];
     render_options ro = {.threads = j->threads, .plans = plans, .textures = j->tex};

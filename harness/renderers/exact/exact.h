@@ -28,5 +28,9 @@ typedef struct {
 } exact_options;
 
 void exact_render_job(const renderer_job *j, renderer_result *r);
+/* The physics exact renders for s (renderer.h renderer_physics_fn): s->physics itself, or
+ * RC_ERR_RANGE with what it cannot (shadows, inter-reflection, bounces > 1, a rough lobe
+ * reflecting the environment, an environment image on the diffuse). */
+rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t errlen);
 
 #endif
