@@ -155,6 +155,14 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     p->batch = shade_batch_scalar;
     p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (physical_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     p->path = m->roughness > 0.0f ? "physical-lobe" : "physical-mirror";
+    for (int t = 0; t < MAT_TEX_SLOTS; t++)
+        if (m->texture[t][0] != '\0') {
+            snprintf(why, whylen,
+                     "material '%s': a texture map; the physical model takes the material's constant albedo, so "
+                     "the exact reference renders untextured materials only",
+                     m->name);
+            return RC_ERR_RANGE;
+        }
     if (ph->shadows || ph->interreflection || ph->bounces > 1) {
         snprintf(why, whylen,
                  "physics: %s; the exact reference renders direct light without shadows or inter-reflection "
