@@ -99,6 +99,32 @@ static void put_job(const char *run, const char *name, int r, comparison_role ro
         image_write(path, im);
 }
 
+/* Adds the scene's physics to a reference's validate record, as a real job writes it
+ * (harness/jobs.c): compare holds a validate reference's record to the scene's physics. */
+static void put_physics(const char *run, const char *name, int r, const char *scene_path)
+{
+    char path[1024], err[600], text[400];
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_int_equal(scene_file_load(scene_path, s, err, sizeof err), RC_OK);
+    physics_describe(&s->physics, s->n_lights, text, sizeof text);
+    free(s);
+    job_output_path(run, name, r, ROLE_VALIDATE, "json", path, sizeof path);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    char buf[2048];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    cJSON *o = cJSON_Parse(buf);
+    assert_non_null(o);
+    cJSON_AddStringToObject(o, "physics", text);
+    char *out = cJSON_Print(o);
+    write_text(path, out);
+    free(out);
+    cJSON_Delete(o);
+}
+
 /* A scene comparing raster against POV-Ray in `role`, with a rel_rms gate the flat images
  * pass by far; `extra` is more YAML for the material (e.g. a D3D9Client block). */
 static void put_scene(const char *path, const char *name, const char *role, const char *model, const char *extra)
@@ -297,6 +323,7 @@ static void test_negative_allowed_only_where_model_allows(void **state)
     put_scene(scn, "neg", "validate", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
     put_job(run, "neg", registry_find("raster"), ROLE_VALIDATE, "ok", &t);
     put_job(run, "neg", registry_find("povray"), ROLE_VALIDATE, "ok", &t);
+    put_physics(run, "neg", registry_find("povray"), scn);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "neg");
     c = first_comparison(j);
