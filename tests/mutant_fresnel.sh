@@ -5,7 +5,7 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 work=${1:-build}/mutant
-expected="d3d9_glass d3d9_metal grazing_plane textured_twin"
+expected="d3d9_glass d3d9_metal grazing_plane real_spider textured_twin"
 
 rm -rf "$work"
 mkdir -p "$work"
