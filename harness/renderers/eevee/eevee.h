@@ -17,8 +17,9 @@
  *             Lambert (Diffuse BSDF) under point, spot and sun lights with no environment; the
  *             calibration. A glossy lobe (EEVEE: GGX, split-sum), a mirror or an environment
  *             (EEVEE: pre-filtered probes) is refused, RUNNER_MISSING, naming the material.
- * EEVEE draws one frame of `samples` TAA samples; it is deterministic, so seeds do not reach
- * the image and there are no var.* layers.
+ * EEVEE draws one frame of TAA samples (the scene's samples, at most 32: its error does not
+ * move with them); it is deterministic, so seeds do not reach the image and there are no
+ * var.* layers.
  *
  * Out: j->exr, 32-bit float: R G B A, diffuse.RGB, specular.RGB, reflection.RGB,
  * emission.RGB, background.RGB, coverage (no object layer: EEVEE has no index pass; masks
@@ -37,7 +38,7 @@
 #include "status.h"
 
 typedef struct {
-    int samples;          /* TAA render samples; 0 = the scene's samples */
+    int samples;          /* TAA render samples; 0 = the scene's samples, at most 32 */
     int width, height;    /* 0 = the scene's */
     int keep_raw;         /* nonzero: keep OUT.eevee.exr, OUT.timing.json and the job */
     const char *blender;  /* NULL = "blender" on PATH */
