@@ -5,7 +5,7 @@
 #   make check T=NAME   one unit-test program (tests/test_NAME.c)
 #   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
 CC ?= cc
-PKGS := OpenEXR yaml-0.1 cmocka libcjson libpng libjpeg
+PKGS := OpenEXR yaml-0.1 cmocka libcjson libpng libjpeg nlopt
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wvla -Wformat=2

@@ -13,9 +13,9 @@
 #include "status.h"
 
 static const cli_command cli_commands[] = {
-    {"render", cli_render}, {"check", cli_check},         {"eval", cli_eval},
-    {"run", cli_run},       {"compare", cli_compare},     {"diff", cli_diff},
-    {"plan", cli_plan},     {"stability", cli_stability}, {"renderers", cli_renderers},
+    {"render", cli_render},       {"check", cli_check}, {"eval", cli_eval}, {"run", cli_run},
+    {"compare", cli_compare},     {"diff", cli_diff},   {"plan", cli_plan}, {"stability", cli_stability},
+    {"renderers", cli_renderers}, {"fit", cli_fit},
 };
 
 const cli_command *cli_find(const char *name)

@@ -37,5 +37,6 @@ int cli_diff(int argc, char **argv);
 int cli_plan(int argc, char **argv);
 int cli_stability(int argc, char **argv);
 int cli_renderers(int argc, char **argv);
+int cli_fit(int argc, char **argv);
 
 #endif

@@ -14,6 +14,8 @@ pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
 pkgs+=(slurm-wlm munge)
 # EEVEE's OpenGL context (harness/renderers/eevee/): Xvfb with Mesa's llvmpipe.
 pkgs+=(xvfb xauth libgl1-mesa-dri)
+# reflcheck fit (harness/fit.c): NLopt's bounded derivative-free optimiser.
+pkgs+=(libnlopt-dev)
 # The renderers' packages come from their rows in the renderer table (.package = "..."), read
 # from the source because this runs before anything is built.
 registry="$(dirname "$0")/renderers/registry.c"

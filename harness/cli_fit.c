@@ -1,0 +1,278 @@
+/* reflcheck fit: the best each approximation can do on each validate comparison of a scene.
+ * For every validate comparison of the model against a reference, the reference comes through
+ * the job cache (the same render job as the comparison, so a run's references are reused), and
+ * the model's free parameters are fitted to it (harness/fit.h). One record per scene,
+ * OUT/<scene>/fit.json, with as-authored and best-fit NRMSE and median relative error, the
+ * fitted values, evaluations and seconds.
+ * Exit status: 0 every fit ran or was skipped (its reference renderer is not installed or cannot
+ * represent the scene, or the scene has no free parameter); 1 a reference job failed, a fit
+ * failed, or the record could not be written; 2 bad input (command line, a scene file or a file
+ * it references). A scene without validate comparisons of the model is reported and skipped. */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cJSON.h>
+
+#include "cli.h"
+#include "exr.h"
+#include "fit.h"
+#include "frame.h"
+#include "jobs.h"
+#include "jsonio.h"
+#include "scene_file.h"
+
+typedef struct {
+    job_variant variant;
+    const char *out_dir, *cache_dir;
+    fit_options fo;
+} cli_fit_opts;
+
+/* A number, or null where it is not one (JSON has no NaN). */
+static void cli_fit_num(cJSON *o, const char *key, double v)
+{
+    if (isfinite(v))
+        cJSON_AddNumberToObject(o, key, v);
+    else
+        cJSON_AddNullToObject(o, key);
+}
+
+static cJSON *cli_fit_error_json(const fit_error *e)
+{
+    cJSON *o = cJSON_CreateObject();
+    cli_fit_num(o, "nrmse", e->nrmse);
+    cli_fit_num(o, "median_rel", e->median_rel);
+    cJSON_AddNumberToObject(o, "n_pixels", (double)e->n_pixels);
+    return o;
+}
+
+/* One validate comparison: its reference through the job cache, then the fit. Returns the exit
+ * status this comparison earns; the record goes into fits. */
+static int cli_fit_one(const char *path, const scene *s, const mesh *m, const env_map *env, int reference,
+                       const cli_fit_opts *opt, cJSON *fits)
+{
+    char id[128];
+    snprintf(id, sizeof id, "%s-vs-%s-validate", registry_name(registry_model()), registry_name(reference));
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddItemToArray(fits, o);
+    cJSON_AddStringToObject(o, "id", id);
+    cJSON_AddStringToObject(o, "reference", registry_name(reference));
+
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(s, p, FIT_MAX_PARAMS);
+    if (n == 0) {
+        cJSON_AddStringToObject(o, "status", "skipped");
+        cJSON_AddStringToObject(o, "reason",
+                                "no free parameter: no material has a fresnel power, a Blinn-Phong specular "
+                                "colour or a Beckmann m");
+        printf("%-20s %-28s skipped: no free parameter\n", s->name, id);
+        return CLI_OK;
+    }
+    job_spec j = {.scene_path = path,
+                  .renderer = reference,
+                  .role = ROLE_VALIDATE,
+                  .variant = opt->variant,
+                  .out_dir = opt->out_dir,
+                  .cache_dir = opt->cache_dir,
+                  .threads = opt->fo.threads};
+    job_record rec;
+    char err[1024];
+    rc_status st = job_run(&j, &rec, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: fit: %s\n", err);
+        cJSON_AddStringToObject(o, "status", "error");
+        cJSON_AddStringToObject(o, "reason", err);
+        return job_exit_status(st, &rec);
+    }
+    if (rec.status != RUNNER_OK) {
+        int skipped = rec.status == RUNNER_MISSING;
+        cJSON_AddStringToObject(o, "status", skipped ? "skipped" : "error");
+        char why[700];
+        snprintf(why, sizeof why, "%s validate job %s: %s", registry_name(reference), runner_status_name(rec.status),
+                 rec.message);
+        cJSON_AddStringToObject(o, "reason", why);
+        printf("%-20s %-28s %s: %s\n", s->name, id, skipped ? "skipped" : "error", why);
+        if (!skipped)
+            fprintf(stderr, "reflcheck: fit: %s: %s\n", path, why);
+        return skipped ? CLI_OK : CLI_FAILED;
+    }
+    exr_image img;
+    if ((st = exr_read(rec.exr, &img, err, sizeof err)) != RC_OK) {
+        fprintf(stderr, "reflcheck: fit: %s: the reference image: %s\n", path, err);
+        cJSON_AddStringToObject(o, "status", "error");
+        cJSON_AddStringToObject(o, "reason", err);
+        return CLI_FAILED;
+    }
+    metrics_image ref = {img.width,
+                         img.height,
+                         {exr_image_channel(&img, "R"), exr_image_channel(&img, "G"), exr_image_channel(&img, "B")}};
+    fit_result r;
+    st = fit_run(s, m, env, &ref, p, n, &opt->fo, &r, err, sizeof err);
+    exr_image_free(&img);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: fit: %s\n", err);
+        cJSON_AddStringToObject(o, "status", "error");
+        cJSON_AddStringToObject(o, "reason", err);
+        return CLI_FAILED;
+    }
+    cJSON_AddStringToObject(o, "status", "ok");
+    cJSON_AddStringToObject(o, "reference_exr", rec.exr);
+    cJSON_AddItemToObject(o, "authored", cli_fit_error_json(&r.authored));
+    cJSON_AddItemToObject(o, "best", cli_fit_error_json(&r.best));
+    cJSON *pa = cJSON_AddArrayToObject(o, "parameters");
+    char vals[512] = "";
+    size_t used = 0;
+    for (int i = 0; i < n; i++) {
+        cJSON *q = cJSON_CreateObject();
+        cJSON_AddStringToObject(q, "material", s->materials[p[i].material].name);
+        cJSON_AddStringToObject(q, "name", fit_param_name(p[i].kind));
+        cJSON_AddNumberToObject(q, "authored", p[i].authored);
+        cJSON_AddNumberToObject(q, "fitted", p[i].value);
+        cJSON_AddNumberToObject(q, "lo", p[i].lo);
+        cJSON_AddNumberToObject(q, "hi", p[i].hi);
+        cJSON_AddStringToObject(q, "scale", p[i].log_scale ? "log" : "linear");
+        cJSON_AddBoolToObject(q, "at_bound", p[i].at_bound);
+        if (p[i].kind == FIT_D9_R0)
+            cJSON_AddBoolToObject(q, "m_follows", p[i].tied);
+        cJSON_AddItemToArray(pa, q);
+        if (used < sizeof vals)
+            used += (size_t)snprintf(vals + used, sizeof vals - used, " %s.%s=%.4g", s->materials[p[i].material].name,
+                                     fit_param_name(p[i].kind), p[i].value);
+    }
+    cJSON_AddNumberToObject(o, "evaluations", r.evaluations);
+    cJSON_AddNumberToObject(o, "seconds", r.seconds);
+    cJSON_AddStringToObject(o, "stop", r.stop);
+    cJSON_AddNumberToObject(o, "width", r.width);
+    cJSON_AddNumberToObject(o, "height", r.height);
+    cJSON_AddNumberToObject(o, "supersample", r.supersample);
+    printf("%-20s %-28s nrmse %.4g -> %.4g, median %.4g -> %.4g (%d renders, %.1f s)%s\n", s->name, id,
+           r.authored.nrmse, r.best.nrmse, r.authored.median_rel, r.best.median_rel, r.evaluations, r.seconds, vals);
+    return CLI_OK;
+}
+
+/* Every validate comparison of one scene; the record is written when the scene has any. */
+static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
+{
+    scene *s = malloc(sizeof *s);
+    if (s == NULL) {
+        fprintf(stderr, "reflcheck: fit: %s: out of memory for a scene\n", path);
+        return CLI_FAILED;
+    }
+    mesh m = {0};
+    env_map env;
+    float *env_pixels = NULL;
+    char err[1024];
+    int rc = CLI_OK;
+    rc_status st = scene_file_load(path, s, err, sizeof err);
+    if (st == RC_OK) {
+        /* The size and samples the validate job renders at, so the images line up. */
+        job_apply_variant(s, opt->variant);
+        char why[900];
+        st = mesh_build(s, &m, why, sizeof why);
+        if (st != RC_OK)
+            snprintf(err, sizeof err, "%s: objects: %s", path, why);
+    }
+    if (st == RC_OK)
+        st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", err);
+        rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+    }
+    int n_validate = 0;
+    for (int i = 0; rc == CLI_OK && i < s->n_comparisons; i++)
+        n_validate += s->comparisons[i].role == ROLE_VALIDATE && s->comparisons[i].test == registry_model() &&
+                      s->comparisons[i].reference != registry_model();
+    if (rc == CLI_OK && n_validate == 0)
+        printf("%-20s no validate comparison of the model: nothing to fit\n", s->name);
+    if (rc == CLI_OK && n_validate > 0) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "scene", s->name);
+        cJSON_AddStringToObject(root, "scene_path", path);
+        cJSON_AddStringToObject(root, "variant", opt->variant == JOB_SMALL ? "small" : "full");
+        cJSON_AddStringToObject(root, "algorithm", "NLopt LN_BOBYQA, parameters scaled to [0, 1] over their bounds");
+        cJSON_AddNumberToObject(root, "max_evaluations", opt->fo.max_evals);
+        cJSON_AddNumberToObject(root, "xtol_scaled", opt->fo.xtol);
+        cJSON_AddStringToObject(root, "objective",
+                                "least squares over surface pixels (R, G, B), reported as NRMSE = RMSE / mean "
+                                "reference");
+        cJSON *fits = cJSON_AddArrayToObject(root, "fits");
+        for (int i = 0; i < s->n_comparisons; i++) {
+            const comparison *c = &s->comparisons[i];
+            if (c->role != ROLE_VALIDATE || c->test != registry_model() || c->reference == registry_model())
+                continue;
+            int one = cli_fit_one(path, s, &m, &env, c->reference, opt, fits);
+            if (one > rc)
+                rc = one;
+        }
+        char out[1200];
+        snprintf(out, sizeof out, "%s/%s/fit.json", opt->out_dir, s->name);
+        if (jsonio_write_file(root, out, err, sizeof err) != RC_OK) {
+            fprintf(stderr, "reflcheck: fit: %s\n", err);
+            rc = CLI_FAILED;
+        }
+        cJSON_Delete(root);
+    }
+    mesh_free(&m);
+    free(env_pixels);
+    free(s);
+    return rc;
+}
+
+int cli_fit(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"out", required_argument, NULL, 'o'},     {"small", no_argument, NULL, 's'},
+        {"cache", required_argument, NULL, 'c'},   {"no-cache", no_argument, NULL, 'n'},
+        {"threads", required_argument, NULL, 't'}, {"max-evals", required_argument, NULL, 'M'},
+        {"xtol", required_argument, NULL, 'x'},    {NULL, 0, NULL, 0},
+    };
+    cli_fit_opts opt = {.variant = JOB_FULL,
+                        .out_dir = "reports/runs/manual",
+                        .cache_dir = "reports/cache",
+                        .fo = {.max_evals = FIT_DEFAULT_EVALS, .xtol = FIT_DEFAULT_XTOL}};
+    int c, rc = CLI_OK;
+    optind = 1;
+    opterr = 0;
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
+        switch (c) {
+        case 'o': opt.out_dir = optarg; break;
+        case 's': opt.variant = JOB_SMALL; break;
+        case 'c': opt.cache_dir = optarg; break;
+        case 'n': opt.cache_dir = NULL; break;
+        case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &opt.fo.threads); break;
+        case 'M': rc = cli_parse_int("--max-evals", optarg, 2, 100000, &opt.fo.max_evals); break;
+        case 'x': rc = cli_parse_double("--xtol", optarg, 1e-12, 0.5, &opt.fo.xtol); break;
+        default:
+            fprintf(stderr, "reflcheck: fit: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
+            rc = CLI_BAD_INPUT;
+        }
+    }
+    if (rc != CLI_OK)
+        return rc;
+    if (optind >= argc) {
+        fprintf(stderr, "reflcheck: usage: reflcheck fit SCENE... [--out DIR] [--small] [--cache DIR | --no-cache] "
+                        "[--threads N] [--max-evals N] [--xtol X]\n");
+        return CLI_BAD_INPUT;
+    }
+    /* Every scene is read before any is fitted, so a bad one refuses the command at once. */
+    scene *s = malloc(sizeof *s);
+    if (s == NULL)
+        return CLI_FAILED;
+    for (int i = optind; i < argc && rc == CLI_OK; i++) {
+        char err[1024];
+        rc_status st = scene_file_load(argv[i], s, err, sizeof err);
+        if (st != RC_OK) {
+            fprintf(stderr, "reflcheck: %s\n", err);
+            rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+        }
+    }
+    free(s);
+    for (int i = optind; i < argc && rc != CLI_BAD_INPUT; i++) {
+        int one = cli_fit_scene(argv[i], &opt);
+        if (one > rc)
+            rc = one;
+    }
+    return rc;
+}

@@ -1,0 +1,370 @@
+#include "fit.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include <nlopt.h>
+
+#include "compare.h"
+#include "render.h"
+
+/* Seed ranges (../shared/seeds/000: "A typical range for the power parameter is 2.5 to 3.5 ...
+ * the offset R_0 ... 0.05 to 0.25"; the multiplier is set to 1 - offset). */
+#define FIT_D9_P_LO   2.5
+#define FIT_D9_P_HI   3.5
+#define FIT_D9_R0_LO  0.05
+#define FIT_D9_R0_HI  0.25
+/* Direct3D colours are fractions of the light; powers beyond 256 are a mirror glint at the
+ * sizes we render (a Blinn lobe of P = 256 is about 7 degrees wide). */
+#define FIT_D3D_VS_LO 0.0
+#define FIT_D3D_VS_HI 1.0
+#define FIT_D3D_P_LO  1.0
+#define FIT_D3D_P_HI  256.0
+/* Beckmann m: below 0.01 a lobe is narrower than a pixel at our sizes; 1 is the roughest
+ * surface the model's seed describes. */
+#define FIT_CT_M_LO   0.01
+#define FIT_CT_M_HI   1.0
+
+/* A fitted value this close (in the scaled range) to a bound is reported as held by it. */
+#define FIT_AT_BOUND 1e-3
+
+const char *fit_param_name(fit_param_kind k)
+{
+    switch (k) {
+    case FIT_D9_P: return "p";
+    case FIT_D9_R0: return "r0";
+    case FIT_D3D_VS: return "Vs";
+    case FIT_D3D_POWER: return "P";
+    case FIT_CT_M: return "m";
+    }
+    return "?";
+}
+
+static void fit_add(fit_param *p, int max, int *n, fit_param_kind kind, int mat, double lo, double hi, int log_scale,
+                    double authored)
+{
+    if (*n >= max)
+        return;
+    fit_param *q = &p[(*n)++];
+    memset(q, 0, sizeof *q);
+    q->kind = kind;
+    q->material = mat;
+    q->lo = fmin(lo, authored);
+    q->hi = fmax(hi, authored);
+    q->log_scale = log_scale;
+    q->authored = authored;
+    q->value = authored;
+}
+
+int fit_default_params(const scene *s, fit_param *p, int max)
+{
+    int n = 0;
+    for (int i = 0; i < s->n_materials; i++) {
+        int used = 0;
+        for (int o = 0; o < s->n_objects; o++)
+            used |= s->objects[o].material == i;
+        if (!used)
+            continue;
+        const material *mt = &s->materials[i];
+        switch (mt->model) {
+        case MODEL_D3D9CLIENT:
+            fit_add(p, max, &n, FIT_D9_P, i, FIT_D9_P_LO, FIT_D9_P_HI, 0, mt->d9.p);
+            fit_add(p, max, &n, FIT_D9_R0, i, FIT_D9_R0_LO, FIT_D9_R0_HI, 0, mt->d9.r0);
+            /* float rounding of 1 - r0 as the scene file computed it */
+            if (n > 0 && p[n - 1].kind == FIT_D9_R0)
+                p[n - 1].tied = fabsf(mt->d9.m - (1.0f - mt->d9.r0)) < 1e-6f;
+            break;
+        case MODEL_D3D: {
+            float vs = v3_max_comp(mt->d3d.specular);
+            if (vs <= 0.0f)
+                break;
+            fit_add(p, max, &n, FIT_D3D_VS, i, FIT_D3D_VS_LO, FIT_D3D_VS_HI, 0, vs);
+            if (n > 0 && p[n - 1].kind == FIT_D3D_VS)
+                p[n - 1].colour = mt->d3d.specular;
+            /* P = 0 is a flat highlight, no lobe: nothing for a power to shape on a log scale. */
+            if (mt->d3d.power > 0.0f)
+                fit_add(p, max, &n, FIT_D3D_POWER, i, FIT_D3D_P_LO, FIT_D3D_P_HI, 1, mt->d3d.power);
+            break;
+        }
+        case MODEL_COOK_TORRANCE:
+            if (mt->ct.m > 0.0f)
+                fit_add(p, max, &n, FIT_CT_M, i, FIT_CT_M_LO, FIT_CT_M_HI, 1, mt->ct.m);
+            break;
+        }
+    }
+    return n;
+}
+
+void fit_apply(scene *s, const fit_param *p, int n, const double *values)
+{
+    for (int i = 0; i < n; i++) {
+        material *mt = &s->materials[p[i].material];
+        float v = (float)values[i];
+        switch (p[i].kind) {
+        case FIT_D9_P: mt->d9.p = v; break;
+        case FIT_D9_R0:
+            mt->d9.r0 = v;
+            if (p[i].tied)
+                mt->d9.m = 1.0f - v;
+            break;
+        case FIT_D3D_VS: {
+            float c = v3_max_comp(p[i].colour);
+            mt->d3d.specular = c > 0.0f ? v3_scale(p[i].colour, v / c) : v3s(v);
+            break;
+        }
+        case FIT_D3D_POWER: mt->d3d.power = v; break;
+        case FIT_CT_M: mt->ct.m = v; break;
+        }
+    }
+}
+
+static double fit_unscale(const fit_param *p, double x)
+{
+    if (p->log_scale)
+        return exp(log(p->lo) + x * (log(p->hi) - log(p->lo)));
+    return p->lo + x * (p->hi - p->lo);
+}
+
+static double fit_scale(const fit_param *p, double v)
+{
+    double x = p->log_scale ? (log(v) - log(p->lo)) / (log(p->hi) - log(p->lo)) : (v - p->lo) / (p->hi - p->lo);
+    return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
+}
+
+typedef struct {
+    scene *s;
+    const mesh *m;
+    const env_map *env;
+    const metrics_image *ref;
+    const fit_param *p;
+    int n;
+    render_options ro;
+    unsigned char *mask; /* surface pixels, from the first render */
+    float *rel;          /* scratch: per-pixel relative errors */
+    double *values;      /* scratch: parameter values */
+    double best_f;
+    double *best_x;
+    fit_error best;
+    int evaluations;
+    rc_status failed;
+    char *err;
+    size_t errlen;
+} fit_ctx;
+
+static int fit_cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* NRMSE and median relative error of a render against the reference over the mask. */
+static void fit_measure(const fit_ctx *c, const render_image *img, int want_median, fit_error *e)
+{
+    size_t np = (size_t)c->ref->width * (size_t)c->ref->height;
+    double sse = 0.0, ref_sum = 0.0;
+    long n = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (!c->mask[i])
+            continue;
+        double t[3], r[3];
+        int finite = 1;
+        for (int ch = 0; ch < 3; ch++) {
+            t[ch] = img->chan[RENDER_R + ch][i];
+            r[ch] = c->ref->c[ch][i];
+            finite &= isfinite(t[ch]) && isfinite(r[ch]);
+        }
+        if (!finite)
+            continue;
+        double rel = 0.0;
+        for (int ch = 0; ch < 3; ch++) {
+            double d = t[ch] - r[ch];
+            sse += d * d;
+            ref_sum += fabs(r[ch]) / 3.0;
+            rel += d * d / (r[ch] * r[ch] + COMPARE_REL_EPS);
+        }
+        c->rel[n++] = (float)sqrt(rel / 3.0);
+    }
+    e->n_pixels = n;
+    e->nrmse = n > 0 && ref_sum > 0.0 ? sqrt(sse / (3.0 * (double)n)) / (ref_sum / (double)n) : NAN;
+    e->median_rel = NAN;
+    if (want_median && n > 0) {
+        qsort(c->rel, (size_t)n, sizeof *c->rel, fit_cmp_float);
+        e->median_rel = n % 2 ? c->rel[n / 2] : 0.5 * ((double)c->rel[n / 2 - 1] + (double)c->rel[n / 2]);
+    }
+}
+
+static double fit_objective(unsigned n, const double *x, double *grad, void *data)
+{
+    (void)grad; /* derivative-free */
+    fit_ctx *c = data;
+    for (unsigned i = 0; i < n; i++)
+        c->values[i] = fit_unscale(&c->p[i], x[i]);
+    fit_apply(c->s, c->p, (int)n, c->values);
+    render_image img = {0};
+    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &img, c->err, c->errlen);
+    if (st != RC_OK) {
+        c->failed = st;
+        return HUGE_VAL;
+    }
+    c->evaluations++;
+    fit_error e;
+    fit_measure(c, &img, 0, &e);
+    render_image_free(&img);
+    double f = isfinite(e.nrmse) ? e.nrmse : HUGE_VAL;
+    if (f < c->best_f) {
+        c->best_f = f;
+        memcpy(c->best_x, x, n * sizeof *x);
+    }
+    return f;
+}
+
+static const char *fit_stop_text(nlopt_result r)
+{
+    switch (r) {
+    case NLOPT_XTOL_REACHED: return "converged: x tolerance reached";
+    case NLOPT_FTOL_REACHED: return "converged: f tolerance reached";
+    case NLOPT_STOPVAL_REACHED: return "converged: stop value reached";
+    case NLOPT_SUCCESS: return "converged";
+    case NLOPT_MAXEVAL_REACHED: return "evaluation budget used";
+    case NLOPT_MAXTIME_REACHED: return "time budget used";
+    case NLOPT_ROUNDOFF_LIMITED: return "stopped by round-off (best point kept)";
+    case NLOPT_FORCED_STOP: return "stopped: a render failed";
+    case NLOPT_OUT_OF_MEMORY: return "NLopt out of memory";
+    case NLOPT_INVALID_ARGS: return "NLopt refused its arguments";
+    default: return "NLopt failed";
+    }
+}
+
+static double fit_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Renders the scene at values and measures it, median included. */
+static rc_status fit_render_measure(fit_ctx *c, const double *values, render_image *img, fit_error *e)
+{
+    fit_apply(c->s, c->p, c->n, values);
+    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, img, c->err, c->errlen);
+    if (st == RC_OK)
+        fit_measure(c, img, 1, e);
+    return st;
+}
+
+rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metrics_image *ref, fit_param *p, int n,
+                  const fit_options *o, fit_result *out, char *err, size_t errlen)
+{
+    fit_options opt = o != NULL ? *o : (fit_options){0};
+    int max_evals = opt.max_evals > 0 ? opt.max_evals : FIT_DEFAULT_EVALS;
+    double xtol = opt.xtol > 0.0 ? opt.xtol : FIT_DEFAULT_XTOL;
+    memset(out, 0, sizeof *out);
+    if (n <= 0 || n > FIT_MAX_PARAMS) {
+        status_message(err, errlen, "%s: %d free parameters; a fit needs 1 to %d", s->path, n, FIT_MAX_PARAMS);
+        return RC_ERR_RANGE;
+    }
+    if (ref->width != s->width || ref->height != s->height || !ref->c[0] || !ref->c[1] || !ref->c[2]) {
+        status_message(err, errlen,
+                       "%s: the reference is %dx%d with%s R, G, B; the scene renders %dx%d: render the "
+                       "reference at the scene's size (the same variant)",
+                       s->path, ref->width, ref->height, ref->c[0] && ref->c[1] && ref->c[2] ? "" : "out", s->width,
+                       s->height);
+        return RC_ERR_RANGE;
+    }
+    double t0 = fit_now();
+    size_t np = (size_t)s->width * (size_t)s->height;
+    fit_ctx c = {.m = m,
+                 .env = env,
+                 .ref = ref,
+                 .p = p,
+                 .n = n,
+                 .ro = {.threads = opt.threads, .aovs = RENDER_AOV_NONE},
+                 .best_f = HUGE_VAL,
+                 .err = err,
+                 .errlen = errlen};
+    c.s = malloc(sizeof *c.s);
+    c.mask = malloc(np);
+    c.rel = malloc(np * sizeof *c.rel);
+    unsigned char *cls = malloc(np);
+    double x[FIT_MAX_PARAMS], lo[FIT_MAX_PARAMS], hi[FIT_MAX_PARAMS], vals[FIT_MAX_PARAMS], best_x[FIT_MAX_PARAMS];
+    c.values = vals;
+    c.best_x = best_x;
+    rc_status st = RC_OK;
+    if (c.s == NULL || c.mask == NULL || c.rel == NULL || cls == NULL) {
+        status_message(err, errlen, "%s: fit: out of memory for a %dx%d frame", s->path, s->width, s->height);
+        st = RC_ERR_NOMEM;
+    }
+    render_image img = {0};
+    if (st == RC_OK) {
+        *c.s = *s;
+        for (int i = 0; i < n; i++) {
+            vals[i] = p[i].authored;
+            x[i] = best_x[i] = fit_scale(&p[i], p[i].authored);
+            lo[i] = 0.0;
+            hi[i] = 1.0;
+        }
+        /* The geometry does not depend on the parameters: the authored render's coverage and
+         * object layers give the surface mask for every evaluation. */
+        fit_apply(c.s, p, n, vals);
+        st = render_scene(c.s, m, env, &c.ro, &img, err, errlen);
+    }
+    if (st == RC_OK) {
+        metrics_classify(s->width, s->height, img.chan[RENDER_COVERAGE], img.chan[RENDER_OBJECT], cls);
+        long n_surface = metrics_mask_from_class(s->width, s->height, cls, METRICS_PX_INTERIOR, NULL, 0.0f, c.mask);
+        fit_measure(&c, &img, 1, &out->authored);
+        render_image_free(&img);
+        c.evaluations = 1;
+        c.best_f = out->authored.nrmse;
+        if (n_surface == 0 || out->authored.n_pixels == 0 || !isfinite(out->authored.nrmse)) {
+            status_message(err, errlen,
+                           "%s: no surface pixel with finite values in both images and a reference "
+                           "mean above 0: nothing to fit",
+                           s->path);
+            st = RC_ERR_RANGE;
+        }
+    }
+    nlopt_result nr = NLOPT_SUCCESS;
+    if (st == RC_OK) {
+        nlopt_opt opt_h = nlopt_create(NLOPT_LN_BOBYQA, (unsigned)n);
+        if (opt_h == NULL) {
+            status_message(err, errlen, "%s: fit: NLopt could not create its optimiser (out of memory)", s->path);
+            st = RC_ERR_NOMEM;
+        } else {
+            nlopt_set_lower_bounds(opt_h, lo);
+            nlopt_set_upper_bounds(opt_h, hi);
+            nlopt_set_min_objective(opt_h, fit_objective, &c);
+            nlopt_set_xtol_abs1(opt_h, xtol);
+            /* The authored render counts against the budget too. */
+            nlopt_set_maxeval(opt_h, max_evals - 1);
+            /* A tenth of each range: large enough to see past a pixel's worth of highlight. */
+            nlopt_set_initial_step1(opt_h, 0.1);
+            double f = 0.0;
+            nr = nlopt_optimize(opt_h, x, &f);
+            nlopt_destroy(opt_h);
+            if (c.failed != RC_OK)
+                st = c.failed;
+        }
+    }
+    if (st == RC_OK) {
+        for (int i = 0; i < n; i++) {
+            p[i].value = fit_unscale(&p[i], best_x[i]);
+            p[i].at_bound = best_x[i] < FIT_AT_BOUND || best_x[i] > 1.0 - FIT_AT_BOUND;
+            vals[i] = p[i].value;
+        }
+        st = fit_render_measure(&c, vals, &img, &out->best);
+        render_image_free(&img);
+    }
+    out->evaluations = c.evaluations;
+    out->seconds = fit_now() - t0;
+    out->width = s->width;
+    out->height = s->height;
+    out->supersample = s->supersample;
+    out->stop = fit_stop_text(nr);
+    free(c.s);
+    free(c.mask);
+    free(c.rel);
+    free(cls);
+    return st;
+}

@@ -1,0 +1,103 @@
+/* fit.h - the best an approximation can do: its free parameters fitted to a reference image.
+ *
+ * Usage:
+ *   fit_param p[FIT_MAX_PARAMS];
+ *   int n = fit_default_params(&scn, p, FIT_MAX_PARAMS);   the model's free parameters, as authored
+ *   fit_options o = {0};              zero = LN_BOBYQA, 150 evaluations, x tolerance 1e-4 of each range
+ *   fit_result r;
+ *   fit_run(&scn, &msh, &env, &ref, p, n, &o, &r, err, sizeof err);
+ *   r.authored.nrmse, r.best.nrmse, p[i].value, r.evaluations, r.seconds ...
+ *
+ * The scene is rendered by our rasterizer (model/render.h) at the reference's size with the
+ * scene's supersampling, exactly as the validate job renders it; each evaluation changes the
+ * parameters of a private copy of the scene and renders again. The objective is the least-squares
+ * error over surface pixels: interior pixels of the model's own coverage and object layers
+ * (harness/metrics.h, metrics_classify), the region compare.json calls "surface", over R, G, B.
+ * It is reported as NRMSE (RMSE over the mean reference, as compare.c computes it), so
+ * minimising it is least squares. Beside it: the median per-pixel relative error, a pixel's
+ * sqrt(mean over R, G, B of (t - r)^2 / (r^2 + COMPARE_REL_EPS)).
+ *
+ * The optimiser is NLopt's bounded derivative-free BOBYQA (Powell 2009) on parameters scaled to
+ * [0, 1] over their bounds (log-scaled for powers and roughness, which act multiplicatively),
+ * started at the authored values. It stops when a step changes every scaled parameter by less
+ * than o.xtol or after o.max_evals renders. The best point seen is kept, so best.nrmse is never
+ * above authored.nrmse.
+ *
+ * Free parameters per model (fit_default_params; materials no object uses are left out):
+ *   D3D9Client: p in the seed's typical range [2.5, 3.5], and r0 in [0.05, 0.25] with m = 1 - r0
+ *     as the D3D9Client material editor sets it (r0 alone when the scene authors its own m);
+ *   Direct3D Blinn-Phong (a material with a specular colour): Vs, the largest channel of the
+ *     specular colour (hue kept), in [0, 1], and the power P in [1, 256];
+ *   Cook-Torrance: the Beckmann m per material in [0.01, 1] (it shapes the light lobe only; the
+ *     environment term CM.Fr does not depend on m).
+ * Each range is widened to hold the authored value, so the as-authored point is feasible.
+ * fit_run returns RC_OK with the result, RC_ERR_RANGE for a reference of another size, no
+ * parameters or no surface pixels, RC_ERR_NOMEM, or the renderer's error; err says which.
+ */
+#ifndef REFLCHECK_FIT_H
+#define REFLCHECK_FIT_H
+
+#include <stddef.h>
+
+#include "env.h"
+#include "mesh.h"
+#include "metrics.h"
+#include "scene.h"
+#include "status.h"
+
+#define FIT_MAX_PARAMS    16
+/* The budget: a 1-3 parameter BOBYQA fit converges in 20-60 renders; 150 leaves room and caps
+ * a full-size fit at about 20 s on 2 cores. */
+#define FIT_DEFAULT_EVALS 150
+/* 1e-4 of a parameter's range: far below what moves the error (p by 1e-4, m by 0.1 % on the
+ * log scale), so the fit stops on convergence, not on the budget. */
+#define FIT_DEFAULT_XTOL  1e-4
+
+typedef enum { FIT_D9_P, FIT_D9_R0, FIT_D3D_VS, FIT_D3D_POWER, FIT_CT_M } fit_param_kind;
+
+typedef struct {
+    fit_param_kind kind;
+    int material;    /* index into scene.materials */
+    double lo, hi;   /* bounds */
+    int log_scale;   /* scaled as log(value) between log(lo) and log(hi) */
+    double authored; /* the scene's value: the start */
+    double value;    /* fitted (fit_run) */
+    int at_bound;    /* the fitted value is within 1e-3 of the range of a bound */
+    int tied;        /* FIT_D9_R0: m = 1 - r0 follows r0 */
+    vec3 colour;     /* FIT_D3D_VS: the authored specular colour, whose hue is kept */
+} fit_param;
+
+typedef struct {
+    int max_evals; /* 0 = 150 */
+    double xtol;   /* per parameter, in the scaled [0, 1] range; 0 = 1e-4 */
+    int threads;   /* render threads, 0 = all cores */
+} fit_options;
+
+typedef struct {
+    double nrmse;      /* RMSE over the mean reference, surface pixels, R, G, B */
+    double median_rel; /* median per-pixel relative error */
+    long n_pixels;     /* surface pixels used (finite in both images) */
+} fit_error;
+
+typedef struct {
+    fit_error authored, best;
+    int evaluations; /* renders the optimiser asked for, the authored one included (the best point's
+                        final render for its median is not counted) */
+    double seconds;  /* wall time of the fit, renders included */
+    int width, height, supersample;
+    const char *stop; /* why the optimiser stopped, in words */
+} fit_result;
+
+/* The parameter's name as the fit record writes it: "p", "r0", "Vs", "P", "m". */
+const char *fit_param_name(fit_param_kind k);
+/* Fills p with the scene's free parameters (see above), at most max; returns how many. */
+int fit_default_params(const scene *s, fit_param *p, int max);
+/* Writes values into a scene's materials (m = 1 - r0 follows r0 where fit_default_params tied
+ * them). */
+void fit_apply(scene *s, const fit_param *p, int n, const double *values);
+/* Fits p[0..n-1] (value and at_bound filled) so the render of s approaches ref (R, G, B planes
+ * of the reference image; ref->width, ref->height set the render size). */
+rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metrics_image *ref, fit_param *p, int n,
+                  const fit_options *o, fit_result *out, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,419 @@
+/* test_fit.c - reflcheck fit: synthetic fits that must recover known parameters (the model
+ * rendered with them is the reference, the fit starts elsewhere), the error measures against
+ * values worked out from the images by hand, the free parameters and their bounds per model,
+ * and the command line: its errors, a failing reference renderer, and one real fit of a small
+ * canonical scene against POV-Ray whose as-authored NRMSE must be compare.json's. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cmocka.h>
+
+#include "check.h"
+#include "cli_exec.h"
+
+#include <cJSON.h>
+
+#include "fileio.h"
+#include "fit.h"
+#include "frame.h"
+#include "mesh.h"
+#include "render.h"
+#include "scene_file.h"
+
+/* A scene, its mesh and environment, from text. */
+typedef struct {
+    scene *s;
+    mesh m;
+    env_map env;
+    float *env_px;
+} world;
+
+static void world_load(world *w, const char *text)
+{
+    char err[1024];
+    w->s = malloc(sizeof *w->s);
+    assert_non_null(w->s);
+    memset(&w->m, 0, sizeof w->m);
+    w->env_px = NULL;
+    if (scene_file_parse(text, strlen(text), "fit.yaml", w->s, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+    assert_int_equal(mesh_build(w->s, &w->m, err, sizeof err), RC_OK);
+    assert_int_equal(frame_env_load(w->s, &w->env, &w->env_px, err, sizeof err), RC_OK);
+}
+
+static void world_free(world *w)
+{
+    mesh_free(&w->m);
+    free(w->env_px);
+    free(w->s);
+}
+
+/* The render of w's scene with p[0..n-1] set to values: the synthetic reference. */
+static void render_with(const world *w, const fit_param *p, int n, const double *values, render_image *img)
+{
+    scene *t = malloc(sizeof *t);
+    assert_non_null(t);
+    *t = *w->s;
+    fit_apply(t, p, n, values);
+    char err[1024];
+    render_options o = {.threads = 2, .aovs = RENDER_AOV_NONE};
+    assert_int_equal(render_scene(t, &w->m, &w->env, &o, img, err, sizeof err), RC_OK);
+    free(t);
+}
+
+static metrics_image planes(const render_image *img)
+{
+    metrics_image r = {img->width, img->height, {img->chan[RENDER_R], img->chan[RENDER_G], img->chan[RENDER_B]}};
+    return r;
+}
+
+/* A D3D9Client sphere in a two-tone environment (constant sky; the reflection's strength is
+ * R(N.V) times it, so p and r0 shape the image). */
+static const char glass_text[] =
+    "image: {width: 64, height: 48, supersample: 1}\n"
+    "camera: {eye: [0, 0.3, 3.2], target: [0, 0, 0], hfov: 45}\n"
+    "environment: {constant: [0.8, 0.9, 1.0]}\n"
+    "materials:\n"
+    "  glass: {albedo: [0, 0, 0], ior: 1.5, roughness: 0, model: d3d9client, "
+    "d3d9client: {p: 3.5}}\n"
+    "  unused: {albedo: [0.5, 0.5, 0.5], model: cook_torrance}\n"
+    "objects:\n"
+    "  - {shape: sphere, center: [0, 0, 0], radius: 1, tessellation: 48, material: glass}\n";
+
+/* The brief's case: the model with p = 2.7 is the reference, the fit starts at 3.5 (authored)
+ * and must come back to 2.7; with r0 free as well it must find both. */
+static void test_recovers_d3d9client_p(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, glass_text);
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    assert_int_equal(n, 2); /* p, r0 of glass; the unused material is left out */
+    assert_int_equal(p[0].kind, FIT_D9_P);
+    assert_int_equal(p[1].kind, FIT_D9_R0);
+    close_rel(p[0].authored, 3.5, 1e-7);
+
+    /* p alone */
+    double truth[2] = {2.7, p[1].authored};
+    render_image ref;
+    render_with(&w, p, 2, truth, &ref);
+    metrics_image rm = planes(&ref);
+    fit_result r;
+    char err[1024];
+    fit_options o = {.threads = 2};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, 1, &o, &r, err, sizeof err), RC_OK);
+    assert_true(fabs(p[0].value - 2.7) < 0.01);
+    assert_false(p[0].at_bound);
+    assert_true(r.authored.nrmse > 0.05);
+    assert_true(r.best.nrmse < 1e-3 * r.authored.nrmse);
+    assert_true(r.evaluations >= 2 && r.evaluations <= FIT_DEFAULT_EVALS);
+    assert_int_equal(strncmp(r.stop, "converged", 9), 0);
+    render_image_free(&ref);
+
+    /* p and r0 (m = 1 - r0 follows) */
+    assert_true(p[1].tied);
+    double truth2[2] = {2.7, 0.12};
+    render_with(&w, p, 2, truth2, &ref);
+    rm = planes(&ref);
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, 2, &o, &r, err, sizeof err), RC_OK);
+    assert_true(fabs(p[0].value - 2.7) < 0.02);
+    assert_true(fabs(p[1].value - 0.12) < 0.002);
+    assert_true(r.best.nrmse < 1e-2 * r.authored.nrmse);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
+/* Blinn-Phong: Vs = 0.3 and P = 25 from an authored 0.5 and 40; the specular colour's hue is
+ * kept (a tinted Vs scales as a whole). */
+static void test_recovers_blinn_phong(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, "image: {width: 64, height: 48, supersample: 1}\n"
+                   "camera: {eye: [0, 0.4, 3.2], target: [0, 0, 0], hfov: 45}\n"
+                   "lights:\n  - {type: point, position: [1.6, 2.2, 2.4], intensity: [12, 12, 12]}\n"
+                   "materials:\n"
+                   "  plastic: {albedo: [0.6, 0.15, 0.1], model: d3d, d3d: {specular: [0.5, 0.4, 0.5], power: 40}}\n"
+                   "objects:\n"
+                   "  - {shape: sphere, center: [0, 0, 0], radius: 1, tessellation: 48, material: plastic}\n");
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    assert_int_equal(n, 2);
+    assert_int_equal(p[0].kind, FIT_D3D_VS);
+    assert_int_equal(p[1].kind, FIT_D3D_POWER);
+    assert_true(p[1].log_scale);
+    double truth[2] = {0.3, 25.0};
+    render_image ref;
+    render_with(&w, p, n, truth, &ref);
+    metrics_image rm = planes(&ref);
+    fit_result r;
+    char err[1024];
+    fit_options o = {.threads = 2};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, n, &o, &r, err, sizeof err), RC_OK);
+    close_rel(p[0].value, 0.3, 0.01);
+    close_rel(p[1].value, 25.0, 0.01);
+    /* the hue: Vs = 0.3 is the largest channel of (0.5, 0.4, 0.5) scaled, so G = 0.24 */
+    scene *t = malloc(sizeof *t);
+    *t = *w.s;
+    double v[2] = {p[0].value, p[1].value};
+    fit_apply(t, p, n, v);
+    close_rel(t->materials[0].d3d.specular.y, 0.8 * p[0].value, 1e-6);
+    free(t);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
+/* Cook-Torrance: one m per material, two spheres fitted together. */
+static void test_recovers_ct_m_per_material(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, "image: {width: 80, height: 40, supersample: 1}\n"
+                   "camera: {eye: [0, 0.5, 3.5], target: [0, 0, 0], hfov: 50}\n"
+                   "lights:\n  - {type: point, position: [-1.5, 3.0, 2.5], intensity: [30, 30, 30]}\n"
+                   "  - {type: sun, direction: [0.5, -1.0, -0.6], irradiance: [2, 2, 2]}\n"
+                   "materials:\n"
+                   "  a: {albedo: [0, 0, 0], conductor: {eta: [1.66, 0.88, 0.52], k: [9.22, 6.27, 4.84]}, "
+                   "roughness: 0.3, model: cook_torrance, cook_torrance: {reflection: false}}\n"
+                   "  b: {albedo: [0, 0, 0], conductor: {eta: [1.66, 0.88, 0.52], k: [9.22, 6.27, 4.84]}, "
+                   "roughness: 0.3, model: cook_torrance, cook_torrance: {reflection: false}}\n"
+                   "objects:\n"
+                   "  - {shape: sphere, center: [-0.8, 0, 0], radius: 0.6, tessellation: 48, material: a}\n"
+                   "  - {shape: sphere, center: [0.8, 0, 0], radius: 0.6, tessellation: 48, material: b}\n");
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    assert_int_equal(n, 2);
+    assert_int_equal(p[0].material, 0);
+    assert_int_equal(p[1].material, 1);
+    double truth[2] = {0.2, 0.45};
+    render_image ref;
+    render_with(&w, p, n, truth, &ref);
+    metrics_image rm = planes(&ref);
+    fit_result r;
+    char err[1024];
+    fit_options o = {.threads = 2};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, n, &o, &r, err, sizeof err), RC_OK);
+    close_rel(p[0].value, 0.2, 0.01);
+    close_rel(p[1].value, 0.45, 0.01);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
+/* The error measures, by hand: against a reference twice the model's render, every pixel's
+ * relative error is |t - 2t| / 2t = 1/2 (the 1e-8 floor is far below these radiances), so the
+ * median is 0.5, and NRMSE = sqrt(mean t^2) / mean(2t) over the surface pixels, which the test
+ * sums itself from the render and the mask it classifies. A budget of 4 renders stops there. */
+static void test_measures_by_hand_and_budget(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, glass_text);
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    render_image ref;
+    double authored[2] = {p[0].authored, p[1].authored};
+    render_with(&w, p, n, authored, &ref);
+    size_t np = (size_t)ref.width * (size_t)ref.height;
+    for (int ch = 0; ch < 3; ch++)
+        for (size_t i = 0; i < np; i++)
+            ref.chan[RENDER_R + ch][i] *= 2.0f;
+    unsigned char *cls = malloc(np), *mask = malloc(np);
+    metrics_classify(ref.width, ref.height, ref.chan[RENDER_COVERAGE], ref.chan[RENDER_OBJECT], cls);
+    long n_mask = metrics_mask_from_class(ref.width, ref.height, cls, METRICS_PX_INTERIOR, NULL, 0.0f, mask);
+    double sq = 0.0, sum = 0.0;
+    for (size_t i = 0; i < np; i++)
+        for (int ch = 0; mask[i] && ch < 3; ch++) {
+            double t = 0.5 * ref.chan[RENDER_R + ch][i];
+            sq += t * t;
+            sum += 2.0 * t;
+        }
+    double want = sqrt(sq / (3.0 * (double)n_mask)) / (sum / (3.0 * (double)n_mask));
+    metrics_image rm = planes(&ref);
+    fit_result r;
+    char err[1024];
+    fit_options o = {.threads = 2, .max_evals = 4};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, n, &o, &r, err, sizeof err), RC_OK);
+    assert_int_equal(r.authored.n_pixels, n_mask);
+    close_rel(r.authored.nrmse, want, 1e-6);
+    close_rel(r.authored.median_rel, 0.5, 1e-5);
+    assert_int_equal(r.evaluations, 4);
+    assert_string_equal(r.stop, "evaluation budget used");
+    assert_true(r.best.nrmse <= r.authored.nrmse);
+    free(cls);
+    free(mask);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
+/* Bounds hold the authored value (r0 = 0.04 for n = 1.5 lies below the seed's 0.05); a scene
+ * that authors its own m fits r0 alone; a wrongly sized reference and no parameter refuse. */
+static void test_bounds_and_refusals(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, glass_text);
+    fit_param p[FIT_MAX_PARAMS];
+    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    close_rel(p[0].lo, 2.5, 1e-9);
+    close_rel(p[0].hi, 3.5, 1e-9);
+    close_rel(p[1].lo, 0.04, 1e-6);
+    close_rel(p[1].hi, 0.25, 1e-9);
+    w.s->materials[0].d9.m = 0.5f;
+    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    assert_false(p[1].tied);
+    w.s->materials[0].d9.p = 6.0f;
+    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    close_rel(p[0].hi, 6.0, 1e-9);
+
+    float plane[12] = {0};
+    metrics_image small = {4, 3, {plane, plane, plane}};
+    fit_result r;
+    char err[1024];
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &small, p, 1, NULL, &r, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "4x3"));
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &small, p, 0, NULL, &r, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "free parameters"));
+    world_free(&w);
+}
+
+static char tmp_dir[128];
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp_dir, sizeof tmp_dir, "/tmp/reflcheck-fit-%ld", (long)getpid());
+    mkdir(tmp_dir, 0755);
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp_dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static cJSON *read_json(const char *path)
+{
+    char *text = fileio_read_all(path, NULL);
+    if (text == NULL)
+        fail_msg("cannot read %s", path);
+    cJSON *j = cJSON_Parse(text);
+    free(text);
+    assert_non_null(j);
+    return j;
+}
+
+/* The command's errors: usage, options, scene files; a scene with nothing to fit; a reference
+ * renderer that fails (a fake povray first on PATH) is an error in the record and exit 1. */
+static void test_cli_errors(void **state)
+{
+    (void)state;
+    char err[2048];
+    assert_int_equal(cli_exec(err, sizeof err, "fit"), 2);
+    assert_non_null(strstr(err, "usage: reflcheck fit"));
+    assert_int_equal(cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --bogus"), 2);
+    assert_non_null(strstr(err, "--bogus"));
+    assert_int_equal(cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --max-evals 1"), 2);
+    assert_non_null(strstr(err, "--max-evals"));
+    assert_int_equal(cli_exec(err, sizeof err, "fit %s/none.yaml --out %s", tmp_dir, tmp_dir), 2);
+    assert_non_null(strstr(err, "none.yaml"));
+    char bad[300];
+    snprintf(bad, sizeof bad, "%s/bad.yaml", tmp_dir);
+    FILE *f = fopen(bad, "w");
+    fputs("name: bad\nimage: {width: -4}\n", f);
+    fclose(f);
+    assert_int_equal(cli_exec(err, sizeof err, "fit %s --out %s", bad, tmp_dir), 2);
+    assert_non_null(strstr(err, "bad.yaml"));
+    /* a scene without a validate comparison: nothing to fit, no record, exit 0 */
+    assert_int_equal(cli_exec(err, sizeof err, "fit scenes/lambert_calibration.yaml --small --out %s", tmp_dir), 0);
+    char rec[300];
+    snprintf(rec, sizeof rec, "%s/lambert_calibration/fit.json", tmp_dir);
+    assert_int_equal(access(rec, F_OK), -1);
+
+    char bin[300], path[400];
+    snprintf(bin, sizeof bin, "%s/bin", tmp_dir);
+    mkdir(bin, 0755);
+    snprintf(path, sizeof path, "%s/povray", bin);
+    f = fopen(path, "w");
+    fputs("#!/bin/sh\ncase \"$1\" in --version) echo 'POV-Ray 3.7.0.10.fake'; exit 0;; esac\n"
+          "echo 'fake povray: parse error' >&2; exit 1\n",
+          f);
+    fclose(f);
+    chmod(path, 0755);
+    assert_int_equal(sh_exec(err, sizeof err,
+                             "PATH='%s':\"$PATH\" %s fit scenes/d3d9_glass.yaml --small --no-cache "
+                             "--out %s/failing",
+                             bin, cli_bin(), tmp_dir),
+                     1);
+    assert_non_null(strstr(err, "povray validate job failed"));
+    snprintf(rec, sizeof rec, "%s/failing/d3d9_glass/fit.json", tmp_dir);
+    cJSON *j = read_json(rec);
+    cJSON *fit0 = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "fits"), 0);
+    assert_string_equal(cJSON_GetObjectItem(fit0, "status")->valuestring, "error");
+    cJSON_Delete(j);
+}
+
+/* One real fit: d3d9_glass small against real POV-Ray (exact Fresnel). The as-authored NRMSE
+ * must be the validate comparison's surface NRMSE as compare.c computes it from the same
+ * images, and the fit must improve on it. */
+static void test_cli_real_fit(void **state)
+{
+    (void)state;
+    char err[2048];
+    int rc = cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --small --no-cache --out %s/real", tmp_dir);
+    assert_int_equal(rc, 0);
+    assert_int_equal(cli_exec(err, sizeof err,
+                              "run scenes/d3d9_glass.yaml --renderer raster --role validate --small --no-cache "
+                              "--out %s/real",
+                              tmp_dir),
+                     0);
+    /* the twins are not rendered: compare says error for them (exit 1) and measures the validate */
+    cli_exec(err, sizeof err, "compare scenes/d3d9_glass.yaml --run %s/real", tmp_dir);
+    char path[300];
+    snprintf(path, sizeof path, "%s/real/d3d9_glass/fit.json", tmp_dir);
+    cJSON *fit = read_json(path);
+    snprintf(path, sizeof path, "%s/real/d3d9_glass/compare.json", tmp_dir);
+    cJSON *cmp = read_json(path);
+    cJSON *f0 = cJSON_GetArrayItem(cJSON_GetObjectItem(fit, "fits"), 0);
+    assert_string_equal(cJSON_GetObjectItem(f0, "status")->valuestring, "ok");
+    double authored = cJSON_GetObjectItem(cJSON_GetObjectItem(f0, "authored"), "nrmse")->valuedouble;
+    double best = cJSON_GetObjectItem(cJSON_GetObjectItem(f0, "best"), "nrmse")->valuedouble;
+    const cJSON *c;
+    double surface = -1.0;
+    cJSON_ArrayForEach(c, cJSON_GetObjectItem(cmp, "comparisons"))
+    {
+        if (strcmp(cJSON_GetObjectItem(c, "id")->valuestring, "raster-vs-povray-validate") == 0)
+            surface = cJSON_GetObjectItem(cJSON_GetObjectItem(cJSON_GetObjectItem(c, "regions"), "surface"), "nrmse")
+                          ->valuedouble;
+    }
+    close_rel(authored, surface, 1e-9);
+    assert_true(best < authored);
+    cJSON *p0 = cJSON_GetArrayItem(cJSON_GetObjectItem(f0, "parameters"), 0);
+    assert_string_equal(cJSON_GetObjectItem(p0, "name")->valuestring, "p");
+    double pf = cJSON_GetObjectItem(p0, "fitted")->valuedouble;
+    assert_true(pf >= 2.5 && pf <= 3.5);
+    cJSON_Delete(fit);
+    cJSON_Delete(cmp);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_recovers_d3d9client_p),
+        cmocka_unit_test(test_recovers_blinn_phong),
+        cmocka_unit_test(test_recovers_ct_m_per_material),
+        cmocka_unit_test(test_measures_by_hand_and_budget),
+        cmocka_unit_test(test_bounds_and_refusals),
+        cmocka_unit_test(test_cli_errors),
+        cmocka_unit_test(test_cli_real_fit),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
