@@ -689,3 +689,46 @@ def test_physics_robust_and_terms_shown(tmp_path):
     assert any(x['group'] == 'term' and x['name'] == 'diffuse' and x['metric'] == 'ref_mean' for x in mine)
     assert any(x['metric'] == 'physics' and x['value'] == physics for x in mine)
     assert any(x['metric'] == 'worst1_share' and float(x['value']) == 0.875 for x in mine)
+
+
+def test_fit_table(tmp_path):
+    """A scene's fit.json (reflcheck fit) becomes a row of the index's fit table and of
+    summary.json: as-authored and best-fit NRMSE and median, the fitted values with their bound
+    flag; an errored fit shows its reason; a corrupt record is a problem, not a crash."""
+    run = make_run(str(tmp_path), RUN1)
+    fit = {
+        'scene': 'alpha',
+        'variant': 'small',
+        'fits': [
+            {
+                'id': 'raster-vs-povray-validate',
+                'reference': 'povray',
+                'status': 'ok',
+                'authored': {'nrmse': 0.8887, 'median_rel': 0.2254, 'n_pixels': 2774},
+                'best': {'nrmse': 0.4248, 'median_rel': 0.04528, 'n_pixels': 2774},
+                'parameters': [
+                    {'material': 'glass', 'name': 'p', 'authored': 3, 'fitted': 3.5, 'at_bound': True},
+                    {'material': 'glass', 'name': 'r0', 'authored': 0.04, 'fitted': 0.04053, 'at_bound': False},
+                ],
+                'evaluations': 33,
+                'seconds': 2.1,
+                'stop': 'converged: x tolerance reached',
+            },
+            {'id': 'raster-vs-cycles-validate', 'status': 'error', 'reason': 'cycles validate job failed: boom'},
+        ],
+    }
+    with open(os.path.join(run, 'alpha', 'fit.json'), 'w', encoding='utf-8') as f:
+        json.dump(fit, f)
+    with open(os.path.join(run, 'beta', 'fit.json'), 'w', encoding='utf-8') as f:
+        f.write('{"fits": 3}')
+    r = run_report('--run', run)
+    assert 'fit.json has no "fits" list' in r.stderr
+    html = read(os.path.join(run, 'index.html'))
+    table = html.split('<section id="fit">', 1)[1].split('</section>', 1)[0]
+    assert re.search(r'raster-vs-povray-validate</td><td>ok</td>\s*<td class="num"><span class="mono">0\.8887<', table)
+    assert '>0.4248<' in table and '>0.2254<' in table and '>0.04528<' in table
+    assert 'glass.p 3 → 3.5 (at bound)' in table and 'glass.r0 0.04 → 0.04053<' in table
+    assert 'cycles validate job failed: boom' in table
+    summ = json.loads(read(os.path.join(run, 'summary.json')))
+    assert [f['id'] for f in summ['fits']] == ['raster-vs-povray-validate', 'raster-vs-cycles-validate']
+    assert summ['fits'][0]['best']['nrmse'] == 0.4248

@@ -200,6 +200,7 @@ def load_scene(run, name, problems):
         rec['file'] = f
         sc['jobs'].append(rec)
     sc['view'] = read_view(os.path.join(d, 'view.js'), problems, name)
+    sc['fits'] = load_fits(d, problems, name)
     images = sc['view']['images'] if sc['view'] else []
     jobs = {}
     for j in sc['jobs']:
@@ -211,6 +212,31 @@ def load_scene(run, name, problems):
             c[image_key] = pick_render(images, c[side], c['role'])
             c[job_key] = jobs.get(pick_render(jobs, c[side], c['role']))
     return sc
+
+
+def load_fits(d, problems, name):
+    """The fit record of a scene (fit.json, written by `reflcheck fit`), one dict per validate
+    comparison; [] when the run has none (the fit step is optional)."""
+    path = os.path.join(d, 'fit.json')
+    if not os.path.exists(path):
+        return []
+    rec = read_json(path, problems, 'fit record', name)
+    if rec is None:
+        return []
+    if not isinstance(rec, dict) or not isinstance(rec.get('fits'), list):
+        problems.add(path, 'fit.json has no "fits" list; re-run reflcheck fit', name)
+        return []
+    out = []
+    for f in rec['fits']:
+        if not isinstance(f, dict):
+            continue
+        f = dict(f)
+        f['variant'] = str(rec.get('variant') or '')
+        f['parameters'] = [q for q in f.get('parameters') or [] if isinstance(q, dict)]
+        for k in ('authored', 'best'):
+            f[k] = f[k] if isinstance(f.get(k), dict) else {}
+        out.append(f)
+    return out
 
 
 def machine_info():

@@ -87,6 +87,7 @@ def summary_object(R):
             'counts': verdict_counts(R),
             'scenes': scenes,
             'stability': opt['stability']['rows'] if opt['stability'] else None,
+            'fits': [dict(f, scene=s['name']) for s in R['scenes'] for f in s.get('fits', [])],
             'problems': R['problems'].items,
         }
     )

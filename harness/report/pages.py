@@ -174,6 +174,21 @@ def stability_rows(opt):
     ]
 
 
+def fit_rows(R):
+    """One row per fitted validate comparison (RUN/<scene>/fit.json): the scene's page, its
+    record, the fitted values as text and whether any value sits at a bound of its range."""
+    rows = []
+    for s in R['scenes']:
+        for f in s.get('fits', []):
+            params = [
+                f'{q.get("material", "?")}.{q.get("name", "?")} {fmt_metric("value", q.get("authored"))}'
+                f' → {fmt_metric("value", q.get("fitted"))}{" (at bound)" if q.get("at_bound") else ""}'
+                for q in f['parameters']
+            ]
+            rows.append({'scene': s, 'fit': f, 'params': params})
+    return rows
+
+
 def sweep_overview(sweeps):
     """One row per scene: the headline numbers of every sweep."""
     rows = []
@@ -304,6 +319,7 @@ def index_html(R, trends, timing_plots, history_note):
         trends=trends,
         history_note=history_note,
         stability=stability_rows(R['optional']),
+        fits=fit_rows(R),
         timing=timing,
         sweeps=sweeps,
         overview=sweep_overview(sweeps),
