@@ -90,6 +90,12 @@ static void job_twin_switches(scene *s)
     for (int i = 0; i < s->n_materials; i++) {
         if (s->materials[i].model != MODEL_COOK_TORRANCE)
             continue;
+        /* With its environment term CM * Fr on, a material keeps its Fresnel: one F serves the
+         * lobe and Fr, and the twin checks the mirror lookup times Schlick F(N.V). A twin
+         * renderer that cannot reproduce the lobe's V-cavity G and Schlick F leaves the lobe out
+         * (Cycles must anyway: harness/renderers/cycles/cycles.c). */
+        if (s->materials[i].ct.reflection && s->env.kind != ENV_NONE)
+            continue;
         s->materials[i].ct.g = G_SMITH_WALTER;
         s->materials[i].ct.f = F_ONE;
     }

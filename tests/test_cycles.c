@@ -962,6 +962,7 @@ static void test_job_contents_and_refusals(void **state)
     s.materials[1].model = MODEL_COOK_TORRANCE;
     s.materials[1].ct.g = G_SMITH_WALTER;
     s.materials[1].ct.f = F_ONE;
+    s.materials[1].ct.reflection = 0; /* its own environment term: test_ct_environment_term_job */
     assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_ERR_RANGE);
     assert_non_null(strstr(err, "separate scenes"));
     s.n_materials = 1;
@@ -1011,6 +1012,54 @@ static void test_job_contents_and_refusals(void **state)
     assert_string_equal(buf, "d/x.cyc1.exr");
 }
 
+/* Seed 004's environment term in a twin: CM * Fr is a Glossy 'SHARP' closure coloured by
+ * Schlick(F0, N.V) with the material's F0 (the twin switches keep F for it); the Beckmann lobe
+ * beside it would see the environment the mirror needs, so it is refused, or left out and
+ * named with partial. */
+static void test_ct_environment_term_job(void **state)
+{
+    (void)state;
+    scene s;
+    mesh m;
+    fixture_mesh f;
+    base_scene(&s, 16, 8);
+    floor_mesh(&m, &f);
+    s.env.kind = ENV_CONSTANT;
+    s.env.radiance = v3s(0.5f);
+    s.materials[0].model = MODEL_COOK_TORRANCE;
+    s.materials[0].albedo = v3s(0.0f);
+    s.materials[0].ct.f0 = v3(0.9f, 0.8f, 0.7f);
+    s.materials[0].ct.reflection = 1;
+    char job[512], err[512];
+    snprintf(job, sizeof job, "%s/ct_env.json", g_dir);
+    cycles_options o = {0};
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "would reflect the environment"));
+    o.partial = 1;
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    cJSON *doc = job_parse(job);
+    assert_string_equal(job_at(doc, 4, "materials", "#0", "mirror", "kind")->valuestring, "schlick");
+    job_vec(job_at(doc, 4, "materials", "#0", "mirror", "f0"), 0.9, 0.8, 0.7, 1e-7);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 2, "materials", "#0"), "glossy"));
+    assert_true(cJSON_IsTrue(job_at(doc, 2, "world_visibility", "glossy")));
+    assert_string_equal(job_at(doc, 1, "glossy_aov")->valuestring, "reflection");
+    const cJSON *missing = job_at(doc, 1, "missing");
+    assert_int_equal(cJSON_GetArraySize(missing), 1);
+    assert_non_null(strstr(cJSON_GetArrayItem(missing, 0)->valuestring, "would reflect the environment"));
+    cJSON_Delete(doc);
+    /* Without an environment there is no mirror, and the lobe (with Cycles' switches) stays. */
+    s.env.kind = ENV_NONE;
+    s.materials[0].ct.g = G_SMITH_WALTER;
+    s.materials[0].ct.f = F_ONE;
+    o.partial = 0;
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    doc = job_parse(job);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 2, "materials", "#0"), "mirror"));
+    close_rel(job_num(job_at(doc, 4, "materials", "#0", "glossy", "roughness")), sqrt((double)s.materials[0].ct.m),
+              1e-7);
+    cJSON_Delete(doc);
+}
+
 /* A driver script that fails is a failed job whose message carries the script's error line
  * (the same path production takes). The script here reads the job and refuses it as
  * cycles_render.py refuses a job without samples. */
@@ -1045,6 +1094,7 @@ int main(void)
     }
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_job_contents_and_refusals),
+        cmocka_unit_test(test_ct_environment_term_job),
         cmocka_unit_test(test_script_failure_is_reported),
         cmocka_unit_test(test_sun_lambert),
         cmocka_unit_test(test_point_lambert),

@@ -499,7 +499,19 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     case MODEL_COOK_TORRANCE: {
         const ct_params *p = &mat->ct;
         jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->albedo);
-        int lobe = cycles_nonzero(p->ks);
+        int lobe = cycles_nonzero(p->ks), env_term = p->reflection && has_env;
+        if (lobe && used && env_term) {
+            /* The mirror below needs the world visible to glossy rays, and then the Beckmann lobe
+             * would reflect the environment too (Cycles 3.4 has no light linking); a scene
+             * without an environment (ct_toaster) is the lobe's twin. */
+            snprintf(what, sizeof what,
+                     "materials[%d] '%s': its Beckmann lobe would reflect the environment its mirror term needs", mi,
+                     mat->name);
+            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what,
+                                    "switch the reflection off (cook_torrance reflection: false)")) != RC_OK)
+                return rc;
+            lobe = 0;
+        }
         if (lobe && used && (p->g != G_SMITH_WALTER || p->f != F_ONE || p->norm != CT_WALTER)) {
             snprintf(what, sizeof what,
                      "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
@@ -523,18 +535,20 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             jw_put_vec(w, gl, "color", "materials.ct.ks", p->ks);
             u->glossy |= used;
         }
-        if (p->reflection && has_env) {
-            /* env(reflect(-V, N)) * Fr(N.V), Fr as cooktorrance_reflection_weight picks it. */
-            cJSON *rl = jw_obj(w, o, "reflection_lookup");
+        if (env_term) {
+            /* CM * Fr: a Glossy Sharp closure sees env(reflect(-V, N)) through the path tracer,
+             * coloured by Fr(N.V) as cooktorrance_reflection_weight picks it (Schlick as
+             * authored: the twin switches keep F for such a material). */
             if (p->f == F_ONE) {
-                jw_put_str(w, jw_obj(w, rl, "fresnel"), "kind", "one");
+                jw_put_str(w, jw_obj(w, o, "mirror"), "kind", "one");
             } else if (p->f == F_EXACT) {
-                cycles_write_fresnel_of(w, rl, "fresnel", mat);
+                cycles_write_fresnel_of(w, o, "mirror", mat);
             } else {
-                cJSON *f = jw_obj(w, rl, "fresnel");
+                cJSON *f = jw_obj(w, o, "mirror");
                 jw_put_str(w, f, "kind", "schlick");
                 jw_put_vec(w, f, "f0", "materials.ct.f0", p->f0);
             }
+            u->mirror |= used;
         }
         break;
     }

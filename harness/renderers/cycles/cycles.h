@@ -16,12 +16,14 @@
  *   twin:     the model's own terms (Lambert -> Diffuse BSDF Vd; Cook-Torrance with
  *             G = smith_walter, F = one -> Glossy 'BECKMANN' roughness sqrt(m) colour ks;
  *             D3D9Client reflection -> Glossy 'SHARP' coloured lambda + (s - lambda) R;
- *             Cook-Torrance reflection env(reflect(-V, N)) * Schlick(F0, N.V) -> shader AOV).
+ *             Cook-Torrance reflection env(reflect(-V, N)) * Fr(N.V) -> Glossy 'SHARP'
+ *             coloured by Fr, Schlick(F0, N.V) as authored).
  *             What Cycles cannot reproduce (Blinn-Phong specular, ambient, per-vertex
  *             shading, clamping, D3D attenuation or spot profile) is an RC_ERR_RANGE error
  *             naming the fix, unless it is a whole term (the Blinn-Phong specular, a Cook-
- *             Torrance lobe without Cycles' switches) and options.partial is set: then the
- *             term is left out, listed in the job's "missing" and in options.left_out.
+ *             Torrance lobe without Cycles' switches or beside its own environment term,
+ *             which it would see) and options.partial is set: then the term is left out,
+ *             listed in the job's "missing" and in options.left_out.
  *   validate, agree (the same render): the scene's physics (model/scene.h) as cycles_physics
  *             says it renders it, refused (RC_ERR_RANGE naming the fields) where the scene
  *             asks otherwise: Lambert albedo (times 1 - F_dielectric(N.V) under diffuse_weight

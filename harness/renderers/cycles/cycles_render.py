@@ -10,7 +10,7 @@ For every seed i in the job it renders once and writes the raw multilayer EXR OU
     R G B A              full image: surfaces + the environment seen by camera rays; A = coverage
     diffuse.RGBA         (DiffDir + DiffInd) * DiffCol
     specular.RGBA        glossy passes when the job routes glossy to "specular"
-    reflection.RGBA      glossy passes when routed to "reflection", plus the shader AOV "refl"
+    reflection.RGBA      glossy passes when the job routes glossy to "reflection"
     emission.RGBA        Emit
     background.RGBA      Env (the environment seen by camera rays; in no other layer)
     coverage.V           Alpha
@@ -452,45 +452,6 @@ def build_material(i, spec, env):
         set_colour(n.inputs['Color'], col)
         shaders.append(n.outputs[0])
 
-    rl = spec.get("reflection_lookup")
-    if rl is not None:  # Cook-Torrance reflection: env(reflect(-V, N)) * Fr(N.V)
-        fac = fresnel_factor(need(rl, "fresnel", where + ".reflection_lookup"), where + ".reflection_lookup.fresnel")
-        geo = e.geometry()
-        refl = nt.nodes.new('ShaderNodeVectorMath')
-        refl.operation = 'REFLECT'
-        neg = nt.nodes.new('ShaderNodeVectorMath')
-        neg.operation = 'SCALE'
-        nt.links.new(geo.outputs['Incoming'], neg.inputs[0])
-        neg.inputs['Scale'].default_value = -1.0
-        nt.links.new(neg.outputs[0], refl.inputs[0])
-        nt.links.new(geo.outputs['Normal'], refl.inputs[1])
-        if env["type"] == "image":
-            tex = nt.nodes.new('ShaderNodeTexEnvironment')
-            tex.image = bpy.data.images.load(env["path"], check_existing=True)
-            tex.image.colorspace_settings.name = 'Linear'
-            tex.interpolation = 'Linear'
-            tex.projection = 'EQUIRECTANGULAR'
-            nt.links.new(refl.outputs[0], tex.inputs['Vector'])
-            src = tex.outputs['Color']
-            scale = env["scale"]
-        else:
-            src = None
-            scale = env.get("radiance", [0.0, 0.0, 0.0])
-        chans = []
-        if src is not None:
-            sep = nt.nodes.new('ShaderNodeSeparateColor')
-            sep.mode = 'RGB'
-            nt.links.new(src, sep.inputs[0])
-        for c in range(3):
-            fr = 1.0 if fac is None else (fac[c] if isinstance(fac, list) else fac)
-            v = e.mul(fr, scale[c])
-            chans.append(e.mul(v, sep.outputs[c]) if src is not None else v)
-        aov = nt.nodes.new('ShaderNodeOutputAOV')
-        # In 3.4 the AOV name and the node name share the RNA identifier 'name'; setting it
-        # names the AOV (checked: the pass receives the colour).
-        aov.name = "refl"
-        nt.links.new(e.rgb(*chans), aov.inputs['Color'])
-
     em = spec.get("emission")
     if em is not None:
         n = nt.nodes.new('ShaderNodeEmission')
@@ -577,9 +538,6 @@ def setup_compositor(job, base_path):
     vl.use_pass_emit = True
     vl.use_pass_environment = True
     vl.use_pass_object_index = True
-    aov = vl.aovs.add()
-    aov.name = "refl"
-    aov.type = 'COLOR'
     sc.use_nodes = True
     nt = sc.node_tree
     for n in list(nt.nodes):
@@ -608,7 +566,7 @@ def setup_compositor(job, base_path):
     if route not in ("specular", "reflection"):
         raise JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
     specular = glossy if route == "specular" else mix('MULTIPLY', glossy, black)
-    reflection = mix('ADD', o['refl'], glossy if route == "reflection" else black)
+    reflection = glossy if route == "reflection" else mix('MULTIPLY', glossy, black)
     full = mix('ADD', o['Image'], o['Env'])
     seta = nt.nodes.new('CompositorNodeSetAlpha')
     seta.mode = 'REPLACE_ALPHA'
