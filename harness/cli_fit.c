@@ -1,8 +1,9 @@
 /* reflcheck fit: the best each approximation can do on each validate comparison of a scene.
  * For every validate comparison of the model against a reference, the reference comes through
  * the job cache (the same render job as the comparison, so a run's references are reused), and
- * the model's free parameters are fitted to it (harness/fit.h). One record per scene,
- * OUT/<scene>/fit.json, with as-authored and best-fit NRMSE and median relative error, the
+ * the model's free parameters are fitted to it (harness/fit.h) within the seeds' ranges, or
+ * with --bounds wide within wider ones. One record per scene, OUT/<scene>/fit.json (wide:
+ * fit-wide.json), with as-authored and best-fit NRMSE and median relative error, the
  * fitted values, evaluations and seconds.
  * Exit status: 0 every fit ran or was skipped (its reference renderer is not installed or cannot
  * represent the scene, or the scene has no free parameter); 1 a reference job failed, a fit
@@ -26,6 +27,7 @@
 
 typedef struct {
     job_variant variant;
+    fit_bounds bounds;
     const char *out_dir, *cache_dir;
     fit_options fo;
 } cli_fit_opts;
@@ -61,7 +63,7 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
     cJSON_AddStringToObject(o, "reference", registry_name(reference));
 
     fit_param p[FIT_MAX_PARAMS];
-    int n = fit_default_params(s, p, FIT_MAX_PARAMS);
+    int n = fit_default_params(s, opt->bounds, p, FIT_MAX_PARAMS);
     if (n == 0) {
         cJSON_AddStringToObject(o, "status", "skipped");
         cJSON_AddStringToObject(o, "reason",
@@ -191,6 +193,7 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
         cJSON_AddStringToObject(root, "scene", s->name);
         cJSON_AddStringToObject(root, "scene_path", path);
         cJSON_AddStringToObject(root, "variant", opt->variant == JOB_SMALL ? "small" : "full");
+        cJSON_AddStringToObject(root, "bounds", opt->bounds == FIT_BOUNDS_WIDE ? "wide" : "seed");
         cJSON_AddStringToObject(root, "algorithm", "NLopt LN_BOBYQA, parameters scaled to [0, 1] over their bounds");
         cJSON_AddNumberToObject(root, "max_evaluations", opt->fo.max_evals);
         cJSON_AddNumberToObject(root, "xtol_scaled", opt->fo.xtol);
@@ -207,7 +210,8 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
                 rc = one;
         }
         char out[1200];
-        snprintf(out, sizeof out, "%s/%s/fit.json", opt->out_dir, s->name);
+        snprintf(out, sizeof out, "%s/%s/%s", opt->out_dir, s->name,
+                 opt->bounds == FIT_BOUNDS_WIDE ? "fit-wide.json" : "fit.json");
         if (jsonio_write_file(root, out, err, sizeof err) != RC_OK) {
             fprintf(stderr, "reflcheck: fit: %s\n", err);
             rc = CLI_FAILED;
@@ -223,10 +227,15 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
 int cli_fit(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"out", required_argument, NULL, 'o'},     {"small", no_argument, NULL, 's'},
-        {"cache", required_argument, NULL, 'c'},   {"no-cache", no_argument, NULL, 'n'},
-        {"threads", required_argument, NULL, 't'}, {"max-evals", required_argument, NULL, 'M'},
-        {"xtol", required_argument, NULL, 'x'},    {NULL, 0, NULL, 0},
+        {"out", required_argument, NULL, 'o'},
+        {"small", no_argument, NULL, 's'},
+        {"cache", required_argument, NULL, 'c'},
+        {"no-cache", no_argument, NULL, 'n'},
+        {"threads", required_argument, NULL, 't'},
+        {"max-evals", required_argument, NULL, 'M'},
+        {"xtol", required_argument, NULL, 'x'},
+        {"bounds", required_argument, NULL, 'b'},
+        {NULL, 0, NULL, 0},
     };
     cli_fit_opts opt = {.variant = JOB_FULL,
                         .out_dir = "reports/runs/manual",
@@ -244,6 +253,14 @@ int cli_fit(int argc, char **argv)
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &opt.fo.threads); break;
         case 'M': rc = cli_parse_int("--max-evals", optarg, 2, 100000, &opt.fo.max_evals); break;
         case 'x': rc = cli_parse_double("--xtol", optarg, 1e-12, 0.5, &opt.fo.xtol); break;
+        case 'b':
+            if (strcmp(optarg, "seed") == 0 || strcmp(optarg, "wide") == 0) {
+                opt.bounds = optarg[0] == 'w' ? FIT_BOUNDS_WIDE : FIT_BOUNDS_SEED;
+            } else {
+                fprintf(stderr, "reflcheck: fit: --bounds '%s': use seed (the seeds' ranges) or wide\n", optarg);
+                rc = CLI_BAD_INPUT;
+            }
+            break;
         default:
             fprintf(stderr, "reflcheck: fit: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
             rc = CLI_BAD_INPUT;
@@ -253,7 +270,7 @@ int cli_fit(int argc, char **argv)
         return rc;
     if (optind >= argc) {
         fprintf(stderr, "reflcheck: usage: reflcheck fit SCENE... [--out DIR] [--small] [--cache DIR | --no-cache] "
-                        "[--threads N] [--max-evals N] [--xtol X]\n");
+                        "[--threads N] [--max-evals N] [--xtol X] [--bounds seed|wide]\n");
         return CLI_BAD_INPUT;
     }
     /* Every scene is read before any is fitted, so a bad one refuses the command at once. */

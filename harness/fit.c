@@ -10,22 +10,31 @@
 #include "compare.h"
 #include "render.h"
 
-/* Seed ranges (../shared/seeds/000: "A typical range for the power parameter is 2.5 to 3.5 ...
- * the offset R_0 ... 0.05 to 0.25"; the multiplier is set to 1 - offset). */
-#define FIT_D9_P_LO   2.5
-#define FIT_D9_P_HI   3.5
-#define FIT_D9_R0_LO  0.05
-#define FIT_D9_R0_HI  0.25
-/* Direct3D colours are fractions of the light; powers beyond 256 are a mirror glint at the
- * sizes we render (a Blinn lobe of P = 256 is about 7 degrees wide). */
-#define FIT_D3D_VS_LO 0.0
-#define FIT_D3D_VS_HI 1.0
-#define FIT_D3D_P_LO  1.0
-#define FIT_D3D_P_HI  256.0
-/* Beckmann m: below 0.01 a lobe is narrower than a pixel at our sizes; 1 is the roughest
- * surface the model's seed describes. */
-#define FIT_CT_M_LO   0.01
-#define FIT_CT_M_HI   1.0
+typedef struct {
+    double lo, hi;
+    int log_scale; /* powers and roughness act multiplicatively */
+} fit_range;
+
+/* Seed ranges: ../shared/seeds/000, "A typical range for the power parameter is 2.5 to 3.5 ...
+ * the offset R_0 ... 0.05 to 0.25", the multiplier set to 1 - offset. Direct3D colours are
+ * fractions of the light, and a Blinn power beyond 256 is a glint at our sizes (a lobe about 7
+ * degrees wide). Beckmann m below 0.01 is a lobe narrower than a pixel here; 1 is the roughest
+ * surface seed 004 describes.
+ * Wide ranges, to see where the best value lies when a seed range holds it at a bound: p up to
+ * 10 (Schlick's own exponent is 5), any r0, Vs up to 2 (an over-bright highlight), P up to 1e4
+ * and m down to 0.001 (the stiff scenes' values). */
+static const fit_range fit_ranges[2][5] = {
+    [FIT_BOUNDS_SEED] = {[FIT_D9_P] = {2.5, 3.5, 0},
+                         [FIT_D9_R0] = {0.05, 0.25, 0},
+                         [FIT_D3D_VS] = {0.0, 1.0, 0},
+                         [FIT_D3D_POWER] = {1.0, 256.0, 1},
+                         [FIT_CT_M] = {0.01, 1.0, 1}},
+    [FIT_BOUNDS_WIDE] = {[FIT_D9_P] = {1.0, 10.0, 0},
+                         [FIT_D9_R0] = {0.0, 1.0, 0},
+                         [FIT_D3D_VS] = {0.0, 2.0, 0},
+                         [FIT_D3D_POWER] = {1.0, 1e4, 1},
+                         [FIT_CT_M] = {0.001, 1.0, 1}},
+};
 
 /* A fitted value this close (in the scaled range) to a bound is reported as held by it. */
 #define FIT_AT_BOUND 1e-3
@@ -42,23 +51,23 @@ const char *fit_param_name(fit_param_kind k)
     return "?";
 }
 
-static void fit_add(fit_param *p, int max, int *n, fit_param_kind kind, int mat, double lo, double hi, int log_scale,
-                    double authored)
+static void fit_add(fit_param *p, int max, int *n, fit_bounds b, fit_param_kind kind, int mat, double authored)
 {
     if (*n >= max)
         return;
+    const fit_range *r = &fit_ranges[b == FIT_BOUNDS_WIDE][kind];
     fit_param *q = &p[(*n)++];
     memset(q, 0, sizeof *q);
     q->kind = kind;
     q->material = mat;
-    q->lo = fmin(lo, authored);
-    q->hi = fmax(hi, authored);
-    q->log_scale = log_scale;
+    q->lo = fmin(r->lo, authored);
+    q->hi = fmax(r->hi, authored);
+    q->log_scale = r->log_scale;
     q->authored = authored;
     q->value = authored;
 }
 
-int fit_default_params(const scene *s, fit_param *p, int max)
+int fit_default_params(const scene *s, fit_bounds b, fit_param *p, int max)
 {
     int n = 0;
     for (int i = 0; i < s->n_materials; i++) {
@@ -70,8 +79,8 @@ int fit_default_params(const scene *s, fit_param *p, int max)
         const material *mt = &s->materials[i];
         switch (mt->model) {
         case MODEL_D3D9CLIENT:
-            fit_add(p, max, &n, FIT_D9_P, i, FIT_D9_P_LO, FIT_D9_P_HI, 0, mt->d9.p);
-            fit_add(p, max, &n, FIT_D9_R0, i, FIT_D9_R0_LO, FIT_D9_R0_HI, 0, mt->d9.r0);
+            fit_add(p, max, &n, b, FIT_D9_P, i, mt->d9.p);
+            fit_add(p, max, &n, b, FIT_D9_R0, i, mt->d9.r0);
             /* float rounding of 1 - r0 as the scene file computed it */
             if (n > 0 && p[n - 1].kind == FIT_D9_R0)
                 p[n - 1].tied = fabsf(mt->d9.m - (1.0f - mt->d9.r0)) < 1e-6f;
@@ -80,17 +89,17 @@ int fit_default_params(const scene *s, fit_param *p, int max)
             float vs = v3_max_comp(mt->d3d.specular);
             if (vs <= 0.0f)
                 break;
-            fit_add(p, max, &n, FIT_D3D_VS, i, FIT_D3D_VS_LO, FIT_D3D_VS_HI, 0, vs);
+            fit_add(p, max, &n, b, FIT_D3D_VS, i, vs);
             if (n > 0 && p[n - 1].kind == FIT_D3D_VS)
                 p[n - 1].colour = mt->d3d.specular;
             /* P = 0 is a flat highlight, no lobe: nothing for a power to shape on a log scale. */
             if (mt->d3d.power > 0.0f)
-                fit_add(p, max, &n, FIT_D3D_POWER, i, FIT_D3D_P_LO, FIT_D3D_P_HI, 1, mt->d3d.power);
+                fit_add(p, max, &n, b, FIT_D3D_POWER, i, mt->d3d.power);
             break;
         }
         case MODEL_COOK_TORRANCE:
             if (mt->ct.m > 0.0f)
-                fit_add(p, max, &n, FIT_CT_M, i, FIT_CT_M_LO, FIT_CT_M_HI, 1, mt->ct.m);
+                fit_add(p, max, &n, b, FIT_CT_M, i, mt->ct.m);
             break;
         }
     }

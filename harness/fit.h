@@ -2,7 +2,7 @@
  *
  * Usage:
  *   fit_param p[FIT_MAX_PARAMS];
- *   int n = fit_default_params(&scn, p, FIT_MAX_PARAMS);   the model's free parameters, as authored
+ *   int n = fit_default_params(&scn, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);   free parameters, as authored
  *   fit_options o = {0};              zero = LN_BOBYQA, 150 evaluations, x tolerance 1e-4 of each range
  *   fit_result r;
  *   fit_run(&scn, &msh, &env, &ref, p, n, &o, &r, err, sizeof err);
@@ -23,13 +23,15 @@
  * than o.xtol or after o.max_evals renders. The best point seen is kept, so best.nrmse is never
  * above authored.nrmse.
  *
- * Free parameters per model (fit_default_params; materials no object uses are left out):
- *   D3D9Client: p in the seed's typical range [2.5, 3.5], and r0 in [0.05, 0.25] with m = 1 - r0
- *     as the D3D9Client material editor sets it (r0 alone when the scene authors its own m);
+ * Free parameters per model (fit_default_params; materials no object uses are left out), with
+ * their FIT_BOUNDS_SEED ranges (FIT_BOUNDS_WIDE in brackets):
+ *   D3D9Client: p in the seed's typical range [2.5, 3.5] ([1, 10]), and r0 in [0.05, 0.25]
+ *     ([0, 1]) with m = 1 - r0 as the D3D9Client material editor sets it (r0 alone when the
+ *     scene authors its own m);
  *   Direct3D Blinn-Phong (a material with a specular colour): Vs, the largest channel of the
- *     specular colour (hue kept), in [0, 1], and the power P in [1, 256];
- *   Cook-Torrance: the Beckmann m per material in [0.01, 1] (it shapes the light lobe only; the
- *     environment term CM.Fr does not depend on m).
+ *     specular colour (hue kept), in [0, 1] ([0, 2]), and the power P in [1, 256] ([1, 1e4]);
+ *   Cook-Torrance: the Beckmann m per material in [0.01, 1] ([0.001, 1]); it shapes the light
+ *     lobe only: the environment term CM.Fr does not depend on m.
  * Each range is widened to hold the authored value, so the as-authored point is feasible.
  * fit_run returns RC_OK with the result, RC_ERR_RANGE for a reference of another size, no
  * parameters or no surface pixels, RC_ERR_NOMEM, or the renderer's error; err says which.
@@ -54,6 +56,7 @@
 #define FIT_DEFAULT_XTOL  1e-4
 
 typedef enum { FIT_D9_P, FIT_D9_R0, FIT_D3D_VS, FIT_D3D_POWER, FIT_CT_M } fit_param_kind;
+typedef enum { FIT_BOUNDS_SEED = 0, FIT_BOUNDS_WIDE = 1 } fit_bounds;
 
 typedef struct {
     fit_param_kind kind;
@@ -91,7 +94,7 @@ typedef struct {
 /* The parameter's name as the fit record writes it: "p", "r0", "Vs", "P", "m". */
 const char *fit_param_name(fit_param_kind k);
 /* Fills p with the scene's free parameters (see above), at most max; returns how many. */
-int fit_default_params(const scene *s, fit_param *p, int max);
+int fit_default_params(const scene *s, fit_bounds b, fit_param *p, int max);
 /* Writes values into a scene's materials (m = 1 - r0 follows r0 where fit_default_params tied
  * them). */
 void fit_apply(scene *s, const fit_param *p, int n, const double *values);

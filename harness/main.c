@@ -33,7 +33,7 @@ static void usage(FILE *f)
             "  diff TEST.exr REF.exr [--mask GEO.exr]    metrics of one image pair as JSON\n"
             "  stability [--json F] [--csv F]            float models vs long double over extremes\n"
             "  renderers [--json]                        the renderer table\n"
-            "  fit SCENE... [--out RUNDIR] [--small]     approximation parameters fitted to each validate\n",
+            "  fit SCENE... [--out RUNDIR] [--small] [--bounds seed|wide]   parameters fitted to each validate\n",
             names);
 }
 

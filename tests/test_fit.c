@@ -93,7 +93,7 @@ static void test_recovers_d3d9client_p(void **state)
     world w;
     world_load(&w, glass_text);
     fit_param p[FIT_MAX_PARAMS];
-    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    int n = fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     assert_int_equal(n, 2); /* p, r0 of glass; the unused material is left out */
     assert_int_equal(p[0].kind, FIT_D9_P);
     assert_int_equal(p[1].kind, FIT_D9_R0);
@@ -129,6 +129,36 @@ static void test_recovers_d3d9client_p(void **state)
     world_free(&w);
 }
 
+/* Wide bounds reach a p the seed range cannot: truth p = 5 (Schlick's exponent), where the seed
+ * fit stops at its bound 3.5 and says so. */
+static void test_wide_bounds_reach_beyond_the_seed(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, glass_text);
+    fit_param p[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, FIT_BOUNDS_WIDE, p, FIT_MAX_PARAMS);
+    assert_int_equal(n, 2);
+    close_rel(p[0].lo, 1.0, 1e-9);
+    close_rel(p[0].hi, 10.0, 1e-9);
+    double truth[2] = {5.0, p[1].authored};
+    render_image ref;
+    render_with(&w, p, n, truth, &ref);
+    metrics_image rm = planes(&ref);
+    fit_result r;
+    char err[1024];
+    fit_options o = {.threads = 2};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, 1, &o, &r, err, sizeof err), RC_OK);
+    assert_true(fabs(p[0].value - 5.0) < 0.02);
+    assert_false(p[0].at_bound);
+    n = fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, 1, &o, &r, err, sizeof err), RC_OK);
+    close_rel(p[0].value, 3.5, 1e-6);
+    assert_true(p[0].at_bound);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
 /* Blinn-Phong: Vs = 0.3 and P = 25 from an authored 0.5 and 40; the specular colour's hue is
  * kept (a tinted Vs scales as a whole). */
 static void test_recovers_blinn_phong(void **state)
@@ -143,7 +173,7 @@ static void test_recovers_blinn_phong(void **state)
                    "objects:\n"
                    "  - {shape: sphere, center: [0, 0, 0], radius: 1, tessellation: 48, material: plastic}\n");
     fit_param p[FIT_MAX_PARAMS];
-    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    int n = fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     assert_int_equal(n, 2);
     assert_int_equal(p[0].kind, FIT_D3D_VS);
     assert_int_equal(p[1].kind, FIT_D3D_POWER);
@@ -187,7 +217,7 @@ static void test_recovers_ct_m_per_material(void **state)
                    "  - {shape: sphere, center: [-0.8, 0, 0], radius: 0.6, tessellation: 48, material: a}\n"
                    "  - {shape: sphere, center: [0.8, 0, 0], radius: 0.6, tessellation: 48, material: b}\n");
     fit_param p[FIT_MAX_PARAMS];
-    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    int n = fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     assert_int_equal(n, 2);
     assert_int_equal(p[0].material, 0);
     assert_int_equal(p[1].material, 1);
@@ -215,7 +245,7 @@ static void test_measures_by_hand_and_budget(void **state)
     world w;
     world_load(&w, glass_text);
     fit_param p[FIT_MAX_PARAMS];
-    int n = fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    int n = fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     render_image ref;
     double authored[2] = {p[0].authored, p[1].authored};
     render_with(&w, p, n, authored, &ref);
@@ -259,16 +289,16 @@ static void test_bounds_and_refusals(void **state)
     world w;
     world_load(&w, glass_text);
     fit_param p[FIT_MAX_PARAMS];
-    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     close_rel(p[0].lo, 2.5, 1e-9);
     close_rel(p[0].hi, 3.5, 1e-9);
     close_rel(p[1].lo, 0.04, 1e-6);
     close_rel(p[1].hi, 0.25, 1e-9);
     w.s->materials[0].d9.m = 0.5f;
-    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     assert_false(p[1].tied);
     w.s->materials[0].d9.p = 6.0f;
-    fit_default_params(w.s, p, FIT_MAX_PARAMS);
+    fit_default_params(w.s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);
     close_rel(p[0].hi, 6.0, 1e-9);
 
     float plane[12] = {0};
@@ -323,6 +353,8 @@ static void test_cli_errors(void **state)
     assert_non_null(strstr(err, "--bogus"));
     assert_int_equal(cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --max-evals 1"), 2);
     assert_non_null(strstr(err, "--max-evals"));
+    assert_int_equal(cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --bounds tight"), 2);
+    assert_non_null(strstr(err, "--bounds 'tight'"));
     assert_int_equal(cli_exec(err, sizeof err, "fit %s/none.yaml --out %s", tmp_dir, tmp_dir), 2);
     assert_non_null(strstr(err, "none.yaml"));
     char bad[300];
@@ -408,6 +440,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_recovers_d3d9client_p),
+        cmocka_unit_test(test_wide_bounds_reach_beyond_the_seed),
         cmocka_unit_test(test_recovers_blinn_phong),
         cmocka_unit_test(test_recovers_ct_m_per_material),
         cmocka_unit_test(test_measures_by_hand_and_budget),

@@ -719,16 +719,28 @@ def test_fit_table(tmp_path):
     }
     with open(os.path.join(run, 'alpha', 'fit.json'), 'w', encoding='utf-8') as f:
         json.dump(fit, f)
+    wide = dict(fit, bounds='wide', fits=[dict(fit['fits'][0], best={'nrmse': 0.2071, 'median_rel': 0.03})])
+    with open(os.path.join(run, 'alpha', 'fit-wide.json'), 'w', encoding='utf-8') as f:
+        json.dump(wide, f)
     with open(os.path.join(run, 'beta', 'fit.json'), 'w', encoding='utf-8') as f:
         f.write('{"fits": 3}')
     r = run_report('--run', run)
     assert 'fit.json has no "fits" list' in r.stderr
     html = read(os.path.join(run, 'index.html'))
     table = html.split('<section id="fit">', 1)[1].split('</section>', 1)[0]
-    assert re.search(r'raster-vs-povray-validate</td><td>ok</td>\s*<td class="num"><span class="mono">0\.8887<', table)
+    assert re.search(
+        r'raster-vs-povray-validate</td><td>seed</td><td>ok</td>\s*<td class="num"><span class="mono">0\.8887<', table
+    )
+    assert re.search(
+        r'raster-vs-povray-validate</td><td>wide</td><td>ok</td>\s*<td.*?>0\.8887<.*?>0\.2071<', table, re.S
+    )
     assert '>0.4248<' in table and '>0.2254<' in table and '>0.04528<' in table
     assert 'glass.p 3 → 3.5 (at bound)' in table and 'glass.r0 0.04 → 0.04053<' in table
     assert 'cycles validate job failed: boom' in table
     summ = json.loads(read(os.path.join(run, 'summary.json')))
-    assert [f['id'] for f in summ['fits']] == ['raster-vs-povray-validate', 'raster-vs-cycles-validate']
+    assert [(f['id'], f['bounds']) for f in summ['fits']] == [
+        ('raster-vs-povray-validate', 'seed'),
+        ('raster-vs-cycles-validate', 'seed'),
+        ('raster-vs-povray-validate', 'wide'),
+    ]
     assert summ['fits'][0]['best']['nrmse'] == 0.4248

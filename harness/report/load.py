@@ -215,27 +215,30 @@ def load_scene(run, name, problems):
 
 
 def load_fits(d, problems, name):
-    """The fit record of a scene (fit.json, written by `reflcheck fit`), one dict per validate
-    comparison; [] when the run has none (the fit step is optional)."""
-    path = os.path.join(d, 'fit.json')
-    if not os.path.exists(path):
-        return []
-    rec = read_json(path, problems, 'fit record', name)
-    if rec is None:
-        return []
-    if not isinstance(rec, dict) or not isinstance(rec.get('fits'), list):
-        problems.add(path, 'fit.json has no "fits" list; re-run reflcheck fit', name)
-        return []
+    """The fit records of a scene (`reflcheck fit`: fit.json within the seeds' ranges,
+    fit-wide.json within wide ones), one dict per validate comparison and bounds; [] when the
+    run has none (the fit step is optional)."""
     out = []
-    for f in rec['fits']:
-        if not isinstance(f, dict):
+    for fname, bounds in (('fit.json', 'seed'), ('fit-wide.json', 'wide')):
+        path = os.path.join(d, fname)
+        if not os.path.exists(path):
             continue
-        f = dict(f)
-        f['variant'] = str(rec.get('variant') or '')
-        f['parameters'] = [q for q in f.get('parameters') or [] if isinstance(q, dict)]
-        for k in ('authored', 'best'):
-            f[k] = f[k] if isinstance(f.get(k), dict) else {}
-        out.append(f)
+        rec = read_json(path, problems, 'fit record', name)
+        if rec is None:
+            continue
+        if not isinstance(rec, dict) or not isinstance(rec.get('fits'), list):
+            problems.add(path, f'{fname} has no "fits" list; re-run reflcheck fit', name)
+            continue
+        for f in rec['fits']:
+            if not isinstance(f, dict):
+                continue
+            f = dict(f)
+            f['variant'] = str(rec.get('variant') or '')
+            f['bounds'] = str(rec.get('bounds') or bounds)
+            f['parameters'] = [q for q in f.get('parameters') or [] if isinstance(q, dict)]
+            for k in ('authored', 'best'):
+                f[k] = f[k] if isinstance(f.get(k), dict) else {}
+            out.append(f)
     return out
 
 
