@@ -30,6 +30,12 @@ static int cli_render_check_inputs(const char *out, const scene *s)
             what = "a mesh of the scene";
             input = s->objects[i].path;
         }
+    for (int i = 0; what == NULL && i < s->n_materials; i++)
+        for (int k = 0; what == NULL && k < MAT_TEX_SLOTS; k++)
+            if (s->materials[i].texture[k][0] != '\0' && fileio_same_file(out, s->materials[i].texture[k])) {
+                what = "a texture of the scene";
+                input = s->materials[i].texture[k];
+            }
     if (what == NULL)
         return CLI_OK;
     fprintf(stderr, "reflcheck: %s: the output is %s %s, which would be overwritten; give another -o path\n", out, what,

@@ -17,6 +17,8 @@
 #include <png.h>
 
 #include "check.h"
+#include "cli_exec.h"
+#include "exr.h"
 #include "frame.h"
 #include "mesh.h"
 #include "render.h"
@@ -532,6 +534,64 @@ static void test_scene_keys(void **state)
     assert_non_null(strstr(err, "usemtl"));
 }
 
+/* A linear EXR texture through frame_textures_load (R, G, B and A kept as written), a negative
+ * texel refused by name, and the CLI refusing to write its output over a texture. */
+static void test_exr_and_cli(void **state)
+{
+    (void)state;
+    char path[256], err[1024], text[1024];
+    float r[6] = {0.5f, 2.0f, 0.0f, 1.0f, 0.25f, 3.0f}, g[6] = {1, 1, 1, 1, 1, 1},
+          b[6] = {0, 0.1f, 0.2f, 0.3f, 0.4f, 0.5f};
+    float a[6] = {1, 0.5f, 0, 1, 1, 1};
+    snprintf(path, sizeof path, "%s/lin.exr", tmpdir);
+    exr_channel ch[4] = {{"R", r}, {"G", g}, {"B", b}, {"A", a}};
+    assert_int_equal(exr_write(path, 3, 2, ch, 4, NULL, 0, err, sizeof err), RC_OK);
+    snprintf(text, sizeof text,
+             "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  a: {texture: {specular: %s}}\n"
+             "objects:\n  - {shape: quad, size: [1, 1], rotate: [90, 0, 0], material: a}\n",
+             path);
+    static scene s;
+    assert_int_equal(scene_file_parse(text, strlen(text), "t.yaml", &s, err, sizeof err), RC_OK);
+    texture_set ts;
+    assert_int_equal(frame_textures_load(&s, &ts, err, sizeof err), RC_OK);
+    const texture *t = &ts.map[0][MAT_TEX_SPECULAR];
+    assert_int_equal(t->width, 3);
+    for (int i = 0; i < 6; i++) {
+        assert_float_equal(t->rgba[4 * i], r[i], 0); /* linear: no sRGB curve on EXR */
+        assert_float_equal(t->rgba[4 * i + 2], b[i], 0);
+        assert_float_equal(t->rgba[4 * i + 3], a[i], 0);
+    }
+    texture_set_free(&ts);
+    r[4] = -1.0f;
+    assert_int_equal(exr_write(path, 3, 2, ch, 4, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(frame_textures_load(&s, &ts, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "materials.a.texture.specular"));
+    assert_non_null(strstr(err, "(x 1, y 1) channel R"));
+
+    /* render -o onto the scene's own texture: exit 2, the file untouched. */
+    char scn[256], png[256];
+    snprintf(png, sizeof png, "%s/t.png", tmpdir);
+    snprintf(scn, sizeof scn, "%s/s.yaml", tmpdir);
+    FILE *f = fopen(scn, "w");
+    fprintf(f, "image: {width: 8, height: 8}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+               "materials:\n  a: {texture: {diffuse: t.png}}\n"
+               "objects:\n  - {shape: quad, size: [1, 1], rotate: [90, 0, 0], material: a}\n");
+    fclose(f);
+    FILE *p = fopen(png, "rb");
+    fseek(p, 0, SEEK_END);
+    long before = ftell(p);
+    fclose(p);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, png), 2);
+    assert_non_null(strstr(err, "a texture of the scene"));
+    p = fopen(png, "rb");
+    fseek(p, 0, SEEK_END);
+    assert_int_equal(ftell(p), before);
+    fclose(p);
+    snprintf(path, sizeof path, "%s/out.exr", tmpdir);
+    assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, path), 0);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -552,7 +612,7 @@ int main(void)
         cmocka_unit_test(test_srgb_curve), cmocka_unit_test(test_sample_centres), cmocka_unit_test(test_sample_wrap),
         cmocka_unit_test(test_png),        cmocka_unit_test(test_jpeg),           cmocka_unit_test(test_real_asset),
         cmocka_unit_test(test_refusals),   cmocka_unit_test(test_shade_textured), cmocka_unit_test(test_generated_uvs),
-        cmocka_unit_test(test_file_uvs),   cmocka_unit_test(test_scene_keys),
+        cmocka_unit_test(test_file_uvs),   cmocka_unit_test(test_scene_keys),     cmocka_unit_test(test_exr_and_cli),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
