@@ -193,6 +193,17 @@ static void test_twin_refusals(void **state)
     assert_non_null(strstr(r.message, "world"));
     assert_int_not_equal(access(exr, F_OK), 0);
     mesh_free(&m);
+
+    /* Validate renders the physics manifest: a world that must not light the Lambert term
+     * (env_diffuse false, the default) is beyond EEVEE, whose probe lights every diffuse. */
+    floor_scene(&s, &m);
+    s.physics.fresnel_specular = PHYS_FRESNEL_NV;
+    s.env.kind = ENV_CONSTANT;
+    s.env.radiance = v3s(0.1f);
+    run_job(&s, &m, ROLE_VALIDATE, NULL, "envdiffuse", exr, sizeof exr, &r);
+    assert_int_equal(r.status, RUNNER_MISSING);
+    assert_non_null(strstr(r.message, "env_diffuse"));
+    mesh_free(&m);
 }
 
 /* 3. No display to be had: skipped with the install command, like a missing renderer; a

@@ -68,8 +68,8 @@ static const renderer_row registry_rows[] = {
      .sources = registry_eevee_sources,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "a Beckmann lobe (GGX only, split-sum with LTC lights), exact mirrors (pre-filtered world probe), "
-               "per-closure world visibility (the world always lights diffuse), shadows and inter-reflection are "
-               "off; as twin only Lambert under lamps; plus what Cycles cannot",
+               "env_diffuse false under a lit world (its probe lights every diffuse), shadows, inter-reflection; "
+               "as twin only Lambert under points and suns; plus what Cycles cannot",
      .render = eevee_render_job},
 };
 

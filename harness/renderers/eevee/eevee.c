@@ -73,6 +73,33 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
     return 0;
 }
 
+/* Validate and agree render the scene's physics manifest: 1 and a message naming what EEVEE
+ * cannot render of it, else 0. Lamps per closure it can (light diffuse/specular factors). */
+static int eevee_physics_refused(const scene *s, char *why, size_t len)
+{
+    const physics *ph = &s->physics;
+    if (ph->shadows || ph->interreflection || ph->bounces > 1) {
+        snprintf(why, len,
+                 "%s: physics: shadows, inter-reflection or more than one bounce; EEVEE renders none of them here "
+                 "(the real-time setting)",
+                 s->path);
+        return 1;
+    }
+    if (ph->env_diffuse || s->env.kind == ENV_NONE || !eevee_nonzero(s->env.radiance))
+        return 0;
+    for (int mi = 0; mi < s->n_materials; mi++) {
+        const material *m = &s->materials[mi];
+        if (eevee_material_used(s, mi) && !m->conductor && eevee_nonzero(m->albedo)) {
+            snprintf(why, len,
+                     "%s: physics: env_diffuse false, but EEVEE lights every Lambert term with the world (its "
+                     "probe) and materials[%d] '%s' has one; set env_diffuse true to compare EEVEE",
+                     s->path, mi, m->name);
+            return 1;
+        }
+    }
+    return 0;
+}
+
 rc_status eevee_raw_path(const char *out_exr_path, char *buf, size_t len)
 {
     size_t n = strlen(out_exr_path);
@@ -191,6 +218,10 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
     }
     if (j->role == ROLE_TWIN && eevee_twin_refused(j->s, why, sizeof why)) {
         renderer_fail(r, RUNNER_MISSING, "eevee cannot twin this scene: %s", why);
+        return;
+    }
+    if (j->role != ROLE_TWIN && eevee_physics_refused(j->s, why, sizeof why)) {
+        renderer_fail(r, RUNNER_MISSING, "eevee cannot render this scene's physics: %s", why);
         return;
     }
     /* Agree: EEVEE renders the physical material, as against Cycles; the other side (our

@@ -82,15 +82,17 @@ def setup_eevee(job):
 
 
 def setup_eevee_lights():
-    """No shadow of any kind (the real-time models have none)."""
+    """No shadow of any kind (the real-time models have none). Which closures a lamp lights
+    (the physics manifest) Cycles reads from the lamp's ray visibility, which
+    cycles_render.setup_lights sets; EEVEE reads its diffuse and specular factors."""
     for ob in bpy.context.scene.objects:
         if ob.type != 'LIGHT':
             continue
         ob.data.use_shadow = False
         ob.data.use_contact_shadow = False
         ob.data.use_custom_distance = False
-        ob.data.specular_factor = 1.0
-        ob.data.diffuse_factor = 1.0
+        ob.data.diffuse_factor = 1.0 if ob.visible_diffuse else 0.0
+        ob.data.specular_factor = 1.0 if ob.visible_glossy else 0.0
 
 
 def setup_eevee_materials():
