@@ -53,10 +53,10 @@ static const renderer_row registry_rows[] = {
      .render = cycles_render_job,
      .physics = cycles_physics},
     {.name = "exact",
-     .title = "reflcheck exact (physics)",
+     .title = "reflcheck exact physics",
      .version = "reflcheck-exact-1",
      .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
-               "the diffuse (they need an integral), shadows, inter-reflection",
+               "the diffuse (they need an integral), shadows, inter-reflection, textures",
      .render = exact_render_job,
      .physics = exact_physics},
     /* A real-time engine, judged like our model: validate against Cycles, agree with the raster.
