@@ -511,15 +511,16 @@ static void job_render(job_ctx *c, job_record *rec)
     /* A renderer that reads the environment from its file gets the split one (frame_env_split_sun),
      * written into its work folder. The cache key covers the original image, the threshold (the
      * scene file) and the code that splits it (model/env.c, harness/frame.c). */
+    char split[1100] = "";
     if (registry_row(c->j->renderer)->program != NULL && c->s->env.kind == ENV_IMAGE &&
         c->s->env.sun_threshold > 0.0f) {
-        char path[1100], why[600];
-        snprintf(path, sizeof path, "%s/environment-split.exr", c->dir);
-        if (frame_env_write(path, &c->env, why, sizeof why) != RC_OK) {
+        char why[600];
+        snprintf(split, sizeof split, "%s/environment-split.exr", c->dir);
+        if (frame_env_write(split, &c->env, why, sizeof why) != RC_OK) {
             job_fail(rec, RUNNER_ERROR, "the split environment: %s; check the work folder and its space", why);
             return;
         }
-        snprintf(c->s->env.path, sizeof c->s->env.path, "%s", path);
+        snprintf(c->s->env.path, sizeof c->s->env.path, "%s", split);
     }
     renderer_job rj = {.s = c->s,
                        .m = c->m,
@@ -538,6 +539,9 @@ static void job_render(job_ctx *c, job_record *rec)
                        .version = c->version};
     memset(&c->res, 0, sizeof c->res);
     registry_row(c->j->renderer)->render(&rj, &c->res);
+    /* The split sky served the render; a cache entry keeps only the render. */
+    if (split[0] != '\0')
+        unlink(split);
     rec->status = c->res.status;
     snprintf(rec->message, sizeof rec->message, "%s", c->res.message);
     rec->wall_s = c->res.wall_s;
