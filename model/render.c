@@ -164,7 +164,7 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
  * face normal, the only direction left) and the unit direction to the viewer. */
 SMATH_CLONES
 static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n,
-                               const mesh_normal_length *len, shade_batch_in *restrict in)
+                               const mesh_normal_length *len, int textured, shade_batch_in *restrict in)
 {
     /* Vertex arrays as flat floats (vec3 is three packed floats): a gather takes an element
      * index times 4 bytes, not a 12-byte struct stride. */
@@ -194,7 +194,8 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
             nn = v3_scale(nn, mesh_normal_length_of(len, nn));
         shade_batch_set_input(in, i, x, nn, v);
     }
-    if (m->uv == NULL)
+    /* Texture coordinates only for a textured plan: untextured objects skip the gathers. */
+    if (m->uv == NULL || !textured)
         return;
     const float *uv = m->uv;
 #pragma omp simd
@@ -221,7 +222,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b2[i] = qu->b2[n - 1];
     }
     double t0 = render_clock(w);
-    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], &w->in);
+    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, &w->in);
     double t1 = render_clock(w);
     shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
     double t2 = render_clock(w);
