@@ -721,16 +721,34 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
 enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_COUNT };
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
-                        yaml_node_t **normalize_node)
+                        yaml_node_t *state_node[2])
 {
-    static const char *const keys[] = {"ambient",      "diffuse",    "specular", "emissive",         "power",
-                                       "local_viewer", "per_vertex", "clamp",    "normalize_normals"};
-    sf_kv f[9];
+    static const char *const keys[] = {
+        "ambient",        "diffuse",        "specular",        "emissive",          "power",
+        "local_viewer",   "per_vertex",     "clamp",           "normalize_normals", "colour_vertex",
+        "ambient_source", "diffuse_source", "specular_source", "emissive_source"};
+    static const char *const sources[] = {"material", "colour1", "colour2"};
+    sf_kv f[14];
     char child[SF_PATHLEN];
     rc_status rc;
-    if ((rc = sf_map(c, n, path, keys, 9, f)))
+    if ((rc = sf_map(c, n, path, keys, 14, f)))
         return rc;
-    *normalize_node = f[8].v;
+    state_node[0] = f[8].v;
+    state_node[1] = f[9].v;
+    if (f[9].v) {
+        sf_child(child, path, keys[9]);
+        if ((rc = sf_bool(c, f[9].v, child, &d->colour_vertex)))
+            return rc;
+    }
+    colour_source *src[4] = {&d->ambient_source, &d->diffuse_source, &d->specular_source, &d->emissive_source};
+    for (int i = 0; i < 4; i++) {
+        int e = 0;
+        sf_child(child, path, keys[10 + i]);
+        if (f[10 + i].v && (rc = sf_enum(c, f[10 + i].v, child, sources, 3, &e)))
+            return rc;
+        if (f[10 + i].v)
+            *src[i] = (colour_source)e;
+    }
     vec3 *col[4] = {&d->ambient, &d->diffuse, &d->specular, &d->emissive};
     for (int i = 0; i < 4; i++) {
         sf_child(child, path, keys[i]);
@@ -901,17 +919,19 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         m->model = (model_kind)e;
     }
-    yaml_node_t *normalize_node = NULL;
-    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, &normalize_node)))
+    yaml_node_t *state_node[2] = {NULL, NULL};
+    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))
         return rc;
-    /* D3DRS_NORMALIZENORMALS is fixed-function state: the D3D9Client and Cook-Torrance models
-     * are shaders, which take the normal they are given (unit here). */
-    if (!m->d3d.normalize_normals && m->model != MODEL_D3D) {
+    /* D3DRS_NORMALIZENORMALS and D3DRS_COLORVERTEX are fixed-function state: the D3D9Client and
+     * Cook-Torrance models are shaders, which take the normal and colours they are given. */
+    if ((!m->d3d.normalize_normals || m->d3d.colour_vertex) && m->model != MODEL_D3D) {
+        int norm = !m->d3d.normalize_normals;
         sf_child(sub, path, "d3d");
-        sf_child(child, sub, "normalize_normals");
-        return sf_fail(c, RC_ERR_RANGE, normalize_node, child,
-                       "false applies to the fixed-function model d3d only (D3DRS_NORMALIZENORMALS); "
-                       "allowed: true, or model: d3d");
+        sf_child(child, sub, norm ? "normalize_normals" : "colour_vertex");
+        return sf_fail(c, RC_ERR_RANGE, state_node[norm ? 0 : 1], child,
+                       "%s applies to the fixed-function model d3d only (%s); allowed: %s, or model: d3d",
+                       norm ? "false" : "true", norm ? "D3DRS_NORMALIZENORMALS" : "D3DRS_COLORVERTEX",
+                       norm ? "true" : "false");
     }
     if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
         return rc;

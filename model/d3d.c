@@ -66,3 +66,33 @@ vec3 d3d_half_vector(vec3 l, vec3 v_local, vec3 e_infinite, int local_viewer)
         return v3s(NAN);
     return v3_from_d(dv3_scale(s, formula_half_scale_d(len)));
 }
+
+static int d3d_source_takes(colour_source src, unsigned have)
+{
+    return (src == COLOUR_SOURCE_COLOUR1 && (have & 1u)) || (src == COLOUR_SOURCE_COLOUR2 && (have & 2u));
+}
+
+int d3d_uses_vertex_colours(const d3d_params *d, unsigned have)
+{
+    return d->colour_vertex &&
+           (d3d_source_takes(d->ambient_source, have) || d3d_source_takes(d->diffuse_source, have) ||
+            d3d_source_takes(d->specular_source, have) || d3d_source_takes(d->emissive_source, have));
+}
+
+static vec3 d3d_pick(colour_source src, unsigned have, vec3 own, vec3 colour1, vec3 colour2)
+{
+    if (!d3d_source_takes(src, have))
+        return own;
+    return src == COLOUR_SOURCE_COLOUR1 ? colour1 : colour2;
+}
+
+void d3d_vertex_colours(const d3d_params *d, unsigned have, vec3 colour1, vec3 colour2, d3d_params *out)
+{
+    *out = *d;
+    if (!d->colour_vertex)
+        return;
+    out->ambient = d3d_pick(d->ambient_source, have, d->ambient, colour1, colour2);
+    out->diffuse = d3d_pick(d->diffuse_source, have, d->diffuse, colour1, colour2);
+    out->specular = d3d_pick(d->specular_source, have, d->specular, colour1, colour2);
+    out->emissive = d3d_pick(d->emissive_source, have, d->emissive, colour1, colour2);
+}

@@ -51,4 +51,12 @@ float d3d_blinn(float n_h, float power);
  * no defined direction and the light gives no highlight (d3d_blinn(+-0, P) = 0). */
 vec3 d3d_half_vector(vec3 l, vec3 v_local, vec3 e_infinite, int local_viewer);
 
+/* The material colours D3D lights a vertex with (D3DRS_COLORVERTEX and the four
+ * D3DRS_*MATERIALSOURCE states): d with Va, Vd, Vs, Ve replaced by the vertex's colour1 or colour2
+ * where d->colour_vertex is set and its source selects one the vertex has (have: bit 1 colour1,
+ * bit 2 colour2); a missing colour keeps the material's. */
+void d3d_vertex_colours(const d3d_params *d, unsigned have, vec3 colour1, vec3 colour2, d3d_params *out);
+/* Whether those states make any of the four colours come from the vertex, given have. */
+int d3d_uses_vertex_colours(const d3d_params *d, unsigned have);
+
 #endif

@@ -25,6 +25,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "d3d.h"
 #include "fileio.h"
 #include "formula.h"
 #include "mesh.h"
@@ -79,6 +80,16 @@ static rc_status mesh_reserve(mesh *m, size_t add_verts, size_t add_tris)
         if (!uv)
             return RC_ERR_NOMEM;
         m->uv = uv;
+        if (m->col1 != NULL) {
+            vec3 *c1 = realloc(m->col1, cap * sizeof *c1);
+            if (!c1)
+                return RC_ERR_NOMEM;
+            m->col1 = c1;
+            vec3 *c2 = realloc(m->col2, cap * sizeof *c2);
+            if (!c2)
+                return RC_ERR_NOMEM;
+            m->col2 = c2;
+        }
         m->cap_verts = (int)cap;
     }
     if (nt > (size_t)m->cap_tris) {
@@ -104,7 +115,25 @@ typedef struct {
     mesh_xform x;
     int object;
     int textured; /* the object's material has a texture: a mesh file must give UVs */
+    vec3 c1, c2;  /* the colours of the next vertex (where the mesh holds colours) */
 } mesh_builder;
+
+/* Turns the colour arrays on: zero for the vertices so far, and grown with the others. */
+static rc_status mesh_colours_on(mesh *m)
+{
+    if (m->col1 != NULL)
+        return RC_OK;
+    size_t cap = m->cap_verts > 0 ? (size_t)m->cap_verts : 1;
+    m->col1 = calloc(cap, sizeof *m->col1);
+    m->col2 = calloc(cap, sizeof *m->col2);
+    if (!m->col1 || !m->col2) {
+        free(m->col1);
+        free(m->col2);
+        m->col1 = m->col2 = NULL;
+        return RC_ERR_NOMEM;
+    }
+    return RC_OK;
+}
 
 static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
 {
@@ -114,6 +143,10 @@ static uint32_t mesh_vert(mesh_builder *b, dvec3 p, dvec3 n)
     m->pos[m->n_verts] = v3_from_d(dv3_add(mesh_rotate(&b->x, dv3_mul(p, b->x.s)), b->x.t));
     m->nrm[m->n_verts] = v3_from_d(dv3_norm(mesh_rotate(&b->x, dv3_mul(n, b->x.inv_s))));
     m->uv[2 * (size_t)m->n_verts] = m->uv[2 * (size_t)m->n_verts + 1] = 0.0f;
+    if (m->col1 != NULL) {
+        m->col1[m->n_verts] = b->c1;
+        m->col2[m->n_verts] = b->c2;
+    }
     return (uint32_t)m->n_verts++;
 }
 
@@ -355,6 +388,11 @@ typedef struct {
     int *face_start; /* n_face + 1 entries into the corner arrays */
     int *face_line;  /* OBJ line or PLY face number, for messages */
     int n_face, cap_face;
+    /* Vertex colours, 6 per position (colour1 rgb, colour2 rgb), allocated at the first colour
+     * read (earlier positions get zeros); col_bits: 1 colour1, 2 colour2; col_given: positions
+     * that carried a colour. */
+    double *col;
+    int cap_col, col_bits, col_given;
 } mesh_soup;
 
 static void mesh_soup_free(mesh_soup *s)
@@ -367,6 +405,7 @@ static void mesh_soup_free(mesh_soup *s)
     free(s->cn);
     free(s->face_start);
     free(s->face_line);
+    free(s->col);
 }
 
 /* Grows *p (elem bytes each, capacity *cap) to hold need elements. */
@@ -384,6 +423,20 @@ static int mesh_grow(void **p, int *cap, int need, size_t elem)
         return 0;
     *p = q;
     *cap = c;
+    return 1;
+}
+
+/* Sets position s->n_pos - 1's colours (bits 1: c[0..2] is colour1, 2: c[3..5] colour2). */
+static int mesh_soup_colour(mesh_soup *s, const double c[6], int bits)
+{
+    int had = s->cap_col;
+    if (!mesh_grow((void **)&s->col, &s->cap_col, s->n_pos, 6 * sizeof(double)))
+        return 0;
+    if (s->cap_col > had)
+        memset(&s->col[6 * (size_t)had], 0, (size_t)(s->cap_col - had) * 6 * sizeof(double));
+    memcpy(&s->col[6 * (size_t)(s->n_pos - 1)], c, 6 * sizeof(double));
+    s->col_bits |= bits;
+    s->col_given++;
     return 1;
 }
 
@@ -577,6 +630,25 @@ static int mesh_obj_bom(const char *buf, size_t len, const char *label, char *er
     return 0;
 }
 
+/* `v x y z r g b`: a colour1 (linear RGB as written: OBJ does not say, and the files in use write
+ * 0..1). Every vertex or none: a file that starts colouring halfway is refused at its end. */
+static rc_status mesh_obj_colour(mesh_soup *s, const double *v, int n, const char *label, int line, char *err,
+                                 size_t errlen)
+{
+    if (n != 6)
+        return RC_OK;
+    for (int c = 3; c < 6; c++)
+        if (!(isfinite(v[c]) && v[c] >= 0.0 && v[c] <= 1e30)) {
+            status_message(err, errlen,
+                           "%s:%d: vertex colour %g is not a finite value >= 0; fix: 'v x y z r g b' with "
+                           "r g b >= 0",
+                           label, line, v[c]);
+            return RC_ERR_RANGE;
+        }
+    double c[6] = {v[3], v[4], v[5], 0, 0, 0};
+    return mesh_soup_colour(s, c, 1) ? RC_OK : RC_ERR_NOMEM;
+}
+
 static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
     int line = 0;
@@ -626,6 +698,9 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
             }
             if (!mesh_soup_pos(s, v))
                 return RC_ERR_NOMEM;
+            rc_status crc = mesh_obj_colour(s, v, n, label, line, err, errlen);
+            if (crc != RC_OK)
+                return crc;
         } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
             int n = mesh_parse_doubles(&cur, v, 3);
             if (n != 3) {
@@ -725,6 +800,13 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
         }
         /* Everything else (o, g, s, mtllib, l, ...) carries nothing we shade with. */
         p = le + 1;
+    }
+    if (s->col_given > 0 && s->col_given < s->n_pos) {
+        status_message(err, errlen,
+                       "%s: %d of %d vertices carry a colour ('v x y z r g b'); fix: a colour on every vertex "
+                       "or on none",
+                       label, s->col_given, s->n_pos);
+        return RC_ERR_PARSE;
     }
     return RC_OK;
 }
@@ -837,6 +919,46 @@ static int ply_has_element(const ply_element *el, int n, const char *name)
         if (strcmp(el[i].name, name) == 0)
             return 1;
     return 0;
+}
+
+/* The vertex element's colour properties: red green blue (or diffuse_red ...) as colour1,
+ * specular_red ... as colour2, each only as a set of three. Integer colours are scaled by their type's
+ * largest value (uchar 255, ushort 65535), float ones taken as linear RGB. */
+static rc_status ply_colour_props(const ply_element *x, const char *label, int ic[6], double scale[6], int *bits,
+                                  char *err, size_t errlen)
+{
+    static const char *const names[3][6] = {{"red", "green", "blue", "", "", ""},
+                                            {"diffuse_red", "diffuse_green", "diffuse_blue", "", "", ""},
+                                            {"", "", "", "specular_red", "specular_green", "specular_blue"}};
+    for (int c = 0; c < 6; c++)
+        ic[c] = -1;
+    *bits = 0;
+    for (int k = 0; k < x->n_props; k++) {
+        const ply_prop *pr = &x->props[k];
+        for (int v = 0; v < 3; v++)
+            for (int c = 0; c < 6; c++) {
+                if (pr->is_list || !names[v][c][0] || strcmp(pr->name, names[v][c]) != 0)
+                    continue;
+                if (pr->type != PLY_U8 && pr->type != PLY_U16 && pr->type != PLY_F32 && pr->type != PLY_F64) {
+                    status_message(err, errlen,
+                                   "%s: vertex colour property %s has a signed or 32-bit integer type; fix: uchar, "
+                                   "ushort, float or double",
+                                   label, pr->name);
+                    return RC_ERR_PARSE;
+                }
+                ic[c] = k;
+                scale[c] = pr->type == PLY_U8 ? 1.0 / 255.0 : pr->type == PLY_U16 ? 1.0 / 65535.0 : 1.0;
+            }
+    }
+    for (int g = 0; g < 2; g++) {
+        int n = (ic[3 * g] >= 0) + (ic[3 * g + 1] >= 0) + (ic[3 * g + 2] >= 0);
+        /* An incomplete set (a lone `red`) is another property of the file's, not a colour. */
+        if (n == 3)
+            *bits |= 1 << g;
+        else
+            ic[3 * g] = ic[3 * g + 1] = ic[3 * g + 2] = -1;
+    }
+    return RC_OK;
 }
 
 static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
@@ -975,7 +1097,8 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
     for (int e = 0; e < n_el; e++) {
         ply_element *x = &el[e];
         int is_vertex = strcmp(x->name, "vertex") == 0, is_face = strcmp(x->name, "face") == 0;
-        int ix[6] = {-1, -1, -1, -1, -1, -1}, iface = -1;
+        int ix[6] = {-1, -1, -1, -1, -1, -1}, iface = -1, ic[6], cbits = 0;
+        double cscale[6];
         static const char *const vn[6] = {"x", "y", "z", "nx", "ny", "nz"};
         if (x->n_props == 0 && x->count > 0) {
             status_message(err, errlen, "%s: element '%s' has no properties; fix: a valid PLY header", label, x->name);
@@ -1017,6 +1140,9 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                 return RC_ERR_PARSE;
             }
             ply_uv = iuv[0] >= 0;
+            rc_status crc = ply_colour_props(x, label, ic, cscale, &cbits, err, errlen);
+            if (crc != RC_OK)
+                return crc;
         }
         if (is_face) {
             if (!have_vertex || have_face || iface < 0) {
@@ -1032,16 +1158,19 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             have_face = 1;
         }
         for (long i = 0; i < x->count; i++) {
-            double vals[6] = {0, 0, 0, 0, 0, 0}, uvv[2] = {0, 0};
+            double vals[6] = {0, 0, 0, 0, 0, 0}, uvv[2] = {0, 0}, cv[6] = {0, 0, 0, 0, 0, 0};
             for (int k = 0; k < x->n_props; k++) {
                 ply_prop *pr = &x->props[k];
                 double d;
                 if (!pr->is_list) {
                     if (!ply_read(&r, pr->type, &d))
                         goto truncated;
-                    for (int c = 0; c < 6; c++)
+                    for (int c = 0; c < 6; c++) {
                         if (ix[c] == k)
                             vals[c] = d;
+                        if (is_vertex && cbits && ic[c] == k)
+                            cv[c] = d * cscale[c];
+                    }
                     for (int c = 0; c < 2; c++)
                         if (is_vertex && iuv[c] == k)
                             uvv[c] = d;
@@ -1094,6 +1223,18 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                         return RC_ERR_RANGE;
                     }
                     if (!mesh_soup_tex(s, uvv))
+                        return RC_ERR_NOMEM;
+                }
+                if (cbits) {
+                    for (int c = 0; c < 6; c++)
+                        if (!(isfinite(cv[c]) && cv[c] >= 0.0 && cv[c] <= 1e30)) {
+                            status_message(err, errlen,
+                                           "%s: vertex %ld: colour %g is not a finite value >= 0; fix: colours "
+                                           ">= 0",
+                                           label, i, cv[c]);
+                            return RC_ERR_RANGE;
+                        }
+                    if (!mesh_soup_colour(s, cv, cbits))
                         return RC_ERR_NOMEM;
                 }
                 if (have_vertex == 2) {
@@ -1171,6 +1312,11 @@ static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtab
         h = (h + 1) & (t->cap - 1);
     if (t->key[h] == -1) {
         const double *pp = &s->pos[3 * (size_t)vi];
+        if (s->col_bits) {
+            const double *c = &s->col[6 * (size_t)vi];
+            b->c1 = v3((float)c[0], (float)c[1], (float)c[2]);
+            b->c2 = v3((float)c[3], (float)c[4], (float)c[5]);
+        }
         dvec3 n;
         if (ni >= 0) {
             const double *nn = &s->nrm[3 * (size_t)ni];
@@ -1264,8 +1410,11 @@ static rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char 
         rc = RC_ERR_RANGE;
         goto done;
     }
+    if (s->col_bits && (rc = mesh_colours_on(m)) != RC_OK)
+        goto done;
     if ((rc = mesh_reserve(m, (size_t)s->n_corner, kept)) != RC_OK)
         goto done;
+    m->colours[b->object] = (unsigned char)s->col_bits;
     for (int f = 0; f < s->n_face && rc == RC_OK; f++)
         for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1] && rc == RC_OK; k++) {
             int c[3];
@@ -1421,7 +1570,7 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
         return RC_ERR_RANGE;
     }
     int nv0 = out->n_verts, nt0 = out->n_tris;
-    mesh_builder b = {out, mesh_make_xform(o), object_index, 0};
+    mesh_builder b = {.m = out, .x = mesh_make_xform(o), .object = object_index};
     for (int k = 0; k < MAT_TEX_SLOTS && o->material >= 0 && o->material < s->n_materials; k++)
         b.textured |= s->materials[o->material].texture[k][0] != '\0';
     rc_status rc;
@@ -1456,6 +1605,7 @@ rc_status mesh_add_object(const scene *s, int object_index, mesh *out, char *err
         out->n_tris = nt0;
         out->dropped[object_index] = 0;
         out->recomputed[object_index] = 0;
+        out->colours[object_index] = 0;
     }
     return rc;
 }
@@ -1466,6 +1616,7 @@ rc_status mesh_build(const scene *s, mesh *out, char *err, size_t errlen)
     out->n_tris = 0;
     memset(out->dropped, 0, sizeof out->dropped);
     memset(out->recomputed, 0, sizeof out->recomputed);
+    memset(out->colours, 0, sizeof out->colours);
     for (int i = 0; i < s->n_objects; i++) {
         rc_status rc = mesh_add_object(s, i, out, err, errlen);
         if (rc != RC_OK) {
@@ -1483,6 +1634,8 @@ void mesh_free(mesh *m)
     free(m->uv);
     free(m->idx);
     free(m->tri_object);
+    free(m->col1);
+    free(m->col2);
     memset(m, 0, sizeof *m);
 }
 
@@ -1541,5 +1694,16 @@ int mesh_material_unnormalised(const scene *s, int mi)
         if (o->material == mi && !(o->scale.x == 1.0f && o->scale.y == 1.0f && o->scale.z == 1.0f))
             return 1;
     }
+    return 0;
+}
+
+int mesh_material_vertex_coloured(const scene *s, const mesh *m, int mi)
+{
+    const material *mat = &s->materials[mi];
+    if (mat->model != MODEL_D3D)
+        return 0;
+    for (int i = 0; i < s->n_objects && i < SCENE_MAX_OBJECTS; i++)
+        if (s->objects[i].material == mi && d3d_uses_vertex_colours(&mat->d3d, m->colours[i]))
+            return 1;
     return 0;
 }

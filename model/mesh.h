@@ -41,6 +41,12 @@ typedef struct {
      * double precision or once stored as float), and vertices whose zero or non-finite file
      * normal was recomputed from the faces. */
     int dropped[SCENE_MAX_OBJECTS], recomputed[SCENE_MAX_OBJECTS];
+    /* Vertex colours from the files, linear RGB: colour1 (OBJ `v x y z r g b`, PLY red green
+     * blue or diffuse_*) and colour2 (PLY specular_*), the D3D vertex's diffuse and specular
+     * colours. NULL until an object brings one; colours[o] says which object o has (bit 1:
+     * colour1, bit 2: colour2); vertices of other objects hold 0. */
+    vec3 *col1, *col2;
+    unsigned char colours[SCENE_MAX_OBJECTS];
 } mesh;
 
 /* Object scale limits per axis. A bound on scene scale, not a precision limit: a million either
@@ -65,6 +71,9 @@ void mesh_normal_length_make(const object *o, mesh_normal_length *out);
  * normalize_normals off on an object whose scale is not (1, 1, 1). No reference renderer
  * represents that (they all normalise); the translators refuse it for a twin. */
 int mesh_material_unnormalised(const scene *s, int mi);
+/* Whether material mi takes colours from the vertices of an object of m (model d3d,
+ * d3d.colour_vertex, a source selecting a colour that object's file carries). */
+int mesh_material_vertex_coloured(const scene *s, const mesh *m, int mi);
 static inline float mesh_normal_length_of(const mesh_normal_length *l, vec3 n)
 {
     if (l->unit)

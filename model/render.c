@@ -6,6 +6,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "d3d.h"
 #include "fileio.h"
 #include "raster.h"
 #include "shade.h"
@@ -116,6 +117,7 @@ typedef struct {
     /* Per object, D3DRS_NORMALIZENORMALS off: the length D3D's normal has (mesh.h), NULL where
      * the normal stays unit. */
     const mesh_normal_length *const *normal_length;
+    const unsigned char *vertex_colours; /* per object: D3D vertex colours take part (bits of mesh.colours) */
     render_image *out;
     long long *shaded;       /* per worker */
     render_scratch *scratch; /* per worker */
@@ -208,6 +210,49 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
     }
 }
 
+/* The material of object obj with the vertex colours (interpolated with the weights b) in place
+ * of the colours its D3D colour sources select. */
+static void render_vertex_material(const render_job *j, int obj, const uint32_t *tri, float b0, float b1, float b2,
+                                   material *out)
+{
+    const mesh *m = j->m;
+    *out = *j->plans[obj].mat;
+    vec3 c1 =
+        v3_add(v3_add(v3_scale(m->col1[tri[0]], b0), v3_scale(m->col1[tri[1]], b1)), v3_scale(m->col1[tri[2]], b2));
+    vec3 c2 =
+        v3_add(v3_add(v3_scale(m->col2[tri[0]], b0), v3_scale(m->col2[tri[1]], b1)), v3_scale(m->col2[tri[2]], b2));
+    d3d_vertex_colours(&out->d3d, j->vertex_colours[obj], c1, c2, &out->d3d);
+}
+
+/* The plan for a vertex-coloured copy of object obj's material: made for its colours, with the
+ * object's textures (which the plan finds by the material's place in the scene, not a copy's). */
+static void render_vertex_plan(const render_job *j, int obj, const material *vm, shade_plan *vp)
+{
+    shade_plan_make(&j->sc, vm, vp);
+    for (int k = 0; k < MAT_TEX_SLOTS; k++)
+        vp->tex[k] = j->plans[obj].tex[k];
+    vp->textured = j->plans[obj].textured;
+}
+
+/* Per pixel with vertex colours: each sample's material colours are the vertex colours
+ * interpolated at it (our per-pixel form of D3D's Gouraud-interpolated vertex lighting), shaded
+ * by the scalar path with a plan made for them. */
+static void render_shade_vertex_colours(const render_job *j, int obj, const render_queue *qu, const shade_batch_in *in,
+                                        shade_batch_out *out)
+{
+    for (int i = 0; i < in->n; i++) {
+        const uint32_t *tri = j->m->idx + 3 * (size_t)qu->tri[i];
+        material vm;
+        render_vertex_material(j, obj, tri, 1.0f - qu->b1[i] - qu->b2[i], qu->b1[i], qu->b2[i], &vm);
+        shade_plan p;
+        render_vertex_plan(j, obj, &vm, &p);
+        shade_terms t;
+        shade_eval_uv(&j->sc, &p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i),
+                      j->m->uv != NULL ? in->tu[i] : 0.0f, j->m->uv != NULL ? in->tv[i] : 0.0f, &t);
+        shade_batch_set_terms(out, i, &t);
+    }
+}
+
 static void render_flush_object(const render_job *j, render_scratch *w, int obj)
 {
     render_queue *qu = &w->queue[obj];
@@ -224,7 +269,10 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     double t0 = render_clock(w);
     render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, &w->in);
     double t1 = render_clock(w);
-    shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
+    if (j->vertex_colours[obj])
+        render_shade_vertex_colours(j, obj, qu, &w->in, r);
+    else
+        shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
     double t2 = render_clock(w);
     w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
     w->stage[RENDER_STAGE_SHADE] += t2 - t1;
@@ -545,6 +593,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     shade_plan plans[SCENE_MAX_OBJECTS];
     mesh_normal_length lengths[SCENE_MAX_OBJECTS];
     const mesh_normal_length *normal_length[SCENE_MAX_OBJECTS];
+    unsigned char vertex_colours[SCENE_MAX_OBJECTS] = {0};
     unsigned char per_vertex[SCENE_MAX_OBJECTS] = {0};
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
@@ -558,6 +607,10 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
         /* Gouraud belongs to the D3D model; a caller's plan is another model, shaded per sample. */
         per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
         normal_length[i] = NULL;
+        vertex_colours[i] = (unsigned char)(opt->plans == NULL && mat->model == MODEL_D3D &&
+                                                    d3d_uses_vertex_colours(&mat->d3d, m->colours[i])
+                                                ? m->colours[i]
+                                                : 0);
         if (opt->plans == NULL && mat->model == MODEL_D3D && !mat->d3d.normalize_normals) {
             mesh_normal_length_make(&s->objects[i], &lengths[i]);
             normal_length[i] = &lengths[i];
@@ -566,6 +619,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     }
     j.plans = plans;
     j.normal_length = normal_length;
+    j.vertex_colours = vertex_colours;
     j.per_vertex = per_vertex;
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
@@ -607,7 +661,17 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                 if (normal_length[obj] != NULL)
                     n = v3_scale(n, mesh_normal_length_of(normal_length[obj], n));
                 /* Per vertex: the lighting only; the texture is applied per sample. */
-                plans[obj].fn(&j.sc, &plans[obj], x, n, v, &vt[vi]);
+                if (vertex_colours[obj]) {
+                    /* D3D's own case: the vertex's colours in the lighting of that vertex. */
+                    uint32_t one[3] = {vi, vi, vi};
+                    material vm;
+                    render_vertex_material(&j, obj, one, 1.0f, 0.0f, 0.0f, &vm);
+                    shade_plan vp;
+                    render_vertex_plan(&j, obj, &vm, &vp);
+                    vp.fn(&j.sc, &vp, x, n, v, &vt[vi]);
+                } else {
+                    plans[obj].fn(&j.sc, &plans[obj], x, n, v, &vt[vi]);
+                }
             }
         }
     }

@@ -41,6 +41,8 @@ void material_init(material *m)
     m->d3d.diffuse = m->albedo;
     m->d3d.local_viewer = 1;
     m->d3d.normalize_normals = 1;
+    m->d3d.diffuse_source = COLOUR_SOURCE_COLOUR1;
+    m->d3d.specular_source = COLOUR_SOURCE_COLOUR2;
 
     float r = (1.0f - m->ior) / (1.0f + m->ior);
     m->d9.p = 3.0f;

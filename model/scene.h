@@ -55,6 +55,10 @@ typedef enum { CT_WALTER, CT_CT1982 } ct_normalisation;
 typedef enum { G_VCAVITY, G_SMITH_WALTER, G_SMITH_EXACT } ct_geometry;
 typedef enum { F_SCHLICK, F_ONE, F_EXACT } ct_fresnel;
 
+/* D3DMATERIALCOLORSOURCE: the current material, the vertex's diffuse colour (colour1) or its
+ * specular colour (colour2). */
+typedef enum { COLOUR_SOURCE_MATERIAL, COLOUR_SOURCE_COLOUR1, COLOUR_SOURCE_COLOUR2 } colour_source;
+
 typedef struct {
     vec3 ambient;     /* Va, default 0 */
     vec3 diffuse;     /* Vd, default = albedo */
@@ -68,6 +72,13 @@ typedef struct {
      * normal times the inverse transpose of the object's scale and rotation, not renormalised:
      * N.L and N.H scale with its length (mesh_d3d_normal_length). */
     int normalize_normals;
+    /* D3DRS_COLORVERTEX (model d3d only): 1 = the mesh's vertex colours replace the material
+     * colours the sources below select; default 0 here (D3D's own default is TRUE: a scene says
+     * when a file's colours take part). A source whose colour the object's mesh lacks keeps the
+     * material colour. Sources default to D3D's: ambient material, diffuse colour1, specular
+     * colour2, emissive material (D3DRS_*MATERIALSOURCE). */
+    int colour_vertex;
+    colour_source ambient_source, diffuse_source, specular_source, emissive_source;
 } d3d_params;
 
 typedef struct {

@@ -655,6 +655,14 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
                 return RC_ERR_RANGE;
             }
     }
+    for (int mi = 0; mi < s->n_materials; mi++)
+        if (mesh_material_vertex_coloured(s, m, mi)) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex) are not translated to "
+                           "Cycles (no colour attribute is written); set colour_vertex false",
+                           s->path, mi, s->materials[mi].name);
+            return RC_ERR_RANGE;
+        }
     rc_status rc;
     for (int i = 0; i < s->n_lights; i++)
         if ((rc = cycles_check_light(&c, i)) != RC_OK)

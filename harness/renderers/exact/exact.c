@@ -40,6 +40,14 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
                       "compare it with role validate");
         return;
     }
+    for (int mi = 0; mi < j->s->n_materials; mi++)
+        if (mesh_material_vertex_coloured(j->s, j->m, mi)) {
+            renderer_fail(r, RUNNER_MISSING,
+                          "exact cannot represent this scene: materials[%d] '%s': D3D vertex colours "
+                          "(d3d.colour_vertex) are not part of the physics manifest; set colour_vertex false",
+                          mi, j->s->materials[mi].name);
+            return;
+        }
     shade_plan plans[SCENE_MAX_OBJECTS];
     char why[500];
     if (exact_plans(j->s, j->env, phys, plans, why, sizeof why) != RC_OK) {

@@ -595,6 +595,14 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             return RC_ERR_RANGE;
         }
     }
+    for (int mi = 0; mi < s->n_materials; mi++)
+        if (mesh_material_vertex_coloured(s, m, mi)) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex) are not translated to "
+                           "POV-Ray (a mesh2 texture_list per vertex is not written); set colour_vertex false",
+                           s->path, mi, s->materials[mi].name);
+            return RC_ERR_RANGE;
+        }
 
     int coverage = o != NULL && o->coverage;
     if (r.validate && !coverage && (st = renderer_physics_check(povray_physics, s, err, errlen)) != RC_OK)
