@@ -91,8 +91,13 @@ for _ in $(seq 300); do
 done
 sleep 2
 scancel "${array}_$running"
-sbatch --wait --quiet --dependency="afterany:$ids" -n1 -c1 --time=10 --output="$run/slurm/compare.out" \
-    harness/slurm/compare.sh "$run" "$BIN" $scenes > /dev/null 2>&1
+cid=$(sbatch --parsable --dependency="afterany:$ids" -n1 -c1 --time=10 --output="$run/slurm/compare.out" \
+    harness/slurm/compare.sh "$run" "$BIN" $scenes)
+# Polled as the nightly does: sbatch --wait backs off to half a minute between its checks.
+for _ in $(seq 600); do
+    [ -z "$(squeue -h -j "${cid%%;*}" -o %T 2>/dev/null)" ] && break
+    sleep 0.5
+done
 status_of() {
     /usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))
 print(r["status"], (r.get("slurm") or {}).get("job_id", ""), r["message"].replace("\n", " "), sep="|")' "$1" 2>/dev/null
