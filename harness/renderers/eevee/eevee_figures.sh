@@ -13,25 +13,28 @@ run=$1
 shift
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-# NRMSE over the surface; "-" where the reference is black there (a conductor has no diffuse).
+# Surface figures: NRMSE, and the robust ones (NRMSE without the worst 1 % of pixels, median
+# relative error); "-" where the reference is black there (a conductor has no diffuse).
 nrmse() {
     "$bin" diff "$1" "$2" --mask "$3" | python3 -c 'import json, sys
 s = json.load(sys.stdin)["surface"]
-print("-" if s["max_ref"] == 0 else "%.3g" % s["nrmse"])'
+f = lambda k: "%.3g" % s[k] if s.get(k) is not None else "?"
+print("-" if s["max_ref"] == 0 else "%s %s %s" % (f("nrmse"), f("nrmse_trim1"), f("rel_median")))'
 }
 layer() { oiiotool "$1" --ch "R=$2.R,G=$2.G,B=$2.B,coverage=coverage" -o "$3"; }
-printf '%-18s %-9s %12s %12s\n' scene term eevee raster
+echo "each cell: NRMSE, NRMSE without the worst 1 %, median relative error"
+printf '%-18s %-9s %24s %24s\n' scene term eevee raster
 for name in "$@"; do
     d=$run/$name
     for f in eevee cycles raster; do
         [ -f "$d/$f-validate.exr" ] || { echo "eevee_figures.sh: $d/$f-validate.exr missing; render it with reflcheck run --role validate" >&2; exit 1; }
     done
     mask=$d/raster-validate.exr
-    printf '%-18s %-9s %12s %12s\n' "$name" total "$(nrmse "$d/eevee-validate.exr" "$d/cycles-validate.exr" "$mask")" \
+    printf '%-18s %-9s %24s %24s\n' "$name" total "$(nrmse "$d/eevee-validate.exr" "$d/cycles-validate.exr" "$mask")" \
         "$(nrmse "$d/raster-validate.exr" "$d/cycles-validate.exr" "$mask")"
     for term in diffuse specular; do
         layer "$d/eevee-validate.exr" "$term" "$tmp/e.exr"
         layer "$d/cycles-validate.exr" "$term" "$tmp/c.exr"
-        printf '%-18s %-9s %12s %12s\n' "$name" "$term" "$(nrmse "$tmp/e.exr" "$tmp/c.exr" "$mask")" -
+        printf '%-18s %-9s %24s %24s\n' "$name" "$term" "$(nrmse "$tmp/e.exr" "$tmp/c.exr" "$mask")" -
     done
 done
