@@ -46,6 +46,8 @@ static cJSON *cli_fit_error_json(const fit_error *e)
     cJSON *o = cJSON_CreateObject();
     cli_fit_num(o, "nrmse", e->nrmse);
     cli_fit_num(o, "median_rel", e->median_rel);
+    cli_fit_num(o, "nrmse_trim1", e->nrmse_trim1);
+    cli_fit_num(o, "worst1_share", e->worst1_share);
     cJSON_AddNumberToObject(o, "n_pixels", (double)e->n_pixels);
     return o;
 }

@@ -151,7 +151,6 @@ typedef struct {
     int n;
     render_options ro;
     unsigned char *mask; /* surface pixels, from the first render */
-    float *rel;          /* scratch: per-pixel relative errors */
     double *values;      /* scratch: parameter values */
     double best_f;
     double *best_x;
@@ -162,14 +161,10 @@ typedef struct {
     size_t errlen;
 } fit_ctx;
 
-static int fit_cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
-/* NRMSE and median relative error of a render against the reference over the mask. */
-static void fit_measure(const fit_ctx *c, const render_image *img, int want_median, fit_error *e)
+/* NRMSE of a render against the reference over the mask (every evaluation); with robust set,
+ * also the spread figures compare.json gives a validate (metrics_robust, worst 1 %), so a
+ * fit's median, trimmed NRMSE and worst share are the comparison's own definitions. */
+static rc_status fit_measure(const fit_ctx *c, const render_image *img, int robust, fit_error *e)
 {
     size_t np = (size_t)c->ref->width * (size_t)c->ref->height;
     double sse = 0.0, ref_sum = 0.0;
@@ -186,22 +181,28 @@ static void fit_measure(const fit_ctx *c, const render_image *img, int want_medi
         }
         if (!finite)
             continue;
-        double rel = 0.0;
         for (int ch = 0; ch < 3; ch++) {
             double d = t[ch] - r[ch];
             sse += d * d;
             ref_sum += fabs(r[ch]) / 3.0;
-            rel += d * d / (r[ch] * r[ch] + COMPARE_REL_EPS);
         }
-        c->rel[n++] = (float)sqrt(rel / 3.0);
+        n++;
     }
     e->n_pixels = n;
     e->nrmse = n > 0 && ref_sum > 0.0 ? sqrt(sse / (3.0 * (double)n)) / (ref_sum / (double)n) : NAN;
-    e->median_rel = NAN;
-    if (want_median && n > 0) {
-        qsort(c->rel, (size_t)n, sizeof *c->rel, fit_cmp_float);
-        e->median_rel = n % 2 ? c->rel[n / 2] : 0.5 * ((double)c->rel[n / 2 - 1] + (double)c->rel[n / 2]);
+    e->median_rel = e->nrmse_trim1 = e->worst1_share = NAN;
+    if (!robust || n == 0)
+        return RC_OK;
+    metrics_image test = {img->width, img->height, {img->chan[RENDER_R], img->chan[RENDER_G], img->chan[RENDER_B]}};
+    metrics_robust_options ro = {.rel_eps = COMPARE_REL_EPS, .trim = 0.01};
+    metrics_robust_result rb;
+    rc_status st = metrics_robust(c->ref, &test, c->mask, &ro, &rb, c->err, c->errlen);
+    if (st == RC_OK) {
+        e->median_rel = rb.rel_median;
+        e->nrmse_trim1 = rb.nrmse_trim;
+        e->worst1_share = rb.worst_share;
     }
+    return st;
 }
 
 static double fit_objective(unsigned n, const double *x, double *grad, void *data)
@@ -253,13 +254,13 @@ static double fit_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* Renders the scene at values and measures it, median included. */
+/* Renders the scene at values and measures it, the robust figures included. */
 static rc_status fit_render_measure(fit_ctx *c, const double *values, render_image *img, fit_error *e)
 {
     fit_apply(c->s, c->p, c->n, values);
     rc_status st = render_scene(c->s, c->m, c->env, &c->ro, img, c->err, c->errlen);
     if (st == RC_OK)
-        fit_measure(c, img, 1, e);
+        st = fit_measure(c, img, 1, e);
     return st;
 }
 
@@ -295,13 +296,12 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
                  .errlen = errlen};
     c.s = malloc(sizeof *c.s);
     c.mask = malloc(np);
-    c.rel = malloc(np * sizeof *c.rel);
     unsigned char *cls = malloc(np);
     double x[FIT_MAX_PARAMS], lo[FIT_MAX_PARAMS], hi[FIT_MAX_PARAMS], vals[FIT_MAX_PARAMS], best_x[FIT_MAX_PARAMS];
     c.values = vals;
     c.best_x = best_x;
     rc_status st = RC_OK;
-    if (c.s == NULL || c.mask == NULL || c.rel == NULL || cls == NULL) {
+    if (c.s == NULL || c.mask == NULL || cls == NULL) {
         status_message(err, errlen, "%s: fit: out of memory for a %dx%d frame", s->path, s->width, s->height);
         st = RC_ERR_NOMEM;
     }
@@ -322,11 +322,11 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     if (st == RC_OK) {
         metrics_classify(s->width, s->height, img.chan[RENDER_COVERAGE], img.chan[RENDER_OBJECT], cls);
         long n_surface = metrics_mask_from_class(s->width, s->height, cls, METRICS_PX_INTERIOR, NULL, 0.0f, c.mask);
-        fit_measure(&c, &img, 1, &out->authored);
+        st = fit_measure(&c, &img, 1, &out->authored);
         render_image_free(&img);
         c.evaluations = 1;
         c.best_f = out->authored.nrmse;
-        if (n_surface == 0 || out->authored.n_pixels == 0 || !isfinite(out->authored.nrmse)) {
+        if (st == RC_OK && (n_surface == 0 || out->authored.n_pixels == 0 || !isfinite(out->authored.nrmse))) {
             status_message(err, errlen,
                            "%s: no surface pixel with finite values in both images and a reference "
                            "mean above 0: nothing to fit",
@@ -373,7 +373,6 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     out->stop = fit_stop_text(nr);
     free(c.s);
     free(c.mask);
-    free(c.rel);
     free(cls);
     return st;
 }

@@ -14,8 +14,11 @@
  * error over surface pixels: interior pixels of the model's own coverage and object layers
  * (harness/metrics.h, metrics_classify), the region compare.json calls "surface", over R, G, B.
  * It is reported as NRMSE (RMSE over the mean reference, as compare.c computes it), so
- * minimising it is least squares. Beside it: the median per-pixel relative error, a pixel's
- * sqrt(mean over R, G, B of (t - r)^2 / (r^2 + COMPARE_REL_EPS)).
+ * minimising it is least squares. Beside it, for the authored and the best point, the spread
+ * figures compare.json gives a validate (harness/metrics.h, metrics_robust, worst 1 %): the
+ * median per-pixel relative error, sqrt(mean over R, G, B of (t - r)^2 / (r^2 +
+ * COMPARE_REL_EPS)), the NRMSE without the worst 1 % of pixels, and their share of the squared
+ * error.
  *
  * The optimiser is NLopt's bounded derivative-free BOBYQA (Powell 2009) on parameters scaled to
  * [0, 1] over their bounds (log-scaled for powers and roughness, which act multiplicatively),
@@ -77,9 +80,11 @@ typedef struct {
 } fit_options;
 
 typedef struct {
-    double nrmse;      /* RMSE over the mean reference, surface pixels, R, G, B */
-    double median_rel; /* median per-pixel relative error */
-    long n_pixels;     /* surface pixels used (finite in both images) */
+    double nrmse;        /* RMSE over the mean reference, surface pixels, R, G, B */
+    double median_rel;   /* median per-pixel relative error */
+    double nrmse_trim1;  /* NRMSE without the worst 1 % of pixels */
+    double worst1_share; /* share of the squared error the worst 1 % hold */
+    long n_pixels;       /* surface pixels used (finite in both images) */
 } fit_error;
 
 typedef struct {

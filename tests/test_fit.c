@@ -238,7 +238,8 @@ static void test_recovers_ct_m_per_material(void **state)
 /* The error measures, by hand: against a reference twice the model's render, every pixel's
  * relative error is |t - 2t| / 2t = 1/2 (the 1e-8 floor is far below these radiances), so the
  * median is 0.5, and NRMSE = sqrt(mean t^2) / mean(2t) over the surface pixels, which the test
- * sums itself from the render and the mask it classifies. A budget of 4 renders stops there. */
+ * sums itself from the render and the mask it classifies, as it sorts out the worst 1 % for the
+ * trimmed NRMSE and their share. A budget of 4 renders stops there. */
 static void test_measures_by_hand_and_budget(void **state)
 {
     (void)state;
@@ -264,6 +265,39 @@ static void test_measures_by_hand_and_budget(void **state)
             sum += 2.0 * t;
         }
     double want = sqrt(sq / (3.0 * (double)n_mask)) / (sum / (3.0 * (double)n_mask));
+    /* The worst 1 %: k = ceil(0.01 N) pixels of largest e = sum over R, G, B of t^2; their share
+     * of sum e, and the NRMSE of the others over their own mean reference. */
+    double *e = malloc((size_t)n_mask * sizeof *e), *rs = malloc((size_t)n_mask * sizeof *rs);
+    long k = (long)ceil(0.01 * (double)n_mask), j = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (!mask[i])
+            continue;
+        e[j] = rs[j] = 0.0;
+        for (int ch = 0; ch < 3; ch++) {
+            double t = 0.5 * ref.chan[RENDER_R + ch][i];
+            e[j] += t * t;
+            rs[j] += 2.0 * t;
+        }
+        j++;
+    }
+    for (long a = 0; a < k; a++) /* selection of the k largest to the front */
+        for (long b = a + 1; b < n_mask; b++)
+            if (e[b] > e[a]) {
+                double te = e[a], tr = rs[a];
+                e[a] = e[b], rs[a] = rs[b];
+                e[b] = te, rs[b] = tr;
+            }
+    double top = 0.0, rest = 0.0, rest_ref = 0.0;
+    for (long a = 0; a < n_mask; a++) {
+        if (a < k)
+            top += e[a];
+        else
+            rest += e[a], rest_ref += rs[a] / 3.0;
+    }
+    double want_share = top / (top + rest);
+    double want_trim = sqrt(rest / (3.0 * (double)(n_mask - k))) / (rest_ref / (double)(n_mask - k));
+    free(e);
+    free(rs);
     metrics_image rm = planes(&ref);
     fit_result r;
     char err[1024];
@@ -272,6 +306,9 @@ static void test_measures_by_hand_and_budget(void **state)
     assert_int_equal(r.authored.n_pixels, n_mask);
     close_rel(r.authored.nrmse, want, 1e-6);
     close_rel(r.authored.median_rel, 0.5, 1e-5);
+    close_rel(r.authored.worst1_share, want_share, 1e-6);
+    close_rel(r.authored.nrmse_trim1, want_trim, 1e-6);
+    assert_true(r.authored.nrmse_trim1 < r.authored.nrmse);
     assert_int_equal(r.evaluations, 4);
     assert_string_equal(r.stop, "evaluation budget used");
     assert_true(r.best.nrmse <= r.authored.nrmse);

@@ -704,8 +704,14 @@ def test_fit_table(tmp_path):
                 'id': 'raster-vs-povray-validate',
                 'reference': 'povray',
                 'status': 'ok',
-                'authored': {'nrmse': 0.8887, 'median_rel': 0.2254, 'n_pixels': 2774},
-                'best': {'nrmse': 0.4248, 'median_rel': 0.04528, 'n_pixels': 2774},
+                'authored': {
+                    'nrmse': 0.8887,
+                    'median_rel': 0.2254,
+                    'nrmse_trim1': 0.5125,
+                    'worst1_share': 0.6625,
+                    'n_pixels': 2774,
+                },
+                'best': {'nrmse': 0.4248, 'median_rel': 0.04528, 'nrmse_trim1': 0.1875, 'worst1_share': 0.8125},
                 'parameters': [
                     {'material': 'glass', 'name': 'p', 'authored': 3, 'fitted': 3.5, 'at_bound': True},
                     {'material': 'glass', 'name': 'r0', 'authored': 0.04, 'fitted': 0.04053, 'at_bound': False},
@@ -735,6 +741,7 @@ def test_fit_table(tmp_path):
         r'raster-vs-povray-validate</td><td>wide</td><td>ok</td>\s*<td.*?>0\.8887<.*?>0\.2071<', table, re.S
     )
     assert '>0.4248<' in table and '>0.2254<' in table and '>0.04528<' in table
+    assert '0.5125 → 0.1875' in table and '0.6625 → 0.8125' in table
     assert 'glass.p 3 → 3.5 (at bound)' in table and 'glass.r0 0.04 → 0.04053<' in table
     assert 'cycles validate job failed: boom' in table
     summ = json.loads(read(os.path.join(run, 'summary.json')))
