@@ -9,6 +9,7 @@
  * represent the scene, or the scene has no free parameter); 1 a reference job failed, a fit
  * failed, or the record could not be written; 2 bad input (command line, a scene file or a file
  * it references). A scene without validate comparisons of the model is reported and skipped. */
+#include <errno.h>
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
@@ -54,8 +55,8 @@ static cJSON *cli_fit_error_json(const fit_error *e)
 
 /* One validate comparison: its reference through the job cache, then the fit. Returns the exit
  * status this comparison earns; the record goes into fits. */
-static int cli_fit_one(const char *path, const scene *s, const mesh *m, const env_map *env, int reference,
-                       const cli_fit_opts *opt, cJSON *fits)
+static int cli_fit_one(const char *path, const scene *s, const mesh *m, const env_map *env, const texture_set *tex,
+                       int reference, const cli_fit_opts *opt, cJSON *fits)
 {
     char id[128];
     snprintf(id, sizeof id, "%s-vs-%s-validate", registry_name(registry_model()), registry_name(reference));
@@ -113,7 +114,9 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
                          img.height,
                          {exr_image_channel(&img, "R"), exr_image_channel(&img, "G"), exr_image_channel(&img, "B")}};
     fit_result r;
-    st = fit_run(s, m, env, &ref, p, n, &opt->fo, &r, err, sizeof err);
+    fit_options fo = opt->fo;
+    fo.textures = tex;
+    st = fit_run(s, m, env, &ref, p, n, &fo, &r, err, sizeof err);
     exr_image_free(&img);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: fit: %s\n", err);
@@ -167,6 +170,7 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
     mesh m = {0};
     env_map env;
     float *env_pixels = NULL;
+    texture_set tex = {0};
     char err[1024];
     int rc = CLI_OK;
     rc_status st = scene_file_load(path, s, err, sizeof err);
@@ -178,8 +182,14 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
         if (st != RC_OK)
             snprintf(err, sizeof err, "%s: objects: %s", path, why);
     }
+    /* The frame the raster validate job renders (harness/jobs.c): environment, textures, and
+     * the environment's sun moved into a light where the scene asks. */
     if (st == RC_OK)
         st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
+    if (st == RC_OK)
+        st = frame_textures_load(s, &tex, err, sizeof err);
+    if (st == RC_OK)
+        st = frame_env_split_sun(s, env_pixels, &env, NULL, err, sizeof err);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: %s\n", err);
         rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
@@ -207,11 +217,15 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
             const comparison *c = &s->comparisons[i];
             if (c->role != ROLE_VALIDATE || c->test != registry_model() || c->reference == registry_model())
                 continue;
-            int one = cli_fit_one(path, s, &m, &env, c->reference, opt, fits);
+            int one = cli_fit_one(path, s, &m, &env, &tex, c->reference, opt, fits);
             if (one > rc)
                 rc = one;
         }
+        /* No reference job made the scene's folder when no comparison had a free parameter. */
         char out[1200];
+        snprintf(out, sizeof out, "%s/%s", opt->out_dir, s->name);
+        if (job_mkdirs(out) != 0)
+            fprintf(stderr, "reflcheck: fit: %s: %s\n", out, strerror(errno));
         snprintf(out, sizeof out, "%s/%s/%s", opt->out_dir, s->name,
                  opt->bounds == FIT_BOUNDS_WIDE ? "fit-wide.json" : "fit.json");
         if (jsonio_write_file(root, out, err, sizeof err) != RC_OK) {
@@ -222,6 +236,7 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
     }
     mesh_free(&m);
     free(env_pixels);
+    texture_set_free(&tex);
     free(s);
     return rc;
 }

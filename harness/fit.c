@@ -290,7 +290,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
                  .ref = ref,
                  .p = p,
                  .n = n,
-                 .ro = {.threads = opt.threads, .aovs = RENDER_AOV_NONE},
+                 .ro = {.threads = opt.threads, .aovs = RENDER_AOV_NONE, .textures = opt.textures},
                  .best_f = HUGE_VAL,
                  .err = err,
                  .errlen = errlen};

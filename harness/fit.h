@@ -49,6 +49,7 @@
 #include "metrics.h"
 #include "scene.h"
 #include "status.h"
+#include "texture.h"
 
 #define FIT_MAX_PARAMS    16
 /* The budget: a 1-3 parameter BOBYQA fit converges in 20-60 renders; 150 leaves room and caps
@@ -74,9 +75,10 @@ typedef struct {
 } fit_param;
 
 typedef struct {
-    int max_evals; /* 0 = 150 */
-    double xtol;   /* per parameter, in the scaled [0, 1] range; 0 = 1e-4 */
-    int threads;   /* render threads, 0 = all cores */
+    int max_evals;               /* 0 = 150 */
+    double xtol;                 /* per parameter, in the scaled [0, 1] range; 0 = 1e-4 */
+    int threads;                 /* render threads, 0 = all cores */
+    const texture_set *textures; /* the materials' textures (harness/frame.h), NULL = none */
 } fit_options;
 
 typedef struct {

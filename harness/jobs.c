@@ -56,7 +56,7 @@ void job_output_path(const char *out_dir, const char *scene_name, int renderer, 
     snprintf(buf, len, "%s/%s/%s-%s.%s", out_dir, scene_name, registry_name(renderer), job_role_names[role], ext);
 }
 
-static int job_mkdirs(const char *path)
+int job_mkdirs(const char *path)
 {
     char tmp[1024];
     snprintf(tmp, sizeof tmp, "%s", path);

@@ -407,6 +407,26 @@ static void test_cli_errors(void **state)
     snprintf(rec, sizeof rec, "%s/lambert_calibration/fit.json", tmp_dir);
     assert_int_equal(access(rec, F_OK), -1);
 
+    /* a validate whose model has no free parameter (Lambert only): skipped, recorded in a folder
+     * the fit makes itself (no reference job ran) */
+    char lam[300];
+    snprintf(lam, sizeof lam, "%s/lambert.yaml", tmp_dir);
+    f = fopen(lam, "w");
+    fputs("name: lambert\nimage: {width: 16, height: 12}\ncamera: {eye: [0, 0, 3], target: [0, 0, 0], hfov: 40}\n"
+          "lights:\n  - {type: point, position: [1, 2, 3], intensity: [5, 5, 5]}\n"
+          "materials:\n  m: {albedo: [0.5, 0.5, 0.5], model: d3d}\n"
+          "objects:\n  - {shape: sphere, radius: 1, material: m}\n"
+          "comparisons:\n  - {reference: exact, role: validate}\n",
+          f);
+    fclose(f);
+    assert_int_equal(cli_exec(err, sizeof err, "fit %s --no-cache --out %s/fresh/run", lam, tmp_dir), 0);
+    snprintf(rec, sizeof rec, "%s/fresh/run/lambert/fit.json", tmp_dir);
+    cJSON *lj = read_json(rec);
+    cJSON *l0 = cJSON_GetArrayItem(cJSON_GetObjectItem(lj, "fits"), 0);
+    assert_string_equal(cJSON_GetObjectItem(l0, "status")->valuestring, "skipped");
+    assert_non_null(strstr(cJSON_GetObjectItem(l0, "reason")->valuestring, "no free parameter"));
+    cJSON_Delete(lj);
+
     char bin[300], path[400];
     snprintf(bin, sizeof bin, "%s/bin", tmp_dir);
     mkdir(bin, 0755);
