@@ -1,9 +1,13 @@
+/* madvise (huge pages for the layers) is not in POSIX. */
+#define _DEFAULT_SOURCE 1
+
 #include "render.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <time.h>
 
 #include "d3d.h"
@@ -72,15 +76,37 @@ static raster_vertex render_project(const render_camera *c, vec3 p)
 }
 
 /* Samples shaded per span (a rectangle of a tile's pixels, the whole tile when it fits): a
- * span's per-sample results, batches and queues are a worker's scratch (about 350 KiB), small
+ * span's per-sample results, batches and queues are a worker's scratch (about 400 KiB), small
  * enough to stay in L2 while the span is shaded. */
-#define RENDER_SPAN  4096
+#define RENDER_SPAN       4096
 /* The widest SIMD vector in floats (AVX-512); SHADE_BATCH is a multiple of it. */
-#define RENDER_LANES 16
+#define RENDER_LANES      16
+/* A plane's length in floats: the span plus one cache line, so that the planes do not start
+ * 4 KiB apart. At that spacing the stores of a slot's planes all have the same low 12 address
+ * bits, and the loads of the next batch's terms stall behind them (4K aliasing): a third of the
+ * frame's time when measured. */
+#define RENDER_PLANE      (RENDER_SPAN + 16)
+/* Pixels the resolve sums at once: its running sums (up to 19 per pixel) stay in the L1 cache. */
+#define RENDER_RESOLVE_PX 64
 
 /* n rounded up to whole SIMD vectors: a batch padded so, with copies of a real lane, never
  * runs a lane loop's scalar remainder, and the copies' results are not read. */
 static int render_padded(int n) { return (n + RENDER_LANES - 1) / RENDER_LANES * RENDER_LANES; }
+
+/* The per-sample planes of a span: the sample's beauty (its terms' sum, or the background),
+ * its alpha, and, only when the image has those layers, the four terms. */
+enum {
+    RENDER_P_BEAUTY = 0,
+    RENDER_P_ALPHA = 3,
+    RENDER_P_TERMS = 4, /* diffuse, specular, reflection, emission: R, G, B each */
+    RENDER_PLANES = 16
+};
+
+/* A batch's triangle vertices, lane by lane: positions then normals of vertices 0, 1, 2, x y z
+ * each. RENDER_LANES of slack: a run's fill may write whole vectors past its end. */
+typedef struct {
+    float v[18][SHADE_BATCH + RENDER_LANES];
+} render_vertex_lanes;
 
 /* An object's samples waiting to be shaded: where they are (triangle and barycentrics) and
  * which slot gets the result. */
@@ -92,15 +118,23 @@ typedef struct {
 } render_queue;
 
 typedef struct {
-    shade_terms terms[RENDER_SPAN];        /* per slot: a span's samples, k*k per pixel in order */
-    vec3 bg[RENDER_SPAN];                  /* per slot: the environment where no triangle is */
+    /* Per slot, one plane per quantity. Slots are sample-major, slot = (t k + s) span_px + pixel,
+     * so the resolve adds sample (s, t) of a run of pixels as one vector. Background samples
+     * leave alpha and the terms at +0 (adding +0 to a sum that starts at +0 changes no bit). */
+    float plane[RENDER_PLANES][RENDER_PLANE];
     render_queue queue[SCENE_MAX_OBJECTS]; /* per object: samples waiting for shading */
     shade_batch_in in;
-    shade_vec3_n bg_dir, bg_rad; /* background rays waiting for env_lookup_n */
+    render_vertex_lanes verts;                    /* the batch's triangle vertices per lane */
+    float bg_sx[SHADE_BATCH], bg_sy[SHADE_BATCH]; /* background samples' screen points */
+    shade_vec3_n bg_dir, bg_rad;                  /* their rays and the env_lookup_n result */
     uint16_t bg_slot[SHADE_BATCH];
     int bg_n;
     shade_batch_out res;
-    int per_px, centre;                                   /* samples per pixel; the centre sample's index */
+    shade_vec3_n beauty;                                  /* the batch's per-sample beauty */
+    int span_px;                                          /* pixels in the current span */
+    int centre_lo, centre_hi;                             /* slots [lo, hi): the sample nearest each pixel centre */
+    int covered[RENDER_SPAN];                             /* per pixel: covered samples */
+    int object[RENDER_SPAN];                              /* per pixel: object at the centre sample, -1 for none */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
     int profile;                                          /* 1: add stage times below (render_profile) */
     double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
@@ -118,6 +152,7 @@ typedef struct {
      * the normal stays unit. */
     const mesh_normal_length *const *normal_length;
     const unsigned char *vertex_colours; /* per object: D3D vertex colours take part (bits of mesh.colours) */
+    unsigned term_layers;                /* bit a: the image has term a's layers (RENDER_AOV_* order) */
     render_image *out;
     long long *shaded;       /* per worker */
     render_scratch *scratch; /* per worker */
@@ -161,28 +196,70 @@ static void render_blend_vertex(const render_job *j, const raster_sample *rs, sh
     }
 }
 
+/* One sample's terms into slot q of the planes. */
+static void render_put_terms(const render_job *j, render_scratch *w, int q, const shade_terms *t)
+{
+    const vec3 b = render_terms_sum(t);
+    w->plane[RENDER_P_BEAUTY][q] = b.x;
+    w->plane[RENDER_P_BEAUTY + 1][q] = b.y;
+    w->plane[RENDER_P_BEAUTY + 2][q] = b.z;
+    w->plane[RENDER_P_ALPHA][q] = t->alpha;
+    const vec3 v[4] = {t->diffuse, t->specular, t->reflection, t->emission};
+    for (int a = 0; a < 4; a++) {
+        if (!(j->term_layers & (1u << a)))
+            continue;
+        w->plane[RENDER_P_TERMS + 3 * a][q] = v[a].x;
+        w->plane[RENDER_P_TERMS + 3 * a + 1][q] = v[a].y;
+        w->plane[RENDER_P_TERMS + 3 * a + 2][q] = v[a].z;
+    }
+}
+
 /* A queue's samples, one per SIMD lane: the interpolated world point, the unit normal facing
  * the viewer (two-sided, as POV-Ray and Cycles shade; where opposite vertex normals cancel, the
- * face normal, the only direction left) and the unit direction to the viewer. */
+ * face normal, the only direction left) and the unit direction to the viewer.
+ * Queued samples come in runs on one triangle (a pixel's k x k samples, then its neighbours),
+ * so the vertices are read once per run and broadcast into the lane arrays, instead of
+ * gathered per lane (which GCC emulates with a scalar load per element). */
 SMATH_CLONES
 static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n,
-                               const mesh_normal_length *len, int textured, shade_batch_in *restrict in)
+                               const mesh_normal_length *len, int textured, render_vertex_lanes *restrict vl,
+                               shade_batch_in *restrict in)
 {
-    /* Vertex arrays as flat floats (vec3 is three packed floats): a gather takes an element
-     * index times 4 bytes, not a 12-byte struct stride. */
     const float *pos = &m->pos[0].x, *nrm = &m->nrm[0].x;
     const uint32_t *idx = m->idx;
+    for (int i = 0; i < n;) {
+        const int32_t t = qu->tri[i];
+        int e = i + 1;
+        while (e < n && qu->tri[e] == t)
+            e++;
+        float val[18];
+        for (int c = 0; c < 3; c++) {
+            const size_t vi = 3 * (size_t)idx[3 * (size_t)t + (size_t)c];
+            for (int d = 0; d < 3; d++) {
+                val[3 * c + d] = pos[vi + (size_t)d];
+                val[9 + 3 * c + d] = nrm[vi + (size_t)d];
+            }
+        }
+        /* Whole vectors from i: what lies past e is overwritten by the next run. */
+        const int end = i + render_padded(e - i);
+        for (int c = 0; c < 18; c++) {
+            float *restrict dst = vl->v[c];
+            const float x = val[c];
+#pragma omp simd
+            for (int l = i; l < end; l++)
+                dst[l] = x;
+        }
+        i = e;
+    }
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        int t = qu->tri[i];
-        int i0 = 3 * (int)idx[3 * t], i1 = 3 * (int)idx[3 * t + 1], i2 = 3 * (int)idx[3 * t + 2];
         float b1 = qu->b1[i], b2 = qu->b2[i], b0 = 1.0f - b1 - b2;
-        vec3 p0 = v3(pos[i0], pos[i0 + 1], pos[i0 + 2]);
-        vec3 p1 = v3(pos[i1], pos[i1 + 1], pos[i1 + 2]);
-        vec3 p2 = v3(pos[i2], pos[i2 + 1], pos[i2 + 2]);
-        vec3 n0 = v3(nrm[i0], nrm[i0 + 1], nrm[i0 + 2]);
-        vec3 n1 = v3(nrm[i1], nrm[i1 + 1], nrm[i1 + 2]);
-        vec3 n2 = v3(nrm[i2], nrm[i2 + 1], nrm[i2 + 2]);
+        vec3 p0 = v3(vl->v[0][i], vl->v[1][i], vl->v[2][i]);
+        vec3 p1 = v3(vl->v[3][i], vl->v[4][i], vl->v[5][i]);
+        vec3 p2 = v3(vl->v[6][i], vl->v[7][i], vl->v[8][i]);
+        vec3 n0 = v3(vl->v[9][i], vl->v[10][i], vl->v[11][i]);
+        vec3 n1 = v3(vl->v[12][i], vl->v[13][i], vl->v[14][i]);
+        vec3 n2 = v3(vl->v[15][i], vl->v[16][i], vl->v[17][i]);
         vec3 x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, b1)), v3_scale(p2, b2));
         vec3 nn = v3_add(v3_add(v3_scale(n0, b0), v3_scale(n1, b1)), v3_scale(n2, b2));
         vec3 face = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
@@ -253,6 +330,32 @@ static void render_shade_vertex_colours(const render_job *j, int obj, const rend
     }
 }
 
+/* The batch's per-sample beauty, (d + s) + (r + e) as render_terms_sum forms it. */
+SMATH_CLONES
+static void render_batch_beauty(const shade_batch_out *restrict r, int n, shade_vec3_n *restrict b)
+{
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        b->x[i] = (r->diffuse.x[i] + r->specular.x[i]) + (r->reflection.x[i] + r->emission.x[i]);
+        b->y[i] = (r->diffuse.y[i] + r->specular.y[i]) + (r->reflection.y[i] + r->emission.y[i]);
+        b->z[i] = (r->diffuse.z[i] + r->specular.z[i]) + (r->reflection.z[i] + r->emission.z[i]);
+    }
+}
+
+/* Lanes [0, n) of three arrays into slots of three planes: plain stores, as AVX-512 scatters
+ * are microcoded and slower than them on some cores (AMD Zen 4). */
+static void render_scatter3(float (*restrict plane)[RENDER_PLANE], const float *restrict x, const float *restrict y,
+                            const float *restrict z, const uint16_t *restrict slot, int n)
+{
+    float *restrict px = plane[0], *restrict py = plane[1], *restrict pz = plane[2];
+    for (int i = 0; i < n; i++) {
+        const int q = slot[i];
+        px[q] = x[i];
+        py[q] = y[i];
+        pz[q] = z[i];
+    }
+}
+
 static void render_flush_object(const render_job *j, render_scratch *w, int obj)
 {
     render_queue *qu = &w->queue[obj];
@@ -267,7 +370,8 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b2[i] = qu->b2[n - 1];
     }
     double t0 = render_clock(w);
-    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, &w->in);
+    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, &w->verts,
+                       &w->in);
     double t1 = render_clock(w);
     if (j->vertex_colours[obj])
         render_shade_vertex_colours(j, obj, qu, &w->in, r);
@@ -276,25 +380,52 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     double t2 = render_clock(w);
     w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
     w->stage[RENDER_STAGE_SHADE] += t2 - t1;
+    render_batch_beauty(r, w->in.n, &w->beauty);
+    render_scatter3(&w->plane[RENDER_P_BEAUTY], w->beauty.x, w->beauty.y, w->beauty.z, qu->slot, n);
+    float *restrict alpha = w->plane[RENDER_P_ALPHA];
+    for (int i = 0; i < n; i++)
+        alpha[qu->slot[i]] = r->alpha[i];
+    const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
+    for (int a = 0; a < 4; a++)
+        if (j->term_layers & (1u << a))
+            render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
     for (int i = 0; i < n; i++) {
         /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
-        if (qu->slot[i] % w->per_px == w->centre) {
-            vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
-            if (j->normal_length[obj] != NULL)
-                nn = v3_norm(nn); /* the angle channels are cosines */
-            int px = qu->slot[i] / w->per_px;
-            w->centre_nv[px] = v3_dot(nn, shade_lane_get(&w->in.v, i));
-            w->centre_nl[px] = 0.0f;
-            if (j->s->n_lights > 0) {
-                vec3 to_l, e_perp;
-                float atten;
-                shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-                w->centre_nl[px] = v3_dot(nn, to_l);
-            }
+        const int q = qu->slot[i];
+        if (q < w->centre_lo || q >= w->centre_hi)
+            continue;
+        vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
+        if (j->normal_length[obj] != NULL)
+            nn = v3_norm(nn); /* the angle channels are cosines */
+        int px = q - w->centre_lo;
+        w->centre_nv[px] = v3_dot(nn, shade_lane_get(&w->in.v, i));
+        w->centre_nl[px] = 0.0f;
+        if (j->s->n_lights > 0) {
+            vec3 to_l, e_perp;
+            float atten;
+            shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+            w->centre_nl[px] = v3_dot(nn, to_l);
         }
-        shade_batch_get_terms(r, i, &w->terms[qu->slot[i]]);
     }
     qu->n = 0;
+}
+
+/* The camera rays of n background samples (render_camera_dir, lane by lane). */
+SMATH_CLONES
+static void render_background_rays(const render_camera *c, const float *restrict sx, const float *restrict sy, int n,
+                                   shade_vec3_n *restrict dir)
+{
+    const float w = (float)c->width, h = (float)c->height, tx = c->tan_half_x, ty = c->tan_half_y;
+    const vec3 f = c->forward, r = c->right, u = c->up;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        float nx = 2.0f * sx[i] / w - 1.0f;
+        float ny = 1.0f - 2.0f * sy[i] / h;
+        vec3 d = v3_madd(v3_madd(f, r, nx * tx), u, ny * ty);
+        dir->x[i] = d.x;
+        dir->y[i] = d.y;
+        dir->z[i] = d.z;
+    }
 }
 
 static void render_flush_background(const render_job *j, render_scratch *w)
@@ -302,47 +433,73 @@ static void render_flush_background(const render_job *j, render_scratch *w)
     if (w->bg_n == 0)
         return;
     const int n = w->bg_n, padded = render_padded(n);
-    for (int i = n; i < padded; i++)
-        shade_lane_set(&w->bg_dir, i, shade_lane_get(&w->bg_dir, n - 1));
+    for (int i = n; i < padded; i++) {
+        w->bg_sx[i] = w->bg_sx[n - 1];
+        w->bg_sy[i] = w->bg_sy[n - 1];
+    }
     double t0 = render_clock(w);
+    render_background_rays(j->cam, w->bg_sx, w->bg_sy, padded, &w->bg_dir);
     env_lookup_n(j->sc.env, padded, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
     w->stage[RENDER_STAGE_BACKGROUND] += render_clock(w) - t0;
-    for (int i = 0; i < w->bg_n; i++)
-        w->bg[w->bg_slot[i]] = shade_lane_get(&w->bg_rad, i);
+    render_scatter3(&w->plane[RENDER_P_BEAUTY], w->bg_rad.x, w->bg_rad.y, w->bg_rad.z, w->bg_slot, n);
     w->bg_n = 0;
 }
 
-/* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch slots, k*k per pixel
- * in row-major pixel order: per-pixel samples queued per object and shaded a batch at a
- * time, background rays likewise. */
+/* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
+ * samples queued per object and shaded a batch at a time, background rays likewise. */
 static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
                               int px0, int px1)
 {
-    const int k = tile->k, stride = tile->w * k;
+    const int k = tile->k, stride = tile->w * k, c = k / 2;
     const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
-    int q = 0;
+    const size_t n_slots = (size_t)span_px * (size_t)(k * k);
+    /* Alpha and the terms stay 0 for background samples; the beauty is written for all. */
+    memset(w->plane[RENDER_P_ALPHA], 0, n_slots * sizeof(float));
+    for (int a = 0; a < 4; a++)
+        if (j->term_layers & (1u << a))
+            for (int ch = 0; ch < 3; ch++)
+                memset(w->plane[RENDER_P_TERMS + 3 * a + ch], 0, n_slots * sizeof(float));
+    w->span_px = span_px;
+    w->centre_lo = (c * k + c) * span_px;
+    w->centre_hi = w->centre_lo + span_px;
+    const int32_t *tri_object = j->m->tri_object;
+    int last_tri = -1, obj = 0, per_vertex = 0;
     for (int pi = 0; pi < span_px; pi++) {
         const int py = py0 + pi / span_w, px = px0 + pi % span_w;
+        const raster_sample *pix = tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (px - tile->x0) * k;
+        int covered = 0, centre_obj = -1;
+        w->centre_nv[pi] = 0.0f;
+        w->centre_nl[pi] = 0.0f;
         for (int t = 0; t < k; t++) {
-            const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
-            for (int s = 0; s < k; s++, q++) {
-                const raster_sample *rs = &row[(px - tile->x0) * k + s];
-                if (rs->tri < 0) {
-                    vec3 d = render_camera_dir(j->cam, (float)px + ((float)s + 0.5f) / (float)k,
-                                               (float)py + ((float)t + 0.5f) / (float)k);
-                    shade_lane_set(&w->bg_dir, w->bg_n, d);
+            const raster_sample *row = pix + (size_t)t * (size_t)stride;
+            for (int s = 0; s < k; s++) {
+                const raster_sample *rs = &row[s];
+                const int q = (t * k + s) * span_px + pi;
+                const int32_t tri = rs->tri;
+                if (tri < 0) {
+                    w->bg_sx[w->bg_n] = (float)px + ((float)s + 0.5f) / (float)k;
+                    w->bg_sy[w->bg_n] = (float)py + ((float)t + 0.5f) / (float)k;
                     w->bg_slot[w->bg_n++] = (uint16_t)q;
                     if (w->bg_n == SHADE_BATCH)
                         render_flush_background(j, w);
                     continue;
                 }
-                int obj = j->m->tri_object[rs->tri];
-                if (j->per_vertex[obj]) {
-                    render_blend_vertex(j, rs, &w->terms[q]);
+                covered++;
+                if (tri != last_tri) {
+                    last_tri = tri;
+                    obj = tri_object[tri];
+                    per_vertex = j->per_vertex[obj];
+                }
+                if (t == c && s == c)
+                    centre_obj = obj;
+                if (per_vertex) {
+                    shade_terms st;
+                    render_blend_vertex(j, rs, &st);
+                    render_put_terms(j, w, q, &st);
                     continue;
                 }
                 render_queue *qu = &w->queue[obj];
-                qu->tri[qu->n] = rs->tri;
+                qu->tri[qu->n] = tri;
                 qu->b1[qu->n] = rs->b1;
                 qu->b2[qu->n] = rs->b2;
                 qu->slot[qu->n++] = (uint16_t)q;
@@ -350,22 +507,129 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                     render_flush_object(j, w, obj);
             }
         }
+        w->covered[pi] = covered;
+        w->object[pi] = centre_obj;
     }
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
     render_flush_background(j, w);
 }
 
+/* The running sums of the resolve, per pixel: beauty, its square, alpha, then the terms. */
+enum { RENDER_S_BEAUTY = 0, RENDER_S_SQ = 3, RENDER_S_ALPHA = 6, RENDER_S_TERMS = 7, RENDER_SUMS = 19 };
+
+/* Sums of n pixels from p0 over their k*k samples, in sample order (as the pixel's own loop
+ * would add them), one vector per plane. */
+SMATH_CLONES
+static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], unsigned term_layers, int span_px,
+                                int per_px, int p0, int n, float (*restrict sum)[RENDER_RESOLVE_PX])
+{
+    for (int a = 0; a < RENDER_SUMS; a++)
+        for (int i = 0; i < n; i++)
+            sum[a][i] = 0.0f;
+    for (int q = 0; q < per_px; q++) {
+        const size_t base = (size_t)q * (size_t)span_px + (size_t)p0;
+        for (int ch = 0; ch < 3; ch++) {
+            const float *restrict b = plane[RENDER_P_BEAUTY + ch] + base;
+            float *restrict bs = sum[RENDER_S_BEAUTY + ch], *restrict bq = sum[RENDER_S_SQ + ch];
+#pragma omp simd
+            for (int i = 0; i < n; i++) {
+                bs[i] += b[i];
+                bq[i] += b[i] * b[i];
+            }
+        }
+        {
+            const float *restrict a = plane[RENDER_P_ALPHA] + base;
+            float *restrict as = sum[RENDER_S_ALPHA];
+#pragma omp simd
+            for (int i = 0; i < n; i++)
+                as[i] += a[i];
+        }
+        for (int t = 0; t < 12; t++) {
+            if (!(term_layers & (1u << (t / 3))))
+                continue;
+            const float *restrict src = plane[RENDER_P_TERMS + t] + base;
+            float *restrict dst = sum[RENDER_S_TERMS + t];
+#pragma omp simd
+            for (int i = 0; i < n; i++)
+                dst[i] += src[i];
+        }
+    }
+}
+
+/* n pixels from p0, a run within one image row starting at pixel index i0: the layers from the
+ * sums. */
+SMATH_CLONES
+static void render_resolve_store(render_image *restrict o, const render_scratch *restrict w,
+                                 const float (*restrict sum)[RENDER_RESOLVE_PX], int k, int p0, int n, size_t i0)
+{
+    const float inv = 1.0f / (float)(k * k), nk = (float)(k * k);
+    /* Unbiased sample variance over nk = k*k samples, divided by nk; 0 for k = 1. */
+    const float inv_n = 1.0f / nk, inv_nn = k > 1 ? 1.0f / (nk * (nk - 1.0f)) : 0.0f;
+    float *restrict r = o->chan[RENDER_R] + i0, *restrict g = o->chan[RENDER_G] + i0,
+                    *restrict b = o->chan[RENDER_B] + i0;
+    float *restrict a = o->chan[RENDER_A] + i0, *restrict cov = o->chan[RENDER_COVERAGE] + i0;
+    float *restrict obj = o->chan[RENDER_OBJECT] + i0, *restrict nv = o->chan[RENDER_NDOTV] + i0;
+    float *restrict nl = o->chan[RENDER_NDOTL] + i0;
+    float *restrict vr = o->chan[RENDER_VAR_R] + i0, *restrict vg = o->chan[RENDER_VAR_G] + i0,
+                    *restrict vb = o->chan[RENDER_VAR_B] + i0;
+    const int *restrict covered = w->covered + p0, *restrict centre_obj = w->object + p0;
+    const float *restrict cnv = w->centre_nv + p0, *restrict cnl = w->centre_nl + p0;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        const float bs_r = sum[RENDER_S_BEAUTY][i], bs_g = sum[RENDER_S_BEAUTY + 1][i],
+                    bs_b = sum[RENDER_S_BEAUTY + 2][i];
+        r[i] = bs_r * inv;
+        g[i] = bs_g * inv;
+        b[i] = bs_b * inv;
+        a[i] = sum[RENDER_S_ALPHA][i] * inv;
+        cov[i] = (float)covered[i] * inv;
+        obj[i] = (float)centre_obj[i];
+        nv[i] = cnv[i];
+        nl[i] = cnl[i];
+        /* Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
+        vr[i] = fmaxf((sum[RENDER_S_SQ][i] - bs_r * bs_r * inv_n) * inv_nn, 0.0f);
+        vg[i] = fmaxf((sum[RENDER_S_SQ + 1][i] - bs_g * bs_g * inv_n) * inv_nn, 0.0f);
+        vb[i] = fmaxf((sum[RENDER_S_SQ + 2][i] - bs_b * bs_b * inv_n) * inv_nn, 0.0f);
+    }
+    for (int t = 0; t < 12; t++) {
+        float *restrict dst = o->chan[RENDER_DIFFUSE_R + t];
+        if (dst == NULL)
+            continue;
+        dst += i0;
+        const float *restrict src = sum[RENDER_S_TERMS + t];
+#pragma omp simd
+        for (int i = 0; i < n; i++)
+            dst[i] = src[i] * inv;
+    }
+}
+
+/* The span's pixels from the planes: beauty, layers, coverage, object, angles, variance. Each
+ * run of pixels lies within one image row, so the layers are written as whole vectors. */
+static long long render_resolve(const render_job *j, render_scratch *w, int k, int py0, int px0, int span_w)
+{
+    render_image *o = j->out;
+    const int span_px = w->span_px;
+    long long shaded = 0;
+    float sum[RENDER_SUMS][RENDER_RESOLVE_PX];
+    for (int row = 0; row * span_w < span_px; row++)
+        for (int x0 = 0; x0 < span_w; x0 += RENDER_RESOLVE_PX) {
+            const int p0 = row * span_w + x0;
+            const int n = span_w - x0 < RENDER_RESOLVE_PX ? span_w - x0 : RENDER_RESOLVE_PX;
+            render_resolve_sums((const float(*)[RENDER_PLANE])w->plane, j->term_layers, span_px, k * k, p0, n, sum);
+            const size_t i0 = (size_t)(py0 + row) * (size_t)o->width + (size_t)(px0 + x0);
+            render_resolve_store(o, w, (const float(*)[RENDER_RESOLVE_PX])sum, k, p0, n, i0);
+            for (int i = 0; i < n; i++)
+                shaded += w->covered[p0 + i];
+        }
+    return shaded;
+}
+
 static void render_tile(void *user, const raster_tile *tile)
 {
     const render_job *j = user;
-    render_image *o = j->out;
     render_scratch *w = &j->scratch[tile->thread];
-    const int k = tile->k, stride = tile->w * k;
-    const float inv = 1.0f / (float)(k * k);
-    const int per_px = k * k;
-    w->per_px = per_px;
-    w->centre = (k / 2) * k + k / 2;
+    const int k = tile->k, per_px = k * k;
     const int cols = tile->w * per_px <= RENDER_SPAN ? tile->w : RENDER_SPAN / per_px;
     const int rows = cols == tile->w ? RENDER_SPAN / (tile->w * per_px) : 1;
     long long shaded = 0;
@@ -377,77 +641,7 @@ static void render_tile(void *user, const raster_tile *tile)
             int px1 = px0 + cols < tile->x0 + tile->w ? px0 + cols : tile->x0 + tile->w;
             render_span_shade(j, tile, w, py0, py1, px0, px1);
             const double t_resolve = render_clock(w);
-            const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
-            for (int pi = 0; pi < span_px; pi++) {
-                const int py = py0 + pi / span_w, px = px0 + pi % span_w;
-                shade_terms sum = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, 0.0f};
-                vec3 background = v3s(0.0f);
-                /* Per-sample beauty, for the variance layers: sum and sum of squares. */
-                vec3 b_sum = v3s(0.0f), b_sq = v3s(0.0f);
-                int covered = 0, object_id = -1;
-                float centre_nv = 0.0f, centre_nl = 0.0f;
-                int q = pi * per_px;
-                for (int t = 0; t < k; t++) {
-                    const raster_sample *row = tile->samples + (size_t)((py - tile->y0) * k + t) * (size_t)stride;
-                    for (int s = 0; s < k; s++, q++) {
-                        const raster_sample *rs = &row[(px - tile->x0) * k + s];
-                        if (rs->tri < 0) {
-                            vec3 bg = w->bg[q];
-                            background = v3_add(background, bg);
-                            b_sum = v3_add(b_sum, bg);
-                            b_sq = v3_add(b_sq, v3_mul(bg, bg));
-                            continue;
-                        }
-                        const shade_terms *st = &w->terms[q];
-                        sum.diffuse = v3_add(sum.diffuse, st->diffuse);
-                        sum.specular = v3_add(sum.specular, st->specular);
-                        sum.reflection = v3_add(sum.reflection, st->reflection);
-                        sum.emission = v3_add(sum.emission, st->emission);
-                        sum.alpha += st->alpha;
-                        vec3 b = render_terms_sum(st);
-                        b_sum = v3_add(b_sum, b);
-                        b_sq = v3_add(b_sq, v3_mul(b, b));
-                        covered++;
-                        if (s == k / 2 && t == k / 2) {
-                            object_id = j->m->tri_object[rs->tri];
-                            /* Gouraud shading has no per-sample normal: its angles stay 0. */
-                            if (!j->per_vertex[object_id]) {
-                                centre_nv = w->centre_nv[pi];
-                                centre_nl = w->centre_nl[pi];
-                            }
-                        }
-                    }
-                }
-                shaded += covered;
-                size_t i = (size_t)py * (size_t)o->width + (size_t)px;
-                vec3 beauty = v3_scale(v3_add(render_terms_sum(&sum), background), inv);
-                o->chan[RENDER_R][i] = beauty.x;
-                o->chan[RENDER_G][i] = beauty.y;
-                o->chan[RENDER_B][i] = beauty.z;
-                o->chan[RENDER_A][i] = sum.alpha * inv;
-                o->chan[RENDER_COVERAGE][i] = (float)covered * inv;
-                o->chan[RENDER_OBJECT][i] = (float)object_id;
-                o->chan[RENDER_NDOTV][i] = centre_nv;
-                o->chan[RENDER_NDOTL][i] = centre_nl;
-                /* Unbiased sample variance over n = k*k samples, divided by n; 0 for k = 1.
-                 * Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
-                float n = (float)(k * k);
-                vec3 var =
-                    k > 1 ? v3_scale(v3_sub(b_sq, v3_scale(v3_mul(b_sum, b_sum), 1.0f / n)), 1.0f / (n * (n - 1.0f)))
-                          : v3s(0.0f);
-                o->chan[RENDER_VAR_R][i] = fmaxf(var.x, 0.0f);
-                o->chan[RENDER_VAR_G][i] = fmaxf(var.y, 0.0f);
-                o->chan[RENDER_VAR_B][i] = fmaxf(var.z, 0.0f);
-                const vec3 *aov[4] = {&sum.diffuse, &sum.specular, &sum.reflection, &sum.emission};
-                for (int a = 0; a < 4; a++) {
-                    float **c = &o->chan[RENDER_DIFFUSE_R + 3 * a];
-                    if (c[0] == NULL)
-                        continue;
-                    c[0][i] = aov[a]->x * inv;
-                    c[1][i] = aov[a]->y * inv;
-                    c[2][i] = aov[a]->z * inv;
-                }
-            }
+            shaded += render_resolve(j, w, k, py0, px0, px1 - px0);
             w->stage[RENDER_STAGE_RESOLVE] += render_clock(w) - t_resolve;
         }
     }
@@ -463,6 +657,28 @@ void render_image_free(render_image *img)
     }
 }
 
+/* Layers of 2 MiB or more sit on transparent huge pages where the kernel offers them
+ * (madvise): a 1024 x 1024 frame's 11 layers otherwise take 11,000 page faults, each zeroing
+ * 4 KiB, on first touch. They are not zeroed here: the draw writes every pixel of every layer
+ * (render_tile, once per tile, and the tiles cover the image), and a failed draw frees them.
+ * The memory is free()d like any other. */
+#define RENDER_HUGE_PAGE ((size_t)2 << 20)
+static float *render_layer_alloc(size_t n)
+{
+    size_t bytes = n * sizeof(float);
+#if defined(MADV_HUGEPAGE)
+    if (bytes >= RENDER_HUGE_PAGE) {
+        void *p = NULL;
+        if (posix_memalign(&p, RENDER_HUGE_PAGE, bytes) != 0)
+            return NULL;
+        /* Only advice: without huge pages the layer is as calloc's. */
+        (void)madvise(p, bytes, MADV_HUGEPAGE);
+        return p;
+    }
+#endif
+    return calloc(n, sizeof(float));
+}
+
 static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_t errlen)
 {
     size_t n = (size_t)out->width * (size_t)out->height;
@@ -470,7 +686,7 @@ static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_
         int a = c - RENDER_DIFFUSE_R;
         if (a >= 0 && c < RENDER_COVERAGE && !(aovs & (1u << (a / 3))))
             continue;
-        out->chan[c] = calloc(n, sizeof(float));
+        out->chan[c] = render_layer_alloc(n);
         if (out->chan[c] == NULL) {
             render_image_free(out);
             snprintf(err, errlen, "render: out of memory for a %dx%d image; render smaller", out->width, out->height);
@@ -576,6 +792,9 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     render_camera cam;
     render_camera_make(s, out->width, out->height, &cam);
     render_job j = {.s = s, .m = m, .cam = &cam, .out = out};
+    for (int a = 0; a < 4; a++)
+        if (out->chan[RENDER_DIFFUSE_R + 3 * a] != NULL)
+            j.term_layers |= 1u << a;
     shade_context_make(s, env, &j.sc);
     j.sc.tex = opt->textures;
     for (int i = 0; i < s->n_materials; i++)
