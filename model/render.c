@@ -325,7 +325,7 @@ static void render_shade_vertex_colours(const render_job *j, int obj, const rend
         render_vertex_plan(j, obj, &vm, &p);
         shade_terms t;
         shade_eval_uv(&j->sc, &p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i),
-                      j->m->uv != NULL ? in->tu[i] : 0.0f, j->m->uv != NULL ? in->tv[i] : 0.0f, &t);
+                      p.textured ? in->tu[i] : 0.0f, p.textured ? in->tv[i] : 0.0f, &t);
         shade_batch_set_terms(out, i, &t);
     }
 }

@@ -20,6 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "d3d.h"
 #include "d3d9client.h"
 #include "formula.h"
 #include "exr.h"
@@ -564,6 +565,29 @@ static void povray_write_finish(FILE *fp, const povray_finish *f)
         fprintf(fp, "    interior { ior %.9g }\n", f->ior);
 }
 
+/* D3D vertex colours POV-Ray can twin: the diffuse colour from colour1 (a mesh2 texture_list of
+ * one pigment per vertex, interpolated across each face), nothing else from the vertex. */
+static rc_status povray_vertex_colour_check(const scene *s, const mesh *m, int mi, const povray_resolved *r, char *err,
+                                            size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    unsigned have = 0;
+    for (int i = 0; i < s->n_objects && i < SCENE_MAX_OBJECTS; i++)
+        if (s->objects[i].material == mi)
+            have |= m->colours[i];
+    d3d_params rest = mat->d3d;
+    rest.diffuse_source = COLOUR_SOURCE_MATERIAL;
+    const char *why = r->validate ? "a validate renders the physics, which has no vertex colours"
+                      : mat->d3d.diffuse_source != COLOUR_SOURCE_COLOUR1 || d3d_uses_vertex_colours(&rest, have)
+                          ? "POV-Ray's twin takes the diffuse colour alone from the vertex (diffuse_source colour1)"
+                          : NULL;
+    if (why == NULL)
+        return RC_OK;
+    status_message(err, errlen, "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex): %s; %s", s->path, mi,
+                   mat->name, why, r->validate ? "set colour_vertex false" : "select the material for the others");
+    return RC_ERR_RANGE;
+}
+
 rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
                              size_t errlen)
 {
@@ -595,14 +619,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             return RC_ERR_RANGE;
         }
     }
+    int vcol[SCENE_MAX_MATERIALS] = {0};
     for (int mi = 0; mi < s->n_materials; mi++)
-        if (mesh_material_vertex_coloured(s, m, mi)) {
-            status_message(err, errlen,
-                           "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex) are not translated to "
-                           "POV-Ray (a mesh2 texture_list per vertex is not written); set colour_vertex false",
-                           s->path, mi, s->materials[mi].name);
-            return RC_ERR_RANGE;
-        }
+        if ((vcol[mi] = mesh_material_vertex_coloured(s, m, mi)) &&
+            (st = povray_vertex_colour_check(s, m, mi, &r, err, errlen)) != RC_OK)
+            return st;
 
     int coverage = o != NULL && o->coverage;
     if (r.validate && !coverage && (st = renderer_physics_check(povray_physics, s, err, errlen)) != RC_OK)
@@ -625,6 +646,15 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             st = povray_material_texture(s, mi, o, m, &fin[mi], err, errlen);
         if (st != RC_OK)
             return st;
+        if (vcol[mi] && (fin[mi].texture[0] != '\0' || fin[mi].emission.x != 0.0 || fin[mi].emission.y != 0.0 ||
+                         fin[mi].emission.z != 0.0 || fin[mi].reflection != 0)) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': D3D vertex colours with a texture, an emissive or ambient "
+                           "colour or a reflection have no POV-Ray twin (its emission is a multiple of the "
+                           "pigment); use the diffuse source alone",
+                           s->path, mi, s->materials[mi].name);
+            return RC_ERR_RANGE;
+        }
     }
 
     int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
@@ -760,12 +790,27 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                 fprintf(fp, ",\n    <%.9g, %.9g>", (double)m->uv[2 * local[v]], (double)m->uv[2 * local[v] + 1]);
             fprintf(fp, "\n  }\n");
         }
+        int per_vertex_tex = !coverage && vcol[s->objects[ob].material];
+        if (per_vertex_tex) {
+            /* D3D's diffuse colour1: one texture per vertex, its pigment the vertex colour; with
+             * three texture indices per face POV-Ray interpolates the pigments across it, as
+             * the rasterizer interpolates the colour per pixel. */
+            povray_finish vf = fin[s->objects[ob].material];
+            fprintf(fp, "  texture_list { %d,\n", nv);
+            for (int v = 0; v < nv; v++) {
+                vf.pigment = dv3_from(m->col1[local[v]]);
+                povray_write_finish(fp, &vf);
+            }
+            fprintf(fp, "  }\n");
+        }
         fprintf(fp, "  face_indices { %d", nt);
         for (int t = 0; t < m->n_tris; t++) {
             if (m->tri_object[t] != ob)
                 continue;
-            fprintf(fp, ",\n    <%d, %d, %d>", remap[m->idx[3 * t]], remap[m->idx[3 * t + 1]],
-                    remap[m->idx[3 * t + 2]]);
+            int a = remap[m->idx[3 * t]], b = remap[m->idx[3 * t + 1]], c = remap[m->idx[3 * t + 2]];
+            fprintf(fp, ",\n    <%d, %d, %d>", a, b, c);
+            if (per_vertex_tex)
+                fprintf(fp, ", %d, %d, %d", a, b, c);
         }
         fprintf(fp, "\n  }\n");
         if (coverage)
