@@ -144,6 +144,32 @@ static void put_scene(const char *path, const char *name, const char *role, cons
     write_text(path, text);
 }
 
+/* The fixture most tests share: scene file DIR/<name>.yaml comparing raster with POV-Ray
+ * (put_scene), run folder DIR/run-<name>, and both sides' images flat at 0.5. */
+typedef struct {
+    char name[64], scn[512], run[512];
+    gate_image t, r; /* the test (raster) and the reference (POV-Ray) image */
+} gate_fixture;
+
+static gate_fixture *fixture_make(const char *name, const char *role, const char *model, const char *extra)
+{
+    static gate_fixture f;
+    snprintf(f.name, sizeof f.name, "%s", name);
+    snprintf(f.scn, sizeof f.scn, "%s/%s.yaml", dir, name);
+    snprintf(f.run, sizeof f.run, "%s/run-%s", dir, name);
+    put_scene(f.scn, name, role, model, extra);
+    image_flat(&f.t, 0.5f);
+    image_flat(&f.r, 0.5f);
+    return &f;
+}
+
+/* Both sides' job records (ok) and images, in role. */
+static void fixture_jobs(const gate_fixture *f, comparison_role role)
+{
+    put_job(f->run, f->name, registry_find("raster"), role, "ok", &f->t);
+    put_job(f->run, f->name, registry_find("povray"), role, "ok", &f->r);
+}
+
 static cJSON *read_compare(const char *run, const char *name)
 {
     char path[1024];
@@ -202,20 +228,14 @@ static int teardown(void **state)
 static void test_nan_surface_fails_twin(void **state)
 {
     (void)state;
-    char scn[512], run[512], err[2048];
-    snprintf(scn, sizeof scn, "%s/nan.yaml", dir);
-    snprintf(run, sizeof run, "%s/run-nan", dir);
-    put_scene(scn, "nan", "twin", "d3d", "");
-    static gate_image t, r;
-    image_flat(&t, 0.5f);
-    image_flat(&r, 0.5f);
+    char err[2048];
+    gate_fixture *f = fixture_make("nan", "twin", "d3d", "");
     for (int i = 0; i < 110; i++) /* 110 of 128 pixels: 86 % */
-        t.rgb[0][i] = NAN;
-    put_job(run, "nan", registry_find("raster"), ROLE_TWIN, "ok", &t);
-    put_job(run, "nan", registry_find("povray"), ROLE_TWIN, "ok", &r);
-    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
+        f->t.rgb[0][i] = NAN;
+    fixture_jobs(f, ROLE_TWIN);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run), 1);
     assert_non_null(strstr(err, "110 non-finite (first R at (x 0, y 0) = nan)"));
-    cJSON *j = read_compare(run, "nan");
+    cJSON *j = read_compare(f->run, "nan");
     const cJSON *c = first_comparison(j);
     assert_string_equal(jstr(c, "status"), "fail");
     assert_non_null(strstr(jstr(c, "reason"), "test raster: 110 non-finite"));
@@ -240,16 +260,12 @@ static void test_nan_surface_fails_twin(void **state)
 static void test_inf_layer_and_negative_fail(void **state)
 {
     (void)state;
-    char scn[512], run[512], err[2048];
-    snprintf(scn, sizeof scn, "%s/inf.yaml", dir);
-    snprintf(run, sizeof run, "%s/run-inf", dir);
-    put_scene(scn, "inf", "twin", "d3d", "");
-    static gate_image t, r;
-    image_flat(&t, 0.5f);
-    image_flat(&r, 0.5f);
-    r.terms[1][2][5 * W + 3] = INFINITY; /* specular.B at (x 3, y 5) */
-    put_job(run, "inf", registry_find("raster"), ROLE_TWIN, "ok", &t);
-    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
+    char err[2048];
+    gate_fixture *f = fixture_make("inf", "twin", "d3d", "");
+    const char *scn = f->scn, *run = f->run;
+    gate_image *r = &f->r;
+    r->terms[1][2][5 * W + 3] = INFINITY; /* specular.B at (x 3, y 5) */
+    fixture_jobs(f, ROLE_TWIN);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     cJSON *j = read_compare(run, "inf");
     const cJSON *c = first_comparison(j);
@@ -258,10 +274,10 @@ static void test_inf_layer_and_negative_fail(void **state)
     assert_non_null(strstr(jstr(c, "reason"), "ref povray: 1 non-finite (first specular.B at (x 3, y 5) = inf)"));
     cJSON_Delete(j);
 
-    image_flat(&r, 0.5f);
+    image_flat(r, 0.5f);
     for (int i = 0; i < 3; i++)
-        r.rgb[1][W + i] = -1e-3f; /* G at (0..2, 1) */
-    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
+        r->rgb[1][W + i] = -1e-3f; /* G at (0..2, 1) */
+    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "inf");
     c = first_comparison(j);
@@ -281,11 +297,11 @@ static void test_inf_layer_and_negative_fail(void **state)
              "      noise_rel_rms: {warn: 1, fail: 2, why: \"any finite noise passes\"}\n",
              W, H);
     write_text(scn, text);
-    image_flat(&r, 0.5f);
+    image_flat(r, 0.5f);
     for (int c3 = 0; c3 < 3; c3++)
         for (int i = 0; i < NP; i++)
-            r.var[c3][i] = -1.0f;
-    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", &r);
+            r->var[c3][i] = -1.0f;
+    put_job(run, "inf", registry_find("povray"), ROLE_TWIN, "ok", r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "inf");
     c = first_comparison(j);
@@ -303,15 +319,13 @@ static void test_inf_layer_and_negative_fail(void **state)
 static void test_negative_allowed_only_where_model_allows(void **state)
 {
     (void)state;
-    char scn[512], run[512], err[2048];
-    snprintf(scn, sizeof scn, "%s/neg.yaml", dir);
-    snprintf(run, sizeof run, "%s/run-neg", dir);
-    put_scene(scn, "neg", "twin", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
-    static gate_image t;
-    image_flat(&t, 0.5f);
-    t.rgb[0][7] = -0.25f;
-    put_job(run, "neg", registry_find("raster"), ROLE_TWIN, "ok", &t);
-    put_job(run, "neg", registry_find("povray"), ROLE_TWIN, "ok", &t);
+    char err[2048];
+    gate_fixture *f = fixture_make("neg", "twin", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
+    const char *scn = f->scn, *run = f->run;
+    /* The same negative pixel on both sides. */
+    f->t.rgb[0][7] = -0.25f;
+    f->r = f->t;
+    fixture_jobs(f, ROLE_TWIN);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
     cJSON *j = read_compare(run, "neg");
     const cJSON *c = first_comparison(j);
@@ -321,8 +335,7 @@ static void test_negative_allowed_only_where_model_allows(void **state)
     cJSON_Delete(j);
 
     put_scene(scn, "neg", "validate", "d3d9client", ", d3d9client: {reflect: [1, 1, 1], norm: euclid}");
-    put_job(run, "neg", registry_find("raster"), ROLE_VALIDATE, "ok", &t);
-    put_job(run, "neg", registry_find("povray"), ROLE_VALIDATE, "ok", &t);
+    fixture_jobs(f, ROLE_VALIDATE);
     put_physics(run, "neg", registry_find("povray"), scn);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     j = read_compare(run, "neg");
@@ -346,13 +359,10 @@ static void test_negative_allowed_only_where_model_allows(void **state)
 static void test_job_status_vocabulary(void **state)
 {
     (void)state;
-    char scn[512], run[512], err[2048], path[1024];
-    snprintf(scn, sizeof scn, "%s/st.yaml", dir);
-    snprintf(run, sizeof run, "%s/run-st", dir);
-    put_scene(scn, "st", "twin", "d3d", "");
-    static gate_image t;
-    image_flat(&t, 0.5f);
-    put_job(run, "st", registry_find("raster"), ROLE_TWIN, "ok", &t);
+    char err[2048], path[1024];
+    gate_fixture *f = fixture_make("st", "twin", "d3d", "");
+    const char *scn = f->scn, *run = f->run;
+    fixture_jobs(f, ROLE_TWIN);
 
     static const char *const bad[] = {"failed", "crashed", "timeout", "error"};
     for (int i = 0; i < 4; i++) {
@@ -406,23 +416,18 @@ static void test_job_status_vocabulary(void **state)
 static void test_compare_exit_status(void **state)
 {
     (void)state;
-    char scn[512], run[512], err[2048];
-    snprintf(scn, sizeof scn, "%s/ex.yaml", dir);
-    snprintf(run, sizeof run, "%s/run-ex", dir);
-    put_scene(scn, "ex", "twin", "d3d", "");
-    static gate_image t, r;
-    image_flat(&t, 0.5f);
-    image_flat(&r, 0.5f);
-    put_job(run, "ex", registry_find("raster"), ROLE_TWIN, "ok", &t);
-    put_job(run, "ex", registry_find("povray"), ROLE_TWIN, "ok", &r);
+    char err[2048];
+    gate_fixture *f = fixture_make("ex", "twin", "d3d", "");
+    const char *scn = f->scn, *run = f->run;
+    fixture_jobs(f, ROLE_TWIN);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
     cJSON *j = read_compare(run, "ex");
     assert_string_equal(jstr(first_comparison(j), "status"), "pass");
     assert_int_equal((long)jnum(first_comparison(j), "test_nonfinite"), 0);
     cJSON_Delete(j);
 
-    image_flat(&r, 0.6f); /* rel_rms 0.1 / sqrt(0.36 + 1e-8) = 0.167 > 1e-3 */
-    put_job(run, "ex", registry_find("povray"), ROLE_TWIN, "ok", &r);
+    image_flat(&f->r, 0.6f); /* rel_rms 0.1 / sqrt(0.36 + 1e-8) = 0.167 > 1e-3 */
+    put_job(run, "ex", registry_find("povray"), ROLE_TWIN, "ok", &f->r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 1);
     assert_non_null(strstr(err, "rel_rms = 0.1667 > fail threshold"));
 
