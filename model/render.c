@@ -305,7 +305,11 @@ static void render_vertex_material(const render_job *j, int obj, const uint32_t 
  * object's textures (which the plan finds by the material's place in the scene, not a copy's). */
 static void render_vertex_plan(const render_job *j, int obj, const material *vm, shade_plan *vp)
 {
-    shade_plan_make(&j->sc, vm, vp);
+    /* Without textures in the context: shade_plan_make would look the copy up among the scene's
+     * materials by address. */
+    shade_context sc = j->sc;
+    sc.tex = NULL;
+    shade_plan_make(&sc, vm, vp);
     for (int k = 0; k < MAT_TEX_SLOTS; k++)
         vp->tex[k] = j->plans[obj].tex[k];
     vp->textured = j->plans[obj].textured;
