@@ -18,6 +18,7 @@
 #include <cmocka.h>
 
 #include "renderers/cycles/cycles.h"
+#include "fileio.h"
 #include "mesh.h"
 #include "renderers/povray/povray.h"
 #include "renderers/registry.h"
@@ -346,10 +347,32 @@ static void test_vertex_colour_sources(void **state)
             assert_int_equal(povray_write_scene(s, &m, &po, "/tmp/reflcheck_mesh_vc.pov", err, sizeof err),
                              RC_ERR_RANGE);
             assert_non_null(strstr(err, "vertex colours"));
-            cycles_options co = {.width = 4, .height = 4};
+            cycles_options co = {.width = 4, .height = 4, .role = ROLE_VALIDATE};
             assert_int_equal(cycles_write_job(s, &m, &co, "/tmp/reflcheck_mesh_vc.json", err, sizeof err),
                              RC_ERR_RANGE);
             assert_non_null(strstr(err, "vertex colours"));
+            /* The twins take the diffuse source alone from the vertex (case 0: a colour attribute
+             * for Cycles, a texture_list for POV-Ray); specular or emissive from it (case 2) is
+             * refused. Cycles is partial here: no Blinn lobe. */
+            co.role = ROLE_TWIN;
+            co.partial = 1;
+            po.role = ROLE_TWIN;
+            /* Gouraud (case 3) has no twin at all. */
+            rc_status want =
+                cases[k].dif == COLOUR_SOURCE_COLOUR1 && cases[k].spec != COLOUR_SOURCE_COLOUR1 && !cases[k].per_vertex
+                    ? RC_OK
+                    : RC_ERR_RANGE;
+            if (cycles_write_job(s, &m, &co, "/tmp/reflcheck_mesh_vc.json", err, sizeof err) != want)
+                fail_msg("case %zu cycles twin: %s", k, err);
+            if (want == RC_OK) {
+                char *json = fileio_read_all("/tmp/reflcheck_mesh_vc.json", NULL);
+                assert_non_null(json);
+                assert_non_null(strstr(json, "\"vertex_colour\""));
+                assert_non_null(strstr(json, "\"colours\""));
+                free(json);
+            }
+            if (povray_write_scene(s, &m, &po, "/tmp/reflcheck_mesh_vc.pov", err, sizeof err) != want)
+                fail_msg("case %zu povray twin: %s", k, err);
             renderer_job ej = {.s = s, .m = &m, .role = ROLE_VALIDATE, .exr = "/tmp/reflcheck_mesh_vc.exr"};
             renderer_result er = {0};
             registry_row(registry_find("exact"))->render(&ej, &er);

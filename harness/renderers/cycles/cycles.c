@@ -17,6 +17,7 @@
 #include <cJSON.h>
 
 #include "formula.h"
+#include "d3d.h"
 #include "d3d9client.h"
 #include "exr.h"
 #include "fileio.h"
@@ -379,6 +380,23 @@ static rc_status cycles_write_textures(cycles_ctx *c, jw *w, cJSON *o, int mi)
     return RC_OK;
 }
 
+/* Whether material mi's twin takes its diffuse colour from the vertices (a colour attribute,
+ * interpolated across each face as the rasterizer interpolates it per pixel): model d3d,
+ * colour_vertex, diffuse_source colour1 and no other source from the vertex. */
+static int cycles_vertex_diffuse(const scene *s, const mesh *m, int mi, int twin)
+{
+    const material *mat = &s->materials[mi];
+    if (!twin || !mesh_material_vertex_coloured(s, m, mi) || mat->d3d.diffuse_source != COLOUR_SOURCE_COLOUR1)
+        return 0;
+    unsigned have = 0;
+    for (int i = 0; i < s->n_objects && i < SCENE_MAX_OBJECTS; i++)
+        if (s->objects[i].material == mi)
+            have |= m->colours[i];
+    d3d_params rest = mat->d3d;
+    rest.diffuse_source = COLOUR_SOURCE_MATERIAL;
+    return !d3d_uses_vertex_colours(&rest, have);
+}
+
 static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, int mi, cycles_usage *u)
 {
     const scene *s = c->s;
@@ -461,7 +479,13 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     }
 
     switch (mat->model) {
-    case MODEL_D3D: jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.d3d.diffuse", d->diffuse); break;
+    case MODEL_D3D: {
+        cJSON *dif = jw_obj(w, o, "diffuse");
+        jw_put_vec(w, dif, "color", "materials.d3d.diffuse", d->diffuse);
+        if (cycles_vertex_diffuse(s, c->m, mi, c->twin))
+            jw_put_bool(w, dif, "vertex_colour", 1);
+        break;
+    }
     case MODEL_D3D9CLIENT: {
         const d3d9client_params *p = &mat->d9;
         /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
@@ -558,7 +582,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
 }
 
-static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const mesh *m, int *remap)
+static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const mesh *m, int *remap, int twin)
 {
     for (int oi = 0; oi < s->n_objects && !w->nomem; oi++) {
         int n_tris = 0, n_verts = 0;
@@ -588,6 +612,16 @@ static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const me
         jw_put_flat(w, o, "verts", "mesh.pos", m->pos, order, n_verts);
         jw_put_flat(w, o, "normals", "mesh.nrm", m->nrm, order, n_verts);
         const material *mat = &s->materials[s->objects[oi].material];
+        if (cycles_vertex_diffuse(s, m, s->objects[oi].material, twin)) {
+            /* An object without colour1 keeps the material's diffuse colour (model/d3d.h). */
+            cJSON *col = jw_arr(w, o, "colours");
+            for (int i = 0; i < n_verts && !w->nomem; i++) {
+                vec3 cv = (m->colours[oi] & 1u) ? m->col1[order[i]] : mat->d3d.diffuse;
+                jw_push_num(w, col, "mesh.col1", cv.x);
+                jw_push_num(w, col, "mesh.col1", cv.y);
+                jw_push_num(w, col, "mesh.col1", cv.z);
+            }
+        }
         int textured = 0;
         for (int k = 0; k < MAT_TEX_SLOTS; k++)
             textured |= mat->texture[k][0] != '\0';
@@ -656,11 +690,13 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
             }
     }
     for (int mi = 0; mi < s->n_materials; mi++)
-        if (mesh_material_vertex_coloured(s, m, mi)) {
-            status_message(err, errlen,
-                           "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex) are not translated to "
-                           "Cycles (no colour attribute is written); set colour_vertex false",
-                           s->path, mi, s->materials[mi].name);
+        if (mesh_material_vertex_coloured(s, m, mi) && !cycles_vertex_diffuse(s, m, mi, c.twin)) {
+            status_message(err, errlen, "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex): %s; %s",
+                           s->path, mi, s->materials[mi].name,
+                           c.twin ? "Cycles' twin takes the diffuse colour alone from the vertex (diffuse_source "
+                                    "colour1)"
+                                  : "a validate renders the physics, which has no vertex colours",
+                           c.twin ? "select the material for the others" : "set colour_vertex false");
             return RC_ERR_RANGE;
         }
     rc_status rc;
@@ -789,7 +825,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     }
     for (int i = 0; i < m->n_verts; i++)
         remap[i] = -1;
-    cycles_write_objects(&w, objects, s, m, remap);
+    cycles_write_objects(&w, objects, s, m, remap, c.twin);
     free(remap);
     if (w.bad) {
         cJSON_Delete(doc);

@@ -420,9 +420,16 @@ def build_material(i, spec, env):
             factor = t if factor is None else e.mul(factor, t)
         n = nt.nodes.new('ShaderNodeBsdfDiffuse')
         n.inputs['Roughness'].default_value = 0.0
-        set_colour(
-            n.inputs['Color'], textured(colour_times(need(d, "color", where + ".diffuse"), factor), d.get("texture"))
-        )
+        colour = colour_times(need(d, "color", where + ".diffuse"), factor)
+        if d.get("vertex_colour"):
+            # D3D's diffuse from the vertex colours (the objects' "Col" attribute, point domain:
+            # interpolated across each face); the translator sends it without a factor.
+            if factor is not None:
+                raise JobError("%s.diffuse: vertex_colour with a factor is not translated" % where)
+            attr = nt.nodes.new('ShaderNodeAttribute')
+            attr.attribute_name = "Col"
+            colour = attr.outputs['Color']
+        set_colour(n.inputs['Color'], textured(colour, d.get("texture")))
         shaders.append(n.outputs[0])
 
     g = spec.get("glossy")
@@ -502,6 +509,15 @@ def setup_objects(job, materials):
             for k in vi:
                 flat += (uvs[2 * k], uvs[2 * k + 1])
             layer.data.foreach_set("uv", flat)
+        colours = o.get("colours")
+        if colours is not None:
+            if len(colours) != len(v):
+                raise JobError("%s: colours must hold one (r, g, b) per vertex" % where)
+            attr = me.color_attributes.new(name="Col", type='FLOAT_COLOR', domain='POINT')
+            flat = []
+            for k in range(len(verts)):
+                flat += (colours[3 * k], colours[3 * k + 1], colours[3 * k + 2], 1.0)
+            attr.data.foreach_set("color", flat)
         mi = int(need(o, "material", where))
         if mi < 0 or mi >= len(materials):
             raise JobError("%s: material %d out of range" % (where, mi))
