@@ -378,6 +378,18 @@ static void test_vertex_colour_sources(void **state)
             registry_row(registry_find("exact"))->render(&ej, &er);
             assert_int_equal(er.status, RUNNER_MISSING);
             assert_non_null(strstr(er.message, "vertex colours"));
+            for (int role = 0; role < 2; role++) {
+                renderer_job vj = {.s = s,
+                                   .m = &m,
+                                   .role = role ? ROLE_VALIDATE : ROLE_TWIN,
+                                   .dir = "/tmp",
+                                   .exr = "/tmp/reflcheck_mesh_vc.exr"};
+                renderer_result vr = {0};
+                registry_row(registry_find("eevee"))->render(&vj, &vr);
+                assert_int_equal(vr.status, RUNNER_MISSING);
+                if (role == 0 && strstr(vr.message, "vertex colours") == NULL)
+                    fail_msg("eevee twin: %s", vr.message);
+            }
         }
         mesh_free(&m);
     }

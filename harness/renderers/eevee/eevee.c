@@ -220,6 +220,15 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
         renderer_fail(r, RUNNER_MISSING, "eevee cannot twin this scene: %s", why);
         return;
     }
+    for (int mi = 0; mi < j->s->n_materials; mi++)
+        if (mesh_material_vertex_coloured(j->s, j->m, mi)) {
+            /* cycles_write_job would send the colour attribute; eevee_render.py does not read it. */
+            renderer_fail(r, RUNNER_MISSING,
+                          "eevee cannot represent this scene: materials[%d] '%s': D3D vertex colours "
+                          "(d3d.colour_vertex) are not translated to EEVEE; set colour_vertex false",
+                          mi, j->s->materials[mi].name);
+            return;
+        }
     if (j->role != ROLE_TWIN && eevee_physics_refused(j->s, why, sizeof why)) {
         renderer_fail(r, RUNNER_MISSING, "eevee cannot render this scene's physics: %s", why);
         return;
