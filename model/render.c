@@ -1,13 +1,9 @@
-/* madvise (huge pages for the layers) is not in POSIX. */
-#define _DEFAULT_SOURCE 1
-
 #include "render.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #include <time.h>
 
 #include "d3d.h"
@@ -666,28 +662,6 @@ void render_image_free(render_image *img)
     }
 }
 
-/* Layers of 2 MiB or more sit on transparent huge pages where the kernel offers them
- * (madvise): a 1024 x 1024 frame's 11 layers otherwise take 11,000 page faults, each zeroing
- * 4 KiB, on first touch. They are not zeroed here: the draw writes every pixel of every layer
- * (render_tile, once per tile, and the tiles cover the image), and a failed draw frees them.
- * The memory is free()d like any other. */
-#define RENDER_HUGE_PAGE ((size_t)2 << 20)
-static float *render_layer_alloc(size_t n)
-{
-    size_t bytes = n * sizeof(float);
-#if defined(MADV_HUGEPAGE)
-    if (bytes >= RENDER_HUGE_PAGE) {
-        void *p = NULL;
-        if (posix_memalign(&p, RENDER_HUGE_PAGE, bytes) != 0)
-            return NULL;
-        /* Only advice: without huge pages the layer is as calloc's. */
-        (void)madvise(p, bytes, MADV_HUGEPAGE);
-        return p;
-    }
-#endif
-    return calloc(n, sizeof(float));
-}
-
 static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_t errlen)
 {
     size_t n = (size_t)out->width * (size_t)out->height;
@@ -695,7 +669,7 @@ static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_
         int a = c - RENDER_DIFFUSE_R;
         if (a >= 0 && c < RENDER_COVERAGE && !(aovs & (1u << (a / 3))))
             continue;
-        out->chan[c] = render_layer_alloc(n);
+        out->chan[c] = calloc(n, sizeof(float));
         if (out->chan[c] == NULL) {
             render_image_free(out);
             snprintf(err, errlen, "render: out of memory for a %dx%d image; render smaller", out->width, out->height);
