@@ -320,40 +320,52 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
         return;
     const dvec3 sum = at->sum, f1 = at->f1, f2 = at->f2;
     for (int64_t sy = sy0; sy <= sy1; sy++) {
-        int64_t e0 = e_row[0], e1 = e_row[1], e2 = e_row[2];
+        /* The row's covered samples are one interval (each edge function is linear along the
+         * row): found exactly from the three edge values at sx0, e + step x >= 0, instead of
+         * testing every sample of the bounding box. */
+        int64_t lo = 0, hi = sx1 - sx0;
+        for (int i = 0; i < 3 && lo <= hi; i++) {
+            const int64_t e = e_row[i], st = step_x[i];
+            if (st > 0 && e < 0) {
+                int64_t m = raster_ceil_div(-e, st);
+                lo = m > lo ? m : lo;
+            } else if (st < 0) {
+                int64_t m = e < 0 ? -1 : raster_floor_div(e, -st);
+                hi = m < hi ? m : hi;
+            } else if (st == 0 && e < 0) {
+                hi = -1;
+            }
+        }
         for (int i = 0; i < 3; i++)
             e_row[i] += step_y[i];
+        if (lo > hi)
+            continue;
         raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
         double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
         double v = tg->v[sy - tg->sy0];
         double iw_row = sum.y * v + sum.z, f1_row = f1.y * v + f1.z, f2_row = f2.y * v + f2.z;
-        for (int64_t sx = sx0 - tg->sx0; sx <= sx1 - tg->sx0; sx++) {
-            if ((e0 | e1 | e2) >= 0) {
-                double u = tg->u[sx];
-                double iw = sum.x * u + iw_row;
-                /* Strictly greater: on an exact tie the earlier (lower) index stays. */
-                if (iw > drow[sx]) {
-                    double r = 1.0 / iw;
-                    double b1 = (f1.x * u + f1_row) * r;
-                    double b2 = (f2.x * u + f2_row) * r;
-                    /* Snapping may admit samples up to 1/512 sample spacing outside the
-                     * true triangle; keep their weights on the triangle. */
-                    b1 = b1 < 0.0 ? 0.0 : b1 > 1.0 ? 1.0 : b1;
-                    b2 = b2 < 0.0 ? 0.0 : b2 > 1.0 ? 1.0 : b2;
-                    if (b1 + b2 > 1.0) {
-                        double s = 1.0 / (b1 + b2);
-                        b1 *= s;
-                        b2 *= s;
-                    }
-                    drow[sx] = iw;
-                    srow[sx].tri = (int32_t)t;
-                    srow[sx].b1 = (float)b1;
-                    srow[sx].b2 = (float)b2;
+        for (int64_t sx = sx0 - tg->sx0 + lo; sx <= sx0 - tg->sx0 + hi; sx++) {
+            double u = tg->u[sx];
+            double iw = sum.x * u + iw_row;
+            /* Strictly greater: on an exact tie the earlier (lower) index stays. */
+            if (iw > drow[sx]) {
+                double r = 1.0 / iw;
+                double b1 = (f1.x * u + f1_row) * r;
+                double b2 = (f2.x * u + f2_row) * r;
+                /* Snapping may admit samples up to 1/512 sample spacing outside the
+                 * true triangle; keep their weights on the triangle. */
+                b1 = b1 < 0.0 ? 0.0 : b1 > 1.0 ? 1.0 : b1;
+                b2 = b2 < 0.0 ? 0.0 : b2 > 1.0 ? 1.0 : b2;
+                if (b1 + b2 > 1.0) {
+                    double s = 1.0 / (b1 + b2);
+                    b1 *= s;
+                    b2 *= s;
                 }
+                drow[sx] = iw;
+                srow[sx].tri = (int32_t)t;
+                srow[sx].b1 = (float)b1;
+                srow[sx].b2 = (float)b2;
             }
-            e0 += step_x[0];
-            e1 += step_x[1];
-            e2 += step_x[2];
         }
     }
 }
