@@ -21,7 +21,7 @@ pkgs+=(libnlopt-dev)
 registry="$(dirname "$0")/renderers/registry.c"
 renderer_pkgs=$(sed -n 's/.*\.package = "\([a-z0-9.+-]*\)".*/\1/p' "$registry")
 [ -n "$renderer_pkgs" ] || { echo "reflcheck: deps: no renderer packages found in $registry" >&2; exit 1; }
-for p in $renderer_pkgs; do pkgs+=("$p"); done
+for p in $(printf "%s\n" $renderer_pkgs | sort -u); do pkgs+=("$p"); done
 
 missing=()
 for p in "${pkgs[@]}"; do
