@@ -56,7 +56,8 @@ fi
 CACHE=$work/cache-slurm RUN_ID=slurm2 SCHEDULER=slurm bash harness/nightly.sh > "$work/slurm2.log" 2>&1
 st=$?
 n_cached=$(grep -l '"cached":[[:space:]]*true' "$work"/runs/slurm2/*/*.json 2>/dev/null | wc -l)
-n_records=$(ls "$work"/runs/slurm2/*/*-*.json 2>/dev/null | grep -vc compare)
+# Job records name their renderer; compare.json and the fit files do not.
+n_records=$(grep -l '"renderer"' "$work"/runs/slurm2/*/*.json 2>/dev/null | wc -l)
 [ $st -eq 0 ] && [ "$n_cached" -eq "$n_records" ] && [ "$n_records" -gt 0 ] &&
     ok "second Slurm run: all $n_records jobs from the cache" ||
     bad "second Slurm run: exit $st, $n_cached of $n_records jobs cached; see $work/slurm2.log"
