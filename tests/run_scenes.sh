@@ -8,10 +8,11 @@ build=${1:-build}
 bin=$build/reflcheck
 run=${RUN_DIR:-$build/test-run}
 scenes=${SCENES:-$(ls scenes/*.yaml)}
+cache=${CACHE:-$build/cache}
 rm -rf "$run"
 mkdir -p "$run"
 # shellcheck disable=SC2086
-"$bin" plan $scenes --out "$run" --cache "$build/cache" --small --bin "$bin" > "$run/jobs.mk" || exit 2
+"$bin" plan $scenes --out "$run" --cache "$cache" --small --bin "$bin" > "$run/jobs.mk" || exit 2
 make -s -k -j"${JOBS:-2}" -f "$run/jobs.mk" all
 pass=0; fail=0
 for s in $scenes; do
