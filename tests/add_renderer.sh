@@ -5,11 +5,14 @@
 # and deps.sh know it, and that no other file changed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-work=${1:-build}/add-renderer
+build=${1:-build}
+work=$build/add-renderer
 rm -rf "$work"
 mkdir -p "$work/orig"
 cp -r model harness scenes tests Makefile "$work/orig"/
-cp -r "$work/orig" "$work/tree"
+# The tree to change, with the build's objects, so its build compiles only the new renderer.
+. tests/scratch_tree.sh
+scratch_tree "$work/tree" "$build" || { echo "add-renderer: copying the tree failed" >&2; exit 1; }
 t=$work/tree
 fail() { echo "add-renderer: $*" >&2; echo "add-renderer: 0 passed, 1 failed"; exit 1; }
 
@@ -54,7 +57,7 @@ sed -i 's|^#include "raster/raster_render.h"$|&\n#include "fake/fake.h"|' "$reg"
 sed -i 's|^static const renderer_row registry_rows\[\] = {$|&\n    {.name = "fake", .title = "a grey image", .version = "fake 1", .package = "fake-pkg", .render = fake_render_job},|' "$reg"
 grep -q 'fake_render_job}' "$reg" || fail "the row was not added to registry.c; update this test"
 
-changed=$(cd "$work" && diff -rq orig tree | sed -e 's|^Files orig/\([^ ]*\) and .*|\1|' -e 's|^Only in tree/\(.*\): \(.*\)|\1/\2|')
+changed=$(cd "$work" && diff -rq -x build orig tree | sed -e 's|^Files orig/\([^ ]*\) and .*|\1|' -e 's|^Only in tree/\(.*\): \(.*\)|\1/\2|')
 [ "$(printf '%s\n' "$changed" | sort)" = "$(printf 'harness/renderers/fake\nharness/renderers/registry.c')" ] ||
     fail "files touched: $changed"
 make -s -C "$t" BUILD=build build/reflcheck >/dev/null 2>"$work/build.log" || fail "build failed: see $work/build.log"

@@ -14,8 +14,9 @@ done | sort | tr '\n' ' ' | sed 's/ $//')
 [ -n "$expected" ] || { echo "mutant: no scene uses the D3D9Client Fresnel; update this test" >&2; exit 1; }
 
 rm -rf "$work"
-mkdir -p "$work"
-cp -r model harness scenes tests Makefile "$work"/
+# With the build's objects: only what includes formula.h compiles again.
+. tests/scratch_tree.sh
+scratch_tree "$work" "${1:-build}" || { echo "mutant: copying the tree failed" >&2; exit 1; }
 # formula_d3d9_power (model/formula.h) is the one definition of the exponent: every instance
 # of it (the scalar model's double, the SIMD kernels' float, the long-double check) is compiled
 # from that line.
