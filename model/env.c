@@ -21,22 +21,109 @@ void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty)
 
 rc_status env_check(const env_map *e, env_texel_check *out)
 {
-    const env_texel none = {-1, -1, -1, 0.0f};
+    const env_texel none = {-1, -1, -1, -1, 0.0f};
     *out = (env_texel_check){0, 0, none, none};
-    if (e == NULL || e->kind != ENV_IMAGE || e->rgb == NULL || e->width <= 0 || e->height <= 0)
+    if (e == NULL || (e->kind != ENV_IMAGE && e->kind != ENV_CUBE) || e->rgb == NULL || e->width <= 0 ||
+        e->height <= 0)
         return RC_OK;
-    for (int y = 0; y < e->height; y++)
+    /* A cube's faces lie one below the other: row y of the whole is row y % N of face y / N. */
+    int faces = e->kind == ENV_CUBE ? 6 : 1;
+    for (int y = 0; y < faces * e->height; y++)
         for (int x = 0; x < e->width; x++)
             for (int c = 0; c < 3; c++) {
                 float v = e->rgb[3 * ((size_t)y * (size_t)e->width + (size_t)x) + (size_t)c];
+                int face = e->kind == ENV_CUBE ? y / e->height : -1, row = y % e->height;
                 if (!isfinite(v)) {
                     if (out->n_nonfinite++ == 0)
-                        out->first_nonfinite = (env_texel){x, y, c, v};
+                        out->first_nonfinite = (env_texel){x, row, c, face, v};
                 } else if (v < 0.0f && out->n_negative++ == 0) {
-                    out->first_negative = (env_texel){x, y, c, v};
+                    out->first_negative = (env_texel){x, row, c, face, v};
                 }
             }
     return out->n_nonfinite > 0 || out->n_negative > 0 ? RC_ERR_RANGE : RC_OK;
+}
+
+const char *const env_cube_face_names[6] = {"+X", "-X", "+Y", "-Y", "+Z", "-Z"};
+
+/* The D3D face selection and face coordinates (env.h's table), written with selects only so
+ * that env_lookup_n's lane loop if-converts it; (x, y, z) canonical, not necessarily unit. */
+static inline int env_cube_face_st(float x, float y, float z, float *s, float *t)
+{
+    float dz = -z; /* D3D's left-handed Z */
+    float ax = fabsf(x), ay = fabsf(y), az = fabsf(dz);
+    int is_x = (ax >= ay) & (ax >= az), is_y = !is_x & (ay >= az);
+    int face = is_x ? (x > 0.0f ? 0 : 1) : is_y ? (y > 0.0f ? 2 : 3) : (dz > 0.0f ? 4 : 5);
+    float ma = is_x ? ax : is_y ? ay : az;
+    float sc = face == 0 ? -dz : face == 1 ? dz : face == 5 ? -x : x;
+    float tc = face == 2 ? dz : face == 3 ? -dz : -y;
+    /* A zero direction has no major axis: any in-range answer will do (the callers zero it). */
+    float inv = ma > 0.0f ? 0.5f / ma : 0.0f;
+    /* fminf/fmaxf also send a NaN to 0: every index stays inside the face whatever the input. */
+    *s = fminf(fmaxf(sc * inv + 0.5f, 0.0f), 1.0f);
+    *t = fminf(fmaxf(tc * inv + 0.5f, 0.0f), 1.0f);
+    return face;
+}
+
+int env_cube_coords(vec3 dir, float *s, float *t)
+{
+    return env_cube_face_st(dir.x, dir.y, dir.z, s, t);
+}
+
+vec3 env_cube_direction(int face, float s, float t)
+{
+    float sc = 2.0f * s - 1.0f, tc = 2.0f * t - 1.0f;
+    /* The table read backwards, in D3D (X, Y, Z) with |ma| = 1. */
+    vec3 d;
+    switch (face) {
+    case 0: d = v3(1.0f, -tc, -sc); break;
+    case 1: d = v3(-1.0f, -tc, sc); break;
+    case 2: d = v3(sc, 1.0f, tc); break;
+    case 3: d = v3(sc, -1.0f, -tc); break;
+    case 4: d = v3(sc, -tc, 1.0f); break;
+    default: d = v3(-sc, -tc, -1.0f); break;
+    }
+    d.z = -d.z; /* back to canonical */
+    return v3_norm(d);
+}
+
+/* One cube lookup (unscaled): the face and (s, t) of env_cube_face_st, then bilinear between
+ * the four nearest texel centres of that face, indices clamped to it. Both lookups call it. */
+static inline void env_cube_sample(const float *restrict rgb, int n, float x, float y, float z, float *r, float *g,
+                                   float *b)
+{
+    float s, t;
+    int face = env_cube_face_st(x, y, z, &s, &t);
+    float fx = s * (float)n - 0.5f, fy = t * (float)n - 0.5f;
+    /* fx, fy >= -0.5: truncating fx + 1 is floor(fx) + 1 without a libm floorf. */
+    int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;
+    float ax = fx - (float)x0, ay = fy - (float)y0;
+    int x1 = x0 + 1, y1 = y0 + 1;
+    x0 = x0 < 0 ? 0 : (x0 >= n ? n - 1 : x0);
+    x1 = x1 < 0 ? 0 : (x1 >= n ? n - 1 : x1);
+    y0 = y0 < 0 ? 0 : (y0 >= n ? n - 1 : y0);
+    y1 = y1 < 0 ? 0 : (y1 >= n ? n - 1 : y1);
+    int base = face * n;
+    int o00 = 3 * ((base + y0) * n + x0), o01 = 3 * ((base + y0) * n + x1);
+    int o10 = 3 * ((base + y1) * n + x0), o11 = 3 * ((base + y1) * n + x1);
+    float bx = 1.0f - ax, by = 1.0f - ay;
+    *r = by * (bx * rgb[o00] + ax * rgb[o01]) + ay * (bx * rgb[o10] + ax * rgb[o11]);
+    *g = by * (bx * rgb[o00 + 1] + ax * rgb[o01 + 1]) + ay * (bx * rgb[o10 + 1] + ax * rgb[o11 + 1]);
+    *b = by * (bx * rgb[o00 + 2] + ax * rgb[o01 + 2]) + ay * (bx * rgb[o10 + 2] + ax * rgb[o11 + 2]);
+}
+
+void env_cube_to_equirect(const env_map *cube, int width, int height, float *rgb)
+{
+    const double pi = FORMULA_PI_D;
+    for (int j = 0; j < height; j++) {
+        /* Row j's centre: v = 1 - (j + 0.5)/H, latitude (v - 0.5) pi (env.h). */
+        double lat = pi * (0.5 - ((double)j + 0.5) / height);
+        for (int i = 0; i < width; i++) {
+            double phi = 2.0 * pi * (((double)i + 0.5) / width - 0.5);
+            float *p = rgb + 3 * ((size_t)j * (size_t)width + (size_t)i);
+            env_cube_sample(cube->rgb, cube->width, (float)(cos(lat) * cos(phi)), (float)sin(lat),
+                            (float)(cos(lat) * sin(phi)), &p[0], &p[1], &p[2]);
+        }
+    }
 }
 
 static vec3 env_texel_rgb(const env_map *e, int x, int y)
@@ -52,6 +139,11 @@ vec3 env_lookup(const env_map *e, vec3 dir)
         return v3s(0.0f);
     if (e->kind == ENV_CONSTANT || e->rgb == NULL || e->width <= 0 || e->height <= 0)
         return e->kind == ENV_CONSTANT ? e->constant : v3s(0.0f);
+    if (e->kind == ENV_CUBE) {
+        vec3 c;
+        env_cube_sample(e->rgb, e->width, dir.x, dir.y, dir.z, &c.x, &c.y, &c.z);
+        return v3_mul(c, e->scale);
+    }
 
     float tx, ty;
     env_direction_to_texel(e, dir, &tx, &ty);
@@ -92,6 +184,19 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
     const float fw = (float)w, fh = (float)h;
     const float *restrict rgb = e->rgb;
     const vec3 scale = e->scale;
+    if (e->kind == ENV_CUBE) {
+#pragma omp simd
+        for (int i = 0; i < n; i++) {
+            int zero = (dx[i] == 0.0f) & (dy[i] == 0.0f) & (dz[i] == 0.0f);
+            float cr, cg, cb;
+            env_cube_sample(rgb, w, dx[i], dy[i], dz[i], &cr, &cg, &cb);
+            vec3 k = zero ? v3s(0.0f) : scale;
+            r[i] = cr * k.x;
+            g[i] = cg * k.y;
+            b[i] = cb * k.z;
+        }
+        return;
+    }
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         float x = dx[i], y = dy[i], z = dz[i];

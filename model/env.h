@@ -1,7 +1,9 @@
-/* env.h - environment radiance: a constant, or an equirectangular image with bilinear lookup.
+/* env.h - environment radiance: a constant, an equirectangular image or a Direct3D cube map,
+ * with bilinear lookup.
  *
  * Usage:
  *   env_map e = {.kind = ENV_IMAGE, .width = W, .height = H, .rgb = pixels, .scale = v3s(1)};
+ *   env_map c = {.kind = ENV_CUBE, .width = N, .height = N, .rgb = faces, .scale = v3s(1)};
  *   vec3 L = env_lookup(&e, dir);     dir: any non-zero canonical direction (normalised inside)
  *   env_texel_check chk;
  *   if (env_check(&e, &chk) != RC_OK) ...  chk.n_nonfinite, chk.n_negative, chk.first_nonfinite.x ...
@@ -9,6 +11,18 @@
  * u = 0.5 + atan2(z, x)/(2 pi) (to the right) and v = 0.5 + asin(y)/pi (up; image row 0 is the
  * top); texel centres at (i + 0.5)/W, bilinear, wrapping in u and clamping in v.
  * rgb is interleaved R, G, B floats, row 0 at the top; the map does not own it.
+ * Cube maps (ENV_CUBE): six square N x N faces one after the other in rgb, in D3DCUBEMAP_FACES
+ * order (+X, -X, +Y, -Y, +Z, -Z), each row 0 at the top (texture v = 0). Our canonical frame is
+ * right-handed with +Y up, Direct3D's left-handed with +Y up: a canonical direction (x, y, z) is
+ * the D3D direction (X, Y, Z) = (x, y, -z) (the usual right- to left-handed change, which
+ * D3DXMatrixLookAtRH vs LH also makes), so the +Z face is what a camera looking down canonical -z
+ * sees, +x to its right. The face is the D3D major axis (largest |X|, |Y|, |Z|; ties go to X,
+ * then Y), and on it, from the D3DCUBEMAP_FACES table (sc, tc, ma):
+ *   +X: -Z, -Y, X   -X: +Z, -Y, X   +Y: +X, +Z, Y   -Y: +X, -Z, Y   +Z: +X, -Y, Z   -Z: -X, -Y, Z
+ * s = (sc/|ma| + 1)/2 to the right, t = (tc/|ma| + 1)/2 down; texel centres at (i + 0.5)/N;
+ * bilinear within the face, clamped at its edge (D3DTADDRESS_CLAMP, D3D9 without seamless cube
+ * filtering): the last half texel of a face repeats its edge texel, so radiance jumps at the
+ * seams between faces. That seam is part of the approximation being judged, not smoothed away.
  * ENV_NONE gives zero radiance; a zero direction gives zero radiance.
  * Radiance is finite and >= 0: a NaN, Inf or negative texel would spread through the bilinear
  * lookup into every pixel that reflects it, so images are checked once with env_check before
@@ -30,6 +44,7 @@ typedef struct {
 
 typedef struct {
     int x, y, channel; /* texel column, row (0 at the top), channel (0 R, 1 G, 2 B); -1 if none */
+    int face;          /* cube face (D3DCUBEMAP_FACES order, y within it); -1 for other maps */
     float value;
 } env_texel;
 
@@ -40,7 +55,7 @@ typedef struct {
     env_texel first_negative;
 } env_texel_check;
 
-/* Counts the non-finite and negative values of an ENV_IMAGE map's texels into out. Returns
+/* Counts the non-finite and negative values of an ENV_IMAGE or ENV_CUBE map's texels into out. Returns
  * RC_OK when there are none (and for ENV_NONE and ENV_CONSTANT, whose radiance the scene
  * parser has checked), RC_ERR_RANGE otherwise. */
 rc_status env_check(const env_map *e, env_texel_check *out);
@@ -78,5 +93,21 @@ rc_status env_extract_sun(float *rgb, int width, int height, vec3 scale, float l
 
 /* The image coordinates (in texels, x right, y down from the top edge) of a direction. */
 void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty);
+
+/* The face names of a cube map in D3DCUBEMAP_FACES order: "+X", "-X", "+Y", "-Y", "+Z", "-Z". */
+extern const char *const env_cube_face_names[6];
+/* The face (D3DCUBEMAP_FACES order) and face coordinates s (right), t (down), both in [0, 1],
+ * of a canonical direction: the one formula both lookups use. A zero or non-finite direction
+ * gives a face and s, t inside [0, 1] (meaningless but never out of bounds). */
+int env_cube_coords(vec3 dir, float *s, float *t);
+/* The canonical unit direction through face coordinates (s, t) of a face: env_cube_coords'
+ * inverse (for generators and tests). */
+vec3 env_cube_direction(int face, float s, float t);
+/* An ENV_CUBE map resampled as an equirectangular image (width x height, interleaved RGB, row 0
+ * at the top, the ENV_IMAGE orientation above): each texel is the cube lookup in the direction
+ * of the texel's centre, without the scale. An exact conversion at the texel centres; a renderer
+ * that interpolates it bilinearly departs from the cube lookup between them (most at the seams),
+ * by less the larger the image (README "Cube maps" measures it). */
+void env_cube_to_equirect(const env_map *cube, int width, int height, float *rgb);
 
 #endif

@@ -183,7 +183,7 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     } else if (env && ph->env_specular) {
         p->terms |= SHADE_TERM_REFLECTION;
     }
-    if (diffuse && env && ph->env_diffuse && c->env->kind == ENV_IMAGE) {
+    if (diffuse && env && ph->env_diffuse && c->env->kind != ENV_CONSTANT) {
         snprintf(why, whylen,
                  "material '%s': an environment image lighting the diffuse (physics env_diffuse: true) needs an "
                  "integral over it; the exact reference renders a constant environment on the diffuse only",

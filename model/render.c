@@ -716,8 +716,8 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
     for (int i = 0; opt->textures != NULL && i < s->n_materials; i++)
         for (int t = 0; t < MAT_TEX_SLOTS; t++)
             total += (double)opt->textures->map[i][t].width * opt->textures->map[i][t].height * 4.0 * sizeof(float);
-    if (env != NULL && env->kind == ENV_IMAGE)
-        total += (double)env->width * env->height * 3.0 * sizeof(float);
+    if (env != NULL && (env->kind == ENV_IMAGE || env->kind == ENV_CUBE))
+        total += (env->kind == ENV_CUBE ? 6.0 : 1.0) * env->width * env->height * 3.0 * sizeof(float);
     /* Projected vertices (and Gouraud terms at most one per vertex); the rasterizer's tile
      * range per triangle and its bins, counting each triangle in one tile (small triangles,
      * the common case; a large one adds 4 bytes per further tile); its chunk bookkeeping is

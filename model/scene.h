@@ -38,12 +38,16 @@ typedef struct {
     spot_profile profile;
 } light;
 
-typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE } env_kind;
+/* ENV_CUBE: a Direct3D cube map (model/env.h gives its orientation and filtering). */
+typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE, ENV_CUBE } env_kind;
 
 typedef struct {
     env_kind kind;
     vec3 radiance;             /* constant radiance, or scale for the image (default 1) */
-    char path[SCENE_PATH_MAX]; /* equirectangular linear EXR, resolved relative to the scene file */
+    char path[SCENE_PATH_MAX]; /* equirectangular linear EXR, or a cube map's 4 x 3 cross; resolved
+                                  relative to the scene file */
+    char cube[6][SCENE_PATH_MAX]; /* cube map: its six face images in D3DCUBEMAP_FACES order
+                                     (+X, -X, +Y, -Y, +Z, -Z); all empty when path is a cross */
     float sun_threshold;       /* image: > 0 moves the sun (texels of luminance above it, scale applied)
                                   into a sun light appended to the lights (model/env.h env_extract_sun);
                                   0 = off (default) */
