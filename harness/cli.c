@@ -139,6 +139,8 @@ int cli_check(int argc, char **argv)
         char envs[64] = "";
         if (s->env.kind == ENV_IMAGE)
             snprintf(envs, sizeof envs, ", environment %dx%d", env.width, env.height);
+        else if (s->env.kind == ENV_CUBE)
+            snprintf(envs, sizeof envs, ", cube map 6 x %dx%d", env.width, env.height);
         printf("%s: ok: %d objects, %d triangles, %d lights, %d materials%s\n", argv[1], s->n_objects, m.n_tris,
                s->n_lights, s->n_materials, envs);
     }

@@ -21,10 +21,16 @@ static int cli_render_check_inputs(const char *out, const scene *s)
     if (fileio_same_file(out, s->path)) {
         what = "the scene file";
         input = s->path;
-    } else if (s->env.kind == ENV_IMAGE && fileio_same_file(out, s->env.path)) {
+    } else if ((s->env.kind == ENV_IMAGE || s->env.kind == ENV_CUBE) && s->env.path[0] != '\0' &&
+               fileio_same_file(out, s->env.path)) {
         what = "the environment image";
         input = s->env.path;
     }
+    for (int f = 0; what == NULL && s->env.kind == ENV_CUBE && f < 6; f++)
+        if (s->env.cube[f][0] != '\0' && fileio_same_file(out, s->env.cube[f])) {
+            what = "a cube-map face of the scene";
+            input = s->env.cube[f];
+        }
     for (int i = 0; what == NULL && i < s->n_objects; i++)
         if (s->objects[i].shape == SHAPE_MESH && fileio_same_file(out, s->objects[i].path)) {
             what = "a mesh of the scene";

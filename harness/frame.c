@@ -9,6 +9,8 @@
 
 #include "exr.h"
 
+static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
+
 rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
 {
     *pixels = NULL;
@@ -17,6 +19,8 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
     e->scale = s->env.radiance;
     e->width = e->height = 0;
     e->rgb = NULL;
+    if (s->env.kind == ENV_CUBE)
+        return frame_env_cube(s, e, pixels, err, errlen);
     if (s->env.kind != ENV_IMAGE)
         return RC_OK;
 
@@ -123,6 +127,26 @@ rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t 
     return st;
 }
 
+/* A cube map of N x N faces converts to an equirectangular image this many times N wide and half
+ * that high: 360 degrees over 4 N cube texels, so FRAME_CUBE_EQUIRECT_PER_FACE / 4 equirectangular
+ * texels per cube texel, which keeps the references' bilinear lookup of the conversion within
+ * the floor README "Cube maps" measures. */
+#define FRAME_CUBE_EQUIRECT_PER_FACE 64
+rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err, size_t errlen)
+{
+    int w = FRAME_CUBE_EQUIRECT_PER_FACE * cube->width, h = w / 2;
+    float *rgb = malloc((size_t)w * (size_t)h * 3 * sizeof *rgb);
+    if (rgb == NULL) {
+        snprintf(err, errlen, "%s: out of memory for a %dx%d conversion of the cube map", path, w, h);
+        return RC_ERR_NOMEM;
+    }
+    env_cube_to_equirect(cube, w, h, rgb);
+    env_map e = {.kind = ENV_IMAGE, .width = w, .height = h, .rgb = rgb};
+    rc_status st = frame_env_write(path, &e, err, errlen);
+    free(rgb);
+    return st;
+}
+
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen)
 {
@@ -202,5 +226,94 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
                 return st;
             }
         }
+    return RC_OK;
+}
+
+/* The scene keys of the six faces (FORMAT.md), in D3DCUBEMAP_FACES order. */
+static const char *const frame_cube_keys[6] = {"px", "nx", "py", "ny", "pz", "nz"};
+/* The horizontal cross (FORMAT.md): face f's column and row, in faces, of the 4 x 3 grid
+ *        +Y
+ *    -X  +Z  +X  -Z
+ *        -Y
+ * each face as it is seen from inside the cube, unrotated. */
+static const int frame_cross_cell[6][2] = {{2, 1}, {0, 1}, {1, 0}, {1, 2}, {1, 1}, {3, 1}};
+
+/* A cube map's faces as one ENV_CUBE map: six files or one cross, EXR linear or PNG/JPEG through
+ * the textures' sRGB decoding; square faces of one size, finite texels >= 0. */
+static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
+{
+    int cross = s->env.cube[0][0] == '\0';
+    texture img[6] = {{0}};
+    char why[1024], key[64];
+    rc_status st = RC_OK;
+    int n = 0, first = -1;
+    for (int f = 0; st == RC_OK && f < (cross ? 1 : 6); f++) {
+        const char *p = cross ? s->env.path : s->env.cube[f];
+        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", frame_cube_keys[f]);
+        st = frame_is_exr(p) ? frame_texture_exr(p, &img[f], why, sizeof why) : texture_load(p, &img[f], why, sizeof why);
+        if (st != RC_OK) {
+            snprintf(err, errlen, "%s: %s: %s", s->path, key, why);
+            break;
+        }
+        int w = img[f].width, h = img[f].height;
+        if (cross && (w % 4 != 0 || h % 3 != 0 || w / 4 != h / 3)) {
+            snprintf(err, errlen,
+                     "%s: %s: %s is %dx%d, not a horizontal cross; give a 4N x 3N image (faces N x N: +Y above +Z, "
+                     "then -X +Z +X -Z in a row, -Y below +Z) or six faces under environment.cube",
+                     s->path, key, p, w, h);
+            st = RC_ERR_RANGE;
+        } else if (!cross && w != h) {
+            snprintf(err, errlen, "%s: %s: the %s face %s is %dx%d; give square faces, all of one size", s->path, key,
+                     env_cube_face_names[f], p, w, h);
+            st = RC_ERR_RANGE;
+        } else if (!cross && first >= 0 && w != n) {
+            snprintf(err, errlen, "%s: %s: the %s face %s is %dx%d but the %s face %s is %dx%d; give six faces of one size",
+                     s->path, key, env_cube_face_names[f], p, w, h, env_cube_face_names[first], s->env.cube[first], n,
+                     n);
+            st = RC_ERR_RANGE;
+        }
+        if (first < 0) {
+            first = f;
+            n = cross ? w / 4 : w;
+        }
+    }
+    size_t nn = (size_t)n * (size_t)n;
+    float *rgb = st == RC_OK ? malloc(6 * nn * 3 * sizeof *rgb) : NULL;
+    if (st == RC_OK && rgb == NULL) {
+        snprintf(err, errlen, "%s: out of memory for a cube map of 6 x %dx%d", s->path, n, n);
+        st = RC_ERR_NOMEM;
+    }
+    for (int f = 0; st == RC_OK && f < 6; f++) {
+        const texture *t = &img[cross ? 0 : f];
+        int x0 = cross ? frame_cross_cell[f][0] * n : 0, y0 = cross ? frame_cross_cell[f][1] * n : 0;
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++)
+                for (int c = 0; c < 3; c++)
+                    rgb[3 * ((size_t)f * nn + (size_t)y * (size_t)n + (size_t)x) + (size_t)c] =
+                        t->rgba[4 * ((size_t)(y0 + y) * (size_t)t->width + (size_t)(x0 + x)) + (size_t)c];
+    }
+    for (int f = 0; f < 6; f++)
+        texture_free(&img[f]);
+    if (st != RC_OK) {
+        free(rgb);
+        return st;
+    }
+    *e = (env_map){.kind = ENV_CUBE, .scale = s->env.radiance, .width = n, .height = n, .rgb = rgb};
+    /* As for an equirectangular image: a NaN, Inf or negative texel has no radiance meaning. */
+    env_texel_check chk;
+    if (env_check(e, &chk) != RC_OK) {
+        const env_texel *t = chk.n_nonfinite > 0 ? &chk.first_nonfinite : &chk.first_negative;
+        const char *p = cross ? s->env.path : s->env.cube[t->face];
+        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", frame_cube_keys[t->face]);
+        snprintf(err, errlen,
+                 "%s: %s: %s: %ld non-finite and %ld negative texel values, the first on the %s face at texel "
+                 "(x %d, y %d) channel %c = %g; give faces whose texels are finite and >= 0",
+                 s->path, key, p, chk.n_nonfinite, chk.n_negative, env_cube_face_names[t->face], t->x, t->y,
+                 "RGB"[t->channel], (double)t->value);
+        free(rgb);
+        *e = (env_map){.kind = ENV_CUBE, .scale = s->env.radiance};
+        return RC_ERR_RANGE;
+    }
+    *pixels = rgb;
     return RC_OK;
 }

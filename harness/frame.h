@@ -39,6 +39,10 @@ rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun
 /* Writes the environment's pixels (interleaved RGB) as a 32-bit float RGB EXR, for renderers
  * that read the image from a file (the split environment). */
 rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t errlen);
+/* Writes a cube map's exact conversion (model/env.h env_cube_to_equirect; its size is
+ * FRAME_CUBE_EQUIRECT_PER_FACE in frame.c, which the cache key covers) as a 32-bit float RGB EXR,
+ * for renderers that read an equirectangular image from a file. */
+rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err, size_t errlen);
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen);
 /* frame_write naming another in-process renderer in the header ("reflcheck-exact"). */

@@ -170,6 +170,11 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
     rc_status st = RC_OK;
     if (s->env.kind == ENV_IMAGE)
         st = job_key_file(h, "environment.image", s->env.path, err, errlen);
+    if (s->env.kind == ENV_CUBE && s->env.cube[0][0] == '\0')
+        st = job_key_file(h, "environment.cube_cross", s->env.path, err, errlen);
+    for (int f = 0; st == RC_OK && s->env.kind == ENV_CUBE && f < 6; f++)
+        if (s->env.cube[f][0] != '\0')
+            st = job_key_file(h, "environment.cube", s->env.cube[f], err, errlen);
     for (int i = 0; st == RC_OK && i < s->n_objects; i++)
         if (s->objects[i].shape == SHAPE_MESH)
             st = job_key_file(h, "objects.path", s->objects[i].path, err, errlen);
@@ -522,6 +527,19 @@ static void job_render(job_ctx *c, job_record *rec)
         }
         snprintf(c->s->env.path, sizeof c->s->env.path, "%s", split);
     }
+    /* A renderer that reads the environment from its file gets a cube map as its equirectangular
+     * conversion (frame_env_cube_write); the in-process ones look the cube up themselves. The key
+     * covers the faces and the converting code (model/env.c, harness/frame.c). */
+    if (registry_row(c->j->renderer)->program != NULL && c->s->env.kind == ENV_CUBE) {
+        char why[600];
+        snprintf(split, sizeof split, "%s/environment-cube.exr", c->dir);
+        if (frame_env_cube_write(split, &c->env, why, sizeof why) != RC_OK) {
+            job_fail(rec, RUNNER_ERROR, "the cube map's conversion: %s; check the work folder and its space", why);
+            return;
+        }
+        c->s->env.kind = ENV_IMAGE;
+        snprintf(c->s->env.path, sizeof c->s->env.path, "%s", split);
+    }
     renderer_job rj = {.s = c->s,
                        .m = c->m,
                        .env = &c->env,
@@ -539,7 +557,7 @@ static void job_render(job_ctx *c, job_record *rec)
                        .version = c->version};
     memset(&c->res, 0, sizeof c->res);
     registry_row(c->j->renderer)->render(&rj, &c->res);
-    /* The split sky served the render; a cache entry keeps only the render. */
+    /* The split sky or converted cube served the render; a cache entry keeps only the render. */
     if (split[0] != '\0')
         unlink(split);
     rec->status = c->res.status;

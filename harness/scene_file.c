@@ -523,18 +523,41 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
+/* cube: {px: file, nx: ..., py, ny, pz, nz}: the six faces of a cube map (model/env.h), each
+ * PNG/JPEG (sRGB) or linear EXR; all six required. */
+static rc_status sf_cube(sf_ctx *c, yaml_node_t *n, scene *s)
+{
+    static const char *const keys[6] = {"px", "nx", "py", "ny", "pz", "nz"};
+    static const char *const exts[] = {".exr", ".png", ".jpg", ".jpeg"};
+    sf_kv f[6];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_map(c, n, "environment.cube", keys, 6, f)))
+        return rc;
+    for (int k = 0; k < 6; k++) {
+        if ((rc = sf_need(c, n, "environment.cube", &f[k], keys[k])))
+            return rc;
+        sf_child(child, "environment.cube", keys[k]);
+        if ((rc = sf_file(c, f[k].v, child, exts, 4, "cube-map face image", TEXTURE_MAX_BYTES, s->env.cube[k])))
+            return rc;
+    }
+    return RC_OK;
+}
+
 static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
 {
-    static const char *const keys[] = {"constant", "image", "scale", "sun_threshold"};
+    static const char *const keys[] = {"constant", "image", "scale", "sun_threshold", "cube", "cube_cross"};
     static const char *const exts[] = {".exr"};
-    sf_kv f[4];
+    static const char *const cross_exts[] = {".exr", ".png", ".jpg", ".jpeg"};
+    sf_kv f[6];
     rc_status rc;
-    if ((rc = sf_map(c, n, "environment", keys, 4, f)))
+    if ((rc = sf_map(c, n, "environment", keys, 6, f)))
         return rc;
-    if (!!f[0].v == !!f[1].v)
+    if (!!f[0].v + !!f[1].v + !!f[4].v + !!f[5].v != 1)
         return sf_fail(c, RC_ERR_PARSE, n, "environment",
-                       "give exactly one of 'constant' and 'image'; allowed: {constant: [r, g, b]} "
-                       "or {image: file.exr, scale: s}, or omit environment for none");
+                       "give exactly one of 'constant', 'image', 'cube' and 'cube_cross'; allowed: {constant: [r, g, "
+                       "b]}, {image: file.exr, scale: s}, {cube: {px: f, nx: f, py: f, ny: f, pz: f, nz: f}, scale: "
+                       "s}, {cube_cross: file, scale: s}, or omit environment for none");
     if (f[0].v) {
         if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment", "constant: [r, g, b] alone")) ||
             (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a constant environment",
@@ -543,10 +566,19 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
         s->env.kind = ENV_CONSTANT;
         return sf_colour(c, f[0].v, "environment.constant", &s->env.radiance);
     }
-    s->env.kind = ENV_IMAGE;
+    s->env.kind = f[1].v ? ENV_IMAGE : ENV_CUBE;
     s->env.radiance = v3s(1.0f);
-    if ((rc = sf_file(c, f[1].v, "environment.image", exts, 1, "equirectangular linear OpenEXR image", LLONG_MAX,
-                      s->env.path)))
+    if (f[1].v && (rc = sf_file(c, f[1].v, "environment.image", exts, 1, "equirectangular linear OpenEXR image",
+                                LLONG_MAX, s->env.path)))
+        return rc;
+    if (f[4].v && (rc = sf_cube(c, f[4].v, s)))
+        return rc;
+    if (f[5].v && (rc = sf_file(c, f[5].v, "environment.cube_cross", cross_exts, 4,
+                                "horizontal 4 x 3 cube-map cross image", TEXTURE_MAX_BYTES, s->env.path)))
+        return rc;
+    /* The sun split finds a region of an equirectangular image; a cube map has none to give. */
+    if (s->env.kind == ENV_CUBE && (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a cube map",
+                                                   "an equirectangular image: {image: file.exr, sun_threshold: t}")))
         return rc;
     if (f[2].v) {
         if (f[2].v->type == YAML_SEQUENCE_NODE)

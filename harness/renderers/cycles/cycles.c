@@ -721,6 +721,13 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     }
 
     char env_path[PATH_MAX] = "";
+    if (s->env.kind == ENV_CUBE) {
+        status_message(err, errlen,
+                       "%s: environment: a cube map reaches Blender as its equirectangular conversion, which "
+                       "`reflcheck run` writes (harness/jobs.c); render the scene through it",
+                       s->path);
+        return RC_ERR_RANGE;
+    }
     if (s->env.kind == ENV_IMAGE) {
         /* Blender resolves relative paths against its own idea of the .blend directory. */
         if (realpath(s->env.path, env_path) == NULL) {
@@ -779,6 +786,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         jw_put_str(&w, env, "type", "constant");
         jw_put_vec(&w, env, "radiance", "environment.radiance", s->env.radiance);
         break;
+    case ENV_CUBE: /* refused above */
     case ENV_IMAGE:
         jw_put_str(&w, env, "type", "image");
         jw_put_str(&w, env, "path", env_path);

@@ -658,6 +658,13 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     }
 
     int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
+    if (with_env && s->env.kind == ENV_CUBE) {
+        status_message(err, errlen,
+                       "%s: environment: a cube map reaches POV-Ray as its equirectangular conversion, which "
+                       "`reflcheck run` writes (harness/jobs.c); render the scene through it",
+                       s->path);
+        return RC_ERR_RANGE;
+    }
     if (with_env && s->env.kind == ENV_IMAGE &&
         (st = povray_check_path(s->env.path, "environment", err, errlen)) != RC_OK)
         return st;
