@@ -70,9 +70,12 @@ check: $(CLI)
 	$(MAKE) $(BUILD)/tests/test_$(T)
 	REFLCHECK_BIN=$(CLI) $(BUILD)/tests/test_$(T)
 
+# Builds use every CPU; the test steps themselves run one after another (they share ports,
+# a Slurm cluster and folders), each parallel inside where it can be.
+NPROC := $(shell nproc 2>/dev/null || echo 2)
 test: deps
-	$(MAKE) all
-	$(MAKE) SANITIZE=1 test-unit
+	$(MAKE) -j$(NPROC) all
+	$(MAKE) -j$(NPROC) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
 	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer test-slurm
@@ -101,7 +104,7 @@ test-renderer:
 
 # The fuzzers, briefly, so that their build and a first pass over the corpus run in every CI.
 test-fuzz:
-	$(MAKE) fuzz FUZZ_TIME=$(TEST_FUZZ_TIME)
+	$(MAKE) -j$(NPROC) fuzz FUZZ_TIME=$(TEST_FUZZ_TIME)
 TEST_FUZZ_TIME ?= 15
 
 # The nightly through a one-node Slurm cluster it starts and stops itself: the same verdicts,
