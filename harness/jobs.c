@@ -528,9 +528,11 @@ static void job_render(job_ctx *c, job_record *rec)
         snprintf(c->s->env.path, sizeof c->s->env.path, "%s", split);
     }
     /* A renderer that reads the environment from its file gets a cube map as its equirectangular
-     * conversion (frame_env_cube_write); the in-process ones look the cube up themselves. The key
-     * covers the faces and the converting code (model/env.c, harness/frame.c). */
-    if (registry_row(c->j->renderer)->program != NULL && c->s->env.kind == ENV_CUBE) {
+     * conversion (frame_env_cube_write), unless its row says it looks the cube up itself, as the
+     * in-process ones do. The key covers the faces and the converting code (model/env.c,
+     * harness/frame.c). */
+    const renderer_row *row = registry_row(c->j->renderer);
+    if (row->program != NULL && !row->cube_maps && c->s->env.kind == ENV_CUBE) {
         char why[600];
         snprintf(split, sizeof split, "%s/environment-cube.exr", c->dir);
         if (frame_env_cube_write(split, &c->env, why, sizeof why) != RC_OK) {

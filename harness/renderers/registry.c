@@ -40,6 +40,7 @@ static const renderer_row registry_rows[] = {
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "Cook-Torrance (no Beckmann lobe), conductors (no complex Fresnel), Gouraud, clamping, eq. 8, "
                "the D3D spot profile, distance-attenuated D3D ambient",
+     .cube_maps = 1,
      .render = povray_render_job,
      .physics = povray_physics},
     {.name = "cycles",

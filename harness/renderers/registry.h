@@ -33,6 +33,8 @@ typedef struct {
     unsigned partial[3];        /* per role: the terms (RENDERER_TERM_*) it may leave out when it
                                    cannot reproduce them; the record names those it did */
     const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
+    int cube_maps;              /* a program that looks a cube map (j->env) up itself; one without
+                                   gets the cube's equirectangular conversion (harness/jobs.c) */
     renderer_render_fn render;
     renderer_physics_fn physics; /* a physical reference: the physics its validate renders (renderer.h);
                                     NULL = it computes the model, not a physics */

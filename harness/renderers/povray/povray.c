@@ -24,6 +24,7 @@
 #include "d3d9client.h"
 #include "formula.h"
 #include "exr.h"
+#include "frame.h"
 #include "runner.h"
 
 /* ---- resolved options ---------------------------------------------------------------- */
@@ -588,6 +589,52 @@ static rc_status povray_vertex_colour_check(const scene *s, const mesh *m, int m
     return RC_ERR_RANGE;
 }
 
+/* A Direct3D cube map as a sky_sphere pigment (model/env.h), written from the D3DCUBEMAP_FACES
+ * table itself rather than through our lookup, so the twin checks the table: POV-Ray's canonical
+ * frame is ours, D3D Z = -z. Per face, (s, t) is clamped to the texel-centre range
+ * [0.5/N, 1 - 0.5/N] and looked up with image_map interpolate 2 (bilinear, texel centres as ours,
+ * README "Textures"), v = 1 - t: bilinear clamped at the face edge, as D3D9 samples a cube. A
+ * function pattern gives one scalar, so each channel is its own pattern over the channel's
+ * maximum (times 1.01, keeping the value below 1, where patterns wrap) through a colour map,
+ * and the three are averaged (hence the 3). */
+static void povray_put_cube_sky(FILE *fp, const povray_options *o)
+{
+    for (int f = 0; f < 6; f++)
+        fprintf(fp, "#declare CubeF%d = function { pigment { image_map { exr \"%s/cube%d.exr\" interpolate 2 } } }\n",
+                f, o->cube_dir, f);
+    fprintf(fp, "#declare CubeC = function(a) { min(max(a, %.17g), %.17g) }\n", 0.5 / o->cube_size,
+            1.0 - 0.5 / o->cube_size);
+    /* Face f at face coordinates (s, t), channel c (.red, .green, .blue). */
+    static const char *const chan[3] = {"red", "green", "blue"};
+    for (int c = 0; c < 3; c++) {
+        for (int f = 0; f < 6; f++)
+            fprintf(fp, "#declare CubeL%d%d = function(fs, ft) { CubeF%d(CubeC(fs), 1 - CubeC(ft), 0).%s }\n", f, c, f,
+                    chan[c]);
+        /* x, y, z canonical with ax, ay, az their magnitudes. The table (sc, tc, ma) in D3D
+         * (X, Y, Z) = (x, y, -z): +X (-Z, -Y, X), -X (Z, -Y, X), +Y (X, Z, Y), -Y (X, -Z, Y),
+         * +Z (X, -Y, Z), -Z (-X, -Y, Z); ties go to X, then Y, as in env.h; select(a, b, c) is
+         * b where a < 0. */
+        fprintf(fp,
+                "#declare CubeA%d = function(x, y, z, ax, ay, az) {\n"
+                "  select(min(ax - ay, ax - az),\n"
+                "    select(ay - az,\n"
+                "      select(z, CubeL4%d((x/az + 1)/2, (-y/az + 1)/2), CubeL5%d((-x/az + 1)/2, (-y/az + 1)/2)),\n"
+                "      select(y, CubeL3%d((x/ay + 1)/2, (z/ay + 1)/2), CubeL2%d((x/ay + 1)/2, (-z/ay + 1)/2))),\n"
+                "    select(x, CubeL1%d((-z/ax + 1)/2, (-y/ax + 1)/2), CubeL0%d((z/ax + 1)/2, (-y/ax + 1)/2)))\n"
+                "}\n",
+                c, c, c, c, c, c, c);
+    }
+    fprintf(fp, "sky_sphere {\n  pigment { average pigment_map {\n");
+    for (int c = 0; c < 3; c++) {
+        double m = o->cube_max[c] > 0.0f ? 1.01 * o->cube_max[c] : 1.0;
+        fprintf(fp,
+                "    [1 function { CubeA%d(x, y, z, abs(x), abs(y), abs(z)) / %.17g } "
+                "color_map { [0 rgb 0] [1 rgb <%.17g, %.17g, %.17g>] }]\n",
+                c, m, c == 0 ? 3.0 * m : 0.0, c == 1 ? 3.0 * m : 0.0, c == 2 ? 3.0 * m : 0.0);
+    }
+    fprintf(fp, "  } }\n");
+}
+
 rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
                              size_t errlen)
 {
@@ -658,10 +705,10 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
     }
 
     int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
-    if (with_env && s->env.kind == ENV_CUBE) {
+    if (with_env && s->env.kind == ENV_CUBE && (o->cube_dir == NULL || o->cube_size <= 0)) {
         status_message(err, errlen,
-                       "%s: environment: a cube map reaches POV-Ray as its equirectangular conversion, which "
-                       "`reflcheck run` writes (harness/jobs.c); render the scene through it",
+                       "%s: environment: a cube map needs its faces as linear EXR files, which povray_render_job "
+                       "writes from the loaded cube (povray_options.cube_dir); render the scene through it",
                        s->path);
         return RC_ERR_RANGE;
     }
@@ -712,6 +759,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         fprintf(fp, "sky_sphere { pigment { color rgb ");
         povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
         fprintf(fp, " } }\n\n");
+    } else if (s->env.kind == ENV_CUBE) {
+        povray_put_cube_sky(fp, o);
+        fprintf(fp, "  emission rgb ");
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
+        fprintf(fp, "\n}\n\n");
     } else {
         /* rotate y*180: POV-Ray's map_type 1 otherwise shows the image's -x along +x. */
         fprintf(fp,
@@ -1090,6 +1142,25 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
             return;
         }
         o.texture_dir = j->dir;
+    }
+    if (j->env != NULL && j->env->kind == ENV_CUBE && j->env->rgb != NULL) {
+        /* The faces as loaded (a cross split, PNG/JPEG decoded): the sky POV-Ray looks up. */
+        int n = j->env->width;
+        size_t nn = (size_t)n * (size_t)n;
+        for (int f = 0; f < 6; f++) {
+            char path[1200], err[1024];
+            snprintf(path, sizeof path, "%s/cube%d.exr", j->dir, f);
+            env_map face = {.kind = ENV_IMAGE, .width = n, .height = n, .rgb = j->env->rgb + (size_t)f * nn * 3};
+            if (frame_env_write(path, &face, err, sizeof err) != RC_OK) {
+                renderer_fail(r, RUNNER_ERROR, "%s", err);
+                return;
+            }
+        }
+        for (size_t i = 0; i < 6 * nn; i++)
+            for (int c = 0; c < 3; c++)
+                o.cube_max[c] = fmaxf(o.cube_max[c], j->env->rgb[3 * i + (size_t)c]);
+        o.cube_dir = j->dir;
+        o.cube_size = n;
     }
     povray_choose_terms(j, &o, r);
     povray_options geo = o;

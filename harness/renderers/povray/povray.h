@@ -26,6 +26,9 @@
  *   Fresnel form asked (`fresnel on`, `interior { ior }`). Conductors -> RC_ERR_RANGE.
  * - no inter-reflection: every object has no_reflection, so a reflection ray sees only the
  *   environment (sky_sphere); no_shadow too, unless a validate's physics asks for shadows.
+ * - a cube map (ENV_CUBE): the faces as cube<f>.exr in cube_dir and the D3D face table as SDL
+ *   functions in a sky_sphere pigment (per-face bilinear, clamped at the edge), so the table is
+ *   checked by a second implementation; scale as emission.
  * - textures: the diffuse texture as `uv_mapping` `image_map { exr ... interpolate 2 }` over the
  *   mesh's uv_vectors, fed our decoded linear texels (so sRGB decoding is ours in both), times a
  *   grey finish diffuse (POV-Ray's pigment holds the texel; a non-grey material colour with a
@@ -81,6 +84,11 @@ typedef struct {
     int coverage;            /* nonzero: a geometry pass instead: no lights, black background,
                                 every object emits rgb <1, object index + 1, 0>, so the box-
                                 filtered R is coverage and G/R the object index + 1 */
+    const char *cube_dir; /* folder holding cube0.exr .. cube5.exr, a cube map's faces in
+                             D3DCUBEMAP_FACES order as linear float (povray_render_job writes them
+                             from j->env); NULL with a cube map -> RC_ERR_RANGE */
+    int cube_size;        /* their side N */
+    float cube_max[3];    /* the largest texel value per channel over the six faces */
 } povray_options;
 
 /* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the
