@@ -13,6 +13,7 @@ Reads what the C harness wrote into the run folder (format: reports/FORMAT.md):
 optional stability.json, timing/*.json and figure1.svg. It never renders or measures.
 Writes into the run folder (each file through a temporary name, then rename): index.html,
 scene-<name>.html, report.css, report.js, plots/*.svg, summary.json, summary.csv, junit.xml,
+figures.md (the README's tables of this run),
 and appends one line to the history file (one write() plus fsync, never truncating).
 A missing or corrupt input file is listed on the page and on stderr with its name; it is never
 a crash. Exit status: 0 report written (whatever the verdicts), 1 an output could not be
@@ -33,6 +34,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 try:
     from report import pages
     from report.browser import check_pages, screenshot
+    from report.figures import figures_md
     from report.history import append_history, history_record, read_history
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
@@ -80,9 +82,9 @@ def make_report(args):
         write_atomic(
             os.path.join(args.run, s['page']), pages.scene_html(R, s, angles[s['name']], trends.get(s['name']))
         )
-    write_atomic(
-        os.path.join(args.run, 'summary.json'), json.dumps(summary_object(R), indent=1, allow_nan=False) + '\n'
-    )
+    summary = summary_object(R)
+    write_atomic(os.path.join(args.run, 'summary.json'), json.dumps(summary, indent=1, allow_nan=False) + '\n')
+    write_atomic(os.path.join(args.run, 'figures.md'), figures_md(summary))
     write_atomic(os.path.join(args.run, 'summary.csv'), summary_csv(R))
     write_atomic(os.path.join(args.run, 'junit.xml'), junit_xml(R))
     write_atomic(os.path.join(args.run, 'index.html'), pages.index_html(R, trends, timing, note))

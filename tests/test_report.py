@@ -27,7 +27,7 @@ sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
 from make_run import make_run  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, 'harness'))
-from report import browser, history, load, proposal, util  # noqa: E402  (the package harness/report/)
+from report import browser, figures, history, load, proposal, util  # noqa: E402  (the package harness/report/)
 
 RUN1 = '20250101-120000-abc1234'
 RUN2 = '20250102-120000-def5678'
@@ -183,6 +183,86 @@ def test_junit(built):
     msg = fails[0].get('message')
     assert msg == 'alpha: raster-vs-cycles-twin: rel_rms 3.40e-2 > 1e-2 (Monte Carlo noise budget)'
     assert len(root.findall('.//skipped')) == 1
+
+
+def test_figures_md_of_the_run(built):
+    """figures.md carries the run's own numbers: the README copies it, never retypes."""
+    md = read(os.path.join(built['run'], 'figures.md'))
+    assert md.startswith(f'# Figures of run {RUN1}\n')
+    assert '| alpha | povray | all | 1.20e-04 | — | — | pass |' in md
+    # the Cycles twin's z-test: 3 pixels of the 36 surface pixels beyond the noise
+    assert '| alpha | cycles | all | 0.034 | 3 of 36 (8.33 %) | — | fail |' in md
+
+
+def test_figures_md_validate_partial_and_fit():
+    """Worked by hand: a partial twin names its left-out term, a validate shows its robust
+    figures and physics, a fit its two error cells and the value at a bound."""
+    surface = {
+        'n_pixels': 200,
+        'nrmse': 0.1581,
+        'nrmse_trim1': 0.137,
+        'worst1_share': 0.26,
+        'rel_median': 0.046,
+        'rel_p95': 0.31,
+        'rel_rms': 0.2,
+    }
+    S = {
+        'run_id': 'r1',
+        'commit': 'c0ffee1',
+        'time': 't',
+        'machine': {'cores': 2},
+        'renderer_versions': {'cycles': 'Blender 3.4.1'},
+        'scenes': [
+            {
+                'name': 'blinn',
+                'jobs': [{'renderer': 'raster', 'width': 96, 'height': 72}],
+                'comparisons': [
+                    {
+                        'role': 'twin',
+                        'test': 'raster',
+                        'reference': 'cycles',
+                        'status': 'pass',
+                        'regions': {'surface': {'n_pixels': 200, 'rel_rms': 0.01}},
+                        'noise': {'ztest': {'n_fail_pixels': 1}},
+                        'terms_left_out': [{'term': 'specular', 'reason': 'no Blinn lobe'}],
+                    },
+                    {
+                        'role': 'validate',
+                        'test': 'raster',
+                        'reference': 'exact',
+                        'status': 'pass',
+                        'physics': 'bounces=1',
+                        'regions': {'surface': surface},
+                        'terms': {
+                            'diffuse': {'test_mean': 0.5, 'ref_mean': 0.48, 'nrmse': 0.152},
+                            'glossy': {'test_mean': 0, 'ref_mean': 0, 'nrmse': 0},
+                        },
+                    },
+                ],
+            }
+        ],
+        'fits': [
+            {
+                'scene': 'blinn',
+                'reference': 'exact',
+                'bounds': 'seed',
+                'status': 'ok',
+                'authored': {'nrmse': 0.158, 'median_rel': 0.047, 'nrmse_trim1': 0.137, 'worst1_share': 0.26},
+                'best': {'nrmse': 0.152, 'median_rel': 0.045, 'nrmse_trim1': 0.13, 'worst1_share': 0.22},
+                'parameters': [{'material': 'plastic', 'name': 'P', 'fitted': 43.3, 'at_bound': True}],
+            }
+        ],
+    }
+    md = figures.figures_md(S)
+    assert '| blinn | cycles | partial: specular left out | 0.01 | 1 of 200 (0.5 %) | — | pass |' in md
+    assert '| blinn | raster vs exact | 0.158 | 0.137 | 26 % | 4.6 % | 31 % | — | pass |' in md
+    assert '- blinn: `bounces=1`' in md
+    assert '| blinn | raster vs exact | diffuse | 0.5 | 0.48 | 0.152 |' in md
+    assert 'glossy' not in md  # a term both sides left at zero is not a figure
+    assert (
+        '| blinn | exact | seed | 0.158, 4.7 %, 0.137, 26 % | 0.152, 4.5 %, 0.13, 22 % | plastic.P = 43.3 (b) |' in md
+    )
+    assert '- blinn: 96 × 72' in md
 
 
 # --------------------------------------------------------------------------------- history
