@@ -126,7 +126,7 @@ test-scenes: $(CLI)
 # SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (README "Slurm").
 SCHEDULER ?= make
 report: deps
-	$(MAKE) all
+	$(MAKE) -j$(NPROC) all
 	@SCHEDULER=$(SCHEDULER) bash harness/nightly.sh
 
 # Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
