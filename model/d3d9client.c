@@ -63,3 +63,16 @@ void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diff
     float rn = d3d9client_colour_norm(r_tot_f, p->norm);
     out->alpha = (isnan(diffuse_alpha) || isnan(rn)) ? NAN : formula_d3d9_alpha_f(diffuse_alpha, rn);
 }
+
+int d3d9client_dissolve_on(const material *m)
+{
+    return m->model == MODEL_D3D9CLIENT && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&
+           m->texture[MAT_TEX_DIFFUSE][0] != '\0';
+}
+
+vec3 d3d9client_dissolve_offset(const d3d9client_params *p, float u, float v)
+{
+    const float s = p->dissolve_scale, k = p->dissolve_strength;
+    return v3(formula_dissolve_offset_f(u, v, s, k, 0), formula_dissolve_offset_f(u, v, s, k, 1),
+              formula_dissolve_offset_f(u, v, s, k, 2));
+}

@@ -14,6 +14,9 @@
  * formula_colour_norm), shared with the SIMD lanes and the stability reference.
  * Pure functions; every finite argument gives a finite result (sums are formed in double
  * and saturated to +-FLT_MAX); a NaN argument propagates.
+ * Dissolve (seed 000, our reading: README "Dissolve"):
+ *   if (d3d9client_dissolve_on(mat))
+ *       dir = v3_add(reflect(-V, N), d3d9client_dissolve_offset(&mat->d9, u, v));   then phi = env(dir)
  */
 #ifndef REFLCHECK_D3D9CLIENT_H
 #define REFLCHECK_D3D9CLIENT_H
@@ -49,5 +52,13 @@ typedef struct {
  * the main light, read only when p->sun_angle (clamped the same way in (8)). */
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha, vec3 env_radiance_phi,
                         float n_v, float n_sun, d3d9client_result *out);
+
+/* Whether a material's reflection is dissolved: model d3d9client, scale and strength both > 0
+ * (either 0 turns the effect off, seed 000), and a diffuse texture, the seed's condition (the
+ * scene file refuses dissolve on an untextured material, so this is only a guard). */
+int d3d9client_dissolve_on(const material *m);
+/* Dissolve's offset to the mirror direction at texture coordinates (u, v):
+ * formula_dissolve_offset per channel (R -> x, G -> y, B -> z), each in +-strength/2. */
+vec3 d3d9client_dissolve_offset(const d3d9client_params *p, float u, float v);
 
 #endif

@@ -5,6 +5,7 @@
  *   double f = formula_schlick_d(0.04, v_h);                    (4.9), the scalar model
  *   float  g = formula_vcavity_g_v(n_h, n_v, n_l, v_h);          (4.10)/(4.11), one SIMD lane
  *   long double d = formula_beckmann_d_l(s2, c2, inv_m2, norm);  (4.12), the stability reference
+ *   float o = formula_dissolve_offset_v(u, v, scale, strength, 0);  seed 000's Dissolve, x axis
  * One body (the second half of this file) is compiled once per instance, each with its type and
  * its maths library; the suffix names the instance:
  *   _f  float, libm (powf)          the scalar models' float factors (Lambert, Blinn)
@@ -32,6 +33,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdint.h>
 
 #include "smath.h"
 
@@ -65,6 +67,32 @@
 /* Walter et al. 2007's rational Smith G1 is 1 for a = 1/(m tan) >= 1.6, i.e. m tan <= 1/1.6. */
 #define FORMULA_WALTER_INV_A_MAX 0.625
 
+/* Dissolve (seed 000): the side of the square noise texture, in texels; a power of two so that
+ * the repeat wrap is a mask. The seed's "particle" is one texel, 1/(256 scale) of the UV square:
+ * at the typical scales 0.2 to 3 about a pixel on an object a few hundred pixels across, so the
+ * noise reads as noise, which pixel averaging turns into blur. */
+#define FORMULA_DISSOLVE_SIZE      256
+/* Texel coordinates are taken modulo the side only within +-2^30 texels: beyond, a float has no
+ * fraction left and the noise has no pattern to keep; the coordinate is then taken as 0 (as a
+ * NaN is), so the integer conversion below is always defined. */
+#define FORMULA_DISSOLVE_COORD_MAX 1073741824.0
+
+/* Dissolve's noise texel (i, j) of channel ch (0 R, 1 G, 2 B), i and j in [0, SIZE): the
+ * integer hash "lowbias32" (C. Wellons, 2018) of the texel's index, its top 24 bits scaled to
+ * [0, 1). The same exact value in every instance (24 bits fit float's significand), so the
+ * scalar path, the lanes and long double read one texture; no table, so lanes compute texels
+ * instead of gathering them. */
+static inline float formula_dissolve_texel(uint32_t i, uint32_t j, uint32_t ch)
+{
+    uint32_t x = i + (uint32_t)FORMULA_DISSOLVE_SIZE * (j + (uint32_t)FORMULA_DISSOLVE_SIZE * ch);
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return (float)(x >> 8) * 0x1p-24f;
+}
+
 /* The instances. FORMULA_C gives a literal the instance's type (2.5 -> 2.5f, 2.5, 2.5L). */
 #define FORMULA_CAT_(a, b) a##b
 #define FORMULA_CAT(a, b)  FORMULA_CAT_(a, b)
@@ -77,6 +105,7 @@
 #define FORMULA_LOG      logf
 #define FORMULA_EXP      expf
 #define FORMULA_SQRT     sqrtf
+#define FORMULA_FLOOR    floorf
 #define FORMULA_LN_D_MAX logf(FORMULA_D_MAX)
 #include "formula.h"
 
@@ -88,6 +117,7 @@
 #define FORMULA_LOG      log
 #define FORMULA_EXP      exp
 #define FORMULA_SQRT     sqrt
+#define FORMULA_FLOOR    floor
 #define FORMULA_ERF      erf
 #define FORMULA_HYPOT    hypot
 /* ln of the float cap as a double: D is compared with the very value the float result is capped
@@ -103,6 +133,7 @@
 #define FORMULA_LOG      smath_log
 #define FORMULA_EXP      smath_exp
 #define FORMULA_SQRT     sqrtf
+#define FORMULA_FLOOR    floorf
 /* ln 1e12f rounded to float, a literal so that no lane evaluates it (tests/test_formula.c checks
  * it against logf). */
 #define FORMULA_LN_D_MAX 27.6310211f
@@ -116,6 +147,7 @@
 #define FORMULA_LOG      logl
 #define FORMULA_EXP      expl
 #define FORMULA_SQRT     sqrtl
+#define FORMULA_FLOOR    floorl
 #define FORMULA_ERF      erfl
 #define FORMULA_HYPOT    hypotl
 #define FORMULA_LN_D_MAX logl((long double)FORMULA_D_MAX)
@@ -385,6 +417,36 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
     return d_alpha > norm_r_tot ? d_alpha : norm_r_tot;
 }
 
+/* ---- D3D9Client Dissolve (seed 000; our reading of its shader, README "Dissolve") ----------- */
+
+/* One texel coordinate of the noise texture read at t (u or v) times scale: x = t scale SIZE -
+ * 1/2 in texels (texel centres at (i + 1/2)/SIZE, as model/texture.c's), its whole part wrapped
+ * to [0, SIZE) (repeat) in *i0, the next texel in *i1, the bilinear weight of *i1 returned. */
+FORMULA_INLINE FT FN(formula_dissolve_coord)(FT t, FT scale, uint32_t *i0, uint32_t *i1)
+{
+    FT x = t * scale * (FT)FORMULA_DISSOLVE_SIZE - FC(0.5);
+    x = (x > -(FT)FORMULA_DISSOLVE_COORD_MAX && x < (FT)FORMULA_DISSOLVE_COORD_MAX) ? x : 0;
+    FT xf = FORMULA_FLOOR(x);
+    int32_t k = (int32_t)xf;
+    *i0 = (uint32_t)k & (FORMULA_DISSOLVE_SIZE - 1);
+    *i1 = (uint32_t)(k + 1) & (FORMULA_DISSOLVE_SIZE - 1);
+    return x - xf;
+}
+
+/* Dissolve, one component: the offset added to the mirror direction reflect(-V, N) before the
+ * environment lookup, (t - 1/2) strength, t channel ch of the noise texture read bilinearly,
+ * wrapping, at (u scale, v scale) (the texel's j counts up in v). If either parameter is 0 the
+ * effect is off (the seed): the offset is 0 (scale 0 alone would read one constant texel). */
+FORMULA_INLINE FT FN(formula_dissolve_offset)(FT u, FT v, FT scale, FT strength, uint32_t ch)
+{
+    uint32_t i0, i1, j0, j1;
+    FT a = FN(formula_dissolve_coord)(u, scale, &i0, &i1);
+    FT b = FN(formula_dissolve_coord)(v, scale, &j0, &j1);
+    FT t = (1 - b) * ((1 - a) * (FT)formula_dissolve_texel(i0, j0, ch) + a * (FT)formula_dissolve_texel(i1, j0, ch)) +
+           b * ((1 - a) * (FT)formula_dissolve_texel(i0, j1, ch) + a * (FT)formula_dissolve_texel(i1, j1, ch));
+    return (scale > 0 && strength > 0) ? (t - FC(0.5)) * strength : 0;
+}
+
 #undef FT
 #undef FN
 #undef FC
@@ -396,6 +458,7 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
 #undef FORMULA_LOG
 #undef FORMULA_EXP
 #undef FORMULA_SQRT
+#undef FORMULA_FLOOR
 #undef FORMULA_ERF
 #undef FORMULA_HYPOT
 #undef FORMULA_LN_D_MAX

@@ -152,6 +152,7 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     /* Textures scale the physics as they scale the approximations' terms (the albedo). */
     shade_plan_textures(c, m, p);
     p->fn = physical_shade;
+    p->fn_uv = NULL;
     p->batch = shade_batch_scalar;
     p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (physical_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     p->path = m->roughness > 0.0f ? "physical-lobe" : "physical-mirror";

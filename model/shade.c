@@ -177,11 +177,18 @@ const light *shade_main_light(const scene *s)
     return s->n_lights > 0 ? &s->lights[0] : NULL;
 }
 
-static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+/* dissolve: the texture coordinates (tu, tv) offset the mirror direction (seed 000's Dissolve,
+ * d3d9client_dissolve_offset); env_lookup takes the sum as it is, unnormalised, as a cube-map
+ * lookup does. The Fresnel R keeps the unperturbed N.V: the effect moves only where phi is read. */
+static inline void shade_d3d9client_impl(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu,
+                                         float tv, shade_terms *out, const int dissolve)
 {
     const material *m = p->mat;
     shade_d3d_impl(c, m, x, n, v, out, 1, 1);
-    vec3 phi = env_lookup(c->env, v3_reflect(v, n));
+    vec3 dir = v3_reflect(v, n);
+    if (dissolve)
+        dir = v3_add(dir, d3d9client_dissolve_offset(&m->d9, tu, tv));
+    vec3 phi = env_lookup(c->env, dir);
     /* Equation (8) takes the sun's angle sigma from geometry alone: a main light that gives
      * nothing here (outside its cone or range) still has a direction. */
     float n_sun = 0.0f;
@@ -199,6 +206,17 @@ static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x
     out->diffuse = v3_scale(out->diffuse, r.diffuse_scale);
     out->reflection = r.r_tot;
     out->alpha = r.alpha;
+}
+
+static void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    shade_d3d9client_impl(c, p, x, n, v, 0.0f, 0.0f, out, 0);
+}
+
+static void shade_d3d9client_dissolve(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu,
+                                      float tv, shade_terms *out)
+{
+    shade_d3d9client_impl(c, p, x, n, v, tu, tv, out, 1);
 }
 
 static inline void shade_ct_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v, shade_terms *out,
@@ -247,6 +265,7 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         light_ambient |= shade_nonzero(s->lights[i].ambient);
     p->mat = m;
     p->params = NULL;
+    p->fn_uv = NULL;
     shade_plan_textures(c, m, p);
     p->terms = SHADE_TERM_DIFFUSE | (shade_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     switch (m->model) {
@@ -260,12 +279,17 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         p->path = plain ? "d3d-diffuse" : "d3d-full";
         break;
     }
-    case MODEL_D3D9CLIENT:
+    case MODEL_D3D9CLIENT: {
+        /* Dissolve reads the diffuse texture's coordinates, which a sample has only when the
+         * context holds that texture. */
+        int dissolve = has_env && d3d9client_dissolve_on(m) && p->tex[MAT_TEX_DIFFUSE] != NULL;
         p->terms |= SHADE_TERM_SPECULAR | (has_env ? SHADE_TERM_REFLECTION : 0u);
         p->fn = shade_d3d9client;
-        p->batch = shade_batch_d3d9client;
-        p->path = "d3d9client";
+        p->fn_uv = dissolve ? shade_d3d9client_dissolve : NULL;
+        p->batch = dissolve ? shade_batch_d3d9client_dissolve : shade_batch_d3d9client;
+        p->path = dissolve ? "d3d9client-dissolve" : "d3d9client";
         break;
+    }
     case MODEL_COOK_TORRANCE: {
         int refl = m->ct.reflection && has_env;
         p->terms |= SHADE_TERM_SPECULAR | (refl ? SHADE_TERM_REFLECTION : 0u);

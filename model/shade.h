@@ -91,12 +91,19 @@ static inline void shade_batch_set_terms(shade_batch_out *o, int i, const shade_
 
 typedef struct shade_plan shade_plan;
 typedef void (*shade_fn)(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+/* A path that also reads the sample's texture coordinates (tu, tv) inside the model. */
+typedef void (*shade_uv_fn)(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu, float tv,
+                            shade_terms *out);
 typedef void (*shade_batch_fn)(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
                                shade_batch_out *out);
 struct shade_plan {
     const material *mat;
     unsigned terms; /* SHADE_TERM_* this material can make non-zero here */
     shade_fn fn;
+    /* Set for a path whose model reads (u, v) itself (the D3D9Client Dissolve of a textured
+     * material): shade_eval_uv and the batch's scalar lanes call it in place of fn, and fn then
+     * shades without what (u, v) adds. NULL otherwise. */
+    shade_uv_fn fn_uv;
     shade_batch_fn batch; /* the same path over a batch */
     const char *path;     /* the specialised path's name, for reports and benchmarks */
     const void *params;   /* a model adapter's own parameters (model/physical.h); NULL for the
@@ -135,7 +142,10 @@ void shade_texture_apply_n(const shade_plan *p, const shade_batch_in *in, shade_
 static inline void shade_eval_uv(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu,
                                  float tv, shade_terms *out)
 {
-    p->fn(c, p, x, n, v, out);
+    if (p->fn_uv != NULL)
+        p->fn_uv(c, p, x, n, v, tu, tv, out);
+    else
+        p->fn(c, p, x, n, v, out);
     if (p->textured)
         shade_texture_apply(p, tu, tv, out);
 }
@@ -156,6 +166,9 @@ void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const 
 void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
                             shade_batch_out *out);
+/* The same with Dissolve: each lane's mirror direction offset at its (tu, tv). */
+void shade_batch_d3d9client_dissolve(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                                     shade_batch_out *out);
 void shade_batch_ct_lights(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 /* Whether the Cook-Torrance kernels cover a material: Beckmann D, V-cavity or Walter's Smith G,

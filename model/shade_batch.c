@@ -56,7 +56,11 @@ static void sb_scalar_lane(const shade_context *c, const shade_plan *p, const sh
                            int i)
 {
     shade_terms t;
-    p->fn(c, p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i), &t);
+    vec3 x = shade_lane_get(&in->x, i), n = shade_lane_get(&in->nrm, i), v = shade_lane_get(&in->v, i);
+    if (p->fn_uv != NULL)
+        p->fn_uv(c, p, x, n, v, in->tu[i], in->tv[i], &t);
+    else
+        p->fn(c, p, x, n, v, &t);
     shade_batch_set_terms(out, i, &t);
 }
 
@@ -74,6 +78,24 @@ SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *re
 #pragma omp simd
     for (int i = 0; i < n; i++)
         shade_lane_set(&dir, i, v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)));
+    env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
+}
+
+/* phi along the mirror direction plus Dissolve's offset at each lane's (tu, tv): shade.c's
+ * shade_d3d9client_impl, formula_dissolve_offset per channel (d3d9client_dissolve_offset). */
+SB_INLINE void sb_env_dissolved(const shade_context *c, const d3d9client_params *d9, const shade_batch_in *restrict in,
+                                shade_vec3_n *restrict phi)
+{
+    shade_vec3_n dir;
+    const int n = in->n;
+    const float sc = d9->dissolve_scale, k = d9->dissolve_strength;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        const float u = in->tu[i], v = in->tv[i];
+        vec3 off = v3(formula_dissolve_offset_v(u, v, sc, k, 0), formula_dissolve_offset_v(u, v, sc, k, 1),
+                      formula_dissolve_offset_v(u, v, sc, k, 2));
+        shade_lane_set(&dir, i, v3_add(v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)), off));
+    }
     env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
 }
 
@@ -310,9 +332,9 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     }
 }
 
-/* shade.c's shade_d3d9client (MODELS.md 2, eqs. 3-8) over a batch. */
-SMATH_CLONES
-void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+/* shade.c's shade_d3d9client (MODELS.md 2, eqs. 3-8) over a batch; dissolve a constant. */
+SB_INLINE void sb_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                             shade_batch_out *out, const int dissolve)
 {
     const d3d9client_params *d9 = &p->mat->d9;
     const int n = in->n;
@@ -321,7 +343,10 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
         return;
     }
     shade_vec3_n phi;
-    sb_env_reflected(c, in, &phi);
+    if (dissolve)
+        sb_env_dissolved(c, d9, in, &phi);
+    else
+        sb_env_reflected(c, in, &phi);
 
     const float fp = fresnel_d3d9_power(d9->p);
     const int whole = fp == floorf(fp) && fp <= 8.0f;
@@ -344,6 +369,19 @@ void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const s
         sb_d9_combine(d9, in, &phi, sun_f, out, 1);
     else
         sb_d9_combine(d9, in, &phi, sun_f, out, 0);
+}
+
+SMATH_CLONES
+void shade_batch_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out)
+{
+    sb_d3d9client(c, p, in, out, 0);
+}
+
+SMATH_CLONES
+void shade_batch_d3d9client_dissolve(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
+                                     shade_batch_out *out)
+{
+    sb_d3d9client(c, p, in, out, 1);
 }
 
 /* ---- Cook-Torrance (MODELS.md 3): cooktorrance.c's lobe and reflection weight in float ---- */
