@@ -800,15 +800,40 @@ static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params 
     return RC_OK;
 }
 
-static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d, int *r0_given, int *m_given)
+/* d3d9client.dissolve: [scale, strength] within D3D9Client's material editor clamps (scale 0 to
+ * 12, strength 0 to 0.2; "typical" 0.2 to 3 and 0.01 to 0.1). The strength bound also keeps the
+ * offset, at most strength sqrt(3)/2 long, shorter than the unit mirror direction it is added
+ * to, so the dissolved direction is never zero. */
+static rc_status sf_dissolve(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d)
 {
-    static const char *const keys[] = {"p", "r0", "m", "reflect", "fresnel_colour", "norm", "sun_angle", "alpha"};
+    static const char allowed[] = "[scale, strength], scale in [0, 12] and strength in [0, 0.2] (D3D9Client's "
+                                  "material editor ranges; either 0 turns dissolve off)";
+    float f[2];
+    rc_status rc = sf_floats(c, n, path, 2, 0.0, 12.0, 0, allowed, f);
+    if (rc)
+        return rc;
+    if (f[1] > 0.2f) {
+        char child[SF_PATHLEN];
+        sf_index(child, path, 1);
+        return sf_fail(c, RC_ERR_RANGE, yaml_document_get_node(c->doc, n->data.sequence.items.start[1]), child,
+                       "%g is out of range; allowed: %s", f[1], allowed);
+    }
+    d->dissolve_scale = f[0];
+    d->dissolve_strength = f[1];
+    return RC_OK;
+}
+
+static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d, int *r0_given, int *m_given,
+                       yaml_node_t **dissolve_node)
+{
+    static const char *const keys[] = {"p",    "r0",        "m",     "reflect", "fresnel_colour",
+                                       "norm", "sun_angle", "alpha", "dissolve"};
     static const char *const norms[] = {"max", "mean", "luminance", "euclid"};
-    sf_kv f[8];
+    sf_kv f[9];
     char child[SF_PATHLEN];
     rc_status rc;
     int e;
-    if ((rc = sf_map(c, n, path, keys, 8, f)))
+    if ((rc = sf_map(c, n, path, keys, 9, f)))
         return rc;
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
     if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("p"), 0.0, INFINITY, 0, "a finite power >= 0", &d->p)))
@@ -830,7 +855,10 @@ static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_p
         return rc;
     if (f[7].v && (rc = sf_float(c, f[7].v, SF_CHILD("alpha"), 0.0, 1.0, 0, "an alpha in [0, 1]", &d->alpha)))
         return rc;
+    if (f[8].v && (rc = sf_dissolve(c, f[8].v, SF_CHILD("dissolve"), d)))
+        return rc;
 #undef SF_CHILD
+    *dissolve_node = f[8].v;
     *r0_given = f[1].v != NULL;
     *m_given = f[2].v != NULL;
     return RC_OK;
@@ -965,13 +993,30 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                        norm ? "false" : "true", norm ? "D3DRS_NORMALIZENORMALS" : "D3DRS_COLORVERTEX",
                        norm ? "true" : "false");
     }
-    if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given)))
+    yaml_node_t *dissolve_node = NULL;
+    if (f[MK_D9].v &&
+        (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given, &dissolve_node)))
         return rc;
     if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
         return rc;
     if (f[MK_TEXTURE].v && (rc = sf_texture(c, f[MK_TEXTURE].v, SF_CHILD("texture"), m)))
         return rc;
 #undef SF_CHILD
+    /* Seed 000: Dissolve "can be only applied to non-normal mapped surface that has a texture" (it
+     * reads the texture coordinates); a D3D9Client shader effect. Checked after the whole
+     * material, so key order does not matter. */
+    if (dissolve_node != NULL && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&
+        (m->model != MODEL_D3D9CLIENT || m->texture[MAT_TEX_DIFFUSE][0] == '\0')) {
+        sf_child(sub, path, "d3d9client");
+        sf_child(child, sub, "dissolve");
+        return sf_fail(c, RC_ERR_RANGE, dissolve_node, child,
+                       m->model != MODEL_D3D9CLIENT
+                           ? "dissolve applies to model d3d9client only (a D3D9Client shader effect); allowed: "
+                             "model: d3d9client, or no dissolve"
+                           : "dissolve needs a textured surface (seed 000: it applies only to a surface that has "
+                             "a texture, whose coordinates it reads); allowed: texture: {diffuse: file}, or no "
+                             "dissolve");
+    }
 
     /* Derived defaults, after the whole material, so key order in the file does not matter. */
     if (!diffuse_given)
