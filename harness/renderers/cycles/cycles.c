@@ -468,11 +468,15 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
                 return rc;
         }
-        if (mesh_material_unnormalised(s, mi)) {
-            snprintf(what, sizeof what,
-                     "materials[%d] '%s': d3d.normalize_normals false on a scaled object (Cycles normalises every "
-                     "normal)",
-                     mi, mat->name);
+        /* What no renderer twins: only a validate can judge it. */
+        const char *only_validate =
+            mesh_material_unnormalised(s, mi)
+                ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
+            : d3d9client_dissolve_on(mat)
+                ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
+                : NULL;
+        if (only_validate != NULL) {
+            snprintf(what, sizeof what, "materials[%d] '%s': %s", mi, mat->name, only_validate);
             if ((rc = cycles_cannot(c, 0, what, "judge it with role validate")) != RC_OK)
                 return rc;
         }

@@ -12,6 +12,7 @@
 #include <cJSON.h>
 
 #include "../cycles/cycles.h"
+#include "d3d9client.h"
 #include "exr.h"
 #include "fileio.h"
 #include "runner.h"
@@ -59,6 +60,13 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
             snprintf(why, len,
                      "%s: materials[%d] '%s': d3d.normalize_normals false on a scaled object (D3D's unnormalised "
                      "normals); EEVEE normalises every normal; compare EEVEE in validate or agree",
+                     s->path, mi, m->name);
+            return 1;
+        }
+        if (d3d9client_dissolve_on(m)) {
+            snprintf(why, len,
+                     "%s: materials[%d] '%s': d3d9client.dissolve (seed 000's noise on the reflected direction) has "
+                     "no EEVEE twin: no renderer reproduces that noise; compare EEVEE in validate or agree",
                      s->path, mi, m->name);
             return 1;
         }

@@ -276,6 +276,14 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
         return RC_ERR_RANGE;
     }
     int d9 = mat->model == MODEL_D3D9CLIENT;
+    if (d3d9client_dissolve_on(mat)) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': d3d9client.dissolve (seed 000's noise on the reflected "
+                       "direction) has no POV-Ray twin: no renderer reproduces that noise; judge it with "
+                       "role validate",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
     if (d9 && mat->d9.sun_angle) {
         status_message(err, errlen,
                        "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
