@@ -11,6 +11,7 @@
 
 #include "exr.h"
 #include "fileio.h"
+#include "frame.h"
 #include "jsonio.h"
 #include "jobs.h"
 #include "renderers/registry.h"
@@ -849,7 +850,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     /* A validate's references must render the scene's one physics: a record that says
      * otherwise (a translator drifted, or an old run) is an error, never a figure. */
     char want_physics[400];
-    physics_describe(&s->physics, s->n_lights, want_physics, sizeof want_physics);
+    physics_describe(&s->physics, frame_light_count(s), want_physics, sizeof want_physics);
     if (rr == ROLE_VALIDATE)
         cJSON_AddStringToObject(o, "physics", want_physics);
     const compare_side *both[2] = {&t, &r};

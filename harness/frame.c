@@ -73,6 +73,12 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
     return RC_OK;
 }
 
+int frame_light_count(const scene *s)
+{
+    int sun = s->env.kind == ENV_IMAGE && s->env.sun_threshold > 0.0f && s->n_lights < SCENE_MAX_LIGHTS;
+    return s->n_lights + sun;
+}
+
 rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen)
 {
     env_sun local;

@@ -36,6 +36,11 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
  * RC_ERR_RANGE with one line naming the scene, key and fix when no texel is above the
  * threshold or the lights are full. */
 rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen);
+/* The number of lights every renderer receives for the scene as its file gives it: its own,
+ * plus the sun frame_env_split_sun appends. Light masks (the physics manifest's
+ * diffuse_lights, specular_lights) are read against this count, on the scene file's side
+ * (compare) as on the renderer's (the job record). */
+int frame_light_count(const scene *s);
 /* Writes the environment's pixels (interleaved RGB) as a 32-bit float RGB EXR, for renderers
  * that read the image from a file (the split environment). */
 rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t errlen);

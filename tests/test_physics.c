@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include <glob.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,6 +24,7 @@
 
 #include "cli_exec.h"
 #include "exr.h"
+#include "frame.h"
 #include "jobs.h"
 #include "mesh.h"
 #include "renderers/cycles/cycles.h"
@@ -339,6 +341,56 @@ static void test_compare_holds_records_to_the_physics(void **state)
     cJSON_Delete(j);
 }
 
+/* A sky whose sun is split into a light, and no light of the scene's own: the renderers see one
+ * light (the sun), so "specular_lights: none" reads "none" in their records; compare must
+ * read the scene's mask against that same count (it printed "all" for zero lights, and every
+ * such validate was an error). */
+static void test_compare_split_sun_light_masks(void **state)
+{
+    (void)state;
+    char scn[512], run[512], err[2048], want[400], path[1024], cwd[PATH_MAX], envp[PATH_MAX + 32];
+    assert_non_null(getcwd(cwd, sizeof cwd)); /* the unit tests run from the tree's root */
+    snprintf(envp, sizeof envp, "%s/scenes/envs/city.exr", cwd);
+    snprintf(scn, sizeof scn, "%s/sunph.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-sun", dir);
+    FILE *f = fopen(scn, "w");
+    assert_non_null(f);
+    fprintf(f,
+            "name: sunph\nimage: {width: 8, height: 4}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+            "environment: {image: \"%s\", sun_threshold: 50}\n"
+            "physics: {specular_lights: none}\n"
+            "materials:\n  m: {roughness: 0}\n"
+            "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+            "comparisons:\n"
+            "  - {reference: cycles, role: validate, thresholds: {nrmse: {warn: 0.1, fail: 0.2, why: \"t\"}}}\n",
+            envp);
+    assert_int_equal(fclose(f), 0);
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_int_equal(scene_file_load(scn, s, err, sizeof err), RC_OK);
+    assert_int_equal(s->n_lights, 0);
+    assert_int_equal(frame_light_count(s), 1);
+    /* The renderer's side: the frame after the split, as jobs.c describes it. */
+    env_map e;
+    float *pixels = NULL;
+    assert_int_equal(frame_env_load(s, &e, &pixels, err, sizeof err), RC_OK);
+    assert_int_equal(frame_env_split_sun(s, pixels, &e, NULL, err, sizeof err), RC_OK);
+    assert_int_equal(s->n_lights, 1);
+    physics_describe(&s->physics, s->n_lights, want, sizeof want);
+    free(pixels);
+    free(s);
+    assert_non_null(strstr(want, "specular_lights=none"));
+    put_job(run, "sunph", registry_find("raster"), ROLE_VALIDATE, NULL, 0.5f);
+    put_job(run, "sunph", registry_find("cycles"), ROLE_VALIDATE, want, 0.5f);
+    if (cli_exec(err, sizeof err, "compare %s --run %s", scn, run) != 0)
+        fail_msg("compare: %s", err);
+    snprintf(path, sizeof path, "%s/sunph/compare.json", run);
+    cJSON *j = read_json(path);
+    assert_string_equal(jstr(comparison_at(j, 0), "status"), "pass");
+    assert_string_equal(jstr(comparison_at(j, 0), "physics"), want);
+    cJSON_Delete(j);
+}
+
 static double jnum(const cJSON *o, const char *key)
 {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
@@ -428,6 +480,7 @@ int main(void)
         cmocka_unit_test(test_cycles_job_follows_physics),
         cmocka_unit_test(test_compare_holds_records_to_the_physics),
         cmocka_unit_test(test_compare_robust_and_terms),
+        cmocka_unit_test(test_compare_split_sun_light_masks),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

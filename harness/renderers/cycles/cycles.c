@@ -150,7 +150,10 @@ typedef struct {
 static rc_status cycles_cannot(cycles_ctx *c, unsigned term, const char *what, const char *fix)
 {
     if (!c->o->partial || term == 0) {
-        status_message(c->err, c->errlen, "%s: %s; %s, or render with cycles partial terms", c->s->path, what, fix);
+        /* Only a whole term can be left out, and only by a twin (jobs.c sets partial for twins):
+         * say so where it applies, never where no partial twin could lift the refusal. */
+        status_message(c->err, c->errlen, "%s: %s; %s%s", c->s->path, what, fix,
+                       term != 0 ? " (a twin leaves this term out and compares the rest)" : "");
         return RC_ERR_RANGE;
     }
     if (c->n_missing < (int)(sizeof c->missing / sizeof c->missing[0]))
