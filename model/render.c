@@ -662,21 +662,31 @@ void render_image_free(render_image *img)
     }
 }
 
-static rc_status render_alloc(render_image *out, unsigned aovs, char *err, size_t errlen)
+/* The frame's layers into out: prev's of the same size cleared and taken (prev is an earlier
+ * result, or zeroed), the rest allocated zeroed; what prev still holds afterwards is freed. */
+static rc_status render_alloc(render_image *out, render_image *prev, unsigned aovs, char *err, size_t errlen)
 {
     size_t n = (size_t)out->width * (size_t)out->height;
-    for (int c = 0; c < RENDER_CHANNELS; c++) {
+    int same = prev->width == out->width && prev->height == out->height;
+    rc_status st = RC_OK;
+    for (int c = 0; c < RENDER_CHANNELS && st == RC_OK; c++) {
         int a = c - RENDER_DIFFUSE_R;
         if (a >= 0 && c < RENDER_COVERAGE && !(aovs & (1u << (a / 3))))
             continue;
+        if (same && prev->chan[c] != NULL) {
+            out->chan[c] = memset(prev->chan[c], 0, n * sizeof(float));
+            prev->chan[c] = NULL;
+            continue;
+        }
         out->chan[c] = calloc(n, sizeof(float));
         if (out->chan[c] == NULL) {
             render_image_free(out);
             snprintf(err, errlen, "render: out of memory for a %dx%d image; render smaller", out->width, out->height);
-            return RC_ERR_NOMEM;
+            st = RC_ERR_NOMEM;
         }
     }
-    return RC_OK;
+    render_image_free(prev);
+    return st;
 }
 
 /* Layers render_alloc makes for these AOV bits: the 11 always there, 3 per AOV term. */
@@ -738,6 +748,9 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     if (opt == NULL)
         opt = &defaults;
     double t0 = render_now();
+    render_image prev = {0};
+    if (opt->reuse_image)
+        prev = *out;
     memset(out, 0, sizeof *out);
     out->width = opt->width > 0 ? opt->width : s->width;
     out->height = opt->height > 0 ? opt->height : s->height;
@@ -745,6 +758,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     if (out->width <= 0 || out->height <= 0 || out->supersample <= 0 || out->supersample > 16) {
         snprintf(err, errlen, "%s: image %dx%d with supersample %d; width and height must be > 0, supersample 1..16",
                  s->path, out->width, out->height, out->supersample);
+        render_image_free(&prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
     /* Refuse up front what would not fit, instead of mapping tens of GiB and meeting the
@@ -753,6 +767,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     char why[256];
     if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
         snprintf(err, errlen, "%s: %s", s->path, why);
+        render_image_free(&prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
     double need = 0.0;
@@ -765,10 +780,11 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                  "smaller (--width, --height), with fewer layers (--aovs none) or raise REFLCHECK_MEMORY_LIMIT",
                  s->path, out->width, out->height, out->supersample, layers, need / 1073741824.0,
                  (double)limit / 1073741824.0);
+        render_image_free(&prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
     unsigned aovs = render_aov_bits(opt);
-    rc_status st = render_alloc(out, aovs, err, errlen);
+    rc_status st = render_alloc(out, &prev, aovs, err, errlen);
     if (st != RC_OK)
         return st;
 

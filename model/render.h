@@ -6,6 +6,7 @@
  *   render_scene(&scn, &msh, &env, &o, &img, err, sizeof err);
  *   img.chan[RENDER_R][y * img.width + x] ... ; NULL for layers not asked for
  *   render_image_free(&img);
+ *   o.reuse_image = 1; render_scene(..., &img, ...) again: the next frame into the same layers
  * The image owns its channel arrays (planar floats, row 0 at the top). Radiance is linear RGB
  * in the scene's radiometric units; each pixel is the box average of its k x k samples.
  * R, G, B = diffuse + specular + reflection + emission, or the environment where no surface is
@@ -111,6 +112,11 @@ typedef struct {
                                     never per vertex */
     const texture_set *textures; /* the materials' textures (harness/frame.h frame_textures_load);
                                     NULL = none, and then a textured material is refused */
+    int reuse_image;             /* 1 = out holds an earlier render_scene result (or is zeroed): its
+                                    layers of this frame's size are cleared and reused, as an engine
+                                    keeps its framebuffers between frames (first-touch page faults of
+                                    fresh layers cost more than the resolve's arithmetic); the others
+                                    are freed. 0 = out is overwritten unread. Same output */
 } render_options;
 
 typedef struct {

@@ -103,6 +103,58 @@ static void images_equal(const render_image *a, const render_image *b)
     }
 }
 
+/* reuse_image: a frame rendered into an earlier frame's layers equals a fresh one, layer for
+ * layer; the layers of the same size are the very arrays reused (no new allocation); a new
+ * size or fewer AOVs give the fresh frame's layers, and the sanitizer run sees no leak. */
+static void test_reuse_image(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    char err[1024];
+    mesh m;
+    env_map env;
+    float *px = NULL;
+    resolve_scene(s, &m, &env, &px);
+    render_options fresh = {.threads = 2}, reuse = {.threads = 2, .reuse_image = 1};
+    render_image a, b, c;
+    memset(&b, 0, sizeof b);
+    assert_int_equal(render_scene(s, &m, &env, &fresh, &a, err, sizeof err), RC_OK);
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK); /* from zeroed */
+    images_equal(&a, &b);
+    const float *first_r = b.chan[RENDER_R];
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK);
+    assert_ptr_equal(b.chan[RENDER_R], first_r);
+    images_equal(&a, &b);
+
+    /* Another size: the old layers go, the new frame is the fresh one of that size. */
+    fresh.width = reuse.width = 40;
+    fresh.height = reuse.height = 24;
+    assert_int_equal(render_scene(s, &m, &env, &fresh, &c, err, sizeof err), RC_OK);
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK);
+    assert_int_equal(b.width, 40);
+    images_equal(&c, &b);
+    render_image_free(&c);
+
+    /* Beauty only: the term layers reused before are freed, not left behind. */
+    fresh.aovs = reuse.aovs = RENDER_AOV_NONE;
+    assert_int_equal(render_scene(s, &m, &env, &fresh, &c, err, sizeof err), RC_OK);
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK);
+    assert_null(b.chan[RENDER_DIFFUSE_R]);
+    images_equal(&c, &b);
+
+    /* An error leaves the reused image empty (its layers freed). */
+    reuse.supersample = 99;
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_ERR_RANGE);
+    for (int k = 0; k < RENDER_CHANNELS; k++)
+        assert_null(b.chan[k]);
+    render_image_free(&a);
+    render_image_free(&c);
+    free(px);
+    mesh_free(&m);
+    free(s);
+}
+
 /* Pixel (i, j) of a k x k frame is the box average of pixels (k i + s, k j + t) of the frame k
  * times larger at one sample per pixel: the rasterizer puts both frames' samples at the same
  * fixed-point positions and the constant sky needs no ray, so the per-sample values are the
@@ -217,6 +269,7 @@ int main(void)
         cmocka_unit_test(test_profile_changes_nothing),
         cmocka_unit_test(test_resolve_box_average),
         cmocka_unit_test(test_resolve_invariance),
+        cmocka_unit_test(test_reuse_image),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
