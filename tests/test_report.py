@@ -256,7 +256,7 @@ def test_figures_md_validate_partial_and_fit():
     md = figures.figures_md(S)
     assert '| blinn | cycles | partial: specular left out | 0.01 | 1 of 200 (0.5 %) | — | pass |' in md
     assert '| blinn | raster vs exact | 0.158 | 0.137 | 26 % | 4.6 % | 31 % | — | pass |' in md
-    assert '- blinn: `bounces=1`' in md
+    assert '- blinn: the defaults' in md  # bounces=1 is the default
     assert '| blinn | raster vs exact | diffuse | 0.5 | 0.48 | 0.152 |' in md
     assert 'glossy' not in md  # a term both sides left at zero is not a figure
     assert (

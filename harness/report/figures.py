@@ -98,6 +98,26 @@ def fit_values(f):
     return '; '.join(vals) or DASH
 
 
+# The physics manifest's defaults (scenes/FORMAT.md): a scene's line names only what differs.
+PHYSICS_DEFAULTS = (
+    'diffuse_lights=all specular_lights=all env_diffuse=0 env_specular=1 bounces=1 shadows=0 '
+    'interreflection=0 fresnel_specular=exact fresnel_reflection=exact diffuse_weight=plain'
+)
+
+
+def physics_lines(S):
+    default = dict(w.split('=', 1) for w in PHYSICS_DEFAULTS.split())
+    out = [f'Defaults: `{PHYSICS_DEFAULTS}`; each scene with a validate or agree, what it sets otherwise:', '']
+    for s in S['scenes']:
+        texts = {
+            c.get('physics') for c in s['comparisons'] if c.get('role') in ('validate', 'agree') and c.get('physics')
+        }
+        for p in sorted(texts):
+            words = [w for w in p.split() if '=' in w and default.get(w.split('=', 1)[0]) != w.split('=', 1)[1]]
+            out.append(f'- {s["name"]}: ' + (' '.join(f'`{w}`' for w in words) if words else 'the defaults'))
+    return out
+
+
 def figures_md(S):
     """The Markdown text of figures.md for summary object S."""
     out = [
@@ -148,10 +168,7 @@ def figures_md(S):
             )
         )
     out += ['', '## Physics each validate reference renders (scene.physics)', '']
-    for s in S['scenes']:
-        ph = {c.get('physics') for c in s['comparisons'] if c.get('role') in ('validate', 'agree') and c.get('physics')}
-        for p in sorted(ph):
-            out.append(f'- {s["name"]}: `{p}`')
+    out += physics_lines(S)
     out += ['', '## Validate error by term (mean radiance, test against reference; NRMSE of the term)', '']
     rows = []
     for s, c in comparisons(S, 'validate'):
