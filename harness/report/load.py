@@ -128,6 +128,10 @@ def scene_dirs(run):
 
 
 JOB_FILE = re.compile(r'^([a-z0-9_]+)-([a-z0-9_]+)\.json$')
+# The scene folder's JSON files that are not render job records, though fit-wide.json has the
+# job records' name shape: compare's output and the fit step's (load_fits reads those).
+FIT_FILES = (('fit.json', 'seed'), ('fit-wide.json', 'wide'))
+NOT_JOB_FILES = ('compare.json',) + tuple(f for f, _ in FIT_FILES)
 
 
 def load_scene(run, name, problems):
@@ -176,7 +180,7 @@ def load_scene(run, name, problems):
             sc['comparisons'].append(norm_comparison(c, cpath, problems, name, i))
     for f in sorted(os.listdir(d)):
         m = JOB_FILE.match(f)
-        if not m or f == 'compare.json':
+        if not m or f in NOT_JOB_FILES:
             continue
         p = os.path.join(d, f)
         rec = read_json(p, problems, 'job record', name)
@@ -219,7 +223,7 @@ def load_fits(d, problems, name):
     fit-wide.json within wide ones), one dict per validate comparison and bounds; [] when the
     run has none (the fit step is optional)."""
     out = []
-    for fname, bounds in (('fit.json', 'seed'), ('fit-wide.json', 'wide')):
+    for fname, bounds in FIT_FILES:
         path = os.path.join(d, fname)
         if not os.path.exists(path):
             continue
