@@ -540,27 +540,16 @@ def setup_objects(job, materials):
 # ---------------------------------------------------------------- passes and output
 
 
-def setup_compositor(job, base_path):
-    sc = bpy.context.scene
-    vl = sc.view_layers[0]
-    vl.use_pass_combined = True
-    vl.use_pass_z = False
-    vl.use_pass_diffuse_direct = True
-    vl.use_pass_diffuse_indirect = True
-    vl.use_pass_diffuse_color = True
-    vl.use_pass_glossy_direct = True
-    vl.use_pass_glossy_indirect = True
-    vl.use_pass_glossy_color = True
-    vl.use_pass_emit = True
-    vl.use_pass_environment = True
-    vl.use_pass_object_index = True
+def compositor(sc, vl):
+    """The scene's compositor emptied down to a Render Layers node of view layer vl. Returns the
+    node tree, that node's outputs, and mix(kind, a, b): a MixRGB node of blend kind (factor 1,
+    unclamped, so radiance above 1 passes) on a and b, each a socket or an RGBA tuple."""
     sc.use_nodes = True
     nt = sc.node_tree
     for n in list(nt.nodes):
         nt.nodes.remove(n)
     rl = nt.nodes.new('CompositorNodeRLayers')
     rl.layer = vl.name
-    o = rl.outputs
 
     def mix(kind, a, b):
         n = nt.nodes.new('CompositorNodeMixRGB')
@@ -575,6 +564,24 @@ def setup_compositor(job, base_path):
                 nt.links.new(val, sock)
         return n.outputs[0]
 
+    return nt, rl.outputs, mix
+
+
+def setup_compositor(job, base_path):
+    sc = bpy.context.scene
+    vl = sc.view_layers[0]
+    vl.use_pass_combined = True
+    vl.use_pass_z = False
+    vl.use_pass_diffuse_direct = True
+    vl.use_pass_diffuse_indirect = True
+    vl.use_pass_diffuse_color = True
+    vl.use_pass_glossy_direct = True
+    vl.use_pass_glossy_indirect = True
+    vl.use_pass_glossy_color = True
+    vl.use_pass_emit = True
+    vl.use_pass_environment = True
+    vl.use_pass_object_index = True
+    nt, o, mix = compositor(sc, vl)
     black = (0.0, 0.0, 0.0, 1.0)
     diffuse = mix('MULTIPLY', mix('ADD', o['DiffDir'], o['DiffInd']), o['DiffCol'])
     glossy = mix('MULTIPLY', mix('ADD', o['GlossDir'], o['GlossInd']), o['GlossCol'])

@@ -120,27 +120,7 @@ def setup_compositor(job, base_path):
     aov = vl.aovs.add()
     aov.name = "refl"
     aov.type = 'COLOR'
-    sc.use_nodes = True
-    nt = sc.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    rl = nt.nodes.new('CompositorNodeRLayers')
-    rl.layer = vl.name
-    o = rl.outputs
-
-    def mix(kind, a, b):
-        n = nt.nodes.new('CompositorNodeMixRGB')
-        n.blend_type = kind
-        n.use_clamp = False
-        n.use_alpha = False
-        n.inputs[0].default_value = 1.0
-        for sock, val in ((n.inputs[1], a), (n.inputs[2], b)):
-            if isinstance(val, tuple):
-                sock.default_value = val
-            else:
-                nt.links.new(val, sock)
-        return n.outputs[0]
-
+    nt, o, mix = cr.compositor(sc, vl)
     black = (0.0, 0.0, 0.0, 1.0)
     diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol'])
     glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol'])
