@@ -73,11 +73,9 @@ rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, 
     return RC_OK;
 }
 
-int frame_light_count(const scene *s)
-{
-    int sun = s->env.kind == ENV_IMAGE && s->env.sun_threshold > 0.0f && s->n_lights < SCENE_MAX_LIGHTS;
-    return s->n_lights + sun;
-}
+int frame_sun_split(const scene *s) { return s->env.kind == ENV_IMAGE && s->env.sun_threshold > 0.0f; }
+
+int frame_light_count(const scene *s) { return s->n_lights + (frame_sun_split(s) && s->n_lights < SCENE_MAX_LIGHTS); }
 
 rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen)
 {
@@ -85,7 +83,7 @@ rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun
     if (sun == NULL)
         sun = &local;
     memset(sun, 0, sizeof *sun);
-    if (s->env.kind != ENV_IMAGE || !(s->env.sun_threshold > 0.0f) || pixels == NULL)
+    if (!frame_sun_split(s) || pixels == NULL)
         return RC_OK;
     if (s->n_lights >= SCENE_MAX_LIGHTS) {
         snprintf(err, errlen,
@@ -235,8 +233,6 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
     return RC_OK;
 }
 
-/* The scene keys of the six faces (FORMAT.md), in D3DCUBEMAP_FACES order. */
-static const char *const frame_cube_keys[6] = {"px", "nx", "py", "ny", "pz", "nz"};
 /* The horizontal cross (FORMAT.md): face f's column and row, in faces, of the 4 x 3 grid
  *        +Y
  *    -X  +Z  +X  -Z
@@ -255,8 +251,9 @@ static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char
     int n = 0, first = -1;
     for (int f = 0; st == RC_OK && f < (cross ? 1 : 6); f++) {
         const char *p = cross ? s->env.path : s->env.cube[f];
-        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", frame_cube_keys[f]);
-        st = frame_is_exr(p) ? frame_texture_exr(p, &img[f], why, sizeof why) : texture_load(p, &img[f], why, sizeof why);
+        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", env_cube_face_keys[f]);
+        st = frame_is_exr(p) ? frame_texture_exr(p, &img[f], why, sizeof why)
+                             : texture_load(p, &img[f], why, sizeof why);
         if (st != RC_OK) {
             snprintf(err, errlen, "%s: %s: %s", s->path, key, why);
             break;
@@ -273,9 +270,9 @@ static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char
                      env_cube_face_names[f], p, w, h);
             st = RC_ERR_RANGE;
         } else if (!cross && first >= 0 && w != n) {
-            snprintf(err, errlen, "%s: %s: the %s face %s is %dx%d but the %s face %s is %dx%d; give six faces of one size",
-                     s->path, key, env_cube_face_names[f], p, w, h, env_cube_face_names[first], s->env.cube[first], n,
-                     n);
+            snprintf(err, errlen,
+                     "%s: %s: the %s face %s is %dx%d but the %s face %s is %dx%d; give six faces of one size", s->path,
+                     key, env_cube_face_names[f], p, w, h, env_cube_face_names[first], s->env.cube[first], n, n);
             st = RC_ERR_RANGE;
         }
         if (first < 0) {
@@ -310,12 +307,13 @@ static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char
     if (env_check(e, &chk) != RC_OK) {
         const env_texel *t = chk.n_nonfinite > 0 ? &chk.first_nonfinite : &chk.first_negative;
         const char *p = cross ? s->env.path : s->env.cube[t->face];
-        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", frame_cube_keys[t->face]);
+        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s",
+                 env_cube_face_keys[t->face]);
         snprintf(err, errlen,
                  "%s: %s: %s: %ld non-finite and %ld negative texel values, the first on the %s face at texel "
                  "(x %d, y %d) channel %c = %g; give faces whose texels are finite and >= 0",
                  s->path, key, p, chk.n_nonfinite, chk.n_negative, env_cube_face_names[t->face], t->x, t->y,
-                 "RGB"[t->channel], (double)t->value);
+                 "RGB"[t->channel], (double)t -> value);
         free(rgb);
         *e = (env_map){.kind = ENV_CUBE, .scale = s->env.radiance};
         return RC_ERR_RANGE;

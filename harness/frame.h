@@ -36,6 +36,9 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
  * RC_ERR_RANGE with one line naming the scene, key and fix when no texel is above the
  * threshold or the lights are full. */
 rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen);
+/* 1 when the scene asks for its sky's sun as a light (environment.sun_threshold > 0 on an
+ * image): what frame_env_split_sun then does, and jobs.c writes the split sky for. */
+int frame_sun_split(const scene *s);
 /* The number of lights every renderer receives for the scene as its file gives it: its own,
  * plus the sun frame_env_split_sun appends. Light masks (the physics manifest's
  * diffuse_lights, specular_lights) are read against this count, on the scene file's side

@@ -517,8 +517,7 @@ static void job_render(job_ctx *c, job_record *rec)
      * written into its work folder. The cache key covers the original image, the threshold (the
      * scene file) and the code that splits it (model/env.c, harness/frame.c). */
     char split[1100] = "";
-    if (registry_row(c->j->renderer)->program != NULL && c->s->env.kind == ENV_IMAGE &&
-        c->s->env.sun_threshold > 0.0f) {
+    if (registry_row(c->j->renderer)->program != NULL && frame_sun_split(c->s)) {
         char why[600];
         snprintf(split, sizeof split, "%s/environment-split.exr", c->dir);
         if (frame_env_write(split, &c->env, why, sizeof why) != RC_OK) {
