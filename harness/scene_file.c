@@ -523,12 +523,16 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
+/* Image files the scene names for textures and cube-map faces: PNG or JPEG (sRGB, through
+ * model/texture.c) or linear OpenEXR. */
+static const char *const sf_image_exts[] = {".png", ".jpg", ".jpeg", ".exr"};
+#define SF_N_IMAGE_EXTS ((int)(sizeof sf_image_exts / sizeof sf_image_exts[0]))
+
 /* cube: {px: file, nx: ..., py, ny, pz, nz}: the six faces of a cube map (model/env.h), each
  * PNG/JPEG (sRGB) or linear EXR; all six required. */
 static rc_status sf_cube(sf_ctx *c, yaml_node_t *n, scene *s)
 {
-    static const char *const keys[6] = {"px", "nx", "py", "ny", "pz", "nz"};
-    static const char *const exts[] = {".exr", ".png", ".jpg", ".jpeg"};
+    const char *const *keys = env_cube_face_keys; /* model/env.h, D3DCUBEMAP_FACES order */
     sf_kv f[6];
     char child[SF_PATHLEN];
     rc_status rc;
@@ -538,7 +542,8 @@ static rc_status sf_cube(sf_ctx *c, yaml_node_t *n, scene *s)
         if ((rc = sf_need(c, n, "environment.cube", &f[k], keys[k])))
             return rc;
         sf_child(child, "environment.cube", keys[k]);
-        if ((rc = sf_file(c, f[k].v, child, exts, 4, "cube-map face image", TEXTURE_MAX_BYTES, s->env.cube[k])))
+        if ((rc = sf_file(c, f[k].v, child, sf_image_exts, SF_N_IMAGE_EXTS, "cube-map face image", TEXTURE_MAX_BYTES,
+                          s->env.cube[k])))
             return rc;
     }
     return RC_OK;
@@ -548,7 +553,6 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     static const char *const keys[] = {"constant", "image", "scale", "sun_threshold", "cube", "cube_cross"};
     static const char *const exts[] = {".exr"};
-    static const char *const cross_exts[] = {".exr", ".png", ".jpg", ".jpeg"};
     sf_kv f[6];
     rc_status rc;
     if ((rc = sf_map(c, n, "environment", keys, 6, f)))
@@ -573,7 +577,7 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
         return rc;
     if (f[4].v && (rc = sf_cube(c, f[4].v, s)))
         return rc;
-    if (f[5].v && (rc = sf_file(c, f[5].v, "environment.cube_cross", cross_exts, 4,
+    if (f[5].v && (rc = sf_file(c, f[5].v, "environment.cube_cross", sf_image_exts, SF_N_IMAGE_EXTS,
                                 "horizontal 4 x 3 cube-map cross image", TEXTURE_MAX_BYTES, s->env.path)))
         return rc;
     /* The sun split finds a region of an equirectangular image; a cube map has none to give. */
@@ -918,7 +922,6 @@ static float sf_f0(double eta, double k)
 static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
     static const char *const keys[MAT_TEX_SLOTS] = {"diffuse", "specular"};
-    static const char *const exts[] = {".png", ".jpg", ".jpeg", ".exr"};
     sf_kv f[MAT_TEX_SLOTS];
     char child[SF_PATHLEN];
     rc_status rc;
@@ -926,7 +929,8 @@ static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, materia
         return rc;
     for (int k = 0; k < MAT_TEX_SLOTS; k++) {
         sf_child(child, path, keys[k]);
-        if (f[k].v && (rc = sf_file(c, f[k].v, child, exts, 4, "texture image", TEXTURE_MAX_BYTES, m->texture[k])))
+        if (f[k].v && (rc = sf_file(c, f[k].v, child, sf_image_exts, SF_N_IMAGE_EXTS, "texture image",
+                                    TEXTURE_MAX_BYTES, m->texture[k])))
             return rc;
     }
     return RC_OK;

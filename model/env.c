@@ -23,8 +23,7 @@ rc_status env_check(const env_map *e, env_texel_check *out)
 {
     const env_texel none = {-1, -1, -1, -1, 0.0f};
     *out = (env_texel_check){0, 0, none, none};
-    if (e == NULL || (e->kind != ENV_IMAGE && e->kind != ENV_CUBE) || e->rgb == NULL || e->width <= 0 ||
-        e->height <= 0)
+    if (e == NULL || (e->kind != ENV_IMAGE && e->kind != ENV_CUBE) || e->rgb == NULL || e->width <= 0 || e->height <= 0)
         return RC_OK;
     /* A cube's faces lie one below the other: row y of the whole is row y % N of face y / N. */
     int faces = e->kind == ENV_CUBE ? 6 : 1;
@@ -44,6 +43,7 @@ rc_status env_check(const env_map *e, env_texel_check *out)
 }
 
 const char *const env_cube_face_names[6] = {"+X", "-X", "+Y", "-Y", "+Z", "-Z"};
+const char *const env_cube_face_keys[6] = {"px", "nx", "py", "ny", "pz", "nz"};
 
 /* The D3D face selection and face coordinates (env.h's table), written with selects only so
  * that env_lookup_n's lane loop if-converts it; (x, y, z) canonical, not necessarily unit. */
@@ -64,10 +64,7 @@ static inline int env_cube_face_st(float x, float y, float z, float *s, float *t
     return face;
 }
 
-int env_cube_coords(vec3 dir, float *s, float *t)
-{
-    return env_cube_face_st(dir.x, dir.y, dir.z, s, t);
-}
+int env_cube_coords(vec3 dir, float *s, float *t) { return env_cube_face_st(dir.x, dir.y, dir.z, s, t); }
 
 vec3 env_cube_direction(int face, float s, float t)
 {

@@ -96,6 +96,8 @@ void env_direction_to_texel(const env_map *e, vec3 dir, float *tx, float *ty);
 
 /* The face names of a cube map in D3DCUBEMAP_FACES order: "+X", "-X", "+Y", "-Y", "+Z", "-Z". */
 extern const char *const env_cube_face_names[6];
+/* The same faces as scene-file keys (environment.cube): "px", "nx", "py", "ny", "pz", "nz". */
+extern const char *const env_cube_face_keys[6];
 /* The face (D3DCUBEMAP_FACES order) and face coordinates s (right), t (down), both in [0, 1],
  * of a canonical direction: the one formula both lookups use. A zero or non-finite direction
  * gives a face and s, t inside [0, 1] (meaningless but never out of bounds). */
