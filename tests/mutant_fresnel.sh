@@ -5,7 +5,8 @@
 set -uo pipefail
 export LC_ALL=C  # one order for the glob and sort below
 cd "$(dirname "$0")/.."
-work=${1:-build}/mutant
+build=${1:-build}
+work=$build/mutant
 # The scenes that use the term: a D3D9Client material whose m is not set to 0 (m defaults to
 # nonzero), in a scene whose plan has a twin of our model. Only a twin pins the model: a
 # validate bounds the approximation's error from above, and a mutation that happens to move
@@ -14,7 +15,7 @@ work=${1:-build}/mutant
 # expectation by itself.
 expected=$(for s in scenes/*.yaml; do
     grep -E '^\s*d3d9client:\s*\{' "$s" | grep -qvE '\bm:\s*0(\.0*)?\s*[,}]' &&
-        "${1:-build}/reflcheck" plan "$s" --out "${1:-build}/mutant-plan" --small | grep -q '/raster-twin\.json:' &&
+        "$build/reflcheck" plan "$s" --out "$build/mutant-plan" --small | grep -q '/raster-twin\.json:' &&
         basename "$s" .yaml
 done | sort | tr '\n' ' ' | sed 's/ $//')
 [ -n "$expected" ] || { echo "mutant: no scene uses the D3D9Client Fresnel; update this test" >&2; exit 1; }
@@ -22,7 +23,7 @@ done | sort | tr '\n' ' ' | sed 's/ $//')
 rm -rf "$work"
 # With the build's objects: only what includes formula.h compiles again.
 . tests/scratch_tree.sh
-scratch_tree "$work" "${1:-build}" || { echo "mutant: copying the tree failed" >&2; exit 1; }
+scratch_tree "$work" "$build" || { echo "mutant: copying the tree failed" >&2; exit 1; }
 # formula_d3d9_power (model/formula.h) is the one definition of the exponent: every instance
 # of it (the scalar model's double, the SIMD kernels' float, the long-double check) is compiled
 # from that line.
@@ -37,7 +38,7 @@ make -s -C "$work" build/reflcheck >/dev/null || { echo "mutant: build failed" >
 # The references do not depend on the model, and their cache keys hash the translators' sources
 # (the same bytes in the copy), so the scene tests' cache serves them: only our renders are
 # redone with the mutant binary, whose bytes are in its jobs' keys.
-cache=$(cd "${1:-build}" && pwd)/cache
+cache=$(cd "$build" && pwd)/cache
 failed=()
 for s in "$work"/scenes/*.yaml; do
     name=$(basename "$s" .yaml)
