@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "crease.h"
 #include "exr.h"
 
 static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
@@ -151,20 +152,30 @@ rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err,
     return st;
 }
 
-rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
-                      size_t errlen)
+/* The layers of img, plus the crease layer when asked (frame.h), with the header attributes. */
+static rc_status frame_write_layers(const char *path, const scene *s, const mesh *m, const render_image *img,
+                                    const char *renderer, int crease, char *err, size_t errlen)
 {
-    return frame_write_as(path, s, m, img, "reflcheck-raster", err, errlen);
-}
-
-rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const render_image *img, const char *renderer,
-                         char *err, size_t errlen)
-{
-    exr_channel ch[RENDER_CHANNELS];
+    exr_channel ch[RENDER_CHANNELS + 1];
     int n = 0;
     for (int c = 0; c < RENDER_CHANNELS; c++)
         if (img->chan[c] != NULL)
             ch[n++] = (exr_channel){render_channel_names[c], img->chan[c]};
+    float *share = NULL;
+    if (crease) {
+        share = malloc((size_t)img->width * (size_t)img->height * sizeof *share);
+        if (share == NULL) {
+            status_message(err, errlen, "%s: out of memory for the crease layer of %dx%d", path, img->width,
+                           img->height);
+            return RC_ERR_NOMEM;
+        }
+        rc_status st = crease_share(s, m, img->width, img->height, img->supersample, 0, share, err, errlen);
+        if (st != RC_OK) {
+            free(share);
+            return st;
+        }
+        ch[n++] = (exr_channel){"crease", share};
+    }
     char hash[32], ms[32], k[16], tris[32], samples[32];
     snprintf(hash, sizeof hash, "%016" PRIx64, s->hash);
     snprintf(ms, sizeof ms, "%.3f", img->seconds * 1e3);
@@ -176,7 +187,21 @@ rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const 
         {"reflcheck.render_ms", ms},           {"reflcheck.supersample", k},   {"reflcheck.triangles", tris},
         {"reflcheck.shaded_samples", samples},
     };
-    return exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);
+    rc_status st = exr_write(path, img->width, img->height, ch, n, at, (int)(sizeof at / sizeof at[0]), err, errlen);
+    free(share);
+    return st;
+}
+
+rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
+                      size_t errlen)
+{
+    return frame_write_layers(path, s, m, img, "reflcheck-raster", 1, err, errlen);
+}
+
+rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const render_image *img, const char *renderer,
+                         char *err, size_t errlen)
+{
+    return frame_write_layers(path, s, m, img, renderer, 0, err, errlen);
 }
 
 static int frame_is_exr(const char *p)

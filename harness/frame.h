@@ -13,7 +13,9 @@
  *   frame_env_split_sun(&scn, pixels, &e, &sun, err, sizeof err);   environment.sun_threshold
  * frame_write stores every layer the render produced as 32-bit float, with the scene's name
  * and hash, the renderer (reflcheck-raster; frame_write_as names another), the render time, k,
- * the triangle and shaded-sample counts in the header.
+ * the triangle and shaded-sample counts in the header; and the model's "crease" layer: each
+ * pixel's share of samples where Cycles' shading-normal rules depart (harness/crease.h), which
+ * compare reads as a mask. frame_write_as (another renderer's image) writes no crease layer.
  */
 #ifndef REFLCHECK_FRAME_H
 #define REFLCHECK_FRAME_H

@@ -64,7 +64,7 @@ static vec3 render_camera_dir(const render_camera *c, float sx, float sy)
 
 vec3 render_camera_ray(const render_camera *c, float sx, float sy) { return v3_norm(render_camera_dir(c, sx, sy)); }
 
-static raster_vertex render_project(const render_camera *c, vec3 p)
+raster_vertex render_camera_clip(const render_camera *c, vec3 p)
 {
     vec3 d = v3_sub(p, c->eye);
     raster_vertex r = {v3_dot(d, c->right) / c->tan_half_x, v3_dot(d, c->up) / c->tan_half_y, v3_dot(d, c->forward)};
@@ -859,7 +859,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
         return RC_ERR_NOMEM;
     }
     for (int i = 0; i < m->n_verts; i++)
-        rv[i] = render_project(&cam, m->pos[i]);
+        rv[i] = render_camera_clip(&cam, m->pos[i]);
 
     if (any_per_vertex) {
         /* Gouraud: D3D evaluates the lighting once per vertex (seed 003); a vertex shared by

@@ -32,6 +32,7 @@
 #include <stddef.h>
 #include "env.h"
 #include "mesh.h"
+#include "raster.h"
 #include "scene.h"
 #include "shade.h"
 #include "status.h"
@@ -135,8 +136,9 @@ void render_image_free(render_image *img);
 void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *o, double *bytes,
                             int *layers);
 
-/* Camera: world point to raster clip coordinates; and the world ray through a screen point
- * (pixel units, row 0 at the top). Exposed for tests and the translators. */
+/* Camera: world point to raster clip coordinates (model/raster.h); and the world ray through a
+ * screen point (pixel units, row 0 at the top). Exposed for tests, the translators and the
+ * harness's own passes over the same samples (harness/crease.h). */
 typedef struct {
     vec3 eye, forward, right, up;
     float tan_half_x, tan_half_y;
@@ -144,5 +146,6 @@ typedef struct {
 } render_camera;
 void render_camera_make(const scene *s, int width, int height, render_camera *c);
 vec3 render_camera_ray(const render_camera *c, float sx, float sy);
+raster_vertex render_camera_clip(const render_camera *c, vec3 p);
 
 #endif

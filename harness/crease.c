@@ -1,0 +1,105 @@
+#include "crease.h"
+
+#include <stdlib.h>
+
+#include "raster.h"
+#include "render.h"
+
+int crease_departs(vec3 n, vec3 ng, vec3 v, const vec3 *l, int n_lights)
+{
+    /* Cycles' frame: Ng toward the viewer, N flipped with it (rule 1 keeps N's side). */
+    if (v3_dot(ng, v) < 0.0f) {
+        ng = v3_neg(ng);
+        n = v3_neg(n);
+    }
+    float nv = v3_dot(n, v), gv = v3_dot(ng, v);
+    if (nv < 0.0f)
+        return 1;
+    vec3 r = v3_sub(v3_scale(n, 2.0f * nv), v);
+    float lift = 0.9f * gv < 0.01f ? 0.9f * gv : 0.01f; /* Cycles: at least as shallow as the view */
+    if (v3_dot(r, ng) < lift)
+        return 1;
+    for (int i = 0; i < n_lights; i++)
+        if (v3_dot(l[i], n) > 0.0f && v3_dot(l[i], ng) < 0.0f)
+            return 1;
+    return 0;
+}
+
+typedef struct {
+    const scene *s;
+    const mesh *m;
+    vec3 eye;
+    int width;
+    float *share;
+} crease_job;
+
+/* The unit direction from x toward light i. */
+static vec3 crease_light_dir(const light *li, vec3 x)
+{
+    return li->kind == LIGHT_SUN ? v3_neg(li->direction) : v3_norm(v3_sub(li->position, x));
+}
+
+static void crease_tile(void *user, const raster_tile *t)
+{
+    const crease_job *j = user;
+    const mesh *m = j->m;
+    int k = t->k, row = t->w * k;
+    for (int py = 0; py < t->h; py++)
+        for (int px = 0; px < t->w; px++) {
+            int covered = 0, departs = 0;
+            for (int sy = 0; sy < k; sy++)
+                for (int sx = 0; sx < k; sx++) {
+                    const raster_sample *rs = &t->samples[(size_t)(py * k + sy) * (size_t)row + (size_t)(px * k + sx)];
+                    if (rs->tri < 0)
+                        continue;
+                    covered++;
+                    const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
+                    float b0 = 1.0f - rs->b1 - rs->b2;
+                    vec3 p0 = m->pos[tri[0]], p1 = m->pos[tri[1]], p2 = m->pos[tri[2]];
+                    vec3 x = v3_add(v3_add(v3_scale(p0, b0), v3_scale(p1, rs->b1)), v3_scale(p2, rs->b2));
+                    vec3 n = v3_add(v3_add(v3_scale(m->nrm[tri[0]], b0), v3_scale(m->nrm[tri[1]], rs->b1)),
+                                    v3_scale(m->nrm[tri[2]], rs->b2));
+                    vec3 ng = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
+                    /* A zero-area triangle has no Ng to disagree with (the mesh reader drops
+                     * them); where opposite normals cancel, render.c shades with the face normal. */
+                    if (v3_dot(ng, ng) == 0.0f)
+                        continue;
+                    ng = v3_norm(ng);
+                    n = v3_dot(n, n) < 1e-12f ? ng : v3_norm(n);
+                    vec3 v = v3_norm(v3_sub(j->eye, x));
+                    vec3 l[SCENE_MAX_LIGHTS];
+                    for (int i = 0; i < j->s->n_lights; i++)
+                        l[i] = crease_light_dir(&j->s->lights[i], x);
+                    departs += crease_departs(n, ng, v, l, j->s->n_lights);
+                }
+            j->share[(size_t)(t->y0 + py) * (size_t)j->width + (size_t)(t->x0 + px)] =
+                covered > 0 ? (float)departs / (float)covered : 0.0f;
+        }
+}
+
+rc_status crease_share(const scene *s, const mesh *m, int width, int height, int k, int threads, float *share,
+                       char *err, size_t errlen)
+{
+    if (width <= 0 || height <= 0 || k <= 0 || share == NULL) {
+        status_message(err, errlen, "%s: crease_share: size %dx%d, k %d: give a positive size and k and an output",
+                       s->path, width, height, k);
+        return RC_ERR_RANGE;
+    }
+    render_camera cam;
+    render_camera_make(s, width, height, &cam);
+    raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
+    if (rv == NULL) {
+        status_message(err, errlen, "%s: crease_share: out of memory for %d vertices", s->path, m->n_verts);
+        return RC_ERR_NOMEM;
+    }
+    for (int i = 0; i < m->n_verts; i++)
+        rv[i] = render_camera_clip(&cam, m->pos[i]);
+    crease_job j = {.s = s, .m = m, .eye = cam.eye, .width = width, .share = share};
+    raster_options ro = {.width = width, .height = height, .supersample = k, .threads = threads};
+    rc_status st = raster_draw(rv, m->n_verts, m->idx, m->n_tris, &ro, crease_tile, &j);
+    free(rv);
+    if (st != RC_OK)
+        status_message(err, errlen, "%s: crease_share: the rasterizer refused %dx%d, k %d (status %d)", s->path, width,
+                       height, k, (int)st);
+    return st;
+}
