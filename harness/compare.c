@@ -815,6 +815,44 @@ static void compare_partial_free(compare_partial *p)
             free(p->planes[sd][ch]);
 }
 
+/* Against a renderer with crease rules (registry.h), the interior pixels where the model's crease
+ * layer says some sample departs (harness/crease.h) leave the surface for the crease region, and
+ * the comparison says how many and why; an image without the layer (an older run) changes
+ * nothing and says so. */
+static void compare_crease(const comparison *c, const exr_image *geo, unsigned char *cls, size_t np, cJSON *o)
+{
+    const renderer_row *t = registry_row(c->test), *r = registry_row(c->reference);
+    const renderer_row *rules = r != NULL && r->crease_rules ? r : (t != NULL && t->crease_rules ? t : NULL);
+    if (rules == NULL)
+        return;
+    cJSON *j = cJSON_AddObjectToObject(o, "crease");
+    const float *share = geo != NULL ? exr_image_channel(geo, "crease") : NULL;
+    if (share == NULL) {
+        cJSON_AddStringToObject(j, "note",
+                                "the model image has no crease layer (rendered before it existed): "
+                                "no pixel left out; re-render the model to get it");
+        return;
+    }
+    long moved = 0, interior = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (cls[i] != METRICS_PX_INTERIOR)
+            continue;
+        interior++;
+        if (share[i] > 0.0f) {
+            cls[i] = METRICS_PX_CREASE;
+            moved++;
+        }
+    }
+    char why[300];
+    snprintf(why, sizeof why,
+             "%s shades creases by its own rules (a back face flips N with Ng, ensure_valid_reflection, no light "
+             "below the triangle): pixels with a departing sample are the crease region, not the surface",
+             rules->title);
+    cJSON_AddStringToObject(j, "rule", why);
+    cJSON_AddNumberToObject(j, "pixels", (double)moved);
+    cJSON_AddNumberToObject(j, "share_of_surface", interior > 0 ? (double)moved / (double)interior : 0.0);
+}
+
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
@@ -899,7 +937,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
 
     int w = t.img.width, h = t.img.height;
     size_t np = (size_t)w * (size_t)h;
-    unsigned char *cls = malloc(np), *mask[3] = {malloc(np), malloc(np), malloc(np)};
+    unsigned char *cls = malloc(np), *mask[4] = {malloc(np), malloc(np), malloc(np), malloc(np)};
     metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
     compare_partial_apply(&part, &tm, &rm);
     compare_partial_json(&part, o);
@@ -938,14 +976,15 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     cJSON_AddNumberToObject(o, "ref_nonfinite", (double)vr.nonfinite);
     cJSON_AddNumberToObject(o, "test_negative", (double)vt.negative);
     cJSON_AddNumberToObject(o, "ref_negative", (double)vr.negative);
-    const char *region_names[3] = {"surface", "edges", "background"};
-    const int region_class[3] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND};
+    const char *region_names[4] = {"surface", "edges", "background", "crease"};
+    const int region_class[4] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND, METRICS_PX_CREASE};
     cJSON *regions = cJSON_AddObjectToObject(o, "regions");
-    if (cls && mask[0] && mask[1] && mask[2]) {
+    if (cls && mask[0] && mask[1] && mask[2] && mask[3]) {
         const float *cov = geo ? exr_image_channel(geo, "coverage") : NULL;
         const float *obj = geo ? exr_image_channel(geo, "object") : NULL;
         metrics_classify(w, h, cov, obj, cls);
-        for (int i = 0; i < 3; i++) {
+        compare_crease(c, geo, cls, np, o);
+        for (int i = 0; i < 4; i++) {
             metrics_mask_from_class(w, h, cls, region_class[i], NULL, 0.0f, mask[i]);
             cJSON *m = compare_region(&rm, &tm, mask[i]);
             if (m != NULL)
@@ -1025,7 +1064,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     else
         sum->pass++;
     free(cls);
-    for (int i = 0; i < 3; i++)
+    for (int i = 0; i < 4; i++)
         free(mask[i]);
     compare_side_free(&t);
     compare_side_free(&r);

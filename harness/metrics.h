@@ -103,7 +103,9 @@ rc_status metrics_ssim_map(int width, int height, const float *ref, const float 
 double metrics_luminance(double r, double g, double b);
 
 /* ---- masks ---- */
-enum { METRICS_PX_BACKGROUND = 0, METRICS_PX_INTERIOR = 1, METRICS_PX_EDGE = 2 };
+/* METRICS_PX_CREASE: interior pixels compare takes out of the surface when the reference shades
+ * creases by other rules (harness/crease.h); metrics_classify never sets it. */
+enum { METRICS_PX_BACKGROUND = 0, METRICS_PX_INTERIOR = 1, METRICS_PX_EDGE = 2, METRICS_PX_CREASE = 3 };
 
 /* Class per pixel into cls (w*h). A pixel is covered when coverage > 0 (coverage NULL: all
  * covered). It is an EDGE when its coverage is partial (not within 1e-6 of 0 or 1), or when

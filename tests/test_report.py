@@ -224,6 +224,7 @@ def test_figures_md_validate_partial_and_fit():
                         'status': 'pass',
                         'regions': {'surface': {'n_pixels': 200, 'rel_rms': 0.01}},
                         'noise': {'ztest': {'n_fail_pixels': 1}},
+                        'crease': {'pixels': 12, 'share_of_surface': 0.057},
                         'terms_left_out': [{'term': 'specular', 'reason': 'no Blinn lobe'}],
                     },
                     {
@@ -254,7 +255,10 @@ def test_figures_md_validate_partial_and_fit():
         ],
     }
     md = figures.figures_md(S)
-    assert '| blinn | cycles | partial: specular left out | 0.01 | 1 of 200 (0.5 %) | — | pass |' in md
+    # the crease pixels compare moved out of the surface are named beside the z-test
+    assert (
+        '| blinn | cycles | partial: specular left out | 0.01 | 1 of 200 (0.5 %); 12 crease px apart | — | pass |' in md
+    )
     assert '| blinn | raster vs exact | 0.158 | 0.137 | 26 % | 4.6 % | 31 % | — | pass |' in md
     assert '- blinn: the defaults' in md  # bounces=1 is the default
     assert '| blinn | raster vs exact | diffuse | 0.5 | 0.48 | 0.152 |' in md

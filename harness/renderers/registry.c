@@ -51,6 +51,7 @@ static const renderer_row registry_rows[] = {
      .stochastic = 1,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
+     .crease_rules = 1,
      .render = cycles_render_job,
      .physics = cycles_physics},
     {.name = "exact",

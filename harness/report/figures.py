@@ -39,7 +39,9 @@ def beyond_noise(c):
     total = surface(c).get('n_pixels')
     if not finite(n) or not finite(total) or total <= 0:
         return DASH
-    return f'{int(n)} of {int(total)} ({pct(n / total)})'
+    crease = (c.get('crease') or {}).get('pixels') if isinstance(c.get('crease'), dict) else None
+    apart = f'; {int(crease)} crease px apart' if finite(crease) and crease > 0 else ''
+    return f'{int(n)} of {int(total)} ({pct(n / total)}){apart}'
 
 
 def terms_cell(c):
