@@ -582,25 +582,40 @@ def setup_compositor(job, base_path):
     vl.use_pass_environment = True
     vl.use_pass_object_index = True
     nt, o, mix = compositor(sc, vl)
-    black = (0.0, 0.0, 0.0, 1.0)
     diffuse = mix('MULTIPLY', mix('ADD', o['DiffDir'], o['DiffInd']), o['DiffCol'])
     glossy = mix('MULTIPLY', mix('ADD', o['GlossDir'], o['GlossInd']), o['GlossCol'])
-    route = need(job, "glossy_aov", "job")
-    if route not in ("specular", "reflection"):
-        raise JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
-    specular = glossy if route == "specular" else mix('MULTIPLY', glossy, black)
-    reflection = glossy if route == "reflection" else mix('MULTIPLY', glossy, black)
-    full = mix('ADD', o['Image'], o['Env'])
-    seta = nt.nodes.new('CompositorNodeSetAlpha')
-    seta.mode = 'REPLACE_ALPHA'
-    nt.links.new(full, seta.inputs['Image'])
-    nt.links.new(o['Alpha'], seta.inputs['Alpha'])
+    specular, reflection = route_glossy(job, mix, glossy)
     obj = nt.nodes.new('CompositorNodeMath')
     obj.operation = 'SUBTRACT'
     obj.use_clamp = False
     nt.links.new(o['IndexOB'], obj.inputs[0])
     obj.inputs[1].default_value = 1.0
+    terms = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", o['Emit'])]
+    return write_layers(nt, o, mix, base_path, terms, [("object", obj.outputs[0])])
 
+
+def route_glossy(job, mix, glossy):
+    """The glossy pass as (specular, reflection) under the job's glossy_aov: the named one gets
+    it, the other black."""
+    black = (0.0, 0.0, 0.0, 1.0)
+    route = need(job, "glossy_aov", "job")
+    if route not in ("specular", "reflection"):
+        raise JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
+    return (
+        glossy if route == "specular" else mix('MULTIPLY', glossy, black),
+        glossy if route == "reflection" else mix('MULTIPLY', glossy, black),
+    )
+
+
+def write_layers(nt, o, mix, base_path, terms, extra):
+    """One 32-bit multilayer EXR at base_path: the beauty (Image plus the background, alpha the
+    coverage), the term layers, background and coverage, then the extra layers. Returns the
+    File Output node; the Composite node it adds is what makes the compositor run in background
+    mode."""
+    seta = nt.nodes.new('CompositorNodeSetAlpha')
+    seta.mode = 'REPLACE_ALPHA'
+    nt.links.new(mix('ADD', o['Image'], o['Env']), seta.inputs['Image'])
+    nt.links.new(o['Alpha'], seta.inputs['Alpha'])
     fo = nt.nodes.new('CompositorNodeOutputFile')
     fo.base_path = base_path
     f = fo.format
@@ -608,20 +623,10 @@ def setup_compositor(job, base_path):
     f.color_depth = '32'
     f.exr_codec = 'ZIP'
     fo.layer_slots.clear()
-    layers = [
-        ("", seta.outputs[0]),
-        ("diffuse", diffuse),
-        ("specular", specular),
-        ("reflection", reflection),
-        ("emission", o['Emit']),
-        ("background", o['Env']),
-        ("coverage", o['Alpha']),
-        ("object", obj.outputs[0]),
-    ]
+    layers = [("", seta.outputs[0])] + terms + [("background", o['Env']), ("coverage", o['Alpha'])] + extra
     for name, src in layers:
         fo.layer_slots.new(name)
         nt.links.new(src, fo.inputs[len(fo.inputs) - 1])
-    # The compositor needs a Composite node to run in background mode.
     comp = nt.nodes.new('CompositorNodeComposite')
     nt.links.new(seta.outputs[0], comp.inputs['Image'])
     return fo

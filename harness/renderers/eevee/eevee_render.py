@@ -121,42 +121,12 @@ def setup_compositor(job, base_path):
     aov.name = "refl"
     aov.type = 'COLOR'
     nt, o, mix = cr.compositor(sc, vl)
-    black = (0.0, 0.0, 0.0, 1.0)
     diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol'])
     glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol'])
-    route = cr.need(job, "glossy_aov", "job")
-    if route not in ("specular", "reflection"):
-        raise cr.JobError("glossy_aov '%s' unknown; expected specular or reflection" % route)
-    specular = glossy if route == "specular" else mix('MULTIPLY', glossy, black)
-    reflection = mix('ADD', o['refl'], glossy if route == "reflection" else black)
-    full = mix('ADD', o['Image'], o['Env'])
-    seta = nt.nodes.new('CompositorNodeSetAlpha')
-    seta.mode = 'REPLACE_ALPHA'
-    nt.links.new(full, seta.inputs['Image'])
-    nt.links.new(o['Alpha'], seta.inputs['Alpha'])
-
-    fo = nt.nodes.new('CompositorNodeOutputFile')
-    fo.base_path = base_path
-    f = fo.format
-    f.file_format = 'OPEN_EXR_MULTILAYER'
-    f.color_depth = '32'
-    f.exr_codec = 'ZIP'
-    fo.layer_slots.clear()
-    layers = [
-        ("", seta.outputs[0]),
-        ("diffuse", diffuse),
-        ("specular", specular),
-        ("reflection", reflection),
-        ("emission", o['Emit']),
-        ("background", o['Env']),
-        ("coverage", o['Alpha']),
-    ]
-    for name, src in layers:
-        fo.layer_slots.new(name)
-        nt.links.new(src, fo.inputs[len(fo.inputs) - 1])
-    comp = nt.nodes.new('CompositorNodeComposite')
-    nt.links.new(seta.outputs[0], comp.inputs['Image'])
-    return fo
+    specular, reflection = cr.route_glossy(job, mix, glossy)
+    reflection = mix('ADD', o['refl'], reflection)
+    terms = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", o['Emit'])]
+    return cr.write_layers(nt, o, mix, base_path, terms, [])
 
 
 def gl_renderer():
