@@ -191,7 +191,8 @@ def test_figures_md_of_the_run(built):
     assert md.startswith(f'# Figures of run {RUN1}\n')
     assert '| alpha | povray | all | 1.20e-04 | — | — | pass |' in md
     # the Cycles twin's z-test: 3 pixels of the 36 surface pixels beyond the noise
-    assert '| alpha | cycles | all | 0.034 | 3 of 36 (8.33 %) | — | fail |' in md
+    # ... and the crease pixels compare moved out of the surface, carried through summary.json
+    assert '| alpha | cycles | all | 0.034 | 3 of 36 (8.33 %); 2 crease px apart | — | fail |' in md
 
 
 def test_figures_md_validate_partial_and_fit():

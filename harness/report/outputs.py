@@ -36,7 +36,8 @@ def summary_object(R):
             }
             o['test_image'] = c.get('test_key')
             o['reference_image'] = c.get('ref_key')
-            for k in ('terms_compared', 'terms_left_out'):  # partial twins only
+            # partial twins, and comparisons with a renderer that has crease rules, only
+            for k in ('terms_compared', 'terms_left_out', 'crease'):
                 if k in c:
                     o[k] = c[k]
             comps.append(o)
