@@ -160,36 +160,54 @@ rc_status fileio_write_atomic(const char *path, const char *text, char *err, siz
     return fileio_temp_finish(fd, tmp, target, failed, err, errlen);
 }
 
-char *fileio_read_all(const char *path, size_t *len)
+rc_status fileio_read_input(const char *path, long long max_bytes, const char *what, unsigned char **out, size_t *len,
+                            char *err, size_t errlen)
 {
     int fd;
     long long size = 0;
-    char err[16];
-    if (fileio_open_input(path, FILEIO_READ_ALL_MAX_BYTES, "a text file", &fd, &size, err, sizeof err) != RC_OK)
-        return NULL;
-    char *buf = malloc((size_t)size + 1);
+    *out = NULL;
+    rc_status rc = fileio_open_input(path, max_bytes, what, &fd, &size, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    unsigned char *buf = malloc((size_t)size + 1);
+    if (buf == NULL) {
+        close(fd);
+        status_message(err, errlen, "%s: out of memory for %lld bytes", path, size);
+        return RC_ERR_NOMEM;
+    }
     size_t used = 0;
     /* At most the size fstat gave: a file growing meanwhile is cut there, never read without end. */
-    while (buf != NULL && used < (size_t)size) {
+    while (used < (size_t)size) {
         ssize_t r = read(fd, buf + used, (size_t)size - used);
         if (r < 0 && errno == EINTR)
             continue;
         if (r < 0) {
+            status_message(err, errlen, "%s: cannot read it (%s); give a readable file", path, strerror(errno));
+            close(fd);
             free(buf);
-            buf = NULL;
-        } else if (r == 0) {
-            break;
-        } else {
-            used += (size_t)r;
+            return RC_ERR_IO;
         }
+        if (r == 0)
+            break;
+        used += (size_t)r;
     }
     close(fd);
-    if (buf == NULL)
-        return NULL;
     buf[used] = '\0';
+    *out = buf;
+    *len = used;
+    return RC_OK;
+}
+
+char *fileio_read_all(const char *path, size_t *len)
+{
+    unsigned char *buf;
+    size_t n;
+    char err[16];
+    if (fileio_read_input(path, FILEIO_READ_ALL_MAX_BYTES, "a text file", &buf, &n, err, sizeof err) != RC_OK)
+        return NULL;
     if (len != NULL)
-        *len = used;
-    return buf;
+        *len = n;
+    return (char *)buf;
 }
 
 int fileio_copy(const char *from, const char *to)

@@ -13,6 +13,8 @@
  *   fileio_write_atomic("run/x/compare.json", text, err, sizeof err);  temp file, then rename
  *   char *text = fileio_read_all("record.json", &len);   NUL-terminated; free(); regular files
  *                                                         of at most FILEIO_READ_ALL_MAX_BYTES
+ *   fileio_read_input("t.png", max, "a texture", &bytes, &len, err, sizeof err);   the same, any
+ *                                                         limit, with the reason in err
  *   fileio_copy("cache/k/out.exr", "run/x/raster-twin.exr");           temp file, then rename
  * Inputs: a FIFO, a device, a directory or a socket is refused with its kind named (it is
  * opened O_NONBLOCK, so a FIFO without a writer never blocks), and so is a file over the
@@ -69,6 +71,10 @@ rc_status fileio_temp_open(const char *target, char *tmp, size_t tmplen, int *fd
 rc_status fileio_temp_finish(int fd, const char *tmp, const char *target, int failed, char *err, size_t errlen);
 
 rc_status fileio_write_atomic(const char *path, const char *text, char *err, size_t errlen);
+/* The whole of an input file, opened as fileio_open_input does (what names it in messages), into
+ * a malloc'd buffer of *len bytes with a NUL after them; free(*out). */
+rc_status fileio_read_input(const char *path, long long max_bytes, const char *what, unsigned char **out, size_t *len,
+                            char *err, size_t errlen);
 char *fileio_read_all(const char *path, size_t *len);
 int fileio_copy(const char *from, const char *to);
 

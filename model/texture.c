@@ -12,7 +12,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include <jpeglib.h>
 #include <png.h>
@@ -87,34 +86,6 @@ static void texture_decode8(const unsigned char *src, int channels, texture *t)
         q[2] = lut[p[2]];
         q[3] = channels == 4 ? (float)p[3] / 255.0f : 1.0f;
     }
-}
-
-static rc_status texture_read_file(const char *path, unsigned char **out, size_t *len, char *err, size_t errlen)
-{
-    int fd;
-    long long size = 0;
-    rc_status rc = fileio_open_input(path, TEXTURE_MAX_BYTES, "a PNG or JPEG texture", &fd, &size, err, errlen);
-    if (rc != RC_OK)
-        return rc;
-    unsigned char *buf = malloc((size_t)size + 1);
-    if (buf == NULL) {
-        close(fd);
-        status_message(err, errlen, "%s: out of memory for %lld bytes", path, size);
-        return RC_ERR_NOMEM;
-    }
-    size_t n = 0;
-    while (n < (size_t)size) {
-        ssize_t r = read(fd, buf + n, (size_t)size - n);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            break;
-        n += (size_t)r;
-    }
-    close(fd);
-    *out = buf;
-    *len = n;
-    return RC_OK;
 }
 
 static rc_status texture_png(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
@@ -223,7 +194,7 @@ rc_status texture_load(const char *path, texture *t, char *err, size_t errlen)
     memset(t, 0, sizeof *t);
     unsigned char *buf = NULL;
     size_t len = 0;
-    rc_status rc = texture_read_file(path, &buf, &len, err, errlen);
+    rc_status rc = fileio_read_input(path, TEXTURE_MAX_BYTES, "a PNG or JPEG texture", &buf, &len, err, errlen);
     if (rc != RC_OK)
         return rc;
     static const unsigned char png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
