@@ -5,7 +5,8 @@
 #   make check T=NAME   one unit-test program (tests/test_NAME.c)
 #   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
 CC ?= cc
-PKGS := OpenEXR yaml-0.1 cmocka libcjson libpng libjpeg nlopt
+CXX ?= c++
+PKGS := OpenEXR yaml-0.1 cmocka libcjson libpng libjpeg nlopt OpenImageIO
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wvla -Wformat=2
@@ -24,16 +25,22 @@ SAN     := $(if $(SANITIZE),$(SANFLAGS))
 DEPFLAGS = -MMD -MP
 CFLAGS  ?=
 CFLAGS  += $(STD) $(OPT) $(WARN) $(SAN) -pthread -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
-LDLIBS  += $(SAN) -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lm
+# One C++ file, harness/image_oiio.cpp, is a C shim over OpenImageIO's C++ API (DDS files); it
+# takes the C flags that C++ shares, and every link adds the C++ runtime it needs.
+CXXFLAGS ?=
+CXXFLAGS += -std=c++17 $(OPT) -Wall -Wextra -Wpedantic -Wshadow -Wformat=2 -Wno-format-truncation $(SAN) -pthread \
+            -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+LDLIBS  += $(SAN) -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lstdc++ -lm
 
 BUILD ?= build$(if $(SANITIZE),-san)$(if $(DEBUG),-dbg)
 
 MODEL_SRC   := $(wildcard model/*.c)
 # Each renderer is a folder under harness/renderers/ (registry.c holds the table).
 HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c harness/renderers/*.c harness/renderers/*/*.c))
+HARNESS_CXX := $(wildcard harness/*.cpp)
 TEST_SRC    := $(wildcard tests/test_*.c)
 MODEL_OBJ   := $(MODEL_SRC:%.c=$(BUILD)/%.o)
-HARNESS_OBJ := $(HARNESS_SRC:%.c=$(BUILD)/%.o)
+HARNESS_OBJ := $(HARNESS_SRC:%.c=$(BUILD)/%.o) $(HARNESS_CXX:%.cpp=$(BUILD)/%.o)
 TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
@@ -48,6 +55,9 @@ deps:
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+$(BUILD)/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
 
 $(BUILD)/libreflcheck_model.a: $(MODEL_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
@@ -138,15 +148,23 @@ FUZZ_TIME  ?= 300
 FUZZ_CFLAGS := -g -O1 -fopenmp-simd -Wno-pass-failed -fsanitize=address,undefined -fno-sanitize-recover=all \
                $(STD) -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 FUZZ_DIR   := $(abspath $(BUILD))/fuzz
-FUZZ_OBJ   := $(MODEL_SRC:%.c=$(FUZZ_DIR)/obj/%.o) $(HARNESS_SRC:%.c=$(FUZZ_DIR)/obj/%.o)
+FUZZ_OBJ   := $(MODEL_SRC:%.c=$(FUZZ_DIR)/obj/%.o) $(HARNESS_SRC:%.c=$(FUZZ_DIR)/obj/%.o) \
+              $(HARNESS_CXX:%.cpp=$(FUZZ_DIR)/obj/%.o)
+# The C++ shim with the same sanitizers, less the vptr check, whose runtime only a C++ driver links.
+FUZZ_CXX   ?= clang++
+FUZZ_CXXFLAGS := -g -O1 -std=c++17 -fsanitize=address,undefined -fno-sanitize=vptr -fno-sanitize-recover=all \
+                 -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 
 $(FUZZ_DIR)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer-no-link $(DEPFLAGS) -c $< -o $@
+$(FUZZ_DIR)/obj/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(FUZZ_CXX) $(FUZZ_CXXFLAGS) -fsanitize=fuzzer-no-link $(DEPFLAGS) -c $< -o $@
 $(FUZZ_DIR)/libreflcheck_fuzz.a: $(FUZZ_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
 $(FUZZ_DIR)/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DIR)/libreflcheck_fuzz.a
-	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer $^ -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lm -o $@
+	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer $^ -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lstdc++ -lm -o $@
 
 fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
 	@mkdir -p $(FUZZ_DIR)/corpus_scene $(FUZZ_DIR)/corpus_exr $(FUZZ_DIR)/artifacts

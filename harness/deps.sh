@@ -10,6 +10,8 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
 # Textures (model/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
 # read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: README "Real meshes").
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
+# DDS textures and cube maps (harness/image_oiio.cpp: a C shim over OpenImageIO's C++ API).
+pkgs+=(libopenimageio-dev)
 # The Slurm backend and its local test cluster (harness/slurm/, README "Slurm").
 pkgs+=(slurm-wlm munge)
 # EEVEE's OpenGL context (harness/renderers/eevee/): Xvfb with Mesa's llvmpipe.
