@@ -6,9 +6,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "crease.h"
 #include "exr.h"
+#include "image_oiio.h"
 
 static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
 
@@ -204,10 +206,11 @@ rc_status frame_write_as(const char *path, const scene *s, const mesh *m, const 
     return frame_write_layers(path, s, m, img, renderer, 0, err, errlen);
 }
 
-static int frame_is_exr(const char *p)
+/* 1 when path ends in ext (".exr", ".dds"), in any case, as the scene file accepts it. */
+static int frame_has_ext(const char *p, const char *ext)
 {
-    size_t n = strlen(p);
-    return n >= 4 && (strcmp(p + n - 4, ".exr") == 0 || strcmp(p + n - 4, ".EXR") == 0);
+    size_t n = strlen(p), k = strlen(ext);
+    return n >= k && strcasecmp(p + n - k, ext) == 0;
 }
 
 static rc_status frame_texture_exr(const char *path, texture *t, char *err, size_t errlen)
@@ -227,6 +230,42 @@ static rc_status frame_texture_exr(const char *path, texture *t, char *err, size
     return st;
 }
 
+int frame_is_dds(const char *path) { return frame_has_ext(path, ".dds"); }
+
+/* Face f of a DDS file as a texture: 8-bit colour decoded as sRGB exactly as PNG/JPEG texels are,
+ * float data (BC6H) taken as linear. */
+static rc_status frame_dds_face(const image_dds *d, int f, texture *t, char *err, size_t errlen)
+{
+    size_t at = (size_t)f * (size_t)d->width * (size_t)d->height * 4;
+    return d->linear ? texture_from_rgba(d->width, d->height, d->rgbaf + at, t, err, errlen)
+                     : texture_from_srgb8(d->width, d->height, d->rgba8 + at, t, err, errlen);
+}
+
+/* A DDS file's faces (IMAGE_DDS_CUBE: six, D3DCUBEMAP_FACES order) or its 2D image into t[]. */
+static rc_status frame_dds_load(const char *path, image_dds_kind kind, texture *t, char *err, size_t errlen)
+{
+    image_dds d;
+    rc_status st = image_dds_read(path, kind, TEXTURE_MAX_BYTES, TEXTURE_MAX_SIDE, &d, err, errlen);
+    for (int f = 0; st == RC_OK && f < d.faces; f++)
+        st = frame_dds_face(&d, f, &t[f], err, errlen);
+    image_dds_free(&d);
+    if (st != RC_OK)
+        for (int f = 0; f < (kind == IMAGE_DDS_CUBE ? 6 : 1); f++)
+            texture_free(&t[f]);
+    return st;
+}
+
+/* An image a scene names (texture, cube face, cross) by its extension: linear EXR, a 2D DDS
+ * through OpenImageIO, else PNG/JPEG (sRGB). */
+static rc_status frame_image_load(const char *path, texture *t, char *err, size_t errlen)
+{
+    if (frame_has_ext(path, ".exr"))
+        return frame_texture_exr(path, t, err, errlen);
+    if (frame_is_dds(path))
+        return frame_dds_load(path, IMAGE_DDS_2D, t, err, errlen);
+    return texture_load(path, t, err, errlen);
+}
+
 rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen)
 {
     memset(ts, 0, sizeof *ts);
@@ -238,8 +277,7 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
                 continue;
             char why[1024];
             texture *t = &ts->map[i][k];
-            rc_status st =
-                frame_is_exr(p) ? frame_texture_exr(p, t, why, sizeof why) : texture_load(p, t, why, sizeof why);
+            rc_status st = frame_image_load(p, t, why, sizeof why);
             /* A NaN, Inf or negative texel has no colour meaning and bilinear filtering spreads it. */
             size_t n = st == RC_OK ? (size_t)t->width * (size_t)t->height * 4 : 0;
             for (size_t j = 0; j < n && st == RC_OK; j++)
@@ -265,20 +303,34 @@ rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t
  * each face as it is seen from inside the cube, unrotated. */
 static const int frame_cross_cell[6][2] = {{2, 1}, {0, 1}, {1, 0}, {1, 2}, {1, 1}, {3, 1}};
 
-/* A cube map's faces as one ENV_CUBE map: six files or one cross, EXR linear or PNG/JPEG through
- * the textures' sRGB decoding; square faces of one size, finite texels >= 0. */
+void frame_env_cube_key(const scene *s, int face, char *key, size_t len)
+{
+    if (s->env.cube[0][0] != '\0')
+        snprintf(key, len, "environment.cube.%s", env_cube_face_keys[face]);
+    else
+        snprintf(key, len, frame_is_dds(s->env.path) ? "environment.cube_dds" : "environment.cube_cross");
+}
+
+/* A cube map's faces as one ENV_CUBE map: six files, one cross, or one DDS cube; EXR linear,
+ * PNG/JPEG and 8-bit DDS through the textures' sRGB decoding; square faces of one size, finite
+ * texels >= 0. */
 static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char *err, size_t errlen)
 {
-    int cross = s->env.cube[0][0] == '\0';
+    int one_file = s->env.cube[0][0] == '\0', dds = one_file && frame_is_dds(s->env.path);
+    int cross = one_file && !dds;
     texture img[6] = {{0}};
     char why[1024], key[64];
     rc_status st = RC_OK;
     int n = 0, first = -1;
+    /* A DDS cube holds its six faces in D3DCUBEMAP_FACES order, each as D3D addresses it: they
+     * come out as six face images would. */
+    if (dds && (st = frame_dds_load(s->env.path, IMAGE_DDS_CUBE, img, why, sizeof why)) != RC_OK)
+        snprintf(err, errlen, "%s: environment.cube_dds: %s", s->path, why);
     for (int f = 0; st == RC_OK && f < (cross ? 1 : 6); f++) {
-        const char *p = cross ? s->env.path : s->env.cube[f];
-        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s", env_cube_face_keys[f]);
-        st = frame_is_exr(p) ? frame_texture_exr(p, &img[f], why, sizeof why)
-                             : texture_load(p, &img[f], why, sizeof why);
+        const char *p = one_file ? s->env.path : s->env.cube[f];
+        frame_env_cube_key(s, f, key, sizeof key);
+        if (!dds)
+            st = frame_image_load(p, &img[f], why, sizeof why);
         if (st != RC_OK) {
             snprintf(err, errlen, "%s: %s: %s", s->path, key, why);
             break;
@@ -331,9 +383,8 @@ static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char
     env_texel_check chk;
     if (env_check(e, &chk) != RC_OK) {
         const env_texel *t = chk.n_nonfinite > 0 ? &chk.first_nonfinite : &chk.first_negative;
-        const char *p = cross ? s->env.path : s->env.cube[t->face];
-        snprintf(key, sizeof key, cross ? "environment.cube_cross" : "environment.cube.%s",
-                 env_cube_face_keys[t->face]);
+        const char *p = one_file ? s->env.path : s->env.cube[t->face];
+        frame_env_cube_key(s, t->face, key, sizeof key);
         snprintf(err, errlen,
                  "%s: %s: %s: %ld non-finite and %ld negative texel values, the first on the %s face at texel "
                  "(x %d, y %d) channel %c = %g; give faces whose texels are finite and >= 0",

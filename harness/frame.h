@@ -7,6 +7,9 @@
  *   free(pixels);                       the caller owns the interleaved RGB pixels
  *   frame_write("out.exr", &scn, &msh, &img, err, sizeof err);
  *   texture_set ts; frame_textures_load(&scn, &ts, err, sizeof err); ... texture_set_free(&ts);
+ * Images by extension: linear EXR (exr.c), DDS (image_oiio.h: a cube map for
+ * environment.cube_dds, a 2D image elsewhere; 8-bit colour sRGB-decoded as PNG/JPEG are, BC6H
+ * linear), else PNG/JPEG (model/texture.c).
  * An environment image must have R, G and B channels and finite texels >= 0 (RC_ERR_RANGE
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
@@ -29,7 +32,8 @@
 
 rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
 /* Every material texture of the scene into ts (zeroed first): PNG/JPEG through model/texture.c,
- * linear EXR (R, G, B, optional A) through exr.c; texels must be finite and >= 0. On error
+ * linear EXR (R, G, B, optional A) through exr.c, DDS through image_oiio.h; texels must be finite
+ * and >= 0. On error
  * nothing stays allocated; free with texture_set_free. */
 rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen);
 /* The scene's sun extraction (environment.sun_threshold > 0 on an image; else nothing): moves
@@ -53,6 +57,12 @@ rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t 
  * FRAME_CUBE_EQUIRECT_PER_FACE in frame.c, which the cache key covers) as a 32-bit float RGB EXR,
  * for renderers that read an equirectangular image from a file. */
 rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err, size_t errlen);
+/* The scene-file key a cube map's face comes from, for messages: "environment.cube.px" (six
+ * files), "environment.cube_cross" or "environment.cube_dds" (one file holds all six). */
+void frame_env_cube_key(const scene *s, int face, char *key, size_t len);
+/* 1 when a path the scene names is a DDS file (its extension, any case), read through
+ * image_oiio.h. */
+int frame_is_dds(const char *path);
 rc_status frame_write(const char *path, const scene *s, const mesh *m, const render_image *img, char *err,
                       size_t errlen);
 /* frame_write naming another in-process renderer in the header ("reflcheck-exact"). */

@@ -17,6 +17,7 @@
 #include <cJSON.h>
 
 #include "frame.h"
+#include "image_oiio.h"
 #include "exr.h"
 #include "fileio.h"
 #include "jsonio.h"
@@ -163,6 +164,18 @@ static rc_status job_key_file(uint64_t *h, const char *label, const char *path, 
     return RC_OK;
 }
 
+/* 1 when the scene reads a DDS file (cube map, face or texture). */
+static int job_uses_dds(const scene *s)
+{
+    int any = s->env.kind == ENV_CUBE && frame_is_dds(s->env.path);
+    for (int f = 0; s->env.kind == ENV_CUBE && f < 6; f++)
+        any |= frame_is_dds(s->env.cube[f]);
+    for (int i = 0; i < s->n_materials; i++)
+        for (int k = 0; k < MAT_TEX_SLOTS; k++)
+            any |= frame_is_dds(s->materials[i].texture[k]);
+    return any;
+}
+
 /* Every file the scene references, in a fixed order. A new kind of referenced file (a
  * texture) is one more job_key_file call here. */
 static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t errlen)
@@ -170,8 +183,11 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
     rc_status st = RC_OK;
     if (s->env.kind == ENV_IMAGE)
         st = job_key_file(h, "environment.image", s->env.path, err, errlen);
-    if (s->env.kind == ENV_CUBE && s->env.cube[0][0] == '\0')
-        st = job_key_file(h, "environment.cube_cross", s->env.path, err, errlen);
+    char key[64];
+    if (s->env.kind == ENV_CUBE && s->env.cube[0][0] == '\0') {
+        frame_env_cube_key(s, 0, key, sizeof key);
+        st = job_key_file(h, key, s->env.path, err, errlen);
+    }
     for (int f = 0; st == RC_OK && s->env.kind == ENV_CUBE && f < 6; f++)
         if (s->env.cube[f][0] != '\0')
             st = job_key_file(h, "environment.cube", s->env.cube[f], err, errlen);
@@ -182,6 +198,11 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
         for (int k = 0; st == RC_OK && k < MAT_TEX_SLOTS; k++)
             if (s->materials[i].texture[k][0] != '\0')
                 st = job_key_file(h, "materials.texture", s->materials[i].texture[k], err, errlen);
+    /* A DDS is decoded by the OpenImageIO loaded at run time, which the sources do not name. */
+    if (st == RC_OK && job_uses_dds(s)) {
+        const char *v = image_oiio_version();
+        *h = job_key_field(*h, "openimageio", v, strlen(v));
+    }
     return st;
 }
 
@@ -196,7 +217,7 @@ static void job_key_code(const renderer_row *row, uint64_t *key)
                                          "model/scene.h",   "model/mesh.c",         "model/mesh.h",
                                          "model/vec.h",     "harness/exr.c",        "harness/renderers/renderer.c",
                                          "model/texture.c", "harness/frame.c",      "model/env.c",
-                                         "model/env.h"};
+                                         "model/env.h",     "harness/image_oiio.cpp"};
     const char *const *own = row->sources;
     int have = own != NULL;
     for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)

@@ -524,9 +524,12 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
 }
 
 /* Image files the scene names for textures and cube-map faces: PNG or JPEG (sRGB, through
- * model/texture.c) or linear OpenEXR. */
-static const char *const sf_image_exts[] = {".png", ".jpg", ".jpeg", ".exr"};
+ * model/texture.c), linear OpenEXR, or a 2D DDS (harness/image_oiio.h; 8-bit colour as sRGB). */
+static const char *const sf_image_exts[] = {".png", ".jpg", ".jpeg", ".exr", ".dds"};
 #define SF_N_IMAGE_EXTS ((int)(sizeof sf_image_exts / sizeof sf_image_exts[0]))
+/* A cross takes every image but a DDS, the table's last: one DDS file under the environment is a
+ * cube map (cube_dds), which harness/frame.c tells from a cross by its extension. */
+#define SF_N_CROSS_EXTS (SF_N_IMAGE_EXTS - 1)
 
 /* cube: {px: file, nx: ..., py, ny, pz, nz}: the six faces of a cube map (model/env.h), each
  * PNG/JPEG (sRGB) or linear EXR; all six required. */
@@ -551,17 +554,18 @@ static rc_status sf_cube(sf_ctx *c, yaml_node_t *n, scene *s)
 
 static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
 {
-    static const char *const keys[] = {"constant", "image", "scale", "sun_threshold", "cube", "cube_cross"};
-    static const char *const exts[] = {".exr"};
-    sf_kv f[6];
+    static const char *const keys[] = {"constant", "image", "scale", "sun_threshold", "cube", "cube_cross", "cube_dds"};
+    static const char *const exts[] = {".exr"}, *const dds[] = {".dds"};
+    sf_kv f[7];
     rc_status rc;
-    if ((rc = sf_map(c, n, "environment", keys, 6, f)))
+    if ((rc = sf_map(c, n, "environment", keys, 7, f)))
         return rc;
-    if (!!f[0].v + !!f[1].v + !!f[4].v + !!f[5].v != 1)
+    if (!!f[0].v + !!f[1].v + !!f[4].v + !!f[5].v + !!f[6].v != 1)
         return sf_fail(c, RC_ERR_PARSE, n, "environment",
-                       "give exactly one of 'constant', 'image', 'cube' and 'cube_cross'; allowed: {constant: [r, g, "
-                       "b]}, {image: file.exr, scale: s}, {cube: {px: f, nx: f, py: f, ny: f, pz: f, nz: f}, scale: "
-                       "s}, {cube_cross: file, scale: s}, or omit environment for none");
+                       "give exactly one of 'constant', 'image', 'cube', 'cube_cross' and 'cube_dds'; allowed: "
+                       "{constant: [r, g, b]}, {image: file.exr, scale: s}, {cube: {px: f, nx: f, py: f, ny: f, pz: "
+                       "f, nz: f}, scale: s}, {cube_cross: file, scale: s}, {cube_dds: file.dds, scale: s}, or omit "
+                       "environment for none");
     if (f[0].v) {
         if ((rc = sf_forbid(c, "environment", &f[2], "scale", "a constant environment", "constant: [r, g, b] alone")) ||
             (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a constant environment",
@@ -577,8 +581,12 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
         return rc;
     if (f[4].v && (rc = sf_cube(c, f[4].v, s)))
         return rc;
-    if (f[5].v && (rc = sf_file(c, f[5].v, "environment.cube_cross", sf_image_exts, SF_N_IMAGE_EXTS,
+    if (f[5].v && (rc = sf_file(c, f[5].v, "environment.cube_cross", sf_image_exts, SF_N_CROSS_EXTS,
                                 "horizontal 4 x 3 cube-map cross image", TEXTURE_MAX_BYTES, s->env.path)))
+        return rc;
+    /* One DDS cube map (harness/frame.c tells it from a cross by its extension). */
+    if (f[6].v && (rc = sf_file(c, f[6].v, "environment.cube_dds", dds, 1, "DDS cube map", TEXTURE_MAX_BYTES,
+                                s->env.path)))
         return rc;
     /* The sun split finds a region of an equirectangular image; a cube map has none to give. */
     if (s->env.kind == ENV_CUBE && (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a cube map",

@@ -1,9 +1,9 @@
 /* texture.c - texture images (libpng, libjpeg) and their bilinear, repeat-wrapped lookup.
  *
  * PNG and JPEG are decoded by Debian's libpng 1.6 (simplified API) and libjpeg-turbo, the
- * libraries every engine's tool chain carries; OpenImageIO's C++ API would add DDS, but a C++
- * shim and its link for one format the canonical scenes do not use is not worth it (README,
- * "Textures and real content"). */
+ * libraries every engine's tool chain carries. DDS comes through the harness's OpenImageIO shim
+ * (harness/image_oiio.h) into texture_from_srgb8 / texture_from_rgba, so this library stays C
+ * with no OpenImageIO dependency (README "Cube maps"). */
 #include "texture.h"
 
 #include <limits.h>
@@ -208,6 +208,24 @@ rc_status texture_load(const char *path, texture *t, char *err, size_t errlen)
         rc = RC_ERR_PARSE;
     }
     free(buf);
+    return rc;
+}
+
+rc_status texture_from_srgb8(int w, int h, const unsigned char *rgba, texture *t, char *err, size_t errlen)
+{
+    memset(t, 0, sizeof *t);
+    rc_status rc = texture_alloc("texture", w, h, t, err, errlen);
+    if (rc == RC_OK)
+        texture_decode8(rgba, 4, t);
+    return rc;
+}
+
+rc_status texture_from_rgba(int w, int h, const float *rgba, texture *t, char *err, size_t errlen)
+{
+    memset(t, 0, sizeof *t);
+    rc_status rc = texture_alloc("texture", w, h, t, err, errlen);
+    if (rc == RC_OK)
+        memcpy(t->rgba, rgba, (size_t)w * (size_t)h * 4 * sizeof *rgba);
     return rc;
 }
 

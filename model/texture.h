@@ -9,8 +9,9 @@
  * Texels are linear floats, interleaved R, G, B, A, row 0 at the top of the image. 8-bit PNG and
  * JPEG files are sRGB-encoded: colour channels are decoded with the IEC 61966-2-1 curve
  * (texture_srgb_to_linear), alpha is linear (a / 255); 16-bit PNGs are reduced to 8 bits first
- * (libpng's simplified API). Linear EXR textures come in through texture_from_rgba (the harness
- * reads EXR, harness/frame.c).
+ * (libpng's simplified API). Images the harness reads come in through texture_from_planes (linear
+ * EXR), texture_from_srgb8 (8-bit sRGB RGBA, e.g. DDS colour: the same decode as PNG and JPEG) and
+ * texture_from_rgba (linear float RGBA, e.g. DDS BC6H) (harness/frame.c).
  * Sampling, the same in every renderer (scenes/FORMAT.md): u to the right, v up (v = 0 is the
  * bottom row, as OBJ, PLY, POV-Ray's uv_mapping and Blender's UVs have it); texel (i, j) has its
  * centre at ((i + 0.5)/w, 1 - (j + 0.5)/h); bilinear between the four nearest centres; wrap mode
@@ -50,6 +51,11 @@ rc_status texture_load(const char *path, texture *t, char *err, size_t errlen);
 /* A copy of w x h linear RGBA floats (row 0 at the top); alpha may be NULL (then 1). */
 rc_status texture_from_planes(int w, int h, const float *r, const float *g, const float *b, const float *a, texture *t,
                               char *err, size_t errlen);
+/* w x h interleaved 8-bit sRGB RGBA decoded as PNG/JPEG texels are (colour through
+ * texture_srgb_to_linear, alpha a / 255). */
+rc_status texture_from_srgb8(int w, int h, const unsigned char *rgba, texture *t, char *err, size_t errlen);
+/* A copy of w x h interleaved linear RGBA floats (row 0 at the top). */
+rc_status texture_from_rgba(int w, int h, const float *rgba, texture *t, char *err, size_t errlen);
 void texture_free(texture *t);
 void texture_set_free(texture_set *ts);
 
