@@ -116,6 +116,7 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
     fit_result r;
     fit_options fo = opt->fo;
     fo.textures = tex;
+    fo.crease_rules = registry_row(reference)->crease_rules;
     st = fit_run(s, m, env, &ref, p, n, &fo, &r, err, sizeof err);
     exr_image_free(&img);
     if (st != RC_OK) {

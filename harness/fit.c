@@ -8,6 +8,7 @@
 #include <nlopt.h>
 
 #include "compare.h"
+#include "crease.h"
 #include "render.h"
 
 typedef struct {
@@ -264,6 +265,25 @@ static rc_status fit_render_measure(fit_ctx *c, const double *values, render_ima
     return st;
 }
 
+/* The surface pixels with a sample where the reference's crease rules depart (harness/crease.h)
+ * become METRICS_PX_CREASE in cls, so the mask is compare's surface for that reference. */
+static rc_status fit_crease(const scene *s, const mesh *m, int k, int threads, unsigned char *cls, char *err,
+                            size_t errlen)
+{
+    size_t np = (size_t)s->width * (size_t)s->height;
+    float *share = malloc(np * sizeof *share);
+    if (share == NULL) {
+        status_message(err, errlen, "%s: fit: out of memory for the crease layer", s->path);
+        return RC_ERR_NOMEM;
+    }
+    rc_status st = crease_share(s, m, s->width, s->height, k, threads, share, err, errlen);
+    for (size_t i = 0; st == RC_OK && i < np; i++)
+        if (cls[i] == METRICS_PX_INTERIOR && share[i] > 0.0f)
+            cls[i] = METRICS_PX_CREASE;
+    free(share);
+    return st;
+}
+
 rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metrics_image *ref, fit_param *p, int n,
                   const fit_options *o, fit_result *out, char *err, size_t errlen)
 {
@@ -321,8 +341,11 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     }
     if (st == RC_OK) {
         metrics_classify(s->width, s->height, img.chan[RENDER_COVERAGE], img.chan[RENDER_OBJECT], cls);
+        if (opt.crease_rules)
+            st = fit_crease(c.s, m, img.supersample, opt.threads, cls, err, errlen);
         long n_surface = metrics_mask_from_class(s->width, s->height, cls, METRICS_PX_INTERIOR, NULL, 0.0f, c.mask);
-        st = fit_measure(&c, &img, 1, &out->authored);
+        if (st == RC_OK)
+            st = fit_measure(&c, &img, 1, &out->authored);
         render_image_free(&img);
         c.evaluations = 1;
         c.best_f = out->authored.nrmse;

@@ -79,6 +79,8 @@ typedef struct {
     double xtol;                 /* per parameter, in the scaled [0, 1] range; 0 = 1e-4 */
     int threads;                 /* render threads, 0 = all cores */
     const texture_set *textures; /* the materials' textures (harness/frame.h), NULL = none */
+    int crease_rules;            /* 1: the reference shades creases by its own rules (renderer_row):
+                                    the crease pixels leave the mask, as compare leaves them out */
 } fit_options;
 
 typedef struct {
