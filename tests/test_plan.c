@@ -78,6 +78,11 @@ static int run_argv(const char *dir, const char *out_file, char *err, size_t err
             _exit(126);
         dup2(o, 1);
         dup2(e, 2);
+        /* Run under `make -j`, a child make would read the outer make's jobserver pipe from
+         * MAKEFLAGS, whose descriptors are not ours: it stops ("read jobs pipe") partway. */
+        unsetenv("MAKEFLAGS");
+        unsetenv("MFLAGS");
+        unsetenv("MAKELEVEL");
         execvp(argv[0], argv);
         _exit(127);
     }
