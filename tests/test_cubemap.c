@@ -23,8 +23,7 @@
 #include "jobs.h"
 #include "renderers/registry.h"
 #include "scene_file.h"
-
-static char tmpdir[] = "/tmp/reflcheck-cubemap-XXXXXX";
+#include "tmpdir.h"
 
 /* The fixture: N = 2, texel (x, y) of face f has R = 100 f + 10 y + x + 1, G = 2 R, B = R + 0.5. */
 #define FN 2
@@ -438,20 +437,6 @@ static void test_conversion_floor(void **state)
     free(s);
 }
 
-static int setup(void **state)
-{
-    (void)state;
-    return mkdtemp(tmpdir) == NULL ? -1 : 0;
-}
-
-static int teardown(void **state)
-{
-    (void)state;
-    char cmd[300];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    return system(cmd) == 0 ? 0 : -1;
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -460,5 +445,5 @@ int main(void)
         cmocka_unit_test(test_equirect_and_check),   cmocka_unit_test(test_scene_faces_and_cross),
         cmocka_unit_test(test_refusals),             cmocka_unit_test(test_conversion_floor),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }

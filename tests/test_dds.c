@@ -26,8 +26,7 @@
 #include "frame.h"
 #include "image_oiio.h"
 #include "scene_file.h"
-
-static char tmpdir[] = "/tmp/reflcheck-dds-XXXXXX";
+#include "tmpdir.h"
 
 /* DDS_HEADER.dwFlags, DDS_PIXELFORMAT.dwFlags and dwCaps/dwCaps2 (Microsoft, "DDS_HEADER
  * structure", "DDS_PIXELFORMAT structure"). */
@@ -483,20 +482,6 @@ static void test_formats(void **state)
     printf("\n");
 }
 
-static int setup(void **state)
-{
-    (void)state;
-    return mkdtemp(tmpdir) == NULL ? -1 : 0;
-}
-
-static int teardown(void **state)
-{
-    (void)state;
-    char cmd[300];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    return system(cmd) == 0 ? 0 : -1;
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -504,5 +489,5 @@ int main(void)
         cmocka_unit_test(test_dds_equals_png), cmocka_unit_test(test_render_equal), cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_formats),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }

@@ -25,6 +25,7 @@
 #include "scene_file.h"
 #include "shade.h"
 #include "texture.h"
+#include "tmpdir.h"
 
 static void test_srgb_curve(void **state)
 {
@@ -122,7 +123,6 @@ static void test_sample_wrap(void **state)
     }
 }
 
-static char tmpdir[] = "/tmp/reflcheck_texture_XXXXXX";
 
 static void test_png(void **state)
 {
@@ -592,20 +592,6 @@ static void test_exr_and_cli(void **state)
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, path), 0);
 }
 
-static int setup(void **state)
-{
-    (void)state;
-    return mkdtemp(tmpdir) == NULL ? -1 : 0;
-}
-
-static int teardown(void **state)
-{
-    (void)state;
-    char cmd[300];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    return system(cmd) == 0 ? 0 : -1;
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -614,5 +600,5 @@ int main(void)
         cmocka_unit_test(test_refusals),   cmocka_unit_test(test_shade_textured), cmocka_unit_test(test_generated_uvs),
         cmocka_unit_test(test_file_uvs),   cmocka_unit_test(test_scene_keys),     cmocka_unit_test(test_exr_and_cli),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
