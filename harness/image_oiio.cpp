@@ -1,5 +1,7 @@
-// image_oiio.cpp - the C shim over OpenImageIO's DDS reader (image_oiio.h says what it gives).
-// C++ stays in this file: no exception and no C++ type crosses the C interface.
+// image_oiio.cpp - the C shim over OpenImageIO's DDS reader (image_oiio.h says what it gives),
+// built as its own plugin, reflcheck-oiio.so, which image_dds.c loads at the first DDS read.
+// C++ stays in this file: no exception and no C++ type crosses the C interface. Its three entry
+// points carry the plugin's own names, so that they never resolve to image_dds.c's.
 
 // The C headers first, with C linkage; image_oiio.h's include of status.h is then a no-op.
 extern "C" {
@@ -15,6 +17,8 @@ extern "C" {
 #include <cstdlib>
 #include <cstring>
 #include <string>
+
+extern "C" const char *reflcheck_oiio_version(void);
 
 namespace {
 
@@ -91,7 +95,7 @@ rc_status decode(const char *path, const unsigned char *bytes, size_t len, image
     if (!in->set_ioproxy(&mem) || !in->open(path, spec)) {
         std::string why = one_line(in->geterror());
         bool unsupported = why.find("Unsupported") != std::string::npos;
-        status_message(err, errlen, "%s: not a DDS file OpenImageIO %s reads (%s); %s", path, image_oiio_version(),
+        status_message(err, errlen, "%s: not a DDS file OpenImageIO %s reads (%s); %s", path, reflcheck_oiio_version(),
                        why.c_str(), unsupported ? dds_fix : "give a valid DDS file");
         return RC_ERR_PARSE;
     }
@@ -173,7 +177,7 @@ rc_status decode(const char *path, const unsigned char *bytes, size_t len, image
 
 } // namespace
 
-extern "C" rc_status image_dds_read(const char *path, image_dds_kind kind, long long max_bytes, int max_side,
+extern "C" rc_status reflcheck_oiio_read(const char *path, image_dds_kind kind, long long max_bytes, int max_side,
                                     image_dds *out, char *err, size_t errlen)
 {
     *out = image_dds{};
@@ -195,7 +199,7 @@ extern "C" rc_status image_dds_read(const char *path, image_dds_kind kind, long 
     return rc;
 }
 
-extern "C" void image_dds_free(image_dds *d)
+extern "C" void reflcheck_oiio_free(image_dds *d)
 {
     std::free(d->rgba8);
     std::free(d->rgbaf);
@@ -204,7 +208,7 @@ extern "C" void image_dds_free(image_dds *d)
 
 // The library as loaded at run time (a new libOpenImageIO may decode differently than the headers'
 // version), as "major.minor.patch".
-extern "C" const char *image_oiio_version(void)
+extern "C" const char *reflcheck_oiio_version(void)
 {
     static const std::string v = [] {
         int n = OIIO::openimageio_version();
