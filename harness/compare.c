@@ -9,6 +9,7 @@
 
 #include <cJSON.h>
 
+#include "crease.h"
 #include "exr.h"
 #include "fileio.h"
 #include "frame.h"
@@ -833,16 +834,7 @@ static void compare_crease(const comparison *c, const exr_image *geo, unsigned c
                                 "no pixel left out; re-render the model to get it");
         return;
     }
-    long moved = 0, interior = 0;
-    for (size_t i = 0; i < np; i++) {
-        if (cls[i] != METRICS_PX_INTERIOR)
-            continue;
-        interior++;
-        if (share[i] > 0.0f) {
-            cls[i] = METRICS_PX_CREASE;
-            moved++;
-        }
-    }
+    long interior = 0, moved = crease_classify(cls, share, np, &interior);
     char why[300];
     snprintf(why, sizeof why,
              "%s shades creases by its own rules (a back face flips N with Ng, ensure_valid_reflection, no light "

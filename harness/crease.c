@@ -2,6 +2,7 @@
 
 #include <stdlib.h>
 
+#include "metrics.h"
 #include "raster.h"
 #include "render.h"
 
@@ -102,4 +103,21 @@ rc_status crease_share(const scene *s, const mesh *m, int width, int height, int
         status_message(err, errlen, "%s: crease_share: the rasterizer refused %dx%d, k %d (status %d)", s->path, width,
                        height, k, (int)st);
     return st;
+}
+
+long crease_classify(unsigned char *cls, const float *share, size_t np, long *interior)
+{
+    long moved = 0, inside = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (cls[i] != METRICS_PX_INTERIOR)
+            continue;
+        inside++;
+        if (share[i] > 0.0f) {
+            cls[i] = METRICS_PX_CREASE;
+            moved++;
+        }
+    }
+    if (interior != NULL)
+        *interior = inside;
+    return moved;
 }

@@ -36,5 +36,9 @@
 int crease_departs(vec3 n, vec3 ng, vec3 v, const vec3 *l, int n_lights);
 rc_status crease_share(const scene *s, const mesh *m, int width, int height, int k, int threads, float *share,
                        char *err, size_t errlen);
+/* The one rule compare and fit share: each METRICS_PX_INTERIOR pixel of cls (harness/metrics.h)
+ * whose share is above 0 becomes METRICS_PX_CREASE. Returns the pixels moved; *interior (may be
+ * NULL) gets the interior pixels there were. */
+long crease_classify(unsigned char *cls, const float *share, size_t np, long *interior);
 
 #endif

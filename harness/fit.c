@@ -277,9 +277,8 @@ static rc_status fit_crease(const scene *s, const mesh *m, int k, int threads, u
         return RC_ERR_NOMEM;
     }
     rc_status st = crease_share(s, m, s->width, s->height, k, threads, share, err, errlen);
-    for (size_t i = 0; st == RC_OK && i < np; i++)
-        if (cls[i] == METRICS_PX_INTERIOR && share[i] > 0.0f)
-            cls[i] = METRICS_PX_CREASE;
+    if (st == RC_OK)
+        crease_classify(cls, share, np, NULL);
     free(share);
     return st;
 }
