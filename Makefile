@@ -99,6 +99,7 @@ check: $(CLI)
 NPROC := $(shell nproc 2>/dev/null || echo 2)
 test: deps
 	$(MAKE) -j$(NPROC) all
+	@$(MAKE) -q all || { echo "make test: a second 'make all' would rebuild (intermediates deleted?)"; exit 1; }
 	$(MAKE) -j$(NPROC) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
