@@ -141,7 +141,7 @@ test-slurm: $(CLI)
 
 # The report generator, and the report opened in headless Chromium.
 test-report:
-	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py
+	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds.
 test-scenes: $(CLI)

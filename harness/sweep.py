@@ -100,6 +100,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'harness', 'renderers', 'cycles'))
 from worker_pool import WorkerPool  # noqa: E402  (needs the path above)
 
+sys.path.insert(0, os.path.join(ROOT, 'harness'))
+from progress import Progress  # noqa: E402  (needs the path above)
+
 FORMAT = 'reflcheck-sweep-1'
 CYCLES_SPP = (16, 64, 256, 1024)
 REF_SPP = 4096
@@ -794,6 +797,27 @@ def clean_nan(o):
     return o
 
 
+def collect(futs, recs, progress, cost):
+    """Gathers the jobs' records as they finish, showing progress at least every 10 s and
+    naming a failed job when it fails (harness/progress.py)."""
+    pending = set(futs)
+    while pending:
+        finished, pending = cf.wait(pending, timeout=progress.every, return_when=cf.FIRST_COMPLETED)
+        progress.tick()
+        for f in finished:
+            sp, key = futs[f]
+            try:
+                rec = f.result()
+            except (OSError, subprocess.TimeoutExpired) as e:
+                rec = {'status': 'error', 'message': str(e)}
+            recs[(sp, key)] = rec
+            bad = rec.get('status') not in ('ok', 'skipped')
+            why = str(rec.get('message') or '').splitlines()[:1]
+            failed = f'{scene_name(sp)}/{key}: {rec.get("status")}: {"".join(why)}' if bad else None
+            progress.done(cost[(sp, key)], failed)
+    progress.close()
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description='error against render time for every renderer knob (see the docstring)')
     ap.add_argument('--run', required=True, help='run folder; writes RUN/timing/<scene>.json')
@@ -890,12 +914,8 @@ def main(argv=None):
             ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
             for sp, name, j in work
         }
-        for f in cf.as_completed(futs):
-            sp, key = futs[f]
-            try:
-                recs[(sp, key)] = f.result()
-            except (OSError, subprocess.TimeoutExpired) as e:
-                recs[(sp, key)] = {'status': 'error', 'message': str(e)}
+        cost = {(sp, j['key']): expected_cost(j) for sp, name, j in work}
+        collect(futs, recs, Progress('sweep', len(work), sum(expected_cost(w[2]) for w in work)), cost)
     t_render = time.monotonic() - t_start
 
     rc = 0

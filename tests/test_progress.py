@@ -1,0 +1,87 @@
+"""test_progress.py - harness/progress.py: done/total, the time left, failures named at once.
+
+A fake clock and a string stream stand in for time and the terminal, so nothing here depends on
+how fast the machine is.
+Run: /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_progress.py
+"""
+
+import io
+import json
+import os
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, 'harness'))
+import progress  # noqa: E402
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def make(total, weight=None, every=10.0):
+    clock, out = Clock(), io.StringIO()
+    return progress.Progress('sweep', total, weight, stream=out, every=every, clock=clock), clock, out
+
+
+def test_time_left_scales_elapsed_by_the_work_left_in_weights():
+    p, clock, _ = make(4, weight=10.0)
+    assert p.eta() is None  # nothing done: no estimate
+    clock.t += 30.0
+    p.done(weight=7.5)  # three quarters of the work in 30 s: 10 s left
+    assert abs(p.eta() - 10.0) < 1e-9
+    assert 'about 10 s left' in p.line() and '1/4 done' in p.line()
+
+
+def test_a_log_gets_a_line_at_most_every_period_and_always_the_last():
+    p, clock, out = make(5, every=10.0)
+    p.done()  # first line at once
+    clock.t += 3.0
+    p.done()  # within 10 s of the last line: quiet
+    clock.t += 3.0
+    p.tick()  # still quiet
+    clock.t += 5.0
+    p.tick()  # 11 s since the last line: a line
+    clock.t += 1.0
+    p.done()
+    p.done()
+    p.done()  # the last unit: a line
+    lines = out.getvalue().splitlines()
+    assert [line.split(' done')[0] for line in lines] == ['sweep: 1/5', 'sweep: 2/5', 'sweep: 5/5']
+
+
+def test_a_failure_is_named_when_it_happens():
+    p, clock, out = make(3)
+    p.done()
+    clock.t += 1.0
+    p.done(failed='d3d_spot/cycles-16: failed: blender exit 1')
+    lines = out.getvalue().splitlines()
+    assert lines[1] == 'sweep: FAILED d3d_spot/cycles-16: failed: blender exit 1'
+    assert '2/3 done, 1 failed' in lines[2]
+
+
+def test_fmt_s():
+    assert progress.fmt_s(7.4) == '7 s'
+    assert progress.fmt_s(185) == '3 min 05 s'
+    assert progress.fmt_s(3720) == '1 h 02 min'
+
+
+def test_watch_counts_whole_records_and_names_failed_ones(tmp_path):
+    run = tmp_path / 'run'
+    (run / 'a').mkdir(parents=True)
+    (run / 'a' / 'raster-twin.json').write_text(json.dumps({'renderer': 'raster', 'status': 'ok'}))
+    (run / 'a' / 'povray-twin.json').write_text(json.dumps({'renderer': 'povray', 'status': 'failed',
+                                                            'message': 'povray failed (exit status 1)\nmore'}))
+    (run / 'a' / 'compare.json').write_text('{}')  # not a job record
+    (run / 'a' / 'cycles-twin.json').write_text('{"renderer": "cy')  # still being written
+    out = io.StringIO()
+    # The work has ended (as when the watched make exits): the watch scans once more and stops.
+    rc = progress.watch(str(run), 3, 'renders', 10.0, ended=lambda: True, poll=0.0, stream=out)
+    text = out.getvalue()
+    assert rc == 1
+    assert 'renders: FAILED a/povray-twin: failed: povray failed (exit status 1)' in text
+    assert text.splitlines()[-1].startswith('renders: 2/3 done, 1 failed')
