@@ -68,6 +68,9 @@ $(OIIO_PLUGIN): $(OIIO_PLUGIN_OBJ)
 	$(CXX) -shared $(SAN) -pthread $^ $(shell pkg-config --libs $(OIIO_PKG) 2>/dev/null) -o $@
 # The plugin's path, fixed at build time (REFLCHECK_OIIO_PLUGIN overrides it when the program runs).
 $(BUILD)/harness/image_dds.o: CFLAGS += -DREFLCHECK_OIIO_PLUGIN='"$(abspath $(OIIO_PLUGIN))"'
+# The tree whose scripts Blender runs, so reflcheck works from any folder (REFLCHECK_DATA_DIR
+# overrides it when the program runs).
+$(BUILD)/harness/renderers/renderer.o: CFLAGS += -DREFLCHECK_DATA_DIR='"$(abspath .)"'
 
 $(BUILD)/libreflcheck_model.a: $(MODEL_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
@@ -116,6 +119,7 @@ test-kill: $(CLI)
 # The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer.
 test-status: $(CLI)
 	@bash tests/nightly_status.sh $(BUILD)
+	@bash tests/nightly_paths.sh $(BUILD)
 
 # Two nightlies at once on one cache: both complete, the shared jobs render once, and both
 # history lines are intact.
@@ -141,7 +145,7 @@ test-slurm: $(CLI)
 
 # The report generator, and the report opened in headless Chromium.
 test-report:
-	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py
+	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds.
 test-scenes: $(CLI)

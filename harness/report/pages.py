@@ -13,6 +13,7 @@ import os
 import jinja2
 from markupsafe import Markup
 
+from .answer import answer_rows
 from .load import all_comparisons, run_status, verdict_counts
 from .plots import is_sweep, timing_points
 from .util import (
@@ -323,6 +324,8 @@ def index_html(R, trends, timing_plots, history_note):
         timing=timing,
         sweeps=sweeps,
         overview=sweep_overview(sweeps),
+        answer=answer_rows(R, {n: t.get('crossover') for n, t in sweeps}),
+        sweep_plots=[(n, timing_plots[n]) for n, _ in sweeps if timing_plots.get(n)],
     )
 
 

@@ -1,0 +1,146 @@
+"""answer - the index page's first table: how wrong each approximation is, where, at what cost.
+
+answer_rows(R, crossovers) -> list of rows, one per material as used in a scene (per material
+where the comparison splits its surface by object, else one for the scene's whole surface) and
+validate reference; a scene with no validate comparison gets one row that says so. Each row:
+  scene, material, test, reference, physics    what is judged against what (physics in short)
+  median, p95, nrmse, trim1                    surface figures (per material where split)
+  status                                       the comparison's verdict
+  term, nv, nl                                 where the error sits: the term with the largest
+                                               share, and the N.V and N.L bins holding most of the
+                                               squared error (None: not measured)
+  fit_nrmse, fit_median                        the same after the best fit of fit.json (None)
+  test_s, ref_s, crossover                     one frame's seconds each side; the sweep's
+                                               crossover text (None: no sweep of this scene)
+  twins                                        [(reference, text, status)] of the scene's twins
+Nothing here measures: it picks from compare.json, fit.json and timing/*.json as loaded.
+"""
+
+from .util import finite
+
+
+def _dominant_bin(bins):
+    """(lo, hi, share) of the angle bin holding the most squared error, or None."""
+    if not isinstance(bins, list):
+        return None
+    parts = []
+    for b in bins:
+        if not isinstance(b, dict) or not finite(b.get('rel_rms')) or not finite(b.get('n')):
+            continue
+        parts.append((b.get('lo'), b.get('hi'), b['n'] * b['rel_rms'] ** 2))
+    total = sum(p[2] for p in parts)
+    if not parts or total <= 0:
+        return None
+    lo, hi, sq = max(parts, key=lambda p: p[2])
+    return lo, hi, sq / total
+
+
+def _dominant_term(terms):
+    """(name, share of the summed squared term error) of the term with the most, or None."""
+    if not isinstance(terms, dict):
+        return None
+    sq = {k: v['nrmse'] ** 2 for k, v in terms.items() if isinstance(v, dict) and finite(v.get('nrmse'))}
+    total = sum(sq.values())
+    if total <= 0:
+        return None
+    name = max(sq, key=sq.get)
+    return name, sq[name] / total
+
+
+def _twin_text(c):
+    """A twin's state: 'at floor' when it passes its gates, else the pixels off or its verdict."""
+    z = ((c.get('noise') or {}).get('ztest')) or {}
+    if c.get('status') == 'pass':
+        return 'at floor'
+    if finite(z.get('n_fail_pixels')) and z['n_fail_pixels'] > 0:
+        return f'{int(z["n_fail_pixels"])} pixels off'
+    return c.get('status', '?')
+
+
+def _fit_of(scene, cid):
+    """The best fit within the seeds' ranges (fit.json) of comparison CID, or None."""
+    for f in scene.get('fits', []):
+        if f.get('id') == cid and f.get('bounds') == 'seed' and f.get('status') == 'ok' and f.get('best'):
+            return f['best']
+    return None
+
+
+def _material_parts(c):
+    """[(material, metrics)] per material where the comparison splits its surface by object,
+    else [(None, surface metrics)]. Objects of one material are not merged: the first object
+    of each material stands for it only when it is the only one (so no figure is averaged here)."""
+    objs = c.get('objects') if isinstance(c.get('objects'), list) else []
+    by_mat = {}
+    for o in objs:
+        if isinstance(o, dict) and o.get('material'):
+            by_mat.setdefault(o['material'], []).append(o)
+    if len(by_mat) > 1 and all(len(v) == 1 for v in by_mat.values()):
+        return [(m, v[0]) for m, v in by_mat.items()]
+    return [(None, (c.get('regions') or {}).get('surface') or {})]
+
+
+# The physics a validate renders, read back from compare.json's "key=value ..." line: what it
+# sets beyond the defaults a real-time model shares (one bounce, no shadows, no inter-reflection,
+# every light on both lobes, the environment on the lobe only).
+PHYSICS_DEFAULTS = {
+    'diffuse_lights': 'all',
+    'specular_lights': 'all',
+    'env_diffuse': '0',
+    'env_specular': '1',
+    'bounces': '1',
+    'shadows': '0',
+    'interreflection': '0',
+}
+
+
+def physics_short(text):
+    """'F lamp exact, F env exact, diffuse plain' plus every field that departs from the defaults."""
+    if not isinstance(text, str) or '=' not in text:
+        return text or ''
+    kv = dict(p.split('=', 1) for p in text.split() if '=' in p)
+    out = [f'F lamp {kv.get("fresnel_specular", "?")}', f'F env {kv.get("fresnel_reflection", "?")}']
+    out.append('diffuse × (1 − F)' if kv.get('diffuse_weight') == 'one_minus_f' else 'diffuse plain')
+    out += [f'{k} {v}' for k, v in kv.items() if k in PHYSICS_DEFAULTS and PHYSICS_DEFAULTS[k] != v]
+    return ', '.join(out)
+
+
+def answer_rows(R, crossovers=None):
+    crossovers = crossovers or {}
+    rows = []
+    for s in R['scenes']:
+        measured = [c for c in s['comparisons'] if not c.get('pseudo')]
+        twins = [(c.get('reference'), _twin_text(c), c.get('status')) for c in measured if c.get('role') == 'twin']
+        validates = [c for c in measured if c.get('role') == 'validate']
+        if not validates:
+            rows.append({'scene': s, 'material': None, 'reference': None, 'twins': twins, 'no_validate': True})
+            continue
+        for c in validates:
+            times = c.get('times') or {}
+            fit = _fit_of(s, c.get('id'))
+            term = _dominant_term(c.get('terms'))
+            for mat, m in _material_parts(c):
+                rows.append(
+                    {
+                        'scene': s,
+                        'material': mat,
+                        'reference': c.get('reference'),
+                        'physics': physics_short(c.get('physics')),
+                        'test': c.get('test'),
+                        'status': c.get('status'),
+                        'median': m.get('rel_median'),
+                        'p95': m.get('rel_p95'),
+                        'nrmse': m.get('nrmse'),
+                        'trim1': m.get('nrmse_trim1'),
+                        'term': term,
+                        'nv': _dominant_bin(c.get('angle_bins')) if mat is None else None,
+                        'nl': _dominant_bin(c.get('angle_bins_ndotl')) if mat is None else None,
+                        'fit_nrmse': fit.get('nrmse') if fit and mat is None else None,
+                        'fit_median': fit.get('median_rel') if fit and mat is None else None,
+                        'test_s': times.get('test_wall_s'),
+                        'ref_s': times.get('reference_wall_s'),
+                        'crossover': crossovers.get(s['name']),
+                        'twins': twins,
+                        'no_validate': False,
+                    }
+                )
+    return rows

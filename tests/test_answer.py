@@ -1,0 +1,95 @@
+"""test_answer.py - harness/report/answer.py: the index's first table, from hand-made records.
+
+Run: /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_answer.py
+"""
+
+import os
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, 'harness'))
+from report.answer import answer_rows, physics_short  # noqa: E402
+
+PHYS = (
+    'diffuse_lights=all specular_lights=all env_diffuse=0 env_specular=1 bounces=1 shadows=0 '
+    'interreflection=0 fresnel_specular=nv fresnel_reflection=exact diffuse_weight=one_minus_f'
+)
+
+
+def bins(rel):
+    """Angle bins 0.0-0.1 ... with 10 pixels each and the given rel_rms."""
+    return [{'lo': i / 10, 'hi': (i + 1) / 10, 'n': 10, 'rel_rms': r} for i, r in enumerate(rel)]
+
+
+def validate(**kw):
+    c = {
+        'id': 'raster-vs-cycles-validate',
+        'test': 'raster',
+        'reference': 'cycles',
+        'role': 'validate',
+        'status': 'pass',
+        'physics': PHYS,
+        'regions': {'surface': {'rel_median': 0.2, 'rel_p95': 0.6, 'nrmse': 0.4, 'nrmse_trim1': 0.3}},
+        # squared shares: diffuse 0.01, glossy 0.09 -> glossy holds 90 %
+        'terms': {'diffuse': {'nrmse': 0.1}, 'glossy': {'nrmse': 0.3}},
+        # n * rel^2: 10*(0.1^2, 0.3^2, 0.2^2) = 0.1, 0.9, 0.4 -> bin 0.1-0.2 holds 0.9/1.4
+        'angle_bins': bins([0.1, 0.3, 0.2]),
+        'angle_bins_ndotl': bins([0.5, 0.0]),
+        'times': {'test_wall_s': 0.02, 'reference_wall_s': 2.5},
+    }
+    c.update(kw)
+    return c
+
+
+def scene(name, comparisons, fits=()):
+    return {'name': name, 'page': f'scene-{name}.html', 'comparisons': comparisons, 'fits': list(fits)}
+
+
+def test_one_row_with_where_fit_cost_and_twins():
+    twin = {'id': 'raster-vs-povray-twin', 'reference': 'povray', 'role': 'twin', 'status': 'pass'}
+    bad = {
+        'id': 'raster-vs-cycles-twin',
+        'reference': 'cycles',
+        'role': 'twin',
+        'status': 'fail',
+        'noise': {'ztest': {'n_fail_pixels': 7}},
+    }
+    fits = [
+        {'id': 'raster-vs-cycles-validate', 'bounds': 'wide', 'status': 'ok', 'best': {'nrmse': 0.05}},
+        {'id': 'raster-vs-cycles-validate', 'bounds': 'seed', 'status': 'ok', 'best': {'nrmse': 0.25, 'median_rel': 0.1}},
+    ]
+    R = {'scenes': [scene('glass', [twin, bad, validate()], fits)]}
+    (r,) = answer_rows(R, {'glass': {'spp': 64}})
+    assert (r['median'], r['p95'], r['nrmse'], r['trim1']) == (0.2, 0.6, 0.4, 0.3)
+    assert r['term'][0] == 'glossy' and r['term'][1] == pytest.approx(0.9)
+    assert r['nv'][:2] == (0.1, 0.2) and r['nv'][2] == pytest.approx(0.9 / 1.4)
+    assert r['nl'][:2] == (0.0, 0.1) and r['nl'][2] == pytest.approx(1.0)
+    assert (r['fit_nrmse'], r['fit_median']) == (0.25, 0.1)  # the seed-range fit, not the wide one
+    assert (r['test_s'], r['ref_s'], r['crossover']) == (0.02, 2.5, {'spp': 64})
+    assert r['twins'] == [('povray', 'at floor', 'pass'), ('cycles', '7 pixels off', 'fail')]
+    assert r['physics'] == 'F lamp nv, F env exact, diffuse × (1 − F)'
+
+
+def test_rows_per_material_when_the_surface_is_split_and_none_measured_without_validate():
+    objs = [
+        {'object': 0, 'material': 'skin', 'rel_median': 0.1, 'nrmse': 0.2},
+        {'object': 1, 'material': 'legs', 'rel_median': 0.3, 'nrmse': 0.5},
+    ]
+    R = {'scenes': [scene('spider', [validate(objects=objs)]), scene('spot', [])]}
+    rows = answer_rows(R)
+    assert [(r['scene']['name'], r['material']) for r in rows] == [
+        ('spider', 'skin'),
+        ('spider', 'legs'),
+        ('spot', None),
+    ]
+    assert rows[1]['median'] == 0.3 and rows[1]['nrmse'] == 0.5
+    assert rows[0]['nv'] is None and rows[0]['fit_nrmse'] is None  # whole-surface figures only
+    assert rows[2]['no_validate'] and rows[2]['twins'] == []
+    assert rows[0]['crossover'] is None
+
+
+def test_physics_short_names_what_departs_from_the_defaults():
+    text = PHYS.replace('bounces=1', 'bounces=4').replace('env_diffuse=0', 'env_diffuse=1')
+    assert physics_short(text) == 'F lamp nv, F env exact, diffuse × (1 − F), env_diffuse 1, bounces 4'
