@@ -1,4 +1,4 @@
-/* stability.h - numerical stability sweeps of the float reflection models (MODELS.md section 5)
+/* stability.h - numerical stability sweeps of the float reflection models (docs/models.md §5)
  * against a long double reference, plus the physics checks (monotonic Fresnel, directional
  * albedo <= 1 for the physically normalised models, and where ct1982 and the euclid norm
  * break it).

@@ -1,4 +1,4 @@
-/* cooktorrance.h - Cook-Torrance metal shader (MODELS.md section 3): the specular lobe and
+/* cooktorrance.h - Cook-Torrance metal shader (docs/models.md §3): the specular lobe and
  * the environment reflection weight, per RGB channel.
  *
  * Usage:

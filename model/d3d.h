@@ -1,4 +1,4 @@
-/* d3d.h - Direct3D fixed-function lighting factors (MODELS.md section 1), one light at a time.
+/* d3d.h - Direct3D fixed-function lighting factors (docs/models.md §1), one light at a time.
  *
  * Usage:
  *   float a  = d3d_attenuation(&light, d) * d3d_spot(&light, v3_norm(v3_sub(x, light.position)));

@@ -1,4 +1,4 @@
-/* d3d9client.h - D3D9Client Fresnel + metallic reflection (MODELS.md section 2, seed
+/* d3d9client.h - D3D9Client Fresnel + metallic reflection (docs/models.md §2, seed
  * equations (1)-(8)), evaluated for one surface point.
  *
  * Usage:

@@ -172,7 +172,7 @@ FORMULA_INLINE FT FN(formula_sat)(FT x) { return x > FLT_MAX ? FLT_MAX : (x < -F
 /* 1 - c with c clamped to [0, 1]: the base of the Fresnel powers (1) and (4.9). */
 FORMULA_INLINE FT FN(formula_one_minus_cos)(FT cos_theta) { return 1 - FN(formula_clamp01)(cos_theta); }
 
-/* ---- Fresnel (MODELS.md 2 and 3) ----------------------------------------------------------- */
+/* ---- Fresnel (docs/models.md §2, §3) ------------------------------------------------------- */
 
 /* (2) D3D9Client and (4.9) F0: R0 = ((1 - n)/(1 + n))^2 for a relative index n. 1 - n is exact
  * near n = 1 (Sterbenz), so R0 keeps full relative precision as n -> 1. n <= 0 (not an index)
@@ -197,7 +197,7 @@ FORMULA_INLINE FT FN(formula_schlick)(FT f0, FT cos_theta)
 }
 
 #ifdef FORMULA_HYPOT
-/* The exact references (MODELS.md 4), double and long double only: no SIMD lane needs them. */
+/* The exact references (docs/models.md §4), double and long double only: no SIMD lane needs them. */
 
 /* Exact unpolarised Fresnel reflectance of a smooth dielectric, (Rs + Rp)/2, for cos_i in
  * [0, 1] and a relative index eta > 0 seen from the side the ray arrives on (the caller swaps
@@ -248,7 +248,7 @@ FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p; }
  * m = 1 - R0. */
 FORMULA_INLINE FT FN(formula_d3d9_fresnel)(FT r0, FT m, FT x_p) { return r0 + m * x_p; }
 
-/* ---- Direct3D fixed function (MODELS.md 1, seed 003) ---------------------------------------- */
+/* ---- Direct3D fixed function (docs/models.md §1, seed 003) ---------------------------------- */
 
 /* Light attenuation over distance: A = 1/(a0 + a1 d + a2 d^2), 0 for d > range. d2 is d^2 as the
  * caller has it (the lanes' squared distance, or d*d). A zero coefficient adds nothing even at
@@ -299,7 +299,7 @@ FORMULA_INLINE FT FN(formula_blinn)(FT n_h, FT power)
  * |L + V| < FORMULA_HALF_MIN (the zero-length guard: H is then the zero vector). */
 FORMULA_INLINE FT FN(formula_half_scale)(FT len) { return len >= (FT)FORMULA_HALF_MIN ? 1 / len : 0; }
 
-/* ---- Cook-Torrance microfacet terms (MODELS.md 3, seed 004) ------------------------------- */
+/* ---- Cook-Torrance microfacet terms (docs/models.md §3, seed 004) ------------------------- */
 
 /* The zero-cosine guard: a positive cosine raised to FORMULA_COS_MIN. */
 FORMULA_INLINE FT FN(formula_cos_floor)(FT c) { return c < (FT)FORMULA_COS_MIN ? (FT)FORMULA_COS_MIN : c; }
@@ -382,7 +382,7 @@ FORMULA_INLINE FT FN(formula_ct_lobe)(FT d, FT g, FT k, FT n_v) { return d * g /
 /* Lambert BRDF with 1/pi, the radiometric reference: albedo / pi, no cosine. */
 FORMULA_INLINE FT FN(formula_lambert_brdf)(FT albedo) { return albedo / FC(FORMULA_PI_DIGITS); }
 
-/* ---- D3D9Client reflection (MODELS.md 2, seeds 000/001) -------------------------------------- */
+/* ---- D3D9Client reflection (docs/models.md §2, seeds 000/001) -------------------------------- */
 
 /* |c| of a colour as weights fixed per norm (formula_norm_weights in the model file):
  * w_max max(c) + w . c + w_euclid |c|_2, one of them non-zero, so a lane loop has no switch.

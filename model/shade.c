@@ -116,7 +116,7 @@ int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, f
     return *atten > 0.0f;
 }
 
-/* Direct3D fixed function (MODELS.md 1). The flags are compile-time constants in each
+/* Direct3D fixed function (docs/models.md §1). The flags are compile-time constants in each
  * wrapper below, so every specialised path is its own branch-free loop body. */
 static inline void shade_d3d_impl(const shade_context *c, const material *m, vec3 x, vec3 n, vec3 v, shade_terms *out,
                                   const int specular, const int ambient)
@@ -136,7 +136,7 @@ static inline void shade_d3d_impl(const shade_context *c, const material *m, vec
         /* D3D lights nothing, not even the highlight, from behind the surface. */
         if (n_l <= 0.0f)
             continue;
-        /* The D3D model has no 1/pi: its light colour is E/pi (CONVENTIONS.md). */
+        /* The D3D model has no 1/pi: its light colour is E/pi (docs/conventions.md#direct3d-light-colours). */
         vec3 colour = v3_scale(e_perp, FORMULA_INV_PI_F);
         diffuse = v3_add(diffuse, v3_scale(v3_mul(d->diffuse, colour), d3d_lambert(n_l)));
         if (specular) {

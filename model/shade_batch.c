@@ -190,7 +190,7 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
                            const int specular, const int ambient)
 {
     const sb_light b = sb_light_make(l);
-    /* The D3D light colour is E/pi (CONVENTIONS.md); Vd, Vs, Va folded in once here. */
+    /* The D3D light colour is E/pi (docs/conventions.md#direct3d-light-colours); Vd, Vs, Va folded in once here. */
     const vec3 kd = v3_scale(v3_mul(d->diffuse, l->intensity), FORMULA_INV_PI_F);
     const vec3 ks = v3_scale(v3_mul(d->specular, l->intensity), FORMULA_INV_PI_F);
     const vec3 ka = v3_mul(d->ambient, l->ambient);
@@ -221,7 +221,7 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
     return sb_any(bad, n);
 }
 
-/* shade.c's shade_d3d_impl (MODELS.md 1) over a batch; returns non-zero when a lane was
+/* shade.c's shade_d3d_impl (docs/models.md §1) over a batch; returns non-zero when a lane was
  * outside the float-safe band. specular and ambient are constants in each caller. */
 SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batch_in *restrict in,
                      shade_batch_out *restrict out, const int specular, const int ambient)
@@ -332,7 +332,7 @@ SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *
     }
 }
 
-/* shade.c's shade_d3d9client (MODELS.md 2, eqs. 3-8) over a batch; dissolve a constant. */
+/* shade.c's shade_d3d9client (docs/models.md §2, eqs. 3-8) over a batch; dissolve a constant. */
 SB_INLINE void sb_d3d9client(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
                              shade_batch_out *out, const int dissolve)
 {
@@ -384,7 +384,7 @@ void shade_batch_d3d9client_dissolve(const shade_context *c, const shade_plan *p
     sb_d3d9client(c, p, in, out, 1);
 }
 
-/* ---- Cook-Torrance (MODELS.md 3): cooktorrance.c's lobe and reflection weight in float ---- */
+/* ---- Cook-Torrance (docs/models.md §3): cooktorrance.c's lobe and reflection weight in float ---- */
 
 /* Roughness below this goes through the scalar path: m^2 would leave float's normal range in
  * the Beckmann exponent, where cooktorrance.c works in double. */

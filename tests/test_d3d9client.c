@@ -108,7 +108,7 @@ static void test_disabled(void **state)
     close_rel(r.alpha, 0.7, 1e-7);
 }
 
-/* CONVENTIONS.md: POV-Ray's reflection { Rmin, Rmax falloff p } with Rmin = lambda + (s -
+/* docs/conventions.md#pov-ray: POV-Ray's reflection { Rmin, Rmax falloff p } with Rmin = lambda + (s -
  * lambda) R0, Rmax = lambda + (s - lambda)(R0 + m) gives R_tot/phi = Rmin + (Rmax - Rmin)
  * (1 - c)^p per channel: a second formula for (5). */
 static void test_povray_form(void **state)

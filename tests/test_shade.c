@@ -1,5 +1,5 @@
 /* The shading loop: each model's terms at a point against values worked out here in double
- * from the equations of MODELS.md, and the specialised paths against the general one. */
+ * from the equations of docs/models.md, and the specialised paths against the general one. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>

@@ -1,4 +1,4 @@
-/* Stability gates: no NaN/Inf/negative output over every sweep of MODELS.md section 5,
+/* Stability gates: no NaN/Inf/negative output over every sweep of docs/models.md §5,
  * monotonic Fresnel, directional albedo <= 1 for Walter-normalised Cook-Torrance with Smith G
  * (cross-checked by an independent quadrature), the documented ct1982 (exactly 4x) and euclid
  * (1 - sqrt 3) breaks, and ulp bounds derived from how each function evaluates. */
