@@ -334,3 +334,29 @@ rc_status fileio_memory_limit(size_t *bytes, char *err, size_t errlen)
         *bytes = (size_t)pages / 2 * (size_t)page;
     return RC_OK;
 }
+
+rc_status fileio_image_budget(const char *path, const char *format, long long w, long long h, double min_bytes,
+                              long long file_bytes, double alloc, char *err, size_t errlen)
+{
+    if (min_bytes > (double)file_bytes) {
+        status_message(err, errlen,
+                       "%s: the %s header says %lld x %lld pixels, which needs at least %.0f bytes of coded data, "
+                       "but the file has %lld: it is truncated or its header is corrupt; give the complete file",
+                       path, format, w, h, min_bytes, file_bytes);
+        return RC_ERR_PARSE;
+    }
+    size_t limit = 0;
+    char why[256];
+    if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
+        status_message(err, errlen, "%s: %s", path, why);
+        return RC_ERR_RANGE;
+    }
+    if (alloc > (double)limit) {
+        status_message(err, errlen,
+                       "%s: a %lld x %lld %s needs %.2f GiB decoded, over the memory limit of %.2f GiB; give a "
+                       "smaller image or raise REFLCHECK_MEMORY_LIMIT",
+                       path, w, h, format, alloc / 1073741824.0, (double)limit / 1073741824.0);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}

@@ -64,6 +64,13 @@ const char *fileio_kind(mode_t m);
 rc_status fileio_open_input(const char *path, long long max_bytes, const char *what, int *fd_out, long long *size_out,
                             char *err, size_t errlen);
 rc_status fileio_memory_limit(size_t *bytes, char *err, size_t errlen);
+/* The check every image reader makes after the header and before allocating for the pixels:
+ * RC_ERR_PARSE when the header's w x h needs at least min_bytes bytes of coded data (worked out
+ * from the format's largest compression ratio) and the file has fewer (file_bytes): it cannot be
+ * a complete file; RC_ERR_RANGE when the reader's allocations (alloc bytes) exceed the memory
+ * limit. format names the format in messages ("PNG", "JPEG", ...). */
+rc_status fileio_image_budget(const char *path, const char *format, long long w, long long h, double min_bytes,
+                              long long file_bytes, double alloc, char *err, size_t errlen);
 
 int fileio_same_file(const char *a, const char *b);
 rc_status fileio_output_target(const char *path, char *target, size_t len, char *err, size_t errlen);

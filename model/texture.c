@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include <jpeglib.h>
+#include <jerror.h>
 #include <png.h>
 
 #include "fileio.h"
@@ -40,13 +41,21 @@ void texture_set_free(texture_set *ts)
             texture_free(&ts->map[m][k]);
 }
 
-static rc_status texture_alloc(const char *path, int w, int h, texture *t, char *err, size_t errlen)
+static rc_status texture_check_side(const char *path, long long w, long long h, char *err, size_t errlen)
 {
     if (w <= 0 || h <= 0 || w > TEXTURE_MAX_SIDE || h > TEXTURE_MAX_SIDE) {
-        status_message(err, errlen, "%s: image is %d x %d pixels; give a texture of 1..%d pixels a side", path, w, h,
-                       TEXTURE_MAX_SIDE);
+        status_message(err, errlen, "%s: image is %lld x %lld pixels; give a texture of 1..%d pixels a side", path, w,
+                       h, TEXTURE_MAX_SIDE);
         return RC_ERR_RANGE;
     }
+    return RC_OK;
+}
+
+static rc_status texture_alloc(const char *path, int w, int h, texture *t, char *err, size_t errlen)
+{
+    rc_status rc = texture_check_side(path, w, h, err, errlen);
+    if (rc != RC_OK)
+        return rc;
     size_t limit = 0;
     char why[256];
     if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
@@ -88,6 +97,21 @@ static void texture_decode8(const unsigned char *src, int channels, texture *t)
     }
 }
 
+/* Deflate's largest expansion: a 258-byte match coded in 2 bits (1-bit length and distance
+ * codes), 1032 decoded bytes per byte; PNG's filtered rows are the deflate stream's output. */
+#define TEXTURE_DEFLATE_MAX_RATIO 1032.0
+
+/* The bytes a PNG's IDAT stream must inflate to: one filter byte and the packed samples per row
+ * (IHDR, which libpng has checked, sits at bytes 16..25; interlacing only adds rows). */
+static double texture_png_raw_bytes(const unsigned char *buf)
+{
+    static const int channels[7] = {1, 0, 3, 1, 2, 0, 4}; /* by colour type */
+    double w = (double)((unsigned long)buf[16] << 24 | (unsigned long)buf[17] << 16 | buf[18] << 8 | buf[19]);
+    double h = (double)((unsigned long)buf[20] << 24 | (unsigned long)buf[21] << 16 | buf[22] << 8 | buf[23]);
+    int bits = buf[24] * (buf[25] < 7 ? channels[buf[25]] : 4);
+    return h * (1.0 + ceil(w * bits / 8.0));
+}
+
 static rc_status texture_png(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
                              size_t errlen)
 {
@@ -98,9 +122,18 @@ static rc_status texture_png(const char *path, const unsigned char *buf, size_t 
         status_message(err, errlen, "%s: not a readable PNG (%s); give a valid PNG or JPEG file", path, img.message);
         return RC_ERR_PARSE;
     }
-    /* 8-bit sRGB RGBA whatever the file holds (grey, palette, 16 bit): our own decode follows. */
+    /* 8-bit sRGB RGBA whatever the file holds (grey, palette, 16 bit): our own decode follows.
+     * A gAMA, sRGB or cHRM chunk is honoured; without one, libpng would take 16-bit samples as
+     * linear, 8-bit ones as sRGB: the flag makes both sRGB, this project's convention for
+     * textures (scenes/FORMAT.md), so the 8- and 16-bit saves of one image give the same texels. */
     img.format = PNG_FORMAT_RGBA;
-    rc_status rc = texture_alloc(path, (int)img.width, (int)img.height, t, err, errlen);
+    img.flags |= PNG_IMAGE_FLAG_16BIT_sRGB;
+    double w = img.width, h = img.height;
+    rc_status rc = texture_check_side(path, img.width, img.height, err, errlen);
+    if (rc == RC_OK)
+        rc = fileio_image_budget(path, "PNG", img.width, img.height,
+                                 texture_png_raw_bytes(buf) / TEXTURE_DEFLATE_MAX_RATIO, (long long)len,
+                                 w * h * (4.0 + 4.0 * sizeof(float)), err, errlen);
     if (rc != RC_OK) {
         png_image_free(&img);
         return rc;
@@ -108,19 +141,20 @@ static rc_status texture_png(const char *path, const unsigned char *buf, size_t 
     unsigned char *px = malloc(PNG_IMAGE_SIZE(img));
     if (px == NULL) {
         png_image_free(&img);
-        texture_free(t);
         status_message(err, errlen, "%s: out of memory decoding the PNG", path);
         return RC_ERR_NOMEM;
     }
     if (!png_image_finish_read(&img, NULL, px, 0, NULL)) {
-        status_message(err, errlen, "%s: corrupt PNG (%s); give a valid PNG file", path, img.message);
+        status_message(err, errlen, "%s: corrupt or truncated PNG (%s); give a complete, valid PNG file", path,
+                       img.message);
         free(px);
-        texture_free(t);
         return RC_ERR_PARSE;
     }
-    texture_decode8(px, 4, t);
+    rc = texture_alloc(path, (int)img.width, (int)img.height, t, err, errlen);
+    if (rc == RC_OK)
+        texture_decode8(px, 4, t);
     free(px);
-    return RC_OK;
+    return rc;
 }
 
 typedef struct {
@@ -136,11 +170,69 @@ static void texture_jpeg_fail(j_common_ptr cinfo)
     longjmp(e->jump, 1);
 }
 
-/* libjpeg's warnings (e.g. extraneous bytes) do not stop a decode; they are not printed. */
-static void texture_jpeg_quiet(j_common_ptr cinfo, int level)
+/* libjpeg only warns about lost data (a cut file, a bad Huffman code) and fills the rest with
+ * grey; here that is an error. Warnings that lose no pixel (stray bytes between segments, an
+ * unknown JFIF revision or Adobe transform code, a bad ICC profile, which we do not read) pass,
+ * silently; trace messages (level > 0) too. */
+static void texture_jpeg_warn(j_common_ptr cinfo, int level)
 {
-    (void)cinfo;
-    (void)level;
+    int code = cinfo->err->msg_code;
+    if (level >= 0 || code == JWRN_EXTRANEOUS_DATA || code == JWRN_JFIF_MAJOR || code == JWRN_ADOBE_XFORM ||
+        code == JWRN_BOGUS_ICC)
+        return;
+    texture_jpeg_fail(cinfo);
+}
+
+static const char *texture_jpeg_space(J_COLOR_SPACE cs)
+{
+    switch (cs) {
+    case JCS_CMYK: return "CMYK";
+    case JCS_YCCK: return "YCCK";
+    default: return "unknown";
+    }
+}
+
+/* Refuses what this reader cannot decode, or a header the file's size cannot back, before
+ * jpeg_start_decompress allocates (a progressive file's coefficients: 2 bytes per sample). */
+static rc_status texture_jpeg_check(const char *path, struct jpeg_decompress_struct *ci, size_t len, char *err,
+                                    size_t errlen)
+{
+    J_COLOR_SPACE cs = ci->jpeg_color_space;
+    if (cs != JCS_GRAYSCALE && cs != JCS_YCbCr && cs != JCS_RGB) {
+        status_message(err, errlen,
+                       "%s: unsupported colour space (%s, %d components) in the JPEG header; convert it "
+                       "to RGB",
+                       path, texture_jpeg_space(cs), ci->num_components);
+        return RC_ERR_PARSE;
+    }
+    /* Arithmetic coding can code a flat block in a small fraction of a bit, so no file size bounds
+     * the image; no engine, browser or DCC tool writes it. */
+    if (ci->arith_code) {
+        status_message(err, errlen,
+                       "%s: arithmetic-coded JPEG (SOF%d) is unsupported; re-save it with Huffman "
+                       "coding (every encoder's default)",
+                       path, ci->progressive_mode ? 10 : 9);
+        return RC_ERR_PARSE;
+    }
+    if (ci->progressive_mode && ci->Ss != 0) {
+        status_message(err, errlen,
+                       "%s: progressive JPEG whose first scan is not a DC scan: corrupt; give a valid "
+                       "JPEG file",
+                       path);
+        return RC_ERR_PARSE;
+    }
+    rc_status rc = texture_check_side(path, ci->image_width, ci->image_height, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    /* The first scan codes every block of its components with a Huffman code of at least one bit
+     * (a DC difference, or a bit of DC refinement), so the file holds at least that many bits. */
+    double blocks = 0.0;
+    for (int i = 0; i < ci->comps_in_scan; i++)
+        blocks += (double)ci->cur_comp_info[i]->width_in_blocks * (double)ci->cur_comp_info[i]->height_in_blocks;
+    double w = ci->image_width, h = ci->image_height;
+    double coef = ci->progressive_mode ? w * h * ci->num_components * 2.0 : 0.0;
+    return fileio_image_budget(path, "JPEG", ci->image_width, ci->image_height, blocks / 8.0, (long long)len,
+                               w * h * (3.0 + 4.0 * sizeof(float)) + coef, err, errlen);
 }
 
 static rc_status texture_jpeg(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
@@ -151,30 +243,31 @@ static rc_status texture_jpeg(const char *path, const unsigned char *buf, size_t
     unsigned char *volatile px = NULL;
     ci.err = jpeg_std_error(&je.pub);
     je.pub.error_exit = texture_jpeg_fail;
-    je.pub.emit_message = texture_jpeg_quiet;
+    je.pub.emit_message = texture_jpeg_warn;
     je.msg[0] = '\0';
     if (setjmp(je.jump)) {
         jpeg_destroy_decompress(&ci);
         free(px);
         texture_free(t);
-        status_message(err, errlen, "%s: corrupt JPEG (%s); give a valid PNG or JPEG file", path, je.msg);
+        int cut = je.pub.msg_code == JWRN_JPEG_EOF || je.pub.msg_code == JERR_INPUT_EOF;
+        status_message(err, errlen, "%s: %s JPEG (%s); give a complete, valid PNG or JPEG file", path,
+                       cut ? "truncated" : "corrupt", je.msg);
         return RC_ERR_PARSE;
     }
     jpeg_create_decompress(&ci);
     jpeg_mem_src(&ci, buf, (unsigned long)len);
     jpeg_read_header(&ci, TRUE);
-    ci.out_color_space = JCS_RGB;
-    jpeg_start_decompress(&ci);
-    rc_status rc = texture_alloc(path, (int)ci.output_width, (int)ci.output_height, t, err, errlen);
+    rc_status rc = texture_jpeg_check(path, &ci, len, err, errlen);
     if (rc != RC_OK) {
         jpeg_destroy_decompress(&ci);
         return rc;
     }
+    ci.out_color_space = JCS_RGB;
+    jpeg_start_decompress(&ci);
     size_t row = (size_t)ci.output_width * 3;
     px = malloc(row * ci.output_height);
     if (px == NULL) {
         jpeg_destroy_decompress(&ci);
-        texture_free(t);
         status_message(err, errlen, "%s: out of memory decoding the JPEG", path);
         return RC_ERR_NOMEM;
     }
@@ -183,10 +276,13 @@ static rc_status texture_jpeg(const char *path, const unsigned char *buf, size_t
         jpeg_read_scanlines(&ci, &r, 1);
     }
     jpeg_finish_decompress(&ci);
+    int w = (int)ci.output_width, h = (int)ci.output_height;
     jpeg_destroy_decompress(&ci);
-    texture_decode8(px, 3, t);
+    rc = texture_alloc(path, w, h, t, err, errlen);
+    if (rc == RC_OK)
+        texture_decode8(px, 3, t);
     free(px);
-    return RC_OK;
+    return rc;
 }
 
 rc_status texture_load(const char *path, texture *t, char *err, size_t errlen)

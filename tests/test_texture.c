@@ -123,7 +123,6 @@ static void test_sample_wrap(void **state)
     }
 }
 
-
 static void test_png(void **state)
 {
     (void)state;
@@ -592,13 +591,372 @@ static void test_exr_and_cli(void **state)
     assert_int_equal(cli_exec(err, sizeof err, "render %s -o %s", scn, path), 0);
 }
 
+/* ---- bad input, third round (issue 20): every file below is written here, then damaged. */
+
+static void put_file(const char *path, const void *buf, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(buf, 1, n, f), n);
+    fclose(f);
+}
+
+/* The whole of a small file into a malloc'd buffer; *n its size. */
+static unsigned char *get_file(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *buf = malloc((size_t)len);
+    assert_non_null(buf);
+    assert_int_equal(fread(buf, 1, (size_t)len, f), (size_t)len);
+    fclose(f);
+    *n = (size_t)len;
+    return buf;
+}
+
+/* A PNG through libpng's full API, so that no gAMA or sRGB chunk is written unless gamma > 0
+ * (the simplified writer always adds one). rows: h rows of packed samples, big-endian for 16 bit. */
+static void write_png(const char *path, int w, int h, int depth, int colour, const unsigned char *rows, size_t stride,
+                      double gamma, int interlace)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    png_structp p = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png_create_info_struct(p);
+    assert_true(p != NULL && info != NULL);
+    if (setjmp(png_jmpbuf(p)))
+        fail_msg("libpng could not write %s", path);
+    png_init_io(p, f);
+    png_set_IHDR(p, info, (png_uint_32)w, (png_uint_32)h, depth, colour,
+                 interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
+    if (colour == PNG_COLOR_TYPE_PALETTE) {
+        /* Entry 0 red and half transparent, entry 1 a blue at 128. */
+        png_color pal[2] = {{255, 0, 0}, {0, 0, 128}};
+        png_byte trans[1] = {128};
+        png_set_PLTE(p, info, pal, 2);
+        png_set_tRNS(p, info, trans, 1, NULL);
+    }
+    if (gamma > 0.0)
+        png_set_gAMA(p, info, gamma);
+    png_write_info(p, info);
+    int passes = interlace ? png_set_interlace_handling(p) : 1;
+    for (int pass = 0; pass < passes; pass++)
+        for (int y = 0; y < h; y++)
+            png_write_row(p, rows + (size_t)y * stride);
+    png_write_end(p, info);
+    png_destroy_write_struct(&p, &info);
+    fclose(f);
+}
+
+/* A w x h JPEG of pseudo-random texels (so that it does not compress to nothing), quality 90. */
+static void write_jpeg(const char *path, int w, int h, int comps, J_COLOR_SPACE cs, int progressive, int arith)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    struct jpeg_compress_struct ci;
+    struct jpeg_error_mgr je;
+    ci.err = jpeg_std_error(&je);
+    jpeg_create_compress(&ci);
+    jpeg_stdio_dest(&ci, f);
+    ci.image_width = (JDIMENSION)w;
+    ci.image_height = (JDIMENSION)h;
+    ci.input_components = comps;
+    ci.in_color_space = cs;
+    jpeg_set_defaults(&ci);
+    jpeg_set_quality(&ci, 90, TRUE);
+    if (progressive)
+        jpeg_simple_progression(&ci);
+    ci.arith_code = arith ? TRUE : FALSE;
+    jpeg_start_compress(&ci, TRUE);
+    unsigned char *row = malloc((size_t)w * (size_t)comps);
+    unsigned s = 12345u;
+    while (ci.next_scanline < ci.image_height) {
+        for (int i = 0; i < w * comps; i++) {
+            s = s * 1103515245u + 12345u;
+            row[i] = (unsigned char)(s >> 16);
+        }
+        JSAMPROW r = row;
+        jpeg_write_scanlines(&ci, &r, 1);
+    }
+    jpeg_finish_compress(&ci);
+    jpeg_destroy_compress(&ci);
+    free(row);
+    fclose(f);
+}
+
+static void test_png16_is_srgb(void **state)
+{
+    (void)state;
+    /* One row of three RGB texels, 8 bit and 16 bit (v x 257 is v in 16 bits), no gAMA chunk. */
+    static const unsigned char v8[9] = {0, 128, 255, 64, 200, 10, 1, 2, 254};
+    unsigned char row8[9], row16[18];
+    for (int i = 0; i < 9; i++) {
+        row8[i] = v8[i];
+        row16[2 * i] = row16[2 * i + 1] = v8[i];
+    }
+    char p8[256], p16[256], err[512];
+    snprintf(p8, sizeof p8, "%s/g8.png", tmpdir);
+    snprintf(p16, sizeof p16, "%s/g16.png", tmpdir);
+    write_png(p8, 3, 1, 8, PNG_COLOR_TYPE_RGB, row8, sizeof row8, 0.0, 0);
+    write_png(p16, 3, 1, 16, PNG_COLOR_TYPE_RGB, row16, sizeof row16, 0.0, 0);
+    texture a, b;
+    assert_int_equal(texture_load(p8, &a, err, sizeof err), RC_OK);
+    assert_int_equal(texture_load(p16, &b, err, sizeof err), RC_OK);
+    for (int i = 0; i < 3; i++)
+        for (int c = 0; c < 3; c++) {
+            float want = texture_srgb_to_linear((float)v8[3 * i + c] / 255.0f);
+            close_rel(a.rgba[4 * i + c], want, 1e-6);
+            /* 128 x 257: the issue's 0.216 (8 bit) against 0.491 (16 bit read as linear). */
+            assert_float_equal(b.rgba[4 * i + c], want, 1e-6);
+        }
+    texture_free(&a);
+    texture_free(&b);
+
+    /* 32768 lies between the 8-bit codes 127 and 128: the texel between theirs. */
+    unsigned char mid[6] = {0x80, 0x00, 0x80, 0x00, 0x80, 0x00};
+    write_png(p16, 1, 1, 16, PNG_COLOR_TYPE_RGB, mid, sizeof mid, 0.0, 0);
+    assert_int_equal(texture_load(p16, &b, err, sizeof err), RC_OK);
+    assert_true(b.rgba[0] >= texture_srgb_to_linear(127.0f / 255.0f) - 1e-6f);
+    assert_true(b.rgba[0] <= texture_srgb_to_linear(128.0f / 255.0f) + 1e-6f);
+    texture_free(&b);
+    /* A gAMA chunk of 1.0 says linear, and is honoured: 0.5, less libpng's re-encoding to 8 bits
+     * with a pure 1/2.2 power rather than the IEC curve: 0.5^(1/2.2) x 255 = 186.1, code 186,
+     * which decodes to 0.4910 (a 2 % error the 8-bit reduction brings, not the file). */
+    write_png(p16, 1, 1, 16, PNG_COLOR_TYPE_RGB, mid, sizeof mid, 1.0, 0);
+    assert_int_equal(texture_load(p16, &b, err, sizeof err), RC_OK);
+    assert_float_equal(b.rgba[0], 0.5f, 0.01f);
+    texture_free(&b);
+}
+
+static void test_jpeg_truncated(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    snprintf(path, sizeof path, "%s/whole.jpg", tmpdir);
+    write_jpeg(path, 64, 64, 3, JCS_RGB, 0, 0);
+    texture t;
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    texture_free(&t);
+    size_t n;
+    unsigned char *buf = get_file(path, &n);
+    /* 75 %, as in the issue: libjpeg warned "Premature end of JPEG file" and filled grey rows. */
+    snprintf(path, sizeof path, "%s/cut75.jpg", tmpdir);
+    put_file(path, buf, n * 3 / 4);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "cut75.jpg"));
+    assert_non_null(strstr(err, "truncated JPEG"));
+    assert_null(strchr(err, '\n'));
+    assert_null(t.rgba);
+    /* Only the EOI marker missing: every pixel is there, but the file is cut all the same. */
+    put_file(path, buf, n - 2);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    /* Progressive: the same cut is found when the scans are absorbed. */
+    snprintf(path, sizeof path, "%s/prog.jpg", tmpdir);
+    write_jpeg(path, 64, 64, 3, JCS_RGB, 1, 0);
+    free(buf);
+    buf = get_file(path, &n);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    assert_int_equal(t.width, 64);
+    texture_free(&t);
+    put_file(path, buf, n * 3 / 4);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "truncated JPEG"));
+    free(buf);
+}
+
+/* Sets a JPEG's SOF0 height and width (2 bytes each, 5 and 7 bytes after the marker). */
+static void jpeg_patch_size(unsigned char *buf, size_t n, int w, int h)
+{
+    for (size_t i = 2; i + 9 < n; i++)
+        if (buf[i] == 0xff && buf[i + 1] == 0xc0) {
+            buf[i + 5] = (unsigned char)(h >> 8);
+            buf[i + 6] = (unsigned char)h;
+            buf[i + 7] = (unsigned char)(w >> 8);
+            buf[i + 8] = (unsigned char)w;
+            return;
+        }
+    fail_msg("no SOF0 marker");
+}
+
+static void test_jpeg_header_lies(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    snprintf(path, sizeof path, "%s/small.jpg", tmpdir);
+    write_jpeg(path, 16, 16, 3, JCS_RGB, 0, 0);
+    size_t n;
+    unsigned char *buf = get_file(path, &n);
+    /* The issue's file: under a kilobyte claiming 16384 x 16384 (was 13 s and 5.0 GB resident).
+     * 4:2:0 chroma alone is 1024 x 1024 blocks of at least a bit each: 131072 bytes. */
+    jpeg_patch_size(buf, n, 16384, 16384);
+    snprintf(path, sizeof path, "%s/huge.jpg", tmpdir);
+    put_file(path, buf, n);
+    texture t;
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "huge.jpg"));
+    assert_non_null(strstr(err, "16384 x 16384"));
+    assert_non_null(strstr(err, "truncated or its header is corrupt"));
+    /* 4096 x 4096 needs 4:2:0 chroma's 256 x 256 blocks: 8192 bytes, still more than the file. */
+    jpeg_patch_size(buf, n, 4096, 4096);
+    put_file(path, buf, n);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    /* 64 x 64: few enough blocks for the file, and then the missing rows are found. */
+    jpeg_patch_size(buf, n, 64, 64);
+    put_file(path, buf, n);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "JPEG"));
+    free(buf);
+}
+
+static void test_jpeg_unsupported(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    texture t;
+    snprintf(path, sizeof path, "%s/cmyk.jpg", tmpdir);
+    write_jpeg(path, 16, 16, 4, JCS_CMYK, 0, 0);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "cmyk.jpg"));
+    assert_non_null(strstr(err, "unsupported colour space (CMYK"));
+    assert_non_null(strstr(err, "convert it to RGB"));
+    snprintf(path, sizeof path, "%s/arith.jpg", tmpdir);
+    write_jpeg(path, 16, 16, 3, JCS_RGB, 0, 1);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "arithmetic-coded"));
+    /* Grey JPEGs are fine. */
+    snprintf(path, sizeof path, "%s/grey.jpg", tmpdir);
+    write_jpeg(path, 16, 16, 1, JCS_GRAYSCALE, 0, 0);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    assert_true(t.rgba[0] == t.rgba[1] && t.rgba[1] == t.rgba[2]);
+    texture_free(&t);
+}
+
+/* PNG's CRC-32 (ISO 3309), bit by bit: fixtures only. */
+static unsigned long crc32_png(const unsigned char *p, size_t n)
+{
+    unsigned long c = 0xffffffffUL;
+    for (size_t i = 0; i < n; i++) {
+        c ^= p[i];
+        for (int k = 0; k < 8; k++)
+            c = (c >> 1) ^ (0xedb88320UL & (0UL - (c & 1UL)));
+    }
+    return c ^ 0xffffffffUL;
+}
+
+static void test_png_header_lies(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    unsigned char rows[4 * 3] = {0};
+    snprintf(path, sizeof path, "%s/small.png", tmpdir);
+    write_png(path, 4, 1, 8, PNG_COLOR_TYPE_RGB, rows, sizeof rows, 0.0, 0);
+    size_t n;
+    unsigned char *buf = get_file(path, &n);
+    /* IHDR claims 16384 x 16384 RGB, its CRC made right: 805 MB of rows cannot come from under
+     * a hundred bytes (deflate: at most 1032 bytes out per byte in). */
+    buf[18] = buf[22] = 0x40;
+    buf[19] = buf[23] = 0;
+    buf[16] = buf[17] = buf[20] = buf[21] = 0;
+    unsigned long crc = crc32_png(buf + 12, 17);
+    for (int k = 0; k < 4; k++)
+        buf[29 + k] = (unsigned char)(crc >> (24 - 8 * k));
+    snprintf(path, sizeof path, "%s/huge.png", tmpdir);
+    put_file(path, buf, n);
+    texture t;
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "huge.png"));
+    assert_non_null(strstr(err, "16384 x 16384"));
+    /* A bad CRC in IDAT: refused. */
+    free(buf);
+    snprintf(path, sizeof path, "%s/small.png", tmpdir);
+    buf = get_file(path, &n);
+    for (size_t i = 8; i + 8 < n; i++)
+        if (memcmp(buf + i, "IDAT", 4) == 0) {
+            buf[i + 4] ^= 0x01;
+            break;
+        }
+    snprintf(path, sizeof path, "%s/crc.png", tmpdir);
+    put_file(path, buf, n);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "crc.png"));
+    free(buf);
+    /* A valid flat image compresses nearly at deflate's limit and still loads: 1 x 65535 black. */
+    unsigned char *tall = calloc(65535, 3);
+    snprintf(path, sizeof path, "%s/tall.png", tmpdir);
+    write_png(path, 1, 65535, 8, PNG_COLOR_TYPE_RGB, tall, 3, 0.0, 0);
+    free(tall);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_RANGE); /* over 16384 a side */
+    assert_non_null(strstr(err, "1 x 65535"));
+    unsigned char *flat = calloc(16384, 3);
+    snprintf(path, sizeof path, "%s/flat.png", tmpdir);
+    write_png(path, 16384, 1024, 8, PNG_COLOR_TYPE_RGB, flat, 0, 0.0, 0);
+    free(flat);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    texture_free(&t);
+}
+
+static void test_png_kinds(void **state)
+{
+    (void)state;
+    char path[256], err[512];
+    texture t;
+    /* Interlaced grey + alpha, 3 x 3: texel i is (10 i, 255 - 20 i). */
+    unsigned char ga[3 * 6];
+    for (int i = 0; i < 9; i++) {
+        ga[2 * i] = (unsigned char)(10 * i);
+        ga[2 * i + 1] = (unsigned char)(255 - 20 * i);
+    }
+    snprintf(path, sizeof path, "%s/ga.png", tmpdir);
+    write_png(path, 3, 3, 8, PNG_COLOR_TYPE_GRAY_ALPHA, ga, 6, 0.0, 1);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    for (int i = 0; i < 9; i++) {
+        close_rel(t.rgba[4 * i], texture_srgb_to_linear((float)(10 * i) / 255.0f), 1e-6);
+        close_rel(t.rgba[4 * i + 2], t.rgba[4 * i], 1e-6);
+        close_rel(t.rgba[4 * i + 3], (255.0 - 20.0 * i) / 255.0, 1e-6);
+    }
+    texture_free(&t);
+    /* Palette with tRNS: index 0 red at alpha 128/255, index 1 opaque blue 128. */
+    unsigned char idx[2] = {0, 1};
+    snprintf(path, sizeof path, "%s/pal.png", tmpdir);
+    write_png(path, 2, 1, 8, PNG_COLOR_TYPE_PALETTE, idx, 2, 0.0, 0);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    close_rel(t.rgba[0], 1.0, 1e-6);
+    close_rel(t.rgba[3], 128.0 / 255.0, 1e-6);
+    close_rel(t.rgba[6], texture_srgb_to_linear(128.0f / 255.0f), 1e-6);
+    close_rel(t.rgba[7], 1.0, 1e-6);
+    texture_free(&t);
+    /* An empty file is no image. */
+    snprintf(path, sizeof path, "%s/empty.png", tmpdir);
+    put_file(path, "", 0);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "empty.png"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_srgb_curve), cmocka_unit_test(test_sample_centres), cmocka_unit_test(test_sample_wrap),
-        cmocka_unit_test(test_png),        cmocka_unit_test(test_jpeg),           cmocka_unit_test(test_real_asset),
-        cmocka_unit_test(test_refusals),   cmocka_unit_test(test_shade_textured), cmocka_unit_test(test_generated_uvs),
-        cmocka_unit_test(test_file_uvs),   cmocka_unit_test(test_scene_keys),     cmocka_unit_test(test_exr_and_cli),
+        cmocka_unit_test(test_srgb_curve),
+        cmocka_unit_test(test_sample_centres),
+        cmocka_unit_test(test_sample_wrap),
+        cmocka_unit_test(test_png),
+        cmocka_unit_test(test_jpeg),
+        cmocka_unit_test(test_real_asset),
+        cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_shade_textured),
+        cmocka_unit_test(test_generated_uvs),
+        cmocka_unit_test(test_file_uvs),
+        cmocka_unit_test(test_scene_keys),
+        cmocka_unit_test(test_exr_and_cli),
+        cmocka_unit_test(test_png16_is_srgb),
+        cmocka_unit_test(test_jpeg_truncated),
+        cmocka_unit_test(test_jpeg_header_lies),
+        cmocka_unit_test(test_jpeg_unsupported),
+        cmocka_unit_test(test_png_header_lies),
+        cmocka_unit_test(test_png_kinds),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
