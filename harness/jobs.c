@@ -213,10 +213,10 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
  * stands in for them. */
 static void job_key_code(const renderer_row *row, uint64_t *key)
 {
-    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c", "model/scene.c",
-                                         "model/scene.h",   "model/mesh.c",         "model/mesh.h",
-                                         "model/vec.h",     "harness/exr.c",        "harness/renderers/renderer.c",
-                                         "model/texture.c", "harness/frame.c",      "model/env.c",
+    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c",  "model/scene.c",
+                                         "model/scene.h",   "model/mesh.c",          "model/mesh.h",
+                                         "model/vec.h",     "harness/exr.c",         "harness/renderers/renderer.c",
+                                         "model/texture.c", "harness/frame.c",       "model/env.c",
                                          "model/env.h",     "harness/image_oiio.cpp"};
     const char *const *own = row->sources;
     int have = own != NULL;
@@ -531,6 +531,26 @@ static int job_entry_complete(const char *entry, job_record *rec, renderer_resul
     return ok;
 }
 
+/* 1 when the entry's image (c->exr) reads whole at the scene's size: an entry damaged after it
+ * was published (a truncated file, a full disk, a hand edit) must not be served again. The
+ * read is the whole check: EXR has no checksum of its own, and a record of the bytes would not
+ * cover an entry from before it was kept. Else 0 and why in one line. */
+static int job_entry_image_ok(const job_ctx *c, char *why, size_t whylen)
+{
+    exr_image img;
+    char err[600];
+    if (exr_read(c->exr, &img, err, sizeof err) != RC_OK) {
+        snprintf(why, whylen, "%s", err);
+        return 0;
+    }
+    int ok = img.width == c->s->width && img.height == c->s->height;
+    if (!ok)
+        snprintf(why, whylen, "its image is %d x %d, the job %d x %d", img.width, img.height, c->s->width,
+                 c->s->height);
+    exr_image_free(&img);
+    return ok;
+}
+
 /* The table row's render entry, the same one the renderers' tests call. */
 static void job_render(job_ctx *c, job_record *rec)
 {
@@ -620,13 +640,17 @@ static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *loc
     job_clean_stale(cache, keyhex);
     snprintf(c->exr, sizeof c->exr, "%s/out.exr", entry);
     snprintf(c->log, sizeof c->log, "%s/render.log", entry);
+    char damaged[700] = "";
     if (job_entry_complete(entry, rec, &c->res)) {
-        rec->cached = 1;
-        snprintf(c->command, sizeof c->command, "(cached %s)", keyhex);
-        return;
+        if (job_entry_image_ok(c, damaged, sizeof damaged)) {
+            rec->cached = 1;
+            snprintf(c->command, sizeof c->command, "(cached %s)", keyhex);
+            return;
+        }
+        fprintf(stderr, "reflcheck: note: %s: %s; rendering it again\n", entry, damaged);
     }
     rec->wall_s = rec->cpu_s = 0.0;
-    job_remove_tree(entry, 0); /* an entry without its marker or image is not a result */
+    job_remove_tree(entry, 0); /* an entry without its marker or a whole image is not a result */
     char prefix[64];
     snprintf(prefix, sizeof prefix, "tmp-%s", keyhex);
     if (job_make_work(c, cache, prefix) != 0) {
@@ -654,6 +678,23 @@ static void job_cached(job_ctx *c, job_record *rec, const char *keyhex, int *loc
     work[0] = '\0';
     snprintf(c->exr, sizeof c->exr, "%s/out.exr", entry);
     snprintf(c->log, sizeof c->log, "%s/render.log", entry);
+    if (damaged[0] != '\0')
+        snprintf(rec->message, sizeof rec->message, "rendered again: the cache entry %s was damaged (%s)", keyhex,
+                 damaged);
+}
+
+/* The renderer's version line into c->version. Only a program that is not there is "not
+ * installed" (skipped); one that is there but fails its --version is a broken install, and its
+ * job fails with the reason instead of passing for a skip. */
+static void job_probe_version(const renderer_row *row, job_ctx *c, job_record *rec)
+{
+    char why[400];
+    runner_status vs = runner_version(row->program, c->version, sizeof c->version, why, sizeof why);
+    if (vs == RUNNER_MISSING)
+        job_fail(rec, RUNNER_MISSING, "%s is not installed; install it with: apt-get install %s", row->program,
+                 row->package);
+    else if (vs != RUNNER_OK)
+        job_fail(rec, vs, "%s; reinstall it with: apt-get install --reinstall %s", why, row->package);
 }
 
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
@@ -700,11 +741,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     if (st == RC_OK) {
         if (row->program == NULL)
             snprintf(c.version, sizeof c.version, "%s", row->version ? row->version : row->name);
-        else if (!runner_version(row->program, c.version, sizeof c.version))
-            snprintf(rec->message, sizeof rec->message, "%s is not installed; install it with: apt-get install %s",
-                     row->program, row->package);
-        if (rec->message[0] != '\0')
-            rec->status = RUNNER_MISSING;
+        else
+            job_probe_version(row, &c, rec);
         st = job_key(j, s, c.version, &key, err, errlen);
     }
     if (st != RC_OK) {

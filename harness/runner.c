@@ -147,10 +147,12 @@ static void runner_kill_group(pid_t pid)
         continue;
 }
 
-/* In the child: own process group, log as stdout and stderr, no stdin, killed when we die;
- * then the program. An exec failure is reported through errfd (close-on-exec, so a
- * successful exec closes it silently). */
-__attribute__((noreturn)) static void runner_child(const char *const argv[], int log, int errfd, pid_t parent)
+/* In the child: own process group, log as stdout, errlog (or log) as stderr, no stdin, killed
+ * when we die, the working folder dir (NULL = ours); then the program, by the full path the
+ * parent resolved (a relative argv[0] would not survive the chdir). An exec failure is reported
+ * through errfd (close-on-exec, so a successful exec closes it silently). */
+__attribute__((noreturn)) static void runner_child(const char *const argv[], const char *full, const char *dir, int log,
+                                                   int errlog, int errfd, pid_t parent)
 {
     setpgid(0, 0);
     /* SIGKILL with us even if we are killed with SIGKILL ourselves and cannot forward it. */
@@ -159,30 +161,64 @@ __attribute__((noreturn)) static void runner_child(const char *const argv[], int
     if (getppid() != parent)
         _exit(127);
     dup2(log, STDOUT_FILENO);
-    dup2(log, STDERR_FILENO);
+    dup2(errlog >= 0 ? errlog : log, STDERR_FILENO);
     int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0)
         dup2(devnull, STDIN_FILENO);
-    /* execvp takes char *const[]; the strings are not modified. */
-    execvp(argv[0], (char *const *)(uintptr_t)argv);
-    int e = errno;
-    fprintf(stderr, "reflcheck: could not start %s: %s\n", argv[0], strerror(e));
+    int e = 0;
+    if (dir != NULL && chdir(dir) != 0)
+        e = errno;
+    /* execv takes char *const[]; the strings are not modified. */
+    if (e == 0) {
+        execv(full, (char *const *)(uintptr_t)argv);
+        e = errno;
+    }
+    fprintf(stderr, "reflcheck: could not start %s%s%s: %s\n", argv[0], dir != NULL ? " in " : "", dir ? dir : "",
+            strerror(e));
     ssize_t w = write(errfd, &e, sizeof e);
     (void)w;
     _exit(127);
 }
 
+/* The program's full path, absolute so that a chdir in the child keeps it; 0 if not found. */
+static int runner_resolve(const char *program, char *full, size_t len)
+{
+    char found[4352];
+    if (!runner_which(program, found, sizeof found))
+        return 0;
+    if (found[0] == '/') {
+        snprintf(full, len, "%s", found);
+        return 1;
+    }
+    char cwd[4096];
+    if (getcwd(cwd, sizeof cwd) == NULL)
+        return 0;
+    return (size_t)snprintf(full, len, "%s/%s", cwd, found) < len;
+}
+
 runner_status runner_exec(const char *const argv[], double timeout_s, const char *log_path, runner_result *r)
 {
+    return runner_exec_in(argv, NULL, timeout_s, log_path, r);
+}
+
+runner_status runner_exec_in(const char *const argv[], const runner_where *where, double timeout_s,
+                             const char *log_path, runner_result *r)
+{
     memset(r, 0, sizeof *r);
-    if (!runner_available(argv[0]))
+    char full[4400];
+    if (!runner_resolve(argv[0], full, sizeof full))
         return r->status = RUNNER_MISSING;
+    const char *dir = where != NULL ? where->dir : NULL;
+    const char *err_path = where != NULL ? where->err_log : NULL;
     int log = open(log_path ? log_path : "/dev/null", O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (log < 0)
         return r->status = RUNNER_ERROR;
+    int errlog = err_path != NULL ? open(err_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644) : -1;
     int errpipe[2];
-    if (pipe(errpipe) != 0) {
+    if ((err_path != NULL && errlog < 0) || pipe(errpipe) != 0) {
         close(log);
+        if (errlog >= 0)
+            close(errlog);
         return r->status = RUNNER_ERROR;
     }
     fcntl(errpipe[0], F_SETFD, FD_CLOEXEC);
@@ -196,15 +232,19 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
     if (pid < 0) {
         runner_restore_signals(old);
         close(log);
+        if (errlog >= 0)
+            close(errlog);
         close(errpipe[0]);
         close(errpipe[1]);
         return r->status = RUNNER_ERROR;
     }
     if (pid == 0)
-        runner_child(argv, log, errpipe[1], parent);
+        runner_child(argv, full, dir, log, errlog, errpipe[1], parent);
     setpgid(pid, pid);
     runner_group = pid;
     close(log);
+    if (errlog >= 0)
+        close(errlog);
     close(errpipe[1]);
     /* Blocks until the exec happened (EOF) or failed (its errno). */
     int exec_errno = 0;
@@ -270,20 +310,25 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
     return r->status;
 }
 
-int runner_version(const char *program, char *out, size_t outlen)
+/* The first non-empty line of a file, "" if none. */
+static void runner_first_line(const char *path, char *out, size_t outlen)
 {
     out[0] = '\0';
-    if (!runner_available(program))
-        return 0;
-    char log[] = "/tmp/reflcheck-version-XXXXXX";
-    int fd = mkstemp(log);
-    if (fd < 0)
-        return 0;
-    close(fd);
-    const char *argv[] = {program, "--version", NULL};
-    runner_result r;
-    runner_exec(argv, 60.0, log, &r);
-    FILE *f = fopen(log, "r");
+    FILE *f = fopen(path, "r");
+    char line[512];
+    while (f != NULL && out[0] == '\0' && fgets(line, sizeof line, f) != NULL) {
+        line[strcspn(line, "\r\n")] = '\0';
+        snprintf(out, outlen, "%s", line);
+    }
+    if (f != NULL)
+        fclose(f);
+}
+
+/* The line of the --version output that names the program's version, "" if none. */
+static void runner_version_line(const char *path, char *out, size_t outlen)
+{
+    out[0] = '\0';
+    FILE *f = fopen(path, "r");
     char line[512];
     while (f != NULL && fgets(line, sizeof line, f) != NULL) {
         /* POV-Ray prints a config warning first; the version line names the program. */
@@ -295,6 +340,56 @@ int runner_version(const char *program, char *out, size_t outlen)
     }
     if (f != NULL)
         fclose(f);
+}
+
+runner_status runner_version(const char *program, char *out, size_t outlen, char *why, size_t whylen)
+{
+    out[0] = '\0';
+    why[0] = '\0';
+    if (!runner_available(program))
+        return RUNNER_MISSING;
+    char dir[] = "/tmp/reflcheck-version-XXXXXX", log[64], errlog[64], first[300];
+    if (mkdtemp(dir) == NULL) {
+        snprintf(why, whylen, "%s --version: cannot make a folder for its output in /tmp: %s; check /tmp", program,
+                 strerror(errno));
+        return RUNNER_ERROR;
+    }
+    snprintf(log, sizeof log, "%s/out", dir);
+    snprintf(errlog, sizeof errlog, "%s/err", dir);
+    const char *argv[] = {program, "--version", NULL};
+    runner_where where = {.err_log = errlog};
+    runner_result r;
+    /* 60 s: Blender's --version starts its Python, seconds on a loaded machine, never a minute. */
+    runner_exec_in(argv, &where, 60.0, log, &r);
+    /* POV-Ray prints its banner on stderr, Blender on stdout. */
+    runner_version_line(log, out, outlen);
+    if (out[0] == '\0')
+        runner_version_line(errlog, out, outlen);
+    runner_first_line(errlog, first, sizeof first);
+    if (first[0] == '\0')
+        runner_first_line(log, first, sizeof first);
+    /* A program that is there but does not answer is a broken install, never "not installed":
+     * its jobs fail with this reason instead of being skipped. */
+    runner_status st = r.status;
+    if (st == RUNNER_MISSING)
+        snprintf(why, whylen, "%s vanished from PATH during `%s --version`", program, program);
+    else if (st == RUNNER_ERROR)
+        snprintf(why, whylen, "%s --version could not be run (fork, pipe or its output file in /tmp failed)", program);
+    else if (r.exec_errno != 0)
+        snprintf(why, whylen, "%s is installed but does not start (%s): %s", program, strerror(r.exec_errno), first);
+    else if (st == RUNNER_CRASHED)
+        snprintf(why, whylen, "%s --version crashed (signal %d): %s", program, r.signal, first);
+    else if (st == RUNNER_TIMEOUT)
+        snprintf(why, whylen, "%s --version did not answer in %.0f s", program, r.wall_s);
+    else if (st != RUNNER_OK)
+        snprintf(why, whylen, "%s --version failed (exit status %d): %s", program, r.exit_code, first);
+    else if (out[0] == '\0') {
+        snprintf(why, whylen, "%s --version printed no version line (\"POV-Ray ...\" or \"Blender ...\"): %s", program,
+                 first);
+        st = RUNNER_FAILED;
+    }
     unlink(log);
-    return out[0] != '\0';
+    unlink(errlog);
+    rmdir(dir);
+    return st;
 }

@@ -5,7 +5,11 @@
  *   runner_result r;
  *   runner_exec(argv, 120.0, "job.log", &r);        returns r.status, never aborts the caller
  *   if (r.status != RUNNER_OK) ... runner_status_name(r.status), r.exit_code, r.signal
- *   runner_version("povray", buf, sizeof buf);      first line naming a version, "" if missing
+ *   runner_where w = {.dir = "work", .err_log = "job.err"};
+ *   runner_exec_in(argv, &w, 120.0, "job.log", &r);  the same, run in folder w.dir, stderr apart
+ *   runner_version("povray", buf, sizeof buf, why, sizeof why);
+ *                                                   RUNNER_OK and the version line; RUNNER_MISSING
+ *                                                   only when not on PATH; else why it is broken
  *   runner_which("povray", path, sizeof path);      the executable PATH finds, 1 if found
  * The child gets its own process group, so a timeout kills the renderer and every process
  * it started (SIGTERM, then SIGKILL after 2 s). stdout and stderr go to the log file.
@@ -47,8 +51,23 @@ int runner_available(const char *program);
 /* Writes the path of the executable `program` names (PATH search) to out; 0 if none. */
 int runner_which(const char *program, char *out, size_t outlen);
 runner_status runner_exec(const char *const argv[], double timeout_s, const char *log_path, runner_result *r);
+
+typedef struct {
+    const char *dir;     /* the child's working folder, NULL = ours (a renderer that gets only
+                            names relative to its work folder: harness/renderers/renderer.h) */
+    const char *err_log; /* the child's stderr apart from log_path, NULL = into log_path */
+} runner_where;
+
+/* runner_exec with a working folder and stderr apart; where NULL is runner_exec. A folder the
+ * child cannot enter is RUNNER_FAILED with exec_errno set. */
+runner_status runner_exec_in(const char *const argv[], const runner_where *where, double timeout_s,
+                             const char *log_path, runner_result *r);
 const char *runner_status_name(runner_status s);
-/* Runs `program --version` and keeps the line that names the version. */
-int runner_version(const char *program, char *out, size_t outlen);
+/* Runs `program --version` and keeps the line that names the version in out. Returns
+ * RUNNER_OK; RUNNER_MISSING only when the program is not on PATH or not executable; otherwise
+ * the program is there but broken (exits non-zero: RUNNER_FAILED; a signal: RUNNER_CRASHED;
+ * no version line: RUNNER_FAILED; ...) and why says so in one line: the exit status or signal
+ * and the first line of its stderr. */
+runner_status runner_version(const char *program, char *out, size_t outlen, char *why, size_t whylen);
 
 #endif
