@@ -508,6 +508,47 @@ static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_ima
     return st;
 }
 
+/* The most decoded bytes one byte of a compressed chunk can give, per compression: RLE codes a
+ * run of at most 128 bytes in 2; ZIP is deflate (a 258-byte match in 2 bits: 1032); PIZ's
+ * Huffman run code gives 256 16-bit values in 10 bits (410), under deflate's bound, which is used;
+ * PXR24 deflates floats cut to 24 bits (1032 x 4/3); B44A codes a flat 4x4 block of halves (32
+ * bytes) in 3. DWAA/DWAB are lossy and their AC data run-length coded with no such bound: 0, and
+ * only the offset table and the memory limit bound them. */
+static double exr_max_ratio(exr_compression_t comp)
+{
+    switch (comp) {
+    case EXR_COMPRESSION_NONE: return 1.0;
+    case EXR_COMPRESSION_RLE: return 64.0;
+    case EXR_COMPRESSION_ZIPS:
+    case EXR_COMPRESSION_ZIP:
+    case EXR_COMPRESSION_PIZ: return 1032.0;
+    case EXR_COMPRESSION_PXR24: return 1032.0 * 4.0 / 3.0;
+    case EXR_COMPRESSION_B44:
+    case EXR_COMPRESSION_B44A: return 32.0 / 3.0;
+    default: return 0.0;
+    }
+}
+
+/* Before any plane is allocated (or oiiotool started): the file must hold the offset table (8
+ * bytes a chunk) and, within the compression's largest ratio, the samples the data window
+ * needs (half 2 bytes, float and uint 4), and the float planes must fit the memory limit. */
+static rc_status exr_check_budget(const char *path, exr_const_context_t ctxt, int part, const exr_attr_chlist_t *chl,
+                                  int64_t file_bytes, const exr_image *img, char *err, size_t errlen)
+{
+    double px = (double)img->width * (double)img->height, coded = 0.0;
+    for (int c = 0; c < chl->num_channels; c++)
+        coded += px * (chl->entries[c].pixel_type == EXR_PIXEL_HALF ? 2.0 : 4.0);
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    int32_t chunks = 0;
+    exr_get_compression(ctxt, part, &comp);
+    exr_get_chunk_count(ctxt, part, &chunks);
+    double ratio = exr_max_ratio(comp), min_bytes = 8.0 * chunks;
+    if (ratio > 0.0 && coded / ratio > min_bytes)
+        min_bytes = coded / ratio;
+    return fileio_image_budget(path, "OpenEXR", img->width, img->height, min_bytes, (long long)file_bytes,
+                               px * chl->num_channels * sizeof(float), err, errlen);
+}
+
 /* Reads the EXR open on in (path names it in messages) into img. */
 static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *ec, exr_image *img, char *err,
                                  size_t errlen)
@@ -548,15 +589,6 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
                        path);
         st = RC_ERR_PARSE;
         goto out;
-    }
-    {
-        exr_compression_t comp;
-        if (rv == EXR_ERR_SUCCESS && exr_get_compression(ctxt, part, &comp) == EXR_ERR_SUCCESS &&
-            (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
-            st = read_via_oiiotool(path, ctxt, img, err, errlen);
-            exr_finish(&ctxt);
-            return st;
-        }
     }
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_data_window(ctxt, part, &dw);
@@ -604,23 +636,17 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
         }
     }
 
+    st = exr_check_budget(path, ctxt, part, chl, in->size, img, err, errlen);
+    if (st != RC_OK)
+        goto out;
     {
-        size_t limit = 0;
-        char why[256];
-        if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
-            status_message(err, errlen, "%s: %s", path, why);
-            st = RC_ERR_RANGE;
-            goto out;
-        }
-        double need = (double)img->width * img->height * chl->num_channels * sizeof(float);
-        if (need > (double)limit) {
-            status_message(err, errlen,
-                           "%s: %dx%d with %d channels needs %.1f MiB as floats, over the memory limit "
-                           "of %.1f MiB; set REFLCHECK_MEMORY_LIMIT higher or give a smaller image",
-                           path, img->width, img->height, chl->num_channels, need / 1048576.0,
-                           (double)limit / 1048576.0);
-            st = RC_ERR_RANGE;
-            goto out;
+        exr_compression_t comp;
+        if (exr_get_compression(ctxt, part, &comp) == EXR_ERR_SUCCESS &&
+            (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
+            img->width = img->height = 0;
+            st = read_via_oiiotool(path, ctxt, img, err, errlen);
+            exr_finish(&ctxt);
+            return st;
         }
     }
     img->n_channels = chl->num_channels;

@@ -534,6 +534,48 @@ static void test_corrupt_files(void **state)
     free(b);
 }
 
+/* A header whose data window promises more than the file holds is refused before the planes are
+ * allocated or oiiotool is started (issue 20): uncompressed, 16384 x 16384 float R is 1 GiB of
+ * samples in a file of a few hundred bytes; as DWAA (no ratio bound) its 512 chunks still need a
+ * 4 KiB offset table. */
+static void test_header_lies(void **state)
+{
+    (void)state;
+    unsigned char b[512];
+    long n = build_tiny_exr(b, 1);
+    char path[256], err[512];
+    exr_image img;
+    tmp_path(path, sizeof path, "tiny.exr");
+    spit(path, b, n);
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_OK);
+    exr_image_free(&img);
+    /* dataWindow's box follows its name, type and 4-byte size: max x and y to 16383. */
+    unsigned char *box = NULL;
+    for (long i = 0; i + 30 < n && box == NULL; i++)
+        if (memcmp(b + i, "dataWindow\0box2i\0", 17) == 0)
+            box = b + i + 17 + 4;
+    assert_non_null(box);
+    box[8] = box[12] = 0xff;
+    box[9] = box[13] = 0x3f;
+    box[10] = box[11] = box[14] = box[15] = 0;
+    tmp_path(path, sizeof path, "huge.exr");
+    spit(path, b, n);
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "huge.exr"));
+    assert_non_null(strstr(err, "16384 x 16384"));
+    assert_non_null(strstr(err, "truncated or its header is corrupt"));
+    for (long i = 0; i + 30 < n; i++)
+        if (memcmp(b + i, "compression\0compression\0", 24) == 0) {
+            b[i + 24 + 4] = 8; /* DWAA_COMPRESSION */
+            break;
+        }
+    tmp_path(path, sizeof path, "huge_dwa.exr");
+    spit(path, b, n);
+    assert_int_equal(exr_read(path, &img, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "huge_dwa.exr"));
+    assert_non_null(strstr(err, "truncated or its header is corrupt"));
+}
+
 /* ---- renderer outputs (povray and blender are always installed in CI) ---- */
 
 static void test_renderer_povray_half_exr(void **state)
@@ -654,6 +696,7 @@ int main(void)
         cmocka_unit_test(test_written_file_read_by_oiio),
         cmocka_unit_test(test_foreign_variants),
         cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_header_lies),
         cmocka_unit_test(test_failed_writes),
         cmocka_unit_test(test_bounded_reads),
         cmocka_unit_test(test_corrupt_files),
