@@ -6,39 +6,32 @@
 #include "raster.h"
 #include "render.h"
 
-int crease_departs(vec3 n, vec3 ng, vec3 v, const vec3 *l, int n_lights)
+const char *const crease_rule_names[CREASE_RULE_COUNT] = {"back_face", "valid_reflection"};
+
+unsigned crease_departs(vec3 n, vec3 ng, vec3 v)
 {
-    /* Cycles' frame: Ng toward the viewer, N flipped with it (rule 1 keeps N's side). */
+    /* Cycles' frame: Ng toward the viewer, N flipped with it (the back-face rule keeps N's side). */
     if (v3_dot(ng, v) < 0.0f) {
         ng = v3_neg(ng);
         n = v3_neg(n);
     }
+    unsigned rules = 0;
     float nv = v3_dot(n, v), gv = v3_dot(ng, v);
     if (nv < 0.0f)
-        return 1;
+        rules |= CREASE_RULE_BACK_FACE;
     vec3 r = v3_sub(v3_scale(n, 2.0f * nv), v);
     float lift = 0.9f * gv < 0.01f ? 0.9f * gv : 0.01f; /* Cycles: at least as shallow as the view */
     if (v3_dot(r, ng) < lift)
-        return 1;
-    for (int i = 0; i < n_lights; i++)
-        if (v3_dot(l[i], n) > 0.0f && v3_dot(l[i], ng) < 0.0f)
-            return 1;
-    return 0;
+        rules |= CREASE_RULE_VALID_REFLECTION;
+    return rules;
 }
 
 typedef struct {
-    const scene *s;
     const mesh *m;
     vec3 eye;
     int width;
     float *share;
 } crease_job;
-
-/* The unit direction from x toward light i. */
-static vec3 crease_light_dir(const light *li, vec3 x)
-{
-    return li->kind == LIGHT_SUN ? v3_neg(li->direction) : v3_norm(v3_sub(li->position, x));
-}
 
 static void crease_tile(void *user, const raster_tile *t)
 {
@@ -47,13 +40,12 @@ static void crease_tile(void *user, const raster_tile *t)
     int k = t->k, row = t->w * k;
     for (int py = 0; py < t->h; py++)
         for (int px = 0; px < t->w; px++) {
-            int covered = 0, departs = 0;
+            unsigned rules = 0;
             for (int sy = 0; sy < k; sy++)
                 for (int sx = 0; sx < k; sx++) {
                     const raster_sample *rs = &t->samples[(size_t)(py * k + sy) * (size_t)row + (size_t)(px * k + sx)];
                     if (rs->tri < 0)
                         continue;
-                    covered++;
                     const uint32_t *tri = m->idx + 3 * (size_t)rs->tri;
                     float b0 = 1.0f - rs->b1 - rs->b2;
                     vec3 p0 = m->pos[tri[0]], p1 = m->pos[tri[1]], p2 = m->pos[tri[2]];
@@ -67,14 +59,10 @@ static void crease_tile(void *user, const raster_tile *t)
                         continue;
                     ng = v3_norm(ng);
                     n = v3_dot(n, n) < 1e-12f ? ng : v3_norm(n);
-                    vec3 v = v3_norm(v3_sub(j->eye, x));
-                    vec3 l[SCENE_MAX_LIGHTS];
-                    for (int i = 0; i < j->s->n_lights; i++)
-                        l[i] = crease_light_dir(&j->s->lights[i], x);
-                    departs += crease_departs(n, ng, v, l, j->s->n_lights);
+                    rules |= crease_departs(n, ng, v3_norm(v3_sub(j->eye, x)));
                 }
-            j->share[(size_t)(t->y0 + py) * (size_t)j->width + (size_t)(t->x0 + px)] =
-                covered > 0 ? (float)departs / (float)covered : 0.0f;
+            /* Small integers are exact in a float (and in the EXR's float layer). */
+            j->share[(size_t)(t->y0 + py) * (size_t)j->width + (size_t)(t->x0 + px)] = (float)rules;
         }
 }
 
@@ -95,7 +83,7 @@ rc_status crease_share(const scene *s, const mesh *m, int width, int height, int
     }
     for (int i = 0; i < m->n_verts; i++)
         rv[i] = render_camera_clip(&cam, m->pos[i]);
-    crease_job j = {.s = s, .m = m, .eye = cam.eye, .width = width, .share = share};
+    crease_job j = {.m = m, .eye = cam.eye, .width = width, .share = share};
     raster_options ro = {.width = width, .height = height, .supersample = k, .threads = threads};
     rc_status st = raster_draw(rv, m->n_verts, m->idx, m->n_tris, &ro, crease_tile, &j);
     free(rv);
@@ -105,19 +93,33 @@ rc_status crease_share(const scene *s, const mesh *m, int width, int height, int
     return st;
 }
 
-long crease_classify(unsigned char *cls, const float *share, size_t np, long *interior)
+long crease_classify_rules(unsigned char *cls, const float *layer, size_t np, unsigned rules, long *interior,
+                           long *per_rule)
 {
     long moved = 0, inside = 0;
+    for (int b = 0; per_rule != NULL && b < CREASE_RULE_COUNT; b++)
+        per_rule[b] = 0;
     for (size_t i = 0; i < np; i++) {
         if (cls[i] != METRICS_PX_INTERIOR)
             continue;
         inside++;
-        if (share[i] > 0.0f) {
-            cls[i] = METRICS_PX_CREASE;
-            moved++;
-        }
+        /* A layer value outside the rule bits (NaN, negative, a fraction from an older layer)
+         * departs by no rule. */
+        float f = layer[i];
+        unsigned bits = f >= 1.0f && f <= (float)CREASE_RULES_ALL ? (unsigned)f & rules : 0u;
+        if (bits == 0)
+            continue;
+        cls[i] = METRICS_PX_CREASE;
+        moved++;
+        for (int b = 0; per_rule != NULL && b < CREASE_RULE_COUNT; b++)
+            per_rule[b] += (bits >> b) & 1u;
     }
     if (interior != NULL)
         *interior = inside;
     return moved;
+}
+
+long crease_classify(unsigned char *cls, const float *layer, size_t np, long *interior)
+{
+    return crease_classify_rules(cls, layer, np, CREASE_RULES_ALL, interior, NULL);
 }

@@ -1,11 +1,11 @@
-/* test_crease.c - where Cycles' shading-normal rules depart from the model's (harness/crease.h).
+/* test_crease.c - where a renderer's shading-normal rules depart from the model's (harness/crease.h).
  *
  * Single samples are worked by hand in the plane of the figure (angles from the geometric
  * normal Ng = +z); the mesh case is a 2 x 2 quad seen from straight above whose vertex normals
  * lean out along x as a ridge's smoothed normals would, N(x) ~ (3x, 1, 0): the mirror direction
- * drops below the quad (rule 2) where the lean passes about 45 degrees, |x| > 1/3, and a light
- * grazing in from +x just below the quad (rule 3) lights only the half whose N leans toward it.
- * Runs from the repository root.
+ * drops below the quad (valid_reflection) where the lean passes about 45 degrees, |x| > 1/3. A
+ * light below the quad's plane is no rule (Cycles lights it by N.L: tests/crease_blender.sh), so
+ * a scene with one gives the same layer. Runs from the repository root.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -18,6 +18,7 @@
 #include <cmocka.h>
 
 #include "crease.h"
+#include "metrics.h"
 #include "render.h"
 
 #define PI 3.14159265358979323846
@@ -28,10 +29,10 @@ static void test_flat_and_back_face(void **state)
 {
     (void)state;
     vec3 ng = v3(0.0f, 0.0f, 1.0f);
-    assert_int_equal(crease_departs(ng, ng, dir_deg(30.0), NULL, 0), 0);
+    assert_int_equal(crease_departs(ng, ng, dir_deg(30.0)), 0);
     /* A back face: Cycles flips N with Ng, so a flat back face is no crease. */
     vec3 back = v3_neg(ng);
-    assert_int_equal(crease_departs(back, back, dir_deg(30.0), NULL, 0), 0);
+    assert_int_equal(crease_departs(back, back, dir_deg(30.0)), 0);
 }
 
 /* V at 45 degrees. N leaning 10 degrees away: R at -65 degrees, R.Ng = cos 65 = 0.42, kept.
@@ -40,8 +41,8 @@ static void test_mirror_below(void **state)
 {
     (void)state;
     vec3 ng = v3(0.0f, 0.0f, 1.0f), v = dir_deg(45.0);
-    assert_int_equal(crease_departs(dir_deg(-10.0), ng, v, NULL, 0), 0);
-    assert_int_equal(crease_departs(dir_deg(-30.0), ng, v, NULL, 0), 1);
+    assert_int_equal(crease_departs(dir_deg(-10.0), ng, v), 0);
+    assert_int_equal(crease_departs(dir_deg(-30.0), ng, v), CREASE_RULE_VALID_REFLECTION);
 }
 
 /* At grazing view the lift Cycles asks for is 0.9 Ng.V, not 0.01: with N = Ng and V at 89.7
@@ -50,30 +51,51 @@ static void test_grazing_lift(void **state)
 {
     (void)state;
     vec3 ng = v3(0.0f, 0.0f, 1.0f);
-    assert_int_equal(crease_departs(ng, ng, dir_deg(89.7), NULL, 0), 0);
+    assert_int_equal(crease_departs(ng, ng, dir_deg(89.7)), 0);
 }
 
-/* N leaning 60 degrees toward the viewer's side while Ng faces it: the model turns N round;
- * Cycles keeps it (rule 1). V at 30, N at -60: N.V = cos 90 - a hair below 0. */
+/* N leaning 61 degrees away from the viewer's side while Ng faces it: the model turns N round;
+ * Cycles keeps it (back_face), and its mirror direction then lies below the surface
+ * (valid_reflection). V at 30, N at -61: N.V = cos 91 < 0. */
 static void test_normal_away(void **state)
 {
     (void)state;
     vec3 ng = v3(0.0f, 0.0f, 1.0f);
-    assert_int_equal(crease_departs(dir_deg(-61.0), ng, dir_deg(30.0), NULL, 0), 1);
+    assert_int_equal(crease_departs(dir_deg(-61.0), ng, dir_deg(30.0)),
+                     CREASE_RULE_BACK_FACE | CREASE_RULE_VALID_REFLECTION);
+    /* The same seen from below the triangle (its wound side up): Cycles flips N and Ng toward
+     * the viewer, and it is the case above turned over. */
+    assert_int_equal(crease_departs(dir_deg(-61.0), ng, v3_neg(dir_deg(30.0))),
+                     CREASE_RULE_BACK_FACE | CREASE_RULE_VALID_REFLECTION);
 }
 
-/* N at 30 degrees, V straight above (R at 60, kept). A light at 95 degrees is 5 below the
- * surface and 65 from N: the model lights the sample, Cycles does not. At 85 degrees both do. */
-static void test_light_below(void **state)
+/* The rule bits of a layer pick the pixels per renderer: a pixel with only valid_reflection
+ * leaves the surface for a renderer with that rule, not for one with only back_face; pixels
+ * outside the interior, and values that are no rule bits (an older share layer's fraction, NaN),
+ * stay where they are. */
+static void test_classify_rules(void **state)
 {
     (void)state;
-    vec3 ng = v3(0.0f, 0.0f, 1.0f), n = dir_deg(30.0), v = dir_deg(0.0);
-    vec3 below = dir_deg(95.0), above = dir_deg(85.0);
-    assert_int_equal(crease_departs(n, ng, v, &above, 1), 0);
-    assert_int_equal(crease_departs(n, ng, v, &below, 1), 1);
-    /* Below the surface and below N's horizon too: both give nothing, no departure. */
-    vec3 far_below = dir_deg(-95.0);
-    assert_int_equal(crease_departs(n, ng, v, &far_below, 1), 0);
+    unsigned char cls[6] = {METRICS_PX_INTERIOR, METRICS_PX_INTERIOR, METRICS_PX_INTERIOR,
+                            METRICS_PX_INTERIOR, METRICS_PX_EDGE,     METRICS_PX_INTERIOR};
+    const float layer[6] = {0.0f, 2.0f, 3.0f, 0.5f, 3.0f, NAN};
+    long interior = 0, per_rule[CREASE_RULE_COUNT];
+    unsigned char a[6], b[6];
+    memcpy(a, cls, sizeof cls);
+    memcpy(b, cls, sizeof cls);
+    assert_int_equal(crease_classify_rules(a, layer, 6, CREASE_RULE_VALID_REFLECTION, &interior, per_rule), 2);
+    assert_int_equal(interior, 5);
+    assert_int_equal(per_rule[0], 0);
+    assert_int_equal(per_rule[1], 2);
+    assert_int_equal(a[1], METRICS_PX_CREASE);
+    assert_int_equal(a[2], METRICS_PX_CREASE);
+    assert_int_equal(a[3], METRICS_PX_INTERIOR);
+    assert_int_equal(a[4], METRICS_PX_EDGE);
+    assert_int_equal(a[5], METRICS_PX_INTERIOR);
+    assert_int_equal(crease_classify_rules(b, layer, 6, CREASE_RULE_BACK_FACE, NULL, per_rule), 1);
+    assert_int_equal(per_rule[0], 1);
+    assert_int_equal(b[1], METRICS_PX_INTERIOR);
+    assert_int_equal(b[2], METRICS_PX_CREASE);
 }
 
 /* The quad y = 0, |x|, |z| <= 1, under a camera at (0, 5, 0) whose view just spans it. */
@@ -111,9 +133,9 @@ static void quad_case(int with_light)
             vec3 d = render_camera_ray(&cam, (float)x + 0.5f, (float)y + 0.5f);
             float hx = cam.eye.x + d.x * (-cam.eye.y / d.y); /* where the ray meets y = 0 */
             /* The normals lean by atan(3|x|) (bilinear in x only, as both triangles' corners
-             * share x); the boundaries lie between pixel centres (|x| = 0.25 or 0.42 near 1/3;
-             * the light's N.L = 0 at x = 0.033, between 0 and 0.083). */
-            int want = fabsf(hx) > 1.0f / 3.0f || (with_light && hx > 0.0f);
+             * share x); the boundaries lie between pixel centres (|x| = 0.25 or 0.42 near 1/3).
+             * The light below the quad changes nothing. */
+            int want = fabsf(hx) > 1.0f / 3.0f ? CREASE_RULE_VALID_REFLECTION : 0;
             assert_float_equal(share[y * w + x], (float)want, 0.0f);
         }
     free(s);
@@ -151,7 +173,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_flat_and_back_face), cmocka_unit_test(test_mirror_below),
         cmocka_unit_test(test_grazing_lift),       cmocka_unit_test(test_normal_away),
-        cmocka_unit_test(test_light_below),        cmocka_unit_test(test_quad_mirror),
+        cmocka_unit_test(test_classify_rules),     cmocka_unit_test(test_quad_mirror),
         cmocka_unit_test(test_quad_light),         cmocka_unit_test(test_bad_size),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "crease.h"
 #include "cycles/cycles.h"
 #include "eevee/eevee.h"
 #include "exact/exact.h"
@@ -51,7 +52,7 @@ static const renderer_row registry_rows[] = {
      .stochastic = 1,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
-     .crease_rules = 1,
+     .crease_rules = CREASE_RULE_BACK_FACE | CREASE_RULE_VALID_REFLECTION,
      .render = cycles_render_job,
      .physics = cycles_physics},
     {.name = "exact",

@@ -35,9 +35,11 @@ typedef struct {
     const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
     int cube_maps;              /* a program that looks a cube map (j->env) up itself; one without
                                    gets the cube's equirectangular conversion (harness/jobs.c) */
-    int crease_rules;           /* shades with the triangle's normal as well as the interpolated one
-                                   (harness/crease.h): compare moves the model's crease pixels out of
-                                   the surface into a region of their own */
+    int crease_rules;           /* the CREASE_RULE_* bits (harness/crease.h) by which it shades with the
+                                   triangle's normal as well as the interpolated one, each shown by a
+                                   render of the program (tests/crease_renderers.sh); 0 = none: compare
+                                   moves the model's pixels where one departs out of the surface into
+                                   a region of their own */
     renderer_render_fn render;
     renderer_physics_fn physics; /* a physical reference: the physics its validate renders (renderer.h);
                                     NULL = it computes the model, not a physics */
