@@ -1,11 +1,17 @@
 #include "renderer.h"
 
+#include <errno.h>
+#include <limits.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "exr.h"
+
+/* stdlib.h declares realpath only under XSI; the project builds at the POSIX level. */
+char *realpath(const char *restrict path, char *restrict resolved);
 
 static const char *const renderer_terms[RENDERER_N_TERMS] = {"diffuse", "specular", "reflection", "emission"};
 
@@ -126,4 +132,88 @@ rc_status renderer_write_textures(const renderer_job *j, char *err, size_t errle
                 return st;
         }
     return RC_OK;
+}
+
+/* The source tree the program was built from (Makefile: -DREFLCHECK_DATA_DIR); a build without
+ * it finds its files from the working folder, as before. */
+#ifndef REFLCHECK_DATA_DIR
+#define REFLCHECK_DATA_DIR "."
+#endif
+
+int renderer_data_path(const char *rel, char *out, size_t len)
+{
+    const char *dir = getenv("REFLCHECK_DATA_DIR");
+    if (dir == NULL || dir[0] == '\0')
+        dir = REFLCHECK_DATA_DIR;
+    int n = snprintf(out, len, "%s/%s", dir, rel);
+    return n > 0 && (size_t)n < len && access(out, R_OK) == 0;
+}
+
+/* A name a renderer can take whole, on its command line or in its scene language: letters,
+ * digits and "._-+", not starting with '-' (an option), and not "." or "..". */
+static int renderer_safe_name(const char *name)
+{
+    static const char ok[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-+";
+    return name[0] != '\0' && name[0] != '-' && strspn(name, ok) == strlen(name) && strcmp(name, ".") != 0 &&
+           strcmp(name, "..") != 0;
+}
+
+rc_status renderer_stage(const renderer_job *j, const char *src, const char *name, char *err, size_t errlen)
+{
+    char target[PATH_MAX], link[PATH_MAX + 64];
+    if (!renderer_safe_name(name)) {
+        snprintf(err, errlen, "renderer_stage: '%s' is not a safe name; use letters, digits and ._-+ only", name);
+        return RC_ERR_RANGE;
+    }
+    if (realpath(src, target) == NULL) {
+        snprintf(err, errlen, "%s: cannot resolve it to stage it for the renderer: %s; give a readable file", src,
+                 strerror(errno));
+        return RC_ERR_IO;
+    }
+    if ((size_t)snprintf(link, sizeof link, "%s/%s", j->dir, name) >= sizeof link) {
+        snprintf(err, errlen, "%s: the work folder's path is too long; use a shorter --cache or --out", j->dir);
+        return RC_ERR_RANGE;
+    }
+    unlink(link);
+    if (symlink(target, link) != 0) {
+        snprintf(err, errlen, "%s: cannot stage %s there: %s; check the work folder and its space", link, src,
+                 strerror(errno));
+        return RC_ERR_IO;
+    }
+    return RC_OK;
+}
+
+void renderer_command_string(const char *const argv[], char *buf, size_t buflen)
+{
+    if (buflen == 0)
+        return;
+    size_t used = 0;
+    buf[0] = '\0';
+    for (int i = 0; argv[i] != NULL && used < buflen; i++) {
+        const char *a = argv[i];
+        int plain = a[0] != '\0' && strspn(a, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                              "0123456789+-_./=:,@%") == strlen(a);
+        if (i > 0 && used + 1 < buflen)
+            buf[used++] = ' ';
+        if (plain) {
+            int w = snprintf(buf + used, buflen - used, "%s", a);
+            used += w > 0 ? (size_t)w : 0;
+        } else {
+            /* POSIX sh single quotes: everything literal but the quote itself, written '\''. */
+            if (used + 1 < buflen)
+                buf[used++] = '\'';
+            for (; *a && used + 5 < buflen; a++) {
+                if (*a == '\'') {
+                    memcpy(buf + used, "'\\''", 4);
+                    used += 4;
+                } else
+                    buf[used++] = *a;
+            }
+            if (used + 1 < buflen)
+                buf[used++] = '\'';
+        }
+        if (used >= buflen)
+            used = buflen - 1;
+        buf[used] = '\0';
+    }
 }

@@ -8,6 +8,15 @@
  *   Production (harness/jobs.c) and the renderer's unit tests call the same entry through
  *   the table in registry.h; tests may pass the translator's own options in j->options.
  *
+ * Paths (one rule for every renderer): a renderer is never handed a path of the user's on its
+ * command line or in its scene language. Files it reads are staged in j->dir under fixed ASCII
+ * names (renderer_stage: a symlink to the file's absolute path; renderer_write_textures), and
+ * POV-Ray runs in j->dir (runner_exec_in) with only those names; Blender reads its paths from
+ * the job's JSON (any bytes survive) and takes only absolute paths, after `--`, on its command
+ * line. The project's own files (the scripts Blender runs) come from renderer_data_path, so
+ * the program works from any folder. Command lines shown to people are quoted for POSIX sh
+ * (renderer_command_string).
+ *
  * Terms are the rasterizer's AOV layers (diffuse, specular, reflection, emission); their sum
  * is the image. A reference that cannot reproduce a whole term of a twin may leave it out:
  * its image is then the sum of the terms it did render, and the comparison removes the same
@@ -91,5 +100,16 @@ void renderer_fail_run(renderer_result *r, const runner_result *rr, const char *
 rc_status renderer_write_textures(const renderer_job *j, char *err, size_t errlen);
 /* Records term bit `term` as left out, with its reason (the first reason is kept). */
 void renderer_leave_out(renderer_result *r, unsigned term, const char *why);
+
+/* The absolute path of the project's own file rel ("harness/renderers/cycles/cycles_render.py")
+ * into out: under $REFLCHECK_DATA_DIR if set, else the source tree the program was built from
+ * (Makefile, -DREFLCHECK_DATA_DIR). 1 if that file is readable, else 0 (out still names it). */
+int renderer_data_path(const char *rel, char *out, size_t len);
+/* Stages src in j->dir as `name` (letters, digits and ._-+, no leading '-'): a symlink to src's
+ * absolute path, so a renderer running in j->dir reads it by that name whatever src's bytes
+ * (spaces, quotes, non-ASCII, a leading '-'). RC_OK, or an error with one line in err. */
+rc_status renderer_stage(const renderer_job *j, const char *src, const char *name, char *err, size_t errlen);
+/* argv as one line for the record, each word quoted for POSIX sh where it needs it. */
+void renderer_command_string(const char *const argv[], char *buf, size_t buflen);
 
 #endif

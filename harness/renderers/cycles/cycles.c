@@ -24,6 +24,9 @@
 #include "jsonio.h"
 #include "runner.h"
 
+/* Blender's side of the translation, a file of the source tree (renderer_data_path). */
+#define CYCLES_SCRIPT "harness/renderers/cycles/cycles_render.py"
+
 /* ------------------------------------------------------------------ JSON writing */
 
 /* The job is a cJSON document written through harness/jsonio. Numbers keep 9 significant
@@ -881,13 +884,19 @@ rc_status cycles_command(const cycles_options *o, const char *job_json_path, con
     size_t used = 0;
     out->argc = 0;
     out->argv[0] = NULL;
-    char threads[32];
+    char threads[32], script[PATH_MAX];
     snprintf(threads, sizeof threads, "%d", o->threads > 0 ? o->threads : 0);
+    /* Our script from the tree we were built from (or $REFLCHECK_DATA_DIR), whatever folder we
+     * run in. */
+    if (o->script == NULL && !renderer_data_path(CYCLES_SCRIPT, script, sizeof script)) {
+        status_message(err, errlen, "cycles: %s is missing; set REFLCHECK_DATA_DIR to the reflcheck source tree",
+                       script);
+        return RC_ERR_IO;
+    }
     const char *list[] = {o->blender ? o->blender : "blender", "-b", "--factory-startup",
                           /* without this a Python exception still exits 0 */
-                          "--python-exit-code", "1", "-t", threads, "-P",
-                          o->script ? o->script : "harness/renderers/cycles/cycles_render.py", "--", job_json_path,
-                          out_exr_path};
+                          "--python-exit-code", "1", "-t", threads, "-P", o->script ? o->script : script, "--",
+                          job_json_path, out_exr_path};
     for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
         if (cycles_put(out, &used, list[i]) == NULL) {
             status_message(err, errlen, "cycles: command line too long (%s); use shorter paths", list[i]);
@@ -1113,9 +1122,7 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
             renderer_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
         return;
     }
-    size_t used = 0;
-    for (int i = 0; i < a.argc && used < sizeof r->command; i++)
-        used += (size_t)snprintf(r->command + used, sizeof r->command - used, "%s%s", i ? " " : "", a.argv[i]);
+    renderer_command_string((const char *const *)a.argv, r->command, sizeof r->command);
     runner_result rr;
     /* A running Blender worker (worker_pool.py) saves Blender's start-up; with none, or with
      * another Blender or script than the worker's, Blender starts for this job. */

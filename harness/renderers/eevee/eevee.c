@@ -286,14 +286,18 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
     argv[n++] = "--python-exit-code";
     argv[n++] = "1";
     argv[n++] = "-P";
-    argv[n++] = o.script ? o.script : "harness/renderers/eevee/eevee_render.py";
+    char script[PATH_MAX];
+    if (o.script == NULL && !renderer_data_path("harness/renderers/eevee/eevee_render.py", script, sizeof script)) {
+        renderer_fail(r, RUNNER_ERROR, "eevee: %s is missing; set REFLCHECK_DATA_DIR to the reflcheck source tree",
+                      script);
+        return;
+    }
+    argv[n++] = o.script ? o.script : script;
     argv[n++] = "--";
     argv[n++] = job;
     argv[n++] = j->exr;
     argv[n] = NULL;
-    size_t used = 0;
-    for (int i = 0; argv[i] != NULL && used < sizeof r->command; i++)
-        used += (size_t)snprintf(r->command + used, sizeof r->command - used, "%s%s", i ? " " : "", argv[i]);
+    renderer_command_string(argv, r->command, sizeof r->command);
     runner_result rr;
     runner_exec(argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
     r->wall_s = rr.wall_s;

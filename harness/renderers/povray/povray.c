@@ -643,12 +643,38 @@ static void povray_put_cube_sky(FILE *fp, const povray_options *o)
     fprintf(fp, "  } }\n");
 }
 
+int povray_plain_path(const char *path)
+{
+    static const char ok[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789/._-+";
+    return path[0] != '\0' && path[0] != '-' && strspn(path, ok) == strlen(path);
+}
+
+/* The file names the SDL will hold in strings, each plain (povray_plain_path). */
+static rc_status povray_check_paths(const scene *s, const povray_options *o, char *err, size_t errlen)
+{
+    const char *env = o != NULL && o->env_file != NULL ? o->env_file : s->env.path;
+    const char *what[3] = {"environment.image", "povray_options.texture_dir", "povray_options.cube_dir"};
+    const char *path[3] = {s->env.kind == ENV_IMAGE ? env : NULL, o != NULL ? o->texture_dir : NULL,
+                           o != NULL && s->env.kind == ENV_CUBE ? o->cube_dir : NULL};
+    for (int i = 0; i < 3; i++)
+        if (path[i] != NULL && !(o != NULL && o->coverage && i == 0) && !povray_plain_path(path[i])) {
+            status_message(err, errlen,
+                           "%s: %s '%s': POV-Ray cannot take this path in a scene string; render through "
+                           "povray_render_job, which stages it under a plain name",
+                           s->path, what[i], path[i]);
+            return RC_ERR_IO;
+        }
+    return RC_OK;
+}
+
 rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
                              size_t errlen)
 {
     povray_resolved r;
     rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
     if (st != RC_OK)
+        return st;
+    if ((st = povray_check_paths(s, o, err, errlen)) != RC_OK)
         return st;
     /* A perspective angle must stay below 180 degrees (tan(hfov/2) finite). */
     if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < FORMULA_PI_D) ||
@@ -777,7 +803,7 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         fprintf(fp,
                 "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
                 "rotate y*180 }\n  emission rgb ",
-                s->env.path);
+                o != NULL && o->env_file != NULL ? o->env_file : s->env.path);
         povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
         fprintf(fp, "\n}\n\n");
     }
@@ -925,6 +951,14 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
                        exr_out);
         return RC_ERR_RANGE;
     }
+    const char *bad = !povray_plain_path(sdl_path) ? sdl_path : (!povray_plain_path(exr_out) ? exr_out : NULL);
+    if (bad != NULL) {
+        status_message(err, errlen,
+                       "povray_command: '%s' is not a plain path (letters, digits, /._-+); POV-Ray splits its "
+                       "options at spaces and quotes: run it in the folder with plain names",
+                       bad);
+        return RC_ERR_IO;
+    }
     char tmp[POVRAY_ARGV_MAX][64];
     const char *args[POVRAY_ARGV_MAX];
     int argc = 0;
@@ -967,36 +1001,7 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
 
 void povray_command_string(const povray_argv *cmd, char *buf, size_t buflen)
 {
-    if (buflen == 0)
-        return;
-    size_t used = 0;
-    buf[0] = '\0';
-    for (int i = 0; i < cmd->argc && used < buflen; i++) {
-        const char *a = cmd->argv[i];
-        int plain = a[0] != '\0' && strspn(a, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
-                                              "0123456789+-_./=:,@%") == strlen(a);
-        if (i > 0 && used + 1 < buflen)
-            buf[used++] = ' ';
-        if (plain) {
-            int w = snprintf(buf + used, buflen - used, "%s", a);
-            used += w > 0 ? (size_t)w : 0;
-        } else {
-            if (used + 1 < buflen)
-                buf[used++] = '\'';
-            for (; *a && used + 5 < buflen; a++) {
-                if (*a == '\'') {
-                    memcpy(buf + used, "'\\''", 4);
-                    used += 4;
-                } else
-                    buf[used++] = *a;
-            }
-            if (used + 1 < buflen)
-                buf[used++] = '\'';
-        }
-        if (used >= buflen)
-            used = buflen - 1;
-        buf[used] = '\0';
-    }
+    renderer_command_string((const char *const *)cmd->argv, buf, buflen);
 }
 
 /* ---- box filter ------------------------------------------------------------------------ */
@@ -1050,14 +1055,17 @@ static int povray_pass(const renderer_job *j, renderer_result *r, const povray_o
                        float *planes[3], float *var[3])
 {
     const scene *s = j->s;
-    char sdl[1100], raw[1100], err[1024];
-    snprintf(sdl, sizeof sdl, "%s/%s.pov", j->dir, tag);
-    snprintf(raw, sizeof raw, "%s/%s-raw.exr", j->dir, tag);
+    char sdl[1100], raw[1100], sdl_name[64], raw_name[64], err[1024];
+    /* POV-Ray runs in the work folder and gets names only (renderer.h, "Paths"). */
+    snprintf(sdl_name, sizeof sdl_name, "%s.pov", tag);
+    snprintf(raw_name, sizeof raw_name, "%s-raw.exr", tag);
+    snprintf(sdl, sizeof sdl, "%s/%s", j->dir, sdl_name);
+    snprintf(raw, sizeof raw, "%s/%s", j->dir, raw_name);
     int k = o->supersample > 0 ? o->supersample : (s->supersample > 0 ? s->supersample : 1);
     rc_status st = povray_write_scene(s, j->m, o, sdl, err, sizeof err);
     povray_argv cmd;
     if (st == RC_OK)
-        st = povray_command(o, sdl, raw, s->width, s->height, k, &cmd, err, sizeof err);
+        st = povray_command(o, sdl_name, raw_name, s->width, s->height, k, &cmd, err, sizeof err);
     if (st != RC_OK) {
         if (st == RC_ERR_RANGE)
             renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
@@ -1069,7 +1077,8 @@ static int povray_pass(const renderer_job *j, renderer_result *r, const povray_o
         povray_command_string(&cmd, r->command, sizeof r->command);
     runner_result rr;
     unlink(raw);
-    runner_exec((const char *const *)cmd.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    runner_where where = {.dir = j->dir};
+    runner_exec_in((const char *const *)cmd.argv, &where, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
     r->wall_s += rr.wall_s;
     r->cpu_s += rr.cpu_s;
     if (rr.status != RUNNER_OK) {
@@ -1149,7 +1158,15 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
             renderer_fail(r, RUNNER_ERROR, "%s", err);
             return;
         }
-        o.texture_dir = j->dir;
+        o.texture_dir = ".";
+    }
+    if (j->s->env.kind == ENV_IMAGE) {
+        char err[1024];
+        if (renderer_stage(j, j->s->env.path, "environment.exr", err, sizeof err) != RC_OK) {
+            renderer_fail(r, RUNNER_ERROR, "%s", err);
+            return;
+        }
+        o.env_file = "environment.exr";
     }
     if (j->env != NULL && j->env->kind == ENV_CUBE && j->env->rgb != NULL) {
         /* The faces as loaded (a cross split, PNG/JPEG decoded): the sky POV-Ray looks up. */
@@ -1167,7 +1184,7 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
         for (size_t i = 0; i < 6 * nn; i++)
             for (int c = 0; c < 3; c++)
                 o.cube_max[c] = fmaxf(o.cube_max[c], j->env->rgb[3 * i + (size_t)c]);
-        o.cube_dir = j->dir;
+        o.cube_dir = ".";
         o.cube_size = n;
     }
     povray_choose_terms(j, &o, r);
@@ -1190,5 +1207,11 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
         free(rgb[i]);
         free(cov[i]);
         free(var[i]);
+    }
+    /* The staged link served the render; a cache entry keeps only the render. */
+    if (o.env_file != NULL) {
+        char link[1100];
+        snprintf(link, sizeof link, "%s/%s", j->dir, o.env_file);
+        unlink(link);
     }
 }

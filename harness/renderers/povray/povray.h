@@ -84,16 +84,20 @@ typedef struct {
     int coverage;            /* nonzero: a geometry pass instead: no lights, black background,
                                 every object emits rgb <1, object index + 1, 0>, so the box-
                                 filtered R is coverage and G/R the object index + 1 */
-    const char *cube_dir; /* folder holding cube0.exr .. cube5.exr, a cube map's faces in
-                             D3DCUBEMAP_FACES order as linear float (povray_render_job writes them
-                             from j->env); NULL with a cube map -> RC_ERR_RANGE */
-    int cube_size;        /* their side N */
-    float cube_max[3];    /* the largest texel value per channel over the six faces */
+    const char *cube_dir;    /* folder holding cube0.exr .. cube5.exr, a cube map's faces in
+                                D3DCUBEMAP_FACES order as linear float (povray_render_job writes them
+                                from j->env); NULL with a cube map -> RC_ERR_RANGE */
+    int cube_size;           /* their side N */
+    const char *env_file;    /* the environment image as the SDL names it (povray_render_job stages it
+                                in the work folder), NULL = the scene's environment.image */
+    float cube_max[3];       /* the largest texel value per channel over the six faces */
 } povray_options;
 
 /* Writes the SDL file. m must be the scene's mesh (mesh_build): one mesh2 per object, the
  * same triangles and per-vertex normals the rasterizer draws (printed with %.9g, exact for
- * floats). Objects without triangles are skipped. */
+ * floats). Objects without triangles are skipped. Every file name it writes into an SDL string
+ * (environment, texture and cube folders) must be plain (povray_plain_path); another is
+ * RC_ERR_IO naming it: povray_render_job stages such files (renderer_stage) under plain names. */
 rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
                              size_t errlen);
 
@@ -105,10 +109,17 @@ typedef struct {
     char buf[POVRAY_ARGV_BUF];
 } povray_argv;
 
+/* 1 when POV-Ray 3.7 takes path as it is, on its command line (+I, +O: words are split at
+ * spaces and quotes are its own) and in an SDL string (backslash escapes, and bytes over 127
+ * read in the scene's charset): only letters, digits and "/._-+", and no leading '-'. */
+int povray_plain_path(const char *path);
+
 /* The command that renders sdl_path into exr_out (half-float EXR, no alpha) at
  * k*width_px x k*height_px, without antialiasing, display, verbose output or pausing:
  *   povray +I<sdl> +O<exr> +FE +W<kW> +H<kH> -A -J -UA -D -V -P +Q9 -GS -GR [+WT<n>]
- * Returns RC_ERR_RANGE for non-positive sizes or k, RC_ERR_NOMEM if the paths do not fit. */
+ * Returns RC_ERR_RANGE for non-positive sizes or k, RC_ERR_IO for a path that is not plain
+ * (povray_plain_path: run POV-Ray in the folder, runner_exec_in, with plain names), RC_ERR_NOMEM
+ * if the paths do not fit. */
 rc_status povray_command(const povray_options *o, const char *sdl_path, const char *exr_out, int width_px,
                          int height_px, int supersample, povray_argv *cmd, char *err, size_t errlen);
 
