@@ -4,14 +4,25 @@
 # its own folder reports/runs/<id>; reports/latest moves to it at the very end and the
 # history gets one appended line, so a run killed midway leaves both as they were.
 #
+# Usage: harness/nightly.sh [SCENE.yaml ...]   (default: $SCENES, else scenes/*.yaml)
+# Scene paths given as arguments may hold spaces and any other character. SCENES holds one
+# path per line when it holds a line break, else space-separated paths; a word that is not a
+# file is refused (exit 2).
+#
+# History: a run appends its line to reports/local/history.jsonl (ignored by git: a user's own
+# runs never change a versioned file); the report's trend plots show the project's reference
+# history (reports/history.jsonl, read only) and then the local runs, told apart. REFERENCE=1
+# names this run the project's reference run on purpose: its line goes to reports/history.jsonl.
+#
 # Exit status: 0 when every job ran (or was skipped: renderer not installed, or it cannot
 # represent the scene) and no comparison failed; 1 when a job or step failed or a comparison
 # failed or errored (the run is still reported and recorded, with its status); 2 bad input.
 # Killed or interrupted (SIGINT, SIGTERM, SIGHUP), it stops every process it started,
 # renderers included, before it exits.
 #
-# Settings (environment): BIN, JOBS, RUNS, HISTORY, LATEST, CACHE, SCENES, RUN_ID, SMALL=1
-# (test-size renders), NO_SWEEP=1, NO_SCREENSHOT=1 (any non-empty value), SCHEDULER.
+# Settings (environment): BIN, JOBS, RUNS, HISTORY (the file this run appends to),
+# REFERENCE_HISTORY (read for the trends only; empty: none), REFERENCE=1, LATEST, CACHE, SCENES,
+# RUN_ID, SMALL=1 (test-size renders), NO_SWEEP=1, NO_SCREENSHOT=1 (any non-empty value), SCHEDULER.
 #
 # SCHEDULER=slurm (default make): the render jobs, the sweep and the compare step run as Slurm
 # jobs (README "Slurm"): `plan --scheduler slurm` submits one array task per render; the sweep
@@ -24,7 +35,15 @@ cd "$(dirname "$0")/.."
 bin=${BIN:-build/reflcheck}
 jobs=${JOBS:-2}
 runs=${RUNS:-reports/runs}              # where run folders go
-history=${HISTORY:-reports/history.jsonl}
+say() { echo "reflcheck nightly: $*" >&2; }
+# The versioned history is the project's reference; a run writes there only when named so.
+if [ -n "${REFERENCE:-}" ]; then
+    history=${HISTORY:-reports/history.jsonl}
+    reference_history=${REFERENCE_HISTORY-}
+else
+    history=${HISTORY:-reports/local/history.jsonl}
+    reference_history=${REFERENCE_HISTORY-reports/history.jsonl}
+fi
 latest=${LATEST:-reports/latest}
 cache=${CACHE:-reports/cache}
 small=${SMALL:+--small}                 # SMALL=1: the test-size renders (used by the kill test)
@@ -52,7 +71,31 @@ case $id in
         exit 2 ;;
 esac
 run=$runs/$id
-scenes=${SCENES:-$(ls scenes/*.yaml)}
+# The scene paths as one array, so that a path with a space reaches every command whole.
+scenes=()
+if [ $# -gt 0 ]; then
+    scenes=("$@")
+elif [ -n "${SCENES:-}" ]; then
+    if [[ $SCENES == *$'\n'* ]]; then
+        mapfile -t scenes <<< "$SCENES"
+    else
+        read -r -a scenes <<< "$SCENES"
+    fi
+else
+    scenes=(scenes/*.yaml)
+fi
+for i in "${!scenes[@]}"; do
+    [ -z "${scenes[$i]}" ] && unset "scenes[$i]" # an empty line of a SCENES list
+done
+scenes=("${scenes[@]}")
+[ ${#scenes[@]} -eq 0 ] && { say "no scene given; pass scene paths as arguments or in SCENES"; exit 2; }
+for s in "${scenes[@]}"; do
+    if [ ! -f "$s" ]; then
+        say "scene '$s' is not a file; check the path, and give a path holding spaces as an argument" \
+            "(harness/nightly.sh 'my scenes/a.yaml') or one path per line in SCENES"
+        exit 2
+    fi
+done
 mkdir -p "$runs" || exit 1
 if ! mkdir "$run" 2>/dev/null; then
     echo "reflcheck nightly: $run exists already; give another RUN_ID (or leave it unset)" >&2
@@ -113,15 +156,13 @@ rc=0
 t0=$(date +%s)
 plan_out=$run/jobs.mk
 [ "$scheduler" = slurm ] && plan_out=$run/submit.sh
-# shellcheck disable=SC2086
-step "$bin" plan $scenes --out "$run" --cache "$cache" --bin "$bin" $small --scheduler "$scheduler" > "$plan_out"
+step "$bin" plan "${scenes[@]}" --out "$run" --cache "$cache" --bin "$bin" $small --scheduler "$scheduler" > "$plan_out"
 st=$?
 if [ $st -ne 0 ]; then
     echo "reflcheck nightly: plan refused the scenes (exit $st); nothing rendered" >&2
     exit $st
 fi
-# shellcheck disable=SC2086
-sweep_args=(--run "$run" --cache "$cache/sweep" --bin "$bin" --jobs "$jobs" --scenes $scenes ${SMALL:+--quick})
+sweep_args=(--run "$run" --cache "$cache/sweep" --bin "$bin" --jobs "$jobs" --scenes "${scenes[@]}" ${SMALL:+--quick})
 if [ "$scheduler" = make ]; then
     step make -k -j"$jobs" -f "$run/jobs.mk" all || { echo "reflcheck nightly: some render jobs failed" >&2; rc=1; }
     t1=$(date +%s)
@@ -132,8 +173,7 @@ if [ "$scheduler" = make ]; then
         step /usr/bin/python3 harness/sweep.py "${sweep_args[@]}" > "$run/sweep.txt" 2>&1 ||
             { echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2; rc=1; }
     fi
-    # shellcheck disable=SC2086
-    step "$bin" compare $scenes --run "$run" > "$run/compare.txt"
+    step "$bin" compare "${scenes[@]}" --run "$run" > "$run/compare.txt"
     st=$?
 else
     mkdir -p "$run/slurm"
@@ -156,9 +196,8 @@ else
         sweep_id=${sweep_id%%;*}
         [ -n "$sweep_id" ] && { echo "$sweep_id" >> "$run/slurm/steps"; deps=$deps:$sweep_id; }
     fi
-    # shellcheck disable=SC2086
     compare_id=$(sbatch --parsable --dependency="afterany:$deps" -n1 -c1 --time=60 --job-name=reflcheck-compare \
-        --output="$run/slurm/compare.out" harness/slurm/compare.sh "$run" "$bin" $scenes)
+        --output="$run/slurm/compare.out" harness/slurm/compare.sh "$run" "$bin" "${scenes[@]}")
     compare_id=${compare_id%%;*}
     if [ -z "$compare_id" ]; then
         echo "reflcheck nightly: submitting the compare step to Slurm failed" >&2
@@ -184,8 +223,7 @@ cat "$run/compare.txt"
 # (RUN/<scene>/fit.json) and within wide ones (fit-wide.json).
 : > "$run/fit.txt"
 for bounds in seed wide; do
-    # shellcheck disable=SC2086
-    step "$bin" fit $scenes --out "$run" --cache "$cache" --bounds $bounds $small >> "$run/fit.txt" 2>&1
+    step "$bin" fit "${scenes[@]}" --out "$run" --cache "$cache" --bounds $bounds $small >> "$run/fit.txt" 2>&1
     st=$?
     [ $st -ne 0 ] && { echo "reflcheck nightly: a fit failed (fit --bounds $bounds exit $st); see $run/fit.txt" >&2; rc=1; }
 done
@@ -197,6 +235,7 @@ if [ -f harness/plots/figure1.gp ]; then
     step gnuplot -e "dir='$run'" harness/plots/figure1.gp > /dev/null 2>&1 || echo "figure1 plot failed" >&2
 fi
 step /usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" \
-    --latest "$latest" $screenshot || { echo "reflcheck nightly: the report failed" >&2; rc=1; }
+    ${reference_history:+--reference-history "$reference_history"} --latest "$latest" $screenshot ||
+    { echo "reflcheck nightly: the report failed" >&2; rc=1; }
 echo "reflcheck nightly: report at $run/index.html ($latest/index.html); exit $rc"
 exit $rc

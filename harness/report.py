@@ -2,7 +2,8 @@
 """report.py - the reflcheck report: HTML pages, summary.json/csv, JUnit XML and history of one run.
 
 Usage (Python 3 with Debian's python3-jinja2; plots need the `gnuplot` program, screenshots `chromium`):
-  python3 harness/report.py --run reports/runs/<id> [--history reports/history.jsonl]
+  python3 harness/report.py --run reports/runs/<id> [--history reports/local/history.jsonl]
+                            [--reference-history reports/history.jsonl]
                             [--commit SHA] [--latest reports/latest] [--screenshot]
   python3 harness/report.py --propose-thresholds --run reports/runs/<id>
 
@@ -14,7 +15,8 @@ optional stability.json, timing/*.json and figure1.svg. It never renders or meas
 Writes into the run folder (each file through a temporary name, then rename): index.html,
 scene-<name>.html, report.css, report.js, plots/*.svg, summary.json, summary.csv, junit.xml,
 figures.md (the README's tables of this run),
-and appends one line to the history file (one write() plus fsync, never truncating).
+and appends one line to the history file (one write() plus fsync, never truncating). The trend
+plots show --reference-history's runs (read only, labelled ref-) and then --history's.
 A missing or corrupt input file is listed on the page and on stderr with its name; it is never
 a crash. Exit status: 0 report written (whatever the verdicts), 1 an output could not be
 written, 2 bad usage (run folder missing).
@@ -35,7 +37,7 @@ try:
     from report import pages
     from report.browser import check_pages, screenshot
     from report.figures import figures_md
-    from report.history import append_history, history_record, read_history
+    from report.history import append_history, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
     from report.plots import plot_angles, plot_timing, plot_trends
@@ -58,7 +60,7 @@ def make_report(args):
     problems = R['problems']
     copy_assets(args.run)
     os.makedirs(os.path.join(args.run, 'plots'), exist_ok=True)
-    history = []
+    history, local = [], []
     if args.history:
         rec = history_record(R)
         try:
@@ -70,10 +72,15 @@ def make_report(args):
                 )
         except OSError as e:
             problems.add(args.history, f'cannot append to history: {e.strerror}')
-        history = read_history(args.history, problems)
-        note = f'{args.history}: {len(history)} run{"" if len(history) == 1 else "s"}'
-    else:
-        note = 'no --history file given: trends need reports/history.jsonl'
+        local = read_history(args.history, problems)
+    reference = read_history(args.reference_history, problems) if args.reference_history else []
+    history = trend_history(reference, local)
+    parts = []
+    if args.reference_history:
+        parts.append(f'{len(reference)} reference run{plural(reference)} from {args.reference_history} (labels ref-…)')
+    if args.history:
+        parts.append(f'{len(local)} run{plural(local)} of this history, {args.history}')
+    note = 'trends: ' + ', then '.join(parts) if parts else 'no --history or --reference-history given: no trends'
     with tempfile.TemporaryDirectory(prefix='reflcheck-report-') as tmp:
         angles = {s['name']: plot_angles(R, s, tmp, problems) for s in R['scenes']}
         trends = plot_trends(R, history, tmp, problems) if history else {}
@@ -121,6 +128,10 @@ def make_report(args):
     return 0
 
 
+def plural(items):
+    return '' if len(items) == 1 else 's'
+
+
 def point_latest(run, latest, problems):
     """Symlink to a temporary name, then rename over the old link: readers see old or new."""
     target = os.path.relpath(os.path.abspath(run), os.path.dirname(os.path.abspath(latest)))
@@ -154,6 +165,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description='Write the reflcheck report of one run folder.')
     ap.add_argument('--run', required=True, help='run folder, e.g. reports/runs/20250101-120000-abc1234')
     ap.add_argument('--history', help='append-only JSON-lines history, e.g. reports/history.jsonl')
+    ap.add_argument(
+        '--reference-history',
+        help="the project's reference history, read only: trends show its runs (labelled ref) before --history's",
+    )
     ap.add_argument('--commit', help='commit of the run (default: from the run id, else "unknown")')
     ap.add_argument('--latest', help='symlink to point at this run, e.g. reports/latest')
     ap.add_argument(

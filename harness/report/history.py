@@ -30,6 +30,13 @@ def history_record(R):
     )
 
 
+def trend_history(reference, local):
+    """The project's reference runs (marked 'reference': true), then this machine's own runs
+    that the reference does not hold already, each list in its file order."""
+    ref_ids = {r['run_id'] for r in reference}
+    return [dict(r, reference=True) for r in reference] + [r for r in local if r['run_id'] not in ref_ids]
+
+
 def read_history(path, problems=None):
     """Records in file order; a line that does not parse (a run killed mid-write) is skipped and
     reported. Several lines of one run id: the last one wins, at the place of the first."""

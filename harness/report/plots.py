@@ -113,7 +113,7 @@ def plot_trends(R, history, tmpdir, problems):
         rows = []
         for i, h in enumerate(runs):
             ms = h['metrics'][s['name']]
-            label = (
+            label = ('ref-' if h.get('reference') else '') + (
                 str(h.get('commit') or '')[:7]
                 if h.get('commit') not in (None, '', 'unknown')
                 else str(h['run_id'])[-13:]
