@@ -30,6 +30,10 @@
 typedef struct {
     yaml_document_t *doc;
     const char *file;
+    /* The name the file's base name gives, when it fails scene_name_check: then the file must
+     * give `name:` (why says what is wrong with the derived one). */
+    const char *default_bad;
+    char default_why[160];
     char dir[SCENE_PATH_MAX];
     char *err;
     size_t errlen;
@@ -414,6 +418,22 @@ static rc_status sf_name(sf_ctx *c, yaml_node_t *n, const char *path, char *out,
     return RC_OK;
 }
 
+/* A scene's name: it becomes file and folder names of a run, so model/scene.h checks it. */
+static rc_status sf_scene_name(sf_ctx *c, yaml_node_t *n, char *out)
+{
+    char why[200], q[48];
+    const char *s = sf_text(n);
+    if (!s)
+        return sf_fail(c, RC_ERR_PARSE, n, "name", "expected a name, got %s; allowed: %s",
+                       n->type == YAML_SCALAR_NODE ? "text holding a NUL byte" : sf_kind(n), SCENE_NAME_RULE);
+    if (!scene_name_check(s, why, sizeof why)) {
+        sf_quote(q, sizeof q, s);
+        return sf_fail(c, RC_ERR_RANGE, n, "name", "'%s': %s; allowed: %s", q, why, SCENE_NAME_RULE);
+    }
+    snprintf(out, SCENE_NAME_MAX, "%s", s);
+    return RC_OK;
+}
+
 static int sf_ends_with(const char *s, const char *suffix)
 {
     size_t a = strlen(s), b = strlen(suffix);
@@ -585,8 +605,8 @@ static rc_status sf_environment(sf_ctx *c, yaml_node_t *n, scene *s)
                                 "horizontal 4 x 3 cube-map cross image", TEXTURE_MAX_BYTES, s->env.path)))
         return rc;
     /* One DDS cube map (harness/frame.c tells it from a cross by its extension). */
-    if (f[6].v && (rc = sf_file(c, f[6].v, "environment.cube_dds", dds, 1, "DDS cube map", TEXTURE_MAX_BYTES,
-                                s->env.path)))
+    if (f[6].v &&
+        (rc = sf_file(c, f[6].v, "environment.cube_dds", dds, 1, "DDS cube map", TEXTURE_MAX_BYTES, s->env.path)))
         return rc;
     /* The sun split finds a region of an equirectangular image; a cube map has none to give. */
     if (s->env.kind == ENV_CUBE && (rc = sf_forbid(c, "environment", &f[3], "sun_threshold", "a cube map",
@@ -1510,8 +1530,13 @@ static rc_status sf_top(sf_ctx *c, yaml_node_t *root, scene *s)
     if ((rc = sf_map(c, root, "", keys, TK_COUNT, f)) || (rc = sf_need(c, root, "", &f[TK_IMAGE], "image")) ||
         (rc = sf_need(c, root, "", &f[TK_CAMERA], "camera")))
         return rc;
-    if (f[TK_NAME].v && (rc = sf_name(c, f[TK_NAME].v, "name", s->name, sizeof s->name)))
+    if (f[TK_NAME].v && (rc = sf_scene_name(c, f[TK_NAME].v, s->name)))
         return rc;
+    if (!f[TK_NAME].v && c->default_bad)
+        return sf_fail(c, RC_ERR_RANGE, root, "name",
+                       "no name: key, and the file name gives '%s', which is not a name (%s); allowed: add "
+                       "name: with %s",
+                       c->default_bad, c->default_why, SCENE_NAME_RULE);
     if ((rc = sf_image(c, f[TK_IMAGE].v, s)) || (rc = sf_camera(c, f[TK_CAMERA].v, s)))
         return rc;
     if (f[TK_AMBIENT].v && (rc = sf_colour(c, f[TK_AMBIENT].v, "ambient", &s->global_ambient)))
@@ -1630,20 +1655,21 @@ rc_status scene_file_parse(const char *text, size_t len, const char *path_for_me
     s->hash = scene_file_hash(text ? text : "", len);
     if (path_for_messages)
         snprintf(s->path, sizeof s->path, "%s", path_for_messages);
-    {
-        /* Default name: the file's base name without its extension, with every character a
-         * name may not hold (sf_name_char) made '_'. The name becomes folder names, make
-         * targets and page names, so a file called `x;id>y.yaml` or `<!--<script>.yaml` must
-         * not carry its characters into them; two files that map to one name are refused
-         * where names must be unique (plan, compare). */
+    char derived[SCENE_NAME_MAX];
+    if (path_for_messages) {
+        /* Default name: the file's base name up to its first '.', sanitised (model/scene.h) and
+         * then checked like a `name:`. The name becomes folder names, make targets and page
+         * names, so a file called `x;id>y.yaml` or `<!--<script>.yaml` must not carry its
+         * characters into them, and `.yaml` (no name) or `plots.yaml` (a folder the report
+         * writes) must not give a name at all without a `name:` key; two files that map to one name are refused where
+         * names must be unique (plan, compare). */
         const char *base = strrchr(c.file, '/');
         base = base ? base + 1 : c.file;
-        size_t n = strcspn(base, ".");
-        if (path_for_messages && n > 0 && n < sizeof s->name) {
-            for (size_t i = 0; i < n; i++)
-                s->name[i] = sf_name_char((unsigned char)base[i]) ? base[i] : '_';
-            s->name[n] = '\0';
-        }
+        scene_name_sanitise(base, strcspn(base, "."), derived);
+        if (scene_name_check(derived, c.default_why, sizeof c.default_why))
+            snprintf(s->name, sizeof s->name, "%s", derived);
+        else
+            c.default_bad = derived;
     }
 
     yaml_node_t *root = yaml_document_get_root_node(&doc);

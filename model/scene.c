@@ -12,6 +12,56 @@
 #include "formula.h"
 
 /* Degrees to radians for the few defaults that are angles. */
+const char *const scene_reserved_names[] = {
+#include "reserved_names.def"
+    NULL};
+
+static int scene_name_char(int ch)
+{
+    return (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-';
+}
+
+int scene_name_check(const char *name, char *why, size_t whylen)
+{
+    size_t len = name ? strlen(name) : 0;
+    if (len == 0 || len >= SCENE_NAME_MAX) {
+        snprintf(why, whylen, "name is %zu bytes long", len);
+        return 0;
+    }
+    for (size_t i = 0; i < len; i++)
+        if (!scene_name_char((unsigned char)name[i])) {
+            snprintf(why, whylen, "character %zu (byte 0x%02x) is not allowed in a name", i + 1,
+                     (unsigned char)name[i]);
+            return 0;
+        }
+    if (name[0] == '-') {
+        snprintf(why, whylen, "a name starting with '-' reads as a command-line option");
+        return 0;
+    }
+    for (int i = 0; scene_reserved_names[i]; i++)
+        if (strcmp(name, scene_reserved_names[i]) == 0) {
+            snprintf(why, whylen,
+                     "'%s' is reserved: a run folder holds a file or folder of that name itself "
+                     "(model/reserved_names.def)",
+                     name);
+            return 0;
+        }
+    return 1;
+}
+
+void scene_name_sanitise(const char *text, size_t n, char out[SCENE_NAME_MAX])
+{
+    size_t j = 0;
+    for (size_t i = 0; i < n && j + 1 < SCENE_NAME_MAX; i++) {
+        int ch = (unsigned char)text[i];
+        if (ch >= 'A' && ch <= 'Z')
+            ch += 'a' - 'A';
+        out[j] = (char)(scene_name_char(ch) && !(j == 0 && ch == '-') ? ch : '_');
+        j++;
+    }
+    out[j] = '\0';
+}
+
 static float scene_deg(double d) { return (float)(d * FORMULA_PI_D / 180.0); }
 
 void light_init(light *l)

@@ -43,14 +43,14 @@ typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE, ENV_CUBE } env_kind;
 
 typedef struct {
     env_kind kind;
-    vec3 radiance;             /* constant radiance, or scale for the image (default 1) */
-    char path[SCENE_PATH_MAX]; /* equirectangular linear EXR, or a cube map's 4 x 3 cross; resolved
-                                  relative to the scene file */
+    vec3 radiance;                /* constant radiance, or scale for the image (default 1) */
+    char path[SCENE_PATH_MAX];    /* equirectangular linear EXR, or a cube map's 4 x 3 cross; resolved
+                                     relative to the scene file */
     char cube[6][SCENE_PATH_MAX]; /* cube map: its six face images in D3DCUBEMAP_FACES order
                                      (+X, -X, +Y, -Y, +Z, -Z); all empty when path is a cross */
-    float sun_threshold;       /* image: > 0 moves the sun (texels of luminance above it, scale applied)
-                                  into a sun light appended to the lights (model/env.h env_extract_sun);
-                                  0 = off (default) */
+    float sun_threshold;          /* image: > 0 moves the sun (texels of luminance above it, scale applied)
+                                     into a sun light appended to the lights (model/env.h env_extract_sun);
+                                     0 = off (default) */
 } environment;
 
 typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
@@ -224,6 +224,23 @@ typedef struct {
     comparison comparisons[SCENE_MAX_COMPARISONS];
     uint64_t hash; /* FNV-1a of the scene file's bytes */
 } scene;
+
+/* Names that become file or folder names of a run (a scene's name is its folder RUN/<name>, its
+ * page scene-<name>.html, its make targets and plot files): checked here, in one place.
+ * Allowed: 1..SCENE_NAME_MAX-1 bytes of a-z 0-9 _ -, not starting with '-' (a command-line
+ * option), and none of the names a run folder holds itself (model/reserved_names.def). No '.'
+ * (so neither "." nor ".." nor a file name of the report, index.html or summary.json) and no
+ * capitals (two names differing only by case are one folder on a case-insensitive disk).
+ * Returns 1 when allowed, else 0 with the problem in why (one line; callers add SCENE_NAME_RULE as
+ * the fix). */
+#define SCENE_NAME_RULE "1..63 characters of a-z 0-9 _ -, not starting with '-', not a run folder's own name"
+int scene_name_check(const char *name, char *why, size_t whylen);
+/* A name made from any n bytes of text (a scene file's base name): capitals lowercased, other
+ * characters outside a-z 0-9 _ - made '_', a leading '-' made '_', cut at SCENE_NAME_MAX-1
+ * bytes; the result still goes through scene_name_check (it may be empty or reserved). */
+void scene_name_sanitise(const char *text, size_t n, char out[SCENE_NAME_MAX]);
+/* The reserved names (model/reserved_names.def), NULL-terminated. */
+extern const char *const scene_reserved_names[];
 
 void scene_init(scene *s);
 void light_init(light *l);

@@ -16,6 +16,7 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include "jobs.h"
 #include "scene_file.h"
 
 #define FIX "tests/fixtures/scenes/"
@@ -278,7 +279,92 @@ static void test_default_name_made_safe(void **state)
     assert_int_equal(scene_file_parse(text, sizeof text - 1, "dir.d/<!--<script>.yaml", s, err, sizeof err), RC_OK);
     assert_string_equal(s->name, "__--_script_");
     assert_int_equal(scene_file_parse(text, sizeof text - 1, "x;id>PWNED;.v2.yaml", s, err, sizeof err), RC_OK);
-    assert_string_equal(s->name, "x_id_PWNED_");
+    /* Capitals lowercased: names differing by case are one folder on a case-insensitive disk. */
+    assert_string_equal(s->name, "x_id_pwned_");
+    /* A leading '-' would read as an option in make and shell commands. */
+    assert_int_equal(scene_file_parse(text, sizeof text - 1, "d/-rf.yaml", s, err, sizeof err), RC_OK);
+    assert_string_equal(s->name, "_rf");
+    /* A base name of 300 bytes is cut to the 63 a name holds (it used to fall back to "scene",
+     * so two such files had one name). */
+    char longpath[400];
+    memset(longpath, 'a', 300);
+    strcpy(longpath + 300, ".yaml");
+    assert_int_equal(scene_file_parse(text, sizeof text - 1, longpath, s, err, sizeof err), RC_OK);
+    assert_int_equal(strlen(s->name), SCENE_NAME_MAX - 1);
+    /* A base name that gives no name or a reserved one: the file must say `name:`. */
+    static const char *const need_key[] = {"d/.yaml", "d/plots.yaml", "runs.yaml", "d/latest.v1.yaml"};
+    for (size_t i = 0; i < sizeof need_key / sizeof *need_key; i++) {
+        err[0] = '\0';
+        if (scene_file_parse(text, sizeof text - 1, need_key[i], s, err, sizeof err) != RC_ERR_RANGE ||
+            !strstr(err, "add name:") || strncmp(err, need_key[i], strlen(need_key[i])) != 0)
+            fail_msg("%s: %s", need_key[i], err);
+    }
+    static const char named[] = "name: ok_name\nimage: {width: 4, height: 3}\n"
+                                "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n";
+    assert_int_equal(scene_file_parse(named, sizeof named - 1, "d/plots.yaml", s, err, sizeof err), RC_OK);
+    assert_string_equal(s->name, "ok_name");
+    free(s);
+}
+
+/* Scene names become file and folder names of a run (RUN/<name>/, scene-<name>.html): each
+ * unsafe or reserved one is refused with the file, line and key, and the rule. */
+static void test_scene_names(void **state)
+{
+    (void)state;
+    static const char *const bad[] = {
+        "\"..\"", "\".\"",          "index.html", "summary.json",  "thresholds-proposal.html",
+        "plots",  "timing",         "slurm",      "render_wall_s", "latest",
+        "runs",   "\"\"",           "-x",         "a/b",           "\"a\\0b\"",
+        "Foo",    "\"caf\\u00e9\"", "a.b",        "\"a b\"",       "x.yaml",
+    };
+    scene *s = malloc(sizeof *s);
+    char text[700], err[600];
+    assert_non_null(s);
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        int n = snprintf(text, sizeof text,
+                         "image: {width: 4, height: 3}\nname: %s\n"
+                         "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n",
+                         bad[i]);
+        err[0] = '\0';
+        rc_status rc = scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err);
+        if (rc == RC_OK || strncmp(err, "mem.yaml:2:7: name: ", 20) != 0 || !strstr(err, "allowed: 1..63") ||
+            strchr(err, '\n'))
+            fail_msg("name %s: rc %d, %s", bad[i], rc, err);
+    }
+    /* 64 bytes and 300 bytes: one past the limit and far past it; 62 and 63 are allowed. */
+    static const int lens[] = {62, 63, 64, 300};
+    char longname[301];
+    memset(longname, 'a', sizeof longname);
+    for (size_t i = 0; i < sizeof lens / sizeof *lens; i++) {
+        int n = snprintf(text, sizeof text,
+                         "image: {width: 4, height: 3}\nname: %.*s\n"
+                         "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n",
+                         lens[i], longname);
+        rc_status rc = scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err);
+        if ((rc == RC_OK) != (lens[i] < SCENE_NAME_MAX))
+            fail_msg("name of %d bytes: rc %d, %s", lens[i], rc, err);
+    }
+    static const char *const good[] = {"a", "a-b_c9", "_x", "9lives", "index", "summary", "scene"};
+    for (size_t i = 0; i < sizeof good / sizeof *good; i++) {
+        int n = snprintf(text, sizeof text,
+                         "name: %s\nimage: {width: 4, height: 3}\n"
+                         "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n",
+                         good[i]);
+        if (scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err) != RC_OK)
+            fail_msg("name %s refused: %s", good[i], err);
+        assert_string_equal(s->name, good[i]);
+    }
+    /* Every reserved name is refused, and the other parts of a run's file names, renderer and
+     * role (RUN/<scene>/<renderer>-<role>.json), pass the same check. */
+    char why[200];
+    for (int i = 0; scene_reserved_names[i]; i++)
+        assert_false(scene_name_check(scene_reserved_names[i], why, sizeof why));
+    for (int i = 0; i < registry_count(); i++)
+        if (!scene_name_check(registry_name(i), why, sizeof why))
+            fail_msg("renderer %s: %s", registry_name(i), why);
+    for (int i = 0; i < 3; i++)
+        if (!scene_name_check(job_role_names[i], why, sizeof why))
+            fail_msg("role %s: %s", job_role_names[i], why);
     free(s);
 }
 
@@ -657,6 +743,7 @@ int main(void)
         cmocka_unit_test(test_good_full),
         cmocka_unit_test(test_good_minimal_defaults),
         cmocka_unit_test(test_default_name_made_safe),
+        cmocka_unit_test(test_scene_names),
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
