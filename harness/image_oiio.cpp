@@ -123,20 +123,16 @@ rc_status decode(const char *path, const unsigned char *bytes, size_t len, image
         return RC_ERR_PARSE;
     }
     size_t n = (size_t)w * (size_t)h * (size_t)faces;
-    size_t limit = 0;
-    char why[256];
-    if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
-        status_message(err, errlen, "%s: %s", path, why);
-        return RC_ERR_RANGE;
-    }
-    // Decoded here, then converted to float RGBA by the caller: both must fit.
-    if ((double)n * 4.0 * (sizeof(float) + (linear ? sizeof(float) : 1)) > (double)limit) {
-        status_message(err, errlen,
-                       "%s: %d face%s of %dx%d need more than the memory limit; give a smaller image or raise "
-                       "REFLCHECK_MEMORY_LIMIT",
-                       path, faces, faces == 1 ? "" : "s", w, h);
-        return RC_ERR_RANGE;
-    }
+    // The file must hold the 128-byte header and the top level of every face in the most compact
+    // encoding OpenImageIO reads, BC1/BC4's 8 bytes a 4x4 block (every other takes more), before
+    // anything is allocated. Decoded here, then converted to float RGBA by the caller: both must
+    // fit the memory limit.
+    double blocks = (double)((w + 3) / 4) * (double)((h + 3) / 4) * faces;
+    rc_status budget =
+        fileio_image_budget(path, "DDS", w, h, 128.0 + 8.0 * blocks, (long long)len,
+                            (double)n * 4.0 * (sizeof(float) + (linear ? sizeof(float) : 1)), err, errlen);
+    if (budget != RC_OK)
+        return budget;
     void *px = linear ? std::malloc(n * 4 * sizeof(float)) : std::malloc(n * 4);
     if (px == NULL) {
         status_message(err, errlen, "%s: out of memory for %d face%s of %dx%d", path, faces, faces == 1 ? "" : "s", w,

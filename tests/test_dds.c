@@ -438,6 +438,34 @@ static void test_refusals(void **state)
     free(s);
 }
 
+/* A header that promises more than the file holds is refused before the texels are allocated
+ * (issue 20): BC1 8192 x 8192 needs 2048 x 2048 blocks of 8 bytes, 32 MiB, not 8 bytes. A cube
+ * map cut inside its first face is refused the same way. */
+static void test_header_lies(void **state)
+{
+    (void)state;
+    unsigned char b[148 + 8] = {0};
+    size_t n = dds_header(b, 8192, 8192, 0, PF_DXT1, 0);
+    write_file("huge.dds", b, n + 8);
+    char path[300], err[1024];
+    snprintf(path, sizeof path, "%s/huge.dds", tmpdir);
+    image_dds d;
+    assert_int_equal(image_dds_read(path, IMAGE_DDS_2D, 1 << 20, 16384, &d, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "huge.dds"));
+    assert_non_null(strstr(err, "8192 x 8192"));
+    assert_non_null(strstr(err, "truncated or its header is corrupt"));
+    assert_null(d.rgba8);
+    write_argb("cut1.dds", 64, 64, 6, 128 + 100);
+    snprintf(path, sizeof path, "%s/cut1.dds", tmpdir);
+    assert_int_equal(image_dds_read(path, IMAGE_DDS_CUBE, 1 << 20, 16384, &d, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "cut1.dds"));
+    /* An empty file. */
+    write_file("empty.dds", b, 0);
+    snprintf(path, sizeof path, "%s/empty.dds", tmpdir);
+    assert_int_equal(image_dds_read(path, IMAGE_DDS_CUBE, 1 << 20, 16384, &d, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "empty.dds"));
+}
+
 /* What this OpenImageIO reads and refuses, printed for README "Cube maps" (and asserted, so a
  * new libOpenImageIO that reads more shows here). */
 static void test_formats(void **state)
@@ -510,7 +538,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_argb_cube),      cmocka_unit_test(test_bc1_cube),     cmocka_unit_test(test_bc6h_linear),
         cmocka_unit_test(test_dds_equals_png), cmocka_unit_test(test_render_equal), cmocka_unit_test(test_refusals),
-        cmocka_unit_test(test_formats),
+        cmocka_unit_test(test_formats),        cmocka_unit_test(test_header_lies),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
