@@ -16,7 +16,9 @@
  * file (/dev/full, a FIFO, a directory) is refused with RC_ERR_RANGE before anything is written.
  * exr_read reads regular files only (a device, FIFO or directory: RC_ERR_RANGE, at once, never
  * blocking) and refuses a header whose float planes (width x height x channels x 4 bytes)
- * exceed the memory limit (model/fileio.h: half the physical memory or REFLCHECK_MEMORY_LIMIT).
+ * exceed the memory limit (model/fileio.h: half the physical memory or REFLCHECK_MEMORY_LIMIT),
+ * or whose data window needs more samples than the file can hold (its offset table, 8 bytes a
+ * chunk, and the compression's largest ratio: exr.c's exr_max_ratio), before allocating.
  */
 #ifndef REFLCHECK_EXR_H
 #define REFLCHECK_EXR_H

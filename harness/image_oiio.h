@@ -17,7 +17,9 @@
  * OpenImageIO 2.4 shows a cube map as one 1 x 6 strip of tiles, a tile per face, with
  * textureformat "CubeFace Environment" and dds:CubeMapSides naming the faces present; a cube
  * here needs all six and square faces. The file is opened with model/fileio.h's checks (regular
- * file, at most max_bytes) and read whole into memory, and OpenImageIO's DDS reader decodes it
+ * file, at most max_bytes) and read whole into memory; a header whose faces need more bytes than
+ * the file has (at BC1's 8 bytes a 4x4 block, the most compact) or more memory than the limit is
+ * refused before allocating (fileio_image_budget), and OpenImageIO's DDS reader decodes it
  * from there. Formats OpenImageIO 2.4.7 decodes (README "Cube maps", measured): legacy headers
  * with uncompressed RGB/RGBA masks, DXT1..DXT5, ATI1/ATI2 (BC4/BC5); DX10 headers with BC4, BC5,
  * BC6H and BC7_UNORM only. Colour needs three or four channels (BC4, BC5, luminance are refused).

@@ -6,12 +6,15 @@
  *   float c[4]; texture_sample(&t, u, v, c);        linear R, G, B and alpha at (u, v)
  *   texture_free(&t);
  *   texture_set ts = {0};  ts.map[material][MAT_TEX_DIFFUSE] = t;   what a render reads
- * Texels are linear floats, interleaved R, G, B, A, row 0 at the top of the image. 8-bit PNG and
- * JPEG files are sRGB-encoded: colour channels are decoded with the IEC 61966-2-1 curve
- * (texture_srgb_to_linear), alpha is linear (a / 255); 16-bit PNGs are reduced to 8 bits first
- * (libpng's simplified API). Images the harness reads come in through texture_from_planes (linear
- * EXR), texture_from_srgb8 (8-bit sRGB RGBA, e.g. DDS colour: the same decode as PNG and JPEG) and
- * texture_from_rgba (linear float RGBA, e.g. DDS BC6H) (harness/frame.c).
+ * Texels are linear floats, interleaved R, G, B, A, row 0 at the top of the image. PNG and JPEG
+ * files are sRGB-encoded: colour channels are decoded with the IEC 61966-2-1 curve
+ * (texture_srgb_to_linear), alpha is linear (a / 255). A PNG is reduced to 8-bit sRGB first
+ * (libpng's simplified API): a gAMA or sRGB chunk is honoured (an iCCP profile is not applied);
+ * without one, 16-bit samples are sRGB like 8-bit ones (PNG_IMAGE_FLAG_16BIT_sRGB; libpng's
+ * default takes them as linear), so the 8- and 16-bit saves of an image give the same texels.
+ * Images the harness reads come in through texture_from_planes (linear EXR), texture_from_srgb8
+ * (8-bit sRGB RGBA, e.g. DDS colour: the same decode as PNG and JPEG) and texture_from_rgba
+ * (linear float RGBA, e.g. DDS BC6H) (harness/frame.c).
  * Sampling, the same in every renderer (scenes/FORMAT.md): u to the right, v up (v = 0 is the
  * bottom row, as OBJ, PLY, POV-Ray's uv_mapping and Blender's UVs have it); texel (i, j) has its
  * centre at ((i + 0.5)/w, 1 - (j + 0.5)/h); bilinear between the four nearest centres; wrap mode
@@ -19,7 +22,11 @@
  * Files are read only when they are regular files of at most TEXTURE_MAX_BYTES, and images of at
  * most TEXTURE_MAX_SIDE pixels a side within the memory limit (model/fileio.h); a bad file is
  * RC_ERR_IO (unreadable), RC_ERR_PARSE (not a PNG/JPEG, corrupt) or RC_ERR_RANGE (too large, not
- * a regular file), with a one-line message naming it and the fix.
+ * a regular file), with a one-line message naming it and the fix. Before a pixel is allocated the
+ * header's size is checked against the file (fileio_image_budget: a PNG's rows cannot inflate
+ * more than deflate's 1032:1, a Huffman JPEG's first scan takes a bit a block at least) and the
+ * memory limit; a JPEG that libjpeg finds data missing in (a cut file, a bad Huffman code: it
+ * would fill grey) is RC_ERR_PARSE, and so are CMYK/YCCK and arithmetic-coded JPEGs.
  */
 #ifndef REFLCHECK_TEXTURE_H
 #define REFLCHECK_TEXTURE_H
