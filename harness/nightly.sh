@@ -13,6 +13,7 @@
 # runs never change a versioned file); the report's trend plots show the project's reference
 # history (reports/history.jsonl, read only) and then the local runs, told apart. REFERENCE=1
 # names this run the project's reference run on purpose: its line goes to reports/history.jsonl.
+# A Slurm run that fails to submit records a line with status "failed" and the reason.
 #
 # Exit status: 0 when every job ran (or was skipped: renderer not installed, or it cannot
 # represent the scene) and no comparison failed; 1 when a job or step failed or a comparison
@@ -43,6 +44,15 @@ if [ -n "${REFERENCE:-}" ]; then
 else
     history=${HISTORY:-reports/local/history.jsonl}
     reference_history=${REFERENCE_HISTORY-reports/history.jsonl}
+fi
+case $jobs in
+    *[!0-9]* | "" | 0*)
+        say "JOBS '$jobs': give a whole number of parallel jobs, 1 or more (e.g. JOBS=2)"
+        exit 2 ;;
+esac
+if ! { [ -f "$bin" ] && [ -x "$bin" ]; } && { [[ $bin == */* ]] || ! command -v "$bin" > /dev/null; }; then
+    say "BIN '$bin' is not an executable file; build it (make all) or set BIN to build*/reflcheck"
+    exit 2
 fi
 latest=${LATEST:-reports/latest}
 cache=${CACHE:-reports/cache}
@@ -96,9 +106,17 @@ for s in "${scenes[@]}"; do
         exit 2
     fi
 done
-mkdir -p "$runs" || exit 1
+if [ -e "$runs" ] && [ ! -d "$runs" ]; then
+    say "RUNS '$runs' is not a folder; point RUNS at a folder (default reports/runs)"
+    exit 2
+fi
+mkdir -p "$runs" || { say "RUNS '$runs': cannot create the folder; point RUNS at a writable folder"; exit 2; }
 if ! mkdir "$run" 2>/dev/null; then
-    echo "reflcheck nightly: $run exists already; give another RUN_ID (or leave it unset)" >&2
+    if [ -e "$run" ]; then
+        say "$run exists already; give another RUN_ID (or leave it unset)"
+    else
+        say "$run: cannot create the run folder in RUNS '$runs'; make it writable or set RUNS"
+    fi
     exit 2
 fi
 echo "reflcheck nightly: run $id -> $run"
@@ -142,12 +160,27 @@ step() {
     wait $!
 }
 
+# A run that ended before its report (Slurm refused a submission): one history line with status
+# failed and the reason, so that the history lists every run that was started.
+record_failed() {
+    echo "reflcheck nightly: $1" >&2
+    /usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" --failed "$1" ||
+        echo "reflcheck nightly: could not record the failed run in $history" >&2
+}
+
 # Waits until Slurm job $1 has left the queue (finished in any way).
+# squeue failing for 10 minutes in a row (the controller gone) ends the wait with status 1: the
+# jobs may still finish, and the run's folder holds whatever they wrote.
 slurm_wait() {
-    local state
+    local state failures=0
     while :; do
-        state=$(squeue -h -j "$1" -o %T 2>/dev/null) || state=unknown
-        [ -z "$state" ] && return 0
+        if state=$(squeue -h -j "$1" -o %T 2>/dev/null); then
+            failures=0
+            [ -z "$state" ] && return 0
+        else
+            failures=$((failures + 1))
+            [ $failures -ge 300 ] && return 1
+        fi
         step sleep 2
     done
 }
@@ -177,14 +210,15 @@ if [ "$scheduler" = make ]; then
     st=$?
 else
     mkdir -p "$run/slurm"
-    step bash "$run/submit.sh" > "$run/slurm/render_ids"
+    step bash "$run/submit.sh" > "$run/slurm/render_ids" 2> "$run/slurm/submit.err"
     st=$?
+    cat "$run/slurm/submit.err" >&2
     deps=$(cat "$run/slurm/render_ids")
     if [ $st -ne 0 ] || [ -z "$deps" ]; then
-        echo "reflcheck nightly: submitting the render jobs to Slurm failed (exit $st)" >&2
         ids=$(slurm_jobs)
         # shellcheck disable=SC2086
         [ -n "$ids" ] && scancel $ids
+        record_failed "submitting the render jobs to Slurm failed (exit $st): $(tail -n1 "$run/slurm/submit.err" 2>/dev/null)"
         exit 1
     fi
     if [ -z "${NO_SWEEP:-}" ]; then
@@ -197,15 +231,21 @@ else
         [ -n "$sweep_id" ] && { echo "$sweep_id" >> "$run/slurm/steps"; deps=$deps:$sweep_id; }
     fi
     compare_id=$(sbatch --parsable --dependency="afterany:$deps" -n1 -c1 --time=60 --job-name=reflcheck-compare \
-        --output="$run/slurm/compare.out" harness/slurm/compare.sh "$run" "$bin" "${scenes[@]}")
+        --output="$run/slurm/compare.out" harness/slurm/compare.sh "$run" "$bin" "${scenes[@]}" 2> "$run/slurm/submit.err")
     compare_id=${compare_id%%;*}
     if [ -z "$compare_id" ]; then
-        echo "reflcheck nightly: submitting the compare step to Slurm failed" >&2
+        ids=$(slurm_jobs)
+        # shellcheck disable=SC2086
+        [ -n "$ids" ] && scancel $ids
+        record_failed "submitting the compare step to Slurm failed: $(tail -n1 "$run/slurm/submit.err" 2>/dev/null)"
         exit 1
     fi
     echo "$compare_id" >> "$run/slurm/steps"
     echo "reflcheck nightly: Slurm jobs: renders $(cut -d' ' -f1 "$run/slurm/arrays" | paste -sd' '), sweep ${sweep_id:--}, compare $compare_id"
-    slurm_wait "$compare_id"
+    if ! slurm_wait "$compare_id"; then
+        record_failed "Slurm stopped answering (squeue failed for 10 minutes) while job $compare_id was queued"
+        exit 1
+    fi
     t1=$(date +%s)
     echo "$((t1 - t0))" > "$run/render_wall_s"
     [ "$(cat "$run/slurm/finish.rc" 2>/dev/null)" = 0 ] ||

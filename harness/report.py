@@ -5,6 +5,7 @@ Usage (Python 3 with Debian's python3-jinja2; plots need the `gnuplot` program, 
   python3 harness/report.py --run reports/runs/<id> [--history reports/local/history.jsonl]
                             [--reference-history reports/history.jsonl]
                             [--commit SHA] [--latest reports/latest] [--screenshot]
+  python3 harness/report.py --run reports/runs/<id> --history FILE --failed REASON
   python3 harness/report.py --propose-thresholds --run reports/runs/<id>
 
 The command line only: the work is done by the package harness/report/ beside this file (load,
@@ -17,6 +18,7 @@ scene-<name>.html, report.css, report.js, plots/*.svg, summary.json, summary.csv
 figures.md (the README's tables of this run),
 and appends one line to the history file (one write() plus fsync, never truncating). The trend
 plots show --reference-history's runs (read only, labelled ref-) and then --history's.
+--failed REASON writes no page: it records a run that ended before it could be reported.
 A missing or corrupt input file is listed on the page and on stderr with its name; it is never
 a crash. Exit status: 0 report written (whatever the verdicts), 1 an output could not be
 written, 2 bad usage (run folder missing).
@@ -37,7 +39,7 @@ try:
     from report import pages
     from report.browser import check_pages, screenshot
     from report.figures import figures_md
-    from report.history import append_history, history_record, read_history, trend_history
+    from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
     from report.plots import plot_angles, plot_timing, plot_trends
@@ -132,6 +134,21 @@ def plural(items):
     return '' if len(items) == 1 else 's'
 
 
+def record_failed(args):
+    """--failed REASON: the run ended before its report; one history line says so."""
+    if not args.history:
+        print('report: --failed needs --history FILE (the history to record the failed run in)', file=sys.stderr)
+        return 2
+    rec = failed_record(os.path.basename(os.path.normpath(args.run)), args.commit, args.failed)
+    try:
+        append_history(args.history, rec, None)
+    except OSError as e:
+        print(f'report: {args.history}: cannot append the failed run: {e.strerror}', file=sys.stderr)
+        return 1
+    print(f'report: {args.history}: run {rec["run_id"]} recorded as failed: {args.failed}', file=sys.stderr)
+    return 0
+
+
 def point_latest(run, latest, problems):
     """Symlink to a temporary name, then rename over the old link: readers see old or new."""
     target = os.path.relpath(os.path.abspath(run), os.path.dirname(os.path.abspath(latest)))
@@ -169,6 +186,11 @@ def main(argv=None):
         '--reference-history',
         help="the project's reference history, read only: trends show its runs (labelled ref) before --history's",
     )
+    ap.add_argument(
+        '--failed',
+        metavar='REASON',
+        help='the run ended before it could be reported: append a status "failed" line with REASON to --history',
+    )
     ap.add_argument('--commit', help='commit of the run (default: from the run id, else "unknown")')
     ap.add_argument('--latest', help='symlink to point at this run, e.g. reports/latest')
     ap.add_argument(
@@ -182,6 +204,8 @@ def main(argv=None):
         help='print current and proposed thresholds, write thresholds-proposal.html, nothing else',
     )
     args = ap.parse_args(argv)
+    if args.failed is not None:
+        return record_failed(args)
     if not os.path.isdir(args.run):
         print(f'report: {args.run}: no such run folder; pass --run reports/runs/<id>', file=sys.stderr)
         return 2

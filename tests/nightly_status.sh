@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The nightly's exit status and the run status it records: a clean run exits 0 and records ok;
 # a run whose comparison fails exits 1 and records fail; a run whose renderer crashes exits 1
-# and records error (the crash is not a skip). NO_SCREENSHOT=1 is honoured throughout.
+# and records error (the crash is not a skip); a Slurm run whose submission sbatch refuses exits 1
+# and records failed with sbatch's reason. NO_SCREENSHOT=1 is honoured throughout.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
@@ -68,5 +69,42 @@ rc=$?
 expect crash 1 error $rc
 grep -q '"status":[[:space:]]*"crashed"' "$RUNS/crash/crash/povray-twin.json" && ok "crash: job record says crashed" ||
     bad "crash: job record does not say crashed"
+
+# A Slurm that answers (sinfo) but refuses every submission, as a full queue or a bad account does.
+mkdir -p "$work/slurmbin"
+printf '#!/bin/sh\nexit 0\n' > "$work/slurmbin/sinfo"
+printf '#!/bin/sh\necho "sbatch: error: Batch job submission failed: Job violates accounting/QOS policy" >&2\nexit 1\n' \
+    > "$work/slurmbin/sbatch"
+printf '#!/bin/sh\nexit 0\n' > "$work/slurmbin/scancel"
+chmod +x "$work/slurmbin"/*
+RUN_ID=refused SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash harness/nightly.sh \
+    > "$work/refused.log" 2>&1
+rc=$?
+expect refused 1 failed $rc
+/usr/bin/python3 -c 'import json,sys; r=json.loads(open(sys.argv[1]).read().splitlines()[-1])
+sys.exit(not (r["run_id"] == "refused" and "render jobs" in r["reason"] and "QOS policy" in r["reason"]))' "$HISTORY" &&
+    ok "refused: the history line names the run and sbatch's reason" ||
+    bad "refused: the history line lacks the run id or the reason: $(tail -n1 "$HISTORY")"
+
+# Careless settings are refused before anything runs: exit 2, one line naming the setting and
+# the fix, no run folder.
+: > "$work/a-file"
+refuse() {  # refuse NAME WANT_TEXT ENV...
+    local name=$1 text=$2 out
+    shift 2
+    out=$(env RUN_ID="bad-$name" SCENES="$work/clean.yaml" "$@" bash harness/nightly.sh 2>&1)
+    local st=$?
+    if [ $st -eq 2 ] && [ "$(printf '%s\n' "$out" | wc -l)" -eq 1 ] && [[ $out == *"$text"* ]] &&
+        [ ! -e "$RUNS/bad-$name" ]; then
+        ok "$name: exit 2: $out"
+    else
+        bad "$name: exit $st (want 2 and one line with '$text'): $out"
+    fi
+}
+refuse jobs0 "JOBS '0'" JOBS=0
+refuse jobs-abc "JOBS 'abc'" JOBS=abc
+refuse runs-file "RUNS '$work/a-file' is not a folder" RUNS="$work/a-file"
+refuse no-bin "BIN '$work/no-such-reflcheck' is not an executable" BIN="$work/no-such-reflcheck"
+refuse no-scene "scene '$work/none.yaml' is not a file" SCENES="$work/none.yaml"
 echo "status: $pass passed, $fail failed"
 [ "$fail" -eq 0 ]

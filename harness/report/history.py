@@ -1,4 +1,5 @@
-"""history - the append-only history file: one JSON line per reported run (reports/README.md)."""
+"""history - the append-only history file: one JSON line per run (reports/README.md); a run that
+ended before it could be reported has status failed and a reason."""
 
 import json
 import os
@@ -28,6 +29,20 @@ def history_record(R):
             'metrics': metrics,
         }
     )
+
+
+def failed_record(run_id, commit, reason):
+    """The history line of a run that ended before it could be reported (a scheduler refused
+    its jobs): no figures, status failed, and why."""
+    import time
+
+    return {
+        'run_id': run_id,
+        'commit': commit or 'unknown',
+        'time': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime()),
+        'status': 'failed',
+        'reason': reason,
+    }
 
 
 def trend_history(reference, local):
