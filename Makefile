@@ -120,7 +120,6 @@ test-kill: $(CLI)
 test-status: $(CLI)
 	@bash tests/nightly_status.sh $(BUILD)
 	@bash tests/nightly_paths.sh $(BUILD)
-	@bash tests/nightly_paths.sh $(BUILD)
 
 # Two nightlies at once on one cache: both complete, the shared jobs render once, and both
 # history lines are intact.
