@@ -1114,22 +1114,45 @@ enum {
     OK_COUNT
 };
 
-/* `scale: k` or `scale: [sx, sy, sz]`, each in [MESH_SCALE_MIN, MESH_SCALE_MAX]. */
-static rc_status sf_object_scale(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+/* `scale: k` or `scale: [sx, sy, sz]`: each factor, once stored as float, must pass
+ * mesh_scale_ok, the check model/mesh.c makes again for scenes built in code. */
+static rc_status sf_scale_factor(sf_ctx *c, yaml_node_t *n, const char *path, float *out)
 {
     static const char allowed[] = "a number or [sx, sy, sz], each in [1e-06, 1e+06] (no mirroring)";
-    if (n->type == YAML_SEQUENCE_NODE) {
-        float k[3];
-        rc_status rc = sf_floats(c, n, path, 3, MESH_SCALE_MIN, MESH_SCALE_MAX, 0, allowed, k);
+    double v;
+    rc_status rc = sf_number(c, n, path, -INFINITY, INFINITY, 0, allowed, &v);
+    if (rc)
+        return rc;
+    if (!mesh_scale_ok((float)v))
+        return sf_fail(c, RC_ERR_RANGE, n, path, "%s is out of range; allowed: %s", sf_text(n), allowed);
+    *out = (float)v;
+    return RC_OK;
+}
+
+static rc_status sf_object_scale(sf_ctx *c, yaml_node_t *n, const char *path, vec3 *out)
+{
+    char child[SF_PATHLEN];
+    float k[3];
+    if (n->type != YAML_SEQUENCE_NODE) {
+        rc_status rc = sf_scale_factor(c, n, path, &k[0]);
         if (rc == RC_OK)
-            *out = v3(k[0], k[1], k[2]);
+            *out = v3s(k[0]);
         return rc;
     }
-    float k;
-    rc_status rc = sf_float(c, n, path, MESH_SCALE_MIN, MESH_SCALE_MAX, 0, allowed, &k);
-    if (rc == RC_OK)
-        *out = v3s(k);
-    return rc;
+    if (n->data.sequence.items.top - n->data.sequence.items.start != 3)
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a list of 3 numbers, got a list of another length; allowed: a number or [sx, sy, "
+                       "sz], each in [1e-06, 1e+06] (no mirroring)");
+    for (int i = 0; i < 3; i++) {
+        yaml_node_t *e = yaml_document_get_node(c->doc, n->data.sequence.items.start[i]);
+        sf_index(child, path, i);
+        rc_status rc = e ? sf_scale_factor(c, e, child, &k[i])
+                         : sf_fail(c, RC_ERR_PARSE, n, child, "missing list item; allowed: 3 numbers");
+        if (rc)
+            return rc;
+    }
+    *out = v3(k[0], k[1], k[2]);
+    return RC_OK;
 }
 
 static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)

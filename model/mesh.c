@@ -1516,8 +1516,6 @@ static const char *mesh_shape_name(shape_kind k)
     return (unsigned)k < 5 ? n[k] : "?";
 }
 
-static int mesh_scale_ok(float k) { return k >= MESH_SCALE_MIN && k <= MESH_SCALE_MAX; }
-
 /* Geometry the scene file already validates; checked again for scenes built in code. */
 static int mesh_valid(const object *o, char *why, size_t whylen)
 {

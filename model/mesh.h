@@ -54,6 +54,11 @@ typedef struct {
  * (a mirror, which would flip the winding), NaN and Inf are refused. */
 #define MESH_SCALE_MIN 1e-6
 #define MESH_SCALE_MAX 1e6
+/* The one check of a scale factor, for the scene file (with its line) and for scenes built in
+ * code alike. The factor is stored as a float, so it is compared with the floats nearest the
+ * bounds: (float)1e-6 is 9.99999997e-7, below the double 1e-6, and a file's `scale: 1e-6`
+ * stored as float must not fall outside the range it was checked against. */
+static inline int mesh_scale_ok(float k) { return k >= (float)MESH_SCALE_MIN && k <= (float)MESH_SCALE_MAX; }
 
 /* D3DRS_NORMALIZENORMALS off (material d3d.normalize_normals = 0): Direct3D transforms an
  * object's unit normal n_o by the inverse transpose of the world matrix, (R S)^-T = R S^-1, and

@@ -17,6 +17,7 @@
 #include <cmocka.h>
 
 #include "jobs.h"
+#include "mesh.h"
 #include "scene_file.h"
 
 #define FIX "tests/fixtures/scenes/"
@@ -303,6 +304,43 @@ static void test_default_name_made_safe(void **state)
                                 "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n";
     assert_int_equal(scene_file_parse(named, sizeof named - 1, "d/plots.yaml", s, err, sizeof err), RC_OK);
     assert_string_equal(s->name, "ok_name");
+    free(s);
+}
+
+/* scale: the documented bounds 1e-6 and 1e6 pass the parser and then the mesh step (1e-6 used
+ * to pass the one and fail the other: (float)1e-6 < 1e-6); the floats next to the bounds
+ * outside them (printed with 9 digits, which round-trip a float) are refused with the line. */
+static void test_scale_bounds(void **state)
+{
+    (void)state;
+    char lo_out[32], hi_out[32], text[600], err[600];
+    snprintf(lo_out, sizeof lo_out, "%.9g", (double)nextafterf((float)1e-6, 0.0f));
+    snprintf(hi_out, sizeof hi_out, "%.9g", (double)nextafterf((float)1e6, INFINITY));
+    const char *const vals[][2] = {{"1e-6", "ok"},   {"1e6", "ok"},      {"[1e-6, 1e6, 1]", "ok"},
+                                   {lo_out, "bad"},  {hi_out, "bad"},    {"[1, 1, 0.0000009999999]", "bad"},
+                                   {"1.0e+6", "ok"}, {"0.000001", "ok"}, {"1000000.1", "bad"}};
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    for (size_t i = 0; i < sizeof vals / sizeof *vals; i++) {
+        int n = snprintf(text, sizeof text,
+                         "image: {width: 8, height: 6}\ncamera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n"
+                         "materials: {m: {}}\nobjects:\n  - {shape: sphere, radius: 1, material: m, scale: %s}\n",
+                         vals[i][0]);
+        err[0] = '\0';
+        rc_status rc = scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err);
+        if (strcmp(vals[i][1], "bad") == 0) {
+            if (rc != RC_ERR_RANGE || strncmp(err, "mem.yaml:5:", 11) != 0 || !strstr(err, "objects[0].scale") ||
+                !strstr(err, "[1e-06, 1e+06]"))
+                fail_msg("scale %s: rc %d, %s", vals[i][0], rc, err);
+            continue;
+        }
+        if (rc != RC_OK)
+            fail_msg("scale %s refused by the parser: %s", vals[i][0], err);
+        mesh m = {0};
+        if (mesh_build(s, &m, err, sizeof err) != RC_OK)
+            fail_msg("scale %s refused by the mesh step: %s", vals[i][0], err);
+        mesh_free(&m);
+    }
     free(s);
 }
 
@@ -744,6 +782,7 @@ int main(void)
         cmocka_unit_test(test_good_minimal_defaults),
         cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_scene_names),
+        cmocka_unit_test(test_scale_bounds),
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
