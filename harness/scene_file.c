@@ -136,6 +136,13 @@ static const char *sf_text(const yaml_node_t *n)
     return s;
 }
 
+/* YAML 1.1 and 1.2 alike: a quoted scalar is a string, never a boolean or a number, so
+ * `clamp: "true"` or `power: "8"` is a type error, not a value. */
+static int sf_quoted(const yaml_node_t *n)
+{
+    return n->type == YAML_SCALAR_NODE && n->data.scalar.style != YAML_PLAIN_SCALAR_STYLE;
+}
+
 /* A short printable copy of user text for messages. */
 static void sf_quote(char *out, size_t outlen, const char *s)
 {
@@ -249,6 +256,9 @@ static rc_status sf_number(sf_ctx *c, yaml_node_t *n, const char *path, double l
 {
     const char *s = sf_text(n);
     double v;
+    if (s && sf_quoted(n))
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a number, got quoted text (a string in YAML); allowed: %s, without quotes", allowed);
     if (!s || !sf_parse_double(s, &v))
         return sf_fail(c, RC_ERR_PARSE, n, path, "expected a number, got %s; allowed: %s", s ? "text" : sf_kind(n),
                        allowed);
@@ -294,6 +304,11 @@ static rc_status sf_int(sf_ctx *c, yaml_node_t *n, const char *path, long lo, lo
     if (!s || !s[0] || isspace((unsigned char)s[0]))
         return sf_fail(c, RC_ERR_PARSE, n, path, "expected a whole number, got %s; allowed: %ld..%ld",
                        s ? "empty text" : sf_kind(n), lo, hi);
+    if (sf_quoted(n))
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected a whole number, got quoted text (a string in YAML); allowed: %ld..%ld, without "
+                       "quotes",
+                       lo, hi);
     errno = 0;
     long v = strtol(s, &end, 10);
     if (*end) {
@@ -313,6 +328,10 @@ static rc_status sf_bool(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
     static const char *const yes[] = {"true", "True", "TRUE", "yes", "Yes", "on", "On"};
     static const char *const no[] = {"false", "False", "FALSE", "no", "No", "off", "Off"};
     const char *s = sf_text(n);
+    if (s && sf_quoted(n))
+        return sf_fail(c, RC_ERR_PARSE, n, path,
+                       "expected true or false, got quoted text (a string in YAML); allowed: true, false, without "
+                       "quotes");
     for (size_t i = 0; s && i < sizeof yes / sizeof *yes; i++) {
         if (strcmp(s, yes[i]) == 0)
             return *out = 1, RC_OK;

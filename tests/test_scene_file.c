@@ -344,6 +344,44 @@ static void test_scale_bounds(void **state)
     free(s);
 }
 
+/* A quoted scalar is a string in YAML 1.1 and 1.2: refused for a boolean, number or whole
+ * number key, with the line, the key and the fix; the same values unquoted are read. */
+static void test_quoted_scalars(void **state)
+{
+    (void)state;
+    /* key text before the value, the value quoted, unquoted, text after it, the value's line */
+    static const struct {
+        const char *before, *quoted, *plain, *after, *line;
+    } cases[] = {
+        {"materials: {m: {d3d: {clamp: ", "\"true\"", "true", "}}}\n", "mem.yaml:3:"},
+        {"materials: {m: {d3d: {clamp: ", "'false'", "false", "}}}\n", "mem.yaml:3:"},
+        {"materials: {m: {d3d: {power: ", "\"8\"", "8", "}}}\n", "mem.yaml:3:"},
+        {"materials: {m: {roughness: ", "'0.25'", "0.25", "}}\n", "mem.yaml:3:"},
+        {"materials: {m: {albedo: [", "\"0.5\"", "0.5", ", 0.5, 0.5]}}\n", "mem.yaml:3:"},
+        {"materials: {m: {d3d: {per_vertex: ", "\"yes\"", "yes", "}}}\n", "mem.yaml:3:"},
+        {"materials: {m: {}}\nobjects: [{shape: sphere, radius: 1, material: m, tessellation: ", "\"16\"", "16", "}]\n",
+         "mem.yaml:4:"},
+    };
+    scene *s = malloc(sizeof *s);
+    char text[600], err[600];
+    assert_non_null(s);
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
+        for (int quoted = 1; quoted >= 0; quoted--) {
+            int n = snprintf(text, sizeof text,
+                             "image: {width: 8, height: 6}\ncamera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: "
+                             "40}\n%s%s%s",
+                             cases[i].before, quoted ? cases[i].quoted : cases[i].plain, cases[i].after);
+            err[0] = '\0';
+            rc_status rc = scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err);
+            if (quoted && (rc != RC_ERR_PARSE || strncmp(err, cases[i].line, strlen(cases[i].line)) != 0 ||
+                           !strstr(err, "quoted") || !strstr(err, "without quotes")))
+                fail_msg("%s: rc %d, %s", text, rc, err);
+            if (!quoted && rc != RC_OK)
+                fail_msg("%s: %s", text, err);
+        }
+    free(s);
+}
+
 /* Scene names become file and folder names of a run (RUN/<name>/, scene-<name>.html): each
  * unsafe or reserved one is refused with the file, line and key, and the rule. */
 static void test_scene_names(void **state)
@@ -783,6 +821,7 @@ int main(void)
         cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_scene_names),
         cmocka_unit_test(test_scale_bounds),
+        cmocka_unit_test(test_quoted_scalars),
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
