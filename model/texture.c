@@ -112,6 +112,22 @@ static double texture_png_raw_bytes(const unsigned char *buf)
     return h * (1.0 + ceil(w * bits / 8.0));
 }
 
+/* 1 when the chunks from the signature on end with IEND inside the file: libpng's simplified
+ * reader stops after the last row and takes a file cut after its pixel data (IEND missing). */
+static int texture_png_complete(const unsigned char *buf, size_t len)
+{
+    size_t at = 8;
+    while (len - at >= 12) {
+        size_t n = (size_t)buf[at] << 24 | (size_t)buf[at + 1] << 16 | (size_t)buf[at + 2] << 8 | buf[at + 3];
+        if (n > len - at - 12)
+            return 0;
+        if (memcmp(buf + at + 4, "IEND", 4) == 0)
+            return 1;
+        at += n + 12;
+    }
+    return 0;
+}
+
 static rc_status texture_png(const char *path, const unsigned char *buf, size_t len, texture *t, char *err,
                              size_t errlen)
 {
@@ -147,6 +163,12 @@ static rc_status texture_png(const char *path, const unsigned char *buf, size_t 
     if (!png_image_finish_read(&img, NULL, px, 0, NULL)) {
         status_message(err, errlen, "%s: corrupt or truncated PNG (%s); give a complete, valid PNG file", path,
                        img.message);
+        free(px);
+        return RC_ERR_PARSE;
+    }
+    if (!texture_png_complete(buf, len)) {
+        status_message(err, errlen, "%s: truncated PNG (no IEND chunk after the image data); give the complete file",
+                       path);
         free(px);
         return RC_ERR_PARSE;
     }

@@ -883,6 +883,23 @@ static void test_png_header_lies(void **state)
     put_file(path, buf, n);
     assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
     assert_non_null(strstr(err, "crc.png"));
+    /* Cut after the pixel data, IEND lost (libpng's simplified reader stops at the last row):
+     * refused; bytes after IEND are not a cut and are ignored. */
+    free(buf);
+    snprintf(path, sizeof path, "%s/small.png", tmpdir);
+    buf = get_file(path, &n);
+    snprintf(path, sizeof path, "%s/noiend.png", tmpdir);
+    put_file(path, buf, n - 12);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "noiend.png: truncated PNG"));
+    unsigned char *tail = malloc(n + 8);
+    memcpy(tail, buf, n);
+    memcpy(tail + n, "trailing", 8);
+    snprintf(path, sizeof path, "%s/tail.png", tmpdir);
+    put_file(path, tail, n + 8);
+    free(tail);
+    assert_int_equal(texture_load(path, &t, err, sizeof err), RC_OK);
+    texture_free(&t);
     free(buf);
     /* A valid flat image compresses nearly at deflate's limit and still loads: 1 x 65535 black. */
     unsigned char *tall = calloc(65535, 3);
