@@ -106,6 +106,10 @@ for s in "${scenes[@]}"; do
         exit 2
     fi
 done
+if [ -d "$history" ]; then
+    say "HISTORY '$history' is a folder; point HISTORY at a file (default reports/local/history.jsonl)"
+    exit 2
+fi
 if [ -e "$runs" ] && [ ! -d "$runs" ]; then
     say "RUNS '$runs' is not a folder; point RUNS at a folder (default reports/runs)"
     exit 2
@@ -277,5 +281,8 @@ fi
 step /usr/bin/python3 harness/report.py --run "$run" --history "$history" --commit "$commit" \
     ${reference_history:+--reference-history "$reference_history"} --latest "$latest" $screenshot ||
     { echo "reflcheck nightly: the report failed" >&2; rc=1; }
+# A report that failed before it appended the run's line (a full disk): the run is still recorded.
+grep -qF "\"run_id\":\"$id\"" "$history" 2> /dev/null ||
+    { record_failed "the report failed before it recorded the run; see the messages above"; rc=1; }
 echo "reflcheck nightly: report at $run/index.html ($latest/index.html); exit $rc"
 exit $rc

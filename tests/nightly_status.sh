@@ -86,6 +86,20 @@ sys.exit(not (r["run_id"] == "refused" and "render jobs" in r["reason"] and "QOS
     ok "refused: the history line names the run and sbatch's reason" ||
     bad "refused: the history line lacks the run id or the reason: $(tail -n1 "$HISTORY")"
 
+# A full disk under the run folder (a 64 KiB tmpfs; mounting needs root): the report cannot be
+# written, the nightly exits 1 and the history still records the run, as failed.
+mkdir -p "$work/full"
+if [ "$(id -u)" = 0 ] && mount -t tmpfs -o size=64k reflcheck-test-full "$work/full" 2> /dev/null; then
+    RUN_ID=full RUNS="$work/full" SCENES="$work/clean.yaml" bash harness/nightly.sh > "$work/full.log" 2>&1
+    rc=$?
+    umount "$work/full"
+    expect full 1 failed $rc
+    [ "$(tail -n1 "$HISTORY" | grep -c '"run_id":"full"')" = 1 ] && ok "full: the failed line is the run's own" ||
+        bad "full: the last history line is not run full's: $(tail -n1 "$HISTORY")"
+else
+    echo "status: full disk: not tested (mounting a small tmpfs needs root)"
+fi
+
 # Careless settings are refused before anything runs: exit 2, one line naming the setting and
 # the fix, no run folder.
 : > "$work/a-file"
@@ -105,6 +119,7 @@ refuse jobs0 "JOBS '0'" JOBS=0
 refuse jobs-abc "JOBS 'abc'" JOBS=abc
 refuse runs-file "RUNS '$work/a-file' is not a folder" RUNS="$work/a-file"
 refuse no-bin "BIN '$work/no-such-reflcheck' is not an executable" BIN="$work/no-such-reflcheck"
+refuse history-folder "HISTORY '$work' is a folder" HISTORY="$work"
 refuse no-scene "scene '$work/none.yaml' is not a file" SCENES="$work/none.yaml"
 echo "status: $pass passed, $fail failed"
 [ "$fail" -eq 0 ]
