@@ -60,7 +60,11 @@ void job_output_path(const char *out_dir, const char *scene_name, int renderer, 
 int job_mkdirs(const char *path)
 {
     char tmp[1024];
-    snprintf(tmp, sizeof tmp, "%s", path);
+    /* A cut path would make another folder. */
+    if ((size_t)snprintf(tmp, sizeof tmp, "%s", path) >= sizeof tmp) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
     for (char *p = tmp + 1; *p; p++) {
         if (*p != '/')
             continue;
@@ -697,9 +701,32 @@ static void job_probe_version(const renderer_row *row, job_ctx *c, job_record *r
         job_fail(rec, vs, "%s; reinstall it with: apt-get install --reinstall %s", why, row->package);
 }
 
+/* The longest --out (with --tag) and --cache a job takes: its paths are built in 1024-byte
+ * buffers, and below a folder of this length the longest names it adds (the scene name of up to
+ * SCENE_NAME_MAX - 1 bytes, "tmp-<16 hex>-XXXXXX", "<renderer>-<role>.json") still fit, so no
+ * path is ever cut (a cut path names another file). */
+#define JOB_DIR_MAX 800
+
+static rc_status job_check_dirs(const job_spec *j, char *err, size_t errlen)
+{
+    size_t out = strlen(j->out_dir) + (j->tag != NULL ? strlen(j->tag) + 1 : 0);
+    size_t cache = j->cache_dir != NULL ? strlen(j->cache_dir) : 0;
+    if (out <= JOB_DIR_MAX && cache <= JOB_DIR_MAX)
+        return RC_OK;
+    snprintf(err, errlen, "%s: %s of %zu bytes is longer than the %d a job takes; use a shorter folder", j->scene_path,
+             out > JOB_DIR_MAX ? (j->tag != NULL ? "--out with --tag" : "--out") : "--cache",
+             out > JOB_DIR_MAX ? out : cache, JOB_DIR_MAX);
+    return RC_ERR_RANGE;
+}
+
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
 {
     memset(rec, 0, sizeof *rec);
+    if (job_check_dirs(j, err, errlen) != RC_OK) {
+        rec->bad_input = 1;
+        rec->status = RUNNER_ERROR;
+        return RC_ERR_RANGE;
+    }
     scene *s = malloc(sizeof *s);
     mesh m = {0};
     if (s == NULL) {

@@ -94,7 +94,7 @@ static const char *odd_scene(const char *folder)
     char dir[PATH_MAX], p[PATH_MAX + 32];
     snprintf(dir, sizeof dir, "%s/%s", tmpdir, folder);
     mkdir(dir, 0755);
-    snprintf(p, sizeof p, "%s/\xc3\xbc env.exr", dir); /* "ü env.exr" */
+    snprintf(p, sizeof p, "%s/\xc3\xbc \"env\".exr", dir); /* 'ü "env".exr' */
     write_exr(p, 16, 8, 0.3f, 0);
     snprintf(p, sizeof p, "%s/t\xc3\xa9x ture.exr", dir); /* "téx ture.exr" */
     write_exr(p, 8, 8, 0.2f, 1);
@@ -103,7 +103,7 @@ static const char *odd_scene(const char *folder)
                "name: paths\n"
                "image: {width: 16, height: 12, supersample: 1, samples: 16, timeout: 300}\n"
                "camera: {eye: [0, 1.2, 3], target: [0, 0, 0], hfov: 50}\n"
-               "environment: {image: \"\xc3\xbc env.exr\"}\n"
+               "environment: {image: \"\xc3\xbc \\\"env\\\".exr\"}\n"
                "lights:\n  - {type: point, position: [1, 3, 2], intensity: [20, 20, 20]}\n"
                "materials:\n  tex: {albedo: [1, 1, 1], model: d3d, texture: {diffuse: \"t\xc3\xa9x ture.exr\"}}\n"
                "objects:\n  - {shape: quad, center: [0, 0, 0], size: [2, 2], material: tex}\n"
@@ -354,6 +354,31 @@ static void test_damaged_cache_entry_renders_again(void **state)
     assert_int_equal(fourth.cached, 1);
 }
 
+/* A --cache longer than a job's path buffers is refused with nothing written; it was cut
+ * instead, and the cut path named another folder. */
+static void test_long_cache_folder_refused(void **state)
+{
+    (void)state;
+    const char *yaml_path = odd_scene("long");
+    char cache[4200];
+    int n = snprintf(cache, sizeof cache, "%s/long", tmpdir);
+    while (n < 4000)
+        n += snprintf(cache + n, sizeof cache - (size_t)n, "/%s", "dddddddddddddddddddddddddddddddddddddddddddddddddd");
+    job_spec j = {.scene_path = yaml_path,
+                  .renderer = registry_model(),
+                  .role = ROLE_TWIN,
+                  .out_dir = tmpdir,
+                  .cache_dir = cache};
+    job_record rec;
+    char err[1024], cut[1100];
+    assert_int_equal(job_run(&j, &rec, err, sizeof err), RC_ERR_RANGE);
+    assert_int_equal(job_exit_status(RC_ERR_RANGE, &rec), 2);
+    assert_non_null(strstr(err, "--cache of"));
+    assert_non_null(strstr(err, "use a shorter folder"));
+    snprintf(cut, sizeof cut, "%s/long/%s", tmpdir, "dddddddddddddddddddddddddddddddddddddddddddddddddd");
+    assert_int_not_equal(access(cut, F_OK), 0);
+}
+
 int main(void)
 {
     snprintf(saved_path, sizeof saved_path, "%s", getenv("PATH") ? getenv("PATH") : "");
@@ -363,6 +388,7 @@ int main(void)
         cmocka_unit_test(test_version_without_version_line_is_a_failure),
         cmocka_unit_test(test_absent_is_not_installed),
         cmocka_unit_test(test_damaged_cache_entry_renders_again),
+        cmocka_unit_test(test_long_cache_folder_refused),
         cmocka_unit_test(test_odd_paths_povray),
         cmocka_unit_test(test_odd_paths_cycles),
         cmocka_unit_test(test_cycles_from_another_folder),

@@ -489,18 +489,6 @@ static void povray_put_fvec(FILE *fp, vec3 v)
     fprintf(fp, "<%.9g, %.9g, %.9g>", (double)v.x, (double)v.y, (double)v.z);
 }
 
-static rc_status povray_check_path(const char *p, const char *what, char *err, size_t errlen)
-{
-    if (strchr(p, '"') || strchr(p, '\\')) {
-        status_message(err, errlen,
-                       "%s path '%s' contains '\"' or '\\', which POV-Ray strings cannot "
-                       "hold unescaped; rename the file",
-                       what, p);
-        return RC_ERR_RANGE;
-    }
-    return RC_OK;
-}
-
 /* A textured material: the pigment becomes the texture (texel colour), and the material colour
  * the finish's diffuse, which must then be grey; emission and ambient, which POV-Ray multiplies
  * by the pigment, stay as the unscaled colour, since our texture multiplies those terms too. */
@@ -534,8 +522,6 @@ static rc_status povray_material_texture(const scene *s, int mi, const povray_op
                        s->path, mi, name, p.x, p.y, p.z);
         return RC_ERR_RANGE;
     }
-    if (povray_check_path(o->texture_dir, "texture folder", err, errlen) != RC_OK)
-        return RC_ERR_RANGE;
     f->emission = dv3_mul(f->emission, f->pigment);
     f->diffuse *= p.x;
     f->pigment = dv3(1, 1, 1);
@@ -746,9 +732,6 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                        s->path);
         return RC_ERR_RANGE;
     }
-    if (with_env && s->env.kind == ENV_IMAGE &&
-        (st = povray_check_path(s->env.path, "environment", err, errlen)) != RC_OK)
-        return st;
 
     int *remap = malloc(sizeof *remap * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
     int *local = malloc(sizeof *local * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
