@@ -543,7 +543,7 @@ static int mesh_obj_index(long i, int count)
 {
     if (i > 0 && i <= count)
         return (int)(i - 1);
-    if (i < 0 && -i <= count)
+    if (i < 0 && i >= -(long)count) /* not -i <= count: -LONG_MIN overflows */
         return (int)(count + i);
     return -1;
 }
@@ -740,7 +740,9 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                     cur++;
                 if (!*cur)
                     break;
-                char *e;
+                /* strtol saturates an index beyond long at LONG_MAX or LONG_MIN, out of range
+                 * either way; messages quote the corner as written, not the saturated value. */
+                char *e, *corner = cur;
                 long vi = strtol(cur, &e, 10), ni = 0, ti = 0;
                 int ok = e != cur;
                 if (ok && *e == '/') {
@@ -763,27 +765,28 @@ static rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_s
                     return RC_ERR_PARSE;
                 }
                 cur = e;
+                int cn = (int)(e - corner < 60 ? e - corner : 60);
                 int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
                 if (pv < 0) {
                     status_message(err, errlen,
-                                   "%s:%d: vertex index %ld out of range (%d vertices so far); "
+                                   "%s:%d: corner '%.*s': vertex index out of range (%d vertices so far); "
                                    "fix: indices 1..%d or negative",
-                                   label, line, vi, s->n_pos, s->n_pos);
+                                   label, line, cn, corner, s->n_pos, s->n_pos);
                     return RC_ERR_RANGE;
                 }
                 if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
                     status_message(err, errlen,
-                                   "%s:%d: normal index %ld out of range (%d normals so far); "
+                                   "%s:%d: corner '%.*s': normal index out of range (%d normals so far); "
                                    "fix: indices 1..%d or negative",
-                                   label, line, ni, s->n_nrm, s->n_nrm);
+                                   label, line, cn, corner, s->n_nrm, s->n_nrm);
                     return RC_ERR_RANGE;
                 }
                 int pt = -1;
                 if (ti != 0 && (pt = mesh_obj_index(ti, s->n_tex)) < 0) {
                     status_message(err, errlen,
-                                   "%s:%d: texture coordinate index %ld out of range (%d so far); "
+                                   "%s:%d: corner '%.*s': texture coordinate index out of range (%d so far); "
                                    "fix: indices 1..%d or negative",
-                                   label, line, ti, s->n_tex, s->n_tex);
+                                   label, line, cn, corner, s->n_tex, s->n_tex);
                     return RC_ERR_RANGE;
                 }
                 if (!mesh_soup_corner(s, pv, pn))
@@ -852,56 +855,102 @@ static size_t ply_size(ply_type t)
 typedef struct {
     const unsigned char *p, *end;
     int binary;
+    int line;     /* ascii: the line of the last token read (the data start after end_header) */
+    char tok[64]; /* ascii: the last token as written, for messages */
 } ply_reader;
 
-/* One value as double; 0 at end of data or on a malformed token. */
-static int ply_read(ply_reader *r, ply_type t, double *out)
+/* What ply_read found: a value, the end of the data (or a token that is not a number), or, in
+ * an ascii file, a number its integer type cannot hold (binary integers always fit). */
+typedef enum { PLY_VALUE_OK = 0, PLY_VALUE_END, PLY_VALUE_NOT_WHOLE, PLY_VALUE_RANGE } ply_value;
+
+static const char *const ply_type_names[] = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double"};
+/* Each integer type's range; the doubles hold them exactly (|v| <= 2^32). */
+static const double ply_type_lo[] = {-128, 0, -32768, 0, -2147483648.0, 0};
+static const double ply_type_hi[] = {127, 255, 32767, 65535, 2147483647.0, 4294967295.0};
+
+static ply_value ply_read_binary(ply_reader *r, ply_type t, double *out)
 {
-    if (r->binary) {
-        size_t n = ply_size(t);
-        if ((size_t)(r->end - r->p) < n)
-            return 0;
-        uint64_t u = 0;
-        for (size_t i = 0; i < n; i++)
-            u |= (uint64_t)r->p[i] << (8 * i);
-        r->p += n;
-        switch (t) {
-        case PLY_I8: *out = (int8_t)u; break;
-        case PLY_U8: *out = (uint8_t)u; break;
-        case PLY_I16: *out = (int16_t)u; break;
-        case PLY_U16: *out = (uint16_t)u; break;
-        case PLY_I32: *out = (int32_t)u; break;
-        case PLY_U32: *out = (uint32_t)u; break;
-        case PLY_F32: {
-            uint32_t w = (uint32_t)u;
-            float f;
-            memcpy(&f, &w, sizeof f);
-            *out = f;
-            break;
-        }
-        default: {
-            double d;
-            memcpy(&d, &u, sizeof d);
-            *out = d;
-        }
-        }
-        return 1;
+    size_t n = ply_size(t);
+    if ((size_t)(r->end - r->p) < n)
+        return PLY_VALUE_END;
+    uint64_t u = 0;
+    for (size_t i = 0; i < n; i++)
+        u |= (uint64_t)r->p[i] << (8 * i);
+    r->p += n;
+    switch (t) {
+    case PLY_I8: *out = (int8_t)u; break;
+    case PLY_U8: *out = (uint8_t)u; break;
+    case PLY_I16: *out = (int16_t)u; break;
+    case PLY_U16: *out = (uint16_t)u; break;
+    case PLY_I32: *out = (int32_t)u; break;
+    case PLY_U32: *out = (uint32_t)u; break;
+    case PLY_F32: {
+        uint32_t w = (uint32_t)u;
+        float f;
+        memcpy(&f, &w, sizeof f);
+        *out = f;
+        break;
     }
+    default: {
+        double d;
+        memcpy(&d, &u, sizeof d);
+        *out = d;
+    }
+    }
+    return PLY_VALUE_OK;
+}
+
+/* One value as double. An ascii value of an integer type must be a whole number within the
+ * type's range: a uchar colour of 300 or -5 is refused, not read as 300/255 or wrapped. */
+static ply_value ply_read(ply_reader *r, ply_type t, double *out)
+{
+    if (r->binary)
+        return ply_read_binary(r, t, out);
     while (r->p < r->end && (*r->p == ' ' || *r->p == '\t' || *r->p == '\n' || *r->p == '\r'))
-        r->p++;
+        r->line += *r->p++ == '\n';
     if (r->p >= r->end)
-        return 0;
-    char tok[64];
+        return PLY_VALUE_END;
     size_t n = 0;
     while (r->p < r->end && *r->p != ' ' && *r->p != '\t' && *r->p != '\n' && *r->p != '\r') {
-        if (n + 1 >= sizeof tok)
-            return 0;
-        tok[n++] = (char)*r->p++;
+        if (n + 1 >= sizeof r->tok)
+            return PLY_VALUE_END;
+        r->tok[n++] = (char)*r->p++;
     }
-    tok[n] = '\0';
+    r->tok[n] = '\0';
     char *e;
-    *out = strtod(tok, &e);
-    return *e == '\0';
+    *out = strtod(r->tok, &e);
+    if (*e != '\0')
+        return PLY_VALUE_END;
+    if (t >= PLY_F32)
+        return PLY_VALUE_OK;
+    if (*out != floor(*out))
+        return PLY_VALUE_NOT_WHOLE; /* also NaN and Inf */
+    return *out >= ply_type_lo[t] && *out <= ply_type_hi[t] ? PLY_VALUE_OK : PLY_VALUE_RANGE;
+}
+
+/* The message for a value ply_read refused: in an ascii file with its line and the token as
+ * written; what names the element, its index and the property. */
+static rc_status ply_value_error(const ply_reader *r, ply_value v, ply_type t, const char *label, const char *what,
+                                 char *err, size_t errlen)
+{
+    if (v == PLY_VALUE_END) {
+        status_message(err, errlen,
+                       "%s: PLY data ends early or holds a malformed number (%s); fix: a complete file matching its "
+                       "header",
+                       label, what);
+        return RC_ERR_PARSE;
+    }
+    char range[64];
+    snprintf(range, sizeof range, "%.0f..%.0f", ply_type_lo[t], ply_type_hi[t]);
+    if (v == PLY_VALUE_NOT_WHOLE)
+        status_message(err, errlen, "%s:%d: %s: '%s' is not a whole number, but its type is %s; fix: an integer in %s",
+                       label, r->line, what, r->tok, ply_type_names[t], range);
+    else
+        status_message(err, errlen,
+                       "%s:%d: %s: '%s' is outside the range of its type %s; fix: a value in %s, or declare the "
+                       "property with a wider type",
+                       label, r->line, what, r->tok, ply_type_names[t], range);
+    return RC_ERR_RANGE;
 }
 
 static int ply_keyword(const char *w)
@@ -1092,7 +1141,7 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         return RC_ERR_PARSE;
     }
 
-    ply_reader r = {(const unsigned char *)p, (const unsigned char *)end, binary};
+    ply_reader r = {(const unsigned char *)p, (const unsigned char *)end, binary, line + 1, ""};
     int have_vertex = 0, have_face = 0, ply_uv = 0;
     for (int e = 0; e < n_el; e++) {
         ply_element *x = &el[e];
@@ -1162,9 +1211,12 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
             for (int k = 0; k < x->n_props; k++) {
                 ply_prop *pr = &x->props[k];
                 double d;
+                char what[120];
+                ply_value pv;
+                snprintf(what, sizeof what, "%s %ld, property %s", x->name, i, pr->name);
                 if (!pr->is_list) {
-                    if (!ply_read(&r, pr->type, &d))
-                        goto truncated;
+                    if ((pv = ply_read(&r, pr->type, &d)) != PLY_VALUE_OK)
+                        return ply_value_error(&r, pv, pr->type, label, what, err, errlen);
                     for (int c = 0; c < 6; c++) {
                         if (ix[c] == k)
                             vals[c] = d;
@@ -1177,10 +1229,12 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                     continue;
                 }
                 double cnt;
-                if (!ply_read(&r, pr->count_type, &cnt))
-                    goto truncated;
+                if ((pv = ply_read(&r, pr->count_type, &cnt)) != PLY_VALUE_OK) {
+                    snprintf(what, sizeof what, "%s %ld, list length of %s", x->name, i, pr->name);
+                    return ply_value_error(&r, pv, pr->count_type, label, what, err, errlen);
+                }
                 if (!(cnt >= 0 && cnt <= 65535 && cnt == floor(cnt))) {
-                    status_message(err, errlen, "%s: %s %ld: list length %g; fix: 0..65535", label, x->name, i, cnt);
+                    status_message(err, errlen, "%s: %s %ld: list length %.17g; fix: 0..65535", label, x->name, i, cnt);
                     return RC_ERR_PARSE;
                 }
                 if (is_face && k == iface && cnt < 3) {
@@ -1188,12 +1242,12 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
                     return RC_ERR_PARSE;
                 }
                 for (int j = 0; j < (int)cnt; j++) {
-                    if (!ply_read(&r, pr->type, &d))
-                        goto truncated;
+                    if ((pv = ply_read(&r, pr->type, &d)) != PLY_VALUE_OK)
+                        return ply_value_error(&r, pv, pr->type, label, what, err, errlen);
                     if (is_face && k == iface) {
                         if (!(d >= 0 && d < s->n_pos && d == floor(d))) {
                             status_message(err, errlen,
-                                           "%s: face %ld: vertex index %g out of range; fix: "
+                                           "%s: face %ld: vertex index %.17g out of range; fix: "
                                            "0..%d",
                                            label, i, d, s->n_pos - 1);
                             return RC_ERR_RANGE;
@@ -1253,12 +1307,6 @@ static rc_status mesh_ply_parse(const char *buf, size_t len, const char *label, 
         return RC_ERR_PARSE;
     }
     return RC_OK;
-truncated:
-    status_message(err, errlen,
-                   "%s: PLY data ends early or holds a malformed number; fix: a complete "
-                   "file matching its header",
-                   label);
-    return RC_ERR_PARSE;
 }
 
 /* A file normal that is zero or not finite (stored as zero by the readers): its vertex gets the

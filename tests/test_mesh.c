@@ -516,7 +516,7 @@ static void test_mesh_errors(void **state)
     (void)state;
     expect_mesh_error("all_degenerate.obj", RC_ERR_RANGE, "all_degenerate.obj: all 2 triangles have zero area");
     expect_mesh_error("no_faces.obj", RC_ERR_RANGE, "no_faces.obj: no faces");
-    expect_mesh_error("bad_index.obj", RC_ERR_RANGE, "bad_index.obj:4: vertex index 4");
+    expect_mesh_error("bad_index.obj", RC_ERR_RANGE, "bad_index.obj:4: corner '4': vertex index out of range");
     expect_mesh_error("truncated.ply", RC_ERR_PARSE, "truncated.ply: PLY data ends early");
     expect_mesh_error("bigendian.ply", RC_ERR_PARSE, "bigendian.ply:2: PLY format");
     expect_mesh_error("missing.obj", RC_ERR_IO, "missing.obj");
@@ -542,6 +542,99 @@ static const char *temp_mesh(const char *suffix, const void *bytes, size_t n)
     assert_int_equal(fwrite(bytes, 1, n, f), n);
     fclose(f);
     return path;
+}
+
+/* Builds the mesh file of `text` (written under suffix) as one object; returns the status and
+ * leaves the message in err. */
+static rc_status build_text(const char *suffix, const char *text, char *err, size_t errlen)
+{
+    scene *s = mesh_scene(temp_mesh(suffix, text, strlen(text)), v3(0, 0, 0), v3(0, 0, 0));
+    mesh m = {0};
+    err[0] = '\0';
+    rc_status rc = mesh_build(s, &m, err, errlen);
+    mesh_free(&m);
+    free(s);
+    return rc;
+}
+
+/* An ascii PLY value of an integer type must fit the type (PLY's ranges: char -128..127, uchar
+ * 0..255, short -32768..32767, ushort 0..65535, int -2^31..2^31-1, uint 0..2^32-1): the bounds
+ * are read, one past them is refused with the line, the element, the property and the value
+ * as written. A uchar colour of 300 used to be read as 300/255 = 1.18, -5 refused as "colour
+ * -0.0196078". */
+static void test_ply_integer_ranges(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *type, *lo, *hi, *below, *above;
+    } t[] = {
+        {"char", "-128", "127", "-129", "128"},
+        {"uchar", "0", "255", "-1", "256"},
+        {"short", "-32768", "32767", "-32769", "32768"},
+        {"ushort", "0", "65535", "-1", "65536"},
+        {"int", "-2147483648", "2147483647", "-2147483649", "2147483648"},
+        {"uint", "0", "4294967295", "-1", "4294967296"},
+        {"int8", "-128", "127", "-129", "128"},
+        {"uint32", "0", "4294967295", "-1", "4294967296"},
+    };
+    char text[600], err[600];
+    for (size_t i = 0; i < sizeof t / sizeof *t; i++) {
+        const char *vals[4] = {t[i].lo, t[i].hi, t[i].below, t[i].above};
+        for (int k = 0; k < 4; k++) {
+            /* The value is vertex 1's on line 12. */
+            snprintf(text, sizeof text,
+                     "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                     "property float z\nproperty %s flags\nelement face 1\nproperty list uchar int "
+                     "vertex_indices\nend_header\n0 0 0 0\n1 0 0 %s\n0 1 0 0\n3 0 1 2\n",
+                     t[i].type, vals[k]);
+            rc_status rc = build_text(".ply", text, err, sizeof err);
+            char want[200];
+            snprintf(want, sizeof want, ":12: vertex 1, property flags: '%s' is outside the range of its type",
+                     vals[k]);
+            if (k < 2 ? rc != RC_OK : (rc != RC_ERR_RANGE || !strstr(err, want) || !strstr(err, "fix")))
+                fail_msg("%s %s: rc %d: %s", t[i].type, vals[k], rc, err);
+        }
+    }
+    /* The colours of the issue, a list count beyond its type, and a fraction for an integer. */
+    static const char *const head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                    "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar "
+                                    "blue\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    static const struct {
+        const char *data, *want;
+    } bad[] = {
+        {"0 0 0 0 0 0\n1 0 0 300 0 0\n0 1 0 0 0 0\n3 0 1 2\n", ":14: vertex 1, property red: '300' is outside"},
+        {"0 0 0 0 0 0\n1 0 0 0 -5 0\n0 1 0 0 0 0\n3 0 1 2\n", ":14: vertex 1, property green: '-5' is outside"},
+        {"0 0 0 0 0 0\n1 0 0 0 0 0\n0 1 0 0 0 0\n256 0 1 2\n",
+         ":16: face 0, list length of vertex_indices: '256' is outside the range of its type uchar"},
+        {"0 0 0 0 0 0\n1 0 0 0 0 0\n0 1 0 0 0 0\n3 0 1.5 2\n", ":16: face 0, property vertex_indices: '1.5' is not a "
+                                                               "whole number, but its type is int"},
+        {"0 0 0 0 0 0\n1 0 0 0 0 nan\n0 1 0 0 0 0\n3 0 1 2\n", ":14: vertex 1, property blue: 'nan' is not a whole"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        snprintf(text, sizeof text, "%s%s", head, bad[i].data);
+        rc_status rc = build_text(".ply", text, err, sizeof err);
+        if (rc != RC_ERR_RANGE || !strstr(err, bad[i].want) || !strstr(err, "fix"))
+            fail_msg("case %zu: rc %d: %s", i, rc, err);
+    }
+    snprintf(text, sizeof text, "%s%s", head, "0 0 0 0 0 0\n1 0 0 255 128 0\n0 1 0 0 0 0\n3 0 1 2\n");
+    assert_int_equal(build_text(".ply", text, err, sizeof err), RC_OK);
+}
+
+/* OBJ indices beyond long (strtol saturates) and LONG_MIN (whose negation overflows) are
+ * refused as out of range, quoting the corner as written. */
+static void test_obj_huge_indices(void **state)
+{
+    (void)state;
+    static const char *const corners[] = {"99999999999999999999",     "-9223372036854775808", "1/99999999999999999999",
+                                          "1//-99999999999999999999", "2147483648",           "-2147483649"};
+    char text[300], err[600], want[120];
+    for (size_t i = 0; i < sizeof corners / sizeof *corners; i++) {
+        snprintf(text, sizeof text, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1 2 %s\n", corners[i]);
+        snprintf(want, sizeof want, ":6: corner '%s':", corners[i]);
+        rc_status rc = build_text(".obj", text, err, sizeof err);
+        if (rc != RC_ERR_RANGE || !strstr(err, want) || !strstr(err, "out of range"))
+            fail_msg("corner %s: rc %d: %s", corners[i], rc, err);
+    }
 }
 
 /* Lenient where renderers are: zero-area triangles are left out and counted, zero or
@@ -848,14 +941,24 @@ static void test_mesh_mutations(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_sphere),        cmocka_unit_test(test_quad),
-        cmocka_unit_test(test_box_sharp),     cmocka_unit_test(test_box_rounded),
-        cmocka_unit_test(test_torus),         cmocka_unit_test(test_obj_tetra),
-        cmocka_unit_test(test_obj_pentagon),  cmocka_unit_test(test_ply_ascii),
-        cmocka_unit_test(test_ply_binary),    cmocka_unit_test(test_mesh_errors),
-        cmocka_unit_test(test_mesh_lenient),  cmocka_unit_test(test_scale),
-        cmocka_unit_test(test_assimp_models), cmocka_unit_test(test_mesh_file_limits),
-        cmocka_unit_test(test_scene_files),   cmocka_unit_test(test_mesh_mutations),
+        cmocka_unit_test(test_sphere),
+        cmocka_unit_test(test_quad),
+        cmocka_unit_test(test_box_sharp),
+        cmocka_unit_test(test_box_rounded),
+        cmocka_unit_test(test_torus),
+        cmocka_unit_test(test_obj_tetra),
+        cmocka_unit_test(test_obj_pentagon),
+        cmocka_unit_test(test_ply_ascii),
+        cmocka_unit_test(test_ply_binary),
+        cmocka_unit_test(test_mesh_errors),
+        cmocka_unit_test(test_ply_integer_ranges),
+        cmocka_unit_test(test_obj_huge_indices),
+        cmocka_unit_test(test_mesh_lenient),
+        cmocka_unit_test(test_scale),
+        cmocka_unit_test(test_assimp_models),
+        cmocka_unit_test(test_mesh_file_limits),
+        cmocka_unit_test(test_scene_files),
+        cmocka_unit_test(test_mesh_mutations),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
