@@ -40,6 +40,8 @@
 
 #include <stddef.h>
 #include <stdio.h>
+#include "exr.h"
+#include "scene.h"
 #include "status.h"
 
 typedef struct {
@@ -54,6 +56,13 @@ rc_status compare_scene(const char *scene_path, const char *run_dir, compare_sum
  * to out. */
 rc_status compare_images(const char *test_exr, const char *ref_exr, const char *mask_exr, FILE *out, int *failed,
                          char *err, size_t errlen);
+
+/* compare_scene's value gate on one image of a comparison (the side renderer renders in role),
+ * for a command that uses such an image without comparing it (reflcheck fit): returns 1 when it
+ * fails, with the clause compare.json's reason gives ("ref povray: 1 non-finite (first R at (x
+ * 3, y 4) = nan) of N values; its output must be finite and >= 0") in gate, else 0. */
+int compare_value_gate(const scene *s, const exr_image *img, int renderer, comparison_role role, const char *side,
+                       char *gate, size_t len);
 
 /* Relative error denominators r^2 + COMPARE_REL_EPS: below 1e-4 radiance a pixel is dark
  * enough that half-float and noise floors dominate; above it the error is truly relative. */
