@@ -816,33 +816,90 @@ static void compare_partial_free(compare_partial *p)
             free(p->planes[sd][ch]);
 }
 
+/* The crease region's size beside the surface figures it was taken from, so whoever reads a
+ * Cycles figure reads how much was set apart with it. */
+static void compare_crease_beside(const cJSON *cmp, cJSON *regions)
+{
+    const cJSON *cr = cJSON_GetObjectItemCaseSensitive(cmp, "crease");
+    cJSON *surf = cJSON_GetObjectItemCaseSensitive(regions, "surface");
+    const cJSON *px = cJSON_GetObjectItemCaseSensitive(cr, "pixels");
+    const cJSON *share = cJSON_GetObjectItemCaseSensitive(cr, "share_of_surface");
+    if (surf == NULL || !cJSON_IsNumber(px) || !cJSON_IsNumber(share))
+        return;
+    cJSON_AddNumberToObject(surf, "crease_pixels", px->valuedouble);
+    cJSON_AddNumberToObject(surf, "crease_share", share->valuedouble);
+    /* And in the crease region, for a threshold "crease.share_of_surface". */
+    cJSON *creg = cJSON_GetObjectItemCaseSensitive(regions, "crease");
+    if (creg == NULL)
+        creg = cJSON_AddObjectToObject(regions, "crease");
+    cJSON_AddNumberToObject(creg, "share_of_surface", share->valuedouble);
+}
+
+/* The crease region's own z-test (the surface's, on the crease mask), so a threshold can gate
+ * "crease.z_fail_share" like any region's; nothing where the reference has no variance layers. */
+static void compare_crease_noise(const exr_image *ref, const metrics_image *refm, const exr_image *test,
+                                 const metrics_image *testm, const unsigned char *mask, cJSON *region)
+{
+    cJSON *noise = compare_noise(ref, refm, test, testm, mask);
+    if (noise == NULL)
+        return;
+    const cJSON *share =
+        cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(noise, "ztest"), "share_fail_pixels");
+    if (cJSON_IsNumber(share))
+        cJSON_AddNumberToObject(region, "z_fail_share", share->valuedouble);
+    cJSON_AddItemToObject(region, "noise", noise);
+}
+
 /* Against a renderer with crease rules (registry.h), the interior pixels where the model's crease
- * layer says some sample departs (harness/crease.h) leave the surface for the crease region, and
- * the comparison says how many and why; an image without the layer (an older run) changes
- * nothing and says so. */
-static void compare_crease(const comparison *c, const exr_image *geo, unsigned char *cls, size_t np, cJSON *o)
+ * layer has one of that renderer's rule bits (harness/crease.h) leave the surface for the crease
+ * region, and the comparison says how many, per rule, and why; an image without the layer (an
+ * older run) changes nothing and says so. A crease region above COMPARE_CREASE_MAX_SHARE of the
+ * surface fails the comparison (gate gets the clause) unless the scene states its own limit as
+ * the threshold "crease.share_of_surface": the surface figures would then judge too little of
+ * the object to stand for it. */
+static void compare_crease(const comparison *c, const exr_image *geo, unsigned char *cls, size_t np, cJSON *o,
+                           char *gate, size_t gatelen)
 {
     const renderer_row *t = registry_row(c->test), *r = registry_row(c->reference);
     const renderer_row *rules = r != NULL && r->crease_rules ? r : (t != NULL && t->crease_rules ? t : NULL);
     if (rules == NULL)
         return;
     cJSON *j = cJSON_AddObjectToObject(o, "crease");
-    const float *share = geo != NULL ? exr_image_channel(geo, "crease") : NULL;
-    if (share == NULL) {
+    const float *layer = geo != NULL ? exr_image_channel(geo, "crease") : NULL;
+    if (layer == NULL) {
         cJSON_AddStringToObject(j, "note",
                                 "the model image has no crease layer (rendered before it existed): "
                                 "no pixel left out; re-render the model to get it");
         return;
     }
-    long interior = 0, moved = crease_classify(cls, share, np, &interior);
+    long interior = 0, per_rule[CREASE_RULE_COUNT];
+    long moved = crease_classify_rules(cls, layer, np, (unsigned)rules->crease_rules, &interior, per_rule);
     char why[300];
     snprintf(why, sizeof why,
-             "%s shades creases by its own rules (a back face flips N with Ng, ensure_valid_reflection, no light "
-             "below the triangle): pixels with a departing sample are the crease region, not the surface",
+             "%s shades creases by its own rules (harness/crease.h): pixels with a sample where one departs are the "
+             "crease region, not the surface",
              rules->title);
     cJSON_AddStringToObject(j, "rule", why);
     cJSON_AddNumberToObject(j, "pixels", (double)moved);
-    cJSON_AddNumberToObject(j, "share_of_surface", interior > 0 ? (double)moved / (double)interior : 0.0);
+    double share = interior > 0 ? (double)moved / (double)interior : 0.0;
+    cJSON_AddNumberToObject(j, "share_of_surface", share);
+    cJSON_AddNumberToObject(j, "max_share", COMPARE_CREASE_MAX_SHARE);
+    cJSON *pr = cJSON_AddObjectToObject(j, "per_rule");
+    for (int b = 0; b < CREASE_RULE_COUNT; b++)
+        if ((unsigned)rules->crease_rules & (1u << b))
+            cJSON_AddNumberToObject(pr, crease_rule_names[b], (double)per_rule[b]);
+    /* A scene that states its own limit ("crease.share_of_surface", with its reason) is judged
+     * by it among the thresholds instead. */
+    int stated = 0;
+    for (int i = 0; i < c->n_thresholds; i++)
+        stated |= strcmp(c->thresholds[i].metric, "crease.share_of_surface") == 0;
+    if (!stated && share > COMPARE_CREASE_MAX_SHARE) {
+        size_t used = strlen(gate);
+        snprintf(gate + used, gatelen - used,
+                 "%screase region %ld of %ld surface pixels (%.3g) exceeds %.3g: %s's crease rules set apart too "
+                 "much of the object; use a finer tessellation or vertex normals closer to the faces",
+                 used ? "; " : "", moved, interior, share, COMPARE_CREASE_MAX_SHARE, rules->name);
+    }
 }
 
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
@@ -968,6 +1025,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     cJSON_AddNumberToObject(o, "ref_nonfinite", (double)vr.nonfinite);
     cJSON_AddNumberToObject(o, "test_negative", (double)vt.negative);
     cJSON_AddNumberToObject(o, "ref_negative", (double)vr.negative);
+    char crease_gate[400] = "";
     const char *region_names[4] = {"surface", "edges", "background", "crease"};
     const int region_class[4] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND, METRICS_PX_CREASE};
     cJSON *regions = cJSON_AddObjectToObject(o, "regions");
@@ -975,13 +1033,16 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         const float *cov = geo ? exr_image_channel(geo, "coverage") : NULL;
         const float *obj = geo ? exr_image_channel(geo, "object") : NULL;
         metrics_classify(w, h, cov, obj, cls);
-        compare_crease(c, geo, cls, np, o);
+        compare_crease(c, geo, cls, np, o, crease_gate, sizeof crease_gate);
         for (int i = 0; i < 4; i++) {
             metrics_mask_from_class(w, h, cls, region_class[i], NULL, 0.0f, mask[i]);
             cJSON *m = compare_region(&rm, &tm, mask[i]);
+            if (m != NULL && region_class[i] == METRICS_PX_CREASE)
+                compare_crease_noise(&r.img, &rm, &t.img, &tm, mask[i], m);
             if (m != NULL)
                 cJSON_AddItemToObject(regions, region_names[i], m);
         }
+        compare_crease_beside(o, regions);
         /* Per object (and so per material): surface pixels whose centre sample is that object. */
         const float *obj_layer = geo ? exr_image_channel(geo, "object") : NULL;
         if (obj_layer != NULL && s->n_objects > 1) {
@@ -1040,13 +1101,16 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
 
     if (gate[0] != '\0' && sum->first_failure[0] == '\0')
         snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: values: %s", s->name, id, gate);
+    if (crease_gate[0] != '\0' && sum->first_failure[0] == '\0')
+        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s", s->name, id, crease_gate);
     const char *verdict = compare_judge(s, c, o, id, sum);
-    if (gate[0] != '\0') {
+    if (gate[0] != '\0' || crease_gate[0] != '\0') {
         verdict = "fail";
-        snprintf(reason, sizeof reason, "values: %s", gate);
+        snprintf(reason, sizeof reason, "%s%s%s%s", gate[0] ? "values: " : "", gate,
+                 gate[0] && crease_gate[0] ? "; " : "", crease_gate);
         cJSON_AddStringToObject(o, "reason", reason);
     }
-    if (part.left_out != 0 && gate[0] == '\0')
+    if (part.left_out != 0 && gate[0] == '\0' && crease_gate[0] == '\0')
         cJSON_AddStringToObject(o, "reason", part.reason);
     cJSON_AddStringToObject(o, "status", verdict);
     if (strcmp(verdict, "fail") == 0)

@@ -1,8 +1,9 @@
 /* test_gates.c - gates that count everything: the value gate of every comparison (NaN, Inf,
  * negative values in any layer fail by themselves), job statuses mapped to comparison
  * statuses (only a skipped job skips), duplicate scene names refused, the exit status of
- * compare and diff (check's is in test_env.c, with the environment it now loads), and the
- * scene name escaped in the report viewer's view.js.
+ * compare and diff (check's is in test_env.c, with the environment it now loads), the
+ * scene name escaped in the report viewer's view.js, and the crease region against Cycles
+ * counted per rule and failing the comparison when it sets too much of the surface apart.
  * Run folders are built by hand (job records and EXRs written here), so every expected count
  * is known exactly: the images are 16x8, all covered by one object, so every pixel is surface. */
 #include <setjmp.h>
@@ -29,9 +30,11 @@ enum { W = 16, H = 8, NP = W * H };
 
 static char dir[256];
 
-/* One render: R, G, B, the three term layers, var.*, coverage and object, all planes NP. */
+/* One render: R, G, B, the three term layers, var.*, coverage and object, all planes NP, and
+ * the model's crease layer (harness/crease.h's rule bits) when has_crease. */
 typedef struct {
-    float rgb[3][NP], terms[3][3][NP], var[3][NP], cov[NP], obj[NP];
+    float rgb[3][NP], terms[3][3][NP], var[3][NP], cov[NP], obj[NP], crease[NP];
+    int has_crease;
 } gate_image;
 
 static void image_flat(gate_image *im, float v)
@@ -46,7 +49,9 @@ static void image_flat(gate_image *im, float v)
         }
         im->cov[i] = 1.0f;
         im->obj[i] = 0.0f;
+        im->crease[i] = 0.0f;
     }
+    im->has_crease = 0;
 }
 
 static void image_write(const char *path, const gate_image *im)
@@ -54,8 +59,8 @@ static void image_write(const char *path, const gate_image *im)
     static const char *const names[] = {
         "R",          "G",          "B",          "diffuse.R",    "diffuse.G",    "diffuse.B",
         "specular.R", "specular.G", "specular.B", "reflection.R", "reflection.G", "reflection.B",
-        "var.R",      "var.G",      "var.B",      "coverage",     "object"};
-    const float *planes[17] = {im->rgb[0], im->rgb[1], im->rgb[2]};
+        "var.R",      "var.G",      "var.B",      "coverage",     "object",       "crease"};
+    const float *planes[18] = {im->rgb[0], im->rgb[1], im->rgb[2]};
     for (int t = 0; t < 3; t++)
         for (int c = 0; c < 3; c++)
             planes[3 + 3 * t + c] = im->terms[t][c];
@@ -63,11 +68,13 @@ static void image_write(const char *path, const gate_image *im)
         planes[12 + c] = im->var[c];
     planes[15] = im->cov;
     planes[16] = im->obj;
-    exr_channel ch[17];
-    for (int i = 0; i < 17; i++)
+    planes[17] = im->crease;
+    int n = im->has_crease ? 18 : 17;
+    exr_channel ch[18];
+    for (int i = 0; i < n; i++)
         ch[i] = (exr_channel){names[i], planes[i]};
     char err[512];
-    assert_int_equal(exr_write(path, W, H, ch, 17, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(exr_write(path, W, H, ch, n, NULL, 0, err, sizeof err), RC_OK);
 }
 
 static void write_text(const char *path, const char *text)
@@ -545,6 +552,64 @@ static void test_view_js_escapes_scene_name(void **state)
     cJSON_Delete(view);
 }
 
+/* Against Cycles (crease rules back_face and valid_reflection), the model's crease layer sets
+ * pixels apart as the crease region, counted per rule and gated: 2 of 128 surface pixels
+ * (1.6 %) pass, 3 (2.3 %) exceed COMPARE_CREASE_MAX_SHARE (2 %) and fail the comparison by
+ * themselves, though its rel_rms passes, unless the scene states its own limit. A layer value
+ * that is no rule bit (4) sets nothing apart. */
+static void crease_case(const char *name, int n_crease, const char *stated, int want_fail)
+{
+    char scn[512], run[512], text[1024], err[2048];
+    snprintf(scn, sizeof scn, "%s/%s.yaml", dir, name);
+    snprintf(run, sizeof run, "%s/run-%s", dir, name);
+    snprintf(text, sizeof text,
+             "name: %s\nimage: {width: %d, height: %d}\n"
+             "camera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "lights:\n  - {type: sun, direction: [0, 0, -1], irradiance: [1, 1, 1]}\n"
+             "materials:\n  m: {model: d3d}\n"
+             "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+             "comparisons:\n  - reference: cycles\n    role: twin\n    thresholds:\n"
+             "      rel_rms: {warn: 5e-4, fail: 1e-3, why: \"twin precision floor\"}\n%s",
+             name, W, H, stated);
+    write_text(scn, text);
+    static gate_image t, r;
+    image_flat(&t, 0.5f);
+    image_flat(&r, 0.5f);
+    t.has_crease = 1;
+    for (int i = 0; i < n_crease; i++)
+        t.crease[40 + i] = 2.0f; /* valid_reflection */
+    t.crease[100] = 4.0f;
+    put_job(run, name, registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, name, registry_find("cycles"), ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), want_fail);
+    cJSON *j = read_compare(run, name);
+    const cJSON *c = first_comparison(j);
+    const cJSON *cr = cJSON_GetObjectItemCaseSensitive(c, "crease");
+    assert_int_equal((long)jnum(cr, "pixels"), n_crease);
+    const cJSON *pr = cJSON_GetObjectItemCaseSensitive(cr, "per_rule");
+    assert_int_equal((long)jnum(pr, "valid_reflection"), n_crease);
+    assert_int_equal((long)jnum(pr, "back_face"), 0);
+    const cJSON *reg = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "crease");
+    assert_int_equal((long)jnum(reg, "n_pixels"), n_crease);
+    const cJSON *surf = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "surface");
+    assert_int_equal((long)jnum(surf, "n_pixels"), NP - n_crease);
+    assert_int_equal((long)jnum(surf, "crease_pixels"), n_crease); /* beside the surface figures */
+    assert_string_equal(jstr(c, "status"), want_fail ? "fail" : "pass");
+    if (want_fail)
+        assert_non_null(strstr(jstr(c, "reason"), "crease region 3 of 128 surface pixels"));
+    cJSON_Delete(j);
+}
+
+static void test_crease_region_gated(void **state)
+{
+    (void)state;
+    crease_case("crease_small", 2, "", 0);
+    crease_case("crease_large", 3, "", 1);
+    /* A scene that states its own limit is judged by it: 2.3 % under 5 % passes. */
+    crease_case("crease_stated", 3,
+                "      crease.share_of_surface: {warn: 0.03, fail: 0.05, why: \"the mesh's own creases\"}\n", 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -556,6 +621,7 @@ int main(void)
         cmocka_unit_test(test_duplicate_scene_names),
         cmocka_unit_test(test_diff_exit_status),
         cmocka_unit_test(test_view_js_escapes_scene_name),
+        cmocka_unit_test(test_crease_region_gated),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
 }
