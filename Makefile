@@ -47,10 +47,11 @@ LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
 CLI         := $(BUILD)/reflcheck
 OIIO_PLUGIN := $(BUILD)/reflcheck-oiio.so
 OIIO_PLUGIN_OBJ := $(BUILD)/pic/harness/image_oiio.o $(BUILD)/pic/model/fileio.o $(BUILD)/pic/model/status.o
+KEY_SOURCES := $(BUILD)/key-sources/.stamp
 
 .PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
         test-slurm bench report fuzz deps clean
-all: $(CLI) $(TEST_BIN)
+all: $(CLI) $(TEST_BIN) $(KEY_SOURCES)
 
 deps:
 	@bash harness/deps.sh
@@ -71,13 +72,18 @@ $(BUILD)/harness/image_dds.o: CFLAGS += -DREFLCHECK_OIIO_PLUGIN='"$(abspath $(OI
 # The tree whose scripts Blender runs, so reflcheck works from any folder (REFLCHECK_DATA_DIR
 # overrides it when the program runs).
 $(BUILD)/harness/renderers/renderer.o: CFLAGS += -DREFLCHECK_DATA_DIR='"$(abspath .)"'
+# Each renderer's cache-key sources from the build's own objects and .d files, never a hand list
+# (harness/renderers/key_sources.py); jobs.c reads them from here (REFLCHECK_KEY_SOURCES overrides).
+$(KEY_SOURCES): $(HARNESS_OBJ) $(MODEL_OBJ) $(OIIO_PLUGIN_OBJ) harness/renderers/key_sources.py
+	python3 harness/renderers/key_sources.py $(BUILD) && touch $@
+$(BUILD)/harness/jobs.o: CFLAGS += -DREFLCHECK_KEY_SOURCES='"$(abspath $(BUILD))/key-sources"'
 
 $(BUILD)/libreflcheck_model.a: $(MODEL_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
 $(BUILD)/libreflcheck_harness.a: $(HARNESS_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
 
-$(CLI): $(BUILD)/harness/main.o $(LIBS) | $(OIIO_PLUGIN)
+$(CLI): $(BUILD)/harness/main.o $(LIBS) | $(OIIO_PLUGIN) $(KEY_SOURCES)
 	$(CC) $(CFLAGS) $(filter-out $(OIIO_PLUGIN),$^) $(LDLIBS) -o $@
 
 $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBS) | $(OIIO_PLUGIN)

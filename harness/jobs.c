@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <inttypes.h>
+#include <limits.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -210,32 +211,52 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
     return st;
 }
 
+/* Where the build wrote each renderer's key sources (Makefile, harness/renderers/key_sources.py). */
+#ifndef REFLCHECK_KEY_SOURCES
+#define REFLCHECK_KEY_SOURCES "key-sources"
+#endif
+
+/* Hashes every file of BUILD/key-sources/<name>.list (paths in the source tree, found through
+ * renderer_data_path). RC_OK, or an error when the list or a file it names cannot be read. */
+static rc_status job_key_list(const char *name, uint64_t *h, char *err, size_t errlen)
+{
+    const char *dir = getenv("REFLCHECK_KEY_SOURCES");
+    char list[PATH_MAX], line[PATH_MAX], path[PATH_MAX];
+    snprintf(list, sizeof list, "%s/%s.list", dir != NULL && dir[0] != '\0' ? dir : REFLCHECK_KEY_SOURCES, name);
+    FILE *f = fopen(list, "r");
+    if (f == NULL) {
+        snprintf(err, errlen, "%s: %s", list, strerror(errno));
+        return RC_ERR_IO;
+    }
+    rc_status st = RC_OK;
+    int n = 0;
+    while (st == RC_OK && fgets(line, sizeof line, f) != NULL) {
+        line[strcspn(line, "\n")] = '\0';
+        if (line[0] == '\0')
+            continue;
+        renderer_data_path(line, path, sizeof path);
+        st = job_key_file(h, line, path, err, errlen);
+        n++;
+    }
+    fclose(f);
+    if (st == RC_OK && n == 0) {
+        snprintf(err, errlen, "%s: empty", list);
+        st = RC_ERR_IO;
+    }
+    return st;
+}
+
 /* The code a render depends on. A reference render depends on the scene pipeline and its
- * translator only (the table row's sources), so a change to our shading does not re-render
- * POV-Ray or Cycles; those sources are hashed when the run starts in the source tree.
- * Elsewhere (or for a renderer without sources, our rasterizer) the whole reflcheck binary
- * stands in for them. */
+ * translator only: the files the build says their objects are made of and call
+ * (harness/renderers/key_sources.py, never a hand-written list), hashed as they are in the
+ * source tree, so a change to a translator or to a header it includes re-renders it. An
+ * in-process renderer (our rasterizer), or one whose list or files are gone (an installed
+ * program without its tree), has the whole reflcheck binary stand in for them. */
 static void job_key_code(const renderer_row *row, uint64_t *key)
 {
-    static const char *const common[] = {"harness/jobs.c",  "harness/scene_file.c",  "model/scene.c",
-                                         "model/scene.h",   "model/mesh.c",          "model/mesh.h",
-                                         "model/vec.h",     "harness/exr.c",         "harness/renderers/renderer.c",
-                                         "model/texture.c", "harness/frame.c",       "model/env.c",
-                                         "model/env.h",     "harness/image_oiio.cpp"};
-    const char *const *own = row->sources;
-    int have = own != NULL;
-    for (size_t i = 0; have && i < sizeof common / sizeof common[0]; i++)
-        have = access(common[i], R_OK) == 0;
-    for (size_t i = 0; have && own[i] != NULL; i++)
-        have = access(own[i], R_OK) == 0;
     char err[1024];
     uint64_t h = *key;
-    rc_status st = RC_OK;
-    for (size_t i = 0; have && st == RC_OK && i < sizeof common / sizeof common[0]; i++)
-        st = job_key_file(&h, common[i], common[i], err, sizeof err);
-    for (size_t i = 0; have && st == RC_OK && own[i] != NULL; i++)
-        st = job_key_file(&h, own[i], own[i], err, sizeof err);
-    if (!have || st != RC_OK) {
+    if (row->program == NULL || job_key_list(row->name, &h, err, sizeof err) != RC_OK) {
         h = *key;
         /* Unreadable, the key still differs from any source-tree key: no false hit. */
         if (job_key_file(&h, "binary", "/proc/self/exe", err, sizeof err) != RC_OK)

@@ -10,7 +10,7 @@
  * time, renderer version, command, cache key, terms_left_out, slurm: {job_id, node} or null)
  * and the renderer's .log.
  * The job asks the renderer table (harness/renderers/registry.h) for everything about the
- * renderer: its program, package, version, sources and render entry. A twin lets the renderer
+ * renderer: its program, package, version and render entry. A twin lets the renderer
  * leave out whole terms it cannot reproduce; the record names them (terms_left_out).
  *
  * Returns RC_OK once the record is written, whatever the renderer did; r.status says what:
@@ -27,8 +27,9 @@
  * every file it references (meshes, environment image), the options that reach the image
  * (renderer, role, variant, size, k, samples, seeds, seed, tessellation, per-vertex), the
  * renderer's version line and executable (path, size, times), and the code the render depends
- * on (the scene pipeline and the row's translator sources when run in the source tree, else
- * and for a renderer without sources, our rasterizer, the reflcheck binary), and the terms the
+ * on (the files of the scene pipeline and the renderer's translator as the build's objects and
+ * .d files name them, BUILD/key-sources/<renderer>.list, hashed in the source tree; for an
+ * in-process renderer or without the tree, the reflcheck binary), and the terms the
  * renderer left out are kept with the entry. Threads, timeout and tag are not in it. A job takes an exclusive flock on
  * CACHE/<key>.lock while it checks, renders and publishes, renders into a private CACHE/tmp-<key>-XXXXXX and publishes
  * it by rename, so runs sharing a cache render each key once and never see a half entry; a killed run's lock goes with

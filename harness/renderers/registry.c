@@ -12,21 +12,6 @@
 #include "povray/povray.h"
 #include "raster/raster_render.h"
 
-static const char *const registry_povray_sources[] = {"harness/renderers/povray/povray.c",
-                                                      "harness/renderers/povray/povray.h", NULL};
-static const char *const registry_cycles_sources[] = {"harness/renderers/cycles/cycles.c",
-                                                      "harness/renderers/cycles/cycles.h",
-                                                      "harness/renderers/cycles/cycles_render.py", NULL};
-
-/* EEVEE renders Cycles' translation: its sources are part of EEVEE's key. */
-static const char *const registry_eevee_sources[] = {"harness/renderers/eevee/eevee.c",
-                                                     "harness/renderers/eevee/eevee.h",
-                                                     "harness/renderers/eevee/eevee_render.py",
-                                                     "harness/renderers/cycles/cycles.c",
-                                                     "harness/renderers/cycles/cycles.h",
-                                                     "harness/renderers/cycles/cycles_render.py",
-                                                     NULL};
-
 static const renderer_row registry_rows[] = {
     {.name = "raster",
      .title = "reflcheck rasterizer",
@@ -37,7 +22,6 @@ static const renderer_row registry_rows[] = {
      .title = "POV-Ray 3.7",
      .program = "povray",
      .package = "povray",
-     .sources = registry_povray_sources,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "Cook-Torrance (no Beckmann lobe), conductors (no complex Fresnel), Gouraud, clamping, eq. 8, "
                "the D3D spot profile, distance-attenuated D3D ambient",
@@ -48,7 +32,6 @@ static const renderer_row registry_rows[] = {
      .title = "Blender 3.4 Cycles",
      .program = "blender",
      .package = "blender",
-     .sources = registry_cycles_sources,
      .stochastic = 1,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "D3D ambient, Gouraud, clamping, eq. 8 with a point main light, D3D attenuation and spot profile",
@@ -68,7 +51,6 @@ static const renderer_row registry_rows[] = {
      .title = "Blender 3.4 EEVEE",
      .program = "blender",
      .package = "blender",
-     .sources = registry_eevee_sources,
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "a Beckmann lobe (GGX only, split-sum with LTC lights), exact mirrors (pre-filtered world probe), "
                "env_diffuse false under a lit world (its probe lights every diffuse), shadows, inter-reflection; "

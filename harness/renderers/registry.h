@@ -19,27 +19,25 @@
 #include "renderer.h"
 
 typedef struct {
-    const char *name;           /* in scene files, CLI options, job records, output file names */
-    const char *title;          /* for people: "POV-Ray 3.7" */
-    const char *program;        /* the executable, NULL = renders in process */
-    const char *package;        /* the Debian package that installs program */
-    const char *version;        /* the version line of an in-process renderer (else: program --version) */
-    const char *const *sources; /* translator sources (NULL-terminated, relative to the source tree)
-                                   hashed into cache keys; NULL = the reflcheck binary stands in */
-    int is_model;               /* computes reflcheck's own model: its exact coverage, object and N.V
-                                   layers mask every comparison, and it may go below 0 where the
-                                   model does */
-    int stochastic;             /* samples and seeds reach the image (and the record) */
-    unsigned partial[3];        /* per role: the terms (RENDERER_TERM_*) it may leave out when it
-                                   cannot reproduce them; the record names those it did */
-    const char *cannot;         /* what it cannot reproduce at all (the job is skipped) */
-    int cube_maps;              /* a program that looks a cube map (j->env) up itself; one without
-                                   gets the cube's equirectangular conversion (harness/jobs.c) */
-    int crease_rules;           /* the CREASE_RULE_* bits (harness/crease.h) by which it shades with the
-                                   triangle's normal as well as the interpolated one, each shown by a
-                                   render of the program (tests/crease_renderers.sh); 0 = none: compare
-                                   moves the model's pixels where one departs out of the surface into
-                                   a region of their own */
+    const char *name;    /* in scene files, CLI options, job records, output file names */
+    const char *title;   /* for people: "POV-Ray 3.7" */
+    const char *program; /* the executable, NULL = renders in process */
+    const char *package; /* the Debian package that installs program */
+    const char *version; /* the version line of an in-process renderer (else: program --version) */
+    int is_model;        /* computes reflcheck's own model: its exact coverage, object and N.V
+                            layers mask every comparison, and it may go below 0 where the
+                            model does */
+    int stochastic;      /* samples and seeds reach the image (and the record) */
+    unsigned partial[3]; /* per role: the terms (RENDERER_TERM_*) it may leave out when it
+                            cannot reproduce them; the record names those it did */
+    const char *cannot;  /* what it cannot reproduce at all (the job is skipped) */
+    int cube_maps;       /* a program that looks a cube map (j->env) up itself; one without
+                            gets the cube's equirectangular conversion (harness/jobs.c) */
+    int crease_rules;    /* the CREASE_RULE_* bits (harness/crease.h) by which it shades with the
+                            triangle's normal as well as the interpolated one, each shown by a
+                            render of the program (tests/crease_renderers.sh); 0 = none: compare
+                            moves the model's pixels where one departs out of the surface into
+                            a region of their own */
     renderer_render_fn render;
     renderer_physics_fn physics; /* a physical reference: the physics its validate renders (renderer.h);
                                     NULL = it computes the model, not a physics */
