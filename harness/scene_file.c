@@ -531,6 +531,31 @@ static rc_status sf_image(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
+/* The smallest field of view single precision resolves. The rasterizer (like Cycles and EEVEE)
+ * projects in float: a coordinate of magnitude R is held to R 2^-24 and a ray direction's
+ * components (at most 1) to 2^-24, while neighbouring samples at distance z from the eye lie
+ * 2 z tan(hfov/2) / N apart (N samples across: width times supersample, of the full size or
+ * the small variant, whichever is larger). Keeping that rounding within half a sample needs
+ * tan(hfov/2) >= 2^-24 N max(1, R/z), R the larger distance of eye and target from the
+ * origin, z the view distance. Below it, edges land whole samples off (measured: a quad edge
+ * at 3/4 of a 1024-sample row, R/z = 1, lands 2 samples off at 1e-4 degrees against a bound of
+ * 7e-3), rays of neighbouring pixels become one float, and near 1e-30 degrees the projection
+ * overflows (half the image black) while POV-Ray calls the camera unrepresentable. */
+static rc_status sf_hfov_resolved(sf_ctx *c, yaml_node_t *n, const scene *s, double z)
+{
+    double across = fmax((double)s->width * s->supersample, (double)s->small.width * s->small.supersample);
+    double r = fmax(dv3_len(dv3_from(s->camera.eye)), dv3_len(dv3_from(s->camera.target)));
+    double tan_min = ldexp(1.0, -24) * across * fmax(1.0, r / z);
+    double min_deg = 2.0 * atan(tan_min) * 180.0 / FORMULA_PI_D;
+    if (tan(0.5 * (double)s->camera.hfov) >= tan_min)
+        return RC_OK;
+    return sf_fail(c, RC_ERR_RANGE, n, "camera.hfov",
+                   "%s degrees is below %.6g, the smallest field of view single precision resolves for %.0f samples "
+                   "across with the eye and target up to %.3g from the origin at distance %.3g; allowed: degrees in "
+                   "[%.6g, 180), or fewer samples across, or eye and target nearer the origin",
+                   sf_text(n), min_deg, across, r, z, min_deg);
+}
+
 static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     static const char *const keys[] = {"eye", "target", "up", "hfov"};
@@ -553,6 +578,8 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
     if (dv3_len(view) == 0.0)
         return sf_fail(c, RC_ERR_RANGE, f[1].v, "camera.target",
                        "equals camera.eye; allowed: a target point different from the eye");
+    if ((rc = sf_hfov_resolved(c, f[3].v, s, dv3_len(view))))
+        return rc;
     /* Below sin(angle) = 1e-3 between up and the view axis, the normalised right vector
      * cross(view, up) carries float rounding of order 1e-4 relative: refuse it. */
     if (dv3_len(dv3_cross(dv3_norm(view), dv3_from(s->camera.up))) < 1e-3)

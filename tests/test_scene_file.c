@@ -382,6 +382,48 @@ static void test_quoted_scalars(void **state)
     free(s);
 }
 
+/* camera.hfov's lower bound tan(hfov/2) >= 2^-24 N max(1, R/z) (harness/scene_file.c), by
+ * hand: 64 samples across, eye 4 from the origin looking at it (R/z = 1): tan = 2^-18, hfov =
+ * 2 atan(2^-18) = 2^-17 rad = 7.6293945e-6 rad (x^3/3 is 2e-17, below
+ * the digits used) = 4.3713211e-4 degrees.
+ * 4 times the samples (supersample 4, or a small variant of 128 x 2) give 4 times that; eye
+ * 400 from the origin at distance 4 (R/z = 100) gives 100 times: 4.3713209e-2 (atan's cubic
+ * term is 5e-8 relative). The values 1e-30 and 1e-300 of the issue are far below. */
+static void test_hfov_bound(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *image, *eye, *target, *hfov;
+        int ok;
+    } t[] = {
+        {"{width: 64, height: 8}", "[0, 0, 4]", "[0, 0, 0]", "4.3714e-4", 1},
+        {"{width: 64, height: 8}", "[0, 0, 4]", "[0, 0, 0]", "4.3712e-4", 0},
+        {"{width: 64, height: 8, supersample: 4}", "[0, 0, 4]", "[0, 0, 0]", "1.74853e-3", 1},
+        {"{width: 64, height: 8, supersample: 4}", "[0, 0, 4]", "[0, 0, 0]", "1.74852e-3", 0},
+        {"{width: 64, height: 8, small: {width: 128, supersample: 2}}", "[0, 0, 4]", "[0, 0, 0]", "1.74853e-3", 1},
+        {"{width: 64, height: 8, small: {width: 128, supersample: 2}}", "[0, 0, 4]", "[0, 0, 0]", "1.74852e-3", 0},
+        {"{width: 64, height: 8}", "[0, 0, 400]", "[0, 0, 396]", "4.37133e-2", 1},
+        {"{width: 64, height: 8}", "[0, 0, 400]", "[0, 0, 396]", "4.37131e-2", 0},
+        {"{width: 64, height: 8}", "[0, 0, 4]", "[0, 0, 0]", "1e-30", 0},
+        {"{width: 64, height: 8}", "[0, 0, 4]", "[0, 0, 0]", "1e-300", 0},
+        {"{width: 64, height: 8}", "[0, 0, 4]", "[0, 0, 0]", "179.9", 1},
+    };
+    scene *s = malloc(sizeof *s);
+    char text[600], err[600];
+    assert_non_null(s);
+    for (size_t i = 0; i < sizeof t / sizeof *t; i++) {
+        int n = snprintf(text, sizeof text, "image: %s\ncamera: {eye: %s, target: %s, hfov: %s}\n", t[i].image,
+                         t[i].eye, t[i].target, t[i].hfov);
+        err[0] = '\0';
+        rc_status rc = scene_file_parse(text, (size_t)n, "mem.yaml", s, err, sizeof err);
+        if (t[i].ok ? rc != RC_OK
+                    : rc != RC_ERR_RANGE || strncmp(err, "mem.yaml:2:", 11) != 0 || !strstr(err, "camera.hfov") ||
+                          !strstr(err, "allowed: degrees in ["))
+            fail_msg("%s: rc %d, %s", text, rc, err);
+    }
+    free(s);
+}
+
 /* Scene names become file and folder names of a run (RUN/<name>/, scene-<name>.html): each
  * unsafe or reserved one is refused with the file, line and key, and the rule. */
 static void test_scene_names(void **state)
@@ -822,6 +864,7 @@ int main(void)
         cmocka_unit_test(test_scene_names),
         cmocka_unit_test(test_scale_bounds),
         cmocka_unit_test(test_quoted_scalars),
+        cmocka_unit_test(test_hfov_bound),
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
