@@ -9,7 +9,7 @@ import json
 import os
 import re
 
-from .util import VERDICT_ORDER, VERDICTS, Problems, finite, is_num, read_json, safe_name
+from .util import HARNESS, VERDICT_ORDER, VERDICTS, Problems, finite, is_num, read_json, safe_name
 
 # A comparison side reads its renderer's render of the comparison's role (the C harness renders
 # every role separately). Run folders from before that name the render a role stood in for: an
@@ -115,11 +115,20 @@ def norm_comparison(c, path, problems, scene, index):
     return out
 
 
+def reserved_names():
+    """The names a run folder holds itself: model/reserved_names.def, the list the C side checks
+    scene names against (one '"name",' per line)."""
+    path = os.path.join(os.path.dirname(HARNESS), 'model', 'reserved_names.def')
+    with open(path, encoding='utf-8') as f:
+        return {m.group(1) for m in re.finditer(r'^"([^"]+)",$', f.read(), re.M)}
+
+
 def scene_dirs(run):
     out = []
+    reserved = reserved_names()
     for name in sorted(os.listdir(run)):
         p = os.path.join(run, name)
-        if name.startswith('.') or name in ('plots', 'timing') or not os.path.isdir(p):
+        if name.startswith('.') or name in reserved or not os.path.isdir(p):
             continue
         files = os.listdir(p)
         if 'compare.json' in files or 'view.js' in files or any(f.endswith('.json') for f in files):
