@@ -348,7 +348,7 @@ runner_status runner_version(const char *program, char *out, size_t outlen, char
     why[0] = '\0';
     if (!runner_available(program))
         return RUNNER_MISSING;
-    char dir[] = "/tmp/reflcheck-version-XXXXXX", log[64], errlog[64], first[300];
+    char dir[] = "/tmp/reflcheck-version-XXXXXX", log[64], errlog[64], line[300], first[304];
     if (mkdtemp(dir) == NULL) {
         snprintf(why, whylen, "%s --version: cannot make a folder for its output in /tmp: %s; check /tmp", program,
                  strerror(errno));
@@ -365,9 +365,11 @@ runner_status runner_version(const char *program, char *out, size_t outlen, char
     runner_version_line(log, out, outlen);
     if (out[0] == '\0')
         runner_version_line(errlog, out, outlen);
-    runner_first_line(errlog, first, sizeof first);
-    if (first[0] == '\0')
-        runner_first_line(log, first, sizeof first);
+    runner_first_line(errlog, line, sizeof line);
+    if (line[0] == '\0')
+        runner_first_line(log, line, sizeof line);
+    /* ": <its first line>", or "" when it printed nothing. */
+    snprintf(first, sizeof first, "%s%s", line[0] != '\0' ? ": " : "", line);
     /* A program that is there but does not answer is a broken install, never "not installed":
      * its jobs fail with this reason instead of being skipped. */
     runner_status st = r.status;
@@ -376,15 +378,15 @@ runner_status runner_version(const char *program, char *out, size_t outlen, char
     else if (st == RUNNER_ERROR)
         snprintf(why, whylen, "%s --version could not be run (fork, pipe or its output file in /tmp failed)", program);
     else if (r.exec_errno != 0)
-        snprintf(why, whylen, "%s is installed but does not start (%s): %s", program, strerror(r.exec_errno), first);
+        snprintf(why, whylen, "%s is installed but does not start (%s)%s", program, strerror(r.exec_errno), first);
     else if (st == RUNNER_CRASHED)
-        snprintf(why, whylen, "%s --version crashed (signal %d): %s", program, r.signal, first);
+        snprintf(why, whylen, "%s --version crashed (signal %d)%s", program, r.signal, first);
     else if (st == RUNNER_TIMEOUT)
         snprintf(why, whylen, "%s --version did not answer in %.0f s", program, r.wall_s);
     else if (st != RUNNER_OK)
-        snprintf(why, whylen, "%s --version failed (exit status %d): %s", program, r.exit_code, first);
+        snprintf(why, whylen, "%s --version failed (exit status %d)%s", program, r.exit_code, first);
     else if (out[0] == '\0') {
-        snprintf(why, whylen, "%s --version printed no version line (\"POV-Ray ...\" or \"Blender ...\"): %s", program,
+        snprintf(why, whylen, "%s --version printed no version line (\"POV-Ray ...\" or \"Blender ...\")%s", program,
                  first);
         st = RUNNER_FAILED;
     }
