@@ -185,12 +185,14 @@ $(FUZZ_DIR)/libreflcheck_fuzz.a: $(FUZZ_OBJ)
 $(FUZZ_DIR)/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DIR)/libreflcheck_fuzz.a
 	$(FUZZ_CC) $(FUZZ_CFLAGS) -fsanitize=fuzzer $^ -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -ldl -lm -o $@
 
-fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr
-	@mkdir -p $(FUZZ_DIR)/corpus_scene $(FUZZ_DIR)/corpus_exr $(FUZZ_DIR)/artifacts
+fuzz: deps $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_exr $(FUZZ_DIR)/fuzz_texture
+	@mkdir -p $(FUZZ_DIR)/corpus_scene $(FUZZ_DIR)/corpus_exr $(FUZZ_DIR)/corpus_texture $(FUZZ_DIR)/artifacts
 	cd scenes && $(FUZZ_DIR)/fuzz_scene -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/scene- $(FUZZ_DIR)/corpus_scene ../tests/fuzz/corpus/scene
 	$(FUZZ_DIR)/fuzz_exr -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/exr- $(FUZZ_DIR)/corpus_exr tests/fuzz/corpus/exr
+	$(FUZZ_DIR)/fuzz_texture -max_total_time=$(FUZZ_TIME) -print_final_stats=1 \
+	    -artifact_prefix=$(FUZZ_DIR)/artifacts/texture- $(FUZZ_DIR)/corpus_texture tests/fuzz/corpus/texture
 -include $(FUZZ_OBJ:.o=.d)
 
 # Benchmarks: the rasterizer across sizes, threads and triangle counts, llvmpipe (OSMesa) on

@@ -256,12 +256,37 @@ static void test_output_target(void **state)
     unlink(real);
 }
 
+/* The image readers' shared check: a header that needs more coded bytes than the file has is
+ * PARSE (cut or lying), one whose decoded size exceeds the memory limit RANGE, both one line
+ * naming the file; exactly enough bytes, or exactly the limit, passes. */
+static void test_image_budget(void **state)
+{
+    (void)state;
+    char err[512];
+    setenv("REFLCHECK_MEMORY_LIMIT", "1K", 1);
+    assert_int_equal(fileio_image_budget("a.png", "PNG", 16384, 16384, 32513.0, 689, 100.0, err, sizeof err),
+                     RC_ERR_PARSE);
+    assert_non_null(strstr(err, "a.png: the PNG header says 16384 x 16384"));
+    assert_non_null(strstr(err, "at least 32513 bytes"));
+    assert_non_null(strstr(err, "has 689"));
+    assert_null(strchr(err, '\n'));
+    assert_int_equal(fileio_image_budget("a.png", "PNG", 4, 4, 689.0, 689, 1024.0, err, sizeof err), RC_OK);
+    assert_int_equal(fileio_image_budget("b.jpg", "JPEG", 64, 64, 10.0, 689, 1025.0, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "b.jpg: a 64 x 64 JPEG"));
+    assert_non_null(strstr(err, "REFLCHECK_MEMORY_LIMIT"));
+    setenv("REFLCHECK_MEMORY_LIMIT", "nonsense", 1);
+    assert_int_equal(fileio_image_budget("b.jpg", "JPEG", 64, 64, 10.0, 689, 1.0, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "b.jpg: REFLCHECK_MEMORY_LIMIT"));
+    unsetenv("REFLCHECK_MEMORY_LIMIT");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_write_read_copy), cmocka_unit_test(test_errors),
         cmocka_unit_test(test_open_input),      cmocka_unit_test(test_read_all_bounded),
         cmocka_unit_test(test_memory_limit),    cmocka_unit_test(test_output_target),
+        cmocka_unit_test(test_image_budget),
     };
     return cmocka_run_group_tests_name("fileio", tests, NULL, NULL);
 }
