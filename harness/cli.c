@@ -1,6 +1,8 @@
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -60,7 +62,8 @@ int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out)
     char *end;
     errno = 0;
     long v = strtol(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || v < lo || v > hi) {
+    /* strtol skips leading blanks, so " 7" passed where "7 " did not: a value is the number alone */
+    if (errno != 0 || end == text || *end != '\0' || isspace((unsigned char)text[0]) || v < lo || v > hi) {
         fprintf(stderr, "reflcheck: %s '%s': expected a whole number from %d to %d\n", opt, text, lo, hi);
         return CLI_BAD_INPUT;
     }
@@ -73,7 +76,8 @@ int cli_parse_double(const char *opt, const char *text, double lo, double hi, do
     char *end;
     errno = 0;
     double v = strtod(text, &end);
-    if (errno != 0 || end == text || *end != '\0' || !isfinite(v) || v < lo || v > hi) {
+    if (errno != 0 || end == text || *end != '\0' || isspace((unsigned char)text[0]) || !isfinite(v) || v < lo ||
+        v > hi) {
         fprintf(stderr, "reflcheck: %s '%s': expected a number from %g to %g\n", opt, text, lo, hi);
         return CLI_BAD_INPUT;
     }
@@ -149,4 +153,73 @@ int cli_check(int argc, char **argv)
     mesh_free(&m);
     free(s);
     return rc;
+}
+
+/* The argument getopt_long was reading when it refused a short option: a group such as
+ * "-rf.yaml" stays at argv[optind] until its last letter, after which optind moves past it. */
+static const char *cli_refused_arg(int argc, char **argv)
+{
+    if (optopt != 0 && optind < argc && argv[optind][0] == '-' && argv[optind][1] != '-' &&
+        strchr(argv[optind] + 1, optopt) != NULL)
+        return argv[optind];
+    return argv[optind - 1];
+}
+
+/* 1 when getopt_long knows the option it refused: it then lacked its value (or, given as
+ * --name=VALUE, had one it does not take). */
+static int cli_known_option(const char *arg, const char *shortopts, const struct option *longopts)
+{
+    if (optopt == 0)
+        return 0;
+    if (strncmp(arg, "--", 2) != 0)
+        return strchr(shortopts, optopt) != NULL;
+    size_t len = strcspn(arg + 2, "=");
+    for (const struct option *o = longopts; o->name != NULL; o++)
+        if (strlen(o->name) == len && strncmp(o->name, arg + 2, len) == 0)
+            return 1;
+    return 0;
+}
+
+int cli_bad_option(const char *cmd, int argc, char **argv, const char *shortopts, const struct option *longopts,
+                   const char *usage)
+{
+    const char *arg = cli_refused_arg(argc, argv);
+    if (!cli_known_option(arg, shortopts, longopts)) {
+        if (optopt != 0 && strncmp(arg, "--", 2) != 0 && strlen(arg) > 2)
+            fprintf(stderr, "reflcheck: %s: unknown option '-%c' in argument '%s'; %s\n", cmd, optopt, arg, usage);
+        else
+            fprintf(stderr, "reflcheck: %s: unknown option '%s'; %s\n", cmd, arg, usage);
+    } else if (strchr(arg, '=') != NULL && strncmp(arg, "--", 2) == 0) {
+        fprintf(stderr, "reflcheck: %s: option '%.*s' takes no value (argument '%s'); %s\n", cmd,
+                (int)strcspn(arg, "="), arg, arg, usage);
+    } else {
+        fprintf(stderr, "reflcheck: %s: option '%s' needs a value after it; %s\n", cmd, arg, usage);
+    }
+    return CLI_BAD_INPUT;
+}
+
+int cli_check_option(const char *cmd, int c, unsigned char seen[256], const char *shortopts,
+                     const struct option *longopts)
+{
+    const struct option *o = longopts;
+    while (o->name != NULL && (o->flag != NULL || o->val != c))
+        o++;
+    if (o->name == NULL || c < 0 || c > 255 || o->has_arg != required_argument)
+        return CLI_OK;
+    char alias[8] = "";
+    if (strchr(shortopts, c) != NULL)
+        snprintf(alias, sizeof alias, " (-%c)", c);
+    if (optarg == NULL || optarg[0] == '\0') {
+        /* An empty path is no path: "--out ''" made "/<scene>" at the file system's root. */
+        fprintf(stderr, "reflcheck: %s: option '--%s'%s has an empty value; give it a value\n", cmd, o->name, alias);
+        return CLI_BAD_INPUT;
+    }
+    if (seen[c]) {
+        fprintf(stderr,
+                "reflcheck: %s: option '--%s'%s given twice (the last, '%s', would win silently); give it once\n", cmd,
+                o->name, alias, optarg);
+        return CLI_BAD_INPUT;
+    }
+    seen[c] = 1;
+    return CLI_OK;
 }

@@ -27,6 +27,17 @@ int cli_load_scene(const char *path, scene *s, mesh *m);
 /* Parses a whole positive integer option value; prints an error naming the option. */
 int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out);
 int cli_parse_double(const char *opt, const char *text, double lo, double hi, double *out);
+/* After getopt_long (opterr = 0) returned '?': prints one line naming the argument it refused
+ * as typed (an unknown option, "-r" in "-rf.yaml", or an option without its value), never the
+ * command, then usage; returns CLI_BAD_INPUT. */
+struct option;
+int cli_bad_option(const char *cmd, int argc, char **argv, const char *shortopts, const struct option *longopts,
+                   const char *usage);
+/* For each option getopt_long returns (c, optarg): an option that takes a value must not be
+ * empty nor given twice (the last would win silently). seen: 256 zeroed bytes per command line.
+ * Prints one line naming the option; returns CLI_BAD_INPUT, or CLI_OK. */
+int cli_check_option(const char *cmd, int c, unsigned char seen[256], const char *shortopts,
+                     const struct option *longopts);
 
 int cli_render(int argc, char **argv);
 int cli_check(int argc, char **argv);

@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "exr.h"
 #include "compare.h"
 #include "scene_file.h"
 
@@ -52,13 +53,14 @@ int cli_compare(int argc, char **argv)
     static const struct option longopts[] = {{"run", required_argument, NULL, 'r'}, {NULL, 0, NULL, 0}};
     const char *run = NULL;
     int c;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != 'r') {
-            fprintf(stderr, "reflcheck: compare: unknown option '%s'; usage: reflcheck compare SCENE... --run DIR\n",
-                    argv[optind - 1]);
+        if (c != '?' && cli_check_option("compare", c, seen, "", longopts) != CLI_OK)
             return CLI_BAD_INPUT;
+        if (c != 'r') {
+            return cli_bad_option("compare", argc, argv, "", longopts, "usage: reflcheck compare SCENE... --run DIR");
         }
         run = optarg;
     }
@@ -104,20 +106,45 @@ int cli_compare(int argc, char **argv)
     return worst != CLI_OK ? worst : (failed ? CLI_FAILED : CLI_OK);
 }
 
+/* A mask of another size than the test image is the mask's fault, not the pair's: name it, its
+ * size and the size it must have. Images that cannot be read are left to compare_images, which
+ * names them. */
+static int cli_diff_mask_size(const char *test, const char *mask)
+{
+    exr_image t, g;
+    char err[1024];
+    if (exr_read(test, &t, err, sizeof err) != RC_OK)
+        return CLI_OK;
+    int rc = CLI_OK;
+    if (exr_read(mask, &g, err, sizeof err) == RC_OK) {
+        if (g.width != t.width || g.height != t.height) {
+            fprintf(stderr,
+                    "reflcheck: diff: --mask %s is %dx%d, the test image %s is %dx%d; give a geometry render "
+                    "(coverage, object) of the same %dx%d\n",
+                    mask, g.width, g.height, test, t.width, t.height, t.width, t.height);
+            rc = CLI_BAD_INPUT;
+        }
+        exr_image_free(&g);
+    }
+    exr_image_free(&t);
+    return rc;
+}
+
 /* reflcheck diff TEST.exr REF.exr [--mask GEO.exr]: the metrics of one image pair as JSON. */
 int cli_diff(int argc, char **argv)
 {
     static const struct option longopts[] = {{"mask", required_argument, NULL, 'm'}, {NULL, 0, NULL, 0}};
     const char *mask = NULL;
     int c;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != 'm') {
-            fprintf(stderr,
-                    "reflcheck: diff: unknown option '%s'; usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n",
-                    argv[optind - 1]);
+        if (c != '?' && cli_check_option("diff", c, seen, "", longopts) != CLI_OK)
             return CLI_BAD_INPUT;
+        if (c != 'm') {
+            return cli_bad_option("diff", argc, argv, "", longopts,
+                                  "usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]");
         }
         mask = optarg;
     }
@@ -127,6 +154,8 @@ int cli_diff(int argc, char **argv)
     }
     char err[1024];
     int gate_failed = 0;
+    if (mask != NULL && cli_diff_mask_size(argv[optind], mask) != CLI_OK)
+        return CLI_BAD_INPUT;
     rc_status st = compare_images(argv[optind], argv[optind + 1], mask, stdout, &gate_failed, err, sizeof err);
     if (st != RC_OK) {
         /* Every image here is the user's input: one that cannot be read or does not match is

@@ -64,9 +64,12 @@ int cli_eval(int argc, char **argv)
     };
     eval_args a = {.ior = 1.5, .p = 5.0, .m = 0.3, .steps = 90};
     int c, rc = CLI_OK;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("eval", c, seen, "", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'n': rc = cli_parse_double("--ior", optarg, 1.0, 100.0, &a.ior); break;
         case 'p': rc = cli_parse_double("--p", optarg, 0.0, 1e4, &a.p); break;
@@ -79,10 +82,7 @@ int cli_eval(int argc, char **argv)
             a.m_given = 1;
             break;
         case 's': rc = cli_parse_int("--steps", optarg, 1, 1000000, &a.steps); break;
-        default:
-            fprintf(stderr, "reflcheck: eval: unknown option '%s'; options: --ior --p --r0 --m --steps\n",
-                    argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+        default: rc = cli_bad_option("eval", argc, argv, "", longopts, "options: --ior --p --r0 --m --steps");
         }
     }
     if (rc != CLI_OK)

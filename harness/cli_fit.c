@@ -260,9 +260,12 @@ int cli_fit(int argc, char **argv)
                         .cache_dir = "reports/cache",
                         .fo = {.max_evals = FIT_DEFAULT_EVALS, .xtol = FIT_DEFAULT_XTOL}};
     int c, rc = CLI_OK;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("fit", c, seen, "o:", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'o': opt.out_dir = optarg; break;
         case 's': opt.variant = JOB_SMALL; break;
@@ -279,9 +282,7 @@ int cli_fit(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default:
-            fprintf(stderr, "reflcheck: fit: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+        default: rc = cli_bad_option("fit", argc, argv, "o:", longopts, "see reflcheck --help");
         }
     }
     if (rc != CLI_OK)

@@ -212,9 +212,12 @@ int cli_plan(int argc, char **argv)
     };
     const char *out = NULL, *cache = "reports/cache", *bin = "build/reflcheck";
     int small = 0, threads = 1, c, rc = CLI_OK, slurm = 0;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("plan", c, seen, "", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'o': out = optarg; break;
         case 's': small = 1; break;
@@ -229,7 +232,7 @@ int cli_plan(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default: fprintf(stderr, "reflcheck: plan: unknown option '%s'\n", argv[optind - 1]); rc = CLI_BAD_INPUT;
+        default: rc = cli_bad_option("plan", argc, argv, "", longopts, "see reflcheck --help");
         }
     }
     if (rc != CLI_OK)

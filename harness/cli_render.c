@@ -60,9 +60,12 @@ int cli_render(int argc, char **argv)
     const char *out = NULL;
     render_options ro = {0};
     int quiet = 0, c, rc = CLI_OK;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:W:H:k:t:a:q", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("render", c, seen, "o:W:H:k:t:a:q", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'o': out = optarg; break;
         case 'W': rc = cli_parse_int("--width", optarg, 1, 16384, &ro.width); break;
@@ -80,9 +83,7 @@ int cli_render(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default:
-            fprintf(stderr, "reflcheck: render: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+        default: rc = cli_bad_option("render", argc, argv, "o:W:H:k:t:a:q", longopts, "see reflcheck --help");
         }
     }
     if (rc != CLI_OK)

@@ -23,7 +23,8 @@ int cli_renderers(int argc, char **argv)
 {
     int json = argc == 2 && strcmp(argv[1], "--json") == 0;
     if (argc > 2 || (argc == 2 && !json)) {
-        fprintf(stderr, "reflcheck: usage: reflcheck renderers [--json]\n");
+        fprintf(stderr, "reflcheck: renderers: unexpected argument '%s'; usage: reflcheck renderers [--json]\n",
+                argv[json ? 2 : 1]);
         return CLI_BAD_INPUT;
     }
     if (!json) {

@@ -41,9 +41,12 @@ int cli_run(int argc, char **argv)
                   .out_dir = "reports/runs/manual",
                   .cache_dir = "reports/cache"};
     int c, rc = CLI_OK, v;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("run", c, seen, "o:", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'r':
             if ((v = registry_find(optarg)) < 0) {
@@ -105,9 +108,7 @@ int cli_run(int argc, char **argv)
             }
             j.tag = optarg;
             break;
-        default:
-            fprintf(stderr, "reflcheck: run: unknown option '%s'; see reflcheck --help\n", argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+        default: rc = cli_bad_option("run", argc, argv, "o:", longopts, "see reflcheck --help");
         }
     }
     if (rc != CLI_OK)

@@ -59,9 +59,12 @@ int cli_stability(int argc, char **argv)
     const char *json = NULL, *csv = NULL;
     stability_options o = {0};
     int c, rc = CLI_OK, quiet = 0;
+    unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("stability", c, seen, "", longopts)) != CLI_OK)
+            break;
         switch (c) {
         case 'j': json = optarg; break;
         case 'c': csv = optarg; break;
@@ -74,11 +77,8 @@ int cli_stability(int argc, char **argv)
         }
         case 'q': quiet = 1; break;
         default:
-            fprintf(stderr,
-                    "reflcheck: stability: unknown option '%s'; options: --json FILE --csv FILE "
-                    "--samples N --seed N --quiet\n",
-                    argv[optind - 1]);
-            rc = CLI_BAD_INPUT;
+            rc = cli_bad_option("stability", argc, argv, "", longopts,
+                                "options: --json FILE --csv FILE --samples N --seed N --quiet");
         }
     }
     if (rc != CLI_OK)
