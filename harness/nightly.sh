@@ -155,9 +155,12 @@ stop_all() {
     pids=$(descendants $$)
     # shellcheck disable=SC2086
     [ -n "$pids" ] && kill -KILL $pids 2>/dev/null
-    echo "reflcheck nightly: interrupted; run $id left incomplete in $run (history and latest unchanged)" >&2
+    echo "reflcheck nightly: interrupted; run $id left incomplete in $run (history and latest unchanged)" >&9
     exit 130
 }
+# The trap runs inside whatever step was waiting, with that step's redirections: fd 9 keeps the
+# nightly's own stderr, so the message above reaches the user and not a step's log file.
+exec 9>&2
 trap stop_all INT TERM HUP
 step() {
     "$@" &

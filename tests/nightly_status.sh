@@ -86,6 +86,34 @@ sys.exit(not (r["run_id"] == "refused" and "render jobs" in r["reason"] and "QOS
     ok "refused: the history line names the run and sbatch's reason" ||
     bad "refused: the history line lacks the run id or the reason: $(tail -n1 "$HISTORY")"
 
+# Interrupted while sbatch submits: a fake sbatch that writes its pid and then waits until the
+# test releases it (bounded, so a broken test leaves nothing behind), so the signal certainly
+# lands during the submission. The nightly exits 130, says so on its own stderr (not in a step's
+# log), leaves no sbatch behind and records nothing.
+cat > "$work/slurmbin/sbatch" <<SH
+#!/bin/sh
+echo \$\$ > "$PWD/$work/sbatch.pid"
+i=0
+while [ ! -e "$PWD/$work/sbatch.release" ] && [ \$i -lt 3000 ]; do sleep 0.1; i=\$((i + 1)); done
+echo 101
+SH
+RUN_ID=interrupted SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash harness/nightly.sh \
+    > "$work/interrupted.log" 2>&1 &
+pid=$!
+for _ in $(seq 1500); do [ -s "$work/sbatch.pid" ] && break; sleep 0.2; done
+kill -TERM "$pid"
+wait "$pid"
+rc=$?
+gone=0
+for _ in $(seq 100); do kill -0 "$(cat "$work/sbatch.pid")" 2> /dev/null || { gone=1; break; }; sleep 0.1; done
+: > "$work/sbatch.release"
+if [ $rc -eq 130 ] && [ $gone = 1 ] && grep -q "interrupted; run interrupted left incomplete" "$work/interrupted.log" &&
+    ! grep -q '"run_id":"interrupted"' "$HISTORY"; then
+    ok "interrupted during sbatch: exit 130, said so, no sbatch left, nothing recorded"
+else
+    bad "interrupted during sbatch: exit $rc (want 130), sbatch gone $gone; see $work/interrupted.log"
+fi
+
 # A full disk under the run folder (a 64 KiB tmpfs; mounting needs root): the report cannot be
 # written, the nightly exits 1 and the history still records the run, as failed.
 mkdir -p "$work/full"
