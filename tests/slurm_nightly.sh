@@ -46,7 +46,7 @@ t2=$(date +%s)
 [ $st_slurm -eq 0 ] && ok "slurm nightly: exit 0 ($((t2 - t1)) s)" || bad "slurm nightly exit $st_slurm; see $work/slurm.log"
 
 # Same verdicts and metrics; raster images bit-identical; every record names its Slurm job.
-if /usr/bin/python3 tests/slurm_compare.py "$work/runs/local" "$work/runs/slurm"; then
+if /usr/bin/python3 tests/slurm_compare.py "$work/runs/local" "$work/runs/slurm" "$BIN"; then
     ok "local and Slurm runs agree (verdicts, metrics, images, Slurm ids)"
 else
     bad "local and Slurm runs differ (above)"
@@ -72,9 +72,30 @@ echo "povray: simulated failure" >&2
 exit 1
 SH
 chmod +x "$work/bin/povray"
+# A Blender stand-in, so that the job cancelled "while it renders" is in a known state and not in
+# a race with the render's speed: it answers --version like the real one plus a suffix unique to
+# this test run (so no cache, warm or not, holds its jobs), runs the real Blender for every job
+# but the one array task named in $work/hold-task, and for that one writes $work/held (its pid)
+# and then waits until the test writes $work/release (or Slurm ends it). The wait is bounded (10
+# minutes) only so that a broken test leaves no process behind for ever.
+real_blender=$(command -v blender)
+cat > "$work/bin/blender" <<SH
+#!/bin/sh
+case "\$1" in --version) $real_blender --version | sed 's/^Blender .*/& (reflcheck test stand-in $$-$RANDOM)/'; exit 0 ;; esac
+if [ "\${SLURM_ARRAY_JOB_ID:-}_\${SLURM_ARRAY_TASK_ID:-}" != "\$(cat "$PWD/$work/hold-task" 2>/dev/null)" ]; then
+    exec $real_blender "\$@"
+fi
+echo \$\$ > "$PWD/$work/held"
+i=0
+while [ ! -e "$PWD/$work/release" ] && [ \$i -lt 6000 ]; do sleep 0.1; i=\$((i + 1)); done
+echo "blender stand-in: released without rendering" >&2
+exit 1
+SH
+chmod +x "$work/bin/blender"
+release_standin() { : > "$work/release"; }
+trap 'release_standin; bash harness/slurm/local_cluster.sh stop "$cluster"; rm -rf "$cluster"' EXIT
 run=$work/runs/fail
 mkdir -p "$run"
-# Cycles renders in a fresh cache (so they take seconds); the others are cache hits.
 PATH=$PWD/$work/bin:$PATH "$BIN" plan $scenes --out "$run" --cache "$work/cache-fail" --bin "$BIN" --small \
     --scheduler slurm > "$run/submit.sh"
 ids=$(PATH=$PWD/$work/bin:$PATH bash "$run/submit.sh" --hold)
@@ -83,14 +104,22 @@ list=$(cut -d' ' -f2 "$run/slurm/arrays" | head -n1)
 task_of() { grep -n -- "--renderer $1 --role $2 .*$3" "$list" | head -n1 | cut -d: -f1 | awk '{print $1 - 1}'; }
 running=$(task_of cycles twin lambert_calibration)
 pending=$(task_of cycles twin d3d_spot)
+echo "${array}_$running" > "$work/hold-task"
+# Cancelled while held (before it starts): it cannot have started, whatever the machine's speed.
 scancel "${array}_$pending"
 scontrol release "$array" > /dev/null
-# Cancel the Lambert Cycles twin once Blender renders it.
-for _ in $(seq 300); do
-    [ "$(squeue -h -j "${array}_$running" -o %T 2>/dev/null)" = RUNNING ] && break
+# Cancel the Lambert Cycles twin once its Blender has started: the stand-in then waits until it
+# is told, so the job is certainly still rendering when scancel reaches it. A bounded wait for
+# that condition (10 minutes, for a loaded machine); not finding it is a failure of its own.
+for _ in $(seq 3000); do
+    [ -s "$work/held" ] && break
     sleep 0.2
 done
-sleep 2
+if [ -s "$work/held" ]; then
+    ok "the Lambert Cycles twin (task ${array}_$running) is in Blender, held until cancelled"
+else
+    bad "the held Blender of task ${array}_$running never started; see $run/slurm/${array}_$running.out"
+fi
 scancel "${array}_$running"
 cid=$(sbatch --parsable --dependency="afterany:$ids" -n1 -c1 --time=10 --output="$run/slurm/compare.out" \
     harness/slurm/compare.sh "$run" "$BIN" $scenes)
