@@ -178,13 +178,14 @@ static void test_unsafe_names_refused(void **state)
     char scene[512], out[256], err[2048], mk[256];
     snprintf(out, sizeof out, "%s/run-refused", work);
     snprintf(mk, sizeof mk, "%s/refused.mk", work);
-    /* No name key: the name is the file's with ; and > made _, so the target is make-safe. */
+    /* No name key: the name is the file's with ; and > made _ and capitals lowercased (model/scene.h
+     * scene_name_sanitise), so the target is make-safe. */
     scene_file("x;id>PWNED;.yaml", NULL, scene, sizeof scene);
     char *plan[] = {bin, "plan", scene, "--out", out, NULL};
     assert_int_equal(run_argv(NULL, mk, err, sizeof err, plan), 0);
     char *text = fileio_read_all(mk, NULL);
     assert_non_null(text);
-    assert_non_null(strstr(text, "/x_id_PWNED_/raster-twin.json:"));
+    assert_non_null(strstr(text, "/x_id_pwned_/raster-twin.json:"));
     free(text);
     /* A name key with such characters is refused by the scene format itself. */
     scene_file("named.yaml", "\"x;id\"", scene, sizeof scene);
