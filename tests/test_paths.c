@@ -255,6 +255,38 @@ static void test_odd_paths_cycles(void **state)
     odd_paths_render("cycles", 0.08);
 }
 
+/* A relative --cache: the texture path in Cycles' job is absolute all the same, so a Blender
+ * worker, which runs in another folder, finds it. */
+static void test_cycles_texture_path_is_absolute(void **state)
+{
+    (void)state;
+    if (!runner_available("blender")) {
+        skip();
+        return;
+    }
+    const char *yaml_path = odd_scene("rel");
+    char here[PATH_MAX], abs_scene[PATH_MAX];
+    assert_non_null(realpath(yaml_path, abs_scene));
+    assert_non_null(getcwd(here, sizeof here));
+    assert_int_equal(chdir(tmpdir), 0);
+    job_record r = run(abs_scene, "cycles", "rel-out", "rel cache");
+    char *text = NULL;
+    char cmd[PATH_MAX];
+    snprintf(cmd, sizeof cmd, "cat 'rel cache'/*/job.json > rel-job.json");
+    int rc = system(cmd);
+    text = fileio_read_all("rel-job.json", NULL);
+    assert_int_equal(chdir(here), 0);
+    assert_int_equal(r.status, RUNNER_OK);
+    assert_int_equal(rc, 0);
+    assert_non_null(text);
+    const char *t = strstr(text, "\"texture\"");
+    assert_non_null(t);
+    t = strchr(t + 9, '"');
+    assert_non_null(t);
+    assert_int_equal(t[1], '/');
+    free(text);
+}
+
 /* ---- item 16: from another working folder ---- */
 
 /* `reflcheck run SCENE --renderer R --small` in TMPDIR/elsewhere; the record's status. */
@@ -391,6 +423,7 @@ int main(void)
         cmocka_unit_test(test_long_cache_folder_refused),
         cmocka_unit_test(test_odd_paths_povray),
         cmocka_unit_test(test_odd_paths_cycles),
+        cmocka_unit_test(test_cycles_texture_path_is_absolute),
         cmocka_unit_test(test_cycles_from_another_folder),
         cmocka_unit_test(test_eevee_from_another_folder),
     };

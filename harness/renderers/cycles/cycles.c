@@ -1095,7 +1095,7 @@ static int cycles_raw_readable(const cycles_options *o, const char *exr)
 
 void cycles_render_job(const renderer_job *j, renderer_result *r)
 {
-    char job[1100], err[1024];
+    char job[1100], err[1024], texdir[PATH_MAX];
     snprintf(job, sizeof job, "%s/job.json", j->dir);
     cycles_options o = {.n_seeds = j->seeds > 0 ? j->seeds : 2, .seed = (unsigned)j->seed, .threads = j->threads};
     if (j->options != NULL)
@@ -1108,7 +1108,12 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
             renderer_fail(r, RUNNER_ERROR, "%s", err);
             return;
         }
-        o.texture_dir = j->dir;
+        /* Absolute, as every path Blender gets (renderer.h, "Paths"): a worker runs elsewhere. */
+        if (realpath(j->dir, texdir) == NULL) {
+            renderer_fail(r, RUNNER_ERROR, "%s: cannot resolve the work folder: %s", j->dir, strerror(errno));
+            return;
+        }
+        o.texture_dir = texdir;
     }
     rc_status st = cycles_write_job(j->s, j->m, &o, job, err, sizeof err);
     cycles_argv a;
