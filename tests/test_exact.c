@@ -31,6 +31,7 @@
 #include "frame.h"
 #include "mesh.h"
 #include "physical.h"
+#include "render.h"
 #include "renderers/exact/exact.h"
 #include "renderers/registry.h"
 #include "scene_file.h"
@@ -215,6 +216,10 @@ static void fixture_free(fixture *f)
 
 static char tmpdir[] = "/tmp/reflcheck-exact-XXXXXX";
 
+/* The checks below that want one value per sample position (a pixel's centre sample, k = 1 or 2
+ * samples all equal) render the point-sampled variant; test_pixel_integral checks the default. */
+static const exact_options point = {.point = 1};
+
 static void render_exact(fixture *f, comparison_role role, const exact_options *o, renderer_result *r, exr_image *img)
 {
     char exr[512], err[512];
@@ -248,7 +253,7 @@ static void test_render_lambert_sun(void **state)
                      "objects:\n  - {shape: quad, size: [20, 20], material: m}\n");
     renderer_result r;
     exr_image img = {0};
-    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &img);
     assert_int_equal(r.status, RUNNER_OK);
     const float *R = exr_image_channel(&img, "R"), *G = exr_image_channel(&img, "G"), *B = exr_image_channel(&img, "B");
     assert_non_null(R);
@@ -278,7 +283,7 @@ static void test_render_point_and_mirror(void **state)
                      "objects:\n  - {shape: sphere, radius: 1, tessellation: 64, material: gold}\n");
     renderer_result r;
     exr_image img = {0};
-    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &img);
     assert_int_equal(r.status, RUNNER_OK);
     int c = 16 * 33 + 16;
     /* The centre sample's normal is the tessellated sphere's at its pole: N.V = 1 to float. */
@@ -296,7 +301,7 @@ static void test_render_point_and_mirror(void **state)
                      "lights:\n  - {type: point, position: [0, 0, 3], intensity: [8, 8, 8]}\n"
                      "materials:\n  p: {albedo: [0.2, 0.4, 0.6], ior: 1.5, roughness: 0.25, model: d3d}\n"
                      "objects:\n  - {shape: sphere, radius: 1, tessellation: 64, material: p}\n");
-    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &img);
     assert_int_equal(r.status, RUNNER_OK);
     double e = 8.0 / 4.0; /* I / d^2 at distance 2 */
     close_rel(exr_image_channel(&img, "diffuse.G")[c], 0.4f * e / TEST_PI, 1e-5);
@@ -323,12 +328,12 @@ static void test_render_manifest(void **state)
                      "objects:\n  - {shape: quad, size: [20, 20], material: m}\n");
     renderer_result r;
     exr_image img = {0};
-    render_exact(&f, ROLE_VALIDATE, NULL, &r, &img);
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &img);
     assert_int_equal(r.status, RUNNER_OK);
     const float *d = exr_image_channel(&img, "diffuse.G"), *nv = exr_image_channel(&img, "ndotv");
     for (int i = 0; i < img.width * img.height; i++)
         close_rel(d[i], 0.5f * (2.0 / TEST_PI + 0.5), 1e-6);
-    exact_options o = {.physics = f.s->physics, .set = 1};
+    exact_options o = {.physics = f.s->physics, .set = 1, .point = 1};
     o.physics.diffuse_weight = PHYS_DIFFUSE_ONE_MINUS_F;
     exr_image_free(&img);
     render_exact(&f, ROLE_VALIDATE, &o, &r, &img);
@@ -410,6 +415,68 @@ static void test_bias_of_nv_tint(void **state)
     }
 }
 
+/* exact is a pixel integral: 16 x 16 samples per pixel, none at one of the rasterizer's k x k
+ * positions, so a pixel is its box average to (k/16)^2 of the rasterizer's error where the
+ * radiance varies inside it. Worked out independently: which positions coincide, by brute force
+ * over the fractions; and each pixel's box average of a Lambert floor under a near point light,
+ * rho I h / (pi d^3), by a 64 x 64 midpoint sum of the closed form over the pixel. */
+static void test_pixel_integral(void **state)
+{
+    (void)state;
+    for (int k = 1; k < EXACT_SUPERSAMPLE; k++) {
+        int K = exact_supersample(k);
+        assert_true(K >= EXACT_SUPERSAMPLE);
+        for (int s = 0; s < k; s++)
+            for (int t = 0; t < K; t++) /* (s + 0.5)/k == (t + 0.5)/K */
+                assert_true((2 * s + 1) * K != (2 * t + 1) * k);
+    }
+    fixture f;
+    fixture_load(&f, "image: {width: 16, height: 12, supersample: 1}\n"
+                     "camera: {eye: [0, 3, 0.01], target: [0, 0, 0], hfov: 40}\n"
+                     "lights:\n  - {type: point, position: [0.3, 0.6, -0.2], intensity: [5, 5, 5]}\n"
+                     "materials:\n  m: {albedo: [0.5, 0.5, 0.5], model: d3d}\n"
+                     "objects:\n  - {shape: quad, size: [20, 20], material: m}\n");
+    renderer_result r;
+    exr_image integral = {0}, pointwise = {0};
+    render_exact(&f, ROLE_VALIDATE, NULL, &r, &integral);
+    assert_int_equal(r.status, RUNNER_OK);
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &pointwise);
+    assert_int_equal(r.status, RUNNER_OK);
+    render_camera cam;
+    render_camera_make(f.s, 16, 12, &cam);
+    const double h = 0.6, lx = 0.3, lz = -0.2, rho_i = 0.5f * 5.0f;
+    const int n = 64;
+    double se_int = 0.0, se_pt = 0.0, sum = 0.0;
+    for (int j = 0; j < 12; j++)
+        for (int i = 0; i < 16; i++) {
+            double box = 0.0;
+            for (int b = 0; b < n; b++)
+                for (int a = 0; a < n; a++) {
+                    vec3 d = render_camera_ray(&cam, (float)(i + (a + 0.5) / n), (float)(j + (b + 0.5) / n));
+                    double t = -cam.eye.y / d.y, x = cam.eye.x + t * d.x - lx, z = cam.eye.z + t * d.z - lz;
+                    double dist = sqrt(x * x + h * h + z * z);
+                    box += rho_i * h / (TEST_PI * dist * dist * dist);
+                }
+            box /= (double)n * n;
+            double vi = exr_image_channel(&integral, "diffuse.G")[j * 16 + i];
+            double vp = exr_image_channel(&pointwise, "diffuse.G")[j * 16 + i];
+            se_int += (vi - box) * (vi - box);
+            se_pt += (vp - box) * (vp - box);
+            sum += box;
+        }
+    double mean = sum / (16.0 * 12.0), nrmse_int = sqrt(se_int / 192.0) / mean, nrmse_pt = sqrt(se_pt / 192.0) / mean;
+    printf("# Lambert floor under a near light, box average per pixel: NRMSE %.3g pixel integral (16 x 16), "
+           "%.3g point-sampled (k = 1)\n",
+           nrmse_int, nrmse_pt);
+    /* The midpoint rule's error falls as the square of the sample spacing: 1/256 of the centre
+     * sample's; 1e-4 leaves room for the 64 x 64 sum's own error and float shading. */
+    assert_true(nrmse_int < 1e-4);
+    assert_true(nrmse_pt > 20.0 * nrmse_int);
+    exr_image_free(&integral);
+    exr_image_free(&pointwise);
+    fixture_free(&f);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -440,6 +507,7 @@ int main(void)
         cmocka_unit_test(test_render_lambert_sun),
         cmocka_unit_test(test_render_point_and_mirror),
         cmocka_unit_test(test_render_manifest),
+        cmocka_unit_test(test_pixel_integral),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_bias_of_nv_tint),
     };

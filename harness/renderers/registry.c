@@ -39,11 +39,20 @@ static const renderer_row registry_rows[] = {
      .render = cycles_render_job,
      .physics = cycles_physics},
     {.name = "exact",
-     .title = "reflcheck exact physics",
-     .version = "reflcheck-exact-1",
+     .title = "reflcheck exact physics (pixel integral)",
+     .version = "reflcheck-exact-2",
      .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
                "the diffuse (they need an integral), shadows, inter-reflection, textures",
      .render = exact_render_job,
+     .physics = exact_physics},
+    /* exact at the rasterizer's own k x k sample positions: the shading's error alone (the float
+     * floor of a model that is its physics), sampling error cancelled (exact/exact.h). */
+    {.name = "exact_point",
+     .title = "reflcheck exact physics at the rasterizer's own samples",
+     .version = "reflcheck-exact-point-1",
+     .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
+               "the diffuse (they need an integral), shadows, inter-reflection, textures",
+     .render = exact_point_render_job,
      .physics = exact_physics},
     /* A real-time engine, judged like our model: validate against Cycles, agree with the raster.
      * Deterministic (TAA), so not stochastic: its samples reach the key through the scene. */

@@ -20,6 +20,14 @@ static rc_status exact_plans(const scene *s, const env_map *env, const physics *
     return RC_OK;
 }
 
+int exact_supersample(int k)
+{
+    /* Samples sit at i + (s + 0.5)/K: one of the rasterizer's k x k equals one of ours when
+     * (2s + 1) k = (2t + 1) K, impossible when K holds a higher power of two than k. K = 16, the
+     * renderer's largest, does for every k < 16 and puts at least 16x16 samples in a pixel. */
+    return k < EXACT_SUPERSAMPLE ? EXACT_SUPERSAMPLE : k;
+}
+
 rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t errlen)
 {
     /* The plans look at the environment's kind only. */
@@ -57,6 +65,8 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
     render_image img = {0};
     char err[1024];
     render_options ro = {.threads = j->threads, .plans = plans, .textures = j->tex};
+    if (eo == NULL || !eo->point)
+        ro.supersample = exact_supersample(j->s->supersample);
     rc_status st = render_scene(j->s, j->m, j->env, &ro, &img, err, sizeof err);
     if (st != RC_OK) {
         renderer_fail(r, st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED, "%s", err);
@@ -68,4 +78,14 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
     render_image_free(&img);
     if (st != RC_OK)
         renderer_fail(r, RUNNER_ERROR, "%s", err);
+}
+
+void exact_point_render_job(const renderer_job *j, renderer_result *r)
+{
+    const exact_options *eo = j->options;
+    exact_options o = eo != NULL ? *eo : (exact_options){0};
+    o.point = 1;
+    renderer_job pj = *j;
+    pj.options = &o;
+    exact_render_job(&pj, r);
 }

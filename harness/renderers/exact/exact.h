@@ -7,14 +7,21 @@
  *   exact_render_job(&j, &r);          r.status RUNNER_OK, or RUNNER_MISSING with what it cannot
  *   exact_options o = {.physics = scn.physics, .set = 1};  o.physics.fresnel_specular = PHYS_FRESNEL_NV;
  *   j.options = &o;                    tests: another physics than the scene's manifest
+ *   exact_options p = {.point = 1};    the point-sampled variant (below)
  * It renders the scene's physics manifest (scene.physics): every material is replaced by the
- * physical BRDF (model/physical.h) and rendered by the
- * rasterizer (model/render.h) with the scene's k x k box-filtered samples, in double precision
- * per sample: noise-free, no variance but that of the k x k samples inside each pixel (the
- * var.* layers, as the rasterizer writes them). Geometry and interpolation are float, shading
- * double. A twin has no meaning for a physical reference (it is refused, RUNNER_MISSING); so
- * are scenes whose physics needs an integral (a rough lobe under an environment, an
- * environment image on the diffuse): the message says which material and why.
+ * physical BRDF (model/physical.h) and rendered by the rasterizer (model/render.h), in double
+ * precision per sample, as a pixel integral: K x K box-filtered samples (exact_supersample:
+ * 16 x 16 for every scene supersample k < 16) at positions none of which is one of the
+ * rasterizer's own k x k, so raster-vs-exact holds the rasterizer's sampling error too (of a
+ * highlight, a texture, a shading-normal crease smaller than its samples resolve), not only the
+ * shading's. Its own integration error is that of K x K samples, (k/K)^2 of the rasterizer's
+ * where an edge or a highlight crosses a pixel. With .point = 1 it samples at the rasterizer's
+ * own k x k positions instead: the point-sampled variant, which answers the narrower question
+ * "how far is the shading alone from the physics, sample for sample" (sampling error cancels).
+ * Noise-free either way; the var.* layers hold the spread of the samples inside each pixel, as
+ * the rasterizer writes them. Geometry and interpolation are float, shading double. A twin has no meaning for a
+ * physical reference (it is refused, RUNNER_MISSING); so are scenes whose physics needs an integral (a rough lobe under
+ * an environment, an environment image on the diffuse): the message says which material and why.
  */
 #ifndef REFLCHECK_EXACT_H
 #define REFLCHECK_EXACT_H
@@ -25,9 +32,16 @@
 typedef struct {
     physics physics; /* used when set */
     int set;         /* 0 = the scene's manifest (scene.physics) */
+    int point;       /* 0 = the pixel integral (exact_supersample); 1 = the rasterizer's own samples */
 } exact_options;
 
+/* exact's samples per pixel side for a scene of supersample k (K x K, see above). */
+#define EXACT_SUPERSAMPLE 16
+int exact_supersample(int k);
+
 void exact_render_job(const renderer_job *j, renderer_result *r);
+/* The table's `exact_point`: exact_render_job with .point = 1, the rasterizer's own samples. */
+void exact_point_render_job(const renderer_job *j, renderer_result *r);
 /* The physics exact renders for s (renderer.h renderer_physics_fn): s->physics itself, or
  * RC_ERR_RANGE with what it cannot (shadows, inter-reflection, bounces > 1, a rough lobe
  * reflecting the environment, an environment image on the diffuse). */
