@@ -19,6 +19,7 @@
 #include <cJSON.h>
 
 #include "cli.h"
+#include "compare.h"
 #include "exr.h"
 #include "fit.h"
 #include "frame.h"
@@ -51,6 +52,40 @@ static cJSON *cli_fit_error_json(const fit_error *e)
     cli_fit_num(o, "worst1_share", e->worst1_share);
     cJSON_AddNumberToObject(o, "n_pixels", (double)e->n_pixels);
     return o;
+}
+
+/* The global stage and every local run: budget, screen, starts and where each ended, so the
+ * spread across starts shows whether the best point was found more than once. */
+static cJSON *cli_fit_global_json(const fit_result *r, const scene *sc, const fit_param *p, int n,
+                                  const cli_fit_opts *opt)
+{
+    cJSON *g = cJSON_CreateObject();
+    cJSON_AddNumberToObject(g, "budget", opt->fo.max_evals);
+    cJSON_AddNumberToObject(g, "screen_points", r->screen_points);
+    cJSON_AddNumberToObject(g, "starts_asked", opt->fo.starts > 0 ? opt->fo.starts : FIT_DEFAULT_STARTS);
+    cJSON_AddNumberToObject(g, "best_start", r->best_start);
+    cJSON_AddNumberToObject(g, "uncertainty_evaluations", r->uncertainty_evaluations);
+    cJSON_AddNumberToObject(g, "uncertainty_tol", FIT_UNCERTAINTY_TOL);
+    int within = 0;
+    cJSON *runs = cJSON_AddArrayToObject(g, "starts");
+    for (int s = 0; s < r->n_starts; s++) {
+        const fit_start *st = &r->starts[s];
+        cJSON *o = cJSON_CreateObject();
+        cJSON *a = cJSON_AddObjectToObject(o, "start"), *e = cJSON_AddObjectToObject(o, "end");
+        for (int i = 0; i < n; i++) {
+            char key[SCENE_NAME_MAX + 8];
+            snprintf(key, sizeof key, "%s.%s", sc->materials[p[i].material].name, fit_param_name(p[i].kind));
+            cJSON_AddNumberToObject(a, key, st->start[i]);
+            cJSON_AddNumberToObject(e, key, st->end[i]);
+        }
+        cli_fit_num(o, "nrmse", st->nrmse);
+        cJSON_AddNumberToObject(o, "evaluations", st->evaluations);
+        cJSON_AddStringToObject(o, "stop", st->stop);
+        cJSON_AddItemToArray(runs, o);
+        within += st->nrmse <= r->best.nrmse * (1.0 + FIT_UNCERTAINTY_TOL);
+    }
+    cJSON_AddNumberToObject(g, "starts_within_tol", within);
+    return g;
 }
 
 /* One validate comparison: its reference through the job cache, then the fit. Returns the exit
@@ -110,6 +145,19 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
         cJSON_AddStringToObject(o, "reason", err);
         return CLI_FAILED;
     }
+    /* compare's value gate, the same function: a reference compare would fail for a NaN or Inf
+     * (or a negative) value is no reference to fit to, though the fit's sums could skip it. */
+    char gate[900];
+    if (compare_value_gate(s, &img, reference, ROLE_VALIDATE, "ref", gate, sizeof gate)) {
+        char why[1100];
+        snprintf(why, sizeof why, "values: %s (%s)", gate, rec.exr);
+        fprintf(stderr, "reflcheck: fit: %s: %s: %s; the comparison fails on it, so no fit is made\n", path, id, why);
+        cJSON_AddStringToObject(o, "status", "error");
+        cJSON_AddStringToObject(o, "reason", why);
+        printf("%-20s %-28s error: %s\n", s->name, id, why);
+        exr_image_free(&img);
+        return CLI_FAILED;
+    }
     metrics_image ref = {img.width,
                          img.height,
                          {exr_image_channel(&img, "R"), exr_image_channel(&img, "G"), exr_image_channel(&img, "B")}};
@@ -144,12 +192,16 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
         cJSON_AddBoolToObject(q, "at_bound", p[i].at_bound);
         if (p[i].kind == FIT_D9_R0)
             cJSON_AddBoolToObject(q, "m_follows", p[i].tied);
+        cli_fit_num(q, "uncertainty", p[i].uncertainty);
+        cJSON_AddNumberToObject(q, "spread_lo", p[i].spread_lo);
+        cJSON_AddNumberToObject(q, "spread_hi", p[i].spread_hi);
         cJSON_AddItemToArray(pa, q);
         if (used < sizeof vals)
             used += (size_t)snprintf(vals + used, sizeof vals - used, " %s.%s=%.4g", s->materials[p[i].material].name,
                                      fit_param_name(p[i].kind), p[i].value);
     }
     cJSON_AddNumberToObject(o, "evaluations", r.evaluations);
+    cJSON_AddItemToObject(o, "global", cli_fit_global_json(&r, s, p, n, opt));
     cJSON_AddNumberToObject(o, "seconds", r.seconds);
     cJSON_AddStringToObject(o, "stop", r.stop);
     cJSON_AddNumberToObject(o, "width", r.width);
@@ -207,7 +259,13 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
         cJSON_AddStringToObject(root, "scene_path", path);
         cJSON_AddStringToObject(root, "variant", opt->variant == JOB_SMALL ? "small" : "full");
         cJSON_AddStringToObject(root, "bounds", opt->bounds == FIT_BOUNDS_WIDE ? "wide" : "seed");
-        cJSON_AddStringToObject(root, "algorithm", "NLopt LN_BOBYQA, parameters scaled to [0, 1] over their bounds");
+        cJSON_AddStringToObject(root, "algorithm",
+                                "a Halton screen (global), then NLopt LN_BOBYQA from the authored point and the best "
+                                "screened points apart from it (local), parameters scaled to [0, 1] over their bounds");
+        cJSON_AddNumberToObject(root, "starts", opt->fo.starts > 0 ? opt->fo.starts : FIT_DEFAULT_STARTS);
+        cJSON_AddStringToObject(root, "uncertainty",
+                                "per parameter: the change raising the best NRMSE by uncertainty_tol of itself, "
+                                "from the objective's curvature at the best point");
         cJSON_AddNumberToObject(root, "max_evaluations", opt->fo.max_evals);
         cJSON_AddNumberToObject(root, "xtol_scaled", opt->fo.xtol);
         cJSON_AddStringToObject(root, "objective",
@@ -245,15 +303,11 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
 int cli_fit(int argc, char **argv)
 {
     static const struct option longopts[] = {
-        {"out", required_argument, NULL, 'o'},
-        {"small", no_argument, NULL, 's'},
-        {"cache", required_argument, NULL, 'c'},
-        {"no-cache", no_argument, NULL, 'n'},
-        {"threads", required_argument, NULL, 't'},
-        {"max-evals", required_argument, NULL, 'M'},
-        {"xtol", required_argument, NULL, 'x'},
-        {"bounds", required_argument, NULL, 'b'},
-        {NULL, 0, NULL, 0},
+        {"out", required_argument, NULL, 'o'},     {"small", no_argument, NULL, 's'},
+        {"cache", required_argument, NULL, 'c'},   {"no-cache", no_argument, NULL, 'n'},
+        {"threads", required_argument, NULL, 't'}, {"max-evals", required_argument, NULL, 'M'},
+        {"xtol", required_argument, NULL, 'x'},    {"bounds", required_argument, NULL, 'b'},
+        {"starts", required_argument, NULL, 'S'},  {NULL, 0, NULL, 0},
     };
     cli_fit_opts opt = {.variant = JOB_FULL,
                         .out_dir = "reports/runs/manual",
@@ -273,6 +327,7 @@ int cli_fit(int argc, char **argv)
         case 'n': opt.cache_dir = NULL; break;
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &opt.fo.threads); break;
         case 'M': rc = cli_parse_int("--max-evals", optarg, 2, 100000, &opt.fo.max_evals); break;
+        case 'S': rc = cli_parse_int("--starts", optarg, 1, FIT_MAX_STARTS, &opt.fo.starts); break;
         case 'x': rc = cli_parse_double("--xtol", optarg, 1e-12, 0.5, &opt.fo.xtol); break;
         case 'b':
             if (strcmp(optarg, "seed") == 0 || strcmp(optarg, "wide") == 0) {
@@ -289,7 +344,7 @@ int cli_fit(int argc, char **argv)
         return rc;
     if (optind >= argc) {
         fprintf(stderr, "reflcheck: usage: reflcheck fit SCENE... [--out DIR] [--small] [--cache DIR | --no-cache] "
-                        "[--threads N] [--max-evals N] [--xtol X] [--bounds seed|wide]\n");
+                        "[--threads N] [--max-evals N] [--xtol X] [--bounds seed|wide] [--starts N]\n");
         return CLI_BAD_INPUT;
     }
     /* Every scene is read before any is fitted, so a bad one refuses the command at once. */

@@ -37,6 +37,26 @@ static const fit_range fit_ranges[2][5] = {
                          [FIT_CT_M] = {0.001, 1.0, 1}},
 };
 
+/* Global stage: Halton points per free parameter. 12 per parameter puts about 3.5 points along
+ * each axis of a 2-parameter box per basin of a tenth of the range, enough to land one start
+ * in the basin the authored point misses (d3d9_glass, p = 4.7 against p = 3.6). */
+#define FIT_SCREEN_PER_PARAM 12
+/* Screen storage: points times parameters, scaled coordinates. */
+#define FIT_MAX_SCREEN       256
+/* Two starts closer than this in every scaled coordinate would descend the same basin: a
+ * start's first BOBYQA step is 0.1 of the range. */
+#define FIT_START_APART      0.15
+/* The curvature probes' step: 1 % of the scaled range, small beside a basin (0.1) but large
+ * enough that the NRMSE change (about curv h^2 / 2, 1e-4 of f0 at typical curvatures) stands well
+ * above float rounding in the renders (1e-7 relative). */
+#define FIT_CURVATURE_STEP   0.01
+/* A local run's first step: a tenth of each range, large enough to see past a pixel's worth of
+ * highlight. */
+#define FIT_LOCAL_STEP       0.1
+/* A local run within this (scaled, every coordinate) of an earlier run's end has joined its
+ * basin: 5 % of a first step (0.1), 50 times xtol, so a run only passing by is not stopped. */
+#define FIT_SAME_END         0.005
+
 /* A fitted value this close (in the scaled range) to a bound is reported as held by it. */
 #define FIT_AT_BOUND 1e-3
 
@@ -157,6 +177,11 @@ typedef struct {
     double *best_x;
     fit_error best;
     int evaluations;
+    int budget;                                  /* evaluations allowed in all, the authored one included */
+    nlopt_opt run;                               /* the local run going on, NULL in the screen */
+    double ends[FIT_MAX_STARTS][FIT_MAX_PARAMS]; /* where the earlier local runs ended (scaled) */
+    int n_ends;
+    int joined; /* the current run reached an earlier end */
     rc_status failed;
     char *err;
     size_t errlen;
@@ -206,27 +231,50 @@ static rc_status fit_measure(const fit_ctx *c, const render_image *img, int robu
     return st;
 }
 
-static double fit_objective(unsigned n, const double *x, double *grad, void *data)
+/* The objective at scaled x, rendered and measured; HUGE_VAL (with c->failed set) when the
+ * render fails or nothing is measured. Touches no counter: the uncertainty probes use it too. */
+static double fit_value(fit_ctx *c, const double *x)
 {
-    (void)grad; /* derivative-free */
-    fit_ctx *c = data;
-    for (unsigned i = 0; i < n; i++)
+    for (int i = 0; i < c->n; i++)
         c->values[i] = fit_unscale(&c->p[i], x[i]);
-    fit_apply(c->s, c->p, (int)n, c->values);
+    fit_apply(c->s, c->p, c->n, c->values);
     render_image img = {0};
     rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &img, c->err, c->errlen);
     if (st != RC_OK) {
         c->failed = st;
         return HUGE_VAL;
     }
-    c->evaluations++;
     fit_error e;
     fit_measure(c, &img, 0, &e);
     render_image_free(&img);
-    double f = isfinite(e.nrmse) ? e.nrmse : HUGE_VAL;
+    return isfinite(e.nrmse) ? e.nrmse : HUGE_VAL;
+}
+
+static double fit_objective(unsigned n, const double *x, double *grad, void *data)
+{
+    (void)grad; /* derivative-free */
+    fit_ctx *c = data;
+    /* Each local run's maxeval keeps within the budget; this guards the screen's loop. */
+    if (c->evaluations >= c->budget || c->failed != RC_OK)
+        return HUGE_VAL;
+    double f = fit_value(c, x);
+    if (c->failed != RC_OK)
+        return HUGE_VAL;
+    c->evaluations++;
     if (f < c->best_f) {
         c->best_f = f;
         memcpy(c->best_x, x, n * sizeof *x);
+    }
+    /* A run that comes this close to where an earlier one ended is descending the same basin
+     * to the same end: stopping it saves the rest of its renders for the other starts. */
+    for (int e = 0; c->run != NULL && e < c->n_ends; e++) {
+        double d = 0.0;
+        for (unsigned q = 0; q < n; q++)
+            d = fmax(d, fabs(x[q] - c->ends[e][q]));
+        if (d < FIT_SAME_END) {
+            c->joined = 1;
+            nlopt_force_stop(c->run);
+        }
     }
     return f;
 }
@@ -283,6 +331,195 @@ static rc_status fit_crease(const scene *s, const mesh *m, int k, int threads, u
     return st;
 }
 
+/* Point i (from 1) of the Halton sequence in [0, 1]^n, one prime base per dimension: an even,
+ * deterministic spread with no seed to fix, and each prefix is itself evenly spread. */
+static void fit_halton(int i, int n, double *x)
+{
+    static const int primes[FIT_MAX_PARAMS] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53};
+    for (int d = 0; d < n; d++) {
+        double f = 1.0, r = 0.0;
+        for (int k = i; k > 0; k /= primes[d]) {
+            f /= primes[d];
+            r += f * (k % primes[d]);
+        }
+        x[d] = r;
+    }
+}
+
+/* Screen size: FIT_SCREEN_PER_PARAM points per parameter, at most a third of the budget so the
+ * local runs keep most of it (and none when one start is asked for: the fit is then local). */
+static int fit_screen_size(int n, int budget, int starts)
+{
+    if (starts <= 1)
+        return 0;
+    int k = FIT_SCREEN_PER_PARAM * n;
+    return k < budget / 3 ? k : budget / 3;
+}
+
+/* Starts: the authored point, then the best screened points at least FIT_START_APART (scaled,
+ * in some coordinate) from every start already taken, so two starts do not descend the
+ * same basin from next door. Returns how many. */
+static int fit_pick_starts(int n, const double *x0, const double *pts, const double *fs, int screened, int want,
+                           double (*starts)[FIT_MAX_PARAMS])
+{
+    memcpy(starts[0], x0, (size_t)n * sizeof *x0);
+    int k = 1;
+    char used[FIT_MAX_SCREEN] = {0};
+    while (k < want) {
+        int best = -1;
+        for (int i = 0; i < screened; i++) {
+            if (used[i] || !isfinite(fs[i]) || (best >= 0 && fs[i] >= fs[best]))
+                continue;
+            int apart = 1;
+            for (int j = 0; j < k && apart; j++) {
+                double d = 0.0;
+                for (int q = 0; q < n; q++)
+                    d = fmax(d, fabs(pts[i * n + q] - starts[j][q]));
+                apart = d >= FIT_START_APART;
+            }
+            if (apart)
+                best = i;
+            else
+                used[i] = 1;
+        }
+        if (best < 0)
+            break;
+        used[best] = 1;
+        memcpy(starts[k++], &pts[best * n], (size_t)n * sizeof *pts);
+    }
+    return k;
+}
+
+/* One local BOBYQA run from x (scaled; the run's end point comes back in x) with maxeval
+ * renders at most, its first steps step wide. */
+static nlopt_result fit_local(fit_ctx *c, double *x, int maxeval, double xtol, double step, double *f)
+{
+    double lo[FIT_MAX_PARAMS], hi[FIT_MAX_PARAMS];
+    for (int i = 0; i < c->n; i++) {
+        lo[i] = 0.0;
+        hi[i] = 1.0;
+    }
+    nlopt_opt h = nlopt_create(NLOPT_LN_BOBYQA, (unsigned)c->n);
+    if (h == NULL)
+        return NLOPT_OUT_OF_MEMORY;
+    nlopt_set_lower_bounds(h, lo);
+    nlopt_set_upper_bounds(h, hi);
+    nlopt_set_min_objective(h, fit_objective, c);
+    nlopt_set_xtol_abs1(h, xtol);
+    nlopt_set_maxeval(h, maxeval);
+    nlopt_set_initial_step1(h, step);
+    c->run = h;
+    c->joined = 0;
+    nlopt_result r = nlopt_optimize(h, x, f);
+    c->run = NULL;
+    nlopt_destroy(h);
+    if (c->n_ends < FIT_MAX_STARTS)
+        memcpy(c->ends[c->n_ends++], x, (size_t)c->n * sizeof *x);
+    return r;
+}
+
+/* The global stage, then the local one (fit.h): the screen of Halton points, then BOBYQA from
+ * each start with an even share of the budget left. x0 is the authored point (scaled), already
+ * rendered as evaluation 1. Fills the screen and start records of out and out->stop. */
+static rc_status fit_search(fit_ctx *c, const double *x0, int budget, double xtol, int want, fit_result *out)
+{
+    int n = c->n;
+    c->budget = budget;
+    want = want < 1 ? 1 : (want > FIT_MAX_STARTS ? FIT_MAX_STARTS : want);
+    int screen = fit_screen_size(n, budget, want);
+    screen = screen < FIT_MAX_SCREEN / n ? screen : FIT_MAX_SCREEN / n;
+    double pts[FIT_MAX_SCREEN], fs[FIT_MAX_SCREEN];
+    int screened = 0;
+    for (; screened < screen && c->evaluations < budget; screened++) {
+        fit_halton(screened + 1, n, &pts[screened * n]);
+        fs[screened] = fit_objective((unsigned)n, &pts[screened * n], NULL, c);
+        if (c->failed != RC_OK)
+            return c->failed;
+    }
+    out->screen_points = screened;
+    double starts[FIT_MAX_STARTS][FIT_MAX_PARAMS];
+    int k = fit_pick_starts(n, x0, pts, fs, screened, want, starts);
+    nlopt_result best_r = NLOPT_MAXEVAL_REACHED;
+    double best_f = HUGE_VAL;
+    out->best_start = -1;
+    for (int i = 0; i < k; i++) {
+        /* Each run to xtol: stopped early (at 1e-2, then the best polished) the runs' ends
+         * misranked their basins, and d3d9_glass lost the p = 4.7 one (0.26, 0.31, not 0.10). */
+        int left = budget - c->evaluations;
+        if (left < 1)
+            break;
+        fit_start *r = &out->starts[out->n_starts++];
+        double x[FIT_MAX_PARAMS], f = HUGE_VAL;
+        memcpy(x, starts[i], (size_t)n * sizeof *x);
+        int before = c->evaluations;
+        nlopt_result nr = fit_local(c, x, left / (k - i) > 0 ? left / (k - i) : 1, xtol, FIT_LOCAL_STEP, &f);
+        if (c->failed != RC_OK)
+            return c->failed;
+        if (nr == NLOPT_OUT_OF_MEMORY) {
+            status_message(c->err, c->errlen, "%s: fit: NLopt could not create its optimiser (out of memory)",
+                           c->s->path);
+            return RC_ERR_NOMEM;
+        }
+        for (int q = 0; q < n; q++) {
+            r->start[q] = fit_unscale(&c->p[q], starts[i][q]);
+            r->end[q] = fit_unscale(&c->p[q], x[q]);
+        }
+        r->nrmse = f;
+        r->evaluations = c->evaluations - before;
+        r->stop = c->joined ? "stopped: reached an earlier run's end (the same basin)" : fit_stop_text(nr);
+        if (f < best_f) {
+            best_f = f;
+            best_r = nr;
+            out->best_start = out->n_starts - 1;
+        }
+    }
+    out->stop = c->evaluations >= budget ? fit_stop_text(NLOPT_MAXEVAL_REACHED) : fit_stop_text(best_r);
+    return RC_OK;
+}
+
+/* The change of each parameter that raises the NRMSE by FIT_UNCERTAINTY_TOL of itself, from the
+ * curvature of the objective along that parameter at the best point (a central second
+ * difference, one-sided at a bound): NRMSE is the root of a sum of squares, so near its minimum
+ * f = f0 + curv dx^2 / 2 and dx = sqrt(2 tol f0 / curv). NAN where the objective does not curve
+ * up (flat) or the value is held by a bound. Also the spread of each parameter
+ * among the starts that ended within the same tolerance of the best. */
+static rc_status fit_uncertainty(fit_ctx *c, fit_param *pa, const double *xb, double f0, fit_result *out)
+{
+    const double h = FIT_CURVATURE_STEP;
+    for (int i = 0; i < c->n; i++) {
+        fit_param *p = &pa[i];
+        double x[FIT_MAX_PARAMS], f[2];
+        /* offsets of the two probes: either side, or two steps inward from a bound */
+        double d[2] = {h, -h};
+        if (xb[i] + h > 1.0)
+            d[0] = -2.0 * h;
+        else if (xb[i] - h < 0.0)
+            d[1] = 2.0 * h;
+        for (int k = 0; k < 2; k++) {
+            memcpy(x, xb, (size_t)c->n * sizeof *x);
+            x[i] = xb[i] + d[k];
+            f[k] = fit_value(c, x);
+            if (c->failed != RC_OK)
+                return c->failed;
+            out->uncertainty_evaluations++;
+        }
+        /* the parabola through (0, f0), (d0, f0'), (d1, f1'): its second derivative */
+        double curv = 2.0 * ((f[0] - f0) / d[0] - (f[1] - f0) / d[1]) / (d[0] - d[1]);
+        /* At a bound the objective still falls towards it: its curvature there bounds nothing. */
+        double dx = curv > 0.0 && isfinite(curv) && !p->at_bound ? sqrt(2.0 * FIT_UNCERTAINTY_TOL * f0 / curv) : NAN;
+        double v = fit_unscale(p, xb[i]);
+        double dvdx = p->log_scale ? v * (log(p->hi) - log(p->lo)) : p->hi - p->lo;
+        p->uncertainty = dx * dvdx;
+        p->spread_lo = p->spread_hi = v;
+        for (int s = 0; s < out->n_starts; s++)
+            if (out->starts[s].nrmse <= f0 * (1.0 + FIT_UNCERTAINTY_TOL)) {
+                p->spread_lo = fmin(p->spread_lo, out->starts[s].end[i]);
+                p->spread_hi = fmax(p->spread_hi, out->starts[s].end[i]);
+            }
+    }
+    return RC_OK;
+}
+
 rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metrics_image *ref, fit_param *p, int n,
                   const fit_options *o, fit_result *out, char *err, size_t errlen)
 {
@@ -316,7 +553,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     c.s = malloc(sizeof *c.s);
     c.mask = malloc(np);
     unsigned char *cls = malloc(np);
-    double x[FIT_MAX_PARAMS], lo[FIT_MAX_PARAMS], hi[FIT_MAX_PARAMS], vals[FIT_MAX_PARAMS], best_x[FIT_MAX_PARAMS];
+    double x[FIT_MAX_PARAMS], vals[FIT_MAX_PARAMS], best_x[FIT_MAX_PARAMS];
     c.values = vals;
     c.best_x = best_x;
     rc_status st = RC_OK;
@@ -330,8 +567,6 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         for (int i = 0; i < n; i++) {
             vals[i] = p[i].authored;
             x[i] = best_x[i] = fit_scale(&p[i], p[i].authored);
-            lo[i] = 0.0;
-            hi[i] = 1.0;
         }
         /* The geometry does not depend on the parameters: the authored render's coverage and
          * object layers give the surface mask for every evaluation. */
@@ -356,28 +591,8 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
             st = RC_ERR_RANGE;
         }
     }
-    nlopt_result nr = NLOPT_SUCCESS;
-    if (st == RC_OK) {
-        nlopt_opt opt_h = nlopt_create(NLOPT_LN_BOBYQA, (unsigned)n);
-        if (opt_h == NULL) {
-            status_message(err, errlen, "%s: fit: NLopt could not create its optimiser (out of memory)", s->path);
-            st = RC_ERR_NOMEM;
-        } else {
-            nlopt_set_lower_bounds(opt_h, lo);
-            nlopt_set_upper_bounds(opt_h, hi);
-            nlopt_set_min_objective(opt_h, fit_objective, &c);
-            nlopt_set_xtol_abs1(opt_h, xtol);
-            /* The authored render counts against the budget too. */
-            nlopt_set_maxeval(opt_h, max_evals - 1);
-            /* A tenth of each range: large enough to see past a pixel's worth of highlight. */
-            nlopt_set_initial_step1(opt_h, 0.1);
-            double f = 0.0;
-            nr = nlopt_optimize(opt_h, x, &f);
-            nlopt_destroy(opt_h);
-            if (c.failed != RC_OK)
-                st = c.failed;
-        }
-    }
+    if (st == RC_OK)
+        st = fit_search(&c, x, max_evals, xtol, opt.starts > 0 ? opt.starts : FIT_DEFAULT_STARTS, out);
     if (st == RC_OK) {
         for (int i = 0; i < n; i++) {
             p[i].value = fit_unscale(&p[i], best_x[i]);
@@ -387,12 +602,13 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         st = fit_render_measure(&c, vals, &img, &out->best);
         render_image_free(&img);
     }
+    if (st == RC_OK)
+        st = fit_uncertainty(&c, p, best_x, out->best.nrmse, out);
     out->evaluations = c.evaluations;
     out->seconds = fit_now() - t0;
     out->width = s->width;
     out->height = s->height;
     out->supersample = s->supersample;
-    out->stop = fit_stop_text(nr);
     free(c.s);
     free(c.mask);
     free(cls);

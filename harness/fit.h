@@ -3,7 +3,7 @@
  * Usage:
  *   fit_param p[FIT_MAX_PARAMS];
  *   int n = fit_default_params(&scn, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS);   free parameters, as authored
- *   fit_options o = {0};              zero = LN_BOBYQA, 150 evaluations, x tolerance 1e-4 of each range
+ *   fit_options o = {0};              zero = screen + 4 BOBYQA runs, 400 renders, x tolerance 1e-4
  *   fit_result r;
  *   fit_run(&scn, &msh, &env, &ref, p, n, &o, &r, err, sizeof err);
  *   r.authored.nrmse, r.best.nrmse, p[i].value, r.evaluations, r.seconds ...
@@ -20,12 +20,23 @@
  * COMPARE_REL_EPS)), the NRMSE without the worst 1 % of pixels, and their share of the squared
  * error.
  *
- * The optimiser is NLopt's bounded derivative-free BOBYQA (Powell 2009) on parameters scaled to
- * [0, 1] over their bounds (log-scaled for powers and roughness, which act multiplicatively),
- * started at the authored values. It stops when a step changes every scaled parameter by less
- * than o.xtol or after o.max_evals renders. The best point seen is kept, so best.nrmse is never
- * above authored.nrmse.
- *
+ * The search has two stages, on parameters scaled to [0, 1] over their bounds (log-scaled for
+ * powers and roughness, which act multiplicatively). Global: a screen of FIT_SCREEN_PER_PARAM
+ * points per parameter from the Halton sequence (deterministic: no seed), at most a third of
+ * the budget. Local: NLopt's bounded derivative-free BOBYQA (Powell 2009) from o.starts starts,
+ * the authored point first, then the best screened points FIT_START_APART from each other, each
+ * run with an even share of the budget left; a run stops when a step changes every scaled
+ * parameter by less than o.xtol or at its share, or when it comes within FIT_SAME_END of where an
+ * earlier run ended (the same basin, the same end). A local search from the authored point alone
+ * (o.starts = 1, the fit before the screen) stops in the first basin it meets: d3d9_glass wide
+ * against POV-Ray stopped at NRMSE 0.396 with the better basin at 0.10. The best point seen is
+ * kept, so best.nrmse is never above authored.nrmse, and the result records every run (start,
+ * end, NRMSE, renders, stop).
+ * Uncertainty per parameter: the change that raises the best NRMSE by FIT_UNCERTAINTY_TOL of
+ * itself, from the objective's curvature along the parameter at the best point (2 probes each).
+ * The curvature, not the spread among starts, because starts that reach the same basin end at
+ * the same point whatever the objective's flatness; the spread among starts within the same
+ * tolerance is reported beside it and shows a second basin as good as the best.
  * Free parameters per model (fit_default_params; materials no object uses are left out), with
  * their FIT_BOUNDS_SEED ranges (FIT_BOUNDS_WIDE in brackets):
  *   D3D9Client: p in the seed's typical range [2.5, 3.5] ([1, 10]), and r0 in [0.05, 0.25]
@@ -51,31 +62,44 @@
 #include "status.h"
 #include "texture.h"
 
-#define FIT_MAX_PARAMS    16
-/* The budget: a 1-3 parameter BOBYQA fit converges in 20-60 renders; 150 leaves room and caps
- * a full-size fit at about 20 s on 2 cores. */
-#define FIT_DEFAULT_EVALS 150
+#define FIT_MAX_PARAMS      16
+/* The budget, screen and local runs together: a 1-3 parameter BOBYQA run converges in 20-80
+ * renders; 400 pays for a 24-36 point screen and 4 such runs with room, and caps a full-size
+ * d3d9_glass fit (0.1 s a render on 2 cores) at about 40 s. */
+#define FIT_DEFAULT_EVALS   400
 /* 1e-4 of a parameter's range: far below what moves the error (p by 1e-4, m by 0.1 % on the
  * log scale), so the fit stops on convergence, not on the budget. */
-#define FIT_DEFAULT_XTOL  1e-4
+#define FIT_DEFAULT_XTOL    1e-4
+/* Local runs: the authored point and the 3 best screened points apart from it and each other. */
+#define FIT_DEFAULT_STARTS  4
+#define FIT_MAX_STARTS      8
+/* The uncertainty of a parameter: the change that raises the best NRMSE by 1 % of itself, an
+ * amount below which two fits' NRMSE figures do not differ in any threshold we gate. */
+#define FIT_UNCERTAINTY_TOL 0.01
 
 typedef enum { FIT_D9_P, FIT_D9_R0, FIT_D3D_VS, FIT_D3D_POWER, FIT_CT_M } fit_param_kind;
 typedef enum { FIT_BOUNDS_SEED = 0, FIT_BOUNDS_WIDE = 1 } fit_bounds;
 
 typedef struct {
     fit_param_kind kind;
-    int material;    /* index into scene.materials */
-    double lo, hi;   /* bounds */
-    int log_scale;   /* scaled as log(value) between log(lo) and log(hi) */
-    double authored; /* the scene's value: the start */
-    double value;    /* fitted (fit_run) */
-    int at_bound;    /* the fitted value is within 1e-3 of the range of a bound */
-    int tied;        /* FIT_D9_R0: m = 1 - r0 follows r0 */
-    vec3 colour;     /* FIT_D3D_VS: the authored specular colour, whose hue is kept */
+    int material;                /* index into scene.materials */
+    double lo, hi;               /* bounds */
+    int log_scale;               /* scaled as log(value) between log(lo) and log(hi) */
+    double authored;             /* the scene's value: the start */
+    double value;                /* fitted (fit_run) */
+    int at_bound;                /* the fitted value is within 1e-3 of the range of a bound */
+    int tied;                    /* FIT_D9_R0: m = 1 - r0 follows r0 */
+    vec3 colour;                 /* FIT_D3D_VS: the authored specular colour, whose hue is kept */
+    double uncertainty;          /* fit_run: the change raising the NRMSE by FIT_UNCERTAINTY_TOL of itself,
+                                    from the objective's curvature; NAN where it does not curve up or
+                                    the value is held by a bound */
+    double spread_lo, spread_hi; /* fit_run: the range of the value among starts ending within
+                                    FIT_UNCERTAINTY_TOL of the best NRMSE (the best included) */
 } fit_param;
 
 typedef struct {
-    int max_evals;               /* 0 = 150 */
+    int max_evals;               /* renders in all, screen and local runs; 0 = FIT_DEFAULT_EVALS */
+    int starts;                  /* local runs; 0 = FIT_DEFAULT_STARTS, 1 = local only, no screen */
     double xtol;                 /* per parameter, in the scaled [0, 1] range; 0 = 1e-4 */
     int threads;                 /* render threads, 0 = all cores */
     const texture_set *textures; /* the materials' textures (harness/frame.h), NULL = none */
@@ -91,13 +115,25 @@ typedef struct {
     long n_pixels;       /* surface pixels used (finite in both images) */
 } fit_error;
 
+/* One local run of the fit: where it started and ended (parameter values), its NRMSE there. */
+typedef struct {
+    double start[FIT_MAX_PARAMS], end[FIT_MAX_PARAMS];
+    double nrmse;
+    int evaluations;
+    const char *stop;
+} fit_start;
+
 typedef struct {
     fit_error authored, best;
     int evaluations; /* renders the optimiser asked for, the authored one included (the best point's
                         final render for its median is not counted) */
     double seconds;  /* wall time of the fit, renders included */
     int width, height, supersample;
-    const char *stop; /* why the optimiser stopped, in words */
+    const char *stop;  /* why the optimiser stopped, in words: the budget, else the best run's stop */
+    int screen_points; /* global stage: Halton points rendered (counted in evaluations) */
+    int n_starts, best_start;
+    fit_start starts[FIT_MAX_STARTS];
+    int uncertainty_evaluations; /* curvature probes: 2 per parameter, not in evaluations */
 } fit_result;
 
 /* The parameter's name as the fit record writes it: "p", "r0", "Vs", "P", "m". */

@@ -114,6 +114,7 @@ static void test_numbers(void **state)
         expect_refused(err, rc, opt);
     }
     expect_refused(err, cli_exec(err, sizeof err, "eval fresnel --ior nan"), "--ior 'nan'");
+    expect_refused(err, cli_exec(err, sizeof err, "fit scenes/d3d9_glass.yaml --starts 0"), "--starts '0'");
     char n[300];
     snprintf(n, sizeof n, "%s/n.exr", tmpdir);
     assert_int_equal(access(n, F_OK), -1);
