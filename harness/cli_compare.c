@@ -91,8 +91,8 @@ int cli_compare(int argc, char **argv)
             worst = CLI_FAILED;
             continue;
         }
-        printf("%-40s pass %d  warn %d  fail %d  skipped %d  error %d\n", argv[i], sum.pass, sum.warn, sum.fail,
-               sum.skipped, sum.error);
+        printf("%-40s pass %d  not gated %d  warn %d  fail %d  skipped %d  error %d\n", argv[i], sum.pass,
+               sum.not_gated, sum.warn, sum.fail, sum.skipped, sum.error);
         if (sum.fail > 0 || sum.error > 0) {
             failed = 1;
             if (sum.first_failure[0])

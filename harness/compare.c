@@ -222,6 +222,105 @@ typedef struct {
     unsigned bits; /* RENDERER_TERM_* it holds */
 } compare_term;
 
+/* A bias a per-pixel z-test cannot see: a small offset spread over every pixel. Per channel,
+ * the mean difference over the surface, d = mean(test - ref), against its standard error from
+ * both sides' per-pixel variances, se = sqrt(sum var_i) / N (pixels independent: a box filter
+ * of width 1 shares no sample between pixels). *z and *rel: the channel with the largest |z|,
+ * d / se and d over the reference's mean. Returns 0 when no surface pixel counts. */
+static int compare_bias_core(const float *const tp[3], const float *const rp[3], const float *const rv[3],
+                             const float *const tv[3], const unsigned char *mask, size_t np, double *z, double *rel)
+{
+    int any = 0;
+    *z = 0.0;
+    *rel = 0.0;
+    for (int c = 0; c < 3; c++) {
+        double d = 0.0, v = 0.0, ref = 0.0;
+        long n = 0;
+        for (size_t i = 0; i < np; i++) {
+            double di = (double)tp[c][i] - (double)rp[c][i];
+            double vi = (double)rv[c][i] + (tv != NULL ? (double)tv[c][i] : 0.0);
+            if (!mask[i] || !isfinite(di) || !isfinite(vi))
+                continue;
+            d += di;
+            v += vi;
+            ref += rp[c][i];
+            n++;
+        }
+        if (n == 0)
+            continue;
+        /* A channel both sides render as exactly zero has no bias to test; an offset against a
+         * zero variance is as far as a double goes. */
+        double zc = v > 0.0 ? d / sqrt(v) : (d == 0.0 ? 0.0 : copysign(1e300, d));
+        if (!any || fabs(zc) > fabs(*z)) {
+            *z = zc;
+            *rel = ref != 0.0 ? d / ref : 0.0;
+        }
+        any = 1;
+    }
+    return any;
+}
+
+/* A term's bias (compare_bias_core) from its var.<layer> planes, layers of one sample taken as
+ * independent (an upper bound on the variance where they correlate): bias_z and bias_rel in m;
+ * nothing when the reference has no such planes (a deterministic renderer). */
+static void compare_term_bias(const exr_image *t, const exr_image *r, const compare_term *term, float *tp[3],
+                              float *rp[3], const unsigned char *mask, cJSON *m)
+{
+    size_t np = (size_t)t->width * (size_t)t->height;
+    float *vb = malloc(6 * np * sizeof(float));
+    if (vb == NULL)
+        return;
+    float *rv[3] = {vb, vb + np, vb + 2 * np}, *tv[3] = {vb + 3 * np, vb + 4 * np, vb + 5 * np};
+    char names[2][64];
+    const char *vl[2];
+    for (int l = 0; l < term->n; l++) {
+        snprintf(names[l], sizeof names[l], "var.%s", term->layers[l]);
+        vl[l] = names[l];
+    }
+    double z, rel;
+    if (compare_term_planes(r, vl, term->n, rv)) {
+        int test_var = compare_term_planes(t, vl, term->n, tv);
+        const float *tc[3] = {tp[0], tp[1], tp[2]}, *rc[3] = {rp[0], rp[1], rp[2]};
+        const float *rvc[3] = {rv[0], rv[1], rv[2]}, *tvc[3] = {tv[0], tv[1], tv[2]};
+        if (compare_bias_core(tc, rc, rvc, test_var ? tvc : NULL, mask, np, &z, &rel)) {
+            cJSON_AddNumberToObject(m, "bias_z", z);
+            cJSON_AddNumberToObject(m, "bias_rel", rel);
+        }
+    }
+    free(vb);
+}
+
+/* compare.json's "bias": the image's (R, G, B with var.R/G/B) and each term's (compare_terms)
+ * mean departure from the reference in standard errors; z_max the largest |z|, term where it
+ * is ("image" for the whole), rel its size. Absent where the reference has no variance. */
+static void compare_bias_summary(const metrics_image *tm, const metrics_image *rm, const exr_image *t,
+                                 const exr_image *r, const cJSON *terms, const unsigned char *mask, cJSON *cmp)
+{
+    metrics_image rv = compare_planes(r, "var"), tv = compare_planes(t, "var");
+    double z = 0.0, rel = 0.0;
+    const char *where = NULL;
+    size_t np = (size_t)r->width * (size_t)r->height;
+    if (rv.c[0] && rv.c[1] && rv.c[2] &&
+        compare_bias_core(tm->c, rm->c, rv.c, tv.c[0] && tv.c[1] && tv.c[2] ? tv.c : NULL, mask, np, &z, &rel))
+        where = "image";
+    const cJSON *term;
+    cJSON_ArrayForEach(term, terms)
+    {
+        const cJSON *tz = cJSON_GetObjectItemCaseSensitive(term, "bias_z");
+        if (cJSON_IsNumber(tz) && (where == NULL || fabs(tz->valuedouble) > fabs(z))) {
+            z = tz->valuedouble;
+            rel = cJSON_GetNumberValue(cJSON_GetObjectItemCaseSensitive(term, "bias_rel"));
+            where = term->string;
+        }
+    }
+    if (where == NULL)
+        return;
+    cJSON *b = cJSON_AddObjectToObject(cmp, "bias");
+    cJSON_AddNumberToObject(b, "z_max", fabs(z));
+    cJSON_AddStringToObject(b, "term", where);
+    cJSON_AddNumberToObject(b, "rel", rel);
+}
+
 /* Error by term on the surface, from the layers both sides have: each term's mean on both
  * sides and its RMSE over the whole reference image's mean (so the terms' figures share one
  * scale with the image's nrmse). A twin splits its light as the model does: diffuse, specular,
@@ -272,6 +371,7 @@ static cJSON *compare_terms(const exr_image *t, const exr_image *r, const metric
         cJSON_AddNumberToObject(m, "ref_mean", compare_mean(&rm, mask));
         cJSON_AddNumberToObject(m, "nrmse", cnt > 0 && scale > 0.0 ? sqrt(se / (3.0 * (double)cnt)) / scale : 0.0);
         cJSON_AddNumberToObject(m, "n_pixels", (double)cnt);
+        compare_term_bias(t, r, &terms[k], tp, rp, mask, m);
     }
     free(buf);
     return o;
@@ -423,6 +523,8 @@ static int compare_metric_value(const cJSON *cmp, const char *metric, double *v)
             grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "aovs"), head);
         if (grp == NULL)
             grp = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(cmp, "terms"), head);
+        if (grp == NULL && strcmp(head, "bias") == 0)
+            grp = cJSON_GetObjectItemCaseSensitive(cmp, "bias");
         x = cJSON_GetObjectItemCaseSensitive(grp, dot + 1);
     } else {
         x = cJSON_GetObjectItemCaseSensitive(
@@ -441,12 +543,28 @@ static int compare_higher_is_better(const char *metric)
     return strcmp(base, "psnr") == 0 || strcmp(base, "ssim") == 0 || strcmp(base, "coverage_agreement") == 0;
 }
 
+/* Whether a threshold judges accuracy (how far the images are apart), or only guards the
+ * inputs: that the values are finite and of the right sign, that the silhouettes agree, that a
+ * region set apart stays small. A comparison with guards alone has no accuracy gate: its
+ * verdict is "not_gated", never "pass", whatever its figures. */
+static int compare_is_accuracy(const char *metric)
+{
+    static const char *const guards[] = {"test_nonfinite", "ref_nonfinite",      "test_negative",
+                                         "ref_negative",   "coverage_agreement", "crease.share_of_surface"};
+    for (size_t i = 0; i < sizeof guards / sizeof guards[0]; i++)
+        if (strcmp(metric, guards[i]) == 0)
+            return 0;
+    return 1;
+}
+
 static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp, const char *id, compare_summary *sum)
 {
     cJSON *arr = cJSON_AddArrayToObject(cmp, "thresholds");
     int worst = 0; /* 0 pass, 1 warn, 2 fail */
+    int accuracy = 0;
     for (int i = 0; i < c->n_thresholds; i++) {
         const threshold *t = &c->thresholds[i];
+        accuracy += compare_is_accuracy(t->metric);
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "metric", t->metric);
         cJSON_AddNumberToObject(o, "warn", t->warn);
@@ -480,7 +598,7 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
         cJSON_AddStringToObject(o, "verdict", verdict);
         cJSON_AddItemToArray(arr, o);
     }
-    return worst == 2 ? "fail" : worst == 1 ? "warn" : "pass";
+    return worst == 2 ? "fail" : worst == 1 ? "warn" : accuracy == 0 ? "not_gated" : "pass";
 }
 
 static const char compare_b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -1073,8 +1191,9 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
             if (m != NULL)
                 cJSON_AddItemToObject(aovs, compare_aovs[a], m);
         }
-        cJSON_AddItemToObject(o, "terms",
-                              compare_terms(&t.img, &r.img, &rm, part.left_out, c->role == ROLE_TWIN, mask[0]));
+        cJSON *terms = compare_terms(&t.img, &r.img, &rm, part.left_out, c->role == ROLE_TWIN, mask[0]);
+        cJSON_AddItemToObject(o, "terms", terms);
+        compare_bias_summary(&tm, &rm, &t.img, &r.img, terms, mask[0], o);
         const float *rc = exr_image_channel(&r.img, "coverage"), *tc = exr_image_channel(&t.img, "coverage");
         if (rc != NULL && tc != NULL) {
             long agree = 0;
@@ -1117,6 +1236,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         sum->fail++;
     else if (strcmp(verdict, "warn") == 0)
         sum->warn++;
+    else if (strcmp(verdict, "not_gated") == 0)
+        sum->not_gated++;
     else
         sum->pass++;
     free(cls);

@@ -10,7 +10,13 @@
  * installed, or it cannot represent the scene); "error" when a record is missing or not JSON,
  * says anything but ok or skipped (failed, crashed, timeout, error), or its image cannot be
  * read, lacks R, G, B or differs in size; else "pass", "warn" or "fail" from the thresholds
- * and the value gate. "reason" says why for skipped, error and a gate failure.
+ * and the value gate, where "pass" needs an accuracy gate: a comparison whose thresholds only
+ * guard its inputs (finite and non-negative values, coverage, the crease share) and hold is
+ * "not_gated". "reason" says why for skipped, error and a gate failure.
+ * Bias: where the reference has var.* layers, each term's mean difference over the surface
+ * against its standard error (terms.<t>.bias_z, bias_rel; "bias": the worst term, z_max), a
+ * threshold metric (bias.z_max) that sees an offset spread over every pixel, which the
+ * per-pixel z-test cannot.
  * Value gate: every comparison counts, over all pixels of both images and every layer it may
  * read (R, G, B; in a twin the diffuse, specular, reflection layers; var.*; coverage, object,
  * ndotv, ndotl), the NaN/Inf values and the negative radiance and variance values, into
@@ -52,6 +58,7 @@
 
 typedef struct {
     int pass, warn, fail, skipped, error;
+    int not_gated;            /* judged by guards alone (finite values, coverage): no accuracy gate */
     char first_failure[1024]; /* "scene: comparison: metric value > threshold (why)" */
 } compare_summary;
 

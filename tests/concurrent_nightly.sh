@@ -58,7 +58,7 @@ else:
         strip = lambda c: [{k: v for k, v in x.items() if k not in ('times',)} for x in c['comparisons']]
         if strip(ca) != strip(cb):
             bad.append(f'{s}: comparisons differ between the runs')
-        if any(x['status'] not in ('pass', 'warn') for x in ca['comparisons']):
+        if any(x['status'] not in ('pass', 'not_gated', 'warn') for x in ca['comparisons']):
             bad.append(f'{s}: verdicts {[x["status"] for x in ca["comparisons"]]}')
     if n_jobs < 4:
         bad.append(f'only {n_jobs} job records')

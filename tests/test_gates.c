@@ -21,6 +21,7 @@
 
 #include <cJSON.h>
 
+#include "check.h"
 #include "cli_exec.h"
 #include "exr.h"
 #include "jobs.h"
@@ -610,6 +611,73 @@ static void test_crease_region_gated(void **state)
                 "      crease.share_of_surface: {warn: 0.03, fail: 0.05, why: \"the mesh's own creases\"}\n", 0);
 }
 
+/* A comparison whose thresholds only guard its inputs (finite values, coverage) is measured and
+ * shown but never called pass: "not_gated"; one accuracy threshold makes it pass again. */
+static void test_guards_alone_are_not_gated(void **state)
+{
+    (void)state;
+    char err[2048], scn[512], run[512], text[1024];
+    snprintf(scn, sizeof scn, "%s/guards.yaml", dir);
+    snprintf(run, sizeof run, "%s/run-guards", dir);
+    static const char *const gates[2] = {
+        "      test_nonfinite: {warn: 0, fail: 0, why: \"finite output\"}\n"
+        "      coverage_agreement: {warn: 0.9995, fail: 0.999, why: \"same triangles\"}\n",
+        "      test_nonfinite: {warn: 0, fail: 0, why: \"finite output\"}\n"
+        "      rel_rms: {warn: 5e-4, fail: 1e-3, why: \"twin precision floor\"}\n"};
+    static const char *const want[2] = {"not_gated", "pass"};
+    static gate_image im;
+    image_flat(&im, 0.5f);
+    for (int k = 0; k < 2; k++) {
+        snprintf(text, sizeof text,
+                 "name: guards\nimage: {width: %d, height: %d}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+                 "materials:\n  m: {model: d3d}\n"
+                 "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+                 "comparisons:\n  - reference: povray\n    role: twin\n    thresholds:\n%s",
+                 W, H, gates[k]);
+        write_text(scn, text);
+        put_job(run, "guards", registry_find("raster"), ROLE_TWIN, "ok", &im);
+        put_job(run, "guards", registry_find("povray"), ROLE_TWIN, "ok", &im);
+        assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), 0);
+        cJSON *j = read_compare(run, "guards");
+        assert_string_equal(jstr(first_comparison(j), "status"), want[k]);
+        cJSON_Delete(j);
+    }
+}
+
+/* An offset of 0.3 standard deviations on every pixel passes the per-pixel z-test, and the
+ * mean's z is 0.3 sqrt(N) on the N surface pixels: with a bias.z_max gate it fails. */
+static void test_bias_over_every_pixel_fails(void **state)
+{
+    (void)state;
+    char err[2048];
+    gate_fixture *f = fixture_make("bias", "twin", "d3d", "");
+    put_scene(f->scn, "bias", "twin", "d3d", "");
+    FILE *fp = fopen(f->scn, "a");
+    assert_non_null(fp);
+    fputs("      bias.z_max: {warn: 3, fail: 5, why: \"no offset beyond the mean's noise\"}\n", fp);
+    fclose(fp);
+    for (int c = 0; c < 3; c++)
+        for (int i = 0; i < NP; i++) {
+            f->r.var[c][i] = 1e-4f; /* sd 0.01 */
+            f->t.rgb[c][i] = 0.5f + 0.003f;
+        }
+    fixture_jobs(f, ROLE_TWIN);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run), 1);
+    cJSON *j = read_compare(f->run, "bias");
+    const cJSON *c = first_comparison(j);
+    const cJSON *z = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "noise"), "ztest");
+    assert_true(jnum(z, "n_fail_pixels") == 0.0);
+    double n =
+        jnum(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "surface"), "n_pixels");
+    const cJSON *b = cJSON_GetObjectItemCaseSensitive(c, "bias");
+    /* float offsets: 0.503f - 0.5f is 0.003 to 1e-7 relative */
+    close_rel(jnum(b, "z_max"), 0.003 * n / sqrt(n * 1e-4f), 1e-4);
+    close_rel(jnum(b, "rel"), 0.003 / 0.5, 1e-4);
+    assert_string_equal(jstr(b, "term"), "image");
+    assert_string_equal(jstr(c, "status"), "fail");
+    cJSON_Delete(j);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -622,6 +690,8 @@ int main(void)
         cmocka_unit_test(test_diff_exit_status),
         cmocka_unit_test(test_view_js_escapes_scene_name),
         cmocka_unit_test(test_crease_region_gated),
+        cmocka_unit_test(test_guards_alone_are_not_gated),
+        cmocka_unit_test(test_bias_over_every_pixel_fails),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
 }

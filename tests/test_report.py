@@ -133,7 +133,7 @@ def test_summary_json(built):
     with open(os.path.join(built['run'], 'summary.json'), encoding='utf-8') as f:
         s = json.load(f)
     assert s['run_id'] == RUN1 and s['commit'] == 'abc1234' and s['time'] == '2025-01-01T12:00:00Z'
-    assert s['counts'] == {'fail': 1, 'error': 0, 'warn': 0, 'skipped': 1, 'pass': 1}
+    assert s['counts'] == {'fail': 1, 'error': 0, 'warn': 0, 'skipped': 1, 'not_gated': 0, 'pass': 1}
     assert [x['name'] for x in s['scenes']] == ['alpha', 'beta']
     assert sum(len(x['comparisons']) for x in s['scenes']) == 3
     assert s['renderer_versions'] == {

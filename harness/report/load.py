@@ -97,7 +97,7 @@ def norm_comparison(c, path, problems, scene, index):
     out['id'] = str(c.get('id') or f'{c.get("test", "?")}-vs-{c.get("reference", "?")}-{c.get("role", "?")}')
     status = str(c.get('status', 'error')).lower()
     if status not in VERDICT_ORDER:
-        problems.add(path, f'comparison {out["id"]}: unknown status "{status}" (pass|warn|fail|skipped|error)', scene)
+        problems.add(path, f'comparison {out["id"]}: unknown status "{status}" ({"|".join(VERDICTS)})', scene)
         status = 'error'
     out['status'] = status
     for key in ('regions', 'aovs', 'terms', 'times', 'noise'):

@@ -197,6 +197,9 @@ def junit_xml(R):
                 elif c['status'] == 'skipped' or (t is not None and str(t.get('verdict')) == 'skipped'):
                     ET.SubElement(tc, 'skipped', message=f'{s["name"]}: {c["id"]}: {c.get("reason") or "skipped"}')
                     cnt['skipped'] += 1
+                elif t is None and c['status'] == 'not_gated':
+                    ET.SubElement(tc, 'skipped', message=f'{s["name"]}: {c["id"]}: not gated (no accuracy threshold)')
+                    cnt['skipped'] += 1
                 elif t is None:
                     if c['status'] == 'fail':
                         f = ET.SubElement(

@@ -15,7 +15,9 @@ PLOTS = os.path.join(HARNESS, 'plots')
 # Element ids, data attributes and page-data names shared by the templates and report.js.
 IDS_FILE = os.path.join(ASSETS, 'ids.json')
 
-VERDICTS = ('fail', 'error', 'warn', 'skipped', 'pass')
+# not_gated: a comparison whose thresholds only guard its inputs (finite values, coverage) and
+# hold: measured, shown, never called pass (harness/compare.h).
+VERDICTS = ('fail', 'error', 'warn', 'skipped', 'not_gated', 'pass')
 VERDICT_ORDER = {v: i for i, v in enumerate(VERDICTS)}
 JOB_ORDER = {'crashed': 0, 'failed': 1, 'timeout': 2, 'error': 3, 'skipped': 4, 'ok': 5}
 HIGHER_BETTER = ('psnr', 'ssim', 'coverage_agreement')
