@@ -53,8 +53,9 @@ static const fit_range fit_ranges[2][5] = {
 /* A local run's first step: a tenth of each range, large enough to see past a pixel's worth of
  * highlight. */
 #define FIT_LOCAL_STEP       0.1
-/* A local run within this (scaled, every coordinate) of an earlier run's end has joined its
- * basin: 5 % of a first step (0.1), 50 times xtol, so a run only passing by is not stopped. */
+/* A local run within this (scaled, every coordinate) of an earlier run's end, and within
+ * FIT_UNCERTAINTY_TOL of its NRMSE, has joined its basin: 5 % of a first step (0.1), 50 times
+ * xtol, so a run only passing by is not stopped. */
 #define FIT_SAME_END         0.005
 
 /* A fitted value this close (in the scaled range) to a bound is reported as held by it. */
@@ -180,8 +181,10 @@ typedef struct {
     int budget;                                  /* evaluations allowed in all, the authored one included */
     nlopt_opt run;                               /* the local run going on, NULL in the screen */
     double ends[FIT_MAX_STARTS][FIT_MAX_PARAMS]; /* where the earlier local runs ended (scaled) */
+    double end_f[FIT_MAX_STARTS];                /* and their NRMSE */
     int n_ends;
-    int joined; /* the current run reached an earlier end */
+    int joined;                          /* the current run reached an earlier end */
+    double run_f, run_x[FIT_MAX_PARAMS]; /* the current run's best: what a stopped run returns */
     rc_status failed;
     char *err;
     size_t errlen;
@@ -265,13 +268,19 @@ static double fit_objective(unsigned n, const double *x, double *grad, void *dat
         c->best_f = f;
         memcpy(c->best_x, x, n * sizeof *x);
     }
+    if (c->run != NULL && f < c->run_f) {
+        c->run_f = f;
+        memcpy(c->run_x, x, n * sizeof *x);
+    }
     /* A run that comes this close to where an earlier one ended is descending the same basin
      * to the same end: stopping it saves the rest of its renders for the other starts. */
     for (int e = 0; c->run != NULL && e < c->n_ends; e++) {
         double d = 0.0;
         for (unsigned q = 0; q < n; q++)
             d = fmax(d, fabs(x[q] - c->ends[e][q]));
-        if (d < FIT_SAME_END) {
+        /* near in place and in value: a run near an end but still well above it (a narrow
+         * valley, r0 in d3d9_glass) has not reached it yet */
+        if (d < FIT_SAME_END && f <= c->end_f[e] * (1.0 + FIT_UNCERTAINTY_TOL)) {
             c->joined = 1;
             nlopt_force_stop(c->run);
         }
@@ -410,11 +419,19 @@ static nlopt_result fit_local(fit_ctx *c, double *x, int maxeval, double xtol, d
     nlopt_set_initial_step1(h, step);
     c->run = h;
     c->joined = 0;
+    c->run_f = HUGE_VAL;
     nlopt_result r = nlopt_optimize(h, x, f);
     c->run = NULL;
     nlopt_destroy(h);
-    if (c->n_ends < FIT_MAX_STARTS)
+    /* A forced stop hands back the last point tried: the run's record is its best. */
+    if (c->run_f < HUGE_VAL) {
+        memcpy(x, c->run_x, (size_t)c->n * sizeof *x);
+        *f = c->run_f;
+    }
+    if (c->n_ends < FIT_MAX_STARTS) {
+        c->end_f[c->n_ends] = *f;
         memcpy(c->ends[c->n_ends++], x, (size_t)c->n * sizeof *x);
+    }
     return r;
 }
 
