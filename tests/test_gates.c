@@ -644,8 +644,8 @@ static void test_guards_alone_are_not_gated(void **state)
     }
 }
 
-/* An offset of 0.3 standard deviations on every pixel passes the per-pixel z-test, and the
- * mean's z is 0.3 sqrt(N) on the N surface pixels: with a bias.z_max gate it fails. */
+/* An offset of 0.8 standard deviations on every pixel passes the per-pixel z-test (its Holm
+ * limit is near 4), and the mean's z is 0.8 sqrt(N) on the N surface pixels: its gate fails. */
 static void test_bias_over_every_pixel_fails(void **state)
 {
     (void)state;
@@ -659,7 +659,7 @@ static void test_bias_over_every_pixel_fails(void **state)
     for (int c = 0; c < 3; c++)
         for (int i = 0; i < NP; i++) {
             f->r.var[c][i] = 1e-4f; /* sd 0.01 */
-            f->t.rgb[c][i] = 0.5f + 0.003f;
+            f->t.rgb[c][i] = 0.5f + 0.008f;
         }
     fixture_jobs(f, ROLE_TWIN);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run), 1);
@@ -670,11 +670,51 @@ static void test_bias_over_every_pixel_fails(void **state)
     double n =
         jnum(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "surface"), "n_pixels");
     const cJSON *b = cJSON_GetObjectItemCaseSensitive(c, "bias");
-    /* float offsets: 0.503f - 0.5f is 0.003 to 1e-7 relative */
-    close_rel(jnum(b, "z_max"), 0.003 * n / sqrt(n * 1e-4f), 1e-4);
-    close_rel(jnum(b, "rel"), 0.003 / 0.5, 1e-4);
+    /* float offsets: 0.508f - 0.5f is 0.008 to 1e-6 relative; the float floor adds 1e-10 of
+     * variance per pixel to the 1e-4 */
+    close_rel(jnum(b, "z_max"), 0.008 * n / sqrt(n * (1e-4f + 25e-12)), 1e-4);
+    close_rel(jnum(b, "rel"), 0.008 / 0.5, 1e-4);
+    assert_true(jnum(b, "z_max") > 5.0);
     assert_string_equal(jstr(b, "term"), "image");
+    const cJSON *th = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(c, "thresholds"), 1);
+    assert_string_equal(jstr(th, "metric"), "bias.z_max");
+    assert_string_equal(jstr(th, "verdict"), "fail");
+    cJSON_Delete(j);
+
+    /* The same images as a twin against a path tracer that states no bias threshold: the
+     * built-in gate (5 standard errors without the worst 1 %) fails it, and the reason says so. */
+    char text[1024];
+    snprintf(text, sizeof text,
+             "name: bias\nimage: {width: %d, height: %d}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  m: {model: d3d}\n"
+             "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+             "comparisons:\n  - reference: cycles\n    role: twin\n    thresholds:\n"
+             "      z_fail_share: {warn: 0.0005, fail: 0.002, why: \"beyond Cycles noise\"}\n",
+             W, H);
+    write_text(f->scn, text);
+    put_job(f->run, "bias", registry_find("raster"), ROLE_TWIN, "ok", &f->t);
+    put_job(f->run, "bias", registry_find("cycles"), ROLE_TWIN, "ok", &f->r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run), 1);
+    j = read_compare(f->run, "bias");
+    c = first_comparison(j);
     assert_string_equal(jstr(c, "status"), "fail");
+    assert_non_null(strstr(jstr(c, "reason"), "bias: the image term's mean"));
+    cJSON_Delete(j);
+
+    /* A twin whose test image covers half the pixels (a camera the reference cannot take)
+     * fails the built-in coverage gate though its surface figures agree. */
+    for (int i = 0; i < NP; i++) {
+        for (int k = 0; k < 3; k++)
+            f->t.rgb[k][i] = 0.5f;
+        f->r.var[0][i] = f->r.var[1][i] = f->r.var[2][i] = 1e-4f;
+        f->t.cov[i] = i < NP / 2 ? 1.0f : 0.0f;
+    }
+    put_job(f->run, "bias", registry_find("raster"), ROLE_TWIN, "ok", &f->t);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run), 1);
+    j = read_compare(f->run, "bias");
+    c = first_comparison(j);
+    assert_string_equal(jstr(c, "status"), "fail");
+    assert_non_null(strstr(jstr(c, "reason"), "coverage: 0.5 of the pixels agree"));
     cJSON_Delete(j);
 }
 
