@@ -160,7 +160,7 @@ test-scenes: $(CLI)
 	@bash tests/run_scenes.sh $(BUILD)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.
-# SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (README "Slurm").
+# SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (docs/slurm.md).
 SCHEDULER ?= make
 report: deps
 	$(MAKE) -j$(NPROC) all

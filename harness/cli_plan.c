@@ -1,7 +1,7 @@
 /* reflcheck plan: the render jobs the scenes' comparisons need, as a Makefile, so that
  * `make -j` runs them in parallel and each scene renders only the renderers and roles its
  * comparisons list; with --scheduler slurm, the same jobs as a script that submits each one
- * as a Slurm array task (README "Slurm"). Twin and validate have their own renders (twin
+ * as a Slurm array task (docs/slurm.md). Twin and validate have their own renders (twin
  * switches our Cook-Torrance to Smith G and F = 1; validate renders the scene's physics);
  * agree compares exactly the two validate renders, so it adds no render of its own.
  *

@@ -8,11 +8,11 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
       libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2
       procps)
 # Textures (model/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
-# read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: README "Real meshes").
+# read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: docs/meshes.md).
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
 # DDS textures and cube maps (harness/image_oiio.cpp: a C shim over OpenImageIO's C++ API).
 pkgs+=(libopenimageio-dev)
-# The Slurm backend and its local test cluster (harness/slurm/, README "Slurm").
+# The Slurm backend and its local test cluster (harness/slurm/, docs/slurm.md).
 pkgs+=(slurm-wlm munge)
 # EEVEE's OpenGL context (harness/renderers/eevee/): Xvfb with Mesa's llvmpipe.
 pkgs+=(xvfb xauth libgl1-mesa-dri)

@@ -16,7 +16,7 @@ typedef struct {
     int log_scale; /* powers and roughness act multiplicatively */
 } fit_range;
 
-/* Seed ranges: ../shared/seeds/000, "A typical range for the power parameter is 2.5 to 3.5 ...
+/* Seed ranges: seed 000 (docs/models.md, D3D9Client eq. 3), "A typical range for the power parameter is 2.5 to 3.5 ...
  * the offset R_0 ... 0.05 to 0.25", the multiplier set to 1 - offset. Direct3D colours are
  * fractions of the light, and a Blinn power beyond 256 is a glint at our sizes (a lobe about 7
  * degrees wide). Beckmann m below 0.01 is a lobe narrower than a pixel here; 1 is the roughest

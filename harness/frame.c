@@ -137,7 +137,7 @@ rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t 
 /* A cube map of N x N faces converts to an equirectangular image this many times N wide and half
  * that high: 360 degrees over 4 N cube texels, so FRAME_CUBE_EQUIRECT_PER_FACE / 4 equirectangular
  * texels per cube texel, which keeps the references' bilinear lookup of the conversion within
- * the floor README "Cube maps" measures. */
+ * the floor docs/cubemaps.md measures. */
 #define FRAME_CUBE_EQUIRECT_PER_FACE 64
 rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err, size_t errlen)
 {

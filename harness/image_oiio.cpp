@@ -30,7 +30,7 @@ std::string one_line(std::string s)
     return s.empty() ? std::string("no reason given") : s;
 }
 
-// What to do about a DDS OpenImageIO 2.4 cannot decode (measured: README "Cube maps").
+// What to do about a DDS OpenImageIO 2.4 cannot decode (measured: docs/cubemaps.md).
 const char *const dds_fix = "re-save it as DXT1/DXT5 (BC1/BC3) with a legacy header, BC7_UNORM, or uncompressed "
                             "A8R8G8B8";
 

@@ -20,7 +20,7 @@
  * file, at most max_bytes) and read whole into memory; a header whose faces need more bytes than
  * the file has (at BC1's 8 bytes a 4x4 block, the most compact) or more memory than the limit is
  * refused before allocating (fileio_image_budget), and OpenImageIO's DDS reader decodes it
- * from there. Formats OpenImageIO 2.4.7 decodes (README "Cube maps", measured): legacy headers
+ * from there. Formats OpenImageIO 2.4.7 decodes (docs/cubemaps.md, measured): legacy headers
  * with uncompressed RGB/RGBA masks, DXT1..DXT5, ATI1/ATI2 (BC4/BC5); DX10 headers with BC4, BC5,
  * BC6H and BC7_UNORM only. Colour needs three or four channels (BC4, BC5, luminance are refused).
  * Status: RC_ERR_IO (cannot open), RC_ERR_RANGE (not a regular file, too large, not the kind

@@ -330,7 +330,7 @@ __attribute__((format(printf, 3, 4))) static void job_fail(job_record *r, runner
     va_end(ap);
 }
 
-/* The Slurm id of the job (README "Slurm"): the spec's, else the environment's: an array task
+/* The Slurm id of the job (docs/slurm.md): the spec's, else the environment's: an array task
  * as ARRAY_TASK (what scontrol and sacct take), a step as JOB.STEP, else JOB. 0 outside Slurm. */
 static int job_slurm_id(const job_spec *j, char *buf, size_t len)
 {

@@ -102,7 +102,7 @@ void job_apply_overrides(scene *s, const job_spec *j);
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen);
 /* mkdir -p: path and every missing parent (0755); 0, or -1 with errno set. */
 int job_mkdirs(const char *path);
-/* The exit status of `reflcheck run` for job_run's result (README "Exit status"). */
+/* The exit status of `reflcheck run` for job_run's result (README, "The CLI": exit status). */
 int job_exit_status(rc_status st, const job_record *rec);
 
 #endif

@@ -26,7 +26,7 @@
 # RUN_ID, SMALL=1 (test-size renders), NO_SWEEP=1, NO_SCREENSHOT=1 (any non-empty value), SCHEDULER.
 #
 # SCHEDULER=slurm (default make): the render jobs, the sweep and the compare step run as Slurm
-# jobs (README "Slurm"): `plan --scheduler slurm` submits one array task per render; the sweep
+# jobs (docs/slurm.md): `plan --scheduler slurm` submits one array task per render; the sweep
 # is one job of JOBS CPUs on one node (SWEEP_MINUTES, default 240) whose renders are srun steps;
 # compare runs after all of them (afterany), first writing the records of jobs Slurm ended;
 # stability, the plot and the report run here. RUN and CACHE must be on a filesystem every node

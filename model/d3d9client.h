@@ -14,7 +14,7 @@
  * formula_colour_norm), shared with the SIMD lanes and the stability reference.
  * Pure functions; every finite argument gives a finite result (sums are formed in double
  * and saturated to +-FLT_MAX); a NaN argument propagates.
- * Dissolve (seed 000, our reading: README "Dissolve"):
+ * Dissolve (seed 000, our reading: docs/dissolve.md):
  *   if (d3d9client_dissolve_on(mat))
  *       dir = v3_add(reflect(-V, N), d3d9client_dissolve_offset(&mat->d9, u, v));   then phi = env(dir)
  */

@@ -7,7 +7,7 @@
  *   vec3 L = env_lookup(&e, dir);     dir: any non-zero canonical direction (normalised inside)
  *   env_texel_check chk;
  *   if (env_check(&e, &chk) != RC_OK) ...  chk.n_nonfinite, chk.n_negative, chk.first_nonfinite.x ...
- * Orientation (CONVENTIONS.md, verified against POV-Ray and Cycles): direction (x, y, z) maps to
+ * Orientation (docs/conventions.md, verified against POV-Ray and Cycles): direction (x, y, z) maps to
  * u = 0.5 + atan2(z, x)/(2 pi) (to the right) and v = 0.5 + asin(y)/pi (up; image row 0 is the
  * top); texel centres at (i + 0.5)/W, bilinear, wrapping in u and clamping in v.
  * rgb is interleaved R, G, B floats, row 0 at the top; the map does not own it.
@@ -109,7 +109,7 @@ vec3 env_cube_direction(int face, float s, float t);
  * at the top, the ENV_IMAGE orientation above): each texel is the cube lookup in the direction
  * of the texel's centre, without the scale. An exact conversion at the texel centres; a renderer
  * that interpolates it bilinearly departs from the cube lookup between them (most at the seams),
- * by less the larger the image (README "Cube maps" measures it). */
+ * by less the larger the image (docs/cubemaps.md measures it). */
 void env_cube_to_equirect(const env_map *cube, int width, int height, float *rgb);
 
 #endif

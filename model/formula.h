@@ -417,7 +417,7 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
     return d_alpha > norm_r_tot ? d_alpha : norm_r_tot;
 }
 
-/* ---- D3D9Client Dissolve (seed 000; our reading of its shader, README "Dissolve") ----------- */
+/* ---- D3D9Client Dissolve (seed 000; our reading of its shader, docs/dissolve.md) ----------- */
 
 /* One texel coordinate of the noise texture read at t (u or v) times scale: x = t scale SIZE -
  * 1/2 in texels (texel centres at (i + 1/2)/SIZE, as model/texture.c's), its whole part wrapped

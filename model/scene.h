@@ -94,7 +94,7 @@ typedef struct {
     colour_norm norm;    /* |lambda| and |R_tot|, default max */
     int sun_angle;       /* equation (8), default 0 */
     float alpha;         /* d_a, the material/texture alpha of equation (7), default 1 */
-    /* Dissolve (seed 000, README "Dissolve"): noise scale ("particle size") and strength, both
+    /* Dissolve (seed 000, docs/dissolve.md): noise scale ("particle size") and strength, both
      * default 0 (off; either 0 turns it off); only on a material with a diffuse texture. */
     float dissolve_scale, dissolve_strength;
 } d3d9client_params;

@@ -3,7 +3,7 @@
  * PNG and JPEG are decoded by Debian's libpng 1.6 (simplified API) and libjpeg-turbo, the
  * libraries every engine's tool chain carries. DDS comes through the harness's OpenImageIO shim
  * (harness/image_oiio.h) into texture_from_srgb8 / texture_from_rgba, so this library stays C
- * with no OpenImageIO dependency (README "Cube maps"). */
+ * with no OpenImageIO dependency (docs/cubemaps.md). */
 #include "texture.h"
 
 #include <limits.h>

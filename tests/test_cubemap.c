@@ -384,8 +384,8 @@ static void test_refusals(void **state)
 
 /* What the references receive: the city cube's conversion as frame_env_cube_write writes it, read
  * back, looked up bilinearly, against the cube lookup over 400 000 directions uniform on the
- * sphere. Prints the luminance relative RMS and the largest relative departure (README "Cube
- * maps" quotes them: 3.7e-3 and 0.74); the bound leaves room for the sun, which dominates it. */
+ * sphere. Prints the luminance relative RMS and the largest relative departure (docs/cubemaps.md
+ * quotes them: 3.7e-3 and 0.74); the bound leaves room for the sun, which dominates it. */
 static void test_conversion_floor(void **state)
 {
     (void)state;

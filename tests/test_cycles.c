@@ -1,5 +1,5 @@
 /* test_cycles.c - the Cycles translation against independent closed forms, with the real
- * blender (CONVENTIONS.md settings). Each render is tiny (<= 64 x 48, 2 seeds x 32 spp).
+ * blender (docs/conventions.md settings). Each render is tiny (<= 64 x 48, 2 seeds x 32 spp).
  * Expected values are computed here in double from first principles: our own camera ray
  * through sub-pixel positions (box average over the pixel), ray-plane intersection, Lambert,
  * Beckmann D and Smith-Walter G written out again, not taken from the model library.

@@ -466,7 +466,7 @@ static void test_header_lies(void **state)
     assert_non_null(strstr(err, "empty.dds"));
 }
 
-/* What this OpenImageIO reads and refuses, printed for README "Cube maps" (and asserted, so a
+/* What this OpenImageIO reads and refuses, printed for docs/cubemaps.md (and asserted, so a
  * new libOpenImageIO that reads more shows here). */
 static void test_formats(void **state)
 {
@@ -516,7 +516,7 @@ static void test_formats(void **state)
         printf(" %s %s;", l[i].name, st == RC_OK ? "read" : "refused");
         image_dds_free(&d);
         if (st == RC_OK)
-            fail_msg("%s is read now: README's Known limits say it is not", l[i].name);
+            fail_msg("%s is read now: docs/limits.md says it is not", l[i].name);
     }
     printf("\n");
 }

@@ -1,4 +1,4 @@
-/* D3D9Client Dissolve (seed 000, README "Dissolve"): the noise texels against values worked out
+/* D3D9Client Dissolve (seed 000, docs/dissolve.md): the noise texels against values worked out
  * by hand (the published lowbias32 hash, in Python), the offset at texel centres and between
  * them, the off switch and strength scaling, the noise's mean and variance (which the
  * validate's roughness m = strength / sqrt(54) rests on), every formula instance and the SIMD

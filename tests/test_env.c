@@ -1,4 +1,4 @@
-/* Environment lookup: orientation (CONVENTIONS.md) and bilinear filtering with texel
+/* Environment lookup: orientation (docs/conventions.md) and bilinear filtering with texel
  * centres at +0.5, on a small asymmetric image whose texels are all different; texels checked
  * on load (env_check, and through the CLI: render and check refuse NaN, Inf and negative
  * texels naming the first one). */

@@ -720,7 +720,7 @@ static void test_mesh_lenient(void **state)
 /* Real meshes no one here wrote (Debian's assimp-testmodels, installed by harness/deps.sh): the
  * three the reader used to refuse although every renderer takes them. The counts were worked
  * out apart from mesh.c, by a Python fan triangulation of each file in double precision
- * (README "Real meshes"); the spider's one zero normal serves only zero-area triangles. */
+ * (docs/meshes.md); the spider's one zero normal serves only zero-area triangles. */
 static void test_assimp_models(void **state)
 {
     (void)state;

@@ -112,7 +112,7 @@ static void base_scene(scene *s, int w, int h, vec3 eye, vec3 target, double hfo
     s->objects[0].material = 0;
 }
 
-/* ---- an independent pinhole camera (canonical frame, CONVENTIONS.md) ---------------- */
+/* ---- an independent pinhole camera (canonical frame, docs/conventions.md) ------ */
 
 typedef struct {
     dvec3 eye, f, r, u;
@@ -653,7 +653,7 @@ static void test_camera_projection(void **state)
 /* Image environment seen directly: a 16x8 equirectangular EXR whose R grows linearly with
  * the column (value i + 1 in column i) and G with the row (j + 1, row 0 at the top), so
  * bilinear filtering with texel centres at +0.5 reproduces R = 16 u + 0.5, G = 8 (1 - v) + 0.5
- * exactly, u = 0.5 + atan2(z, x)/(2 pi), v = 0.5 + asin(y)/pi (CONVENTIONS.md). The camera
+ * exactly, u = 0.5 + atan2(z, x)/(2 pi), v = 0.5 + asin(y)/pi (docs/conventions.md). The camera
  * looks along +x, away from the seam at -x and the poles; the scale 2 multiplies it all. */
 static void test_env_image(void **state)
 {
@@ -859,7 +859,7 @@ static void test_refusals(void **state)
     mesh_release(&m);
 }
 
-/* The SDL states what CONVENTIONS.md requires: every finish term, no_shadow/no_reflection,
+/* The SDL states what docs/conventions.md requires: every finish term, no_shadow/no_reflection,
  * the camera line and the sky_sphere with the rotation and the scale. */
 static void test_sdl_text(void **state)
 {

@@ -14,7 +14,7 @@
 # reports; ProctrackType=proctrack/linuxproc and TaskPlugin=task/none need no cgroups, so it
 # runs in a container too. A start that fails stops what it started (trap) and exits 1.
 #
-# A real multi-node cluster differs: see README "Slurm" (shared run folder and cache,
+# A real multi-node cluster differs: see docs/slurm.md (shared run folder and cache,
 # partition, accounts, what each node needs).
 set -euo pipefail
 

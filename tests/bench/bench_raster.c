@@ -37,7 +37,7 @@
 #define BENCH_SPEED_TARGET 2.0
 
 /* Floating-point operations per sample of the D3D9Client path with one point light and one
- * sun, counted from the formulas (README, "Flop count"): add/mul/compare-free arithmetic 1,
+ * sun, counted from the formulas (tests/bench/README.md, "Flop count"): add/mul/compare-free arithmetic 1,
  * fma 2, div/sqrt 1, pow/atan2/asin at the cost of a minimax polynomial (~20). */
 #define BENCH_FLOP_SURFACE    360.0
 #define BENCH_FLOP_BACKGROUND 100.0

@@ -1,6 +1,6 @@
 /* libFuzzer target: the YAML scene parser (harness/scene_file.h), then the models on what it
  * accepts. The input is passed without a terminating NUL, so a read past len is caught by
- * AddressSanitizer. A scene the parser accepts is shaded at a few fixed points: MODELS.md
+ * AddressSanitizer. A scene the parser accepts is shaded at a few fixed points: docs/models.md
  * section 5 says bad input is rejected where it enters, so an accepted scene that makes
  * shade_eval, or the SIMD batch form shade_eval_n the shading loop runs, produce NaN or Inf is
  * a finding (the fuzzer aborts with the input). Relative

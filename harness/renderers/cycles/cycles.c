@@ -249,7 +249,7 @@ static void cycles_write_light(jw *w, cJSON *lights, const light *l)
         jw_put_vec(w, o, "direction", "lights.direction", v3_norm(l->direction));
     if (l->kind == LIGHT_SPOT) {
         /* Cycles: cos * smoothstep from cos(size/2) over (1 - cos(size/2)) * blend, which is
-         * POV-Ray's radius/falloff pair with half angles inner/2, outer/2 (CONVENTIONS.md). */
+         * POV-Ray's radius/falloff pair with half angles inner/2, outer/2 (docs/conventions.md). */
         double cf = cos(0.5 * (double)l->outer), cr = cos(0.5 * (double)l->inner);
         jw_put_num(w, o, "spot_size", "lights.spot_size", l->outer);
         jw_put_num(w, o, "spot_blend", "lights.spot_blend", cf < 1.0 ? (cr - cf) / (1.0 - cf) : 0.0);
@@ -671,7 +671,7 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     int height = o->height > 0 ? o->height : s->height;
     int samples = o->samples > 0 ? o->samples : s->samples;
     int n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
-    /* Blender refuses images smaller than 4 pixels (CONVENTIONS.md). */
+    /* Blender refuses images smaller than 4 pixels (docs/conventions.md). */
     if (width < 4 || height < 4 || width > 65536 || height > 65536) {
         status_message(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
                        s->path, width, height);

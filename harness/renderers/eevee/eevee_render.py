@@ -37,7 +37,7 @@ import bpy
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cycles"))
 import cycles_render as cr  # noqa: E402  (the shared Blender scene translation)
 
-# Fixed EEVEE settings (README, "EEVEE"). Samples come from the job (the scene's samples).
+# Fixed EEVEE settings (docs/eevee.md). Samples come from the job (the scene's samples).
 EEVEE_SETTINGS = {
     # A light's influence ends where its intensity falls below this; 1e-6 puts that beyond
     # 100 m for every canonical light (their intensities are >= 1e-2 W/sr), where 0.01, the

@@ -1,7 +1,7 @@
 /* povray.c - POV-Ray 3.7 SDL writer, command line, runner and box filter (see povray.h).
  *
  * The SDL facts used here (finish defaults are not zero, fade law, spot profile, camera
- * handedness, sky_sphere orientation, half-float EXR) are those of /work/shared/CONVENTIONS.md;
+ * handedness, sky_sphere orientation, half-float EXR) are those of docs/conventions.md;
  * tests/test_povray.c renders each one and checks it against an independent formula.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -587,7 +587,7 @@ static rc_status povray_vertex_colour_check(const scene *s, const mesh *m, int m
  * table itself rather than through our lookup, so the twin checks the table: POV-Ray's canonical
  * frame is ours, D3D Z = -z. Per face, (s, t) is clamped to the texel-centre range
  * [0.5/N, 1 - 0.5/N] and looked up with image_map interpolate 2 (bilinear, texel centres as ours,
- * README "Textures"), v = 1 - t: bilinear clamped at the face edge, as D3D9 samples a cube. A
+ * docs/textures.md), v = 1 - t: bilinear clamped at the face edge, as D3D9 samples a cube. A
  * function pattern gives one scalar, so each channel is its own pattern over the channel's
  * maximum (times 1.01, keeping the value below 1, where patterns wrap) through a colour map,
  * and the three are averaged (hence the 3). */
