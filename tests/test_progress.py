@@ -74,8 +74,9 @@ def test_watch_counts_whole_records_and_names_failed_ones(tmp_path):
     run = tmp_path / 'run'
     (run / 'a').mkdir(parents=True)
     (run / 'a' / 'raster-twin.json').write_text(json.dumps({'renderer': 'raster', 'status': 'ok'}))
-    (run / 'a' / 'povray-twin.json').write_text(json.dumps({'renderer': 'povray', 'status': 'failed',
-                                                            'message': 'povray failed (exit status 1)\nmore'}))
+    (run / 'a' / 'povray-twin.json').write_text(
+        json.dumps({'renderer': 'povray', 'status': 'failed', 'message': 'povray failed (exit status 1)\nmore'})
+    )
     (run / 'a' / 'compare.json').write_text('{}')  # not a job record
     (run / 'a' / 'cycles-twin.json').write_text('{"renderer": "cy')  # still being written
     out = io.StringIO()
@@ -85,3 +86,58 @@ def test_watch_counts_whole_records_and_names_failed_ones(tmp_path):
     assert rc == 1
     assert 'renders: FAILED a/povray-twin: failed: povray failed (exit status 1)' in text
     assert text.splitlines()[-1].startswith('renders: 2/3 done, 1 failed')
+
+
+def test_expected_time_gives_an_estimate_before_the_one_unit_ends():
+    clock, out = Clock(), io.StringIO()
+    p = progress.Progress('stability', 1, stream=out, clock=clock, expected=30.0)
+    clock.t += 12.0
+    assert abs(p.eta() - 18.0) < 1e-9
+    clock.t += 40.0  # past the expected time: no estimate rather than a wrong one
+    assert p.eta() is None
+
+
+def test_each_runs_every_item_names_a_failure_when_it_ends_and_keeps_the_worst_status(tmp_path):
+    log, out = tmp_path / 'fit.txt', io.StringIO()
+    # Each item appends its fields to the log; the second one fails with exit 3. The first
+    # item's record is written before the second starts, so its line precedes the failure.
+    cmd = ['/bin/sh', '-c', 'echo "fit $0 $1"; [ "$1" != b.yaml ] || { echo "b: no reference" >&2; exit 3; }']
+    rc = progress.each(
+        cmd + ['{1}', '{2}'],
+        ['seed\ta.yaml', 'seed\tb.yaml', 'wide\ta.yaml'],
+        'fits',
+        10.0,
+        log=str(log),
+        poll=0.01,
+        stream=out,
+    )
+    assert rc == 3
+    assert log.read_text().splitlines() == ['fit seed a.yaml', 'fit seed b.yaml', 'b: no reference', 'fit wide a.yaml']
+    lines = out.getvalue().splitlines()
+    assert 'fits: FAILED seed b.yaml: exit 3: b: no reference' in lines
+    assert lines.index('fits: FAILED seed b.yaml: exit 3: b: no reference') < len(lines) - 1
+    assert lines[-1].startswith('fits: 3/3 done, 1 failed')
+
+
+def test_substitute_replaces_once_so_braces_in_an_item_stay():
+    assert progress.substitute(['x{}', '{2}', '{1}', '{3}'], 'a{1}\tb') == ['xa{1}\tb', 'b', 'a{1}', '{3}']
+
+
+def test_follow_shows_failures_and_the_latest_line_of_another_process(tmp_path):
+    f = tmp_path / 'sweep.txt'
+    f.write_text('sweep: 1/4 done\nnoise\nsweep: FAILED s/cycles-16: failed: exit 1\nsweep: 2/4 done, 1 failed\n')
+    out = io.StringIO()
+    progress.follow(str(f), 'sweep', 10.0, ended=lambda: True, poll=0.0, stream=out)
+    assert out.getvalue().splitlines() == ['sweep: FAILED s/cycles-16: failed: exit 1', 'sweep: 2/4 done, 1 failed']
+
+
+def test_an_exited_child_not_yet_reaped_is_not_alive():
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    # Wait for its exit without reaping it (WNOWAIT): a zombie, which kill(pid, 0) still finds.
+    os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT)
+    os.kill(pid, 0)
+    assert not progress.alive(pid)
+    os.waitpid(pid, 0)
+    assert not progress.alive(pid)
