@@ -122,10 +122,12 @@ test-mutant: $(CLI)
 test-kill: $(CLI)
 	@bash tests/kill_nightly.sh $(BUILD)
 
-# The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer.
+# The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer;
+# its progress lines, a failed job named while the run goes on, its options and their variables.
 test-status: $(CLI)
 	@bash tests/nightly_status.sh $(BUILD)
 	@bash tests/nightly_paths.sh $(BUILD)
+	@bash tests/nightly_progress.sh $(BUILD)
 
 # Two nightlies at once on one cache: both complete, the shared jobs render once, and both
 # history lines are intact.
@@ -161,10 +163,12 @@ test-scenes: $(CLI)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.
 # SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (docs/slurm.md).
+# Your own scenes: make report SCENES="my/a.yaml my/b.yaml" ARGS="--small --no-sweep" (ARGS: the
+# options of bash harness/nightly.sh --help); the run goes to reports/runs/, which git ignores.
 SCHEDULER ?= make
 report: deps
 	$(MAKE) -j$(NPROC) all
-	@SCHEDULER=$(SCHEDULER) bash harness/nightly.sh
+	@SCHEDULER=$(SCHEDULER) BIN="$${BIN:-$(CLI)}" bash harness/nightly.sh $(ARGS)
 
 # Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
 # to tests/regress/ once fixed. FUZZ_TIME seconds per target. The fuzz targets link the whole

@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # The nightly on a user's own scene, in a scratch copy of the tree that is a git repository of
 # its own (so the real checkout is never touched), with every output at its default place:
-#  1. a scene in a folder whose name holds a space and non-ASCII letters, given as an argument
-#     and as a one-per-line SCENES list, runs and compares (exit 0);
+#  1. a scene in a folder whose name holds a space and non-ASCII letters, given with the
+#     documented command (bash harness/nightly.sh --small --no-sweep --no-screenshot --scenes
+#     PATH, no environment settings) and as a one-per-line SCENES list, runs and compares (exit 0);
 #  2. a space-separated SCENES whose words are not files is refused (exit 2) with one line
 #     naming the word and the fix;
 #  3. the runs leave `git status --porcelain` empty: run folders, cache, latest and the local
 #     history (reports/local/history.jsonl) are generated output, the reference history
 #     reports/history.jsonl is unchanged, and the report says which history its trends show;
-#  4. REFERENCE=1 names a run the project's reference run on purpose: it, and only it, appends to
-#     reports/history.jsonl.
+#  4. --reference (REFERENCE=1) names a run the project's reference run on purpose: it, and only
+#     it, appends to reports/history.jsonl.
 # Usage: bash tests/nightly_paths.sh BUILD
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -40,11 +41,13 @@ unset RUNS HISTORY LATEST CACHE SCENES REFERENCE REFERENCE_HISTORY RUN_ID SCHEDU
 cd "$tree" || exit 1
 ref_before=$(sha256sum reports/history.jsonl)
 
-# 1. As an argument, then as a SCENES list of one path per line.
-bash harness/nightly.sh "$dir/d3d scaled é.yaml" > "$work/arg.log" 2>&1
+# 1. With the documented command and its options alone, then as a SCENES list of one path per line.
+env -u SMALL -u NO_SWEEP -u NO_SCREENSHOT bash harness/nightly.sh --small --no-sweep --no-screenshot \
+    --scenes "$dir/d3d scaled é.yaml" > "$work/arg.log" 2>&1
 st=$?
 [ $st -eq 0 ] && [ -f "$(ls -d reports/runs/*/d3d_scaled | head -n1)/compare.json" ] &&
-    ok "a scene path with a space and non-ASCII letters as an argument: exit 0, compared" ||
+    [ ! -e "$(ls -d reports/runs/*/d3d_scaled | head -n1)/../screenshot.png" ] &&
+    ok "the documented command on a scene path with a space and non-ASCII letters: exit 0, compared" ||
     bad "scene path as an argument: exit $st; see $work/arg.log"
 RUN_ID=listed SCENES=$'\n'"$dir/d3d scaled é.yaml"$'\n' bash harness/nightly.sh > "$work/list.log" 2>&1
 st=$?
@@ -73,13 +76,13 @@ grep -q "reference runs\? from reports/history.jsonl" reports/runs/listed/index.
     bad "the report does not name the histories its trends show; see reports/runs/listed/index.html"
 
 # 4. On purpose: REFERENCE=1 appends to the versioned history, and the local one is untouched.
-RUN_ID=reference REFERENCE=1 bash harness/nightly.sh "$dir/d3d scaled é.yaml" > "$work/ref.log" 2>&1
+bash harness/nightly.sh --run-id reference --reference "$dir/d3d scaled é.yaml" > "$work/ref.log" 2>&1
 st=$?
 [ $st -eq 0 ] && [ "$(git status --porcelain)" = " M reports/history.jsonl" ] &&
     [ "$(tail -n1 reports/history.jsonl | grep -c '"run_id":"reference"')" = 1 ] &&
     [ "$(grep -c '"run_id"' reports/local/history.jsonl)" = 2 ] &&
-    ok "REFERENCE=1: the run's line goes to reports/history.jsonl only" ||
-    bad "REFERENCE=1: exit $st, git status '$(git status --porcelain)'; see $work/ref.log"
+    ok "--reference: the run's line goes to reports/history.jsonl only" ||
+    bad "--reference: exit $st, git status '$(git status --porcelain)'; see $work/ref.log"
 
 echo "paths: $pass passed, $fail failed"
 [ $fail -eq 0 ]
