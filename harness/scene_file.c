@@ -1105,6 +1105,11 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
         m->d9.m = 1.0f - m->d9.r0;
     if (!ctm_given)
         m->ct.m = m->roughness;
+    /* A d3d material without a specular colour shows no highlight: its physics gets no lobe
+     * either, unless the file writes a roughness (then the user asked for one). */
+    if (m->model == MODEL_D3D && !f[MK_ROUGHNESS].v && m->d3d.specular.x == 0.0f && m->d3d.specular.y == 0.0f &&
+        m->d3d.specular.z == 0.0f)
+        m->lobe = 0;
     if (!f0_given)
         m->ct.f0 = m->conductor ? v3(sf_f0(m->eta.x, m->k.x), sf_f0(m->eta.y, m->k.y), sf_f0(m->eta.z, m->k.z))
                                 : v3s(sf_f0(m->ior, 0.0));
@@ -1460,6 +1465,18 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
             if ((rc = sf_enum(c, f[2].v, child, roles, 3, &v)))
                 return rc;
             cmp->role = (comparison_role)v;
+        }
+        /* An agree measures one reference's physics by another: an approximation (a row with no
+         * physics, like the model or EEVEE) on either side would make it a second validate. */
+        for (int side = 0; cmp->role == ROLE_AGREE && side < 2; side++) {
+            const renderer_row *row = registry_row(side ? cmp->reference : cmp->test);
+            if (row != NULL && row->physics == NULL) {
+                sf_child(child, path, side ? "reference" : "test");
+                return sf_fail(c, RC_ERR_RANGE, f[side].v ? f[side].v : e, child,
+                               "%s is an approximation, not a physical reference; allowed: an agree between two "
+                               "physical references, or role validate (against a reference) or twin",
+                               row->name);
+            }
         }
         sf_child(child, path, "thresholds");
         if (f[3].v && (rc = sf_thresholds(c, f[3].v, child, cmp)))

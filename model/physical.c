@@ -62,7 +62,7 @@ dvec3 physical_lobe(const material *mat, physics_fresnel f, dvec3 n, dvec3 v, dv
 {
     double m = mat->roughness;
     double n_l = dv3_dot(n, l), n_v = dv3_dot(n, v);
-    if (!(n_l > 0.0 && n_v > 0.0 && m > 0.0))
+    if (!(n_l > 0.0 && n_v > 0.0 && m > 0.0 && mat->lobe))
         return dv3(0, 0, 0);
     dvec3 hs = dv3_add(l, v);
     double hl = dv3_len(hs);
@@ -155,7 +155,7 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     p->fn_uv = NULL;
     p->batch = shade_batch_scalar;
     p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (physical_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
-    p->path = m->roughness > 0.0f ? "physical-lobe" : "physical-mirror";
+    p->path = !m->lobe ? "physical-diffuse" : (m->roughness > 0.0f ? "physical-lobe" : "physical-mirror");
     for (int t = 0; t < MAT_TEX_SLOTS; t++)
         if (m->texture[t][0] != '\0') {
             snprintf(why, whylen,
@@ -171,7 +171,9 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
                  ph->shadows ? "shadows: true" : (ph->interreflection ? "interreflection: true" : "bounces > 1"));
         return RC_ERR_RANGE;
     }
-    if (m->roughness > 0.0f) {
+    if (!m->lobe) {
+        /* No specular written (material.lobe): neither a highlight nor a reflection. */
+    } else if (m->roughness > 0.0f) {
         p->terms |= SHADE_TERM_SPECULAR;
         if (env && ph->env_specular) {
             snprintf(why, whylen,

@@ -22,6 +22,8 @@
  *   reflection m = 0 with env_specular: the environment along reflect(-V, N) times F of
  *             fresnel_reflection at N.V;
  *   emission  the material's emissive colour.
+ * A material with lobe 0 (a d3d material with no specular and no roughness written) has neither
+ * specular nor reflection: only its diffuse and emission.
  * No shadows, no inter-reflection, one bounce. Geometry, the interpolated normal and the
  * environment lookup are float (the rasterizer's); the viewer and light directions, distances,
  * spot profile, D, G, F and the sums are double; terms are returned as float (saturated to the
@@ -53,7 +55,7 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
 int physical_light_incident(const light *l, dvec3 x, dvec3 *to_light, dvec3 *e_perp);
 
 /* The rough lobe per channel for unit n, v, l: F D G / (4 N.V) (INCLUDES N.L), with F of form f
- * for material mat. 0 when N.L or N.V <= 0 or m <= 0. */
+ * for material mat. 0 when N.L or N.V <= 0, m <= 0 or the material has no lobe. */
 dvec3 physical_lobe(const material *mat, physics_fresnel f, dvec3 n, dvec3 v, dvec3 l);
 
 /* The Fresnel factor of form f at cosine c (V.H or N.V) per channel. */

@@ -86,6 +86,7 @@ void material_init(material *m)
     m->albedo = v3s(0.8f);
     m->ior = 1.5f;
     m->roughness = 0.3f;
+    m->lobe = 1;
     m->model = MODEL_D3D;
 
     m->d3d.diffuse = m->albedo;

@@ -123,6 +123,10 @@ typedef struct {
     int conductor;   /* 1 if eta/k given */
     vec3 eta, k;     /* conductor complex index per channel */
     float roughness; /* Beckmann m, default 0.3 */
+    /* 1 = the physics has the material's lobe (Beckmann of roughness, a mirror at 0); 0 = no
+     * specular at all: a d3d material without a specular colour and without a roughness written
+     * (scene_file.c), so that no reference adds a highlight the user never asked for. Default 1. */
+    int lobe;
     model_kind model;
     d3d_params d3d; /* also the lit diffuse d of the D3D9Client model */
     d3d9client_params d9;

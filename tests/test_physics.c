@@ -27,6 +27,7 @@
 #include "frame.h"
 #include "jobs.h"
 #include "mesh.h"
+#include "physical.h"
 #include "renderers/cycles/cycles.h"
 #include "scene_file.h"
 
@@ -142,6 +143,91 @@ static void test_refusals_name_fields(void **state)
         st = renderer_physics_check(cyc->physics, s, err, sizeof err);
         if ((st == RC_OK) != cases[i].cyc_ok || (cases[i].cyc_words && !strstr(err, cases[i].cyc_words)))
             fail_msg("case %zu cycles: rc %d: %s", i, st, err);
+        free(s);
+    }
+}
+
+/* The physics a material gets follows from the material: a d3d floor with no specular and no
+ * roughness written has no lobe (the default roughness 0.3 once gave it a Beckmann highlight,
+ * a 1e-3..1e-2 error gradient against the model's plain Lambert floor); writing a roughness or a
+ * specular colour brings the lobe back. POV-Ray and Cycles render the lobe-less floor's physics
+ * exactly, where the lobe made POV-Ray refuse (no Beckmann) and Cycles render F(N.V). */
+static void test_no_lobe_without_specular(void **state)
+{
+    (void)state;
+    static const char base[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 1, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "lights:\n  - {type: point, position: [0, 2, 1], intensity: [4, 4, 4]}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], material: m}\n";
+    struct {
+        const char *material;
+        int lobe;
+    } cases[] = {
+        {"{albedo: [0.35, 0.45, 0.55], model: d3d}", 0},
+        {"{albedo: [0.35, 0.45, 0.55], model: d3d, roughness: 0.3}", 1},
+        {"{albedo: [0.35, 0.45, 0.55], model: d3d, d3d: {specular: [0.2, 0.2, 0.2], power: 20}}", 1},
+        {"{albedo: [0.35, 0.45, 0.55], model: cook_torrance}", 1},
+    };
+    const renderer_row *pov = registry_row(registry_find("povray")), *cyc = registry_row(registry_find("cycles"));
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char text[1024], err[1024] = "", why[400] = "";
+        snprintf(text, sizeof text, "%smaterials:\n  m: %s\n", base, cases[i].material);
+        scene *s = parse_ok(text);
+        assert_int_equal(s->materials[0].lobe, cases[i].lobe);
+        env_map env = {.kind = ENV_NONE};
+        shade_context c;
+        shade_plan p;
+        shade_context_make(s, &env, &c);
+        assert_int_equal(physical_plan_make(&c, &s->materials[0], &s->physics, &p, why, sizeof why), RC_OK);
+        assert_int_equal((p.terms & SHADE_TERM_SPECULAR) != 0, cases[i].lobe);
+        /* Mirror geometry for the point light: the lobe's peak, where a highlight cannot hide. */
+        dvec3 n = dv3(0, 1, 0), v = dv3_norm(dv3(0, 1, 1)), l = dv3_norm(dv3(0, 1, -1));
+        dvec3 lobe = physical_lobe(&s->materials[0], PHYS_FRESNEL_EXACT, n, v, l);
+        if (cases[i].lobe)
+            assert_true(lobe.x > 0.01);
+        else
+            assert_true(lobe.x == 0.0 && lobe.y == 0.0 && lobe.z == 0.0);
+        if (!cases[i].lobe) {
+            if (renderer_physics_check(pov->physics, s, err, sizeof err) != RC_OK)
+                fail_msg("povray: %s", err);
+            if (renderer_physics_check(cyc->physics, s, err, sizeof err) != RC_OK)
+                fail_msg("cycles: %s", err);
+        }
+        free(s);
+    }
+}
+
+/* An agree measures a physical reference by another; an approximation (the model, EEVEE) on
+ * either side is refused by the parser, naming the key. */
+static void test_agree_refuses_an_approximation(void **state)
+{
+    (void)state;
+    static const char base[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 1, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "materials:\n  m: {roughness: 0}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], material: m}\n"
+                               "comparisons:\n";
+    struct {
+        const char *cmp;
+        int ok;
+        const char *words;
+    } cases[] = {
+        {"  - {test: exact, reference: cycles, role: agree}\n", 1, NULL},
+        {"  - {test: eevee, reference: raster, role: agree}\n", 0, "comparisons[0].test: eevee is an approximation"},
+        {"  - {reference: cycles, role: agree}\n", 0, "comparisons[0].test: raster is an approximation"},
+        {"  - {test: cycles, reference: eevee, role: agree}\n", 0, "comparisons[0].reference: eevee is an approx"},
+        {"  - {test: eevee, reference: cycles, role: validate}\n", 1, NULL},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char text[1024], err[1024] = "";
+        snprintf(text, sizeof text, "%s%s", base, cases[i].cmp);
+        scene *s = malloc(sizeof *s);
+        assert_non_null(s);
+        rc_status st = scene_file_parse(text, strlen(text), "mem.yaml", s, err, sizeof err);
+        if ((st == RC_OK) != cases[i].ok || (cases[i].words && !strstr(err, cases[i].words)))
+            fail_msg("case %zu: rc %d: %s", i, st, err);
+        if (!cases[i].ok)
+            assert_non_null(strstr(err, "mem.yaml:"));
         free(s);
     }
 }
@@ -477,6 +563,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_canonical_scenes_one_physics),
         cmocka_unit_test(test_refusals_name_fields),
+        cmocka_unit_test(test_no_lobe_without_specular),
+        cmocka_unit_test(test_agree_refuses_an_approximation),
         cmocka_unit_test(test_cycles_job_follows_physics),
         cmocka_unit_test(test_compare_holds_records_to_the_physics),
         cmocka_unit_test(test_compare_robust_and_terms),

@@ -308,7 +308,7 @@ rc_status cycles_physics(const scene *s, physics *out, char *err, size_t errlen)
                            s->path, mi, mat->name, (double)mat->roughness);
             return RC_ERR_RANGE;
         }
-        any_rough |= mat->roughness > 0.0f;
+        any_rough |= mat->lobe && mat->roughness > 0.0f;
     }
     unsigned all = s->n_lights >= 32 ? ~0u : (1u << s->n_lights) - 1u;
     /* A mirror's highlight of a point or sun light is a delta (zero in the image): only a rough
@@ -427,7 +427,8 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         }
         cJSON *gl = jw_obj(w, o, "glossy");
         jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
-        jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(1.0f));
+        /* A material without a lobe (material.lobe 0) reflects nothing: a black glossy. */
+        jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(mat->lobe ? 1.0f : 0.0f));
         /* One closure reflects lamps and environment: a rough lobe takes the lamps' form
          * (cycles_physics refuses two forms on one lobe), a mirror the environment's. */
         physics_fresnel form = mat->roughness > 0.0f ? ph->fresnel_specular : ph->fresnel_reflection;

@@ -401,7 +401,7 @@ rc_status povray_physics(const scene *s, physics *out, char *err, size_t errlen)
         const material *mat = &s->materials[mi];
         if (mat->conductor)
             return povray_conductor_refusal(s, mi, err, errlen);
-        any_rough |= mat->roughness > 0.0f;
+        any_rough |= mat->lobe && mat->roughness > 0.0f;
         any_diffuse |= !povray_is_zero(mat->albedo);
     }
     unsigned all = s->n_lights >= 32 ? ~0u : (1u << s->n_lights) - 1u;
@@ -452,7 +452,7 @@ static rc_status povray_material_physical(const scene *s, int mi, const povray_r
     f->rmax = dv3(1, 1, 1);
     f->falloff = 1.0;
     f->ior = mat->ior;
-    if (!(r->term & POVRAY_TERM_REFLECTION) || !ph->env_specular || mat->roughness > 0.0f)
+    if (!(r->term & POVRAY_TERM_REFLECTION) || !ph->env_specular || !mat->lobe || mat->roughness > 0.0f)
         return RC_OK;
     switch (ph->fresnel_reflection) {
     case PHYS_FRESNEL_EXACT:
