@@ -14,6 +14,7 @@
 #include "cli.h"
 #include "exr.h"
 #include "compare.h"
+#include "diff_terms.h"
 #include "scene_file.h"
 
 /* Reads every scene before any is compared: a bad scene file or two scenes with one name
@@ -130,11 +131,14 @@ static int cli_diff_mask_size(const char *test, const char *mask)
     return rc;
 }
 
-/* reflcheck diff TEST.exr REF.exr [--mask GEO.exr]: the metrics of one image pair as JSON. */
+/* reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]: the metrics of one image
+ * pair as JSON; --leave-out compares the terms a partial twin's sides both render
+ * (harness/diff_terms.h). */
 int cli_diff(int argc, char **argv)
 {
-    static const struct option longopts[] = {{"mask", required_argument, NULL, 'm'}, {NULL, 0, NULL, 0}};
-    const char *mask = NULL;
+    static const struct option longopts[] = {
+        {"mask", required_argument, NULL, 'm'}, {"leave-out", required_argument, NULL, 'l'}, {NULL, 0, NULL, 0}};
+    const char *mask = NULL, *leave_out = NULL;
     int c;
     unsigned char seen[256] = {0};
     optind = 1;
@@ -142,21 +146,31 @@ int cli_diff(int argc, char **argv)
     while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
         if (c != '?' && cli_check_option("diff", c, seen, "", longopts) != CLI_OK)
             return CLI_BAD_INPUT;
-        if (c != 'm') {
+        if (c != 'm' && c != 'l') {
             return cli_bad_option("diff", argc, argv, "", longopts,
-                                  "usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]");
+                                  "usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]");
         }
-        mask = optarg;
+        *(c == 'm' ? &mask : &leave_out) = optarg;
     }
     if (optind != argc - 2) {
-        fprintf(stderr, "reflcheck: usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr]\n");
+        fprintf(stderr, "reflcheck: usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]\n");
         return CLI_BAD_INPUT;
     }
     char err[1024];
     int gate_failed = 0;
     if (mask != NULL && cli_diff_mask_size(argv[optind], mask) != CLI_OK)
         return CLI_BAD_INPUT;
-    rc_status st = compare_images(argv[optind], argv[optind + 1], mask, stdout, &gate_failed, err, sizeof err);
+    unsigned bits = 0;
+    char dir[256] = "", tpath[300], rpath[300];
+    rc_status st = leave_out != NULL ? diff_terms_parse(leave_out, &bits, err, sizeof err) : RC_OK;
+    if (st == RC_OK && bits != 0)
+        st = diff_terms_pair(argv[optind], argv[optind + 1], bits, dir, sizeof dir, err, sizeof err);
+    snprintf(tpath, sizeof tpath, "%s/test.exr", dir);
+    snprintf(rpath, sizeof rpath, "%s/ref.exr", dir);
+    if (st == RC_OK)
+        st = compare_images(bits ? tpath : argv[optind], bits ? rpath : argv[optind + 1], mask, stdout, &gate_failed,
+                            err, sizeof err);
+    diff_terms_cleanup(dir);
     if (st != RC_OK) {
         /* Every image here is the user's input: one that cannot be read or does not match is
          * bad input; only running out of memory is ours. */

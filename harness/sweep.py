@@ -24,7 +24,11 @@ approximation's), else `twin` where they list Cycles twin (the converged render 
 model: raster error is sampling and harness error); scenes with neither are left out.
 Size: the scene's small variant (`reflcheck run --small`; 96 pixels wide unless the scene says
 otherwise), or the full size with --full-size (`reflcheck run` has no width/height option).
-Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region.
+Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region. A
+partial twin (the reference's record lists `terms_left_out`: Cycles has no Blinn-Phong lobe, so
+its twin leaves the specular out) is compared as compare.json compares it: on the terms both
+sides render (`diff --leave-out TERMS` takes those layers off every image), so the error is the
+sampling and harness error of the terms compared, not the size of the missing term.
 Blender: Cycles jobs render in a pool of --jobs Blender workers (harness/renderers/cycles/
 worker_pool.py), so Blender starts once per worker, not per job, and a Cycles job's time is its
 scene build and render without Blender's start-up (--no-worker: one Blender per job, as before;
@@ -40,6 +44,8 @@ timing/<scene>.json:
    "clock": "wall_s"|"cpu_s" (what time_s holds),
    "error_doc": what "error" means (below),
    "reference": {"renderer": "cycles", "role": "validate"|"twin", "samples": N, "seeds": [0, 1],
+                 "terms_left_out": [TERM, ...] (what the reference's record says it left out; every
+                 diff leaves them out too), "terms_compared": [TERM, ...],
                  "noise_nrmse": its own noise (from its var.* layers), "nested": true|false,
                  "note": how the sweep's seeds relate to the reference's},
    "series": [{"label": "cycles spp", "renderer": "cycles", "knob": "samples",
@@ -117,6 +123,8 @@ QUICK_K, QUICK_TESS, QUICK_POV = (1, 2, 4), (16, 64), (1, 2)
 EEVEE_TAA = (1, 16)
 QUICK_EEVEE = (1, 16)
 SEEDS = 2
+# The image terms, in the order of the renderers' layers and of RENDERER_TERM_* (renderer.h).
+TERMS = ('diffuse', 'specular', 'reflection', 'emission')
 RASTER_REPEATS = 3
 JOB_TIMEOUT_S = 3600
 # Spp slope within this of -0.5 is "Monte Carlo rate": with 4 levels and 2 seeds, the scatter of
@@ -432,11 +440,34 @@ class Runner:
             best['render_s'] = cycles_render_s(self.out(scene, tag, renderer) + '.log')
         return best
 
-    def diff(self, test, ref, mask):
-        r = subprocess.run([self.bin, 'diff', test, ref, '--mask', mask], capture_output=True, text=True, timeout=300)
+    def diff(self, test, ref, mask, leave_out=()):
+        cmd = [self.bin, 'diff', test, ref, '--mask', mask] + (
+            ['--leave-out', ','.join(leave_out)] if leave_out else []
+        )
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
         if r.returncode != 0:
             raise RuntimeError(f'reflcheck diff {test} {ref}: ' + (r.stderr.strip().splitlines() or ['failed'])[-1])
         return json.loads(r.stdout)
+
+
+def scene_diffs(runner, jobs, recs, zero):
+    """Every ok job's diff against the reference (masked by the raster as-is) and the Cycles
+    points' own noise; returns (diffs, noises, terms left out). A partial twin is compared on the
+    terms the reference renders, as compare.json compares it; the reference's own noise needs no
+    such care: its image holds no left-out term."""
+    ref, mask = recs['reference']['exr'], recs['as_is']['exr']
+    left = terms_left_out(recs['reference'])
+    diffs, noises = {}, {}
+    for j in jobs:
+        if recs[j['key']].get('status') != 'ok':
+            continue
+        try:
+            diffs[j['key']] = runner.diff(recs[j['key']]['exr'], ref, mask, left)
+        except (RuntimeError, ValueError) as e:
+            diffs[j['key'] + ':err'] = str(e)
+        if j['renderer'] == 'cycles':
+            noises[j['key']] = noise_nrmse(runner, recs[j['key']]['exr'], mask, zero)
+    return diffs, noises, left
 
 
 def cycles_render_s(log_path):
@@ -623,8 +654,15 @@ def point_of(job, rec, d, noise, err, clock='wall_s'):
     }
 
 
-def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate'):
-    """Everything but the rendering: points, fits, Pareto frontier, equal time, crossover."""
+def terms_left_out(rec):
+    """The terms a reference's job record says it left out (a partial twin), in TERMS order."""
+    left = rec.get('terms_left_out') or []
+    return [t for t in TERMS if t in left]
+
+
+def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate', left_out=()):
+    """Everything but the rendering: points, fits, Pareto frontier, equal time, crossover.
+    left_out: the terms the reference left out, which every diff left out too."""
     noise_ref = noises.get('reference')
     series, skipped, all_pts = {}, [], []
     for job in jobs:
@@ -744,10 +782,18 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
         'clock': clock,
         'error_doc': 'estimated NRMSE (surface RMSE over the reference mean) against the noise-free '
         'image: the measured NRMSE against the reference with the reference noise taken '
-        'out (see harness/sweep.py)',
+        'out (see harness/sweep.py)'
+        + (
+            f'; a partial {role}: {", ".join(left_out)} left out of every image, as the reference '
+            f'leaves it out; terms compared: {", ".join(t for t in TERMS if t not in left_out)}'
+            if left_out
+            else ''
+        ),
         'reference': {
             'renderer': 'cycles',
             'role': role,
+            'terms_left_out': list(left_out),
+            'terms_compared': [t for t in TERMS if t not in left_out],
             'samples': ref_spp,
             'seeds': list(range(SEEDS)),
             'noise_nrmse': noise_ref,
@@ -945,18 +991,8 @@ def main(argv=None):
             )
             rc = 1
             continue
-        ref, mask = r['reference']['exr'], r['as_is']['exr']
-        zero = make_zero(mask, os.path.join(runner.renders, name, 'zero.exr'))
-        diffs, noises = {}, {}
-        for j in jobs:
-            if r[j['key']].get('status') != 'ok':
-                continue
-            try:
-                diffs[j['key']] = runner.diff(r[j['key']]['exr'], ref, mask)
-            except (RuntimeError, ValueError) as e:
-                diffs[j['key'] + ':err'] = str(e)
-            if j['renderer'] == 'cycles':
-                noises[j['key']] = noise_nrmse(runner, r[j['key']]['exr'], mask, zero)
+        zero = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
+        diffs, noises, left = scene_diffs(runner, jobs, r, zero)
         rec0 = r['as_is']
         t = analyse(
             name,
@@ -969,6 +1005,7 @@ def main(argv=None):
             [rec0.get('width'), rec0.get('height')],
             args.clock + '_s',
             runner.roles.get(name, 'validate'),
+            left,
         )
         t['sweep'] = {
             'jobs': len(jobs),
@@ -996,8 +1033,13 @@ def fmt(v, spec='.3g'):
 def one_line(t):
     cyc = next((s for s in t['series'] if s['label'] == 'cycles spp'), {})
     fs, c = cyc.get('fit_spp'), t.get('crossover')
+    ref = t.get('reference') or {}
+    left = ref.get('terms_left_out') or []
+    role = f"role {ref.get('role', '?')}" + (
+        f" on {'+'.join(ref.get('terms_compared') or [])} ({'+'.join(left)} left out)" if left else ''
+    )
     return (
-        f"{t['scene']}: raster as-is error {fmt((t['as_is'] or {}).get('error'))}; cycles slope "
+        f"{t['scene']} ({role}): raster as-is error {fmt((t['as_is'] or {}).get('error'))}; cycles slope "
         f"{fmt(fs and fs['slope'], '.2f')}/spp, {fmt(cyc.get('fit') and cyc['fit']['slope'], '.2f')}/s; "
         f"crossover {fmt(c and c['spp'], '.3g')} spp = {fmt(c and c['time_s'], '.3g')} s"
         + (f" ({c['extrapolated']} the measured range)" if c and c['extrapolated'] else '')

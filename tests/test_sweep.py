@@ -334,3 +334,67 @@ def test_eevee_swept_only_where_named(tmp_path):
     )
     assert sweep.names_renderer(str(named), 'eevee') and not sweep.names_renderer(str(other), 'eevee')
     assert [j['samples'] for j in sweep.plan(quick=False, seed_opt=False)[0] if j['renderer'] == 'eevee'] == [1, 16]
+
+
+# ------------------------------------------------------------------------------ partial twin
+
+
+class _Runner:
+    """Records each diff's arguments; the model's image differs from the reference by the
+    missing specular alone (0.0814 NRMSE), the shared terms by sampling (0.0079)."""
+
+    def __init__(self):
+        self.calls = []
+
+    def diff(self, test, ref, mask, leave_out=()):
+        self.calls.append((test, tuple(leave_out)))
+        return {'surface': {'nrmse': 0.0079 if 'specular' in leave_out else 0.0814}}
+
+
+def test_partial_twin_compares_the_shared_terms():
+    """A partial twin (Cycles leaves the Blinn-Phong specular out, its record says so) is swept
+    on the terms both sides render, as its compare.json is: every diff leaves the specular out,
+    and the timing JSON and the printed line name the role and the terms compared."""
+    jobs = [
+        {'key': 'reference', 'renderer': 'cycles'},
+        {'key': 'as_is', 'renderer': 'raster'},
+    ]
+    recs = {
+        'reference': {'status': 'ok', 'exr': 'ref.exr', 'terms_left_out': ['specular']},
+        'as_is': {'status': 'ok', 'exr': 'asis.exr'},
+    }
+    runner = _Runner()
+    diffs, _, left = sweep.scene_diffs(runner, jobs, recs, None)
+    assert left == ['specular']
+    assert runner.calls == [('ref.exr', ('specular',)), ('asis.exr', ('specular',))]
+    assert diffs['as_is']['surface']['nrmse'] == 0.0079
+    # A whole reference: nothing is left out.
+    recs['reference'].pop('terms_left_out')
+    runner = _Runner()
+    diffs, _, left = sweep.scene_diffs(runner, jobs, recs, None)
+    assert left == [] and all(c[1] == () for c in runner.calls)
+    assert diffs['as_is']['surface']['nrmse'] == 0.0814
+
+
+def test_partial_twin_says_so(tmp_path):
+    jobs, ref = sweep.plan(quick=True, seed_opt=False)
+    t = synthetic()
+    recs = {j['key']: {'status': 'skipped', 'message': 'x'} for j in jobs}
+    recs['as_is'] = {'status': 'ok', 'wall_s': 0.01}
+    diffs = {'as_is': {'surface': {'nrmse': 0.0079}}}
+    t = sweep.analyse('partial', jobs, recs, diffs, {}, ref, True, [96, 72], role='twin', left_out=['specular'])
+    assert t['reference']['role'] == 'twin'
+    assert t['reference']['terms_left_out'] == ['specular']
+    assert t['reference']['terms_compared'] == ['diffuse', 'reflection', 'emission']
+    assert 'specular left out' in t['error_doc']
+    assert '(role twin on diffuse+reflection+emission (specular left out))' in sweep.one_line(t)
+    whole = synthetic()
+    assert whole['reference']['terms_left_out'] == [] and 'left out' not in sweep.one_line(whole)
+    run = tmp_path / '20250101-120000-abc1234'
+    (run / 'timing').mkdir(parents=True)
+    t['series'] = whole['series']
+    (run / 'timing' / 'partial.json').write_text(json.dumps(sweep.clean_nan(t)))
+    r = subprocess.run([sys.executable, REPORT, '--run', str(run)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    html = (run / 'index.html').read_text(encoding='utf-8')
+    assert 'cycles twin' in html and 'terms compared: diffuse + reflection + emission (specular left out' in html
