@@ -58,7 +58,12 @@ def test_one_row_with_where_fit_cost_and_twins():
     }
     fits = [
         {'id': 'raster-vs-cycles-validate', 'bounds': 'wide', 'status': 'ok', 'best': {'nrmse': 0.05}},
-        {'id': 'raster-vs-cycles-validate', 'bounds': 'seed', 'status': 'ok', 'best': {'nrmse': 0.25, 'median_rel': 0.1}},
+        {
+            'id': 'raster-vs-cycles-validate',
+            'bounds': 'seed',
+            'status': 'ok',
+            'best': {'nrmse': 0.25, 'median_rel': 0.1},
+        },
     ]
     R = {'scenes': [scene('glass', [twin, bad, validate()], fits)]}
     (r,) = answer_rows(R, {'glass': {'spp': 64}})
@@ -93,3 +98,33 @@ def test_rows_per_material_when_the_surface_is_split_and_none_measured_without_v
 def test_physics_short_names_what_departs_from_the_defaults():
     text = PHYS.replace('bounces=1', 'bounces=4').replace('env_diffuse=0', 'env_diffuse=1')
     assert physics_short(text) == 'F lamp nv, F env exact, diffuse × (1 − F), env_diffuse 1, bounces 4'
+
+
+def test_every_validate_figure_stands_beside_its_agree_or_says_it_has_none():
+    """A validate figure shows the agree that measures its reference by a second one; a
+    validate with none says so (ct_env: Cycles alone), and an agree of other references is not
+    counted for it."""
+    agree = {
+        'id': 'exact-vs-cycles-agree',
+        'test': 'exact',
+        'reference': 'cycles',
+        'role': 'agree',
+        'status': 'pass',
+        'regions': {'surface': {'nrmse': 0.03}},
+    }
+    other = dict(agree, id='povray-vs-exact-agree', test='povray', reference='exact', status='warn')
+    R = {
+        'scenes': [
+            scene('toaster', [validate(), validate(id='raster-vs-exact-validate', reference='exact'), agree, other]),
+            scene('ct_env', [validate()]),
+            scene('glass', [validate(reference='povray'), agree]),
+        ]
+    }
+    rows = answer_rows(R)
+    by = {(r['scene']['name'], r['reference']): r for r in rows}
+    assert by[('toaster', 'cycles')]['agrees'] == [('exact', 0.03, 'pass')]
+    assert by[('toaster', 'exact')]['agrees'] == [('cycles', 0.03, 'pass'), ('povray', 0.03, 'warn')]
+    assert by[('toaster', 'cycles')]['agree_none'] is None
+    assert by[('ct_env', 'cycles')]['agrees'] == []
+    assert 'cycles alone' in by[('ct_env', 'cycles')]['agree_none']
+    assert by[('glass', 'povray')]['agrees'] == [] and 'povray alone' in by[('glass', 'povray')]['agree_none']

@@ -13,6 +13,10 @@ validate reference; a scene with no validate comparison gets one row that says s
   test_s, ref_s, crossover                     one frame's seconds each side; the sweep's
                                                crossover text (None: no sweep of this scene)
   twins                                        [(reference, text, status)] of the scene's twins
+  agrees                                       [(other reference, nrmse, status)]: the scene's agree
+                                               comparisons that measure this validate's reference
+                                               against a second one; empty: agree_none says that
+                                               the figure rests on that reference alone
 Nothing here measures: it picks from compare.json, fit.json and timing/*.json as loaded.
 """
 
@@ -104,6 +108,18 @@ def physics_short(text):
     return ', '.join(out)
 
 
+def _agrees(measured, ref):
+    """The agree comparisons of a scene that hold validate reference REF beside another
+    reference: [(the other, surface NRMSE, status)]."""
+    out = []
+    for a in measured:
+        if a.get('role') != 'agree' or ref not in (a.get('test'), a.get('reference')):
+            continue
+        other = a.get('reference') if a.get('test') == ref else a.get('test')
+        out.append((other, ((a.get('regions') or {}).get('surface') or {}).get('nrmse'), a.get('status')))
+    return out
+
+
 def answer_rows(R, crossovers=None):
     crossovers = crossovers or {}
     rows = []
@@ -118,6 +134,12 @@ def answer_rows(R, crossovers=None):
             times = c.get('times') or {}
             fit = _fit_of(s, c.get('id'))
             term = _dominant_term(c.get('terms'))
+            agrees = _agrees(measured, c.get('reference'))
+            agree_none = (
+                None
+                if agrees
+                else f'none: {c.get("reference")} alone renders this physics here, no second reference measures it'
+            )
             for mat, m in _material_parts(c):
                 rows.append(
                     {
@@ -140,6 +162,8 @@ def answer_rows(R, crossovers=None):
                         'ref_s': times.get('reference_wall_s'),
                         'crossover': crossovers.get(s['name']),
                         'twins': twins,
+                        'agrees': agrees,
+                        'agree_none': agree_none,
                         'no_validate': False,
                     }
                 )
