@@ -36,6 +36,7 @@ const char *const render_channel_names[RENDER_CHANNELS] = {
     "object",
     "ndotv",
     "ndotl",
+    "ndoth",
     "var.R",
     "var.G",
     "var.B",
@@ -132,6 +133,7 @@ typedef struct {
     int covered[RENDER_SPAN];                             /* per pixel: covered samples */
     int object[RENDER_SPAN];                              /* per pixel: object at the centre sample, -1 for none */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
+    float centre_nh[RENDER_SPAN];                         /* per pixel: N.H (first light) there */
     int profile;                                          /* 1: add stage times below (render_profile) */
     double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
 } render_scratch;
@@ -395,7 +397,8 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         if (j->term_layers & (1u << a))
             render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
     for (int i = 0; i < n; i++) {
-        /* The angle channels: N.V and N.L (first light) of the sample nearest the pixel centre. */
+        /* The angle channels: N.V, N.L and N.H (first light) of the sample nearest the pixel
+         * centre. */
         const int q = qu->slot[i];
         if (q < w->centre_lo || q >= w->centre_hi)
             continue;
@@ -403,13 +406,20 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         if (j->normal_length[obj] != NULL)
             nn = v3_norm(nn); /* the angle channels are cosines */
         int px = q - w->centre_lo;
-        w->centre_nv[px] = v3_dot(nn, shade_lane_get(&w->in.v, i));
+        const vec3 v = shade_lane_get(&w->in.v, i);
+        w->centre_nv[px] = v3_dot(nn, v);
         w->centre_nl[px] = 0.0f;
+        w->centre_nh[px] = 0.0f;
         if (j->s->n_lights > 0) {
             vec3 to_l, e_perp;
             float atten;
             shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
             w->centre_nl[px] = v3_dot(nn, to_l);
+            /* L + V vanishes only with the light exactly behind the surface point as seen from
+             * the eye: no half vector, and no lobe to bin, so N.H stays 0 (no bin). */
+            const vec3 hv = v3_add(to_l, v);
+            if (v3_dot(hv, hv) > 1e-12f)
+                w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
         }
     }
     qu->n = 0;
@@ -475,6 +485,7 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
         int covered = 0, centre_obj = -1;
         w->centre_nv[pi] = 0.0f;
         w->centre_nl[pi] = 0.0f;
+        w->centre_nh[pi] = 0.0f;
         for (int t = 0; t < k; t++) {
             const raster_sample *row = pix + (size_t)t * (size_t)stride;
             for (int s = 0; s < k; s++) {
@@ -575,11 +586,11 @@ static void render_resolve_store(render_image *restrict o, const render_scratch 
                     *restrict b = o->chan[RENDER_B] + i0;
     float *restrict a = o->chan[RENDER_A] + i0, *restrict cov = o->chan[RENDER_COVERAGE] + i0;
     float *restrict obj = o->chan[RENDER_OBJECT] + i0, *restrict nv = o->chan[RENDER_NDOTV] + i0;
-    float *restrict nl = o->chan[RENDER_NDOTL] + i0;
+    float *restrict nl = o->chan[RENDER_NDOTL] + i0, *restrict nh = o->chan[RENDER_NDOTH] + i0;
     float *restrict vr = o->chan[RENDER_VAR_R] + i0, *restrict vg = o->chan[RENDER_VAR_G] + i0,
                     *restrict vb = o->chan[RENDER_VAR_B] + i0;
     const int *restrict covered = w->covered + p0, *restrict centre_obj = w->object + p0;
-    const float *restrict cnv = w->centre_nv + p0, *restrict cnl = w->centre_nl + p0;
+    const float *restrict cnv = w->centre_nv + p0, *restrict cnl = w->centre_nl + p0, *restrict cnh = w->centre_nh + p0;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         const float bs_r = sum[RENDER_S_BEAUTY][i], bs_g = sum[RENDER_S_BEAUTY + 1][i],
@@ -592,6 +603,7 @@ static void render_resolve_store(render_image *restrict o, const render_scratch 
         obj[i] = (float)centre_obj[i];
         nv[i] = cnv[i];
         nl[i] = cnl[i];
+        nh[i] = cnh[i];
         /* Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
         vr[i] = fmaxf((sum[RENDER_S_SQ][i] - bs_r * bs_r * inv_n) * inv_nn, 0.0f);
         vg[i] = fmaxf((sum[RENDER_S_SQ + 1][i] - bs_g * bs_g * inv_n) * inv_nn, 0.0f);
@@ -689,7 +701,7 @@ static rc_status render_alloc(render_image *out, render_image *prev, unsigned ao
     return st;
 }
 
-/* Layers render_alloc makes for these AOV bits: the 11 always there, 3 per AOV term. */
+/* Layers render_alloc makes for these AOV bits: the 12 always there, 3 per AOV term. */
 static int render_layer_count(unsigned aovs)
 {
     int n = RENDER_CHANNELS - 12;

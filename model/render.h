@@ -12,8 +12,10 @@
  * R, G, B = diffuse + specular + reflection + emission, or the environment where no surface is
  * (the background is in no AOV). A = coverage times the model's alpha (D3D9Client eq. 7).
  * "object" is the index of the object at the sample nearest the pixel centre, -1 for none;
- * "ndotv" and "ndotl" are N.V and N.L (first light) there, 0 for none: the axes on which the
- * report plots error against angle.
+ * "ndotv", "ndotl" and "ndoth" are N.V, N.L and N.H there, 0 for none: the axes on which the
+ * report plots error against angle. L is the first light's direction (the main light: one fixed
+ * light, so a pixel's N.L and N.H bins speak of the same lobe), H = (L + V) / |L + V|; without a
+ * light, or with L + V = 0, N.L and N.H are 0.
  * "var.R/G/B" bound the variance of each pixel's estimate of its box integral: the sample
  * variance of its k x k samples divided by k^2 (stratified samples do no worse), so that a
  * comparison with a path tracer's pixel integral can tell sampling error from model error.
@@ -59,6 +61,7 @@ typedef enum {
     RENDER_OBJECT,
     RENDER_NDOTV,
     RENDER_NDOTL,
+    RENDER_NDOTH,
     RENDER_VAR_R,
     RENDER_VAR_G,
     RENDER_VAR_B,
