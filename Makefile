@@ -156,9 +156,11 @@ test-report:
 	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds; first
-# the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds).
+# the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds),
+# and where the error sits on two known-answer scenes against exact (angle bins, seconds).
 test-scenes: $(CLI)
 	@bash tests/crease_renderers.sh $(BUILD)
+	@bash tests/angle_bins.sh $(BUILD)
 	@bash tests/run_scenes.sh $(BUILD)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.

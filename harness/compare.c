@@ -222,6 +222,17 @@ typedef struct {
     unsigned bits; /* RENDERER_TERM_* it holds */
 } compare_term;
 
+/* The terms compare_terms and the angle bins split the error into: a twin splits its light
+ * as the model does; a physical reference files its glossy closures its own way (Cycles puts
+ * lamps and environment under specular), so validate and agree take glossy = specular +
+ * reflection. */
+static const compare_term compare_twin_terms[3] = {{"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
+                                                   {"specular", {"specular"}, 1, RENDERER_TERM_SPECULAR},
+                                                   {"reflection", {"reflection"}, 1, RENDERER_TERM_REFLECTION}};
+static const compare_term compare_phys_terms[2] = {
+    {"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
+    {"glossy", {"specular", "reflection"}, 2, RENDERER_TERM_SPECULAR | RENDERER_TERM_REFLECTION}};
+
 /* The float floor under a bias: a path tracer's pixel is a float sum of a few hundred float
  * samples (2^-24 each), good to about 1e-5 of the image's level; an offset below that is
  * rounding, whatever the sampling noise says (a term of float dust against a variance of 1e-24
@@ -400,13 +411,7 @@ static void compare_bias_summary(const metrics_image *tm, const metrics_image *r
 static cJSON *compare_terms(const exr_image *t, const exr_image *r, const metrics_image *rfull, unsigned left_out,
                             int twin, const unsigned char *mask)
 {
-    static const compare_term twin_terms[3] = {{"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
-                                               {"specular", {"specular"}, 1, RENDERER_TERM_SPECULAR},
-                                               {"reflection", {"reflection"}, 1, RENDERER_TERM_REFLECTION}};
-    static const compare_term phys_terms[2] = {
-        {"diffuse", {"diffuse"}, 1, RENDERER_TERM_DIFFUSE},
-        {"glossy", {"specular", "reflection"}, 2, RENDERER_TERM_SPECULAR | RENDERER_TERM_REFLECTION}};
-    const compare_term *terms = twin ? twin_terms : phys_terms;
+    const compare_term *terms = twin ? compare_twin_terms : compare_phys_terms;
     int n_terms = twin ? 3 : 2;
     cJSON *o = cJSON_CreateObject();
     size_t np = (size_t)t->width * (size_t)t->height;
@@ -447,50 +452,204 @@ static cJSON *compare_terms(const exr_image *t, const exr_image *r, const metric
     return o;
 }
 
-/* Relative RMS error per bin of an angle channel (N.V or N.L) over the surface mask. */
-static cJSON *compare_angle_bins(const metrics_image *ref, const metrics_image *test, const float *angle,
-                                 const unsigned char *mask)
+/* What the angle bins split the surface's error by: the images compared (a partial twin's
+ * already without its left-out terms), each term's planes on both sides (compare_terms' split:
+ * a twin's diffuse, specular, reflection, a physical reference's diffuse and glossy; NULL where
+ * a side lacks the term or it was left out), the object layer and the scene's materials. */
+typedef struct {
+    const metrics_image *ref, *test;
+    const unsigned char *mask; /* the surface */
+    const float *object;       /* the object layer, or NULL */
+    const scene *s;
+    int n_terms;
+    const compare_term *terms;
+    float *tp[3][3], *rp[3][3]; /* per term, R G B; NULL when not compared */
+    double total_se;            /* squared error of the image over the surface (R + G + B) */
+    double total_term_se;       /* the terms' squared errors summed over the surface */
+} compare_bin_ctx;
+
+/* One bin's running sums. */
+typedef struct {
+    long n, bad;
+    double se_rel, sum_rel, se;
+    double term_se[3];
+    double mat_se[SCENE_MAX_MATERIALS];
+    long mat_n[SCENE_MAX_MATERIALS];
+} compare_bin_acc;
+
+/* Squared error summed over R, G, B of pixel i between two plane triples; NaN if not finite. */
+static double compare_px_se(const float *const t[3], const float *const r[3], size_t i)
+{
+    double e = 0.0;
+    for (int c = 0; c < 3; c++) {
+        double d = (double)t[c][i] - (double)r[c][i];
+        e += d * d;
+    }
+    return e;
+}
+
+/* The material index of pixel i (its centre sample's object's), or -1. */
+static int compare_px_material(const compare_bin_ctx *x, size_t i)
+{
+    if (x->object == NULL)
+        return -1;
+    int ob = (int)x->object[i];
+    return ob >= 0 && ob < x->s->n_objects ? x->s->objects[ob].material : -1;
+}
+
+/* Pixel i (finite on both sides) into bin a: relative and absolute error, per term, per material. */
+static void compare_bin_add(const compare_bin_ctx *x, size_t i, compare_bin_acc *a)
+{
+    const metrics_image *ref = x->ref, *test = x->test;
+    for (int c = 0; c < 3; c++) {
+        double d = (double)test->c[c][i] - (double)ref->c[c][i];
+        a->se_rel += d * d / ((double)ref->c[c][i] * ref->c[c][i] + COMPARE_REL_EPS);
+        a->sum_rel += fabs(d) / (fabs((double)ref->c[c][i]) + sqrt(COMPARE_REL_EPS));
+    }
+    double e = compare_px_se((const float *const *)test->c, (const float *const *)ref->c, i);
+    a->se += e;
+    for (int k = 0; k < x->n_terms; k++) {
+        if (x->tp[k][0] == NULL)
+            continue;
+        double te = compare_px_se((const float *const *)x->tp[k], (const float *const *)x->rp[k], i);
+        a->term_se[k] += isfinite(te) ? te : 0.0;
+    }
+    int m = compare_px_material(x, i);
+    if (m >= 0) {
+        a->mat_se[m] += e;
+        a->mat_n[m]++;
+    }
+    a->n++;
+}
+
+/* share = part / whole, 0 when there is nothing to share (identical images). */
+static double compare_share(double part, double whole) { return whole > 0.0 ? part / whole : 0.0; }
+
+/* One bin's JSON: its range, counts, relative errors, its share of the surface's squared error
+ * and that error split by term and by material. */
+static cJSON *compare_bin_json(const compare_bin_ctx *x, const compare_bin_acc *a, int b)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "lo", (double)b / COMPARE_ANGLE_BINS);
+    cJSON_AddNumberToObject(o, "hi", (double)(b + 1) / COMPARE_ANGLE_BINS);
+    cJSON_AddNumberToObject(o, "n", (double)a->n);
+    cJSON_AddNumberToObject(o, "n_nonfinite", (double)a->bad);
+    /* A bin of only non-finite pixels measured nothing: NaN, which cJSON writes as null. */
+    double n3 = 3.0 * (double)a->n;
+    cJSON_AddNumberToObject(o, "rel_rms", a->n > 0 ? sqrt(a->se_rel / n3) : NAN);
+    cJSON_AddNumberToObject(o, "mean_rel", a->n > 0 ? a->sum_rel / n3 : NAN);
+    cJSON_AddNumberToObject(o, "rmse", a->n > 0 ? sqrt(a->se / n3) : NAN);
+    cJSON_AddNumberToObject(o, "share", compare_share(a->se, x->total_se));
+    cJSON *terms = cJSON_AddObjectToObject(o, "terms");
+    for (int k = 0; k < x->n_terms; k++) {
+        if (x->tp[k][0] == NULL)
+            continue;
+        cJSON *t = cJSON_AddObjectToObject(terms, x->terms[k].name);
+        cJSON_AddNumberToObject(t, "rmse", a->n > 0 ? sqrt(a->term_se[k] / n3) : NAN);
+        cJSON_AddNumberToObject(t, "share", compare_share(a->term_se[k], x->total_term_se));
+    }
+    cJSON *mats = cJSON_AddObjectToObject(o, "materials");
+    for (int m = 0; x->object != NULL && m < x->s->n_materials; m++) {
+        if (a->mat_n[m] == 0 || cJSON_GetObjectItemCaseSensitive(mats, x->s->materials[m].name) != NULL)
+            continue;
+        cJSON *t = cJSON_AddObjectToObject(mats, x->s->materials[m].name);
+        cJSON_AddNumberToObject(t, "n", (double)a->mat_n[m]);
+        cJSON_AddNumberToObject(t, "rmse", sqrt(a->mat_se[m] / (3.0 * (double)a->mat_n[m])));
+        cJSON_AddNumberToObject(t, "share", compare_share(a->mat_se[m], x->total_se));
+    }
+    return o;
+}
+
+/* Per bin of an angle channel (N.V, N.H or N.L, 10 bins of 0.1 over (0, 1]; pixels at or
+ * below 0 are in no bin) over the surface: relative RMS error, and the bin's share of the
+ * surface's squared error, split by term and by material (compare_bin_json). */
+static cJSON *compare_angle_bins(const compare_bin_ctx *x, const float *angle)
 {
     cJSON *arr = cJSON_CreateArray();
-    if (angle == NULL)
+    compare_bin_acc *acc = calloc(COMPARE_ANGLE_BINS, sizeof *acc);
+    if (angle == NULL || acc == NULL) {
+        free(acc);
         return arr;
-    double se[COMPARE_ANGLE_BINS] = {0}, sr[COMPARE_ANGLE_BINS] = {0};
-    long n[COMPARE_ANGLE_BINS] = {0}, bad[COMPARE_ANGLE_BINS] = {0};
-    size_t np = (size_t)ref->width * (size_t)ref->height;
+    }
+    size_t np = (size_t)x->ref->width * (size_t)x->ref->height;
     for (size_t i = 0; i < np; i++) {
-        if (!mask[i] || !(angle[i] > 0.0f))
+        if (!x->mask[i] || !(angle[i] > 0.0f))
             continue;
         int b = (int)(angle[i] * COMPARE_ANGLE_BINS);
         b = b >= COMPARE_ANGLE_BINS ? COMPARE_ANGLE_BINS - 1 : b;
-        int finite = 1;
-        for (int c = 0; c < 3; c++)
-            finite &= isfinite((double)test->c[c][i] - (double)ref->c[c][i]);
         /* Counted apart, as metrics_compare does, so a bin says how many pixels it measured. */
-        if (!finite) {
-            bad[b]++;
+        if (!isfinite(compare_px_se((const float *const *)x->test->c, (const float *const *)x->ref->c, i))) {
+            acc[b].bad++;
             continue;
         }
-        for (int c = 0; c < 3; c++) {
-            double d = (double)test->c[c][i] - (double)ref->c[c][i];
-            se[b] += d * d / ((double)ref->c[c][i] * ref->c[c][i] + COMPARE_REL_EPS);
-            sr[b] += fabs(d) / (fabs((double)ref->c[c][i]) + sqrt(COMPARE_REL_EPS));
-        }
-        n[b]++;
+        compare_bin_add(x, i, &acc[b]);
     }
-    for (int b = 0; b < COMPARE_ANGLE_BINS; b++) {
-        if (n[b] == 0 && bad[b] == 0)
-            continue;
-        cJSON *o = cJSON_CreateObject();
-        cJSON_AddNumberToObject(o, "lo", (double)b / COMPARE_ANGLE_BINS);
-        cJSON_AddNumberToObject(o, "hi", (double)(b + 1) / COMPARE_ANGLE_BINS);
-        cJSON_AddNumberToObject(o, "n", (double)n[b]);
-        cJSON_AddNumberToObject(o, "n_nonfinite", (double)bad[b]);
-        /* A bin of only non-finite pixels measured nothing: NaN, which cJSON writes as null. */
-        cJSON_AddNumberToObject(o, "rel_rms", n[b] > 0 ? sqrt(se[b] / (3.0 * (double)n[b])) : NAN);
-        cJSON_AddNumberToObject(o, "mean_rel", n[b] > 0 ? sr[b] / (3.0 * (double)n[b]) : NAN);
-        cJSON_AddItemToArray(arr, o);
-    }
+    for (int b = 0; b < COMPARE_ANGLE_BINS; b++)
+        if (acc[b].n != 0 || acc[b].bad != 0)
+            cJSON_AddItemToArray(arr, compare_bin_json(x, &acc[b], b));
+    free(acc);
     return arr;
+}
+
+/* The angle bins' context: each term's planes of both sides and the surface totals every
+ * share is taken of. Returns 0, or -1 out of memory; compare_bin_free frees either way. */
+static int compare_bin_setup(compare_bin_ctx *x, const exr_image *t, const exr_image *r, unsigned left_out, int twin)
+{
+    size_t np = (size_t)t->width * (size_t)t->height;
+    x->terms = twin ? compare_twin_terms : compare_phys_terms;
+    x->n_terms = twin ? 3 : 2;
+    for (int k = 0; k < x->n_terms; k++) {
+        float *buf = malloc(6 * np * sizeof(float));
+        if (buf == NULL)
+            return -1;
+        for (int c = 0; c < 3; c++) {
+            x->tp[k][c] = buf + (size_t)c * np;
+            x->rp[k][c] = buf + (size_t)(3 + c) * np;
+        }
+        if ((left_out & x->terms[k].bits) || !compare_term_planes(t, x->terms[k].layers, x->terms[k].n, x->tp[k]) ||
+            !compare_term_planes(r, x->terms[k].layers, x->terms[k].n, x->rp[k])) {
+            free(buf);
+            memset(x->tp[k], 0, sizeof x->tp[k]);
+            memset(x->rp[k], 0, sizeof x->rp[k]);
+        }
+    }
+    for (size_t i = 0; i < np; i++) {
+        double e =
+            x->mask[i] ? compare_px_se((const float *const *)x->test->c, (const float *const *)x->ref->c, i) : NAN;
+        if (!isfinite(e))
+            continue;
+        x->total_se += e;
+        for (int k = 0; k < x->n_terms; k++) {
+            double te =
+                x->tp[k][0] ? compare_px_se((const float *const *)x->tp[k], (const float *const *)x->rp[k], i) : NAN;
+            x->total_term_se += isfinite(te) ? te : 0.0;
+        }
+    }
+    return 0;
+}
+
+static void compare_bin_free(compare_bin_ctx *x)
+{
+    for (int k = 0; k < 3; k++)
+        free(x->tp[k][0]);
+}
+
+/* compare.json's angle_bins (N.V), angle_bins_ndoth and angle_bins_ndotl, from the raster
+ * geometry's layers (geo; no bins without it). */
+static void compare_angle_bins_put(const scene *s, const comparison *c, const exr_image *geo, const exr_image *t,
+                                   const exr_image *r, const metrics_image *tm, const metrics_image *rm,
+                                   unsigned left_out, const unsigned char *mask, cJSON *o)
+{
+    static const char *const keys[3] = {"angle_bins", "angle_bins_ndoth", "angle_bins_ndotl"};
+    static const char *const layers[3] = {"ndotv", "ndoth", "ndotl"};
+    compare_bin_ctx x = {.ref = rm, .test = tm, .mask = mask, .s = s};
+    x.object = geo ? exr_image_channel(geo, "object") : NULL;
+    int ok = compare_bin_setup(&x, t, r, left_out, c->role == ROLE_TWIN) == 0;
+    for (int a = 0; a < 3; a++)
+        cJSON_AddItemToObject(o, keys[a],
+                              ok ? compare_angle_bins(&x, geo ? exr_image_channel(geo, layers[a]) : NULL)
+                                 : cJSON_CreateArray());
+    compare_bin_free(&x);
 }
 
 /* The variance of a Cycles mean from a few seeds has few degrees of freedom; pooling it over
@@ -848,7 +1007,7 @@ static void compare_scan_channel(const exr_image *img, const char *name, int kin
  * present; geometry_only for the raster image that only lends its masks. */
 static void compare_scan_image(const exr_image *img, int twin, int geometry_only, compare_values *v)
 {
-    static const char *const geometry[4] = {"coverage", "object", "ndotv", "ndotl"};
+    static const char *const geometry[5] = {"coverage", "object", "ndotv", "ndotl", "ndoth"};
     char name[64];
     for (int c = 0; c < 3 && !geometry_only; c++) {
         snprintf(name, sizeof name, "%c", "RGB"[c]);
@@ -860,7 +1019,7 @@ static void compare_scan_image(const exr_image *img, int twin, int geometry_only
         snprintf(name, sizeof name, "var.%c", "RGB"[c]);
         compare_scan_channel(img, name, COMPARE_CH_VARIANCE, v);
     }
-    for (int g = 0; g < 4; g++)
+    for (int g = 0; g < 5; g++)
         compare_scan_channel(img, geometry[g], COMPARE_CH_GEOMETRY, v);
 }
 
@@ -1340,10 +1499,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         cJSON *noise = compare_noise(&r.img, &rm, &t.img, &tm, mask[0]);
         if (noise != NULL)
             cJSON_AddItemToObject(o, "noise", noise);
-        cJSON_AddItemToObject(o, "angle_bins",
-                              compare_angle_bins(&rm, &tm, geo ? exr_image_channel(geo, "ndotv") : NULL, mask[0]));
-        cJSON_AddItemToObject(o, "angle_bins_ndotl",
-                              compare_angle_bins(&rm, &tm, geo ? exr_image_channel(geo, "ndotl") : NULL, mask[0]));
+        compare_angle_bins_put(s, c, geo, &t.img, &r.img, &tm, &rm, part.left_out, mask[0], o);
     }
     cJSON *times = cJSON_AddObjectToObject(o, "times");
     const cJSON *tw = cJSON_GetObjectItemCaseSensitive(t.record, "wall_s");
