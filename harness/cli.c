@@ -113,6 +113,9 @@ int cli_check(int argc, char **argv)
             st = frame_textures_load(s, &tex, err, sizeof err);
         if (st == RC_OK)
             st = frame_env_split_sun(s, env_pixels, &env, NULL, err, sizeof err);
+        /* A validate or agree whose reference cannot render the physics would only be skipped. */
+        if (st == RC_OK)
+            st = scene_file_physics_check(s, err, sizeof err);
         if (st != RC_OK) {
             fprintf(stderr, "reflcheck: %s\n", err);
             rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;

@@ -1486,6 +1486,88 @@ static rc_status sf_comparisons(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
+/* A physics field's value as physics_describe writes it, in the scene file's YAML: booleans for
+ * 0/1 flags, a light list "0+2" as [0, 2]. */
+static void sf_physics_yaml(const char *key, const char *v, char *out, size_t len)
+{
+    static const char *const flags[] = {"env_diffuse", "env_specular", "shadows", "interreflection"};
+    for (size_t i = 0; i < sizeof flags / sizeof flags[0]; i++)
+        if (strcmp(key, flags[i]) == 0) {
+            snprintf(out, len, "%s", strcmp(v, "0") != 0 ? "true" : "false");
+            return;
+        }
+    if (!isdigit((unsigned char)v[0])) {
+        snprintf(out, len, "%s", v);
+        return;
+    }
+    size_t used = (size_t)snprintf(out, len, "%s", strstr(key, "_lights") ? "[" : "");
+    for (const char *p = v; *p != '\0' && used + 3 < len; p++) {
+        if (*p == '+') {
+            out[used++] = ',';
+            out[used++] = ' ';
+        } else {
+            out[used++] = *p;
+        }
+        out[used] = '\0';
+    }
+    if (strstr(key, "_lights") && used + 1 < len)
+        snprintf(out + used, len - used, "]");
+}
+
+/* "key: value, ..." of the fields where rendered departs from want, in YAML; returns how many. */
+static int sf_physics_fix(const physics *want, const physics *rendered, int n_lights, char *out, size_t len)
+{
+    char a[400], b[400], val[64];
+    physics_describe(want, n_lights, a, sizeof a);
+    physics_describe(rendered, n_lights, b, sizeof b);
+    char *sa = NULL, *sb = NULL;
+    size_t used = 0;
+    int n = 0;
+    out[0] = '\0';
+    for (char *wa = strtok_r(a, " ", &sa), *wb = strtok_r(b, " ", &sb); wa != NULL && wb != NULL;
+         wa = strtok_r(NULL, " ", &sa), wb = strtok_r(NULL, " ", &sb)) {
+        char *eq = strchr(wb, '=');
+        if (strcmp(wa, wb) == 0 || eq == NULL)
+            continue;
+        *eq = '\0';
+        sf_physics_yaml(wb, eq + 1, val, sizeof val);
+        if (used < len)
+            used += (size_t)snprintf(out + used, len - used, "%s%s: %s", n ? ", " : "", wb, val);
+        n++;
+    }
+    return n;
+}
+
+rc_status scene_file_physics_check(const scene *s, char *err, size_t errlen)
+{
+    static const char *const roles[] = {"twin", "validate", "agree"};
+    for (int i = 0; i < s->n_comparisons; i++) {
+        const comparison *c = &s->comparisons[i];
+        for (int side = 0; c->role != ROLE_TWIN && side < 2; side++) {
+            const renderer_row *row = registry_row(side ? c->reference : c->test);
+            if (row == NULL || row->physics == NULL)
+                continue;
+            physics got;
+            char why[700], diff[700], fix[300];
+            const char *place = side ? "reference" : "test";
+            rc_status st = row->physics(s, &got, why, sizeof why);
+            if (st != RC_OK) {
+                snprintf(err, errlen, "%s (comparisons[%d].%s: %s, role %s)", why, i, place, row->name, roles[c->role]);
+                return st;
+            }
+            if (physics_diff(&s->physics, &got, s->n_lights, diff, sizeof diff) == 0)
+                continue;
+            sf_physics_fix(&s->physics, &got, s->n_lights, fix, sizeof fix);
+            snprintf(err, errlen,
+                     "%s: comparisons[%d].%s: %s cannot render the scene's physics (%s); allowed: set physics: {%s}, "
+                     "or name another reference",
+                     s->path, i, place, row->name, diff, fix);
+            return RC_ERR_RANGE;
+        }
+    }
+    return RC_OK;
+}
+
 /* A light mask: `all`, `none`, or a list of light indices (each < the number of lights). */
 static rc_status sf_light_mask(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, unsigned *out)
 {

@@ -33,6 +33,12 @@
 rc_status scene_file_load(const char *path, scene *out, char *err, size_t errlen);
 rc_status scene_file_parse(const char *text, size_t len, const char *path_for_messages, scene *out, char *err,
                            size_t errlen);
+/* RC_OK when every physical reference a validate or agree comparison of s names renders s's
+ * physics manifest exactly (each renderer row's physics function); else RC_ERR_RANGE with one
+ * line naming the file, the comparison and the physics keys to set (physics: {key: value}) or
+ * the renderer's own reason. Call after the environment's sun is split off (frame.h): light
+ * masks count it. `reflcheck check` refuses such a scene; a run skips the comparison. */
+rc_status scene_file_physics_check(const scene *s, char *err, size_t errlen);
 /* FNV-1a 64-bit hash of len bytes (the scene hash). */
 uint64_t scene_file_hash(const void *bytes, size_t len);
 

@@ -232,6 +232,87 @@ static void test_agree_refuses_an_approximation(void **state)
     }
 }
 
+/* `reflcheck check` refuses a scene whose validate or agree reference cannot render its physics,
+ * naming the comparison and the keys to set; with them set, the scene checks ok. Every canonical
+ * scene passes. */
+static void test_check_refuses_unrenderable_physics(void **state)
+{
+    (void)state;
+    static const char base[] = "image: {width: 8, height: 8}\n"
+                               "camera: {eye: [0, 1, 4], target: [0, 0, 0], hfov: 40}\n"
+                               "environment: {constant: [0.2, 0.2, 0.2]}\n"
+                               "lights:\n  - {type: sun, direction: [0, -1, 0], irradiance: [1, 1, 1]}\n"
+                               "  - {type: point, position: [0, 2, 1], intensity: [4, 4, 4]}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], material: m}\n";
+    struct {
+        const char *material, *physics, *cmp, *words;
+    } cases[] = {
+        /* Cycles tints a rough lobe by F(N.V): the fix is nv on both lobes (one closure). */
+        {"{roughness: 0.3}", "{}", "{reference: cycles, role: validate}",
+         "comparisons[0].reference: cycles cannot render the scene's physics (fresnel_specular: exact wanted, nv "
+         "rendered; fresnel_reflection: exact wanted, nv rendered); allowed: set physics: {fresnel_specular: nv, "
+         "fresnel_reflection: nv}"},
+        /* POV-Ray lights every diffuse or none: a list of one light is not renderable. */
+        {"{roughness: 0, albedo: [0.5, 0.5, 0.5]}", "{diffuse_lights: [1]}",
+         "{test: exact, reference: povray, role: agree}",
+         "comparisons[0].reference: povray cannot render the scene's physics (diffuse_lights: 1 wanted, all rendered); "
+         "allowed: set physics: {diffuse_lights: all}"},
+        /* The renderer's own refusal, with the comparison named. */
+        {"{roughness: 0.3}", "{fresnel_specular: schlick, fresnel_reflection: schlick}",
+         "{reference: cycles, role: validate}",
+         "no per-microfacet Fresnel; use fresnel one, or nv (a bias), or the exact reference "
+         "(comparisons[0].reference: "
+         "cycles, role validate)"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char text[2048], path[300], err[1024] = "";
+        snprintf(text, sizeof text, "%smaterials:\n  m: %s\nphysics: %s\ncomparisons:\n  - %s\n", base,
+                 cases[i].material, cases[i].physics, cases[i].cmp);
+        scene *s = parse_ok(text);
+        assert_int_equal(scene_file_physics_check(s, err, sizeof err), RC_ERR_RANGE);
+        if (!strstr(err, cases[i].words))
+            fail_msg("case %zu: %s", i, err);
+        free(s);
+        snprintf(path, sizeof path, "%s/check%zu.yaml", dir, i);
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fputs(text, f);
+        fclose(f);
+        int rc = cli_exec(err, sizeof err, "check %s", path);
+        if (rc != 2 || !strstr(err, cases[i].words) || !strstr(err, path))
+            fail_msg("case %zu: check exited %d: %s", i, rc, err);
+    }
+    /* The fixes the messages name: then check says ok. */
+    const char *fixed[] = {
+        "physics: {fresnel_specular: nv, fresnel_reflection: nv}\ncomparisons:\n  - {reference: cycles, "
+        "role: validate}\nmaterials:\n  m: {roughness: 0.3}\n",
+        "physics: {diffuse_lights: all}\ncomparisons:\n  - {test: exact, reference: povray, role: "
+        "agree}\nmaterials:\n  m: {roughness: 0, albedo: [0.5, 0.5, 0.5]}\n"};
+    for (size_t i = 0; i < 2; i++) {
+        char path[300], err[1024];
+        snprintf(path, sizeof path, "%s/fixed%zu.yaml", dir, i);
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fprintf(f, "%s%s", base, fixed[i]);
+        fclose(f);
+        int rc = cli_exec(err, sizeof err, "check %s", path);
+        if (rc != 0)
+            fail_msg("fixed %zu: check exited %d: %s", i, rc, err);
+    }
+    glob_t g;
+    assert_int_equal(glob("scenes/*.yaml", 0, NULL, &g), 0);
+    for (size_t i = 0; i < g.gl_pathc; i++) {
+        scene *s = malloc(sizeof *s);
+        char err[1024] = "";
+        assert_non_null(s);
+        if (scene_file_load(g.gl_pathv[i], s, err, sizeof err) != RC_OK ||
+            scene_file_physics_check(s, err, sizeof err) != RC_OK)
+            fail_msg("%s", err);
+        free(s);
+    }
+    globfree(&g);
+}
+
 static cJSON *read_json(const char *path)
 {
     FILE *f = fopen(path, "r");
@@ -565,6 +646,7 @@ int main(void)
         cmocka_unit_test(test_refusals_name_fields),
         cmocka_unit_test(test_no_lobe_without_specular),
         cmocka_unit_test(test_agree_refuses_an_approximation),
+        cmocka_unit_test(test_check_refuses_unrenderable_physics),
         cmocka_unit_test(test_cycles_job_follows_physics),
         cmocka_unit_test(test_compare_holds_records_to_the_physics),
         cmocka_unit_test(test_compare_robust_and_terms),
