@@ -95,6 +95,45 @@ def test_rows_per_material_when_the_surface_is_split_and_none_measured_without_v
     assert rows[0]['crossover'] is None
 
 
+def shares(per_bin):
+    """Angle bins 0.0-0.1 ... in compare.json's split form: each bin's share of the surface's
+    squared error, and per material {name: share}."""
+    return [
+        {
+            'lo': i / 10,
+            'hi': (i + 1) / 10,
+            'n': 10,
+            'rel_rms': 1.0,
+            'share': sum(m.values()),
+            'materials': {k: {'n': 5, 'share': v} for k, v in m.items()},
+        }
+        for i, m in enumerate(per_bin)
+    ]
+
+
+def test_where_names_the_n_dot_h_bin_and_each_materials_own_bins():
+    objs = [
+        {'object': 0, 'material': 'skin', 'rel_median': 0.1, 'nrmse': 0.2},
+        {'object': 1, 'material': 'legs', 'rel_median': 0.3, 'nrmse': 0.5},
+    ]
+    # N.V: skin's error in bin 0.0-0.1 (0.3 of 0.4), legs' in 0.1-0.2 (0.5 of 0.6); the surface's
+    # largest bin is 0.1-0.2 with 0.5 + 0.1 = 0.6 of 1.0, although rel_rms is equal everywhere.
+    nv = shares([{'skin': 0.3, 'legs': 0.1}, {'skin': 0.1, 'legs': 0.5}])
+    # N.H: everything in the top bin but 0.05.
+    nh = shares([{'skin': 0.05}] + [{}] * 8 + [{'skin': 0.15, 'legs': 0.8}])
+    c = validate(objects=objs, angle_bins=nv, angle_bins_ndoth=nh)
+    whole = validate(angle_bins=nv, angle_bins_ndoth=nh)
+    skin, legs = answer_rows({'scenes': [scene('spider', [c])]})
+    (r,) = answer_rows({'scenes': [scene('spider', [whole])]})
+    assert r['nv'][:2] == (0.1, 0.2) and r['nv'][2] == pytest.approx(0.6)
+    assert r['nh'][:2] == (0.9, 1.0) and r['nh'][2] == pytest.approx(0.95)
+    assert skin['nv'][:2] == (0.0, 0.1) and skin['nv'][2] == pytest.approx(0.75)
+    assert legs['nv'][:2] == (0.1, 0.2) and legs['nv'][2] == pytest.approx(0.5 / 0.6)
+    assert skin['nh'][:2] == (0.9, 1.0) and skin['nh'][2] == pytest.approx(0.75)
+    assert legs['nh'][2] == pytest.approx(1.0)
+    assert r['term'][0] == 'glossy'
+
+
 def test_physics_short_names_what_departs_from_the_defaults():
     text = PHYS.replace('bounces=1', 'bounces=4').replace('env_diffuse=0', 'env_diffuse=1')
     assert physics_short(text) == 'F lamp nv, F env exact, diffuse × (1 − F), env_diffuse 1, bounces 4'

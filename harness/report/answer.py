@@ -6,9 +6,11 @@ validate reference; a scene with no validate comparison gets one row that says s
   scene, material, test, reference, physics    what is judged against what (physics in short)
   median, p95, nrmse, trim1                    surface figures (per material where split)
   status                                       the comparison's verdict
-  term, nv, nl                                 where the error sits: the term with the largest
-                                               share, and the N.V and N.L bins holding most of the
-                                               squared error (None: not measured)
+  term, nv, nh, nl                             where the error sits: the term with the largest
+                                               share, and the N.V, N.H and N.L bins holding most of
+                                               the squared error, (lo, hi, share); a material row's
+                                               bins from its own pixels (compare.json's split by
+                                               material); None: not measured
   fit_nrmse, fit_median                        the same after the best fit of fit.json (None)
   test_s, ref_s, crossover                     one frame's seconds each side; the sweep's
                                                crossover text (None: no sweep of this scene)
@@ -23,15 +25,29 @@ Nothing here measures: it picks from compare.json, fit.json and timing/*.json as
 from .util import finite
 
 
-def _dominant_bin(bins):
-    """(lo, hi, share) of the angle bin holding the most squared error, or None."""
+def _bin_error(b, material):
+    """A bin's squared error: its share of the surface's (compare.json since the split by term
+    and material: the material's part where one is named), else, from older runs, n x rel_rms^2
+    (whole surface only); None when not measured."""
+    if material is not None:
+        return ((b.get('materials') or {}).get(material) or {}).get('share')
+    if finite(b.get('share')):
+        return b['share']
+    if finite(b.get('rel_rms')) and finite(b.get('n')):
+        return b['n'] * b['rel_rms'] ** 2
+    return None
+
+
+def _dominant_bin(bins, material=None):
+    """(lo, hi, share) of the angle bin holding the most squared error (of MATERIAL's pixels when
+    given), or None."""
     if not isinstance(bins, list):
         return None
     parts = []
     for b in bins:
-        if not isinstance(b, dict) or not finite(b.get('rel_rms')) or not finite(b.get('n')):
-            continue
-        parts.append((b.get('lo'), b.get('hi'), b['n'] * b['rel_rms'] ** 2))
+        e = _bin_error(b, material) if isinstance(b, dict) else None
+        if finite(e) and finite(b.get('lo')) and finite(b.get('hi')):
+            parts.append((b['lo'], b['hi'], e))
     total = sum(p[2] for p in parts)
     if not parts or total <= 0:
         return None
@@ -154,8 +170,9 @@ def answer_rows(R, crossovers=None):
                         'nrmse': m.get('nrmse'),
                         'trim1': m.get('nrmse_trim1'),
                         'term': term,
-                        'nv': _dominant_bin(c.get('angle_bins')) if mat is None else None,
-                        'nl': _dominant_bin(c.get('angle_bins_ndotl')) if mat is None else None,
+                        'nv': _dominant_bin(c.get('angle_bins'), mat),
+                        'nh': _dominant_bin(c.get('angle_bins_ndoth'), mat),
+                        'nl': _dominant_bin(c.get('angle_bins_ndotl'), mat),
                         'fit_nrmse': fit.get('nrmse') if fit and mat is None else None,
                         'fit_median': fit.get('median_rel') if fit and mat is None else None,
                         'test_s': times.get('test_wall_s'),

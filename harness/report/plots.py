@@ -1,4 +1,4 @@
-"""plots - gnuplot SVGs: surface error per N.V / N.L bin, trends over the history, error vs time.
+"""plots - gnuplot SVGs: surface error per N.V / N.H / N.L bin, trends over the history, error vs time.
 Scripts live in harness/plots/; each SVG is written through a temporary name.
 """
 
@@ -51,43 +51,105 @@ def plot_id(s):
     return re.sub(r'[^A-Za-z0-9_.+-]', '_', s)
 
 
-def plot_angles(R, s, tmpdir, problems):
-    """Two SVGs per scene (N.V and N.L): surface rel_rms per bin, one line per comparison."""
-    out = {}
-    for key, axis, label in (('angle_bins', 'ndotv', 'N·V'), ('angle_bins_ndotl', 'ndotl', 'N·L')):
-        cols, centres = [], {}
-        for c in s['comparisons']:
-            pts = {}
-            for b in c.get(key, []):
-                lo, hi, v = (
-                    b.get('ndotv_lo', b.get('ndotl_lo', b.get('lo'))),
-                    b.get('ndotv_hi', b.get('ndotl_hi', b.get('hi'))),
-                    b.get('rel_rms'),
-                )
-                if finite(lo) and finite(hi) and finite(v) and v > 0 and b.get('n', 1) != 0:
-                    x = round((lo + hi) / 2, 6)
-                    pts[x] = v
-                    centres[x] = 1
-            if pts:
-                cols.append((c['id'], pts))
-        if not cols:
+# The angle axes of compare.json: key, file suffix, label.
+ANGLE_AXES = (
+    ('angle_bins', 'ndotv', 'N·V'),
+    ('angle_bins_ndoth', 'ndoth', 'N·H'),
+    ('angle_bins_ndotl', 'ndotl', 'N·L'),
+)
+
+
+def _bin_centre(b):
+    lo = b.get('ndotv_lo', b.get('ndotl_lo', b.get('lo')))
+    hi = b.get('ndotv_hi', b.get('ndotl_hi', b.get('hi')))
+    return round((lo + hi) / 2, 6) if finite(lo) and finite(hi) else None
+
+
+def _angle_rel_cols(s, key):
+    """[(column title, {centre: rel_rms})], one per comparison with a measured bin."""
+    cols = []
+    for c in s['comparisons']:
+        pts = {}
+        for b in c.get(key) or []:
+            x, v = (_bin_centre(b), b.get('rel_rms')) if isinstance(b, dict) else (None, None)
+            if x is not None and finite(v) and v > 0 and b.get('n', 1) != 0:
+                pts[x] = v
+        if pts:
+            cols.append((c['id'], pts))
+    return cols
+
+
+def _angle_share_cols(s, key):
+    """[(column title, {centre: share})] of each validate comparison: its bins' share of the
+    surface's squared error per term, and per material where the surface holds more than one."""
+    cols = []
+    for c in s['comparisons']:
+        if c.get('role') != 'validate':
             continue
-        xs = sorted(centres)
-        dat = os.path.join(tmpdir, f'{safe_name(s["name"])}-{axis}.dat')
-        write_table(dat, ['bin'] + [plot_id(i) for i, _ in cols], [[x] + [p.get(x) for _, p in cols] for x in xs])
-        svg = os.path.join(R['dir'], 'plots', f'angle-{safe_name(s["name"])}-{axis}.svg')
-        if run_gnuplot(
-            'angle.gp',
+        bins = [b for b in c.get(key) or [] if isinstance(b, dict) and _bin_centre(b) is not None]
+        for group in ('terms', 'materials'):
+            parts = [(_bin_centre(b), b[group]) for b in bins if isinstance(b.get(group), dict)]
+            names = sorted({n for _, g in parts for n, v in g.items() if isinstance(v, dict)})
+            if group == 'materials' and len(names) < 2:
+                continue
+            for n in names:
+                pts = {x: g[n]['share'] for x, g in parts if isinstance(g.get(n), dict) and finite(g[n].get('share'))}
+                if pts:
+                    cols.append((f'{c["id"]}:{n}', pts))
+    return cols
+
+
+def _plot_angle_cols(R, s, tmpdir, problems, cols, name, params):
+    """One angle SVG of cols (one line each) as plots/angle-<scene>-<name>.svg, or None."""
+    if not cols:
+        return None
+    xs = sorted({x for _, p in cols for x in p})
+    dat = os.path.join(tmpdir, f'{safe_name(s["name"])}-{name}.dat')
+    write_table(dat, ['bin'] + [plot_id(i) for i, _ in cols], [[x] + [p.get(x) for _, p in cols] for x in xs])
+    svg = os.path.join(R['dir'], 'plots', f'angle-{safe_name(s["name"])}-{name}.svg')
+    # The key sits below the plot, two entries a row: the SVG grows by a row's height per pair,
+    # so the plot area keeps its size however many lines there are.
+    params = dict(params, datafile=dat, ncols=len(cols) + 1, height=300 + 16 * ((len(cols) + 1) // 2))
+    return os.path.relpath(svg, R['dir']) if run_gnuplot('angle.gp', params, svg, problems) else None
+
+
+def plot_angles(R, s, tmpdir, problems):
+    """Per angle (N.V, N.H, N.L) up to two SVGs per scene: surface rel_rms per bin, one line per
+    comparison; and each validate's share of the squared error per bin, by term and material."""
+    out = {}
+    for key, axis, label in ANGLE_AXES:
+        rel = _plot_angle_cols(
+            R,
+            s,
+            tmpdir,
+            problems,
+            _angle_rel_cols(s, key),
+            axis,
             {
-                'datafile': dat,
-                'ncols': len(cols) + 1,
                 'xlab': label,
+                'ylab': 'surface rel_rms',
+                'logy': 1,
                 'ptitle': f'{s["name"]}: surface rel_rms per {label} bin',
             },
-            svg,
+        )
+        if rel:
+            out[axis] = rel
+        share = _plot_angle_cols(
+            R,
+            s,
+            tmpdir,
             problems,
-        ):
-            out[axis] = os.path.relpath(svg, R['dir'])
+            _angle_share_cols(s, key),
+            f'{axis}-share',
+            {
+                'xlab': label,
+                'ylab': 'share of squared error',
+                'logy': 0,
+                'ptitle': f'{s["name"]}: share of the squared error per {label} bin, by term and material',
+            },
+        )
+        if share:
+            out[f'{axis} share'] = share
     return out
 
 
