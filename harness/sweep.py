@@ -655,8 +655,9 @@ def point_of(job, rec, d, noise, err, clock='wall_s'):
 
 
 def terms_left_out(rec):
-    """The terms a reference's job record says it left out (a partial twin), in TERMS order."""
-    left = rec.get('terms_left_out') or []
+    """The terms a reference's job record says it left out (a partial twin), in TERMS order. The
+    record lists {"term": NAME, "reason": TEXT} (a bare name is taken too)."""
+    left = {e.get('term') if isinstance(e, dict) else e for e in rec.get('terms_left_out') or []}
     return [t for t in TERMS if t in left]
 
 

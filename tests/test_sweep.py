@@ -360,7 +360,12 @@ def test_partial_twin_compares_the_shared_terms():
         {'key': 'as_is', 'renderer': 'raster'},
     ]
     recs = {
-        'reference': {'status': 'ok', 'exr': 'ref.exr', 'terms_left_out': ['specular']},
+        # As a Cycles job record writes it.
+        'reference': {
+            'status': 'ok',
+            'exr': 'ref.exr',
+            'terms_left_out': [{'term': 'specular', 'reason': "materials[0] 'skin': Cycles has no Blinn-Phong lobe"}],
+        },
         'as_is': {'status': 'ok', 'exr': 'asis.exr'},
     }
     runner = _Runner()
