@@ -3,6 +3,7 @@
 #   make report     the nightly report (all renderers, large renders)
 #   make bench      rasterizer benchmarks            make fuzz     coverage-guided fuzzing
 #   make check T=NAME   one unit-test program (tests/test_NAME.c)
+#   make install    PREFIX=/usr/local DESTDIR=: program, manual page, bash completion, run-time data
 #   SANITIZE=1      AddressSanitizer + UBSan build   DEBUG=1       -O0 -g3
 CC ?= cc
 CXX ?= c++
@@ -36,6 +37,21 @@ CXXFLAGS += -std=c++17 $(OPT) -Wall -Wextra -Wpedantic -Wshadow -Wformat=2 -Wno-
 
 BUILD ?= build$(if $(SANITIZE),-san)$(if $(DEBUG),-dbg)
 
+# The project version, defined here once; `reflcheck --version` and the manual page add the git
+# commit the program was built from ("-dirty" when the tree differs from it). A tree without
+# git: make REFLCHECK_COMMIT=<id>.
+VERSION := 0.9.0
+ifndef REFLCHECK_COMMIT
+REFLCHECK_COMMIT := $(shell c=$$(git rev-parse --short=12 HEAD 2>/dev/null) && { git diff --quiet HEAD -- 2>/dev/null || c=$$c-dirty; }; echo $${c:-unknown})
+endif
+VERSION_DEFS := -DREFLCHECK_VERSION='"$(VERSION)"' -DREFLCHECK_COMMIT='"$(REFLCHECK_COMMIT)"'
+# Rewritten (while make reads this file) only when the version or commit changed, so the objects
+# that print them are rebuilt then and a second `make all` stays a no-op.
+VERSION_STAMP := $(BUILD)/version.stamp
+ifeq ($(filter clean,$(MAKECMDGOALS)),)
+$(shell mkdir -p $(BUILD) && { [ "$$(cat $(VERSION_STAMP) 2>/dev/null)" = "$(VERSION) $(REFLCHECK_COMMIT)" ] || echo "$(VERSION) $(REFLCHECK_COMMIT)" > $(VERSION_STAMP); })
+endif
+
 MODEL_SRC   := $(wildcard model/*.c)
 # Each renderer is a folder under harness/renderers/ (registry.c holds the table).
 HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c harness/renderers/*.c harness/renderers/*/*.c))
@@ -48,10 +64,13 @@ CLI         := $(BUILD)/reflcheck
 OIIO_PLUGIN := $(BUILD)/reflcheck-oiio.so
 OIIO_PLUGIN_OBJ := $(BUILD)/pic/harness/image_oiio.o $(BUILD)/pic/model/fileio.o $(BUILD)/pic/model/status.o
 KEY_SOURCES := $(BUILD)/key-sources/.stamp
+# The manual page and the bash completion, written from the command table (tools/gen_man.c).
+GEN_MAN     := $(BUILD)/tools/gen_man
+CLI_DOCS    := $(BUILD)/reflcheck.1 $(BUILD)/reflcheck.bash
 
 .PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
-        test-slurm bench report fuzz deps clean
-all: $(CLI) $(TEST_BIN) $(KEY_SOURCES)
+        test-slurm test-install bench report fuzz deps clean install
+all: $(CLI) $(TEST_BIN) $(KEY_SOURCES) $(CLI_DOCS)
 
 deps:
 	@bash harness/deps.sh
@@ -86,12 +105,59 @@ $(BUILD)/libreflcheck_harness.a: $(HARNESS_OBJ)
 $(CLI): $(BUILD)/harness/main.o $(LIBS) | $(OIIO_PLUGIN) $(KEY_SOURCES)
 	$(CC) $(CFLAGS) $(filter-out $(OIIO_PLUGIN),$^) $(LDLIBS) -o $@
 
+$(BUILD)/harness/main.o $(BUILD)/tools/gen_man.o: $(VERSION_STAMP)
+$(BUILD)/harness/main.o $(BUILD)/tools/gen_man.o: CFLAGS += $(VERSION_DEFS)
+$(GEN_MAN): $(BUILD)/tools/gen_man.o $(LIBS)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
+$(BUILD)/reflcheck.1: $(GEN_MAN)
+	$(GEN_MAN) man > $@.tmp && mv $@.tmp $@
+$(BUILD)/reflcheck.bash: $(GEN_MAN)
+	$(GEN_MAN) bash > $@.tmp && mv $@.tmp $@
+
+# make install [PREFIX=/usr/local] [DESTDIR=]: the program, its DDS plugin, the manual page, the
+# bash completion, and the files it reads at run time (the scripts Blender runs, the key-source
+# lists and the sources they name, so cache keys match the tree's) under PREFIX/share/reflcheck.
+# The installed program is linked with its own copies of the three objects that name where those
+# are (renderer.c, image_dds.c, jobs.c), compiled with PREFIX paths, so it runs from anywhere
+# without the source tree or the build folder; DESTDIR only stages the files.
+PREFIX  ?= /usr/local
+DESTDIR ?=
+INST_DIR  := $(BUILD)/install
+INST_DATA := $(PREFIX)/share/reflcheck
+INST_LIB  := $(PREFIX)/lib/reflcheck
+INST_OBJ  := $(INST_DIR)/harness/renderers/renderer.o $(INST_DIR)/harness/image_dds.o $(INST_DIR)/harness/jobs.o
+INST_DEFS := -DREFLCHECK_DATA_DIR='"$(INST_DATA)"' -DREFLCHECK_KEY_SOURCES='"$(INST_DATA)/key-sources"' \
+             -DREFLCHECK_OIIO_PLUGIN='"$(INST_LIB)/reflcheck-oiio.so"'
+ifneq ($(filter install,$(MAKECMDGOALS)),)
+$(shell mkdir -p $(INST_DIR) && { [ "$$(cat $(INST_DIR)/prefix.stamp 2>/dev/null)" = "$(PREFIX)" ] || echo "$(PREFIX)" > $(INST_DIR)/prefix.stamp; })
+endif
+$(INST_DIR)/%.o: %.c $(INST_DIR)/prefix.stamp
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $(INST_DEFS) $(DEPFLAGS) -c $< -o $@
+$(INST_DIR)/reflcheck: $(BUILD)/harness/main.o $(INST_OBJ) $(LIBS)
+	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
+install: $(INST_DIR)/reflcheck $(OIIO_PLUGIN) $(CLI_DOCS) $(KEY_SOURCES)
+	install -d "$(DESTDIR)$(PREFIX)/bin" "$(DESTDIR)$(INST_LIB)" "$(DESTDIR)$(PREFIX)/share/man/man1" \
+	    "$(DESTDIR)$(PREFIX)/share/bash-completion/completions" "$(DESTDIR)$(INST_DATA)/key-sources"
+	install -m 755 $(INST_DIR)/reflcheck "$(DESTDIR)$(PREFIX)/bin/reflcheck"
+	install -m 755 $(OIIO_PLUGIN) "$(DESTDIR)$(INST_LIB)/reflcheck-oiio.so"
+	install -m 644 $(BUILD)/reflcheck.1 "$(DESTDIR)$(PREFIX)/share/man/man1/reflcheck.1"
+	install -m 644 $(BUILD)/reflcheck.bash "$(DESTDIR)$(PREFIX)/share/bash-completion/completions/reflcheck"
+	install -m 644 $(BUILD)/key-sources/*.list "$(DESTDIR)$(INST_DATA)/key-sources/"
+	{ cat $(BUILD)/key-sources/*.list; ls harness/renderers/*/*.py; } | sort -u | while read -r f; do \
+	    install -D -m 644 "$$f" "$(DESTDIR)$(INST_DATA)/$$f" || exit 1; done
+
 $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBS) | $(OIIO_PLUGIN)
 	$(CC) $(CFLAGS) $(filter-out $(OIIO_PLUGIN),$^) $(LDLIBS) -o $@
 # The test objects are made by a pattern chain, so make would delete them as intermediates after
 # each build and compile all of them again on the next `make all` (a second `make report` was
 # never a no-op). Kept, they are up to date like every other object.
 .SECONDARY: $(TEST_BIN:=.o)
+
+# make install into a scratch prefix: the files, the manual page as groff renders it, the
+# completion, and the installed program rendering POV-Ray and Cycles jobs from another folder.
+test-install: all
+	@bash tests/install.sh $(BUILD)
 
 # Unit tests (also the sanitizer run in CI), then the renderer-backed tests.
 test-unit: $(TEST_BIN) $(CLI)
@@ -112,7 +178,7 @@ test: deps
 	$(MAKE) -j$(NPROC) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
-	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer test-slurm
+	$(MAKE) test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer test-slurm test-install
 
 # A model broken on purpose (Fresnel exponent p + 1) fails exactly the scenes that use it.
 test-mutant: $(CLI)
@@ -220,4 +286,5 @@ bench: deps
 clean:
 	rm -rf build build-san build-dbg build-san-dbg
 
--include $(MODEL_OBJ:.o=.d) $(HARNESS_OBJ:.o=.d) $(TEST_BIN:=.d) $(BUILD)/harness/main.d $(OIIO_PLUGIN_OBJ:.o=.d)
+-include $(MODEL_OBJ:.o=.d) $(HARNESS_OBJ:.o=.d) $(TEST_BIN:=.d) $(BUILD)/harness/main.d $(OIIO_PLUGIN_OBJ:.o=.d) \
+         $(BUILD)/tools/gen_man.d $(INST_OBJ:.o=.d)

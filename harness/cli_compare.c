@@ -49,19 +49,44 @@ static int cli_compare_scenes_ok(char **paths, int n)
     return rc;
 }
 
+static const struct option compare_longopts[] = {
+    {"run", required_argument, NULL, 'r'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+static const cli_option_help compare_options_help[] = {
+    {"run", "DIR", "the run folder the renders are in, as reflcheck plan --out or run --out wrote it (required)"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_compare_command = {
+    .name = "compare",
+    .run = cli_compare,
+    .operands = "SCENE... --run RUNDIR",
+    .operand_kind = "scene",
+    .summary = "measure each comparison of the scenes on a run's renders -> RUN/<scene>/compare.json",
+    .description = "For every comparison a scene lists, computes the metrics of its two renders from the run "
+                   "folder, applies the scene's thresholds and the built-in gates, and writes "
+                   "RUNDIR/<scene>/compare.json; prints one line per scene (pass, not gated, warn, fail, skipped, "
+                   "error). Exit 1 when a comparison fails or is an error.",
+    .longopts = compare_longopts,
+    .shortopts = "h",
+    .options = compare_options_help,
+    .example = "reflcheck compare scenes/d3d9_glass.yaml --run /tmp/run1",
+};
+
 int cli_compare(int argc, char **argv)
 {
-    static const struct option longopts[] = {{"run", required_argument, NULL, 'r'}, {NULL, 0, NULL, 0}};
     const char *run = NULL;
     int c;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != '?' && cli_check_option("compare", c, seen, "", longopts) != CLI_OK)
+    while ((c = getopt_long(argc, argv, "h", compare_longopts, NULL)) != -1) {
+        if (c != '?' && cli_check_option("compare", c, seen, "h", compare_longopts) != CLI_OK)
             return CLI_BAD_INPUT;
+        if (c == 'h')
+            return cli_help("compare");
         if (c != 'r') {
-            return cli_bad_option("compare", argc, argv, "", longopts, "usage: reflcheck compare SCENE... --run DIR");
+            return cli_bad_option("compare", argc, argv, "h", compare_longopts,
+                                  "usage: reflcheck compare SCENE... --run DIR");
         }
         run = optarg;
     }
@@ -134,20 +159,49 @@ static int cli_diff_mask_size(const char *test, const char *mask)
 /* reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]: the metrics of one image
  * pair as JSON; --leave-out compares the terms a partial twin's sides both render
  * (harness/diff_terms.h). */
+static const struct option diff_longopts[] = {{"mask", required_argument, NULL, 'm'},
+                                              {"leave-out", required_argument, NULL, 'l'},
+                                              {"help", no_argument, NULL, 'h'},
+                                              {NULL, 0, NULL, 0}};
+static const cli_option_help diff_options_help[] = {
+    {"mask", "FILE",
+     "a geometry render (its coverage and object layers) of the same size: the metrics over "
+     "its surface pixels; default: every pixel"},
+    {"leave-out", "TERMS",
+     "comma-separated terms (diffuse, specular, reflection, emission) taken off both "
+     "images' RGB before comparing, as for a partial twin; default: none"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_diff_command = {
+    .name = "diff",
+    .run = cli_diff,
+    .operands = "TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]",
+    .operand_kind = "exr",
+    .summary = "the metrics of one image pair, as JSON",
+    .description = "Compares TEST.exr against REF.exr pixel by pixel and prints the metrics compare uses "
+                   "(RMSE, NRMSE, relative errors, bias ...) as JSON on standard output. Exit 1 when a built-in "
+                   "gate fails; 2 when an image cannot be read or the two do not match.",
+    .longopts = diff_longopts,
+    .shortopts = "h",
+    .options = diff_options_help,
+    .example = "reflcheck diff run1/glass/raster-validate.exr run1/glass/povray-validate.exr",
+};
+
 int cli_diff(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"mask", required_argument, NULL, 'm'}, {"leave-out", required_argument, NULL, 'l'}, {NULL, 0, NULL, 0}};
     const char *mask = NULL, *leave_out = NULL;
     int c;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != '?' && cli_check_option("diff", c, seen, "", longopts) != CLI_OK)
+    while ((c = getopt_long(argc, argv, "h", diff_longopts, NULL)) != -1) {
+        if (c != '?' && cli_check_option("diff", c, seen, "h", diff_longopts) != CLI_OK)
             return CLI_BAD_INPUT;
+        if (c == 'h')
+            return cli_help("diff");
         if (c != 'm' && c != 'l') {
-            return cli_bad_option("diff", argc, argv, "", longopts,
+            return cli_bad_option("diff", argc, argv, "h", diff_longopts,
                                   "usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]");
         }
         *(c == 'm' ? &mask : &leave_out) = optarg;

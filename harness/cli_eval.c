@@ -55,20 +55,53 @@ static void eval_smith(const eval_args *a)
     }
 }
 
+static const struct option eval_longopts[] = {
+    {"ior", required_argument, NULL, 'n'},
+    {"p", required_argument, NULL, 'p'},
+    {"r0", required_argument, NULL, 'r'},
+    {"m", required_argument, NULL, 'm'},
+    {"steps", required_argument, NULL, 's'},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0},
+};
+static const cli_option_help eval_options_help[] = {
+    {"ior", "N",
+     "index of refraction of the dielectric, 1 to 100; default: 1.5 (fresnel: the exact curve, "
+     "and R0 = ((N - 1) / (N + 1))^2 unless --r0)"},
+    {"p", "P", "fresnel: the D3D9Client Fresnel power, 0 to 10000; default: 5"},
+    {"r0", "R0", "fresnel: the reflectance at normal incidence, 0 to 1; default: from --ior"},
+    {"m", "M",
+     "fresnel: the D3D9Client multiplier, default 1 - R0; beckmann, smith: the RMS microfacet slope "
+     "(roughness), default 0.3; 0 to 1000"},
+    {"steps", "N", "angle steps from 0 to 90 degrees, 1 to 1000000; default: 90 (one degree apart)"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_eval_command = {
+    .name = "eval",
+    .run = cli_eval,
+    .operands = "fresnel|beckmann|smith [options]",
+    .operand_kind = "fresnel beckmann smith",
+    .summary = "a model's values over an angle sweep, as CSV",
+    .description = "Prints a CSV table over angles from 0 to 90 degrees: fresnel, the D3D9Client Fresnel and "
+                   "Schlick's beside the exact dielectric; beckmann, the Beckmann distribution as Walter et al. "
+                   "and as Cook-Torrance 1982 write it; smith, Walter's Smith G1 approximation beside the exact "
+                   "G1. Float approximations, double-precision references.",
+    .longopts = eval_longopts,
+    .shortopts = "h",
+    .options = eval_options_help,
+    .example = "reflcheck eval fresnel --ior 1.33 --steps 18",
+};
+
 int cli_eval(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"ior", required_argument, NULL, 'n'},   {"p", required_argument, NULL, 'p'},
-        {"r0", required_argument, NULL, 'r'},    {"m", required_argument, NULL, 'm'},
-        {"steps", required_argument, NULL, 's'}, {NULL, 0, NULL, 0},
-    };
     eval_args a = {.ior = 1.5, .p = 5.0, .m = 0.3, .steps = 90};
     int c, rc = CLI_OK;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("eval", c, seen, "", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "h", eval_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("eval", c, seen, "h", eval_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'n': rc = cli_parse_double("--ior", optarg, 1.0, 100.0, &a.ior); break;
@@ -82,7 +115,8 @@ int cli_eval(int argc, char **argv)
             a.m_given = 1;
             break;
         case 's': rc = cli_parse_int("--steps", optarg, 1, 1000000, &a.steps); break;
-        default: rc = cli_bad_option("eval", argc, argv, "", longopts, "options: --ior --p --r0 --m --steps");
+        case 'h': return cli_help("eval");
+        default: rc = cli_bad_option("eval", argc, argv, "h", eval_longopts, "see reflcheck eval --help");
         }
     }
     if (rc != CLI_OK)

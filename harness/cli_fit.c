@@ -300,15 +300,55 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
     return rc;
 }
 
+static const struct option fit_longopts[] = {
+    {"out", required_argument, NULL, 'o'},
+    {"small", no_argument, NULL, 's'},
+    {"cache", required_argument, NULL, 'c'},
+    {"no-cache", no_argument, NULL, 'n'},
+    {"threads", required_argument, NULL, 't'},
+    {"max-evals", required_argument, NULL, 'M'},
+    {"xtol", required_argument, NULL, 'x'},
+    {"bounds", required_argument, NULL, 'b'},
+    {"starts", required_argument, NULL, 'S'},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0},
+};
+static const cli_option_help fit_options_help[] = {
+    {"out", "DIR",
+     "the run folder: the record is DIR/<scene>/fit.json (fit-wide.json with --bounds wide); "
+     "default: reports/runs/manual"},
+    {"small", NULL, "fit at the small variant's size and samples; default: full size"},
+    {"cache", "DIR", "the render cache the reference jobs go through; default: reports/cache"},
+    {"no-cache", NULL, "render the references without the cache; default: use the cache"},
+    {"threads", "N", "render threads, 1 to 256; default: all cores"},
+    {"max-evals", "N", "renders per fit in all (screen and local runs), 2 to 100000; default: 400"},
+    {"xtol", "X",
+     "the local runs' stopping step, in parameters scaled to [0, 1] over their bounds, 1e-12 to "
+     "0.5; default: 1e-4"},
+    {"bounds", "seed|wide", "seed: within the seeds' ranges; wide: within wider ones; default: seed"},
+    {"starts", "N", "local runs, 1 to 8 (1: from the authored point only, no screen); default: 4"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_fit_command = {
+    .name = "fit",
+    .run = cli_fit,
+    .operands = "SCENE... [options]",
+    .operand_kind = "scene",
+    .summary = "the model's free parameters fitted to each validate reference",
+    .description = "For every validate comparison of the model against a reference, renders the reference "
+                   "through the job cache and fits the model's free parameters (Fresnel power, Blinn-Phong "
+                   "specular colour, Beckmann m) to it: a Halton screen, then NLopt BOBYQA runs. Prints the "
+                   "as-authored and best-fit NRMSE and median relative error, and writes them with the fitted "
+                   "values to the record. A reference renderer that is not installed is skipped.",
+    .longopts = fit_longopts,
+    .shortopts = "o:h",
+    .options = fit_options_help,
+    .example = "reflcheck fit scenes/d3d9_glass.yaml --small --out /tmp/run1",
+};
+
 int cli_fit(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"out", required_argument, NULL, 'o'},     {"small", no_argument, NULL, 's'},
-        {"cache", required_argument, NULL, 'c'},   {"no-cache", no_argument, NULL, 'n'},
-        {"threads", required_argument, NULL, 't'}, {"max-evals", required_argument, NULL, 'M'},
-        {"xtol", required_argument, NULL, 'x'},    {"bounds", required_argument, NULL, 'b'},
-        {"starts", required_argument, NULL, 'S'},  {NULL, 0, NULL, 0},
-    };
     cli_fit_opts opt = {.variant = JOB_FULL,
                         .out_dir = "reports/runs/manual",
                         .cache_dir = "reports/cache",
@@ -317,8 +357,8 @@ int cli_fit(int argc, char **argv)
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("fit", c, seen, "o:", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:h", fit_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("fit", c, seen, "o:h", fit_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'o': opt.out_dir = optarg; break;
@@ -329,6 +369,7 @@ int cli_fit(int argc, char **argv)
         case 'M': rc = cli_parse_int("--max-evals", optarg, 2, 100000, &opt.fo.max_evals); break;
         case 'S': rc = cli_parse_int("--starts", optarg, 1, FIT_MAX_STARTS, &opt.fo.starts); break;
         case 'x': rc = cli_parse_double("--xtol", optarg, 1e-12, 0.5, &opt.fo.xtol); break;
+        case 'h': return cli_help("fit");
         case 'b':
             if (strcmp(optarg, "seed") == 0 || strcmp(optarg, "wide") == 0) {
                 opt.bounds = optarg[0] == 'w' ? FIT_BOUNDS_WIDE : FIT_BOUNDS_SEED;
@@ -337,7 +378,7 @@ int cli_fit(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default: rc = cli_bad_option("fit", argc, argv, "o:", longopts, "see reflcheck --help");
+        default: rc = cli_bad_option("fit", argc, argv, "o:h", fit_longopts, "see reflcheck fit --help");
         }
     }
     if (rc != CLI_OK)

@@ -199,24 +199,50 @@ static void plan_print_slurm(char **argv, int first, int argc, const plan_scene 
     printf("echo \"$ids\"\n");
 }
 
+static const struct option plan_longopts[] = {
+    {"out", required_argument, NULL, 'o'},   {"small", no_argument, NULL, 's'},
+    {"cache", required_argument, NULL, 'c'}, {"threads", required_argument, NULL, 't'},
+    {"bin", required_argument, NULL, 'b'},   {"scheduler", required_argument, NULL, 'S'},
+    {"help", no_argument, NULL, 'h'},        {NULL, 0, NULL, 0},
+};
+static const cli_option_help plan_options_help[] = {
+    {"out", "DIR",
+     "the run folder the jobs write (required); letters, digits and _ . / + , @ - only, as make "
+     "targets carry them"},
+    {"small", NULL, "every job renders the small variant; default: full size"},
+    {"cache", "DIR", "the render cache the jobs share; default: reports/cache"},
+    {"threads", "N", "threads per job, 1 to 256; default: 1 (make -j runs the jobs in parallel)"},
+    {"bin", "FILE", "the reflcheck program the jobs run; default: build/reflcheck"},
+    {"scheduler", "make|slurm",
+     "make: a Makefile, one target per job; slurm: a bash script that submits "
+     "the jobs as Slurm array tasks (docs/slurm.md); default: make"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_plan_command = {
+    .name = "plan",
+    .run = cli_plan,
+    .operands = "SCENE... --out RUNDIR [options]",
+    .operand_kind = "scene",
+    .summary = "the render jobs the scenes' comparisons need, as a Makefile or a Slurm script",
+    .description = "Prints, on standard output, one `reflcheck run` job per renderer and role that the "
+                   "comparisons of the scenes list, so that make -j (or Slurm) runs them in parallel and "
+                   "compare then measures them. Every scene is read first: a refused plan prints nothing.",
+    .longopts = plan_longopts,
+    .shortopts = "h",
+    .options = plan_options_help,
+    .example = "reflcheck plan scenes/d3d9_glass.yaml --out runs/r1 --small > r1.mk && make -f r1.mk -j2",
+};
+
 int cli_plan(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"out", required_argument, NULL, 'o'},
-        {"small", no_argument, NULL, 's'},
-        {"cache", required_argument, NULL, 'c'},
-        {"threads", required_argument, NULL, 't'},
-        {"bin", required_argument, NULL, 'b'},
-        {"scheduler", required_argument, NULL, 'S'},
-        {NULL, 0, NULL, 0},
-    };
     const char *out = NULL, *cache = "reports/cache", *bin = "build/reflcheck";
     int small = 0, threads = 1, c, rc = CLI_OK, slurm = 0;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("plan", c, seen, "", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "h", plan_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("plan", c, seen, "h", plan_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'o': out = optarg; break;
@@ -224,6 +250,7 @@ int cli_plan(int argc, char **argv)
         case 'c': cache = optarg; break;
         case 'b': bin = optarg; break;
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &threads); break;
+        case 'h': return cli_help("plan");
         case 'S':
             if (strcmp(optarg, "slurm") == 0)
                 slurm = 1;
@@ -232,7 +259,7 @@ int cli_plan(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default: rc = cli_bad_option("plan", argc, argv, "", longopts, "see reflcheck --help");
+        default: rc = cli_bad_option("plan", argc, argv, "h", plan_longopts, "see reflcheck plan --help");
         }
     }
     if (rc != CLI_OK)

@@ -49,22 +49,56 @@ static int cli_render_check_inputs(const char *out, const scene *s)
     return CLI_BAD_INPUT;
 }
 
+static const struct option render_longopts[] = {
+    {"output", required_argument, NULL, 'o'},
+    {"width", required_argument, NULL, 'W'},
+    {"height", required_argument, NULL, 'H'},
+    {"supersample", required_argument, NULL, 'k'},
+    {"threads", required_argument, NULL, 't'},
+    {"aovs", required_argument, NULL, 'a'},
+    {"quiet", no_argument, NULL, 'q'},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0},
+};
+#define RENDER_SHORTOPTS "o:W:H:k:t:a:qh"
+static const cli_option_help render_options_help[] = {
+    {"output", "FILE", "the layered EXR to write (required); written under a temporary name and renamed"},
+    {"width", "PIXELS", "image width in pixels, 1 to 16384; default: the scene's image.width"},
+    {"height", "PIXELS", "image height in pixels, 1 to 16384; default: the scene's image.height"},
+    {"supersample", "K", "K x K box-filtered samples per pixel, 1 to 16; default: the scene's image.supersample"},
+    {"threads", "N", "rendering threads, 1 to 256; default: all cores"},
+    {"aovs", "all|none",
+     "all: the diffuse, specular, reflection and emission layers too; none: R, G, B, A, "
+     "coverage and object only; default: all"},
+    {"quiet", NULL, "print no summary line; default: one line (size, triangles, milliseconds, samples)"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_render_command = {
+    .name = "render",
+    .run = cli_render,
+    .operands = "SCENE -o OUT.exr [options]",
+    .operand_kind = "scene",
+    .summary = "render one scene through reflcheck's rasterizer into a layered EXR",
+    .description = "Renders SCENE (scenes/FORMAT.md) with the real-time models in reflcheck's own rasterizer. "
+                   "Refuses (exit 2, before rendering) an output that is a device, FIFO or directory, or the "
+                   "scene file or a file it references; a failed write leaves the destination as it was.",
+    .longopts = render_longopts,
+    .shortopts = RENDER_SHORTOPTS,
+    .options = render_options_help,
+    .example = "reflcheck render scenes/d3d9_glass.yaml -o glass.exr --width 320 --height 240",
+};
+
 int cli_render(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"output", required_argument, NULL, 'o'},  {"width", required_argument, NULL, 'W'},
-        {"height", required_argument, NULL, 'H'},  {"supersample", required_argument, NULL, 'k'},
-        {"threads", required_argument, NULL, 't'}, {"aovs", required_argument, NULL, 'a'},
-        {"quiet", no_argument, NULL, 'q'},         {NULL, 0, NULL, 0},
-    };
     const char *out = NULL;
     render_options ro = {0};
     int quiet = 0, c, rc = CLI_OK;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:W:H:k:t:a:q", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("render", c, seen, "o:W:H:k:t:a:q", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, RENDER_SHORTOPTS, render_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("render", c, seen, RENDER_SHORTOPTS, render_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'o': out = optarg; break;
@@ -73,6 +107,7 @@ int cli_render(int argc, char **argv)
         case 'k': rc = cli_parse_int("--supersample", optarg, 1, 16, &ro.supersample); break;
         case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &ro.threads); break;
         case 'q': quiet = 1; break;
+        case 'h': return cli_help("render");
         case 'a':
             if (strcmp(optarg, "all") == 0)
                 ro.aovs = RENDER_AOV_ALL;
@@ -83,7 +118,8 @@ int cli_render(int argc, char **argv)
                 rc = CLI_BAD_INPUT;
             }
             break;
-        default: rc = cli_bad_option("render", argc, argv, "o:W:H:k:t:a:q", longopts, "see reflcheck --help");
+        default:
+            rc = cli_bad_option("render", argc, argv, RENDER_SHORTOPTS, render_longopts, "see reflcheck render --help");
         }
     }
     if (rc != CLI_OK)

@@ -1,5 +1,6 @@
 /* reflcheck renderers [--json]: the renderer table (harness/renderers/registry.h) as text, or
  * as JSON for scripts (harness/sweep.py, harness/deps.sh), so that none of them keeps a list. */
+#include <getopt.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -19,12 +20,46 @@ static cJSON *cli_renderers_terms(unsigned bits)
     return a;
 }
 
+static const struct option renderers_longopts[] = {
+    {"json", no_argument, NULL, 'j'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+static const cli_option_help renderers_options_help[] = {
+    {"json", NULL,
+     "the table as JSON, with each renderer's package, the terms it may leave out per role and "
+     "what it cannot render; default: one line per renderer"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_renderers_command = {
+    .name = "renderers",
+    .run = cli_renderers,
+    .operands = "[--json]",
+    .operand_kind = "",
+    .summary = "the renderer table: name, title, program, model or reference",
+    .description = "Prints the renderers reflcheck knows (harness/renderers/registry.c), the names --renderer "
+                   "takes: its own rasterizer (the model), the exact references and the external programs "
+                   "(POV-Ray, Blender Cycles and EEVEE).",
+    .longopts = renderers_longopts,
+    .shortopts = "h",
+    .options = renderers_options_help,
+    .example = "reflcheck renderers --json",
+};
+
 int cli_renderers(int argc, char **argv)
 {
-    int json = argc == 2 && strcmp(argv[1], "--json") == 0;
-    if (argc > 2 || (argc == 2 && !json)) {
+    int json = 0, c;
+    optind = 1;
+    opterr = 0;
+    while ((c = getopt_long(argc, argv, "h", renderers_longopts, NULL)) != -1) {
+        if (c == 'h')
+            return cli_help("renderers");
+        if (c != 'j')
+            return cli_bad_option("renderers", argc, argv, "h", renderers_longopts,
+                                  "usage: reflcheck renderers [--json]");
+        json = 1;
+    }
+    if (optind != argc) {
         fprintf(stderr, "reflcheck: renderers: unexpected argument '%s'; usage: reflcheck renderers [--json]\n",
-                argv[json ? 2 : 1]);
+                argv[optind]);
         return CLI_BAD_INPUT;
     }
     if (!json) {

@@ -11,30 +11,85 @@
 #include "cli.h"
 #include "jobs.h"
 
+static const struct option run_longopts[] = {
+    {"renderer", required_argument, NULL, 'r'},
+    {"role", required_argument, NULL, 'R'},
+    {"small", no_argument, NULL, 's'},
+    {"out", required_argument, NULL, 'o'},
+    {"cache", required_argument, NULL, 'c'},
+    {"no-cache", no_argument, NULL, 'n'},
+    {"timeout", required_argument, NULL, 'T'},
+    {"threads", required_argument, NULL, 't'},
+    {"seeds", required_argument, NULL, 'S'},
+    {"supersample", required_argument, NULL, 'k'},
+    {"samples", required_argument, NULL, 'N'},
+    {"tessellation", required_argument, NULL, 'e'},
+    {"per-vertex", no_argument, NULL, 'v'},
+    {"tag", required_argument, NULL, 'g'},
+    {"seed", required_argument, NULL, 'E'},
+    {"slurm-job", required_argument, NULL, 'J'},
+    {"record-status", required_argument, NULL, 'X'},
+    {"record-message", required_argument, NULL, 'M'},
+    {"record-log", required_argument, NULL, 'L'},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0},
+};
+static const cli_option_help run_options_help[] = {
+    {"renderer", "RENDERER", "the renderer, a name of `reflcheck renderers`; default: raster (the model)"},
+    {"role", "twin|validate|agree",
+     "twin: the model's own equations in the reference (raster: Smith G and F = 1); validate: the scene's "
+     "physics; default: validate"},
+    {"small", NULL,
+     "the small variant (the scene's image.small: width 96 or less, k 2 or less, samples 32 or "
+     "less); default: full size"},
+    {"out", "DIR",
+     "the run folder: DIR/<scene>/<renderer>-<role>.exr, .json (the record) and .log; default: "
+     "reports/runs/manual"},
+    {"cache", "DIR", "the render cache, shared safely by concurrent runs; default: reports/cache"},
+    {"no-cache", NULL, "render in a private work folder and cache nothing; default: use the cache"},
+    {"timeout", "SECONDS",
+     "the render's time limit in seconds, 0.1 to 1000000; default: the scene's timeout, "
+     "else 600"},
+    {"threads", "N", "threads the renderer may use, 1 to 256; default: all cores"},
+    {"seeds", "N", "Cycles: renders with different seeds averaged, 1 to 64; default: 2"},
+    {"supersample", "K", "K x K samples per pixel, 1 to 16; default: the scene's (or the small variant's)"},
+    {"samples", "N", "Cycles samples per pixel per seed, 1 to 1048576; default: the scene's image.samples"},
+    {"tessellation", "N", "segments of every object's tessellation, 3 to 4096; default: the scene's"},
+    {"per-vertex", NULL, "per-vertex (Gouraud) shading of every D3D material; default: the scene's shading"},
+    {"tag", "NAME",
+     "a-z, 0-9, _ and -: with a quality override the outputs are <renderer>-<role>-NAME, so "
+     "sweeps do not overwrite each other; default: none"},
+    {"seed", "N", "Cycles: the first seed, 0 to 1048576; default: 0"},
+    {"slurm-job", "ID",
+     "the scheduler's id of this job, kept in the record; default: from SLURM_ARRAY_JOB_ID, "
+     "SLURM_ARRAY_TASK_ID, SLURM_JOB_ID and SLURM_STEP_ID, none outside Slurm"},
+    {"record-status", "failed|crashed|timeout|error",
+     "render nothing: write the record of a job the scheduler ended without one, with this status "
+     "(harness/slurm/finish.sh); exit 1; default: render the job"},
+    {"record-message", "TEXT", "with --record-status: the record's message; default: none"},
+    {"record-log", "FILE", "with --record-status: the scheduler's output file, kept as the job's log; default: none"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_run_command = {
+    .name = "run",
+    .run = cli_run,
+    .operands = "SCENE [--renderer RENDERER] [--role ROLE] [options]",
+    .operand_kind = "scene",
+    .summary = "one render job: a scene in one renderer and role, cached and recorded",
+    .description = "Renders SCENE in the renderer and role (POV-Ray and Blender headless, or in-process), "
+                   "through the cache, and writes the image, its record (status, times, renderer version, "
+                   "command, cache key) and the renderer's log. Exit 0 when the job is ok or skipped (the "
+                   "renderer is not installed or cannot represent the scene: the record says which), 1 when it "
+                   "failed, crashed, timed out or hit an error on our side.",
+    .longopts = run_longopts,
+    .shortopts = "o:h",
+    .options = run_options_help,
+    .example = "reflcheck run scenes/d3d9_glass.yaml --renderer povray --role validate --small --out /tmp/run1",
+};
+
 int cli_run(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"renderer", required_argument, NULL, 'r'},
-        {"role", required_argument, NULL, 'R'},
-        {"small", no_argument, NULL, 's'},
-        {"out", required_argument, NULL, 'o'},
-        {"cache", required_argument, NULL, 'c'},
-        {"no-cache", no_argument, NULL, 'n'},
-        {"timeout", required_argument, NULL, 'T'},
-        {"threads", required_argument, NULL, 't'},
-        {"seeds", required_argument, NULL, 'S'},
-        {"supersample", required_argument, NULL, 'k'},
-        {"samples", required_argument, NULL, 'N'},
-        {"tessellation", required_argument, NULL, 'e'},
-        {"per-vertex", no_argument, NULL, 'v'},
-        {"tag", required_argument, NULL, 'g'},
-        {"seed", required_argument, NULL, 'E'},
-        {"slurm-job", required_argument, NULL, 'J'},
-        {"record-status", required_argument, NULL, 'X'},
-        {"record-message", required_argument, NULL, 'M'},
-        {"record-log", required_argument, NULL, 'L'},
-        {NULL, 0, NULL, 0},
-    };
     job_spec j = {.renderer = registry_model(),
                   .role = ROLE_VALIDATE,
                   .variant = JOB_FULL,
@@ -44,8 +99,8 @@ int cli_run(int argc, char **argv)
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("run", c, seen, "o:", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:h", run_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("run", c, seen, "o:h", run_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'r':
@@ -101,6 +156,7 @@ int cli_run(int argc, char **argv)
             break;
         case 'M': j.record_message = optarg; break;
         case 'L': j.record_log = optarg; break;
+        case 'h': return cli_help("run");
         case 'g':
             if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
                 fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);
@@ -108,7 +164,7 @@ int cli_run(int argc, char **argv)
             }
             j.tag = optarg;
             break;
-        default: rc = cli_bad_option("run", argc, argv, "o:", longopts, "see reflcheck --help");
+        default: rc = cli_bad_option("run", argc, argv, "o:h", run_longopts, "see reflcheck run --help");
         }
     }
     if (rc != CLI_OK)

@@ -49,21 +49,52 @@ static int cli_stability_write(const char *path, const stability_table *t, int j
     return CLI_OK;
 }
 
+static const struct option stability_longopts[] = {
+    {"json", required_argument, NULL, 'j'},
+    {"csv", required_argument, NULL, 'c'},
+    {"samples", required_argument, NULL, 's'},
+    {"seed", required_argument, NULL, 'r'},
+    {"quiet", no_argument, NULL, 'q'},
+    {"help", no_argument, NULL, 'h'},
+    {NULL, 0, NULL, 0},
+};
+static const cli_option_help stability_options_help[] = {
+    {"json", "FILE", "also write the table as JSON to FILE; default: none"},
+    {"csv", "FILE", "also write the table as CSV to FILE; default: none"},
+    {"samples", "N", "evaluations per sweep case, 16 to 10000000; default: 4000"},
+    {"seed", "N",
+     "the seed of each sweep's random part, 1 to 2147483647; default: a fixed seed (the same "
+     "table every run)"},
+    {"quiet", NULL, "print no table on standard output; default: the table"},
+    {"help", NULL, "this help, then exit 0"},
+    {NULL, NULL, NULL},
+};
+const cli_command cli_stability_command = {
+    .name = "stability",
+    .run = cli_stability,
+    .operands = "[options]",
+    .operand_kind = "",
+    .summary = "the float models against long double over extreme inputs",
+    .description = "Runs every model function in float and in long double over sweeps of extreme and "
+                   "degenerate inputs, with the physics checks of harness/stability.h, and prints the table. "
+                   "Exit 1 when a row fails a gate: NaN, Inf or a negative value for finite input, or a gating "
+                   "physics check.",
+    .longopts = stability_longopts,
+    .shortopts = "h",
+    .options = stability_options_help,
+    .example = "reflcheck stability --json stability.json --quiet",
+};
+
 int cli_stability(int argc, char **argv)
 {
-    static const struct option longopts[] = {
-        {"json", required_argument, NULL, 'j'},    {"csv", required_argument, NULL, 'c'},
-        {"samples", required_argument, NULL, 's'}, {"seed", required_argument, NULL, 'r'},
-        {"quiet", no_argument, NULL, 'q'},         {NULL, 0, NULL, 0},
-    };
     const char *json = NULL, *csv = NULL;
     stability_options o = {0};
     int c, rc = CLI_OK, quiet = 0;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
-    while (rc == CLI_OK && (c = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        if (c != '?' && (rc = cli_check_option("stability", c, seen, "", longopts)) != CLI_OK)
+    while (rc == CLI_OK && (c = getopt_long(argc, argv, "h", stability_longopts, NULL)) != -1) {
+        if (c != '?' && (rc = cli_check_option("stability", c, seen, "h", stability_longopts)) != CLI_OK)
             break;
         switch (c) {
         case 'j': json = optarg; break;
@@ -76,9 +107,9 @@ int cli_stability(int argc, char **argv)
             break;
         }
         case 'q': quiet = 1; break;
+        case 'h': return cli_help("stability");
         default:
-            rc = cli_bad_option("stability", argc, argv, "", longopts,
-                                "options: --json FILE --csv FILE --samples N --seed N --quiet");
+            rc = cli_bad_option("stability", argc, argv, "h", stability_longopts, "see reflcheck stability --help");
         }
     }
     if (rc != CLI_OK)

@@ -3,7 +3,8 @@
  * "-rf.yaml", an option without its value or with an empty one, an option given twice), never
  * the command; `diff --mask` of another size names the mask, its size and the size it must
  * have; numbers with junk or out of range are refused by the option's name. Each refusal is
- * exit status 2 and one line; nothing is written. */
+ * exit status 2 and one line; nothing is written. Issue 23: every command's --help, the command
+ * list and --version. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -13,6 +14,9 @@
 #include <unistd.h>
 #include <cmocka.h>
 
+#include <getopt.h>
+
+#include "cli.h"
 #include "cli_exec.h"
 #include "tmpdir.h"
 
@@ -137,17 +141,147 @@ static void test_diff_mask_size(void **state)
     assert_int_equal(cli_exec(err, sizeof err, "diff %s/t.exr %s/t.exr --mask %s/t.exr", tmpdir, tmpdir, tmpdir), 0);
 }
 
-/* Help-like words where a file name goes: taken as the file name and named (held). */
+/* After "--" an option-like word is a file name, never the help option. */
 static void test_help_words_as_files(void **state)
 {
     (void)state;
     char err[2048];
-    expect_refused(err, cli_exec(err, sizeof err, "check --help"), "--help: cannot open");
-    expect_refused(err, cli_exec(err, sizeof err, "check -h"), "-h: cannot open");
-    /* after "--" an option-like word is a scene file, never an option */
     int rc = cli_exec(err, sizeof err, "render -o %s/h.exr -- --help", tmpdir);
     expect_refused(err, rc, "--help");
     assert_null(strstr(err, "unknown option"));
+}
+
+/* The whole stdout of `reflcheck ARGS` into out (NUL-ended), its stderr into err; the exit status. */
+static int cli_output(char *out, size_t outlen, char *err, size_t errlen, const char *args)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/stdout.txt", tmpdir);
+    int rc = sh_exec(err, errlen, "%s %s > '%s'", cli_bin(), args, path);
+    FILE *f = fopen(path, "r");
+    size_t n = f != NULL ? fread(out, 1, outlen - 1, f) : 0;
+    out[n] = '\0';
+    if (f != NULL)
+        fclose(f);
+    return rc;
+}
+
+/* "--name" as a whole word of the help: followed by a space or a line end, not a longer name. */
+static int names_option(const char *help, const char *name)
+{
+    char want[80];
+    snprintf(want, sizeof want, "--%s", name);
+    for (const char *p = strstr(help, want); p != NULL; p = strstr(p + 1, want)) {
+        char after = p[strlen(want)];
+        if (after == ' ' || after == '\n')
+            return 1;
+    }
+    return 0;
+}
+
+/* Issue 23 item 5: `render --help` was "unknown option '--help'" (exit 2) and `check --help` tried
+ * to open a file. Every command of the table, by --help and -h: exit 0, nothing on stderr, its
+ * usage, an example, and every option its parser's table holds, each with a help text. A new
+ * option without help fails here. */
+static void test_every_command_help(void **state)
+{
+    (void)state;
+    static char out[65536], out_h[65536];
+    char err[2048], args[128];
+    assert_true(cli_command_count() >= 11);
+    for (int i = 0; i < cli_command_count(); i++) {
+        const cli_command *c = cli_command_at(i);
+        snprintf(args, sizeof args, "%s --help", c->name);
+        int rc = cli_output(out, sizeof out, err, sizeof err, args);
+        if (rc != 0 || err[0] != '\0')
+            fail_msg("%s: exit %d, stderr: %s", args, rc, err);
+        char usage[64];
+        snprintf(usage, sizeof usage, "usage: reflcheck %s ", c->name);
+        if (strncmp(out, usage, strlen(usage)) != 0 || strstr(out, "\nexample:\n  reflcheck ") == NULL)
+            fail_msg("%s: no usage line or example:\n%s", args, out);
+        assert_null(strstr(out, "(no help"));
+        int n = 0;
+        for (const struct option *o = c->longopts; o->name != NULL; o++, n++) {
+            if (!names_option(out, o->name))
+                fail_msg("%s does not name --%s:\n%s", args, o->name, out);
+            const cli_option_help *h = c->options;
+            while (h->name != NULL && strcmp(h->name, o->name) != 0)
+                h++;
+            if (h->name == NULL || h->text == NULL || strlen(h->text) < 10)
+                fail_msg("%s: --%s has no help text in its cli_option_help table", c->name, o->name);
+            /* a value option's help says its default or that it is required */
+            if (o->has_arg == required_argument && strstr(h->text, "default") == NULL &&
+                strstr(h->text, "required") == NULL)
+                fail_msg("%s --%s: the help gives no default: %s", c->name, o->name, h->text);
+        }
+        assert_true(n >= 1); /* at least --help */
+        snprintf(args, sizeof args, "%s -h", c->name);
+        assert_int_equal(cli_output(out_h, sizeof out_h, err, sizeof err, args), 0);
+        assert_string_equal(out_h, out);
+        snprintf(args, sizeof args, "help %s", c->name);
+        assert_int_equal(cli_output(out_h, sizeof out_h, err, sizeof err, args), 0);
+        assert_string_equal(out_h, out);
+    }
+    /* --help after other arguments, as getopt reads it; a value is never taken for it */
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, "render scenes/d3d9_glass.yaml --help"), 0);
+    assert_non_null(strstr(out, "usage: reflcheck render"));
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, "check scenes/d3d9_glass.yaml -h"), 0);
+    assert_non_null(strstr(out, "usage: reflcheck check"));
+    int rc = cli_exec(err, sizeof err, "eval fresnel --steps --help");
+    expect_refused(err, rc, "--steps '--help'");
+    expect_refused(err, cli_exec(err, sizeof err, "help nosuch"), "unknown command 'nosuch'");
+}
+
+/* `reflcheck --help` and `reflcheck help` list every command of the table with its summary. */
+static void test_top_help(void **state)
+{
+    (void)state;
+    static char out[65536], out2[65536];
+    char err[2048];
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, "--help"), 0);
+    assert_int_equal(cli_output(out2, sizeof out2, err, sizeof err, "help"), 0);
+    assert_string_equal(out, out2);
+    assert_int_equal(cli_output(out2, sizeof out2, err, sizeof err, "-h"), 0);
+    assert_string_equal(out, out2);
+    for (int i = 0; i < cli_command_count(); i++) {
+        char line[64];
+        snprintf(line, sizeof line, "\n  %-11s", cli_command_at(i)->name);
+        if (strstr(out, line) == NULL)
+            fail_msg("reflcheck --help does not list %s:\n%s", cli_command_at(i)->name, out);
+    }
+    assert_non_null(strstr(out, "REFLCHECK_DATA_DIR"));
+    /* no command: the list on stderr, exit 2 */
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, ""), 2);
+    assert_non_null(strstr(err, "usage: reflcheck COMMAND"));
+}
+
+/* `reflcheck --version`: "reflcheck VERSION (commit ID)", VERSION as the Makefile defines it and ID
+ * a commit of this repository (with "-dirty" when built from a changed tree). */
+static void test_version(void **state)
+{
+    (void)state;
+    static char out[4096], want[256], id[64];
+    char err[2048];
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, "--version"), 0);
+    assert_int_equal(sh_exec(err, sizeof err, "sed -n 's/^VERSION := //p' Makefile > %s/v.txt", tmpdir), 0);
+    char path[600];
+    snprintf(path, sizeof path, "%s/v.txt", tmpdir);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    char version[64] = "";
+    assert_non_null(fgets(version, sizeof version, f));
+    fclose(f);
+    version[strcspn(version, "\n")] = '\0';
+    assert_true(version[0] != '\0');
+    snprintf(want, sizeof want, "reflcheck %s (commit ", version);
+    if (strncmp(out, want, strlen(want)) != 0)
+        fail_msg("--version printed '%s', want it to start '%s'", out, want);
+    if (sscanf(out + strlen(want), "%63[0-9a-f]", id) != 1 || strlen(id) < 7)
+        fail_msg("--version names no commit: %s", out);
+    /* the id is a commit of this repository */
+    assert_int_equal(sh_exec(err, sizeof err, "git cat-file -e %s^{commit}", id), 0);
+    const char *rest = out + strlen(want) + strlen(id);
+    if (strcmp(rest, ")\n") != 0 && strcmp(rest, "-dirty)\n") != 0)
+        fail_msg("--version: '%s' after the commit", rest);
 }
 
 int main(void)
@@ -160,6 +294,9 @@ int main(void)
         cmocka_unit_test(test_numbers),
         cmocka_unit_test(test_diff_mask_size),
         cmocka_unit_test(test_help_words_as_files),
+        cmocka_unit_test(test_every_command_help),
+        cmocka_unit_test(test_top_help),
+        cmocka_unit_test(test_version),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
