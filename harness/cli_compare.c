@@ -224,6 +224,7 @@ int cli_diff(int argc, char **argv)
     if (st == RC_OK)
         st = compare_images(bits ? tpath : argv[optind], bits ? rpath : argv[optind + 1], mask, stdout, &gate_failed,
                             err, sizeof err);
+    diff_terms_names(err, sizeof err, dir, argv[optind], argv[optind + 1]);
     diff_terms_cleanup(dir);
     if (st != RC_OK) {
         /* Every image here is the user's input: one that cannot be read or does not match is

@@ -119,3 +119,24 @@ void diff_terms_cleanup(const char *dir)
     unlink(path);
     rmdir(dir);
 }
+
+void diff_terms_names(char *msg, size_t len, const char *dir, const char *test, const char *ref)
+{
+    char from[2][300], out[2048];
+    const char *to[2] = {test, ref};
+    snprintf(from[0], sizeof from[0], "%s/test.exr", dir);
+    snprintf(from[1], sizeof from[1], "%s/ref.exr", dir);
+    size_t used = 0;
+    const char *p = msg;
+    while (*p != '\0' && used + 1 < sizeof out) {
+        int k = strncmp(p, from[0], strlen(from[0])) == 0 ? 0 : (strncmp(p, from[1], strlen(from[1])) == 0 ? 1 : -1);
+        if (dir[0] != '\0' && k >= 0) {
+            used += (size_t)snprintf(out + used, sizeof out - used, "%s", to[k]);
+            p += strlen(from[k]);
+        } else {
+            out[used++] = *p++;
+        }
+    }
+    out[used < sizeof out ? used : sizeof out - 1] = '\0';
+    snprintf(msg, len, "%s", out);
+}

@@ -31,5 +31,7 @@ rc_status diff_terms_strip(const char *in, unsigned bits, const char *out, char 
 rc_status diff_terms_pair(const char *test, const char *ref, unsigned bits, char *dir, size_t dirlen, char *err,
                           size_t errlen);
 void diff_terms_cleanup(const char *dir);
+/* Puts the user's file names back into a message about the stripped copies in dir. */
+void diff_terms_names(char *msg, size_t len, const char *dir, const char *test, const char *ref);
 
 #endif
