@@ -146,6 +146,7 @@ typedef struct {
     const shade_plan *plans;         /* one per object */
     const shade_terms *vertex_terms; /* Gouraud: per vertex, NULL where per-pixel */
     const unsigned char *per_vertex; /* per object */
+    const unsigned char *two_sided;  /* per object: turn the normal toward the viewer (d3d.two_sided) */
     /* Per object, D3DRS_NORMALIZENORMALS off: the length D3D's normal has (mesh.h), NULL where
      * the normal stays unit. */
     const mesh_normal_length *const *normal_length;
@@ -212,16 +213,17 @@ static void render_put_terms(const render_job *j, render_scratch *w, int q, cons
     }
 }
 
-/* A queue's samples, one per SIMD lane: the interpolated world point, the unit normal facing
- * the viewer (two-sided, as POV-Ray and Cycles shade; where opposite vertex normals cancel, the
- * face normal, the only direction left) and the unit direction to the viewer.
+/* A queue's samples, one per SIMD lane: the interpolated world point, the unit normal (facing
+ * the viewer when two_sided, as POV-Ray and Cycles shade; as given otherwise, as D3D's fixed
+ * function lights; where opposite vertex normals cancel, the face normal, the only direction
+ * left) and the unit direction to the viewer.
  * Queued samples come in runs on one triangle (a pixel's k x k samples, then its neighbours),
  * so the vertices are read once per run and broadcast into the lane arrays, instead of
  * gathered per lane (which GCC emulates with a scalar load per element). */
 SMATH_CLONES
 static void render_interpolate(const mesh *m, vec3 eye, const render_queue *restrict qu, int n,
-                               const mesh_normal_length *len, int textured, render_vertex_lanes *restrict vl,
-                               shade_batch_in *restrict in)
+                               const mesh_normal_length *len, int textured, int two_sided,
+                               render_vertex_lanes *restrict vl, shade_batch_in *restrict in)
 {
     const float *pos = &m->pos[0].x, *nrm = &m->nrm[0].x;
     const uint32_t *idx = m->idx;
@@ -263,7 +265,7 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         vec3 face = v3_cross(v3_sub(p1, p0), v3_sub(p2, p0));
         nn = v3_norm(v3_dot(nn, nn) < 1e-12f ? face : nn);
         vec3 v = v3_norm(v3_sub(eye, x));
-        nn = v3_dot(nn, v) < 0.0f ? v3_neg(nn) : nn;
+        nn = two_sided && v3_dot(nn, v) < 0.0f ? v3_neg(nn) : nn;
         shade_batch_set_input(in, i, x, nn, v);
     }
     /* D3DRS_NORMALIZENORMALS off, per pixel: the unit normal at the sample scaled to the
@@ -377,8 +379,8 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b2[i] = qu->b2[n - 1];
     }
     double t0 = render_clock(w);
-    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, &w->verts,
-                       &w->in);
+    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, j->two_sided[obj],
+                       &w->verts, &w->in);
     double t1 = render_clock(w);
     if (j->vertex_colours[obj])
         render_shade_vertex_colours(j, obj, qu, &w->in, r);
@@ -825,6 +827,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     const mesh_normal_length *normal_length[SCENE_MAX_OBJECTS];
     unsigned char vertex_colours[SCENE_MAX_OBJECTS] = {0};
     unsigned char per_vertex[SCENE_MAX_OBJECTS] = {0};
+    unsigned char two_sided[SCENE_MAX_OBJECTS] = {0};
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
         const material *mat = &s->materials[s->objects[i].material];
@@ -836,6 +839,8 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
             shade_plan_make(&j.sc, mat, &plans[i]);
         /* Gouraud belongs to the D3D model; a caller's plan is another model, shaded per sample. */
         per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
+        /* One-sided is D3D fixed-function state (scene_file.c refuses it on the shaders). */
+        two_sided[i] = (unsigned char)(opt->plans != NULL || mat->model != MODEL_D3D || mat->d3d.two_sided != 0);
         normal_length[i] = NULL;
         vertex_colours[i] = (unsigned char)(opt->plans == NULL && mat->model == MODEL_D3D &&
                                                     d3d_uses_vertex_colours(&mat->d3d, m->colours[i])
@@ -851,6 +856,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     j.normal_length = normal_length;
     j.vertex_colours = vertex_colours;
     j.per_vertex = per_vertex;
+    j.two_sided = two_sided;
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
     shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
@@ -885,7 +891,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                 vec3 x = m->pos[vi];
                 vec3 v = v3_norm(v3_sub(cam.eye, x));
                 vec3 n = m->nrm[vi];
-                if (v3_dot(n, v) < 0.0f)
+                if (two_sided[obj] && v3_dot(n, v) < 0.0f)
                     n = v3_neg(n);
                 /* D3D per vertex with NORMALIZENORMALS off: exactly its unnormalised normal. */
                 if (normal_length[obj] != NULL)

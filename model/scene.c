@@ -92,6 +92,7 @@ void material_init(material *m)
     m->d3d.diffuse = m->albedo;
     m->d3d.local_viewer = 1;
     m->d3d.normalize_normals = 1;
+    m->d3d.two_sided = 1;
     m->d3d.diffuse_source = COLOUR_SOURCE_COLOUR1;
     m->d3d.specular_source = COLOUR_SOURCE_COLOUR2;
 

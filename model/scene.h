@@ -76,6 +76,11 @@ typedef struct {
      * normal times the inverse transpose of the object's scale and rotation, not renormalised:
      * N.L and N.H scale with its length (mesh_d3d_normal_length). */
     int normalize_normals;
+    /* Two-sided lighting, default 1: the normal is turned toward the viewer where it faces away,
+     * as POV-Ray and Cycles shade (and as every image before the key was). 0 (model d3d only) is
+     * Direct3D's fixed function with D3DCULL_NONE: both faces drawn, lit with the normal as given,
+     * so a back face is lit by the lights on the normal's side (scenes/FORMAT.md, two_sided). */
+    int two_sided;
     /* D3DRS_COLORVERTEX (model d3d only): 1 = the mesh's vertex colours replace the material
      * colours the sources below select; default 0 here (D3D's own default is TRUE: a scene says
      * when a file's colours take part). A source whose colour the object's mesh lacks keeps the

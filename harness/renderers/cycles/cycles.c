@@ -475,6 +475,17 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
                 return rc;
         }
+        if (!d->two_sided) {
+            /* Cycles turns the shading normal toward the ray and takes a light beyond the surface
+             * as transmission, which a Diffuse BSDF does not reflect: the back face's light
+             * through the surface (D3D's normal as given) is not rendered. */
+            snprintf(what, sizeof what,
+                     "materials[%d] '%s': d3d.two_sided false (Cycles lights a back face with the normal "
+                     "turned toward the ray)",
+                     mi, mat->name);
+            if ((rc = cycles_cannot(c, 0, what, "compare it against povray, or set two_sided to true")) != RC_OK)
+                return rc;
+        }
         /* What no renderer twins: only a validate can judge it. */
         const char *only_validate =
             mesh_material_unnormalised(s, mi)

@@ -235,6 +235,9 @@ static rc_status povray_light_convert(const scene *s, const mesh *m, int i, cons
 typedef struct {
     dvec3 pigment;
     double diffuse;
+    /* d3d.two_sided false: the back face (seen against its normal) has its own texture, lit
+     * only through the surface (POV-Ray's diffuse Front, Back with Front 0). */
+    int one_sided;
     dvec3 emission; /* POV-Ray's emission, which it multiplies by the pigment */
     double specular, roughness;
     int reflection; /* 0 none, 1 { min, max falloff p }, 2 { 0, 1 fresnel on } */
@@ -294,6 +297,15 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     double keep = d9 ? formula_d3d9_diffuse_weight_d(d3d9client_colour_norm_d(mat->d9.reflect, mat->d9.norm)) : 1.0;
     f->pigment = dv3_scale(dv3_from(d->diffuse), keep);
     f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
+    f->one_sided = !d->two_sided;
+    if (f->one_sided && (r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': d3d.two_sided false with a d3d.specular highlight has no POV-Ray "
+                       "twin: D3D lights a back face's highlight from the far side, POV-Ray only its diffuse; "
+                       "set d3d.specular to 0 or two_sided to true",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
 
     /* The constant part: D3D ambient Va*(Ia + sum La*A) (diffuse term, scaled by 1 - |lambda|
      * like all of d) and Ve. POV-Ray has it only as emission, times the pigment. */
@@ -442,6 +454,7 @@ static rc_status povray_material_physical(const scene *s, int mi, const povray_r
         return povray_conductor_refusal(s, mi, err, errlen);
     f->pigment = dv3_from(mat->albedo);
     f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) && (ph->diffuse_lights & all) ? 1.0 : 0.0;
+    f->one_sided = 0; /* the physics lights both sides (FORMAT.md, two_sided) */
     f->emission = dv3(0, 0, 0);
     /* A smooth dielectric's highlight from a point or sun light is a delta lobe: nothing to
      * render with `specular`, so it is left out (povray_physics says so for a rough lobe). */
@@ -529,19 +542,25 @@ static rc_status povray_material_texture(const scene *s, int mi, const povray_op
     return RC_OK;
 }
 
-static void povray_write_finish(FILE *fp, const povray_finish *f)
+/* kw is "texture", or "interior_texture" for a mesh2's other side; back 1: the finish of a
+ * one-sided material's back face, lit only through the surface. */
+static void povray_write_finish_as(FILE *fp, const povray_finish *f, const char *kw, int back)
 {
     if (f->texture[0] != '\0') {
         /* interpolate 2: bilinear; repeat is image_map's default (no `once`). */
-        fprintf(fp, "    texture {\n      uv_mapping pigment { image_map { exr \"%s\" interpolate 2 } }", f->texture);
+        fprintf(fp, "    %s {\n      uv_mapping pigment { image_map { exr \"%s\" interpolate 2 } }", kw, f->texture);
     } else {
-        fprintf(fp, "    texture {\n      pigment { color rgb ");
+        fprintf(fp, "    %s {\n      pigment { color rgb ", kw);
         povray_put_vec(fp, f->pigment);
         fprintf(fp, " }");
     }
     fprintf(fp, "\n      finish {\n        ambient 0\n        emission rgb ");
     povray_put_vec(fp, f->emission);
-    fprintf(fp, "\n        diffuse %.9g\n        brilliance 1\n        crand 0\n", f->diffuse);
+    fprintf(fp, "\n        diffuse %.9g", back ? 0.0 : f->diffuse);
+    /* diffuse Front, Back: Back lights the side away from the light with the same cosine. */
+    if (back)
+        fprintf(fp, ", %.9g", f->diffuse);
+    fprintf(fp, "\n        brilliance 1\n        crand 0\n");
     fprintf(fp, "        specular %.9g\n        roughness %.9g\n        phong 0\n        metallic 0\n", f->specular,
             f->roughness);
     if (f->reflection == 1) {
@@ -558,6 +577,20 @@ static void povray_write_finish(FILE *fp, const povray_finish *f)
     fprintf(fp, "      }\n    }\n");
     if (f->reflection == 2)
         fprintf(fp, "    interior { ior %.9g }\n", f->ior);
+}
+
+static void povray_write_finish(FILE *fp, const povray_finish *f)
+{
+    if (!f->one_sided) {
+        povray_write_finish_as(fp, f, "texture", 0);
+        return;
+    }
+    /* POV-Ray gives a mesh2 face's interior_texture to the side its winding's normal points to
+     * (counter-clockwise seen from there, as mesh.c winds toward the normal), `texture` to the
+     * other: the normal side is lit as usual, the back face only by lights beyond it. Either
+     * side's normal is turned toward the ray, so Back's cosine is the given normal's N.L. */
+    povray_write_finish_as(fp, f, "texture", 1);
+    povray_write_finish_as(fp, f, "interior_texture", 0);
 }
 
 /* D3D vertex colours POV-Ray can twin: the diffuse colour from colour1 (a mesh2 texture_list of
@@ -714,11 +747,11 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         if (st != RC_OK)
             return st;
         if (vcol[mi] && (fin[mi].texture[0] != '\0' || fin[mi].emission.x != 0.0 || fin[mi].emission.y != 0.0 ||
-                         fin[mi].emission.z != 0.0 || fin[mi].reflection != 0)) {
+                         fin[mi].emission.z != 0.0 || fin[mi].reflection != 0 || fin[mi].one_sided)) {
             status_message(err, errlen,
                            "%s: materials[%d] '%s': D3D vertex colours with a texture, an emissive or ambient "
-                           "colour or a reflection have no POV-Ray twin (its emission is a multiple of the "
-                           "pigment); use the diffuse source alone",
+                           "colour, a reflection or d3d.two_sided false have no POV-Ray twin (its emission is a "
+                           "multiple of the pigment; a vertex's texture has one side); use the diffuse source alone",
                            s->path, mi, s->materials[mi].name);
             return RC_ERR_RANGE;
         }
