@@ -10,6 +10,9 @@ pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjs
 # Textures (model/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
 # read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: docs/meshes.md).
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
+# Users' own assets (glTF, FBX, COLLADA, DirectX .x, ...): Open Asset Import Library's C API
+# (model/mesh_assimp.c).
+pkgs+=(libassimp-dev)
 # DDS textures and cube maps (harness/image_oiio.cpp: a C shim over OpenImageIO's C++ API).
 pkgs+=(libopenimageio-dev)
 # The Slurm backend and its local test cluster (harness/slurm/, docs/slurm.md).

@@ -21,6 +21,7 @@
 #include "texture.h"
 #include "formula.h"
 #include "mesh.h"
+#include "mesh_assimp.h"
 #include "scene_file.h"
 
 /* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
@@ -828,29 +829,23 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_COUNT };
+enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_ASSET, MK_COUNT };
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
-                        yaml_node_t *state_node[3])
+                        yaml_node_t *state_node[2])
 {
     static const char *const keys[] = {
         "ambient",        "diffuse",        "specular",        "emissive",          "power",
         "local_viewer",   "per_vertex",     "clamp",           "normalize_normals", "colour_vertex",
-        "ambient_source", "diffuse_source", "specular_source", "emissive_source",   "two_sided"};
+        "ambient_source", "diffuse_source", "specular_source", "emissive_source"};
     static const char *const sources[] = {"material", "colour1", "colour2"};
-    sf_kv f[15];
+    sf_kv f[14];
     char child[SF_PATHLEN];
     rc_status rc;
-    if ((rc = sf_map(c, n, path, keys, 15, f)))
+    if ((rc = sf_map(c, n, path, keys, 14, f)))
         return rc;
     state_node[0] = f[8].v;
     state_node[1] = f[9].v;
-    state_node[2] = f[14].v;
-    if (f[14].v) {
-        sf_child(child, path, keys[14]);
-        if ((rc = sf_bool(c, f[14].v, child, &d->two_sided)))
-            return rc;
-    }
     if (f[9].v) {
         sf_child(child, path, keys[9]);
         if ((rc = sf_bool(c, f[9].v, child, &d->colour_vertex)))
@@ -1016,10 +1011,74 @@ static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, materia
     return RC_OK;
 }
 
+/* An asset's material name: exporters write spaces and punctuation ("Material #25"), so any
+ * text without control characters. */
+static rc_status sf_asset_name(sf_ctx *c, yaml_node_t *n, const char *path, char *out, size_t outlen)
+{
+    const char *s = sf_text(n);
+    if (!s)
+        return sf_fail(c, RC_ERR_PARSE, n, path, "expected an asset's material name, got %s; allowed: text",
+                       sf_kind(n));
+    size_t len = strlen(s);
+    if (len == 0 || len >= outlen)
+        return sf_fail(c, RC_ERR_RANGE, n, path, "name length %zu; allowed: 1..%zu bytes", len, outlen - 1);
+    for (size_t i = 0; i < len; i++)
+        if ((unsigned char)s[i] < 0x20 || s[i] == 0x7f)
+            return sf_fail(c, RC_ERR_RANGE, n, path,
+                           "byte %zu is a control character; allowed: the material name as the asset writes it", i + 1);
+    memcpy(out, s, len + 1);
+    return RC_OK;
+}
+
+/* An imported asset's material (asset: {path: FILE, material: NAME}), mapped by the rule of
+ * model/mesh_assimp.h (scenes/FORMAT.md, "Imported assets"). */
+static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material *m, int *f0_given)
+{
+    static const char *const keys[] = {"path", "material", "texture"};
+    sf_kv f[3];
+    int use_texture = 1;
+    char child[SF_PATHLEN], file[SCENE_PATH_MAX], name[SCENE_NAME_MAX], why[SCENE_PATH_MAX + 600];
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, keys, 3, f)) || (rc = sf_need(c, n, path, &f[0], "path")) ||
+        (rc = sf_need(c, n, path, &f[1], "material")))
+        return rc;
+    sf_child(child, path, "path");
+    const char *text = sf_text(f[0].v), *dot = text ? strrchr(text, '.') : NULL;
+    const char *ext[1] = {dot && mesh_assimp_supported(text) ? dot : ".gltf"};
+    if ((rc = sf_file(c, f[0].v, child, ext, 1, "an asset libassimp reads", FILEIO_MESH_MAX_BYTES, file)))
+        return rc;
+    sf_child(child, path, "material");
+    if ((rc = sf_asset_name(c, f[1].v, child, name, sizeof name)))
+        return rc;
+    if (f[2].v && (sf_child(child, path, "texture"), rc = sf_bool(c, f[2].v, child, &use_texture)))
+        return rc;
+    sf_child(child, path, "material");
+    mesh_assimp_material a;
+    if ((rc = mesh_assimp_material_load(file, name, &a, why, sizeof why)))
+        return sf_fail(c, rc, f[1].v, child, "%s", why);
+    if (!use_texture)
+        a.texture[0] = '\0';
+    if (a.texture[0]) {
+        int ok = 0, fd;
+        for (int i = 0; i < SF_N_IMAGE_EXTS; i++)
+            ok |= sf_ends_with(a.texture, sf_image_exts[i]);
+        if (!ok)
+            return sf_fail(c, RC_ERR_RANGE, f[1].v, child,
+                           "the asset's texture %s is not an image reflcheck reads; allowed: convert it to PNG or "
+                           "JPEG and name it in texture: {diffuse: FILE}, with asset: {texture: false}",
+                           a.texture);
+        if ((rc = fileio_open_input(a.texture, TEXTURE_MAX_BYTES, "a texture image", &fd, NULL, why, sizeof why)))
+            return sf_fail(c, rc, f[1].v, child, "the asset's texture: %s", why);
+        close(fd);
+    }
+    *f0_given |= mesh_assimp_material_apply(&a, m);
+    return RC_OK;
+}
+
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
-                                               "d3d",    "d3d9client", "cook_torrance", "texture"};
+    static const char *const keys[MK_COUNT] = {"albedo",  "ior",        "conductor",     "roughness", "model",
+                                               "d3d",     "d3d9client", "cook_torrance", "texture",   "asset"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
@@ -1029,6 +1088,9 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     if ((rc = sf_map(c, n, path, keys, MK_COUNT, f)))
         return rc;
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    /* First, so that every other key of the material replaces what the asset states. */
+    if (f[MK_ASSET].v && (rc = sf_asset(c, f[MK_ASSET].v, SF_CHILD("asset"), m, &f0_given)))
+        return rc;
     if (f[MK_ALBEDO].v && (rc = sf_colour(c, f[MK_ALBEDO].v, SF_CHILD("albedo"), &m->albedo)))
         return rc;
     if (f[MK_IOR].v && f[MK_CONDUCTOR].v)
@@ -1063,7 +1125,7 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         m->model = (model_kind)e;
     }
-    yaml_node_t *state_node[3] = {NULL, NULL, NULL};
+    yaml_node_t *state_node[2] = {NULL, NULL};
     if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))
         return rc;
     /* D3DRS_NORMALIZENORMALS and D3DRS_COLORVERTEX are fixed-function state: the D3D9Client and
@@ -1076,15 +1138,6 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                        "%s applies to the fixed-function model d3d only (%s); allowed: %s, or model: d3d",
                        norm ? "false" : "true", norm ? "D3DRS_NORMALIZENORMALS" : "D3DRS_COLORVERTEX",
                        norm ? "true" : "false");
-    }
-    /* One-sided lighting: the shaders' N.V < 0 has no meaning in their formulas (Cook-Torrance
-     * divides by it), so only the fixed function lights a normal facing away. */
-    if (!m->d3d.two_sided && m->model != MODEL_D3D) {
-        sf_child(sub, path, "d3d");
-        sf_child(child, sub, "two_sided");
-        return sf_fail(c, RC_ERR_RANGE, state_node[2], child,
-                       "false applies to the fixed-function model d3d only (the normal as given, "
-                       "D3DCULL_NONE); allowed: true, or model: d3d");
     }
     yaml_node_t *dissolve_node = NULL;
     if (f[MK_D9].v &&
@@ -1310,10 +1363,18 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        "tube radius exceeds the ring radius (self-intersecting); allowed: radius <= "
                        "major = %g",
                        o->major);
-    if (f[OK_PATH].v && (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), mesh_exts, 2, "triangle mesh",
-                                      FILEIO_MESH_MAX_BYTES, o->path)))
+    /* Besides OBJ and PLY, any extension libassimp reads (model/mesh_assimp.h). */
+    const char *mp = f[OK_PATH].v ? sf_text(f[OK_PATH].v) : NULL, *dot = mp ? strrchr(mp, '.') : NULL;
+    int imported = dot && !sf_ends_with(mp, ".obj") && !sf_ends_with(mp, ".ply") && mesh_assimp_supported(mp);
+    if (f[OK_PATH].v &&
+        (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), imported ? &dot : mesh_exts, imported ? 1 : 2,
+                      imported ? "an asset libassimp reads" : "triangle mesh", FILEIO_MESH_MAX_BYTES, o->path)))
         return rc;
-    if (f[OK_USEMTL].v) {
+    if (f[OK_USEMTL].v && imported) {
+        /* An asset's meshes of one material (its name as the asset writes it). */
+        if ((rc = sf_asset_name(c, f[OK_USEMTL].v, SF_CHILD("usemtl"), o->usemtl, sizeof o->usemtl)))
+            return rc;
+    } else if (f[OK_USEMTL].v) {
         if ((rc = sf_name(c, f[OK_USEMTL].v, SF_CHILD("usemtl"), o->usemtl, sizeof o->usemtl)))
             return rc;
         if (!sf_ends_with(o->path, ".obj"))

@@ -29,6 +29,7 @@
 #include "fileio.h"
 #include "formula.h"
 #include "mesh.h"
+#include "mesh_assimp.h"
 
 typedef struct {
     double r[3][3];
@@ -1500,6 +1501,43 @@ done:
     return rc;
 }
 
+/* An asset libassimp imported, as a soup: its arrays move into s (one face per triangle, corner =
+ * vertex), so the asset goes through the same emit as OBJ and PLY (zero-area triangles, normals,
+ * shared vertices, the texture check). Vertices without a file normal get the computed one. */
+static rc_status mesh_soup_from_assimp(mesh_assimp_soup *g, mesh_soup *s)
+{
+    size_t nc = 3 * (size_t)g->n_tris;
+    s->pos = g->pos;
+    s->nrm = g->nrm;
+    s->n_pos = s->n_nrm = g->n_verts;
+    int any_uv = 0;
+    for (int v = 0; v < g->n_verts; v++)
+        any_uv |= g->has_uv[v];
+    s->tex = g->uv;
+    s->n_tex = any_uv ? g->n_verts : 0;
+    g->pos = g->nrm = g->uv = NULL;
+    s->cv = malloc(nc * sizeof *s->cv);
+    s->cn = malloc(nc * sizeof *s->cn);
+    s->ct = malloc(nc * sizeof *s->ct);
+    s->face_start = malloc((size_t)(g->n_tris + 1) * sizeof *s->face_start);
+    s->face_line = malloc((size_t)g->n_tris * sizeof *s->face_line);
+    if (!s->cv || !s->cn || !s->ct || !s->face_start || !s->face_line)
+        return RC_ERR_NOMEM;
+    for (size_t c = 0; c < nc; c++) {
+        int v = g->idx[c];
+        s->cv[c] = v;
+        s->cn[c] = isnan(s->nrm[3 * (size_t)v]) ? -1 : v;
+        s->ct[c] = g->has_uv[v] ? v : -1;
+    }
+    for (int f = 0; f <= g->n_tris; f++)
+        s->face_start[f] = 3 * f;
+    for (int f = 0; f < g->n_tris; f++)
+        s->face_line[f] = f + 1;
+    s->n_corner = (int)nc;
+    s->n_face = g->n_tris;
+    return RC_OK;
+}
+
 static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *err, size_t errlen)
 {
     char label[SCENE_PATH_MAX + 32];
@@ -1512,17 +1550,34 @@ static rc_status mesh_file(mesh_builder *b, const object *o, int index, char *er
     size_t pl = strlen(o->path);
     int is_obj = pl >= 4 && (strcmp(o->path + pl - 4, ".obj") == 0 || strcmp(o->path + pl - 4, ".OBJ") == 0);
     int is_ply = pl >= 4 && (strcmp(o->path + pl - 4, ".ply") == 0 || strcmp(o->path + pl - 4, ".PLY") == 0);
+    char why[SCENE_PATH_MAX + 600];
+    rc_status rc;
     if (!is_obj && !is_ply) {
-        status_message(err, errlen, "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file", o->path, index);
-        return RC_ERR_PARSE;
+        /* Every other format through libassimp, in a child process (model/mesh_assimp.h). */
+        if (!mesh_assimp_supported(o->path)) {
+            status_message(err, errlen,
+                           "%s: objects[%d]: unknown mesh format; fix: a .obj or .ply file, or a format "
+                           "libassimp reads (.gltf, .glb, .fbx, .dae, .x, .3ds, ...)",
+                           o->path, index);
+            return RC_ERR_PARSE;
+        }
+        mesh_assimp_soup g;
+        rc = mesh_assimp_load(o->path, o->usemtl, &g, why, sizeof why);
+        if (rc != RC_OK) {
+            status_message(err, errlen, "objects[%d]: cannot import mesh: %s", index, why);
+            return rc;
+        }
+        rc = mesh_soup_from_assimp(&g, &s);
+        mesh_assimp_soup_free(&g);
+    } else {
+        rc = mesh_read_file(o->path, &buf, &len, why, sizeof why);
+        if (rc != RC_OK) {
+            status_message(err, errlen, "objects[%d]: cannot read mesh: %s", index, why);
+            return rc;
+        }
+        rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen)
+                    : mesh_ply_parse(buf, len, label, &s, err, errlen);
     }
-    char why[SCENE_PATH_MAX + 200];
-    rc_status rc = mesh_read_file(o->path, &buf, &len, why, sizeof why);
-    if (rc != RC_OK) {
-        status_message(err, errlen, "objects[%d]: cannot read mesh: %s", index, why);
-        return rc;
-    }
-    rc = is_obj ? mesh_obj_parse(buf, len, label, &s, err, errlen) : mesh_ply_parse(buf, len, label, &s, err, errlen);
     if (rc == RC_OK)
         rc = mesh_soup_emit(&s, b, label, is_obj, err, errlen);
     if (rc == RC_ERR_NOMEM)
