@@ -1077,8 +1077,8 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
 
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo",  "ior",        "conductor",     "roughness", "model",
-                                               "d3d",     "d3d9client", "cook_torrance", "texture",   "asset"};
+    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
+                                               "d3d",    "d3d9client", "cook_torrance", "texture",   "asset"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
