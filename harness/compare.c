@@ -1309,6 +1309,30 @@ static void compare_coverage_gate(const comparison *c, double agreement, char *g
     }
 }
 
+/* A validate figure stands beside the agrees that measure its reference by a second reference
+ * ("agrees": their ids), or says plainly that it has none ("agree_none"): the physics then rests
+ * on that reference's translator alone, declared, not measured. */
+static void compare_agrees_put(const scene *s, const comparison *c, cJSON *o)
+{
+    cJSON *ids = cJSON_AddArrayToObject(o, "agrees");
+    for (int i = 0; i < s->n_comparisons; i++) {
+        const comparison *a = &s->comparisons[i];
+        if (a->role != ROLE_AGREE || (a->test != c->reference && a->reference != c->reference))
+            continue;
+        char id[128];
+        snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(a->test), registry_name(a->reference),
+                 job_role_names[a->role]);
+        cJSON_AddItemToArray(ids, cJSON_CreateString(id));
+    }
+    if (cJSON_GetArraySize(ids) == 0) {
+        char text[200];
+        snprintf(text, sizeof text,
+                 "%s alone renders this physics here: no agree measures it against a second reference",
+                 registry_name(c->reference));
+        cJSON_AddStringToObject(o, "agree_none", text);
+    }
+}
+
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
@@ -1347,6 +1371,8 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     physics_describe(&s->physics, frame_light_count(s), want_physics, sizeof want_physics);
     if (rr == ROLE_VALIDATE)
         cJSON_AddStringToObject(o, "physics", want_physics);
+    if (c->role == ROLE_VALIDATE)
+        compare_agrees_put(s, c, o);
     const compare_side *both[2] = {&t, &r};
     for (int sd = 0; sd < 2 && state == NULL && rr == ROLE_VALIDATE; sd++) {
         const renderer_row *row = registry_row(both[sd]->renderer);

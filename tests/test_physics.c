@@ -483,6 +483,31 @@ static void test_compare_holds_records_to_the_physics(void **state)
         assert_string_equal(jstr(comparison_at(j, i), "status"), "pass");
         assert_string_equal(jstr(comparison_at(j, i), "physics"), want);
     }
+    /* The validate stands beside its agree; the agree itself lists none. */
+    const cJSON *agrees = cJSON_GetObjectItemCaseSensitive(comparison_at(j, 0), "agrees");
+    assert_int_equal(cJSON_GetArraySize(agrees), 1);
+    assert_string_equal(cJSON_GetArrayItem(agrees, 0)->valuestring, "povray-vs-cycles-agree");
+    assert_null(cJSON_GetObjectItemCaseSensitive(comparison_at(j, 0), "agree_none"));
+    assert_null(cJSON_GetObjectItemCaseSensitive(comparison_at(j, 1), "agrees"));
+    cJSON_Delete(j);
+
+    /* Without the agree the validate says plainly that it has none. */
+    char lone[512];
+    snprintf(lone, sizeof lone, "%s/lone.yaml", dir);
+    f = fopen(lone, "w");
+    assert_non_null(f);
+    fputs("name: ph\nimage: {width: 8, height: 4}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+          "lights:\n  - {type: sun, direction: [0, 0, -1], irradiance: [1, 1, 1]}\n"
+          "materials:\n  m: {roughness: 0}\n"
+          "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+          "comparisons:\n"
+          "  - {reference: cycles, role: validate, thresholds: {nrmse: {warn: 0.1, fail: 0.2, why: \"t\"}}}\n",
+          f);
+    assert_int_equal(fclose(f), 0);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", lone, run), 0);
+    j = read_json(path);
+    assert_int_equal(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(comparison_at(j, 0), "agrees")), 0);
+    assert_non_null(strstr(jstr(comparison_at(j, 0), "agree_none"), "cycles alone renders this physics"));
     cJSON_Delete(j);
 
     /* POV-Ray's record says it lit the diffuse with the environment: not the scene's physics. */
