@@ -1011,6 +1011,15 @@ static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, materia
     return RC_OK;
 }
 
+/* An extension in lower case, as sf_file compares them (".DAE" -> ".dae"); cut to len. */
+static void sf_lower_ext(const char *ext, char *out, size_t len)
+{
+    size_t i = 0;
+    for (; ext[i] && i + 1 < len; i++)
+        out[i] = (char)tolower((unsigned char)ext[i]);
+    out[i] = '\0';
+}
+
 /* An asset's material name: exporters write spaces and punctuation ("Material #25"), so any
  * text without control characters. */
 static rc_status sf_asset_name(sf_ctx *c, yaml_node_t *n, const char *path, char *out, size_t outlen)
@@ -1044,7 +1053,9 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
         return rc;
     sf_child(child, path, "path");
     const char *text = sf_text(f[0].v), *dot = text ? strrchr(text, '.') : NULL;
-    const char *ext[1] = {dot && mesh_assimp_supported(text) ? dot : ".gltf"};
+    char low[16];
+    sf_lower_ext(dot && mesh_assimp_supported(text) ? dot : ".gltf", low, sizeof low);
+    const char *ext[1] = {low};
     if ((rc = sf_file(c, f[0].v, child, ext, 1, "an asset libassimp reads", FILEIO_MESH_MAX_BYTES, file)))
         return rc;
     sf_child(child, path, "material");
@@ -1366,8 +1377,11 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
     /* Besides OBJ and PLY, any extension libassimp reads (model/mesh_assimp.h). */
     const char *mp = f[OK_PATH].v ? sf_text(f[OK_PATH].v) : NULL, *dot = mp ? strrchr(mp, '.') : NULL;
     int imported = dot && !sf_ends_with(mp, ".obj") && !sf_ends_with(mp, ".ply") && mesh_assimp_supported(mp);
+    char low[16];
+    const char *lowp = low;
+    sf_lower_ext(dot ? dot : "", low, sizeof low);
     if (f[OK_PATH].v &&
-        (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), imported ? &dot : mesh_exts, imported ? 1 : 2,
+        (rc = sf_file(c, f[OK_PATH].v, SF_CHILD("path"), imported ? &lowp : mesh_exts, imported ? 1 : 2,
                       imported ? "an asset libassimp reads" : "triangle mesh", FILEIO_MESH_MAX_BYTES, o->path)))
         return rc;
     if (f[OK_USEMTL].v && imported) {

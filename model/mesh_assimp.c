@@ -8,6 +8,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
 #include <signal.h>
@@ -440,6 +441,14 @@ static rc_status mas_child(const char *path, const char *name, mas_job job,
     }
     if (pid == 0) {
         close(p[0]);
+        /* libassimp's parsers print to stdout and stderr themselves (OpenDDL: "nullptr returned
+         * by creating DDLNode."); the one line reflcheck prints is the parent's. */
+        int null = open("/dev/null", O_WRONLY);
+        if (null >= 0) {
+            dup2(null, STDOUT_FILENO);
+            dup2(null, STDERR_FILENO);
+            close(null);
+        }
         mas_child_limit();
         job(p[1], path, name ? name : "", NULL);
         _exit(0);

@@ -136,6 +136,24 @@ static void test_scene_keys(void **state)
     mesh_free(&m);
 }
 
+/* Extensions in capitals (Testwuson.X, teapots.DAE in the test models) are the same formats. */
+static void test_upper_case_extension(void **state)
+{
+    (void)state;
+    char path[600], err[1024] = "";
+    snprintf(path, sizeof path, "%s/u.yaml", tmpdir);
+    write_file(path, "name: u\nimage: {width: 8, height: 6}\n"
+                     "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 40}\n"
+                     "lights: [{type: point, position: [0, 0, 5], intensity: [1, 1, 1]}]\n"
+                     "materials: {m: {model: d3d}}\n"
+                     "objects: [{shape: mesh, path: " ASSETS "/X/Testwuson.X, material: m}]\n");
+    scene s;
+    rc_status rc = scene_file_load(path, &s, err, sizeof err);
+    if (rc != RC_OK)
+        puts(err);
+    assert_int_equal(rc, RC_OK);
+}
+
 /* A refused asset: one line naming the file, and the process goes on. */
 static void test_refused_asset(void **state)
 {
@@ -176,9 +194,10 @@ static void test_child_memory_limit(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_gltf_geometry),   cmocka_unit_test(test_gltf_material_rule),
-        cmocka_unit_test(test_x_material_rule), cmocka_unit_test(test_scene_keys),
-        cmocka_unit_test(test_refused_asset),   cmocka_unit_test(test_child_memory_limit),
+        cmocka_unit_test(test_gltf_geometry),        cmocka_unit_test(test_gltf_material_rule),
+        cmocka_unit_test(test_x_material_rule),      cmocka_unit_test(test_scene_keys),
+        cmocka_unit_test(test_refused_asset),        cmocka_unit_test(test_child_memory_limit),
+        cmocka_unit_test(test_upper_case_extension),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
