@@ -107,7 +107,7 @@ def norm_comparison(c, path, problems, scene, index):
         out[key] = {k: v for k, v in out[key].items() if isinstance(v, dict)}
     th = out.get('thresholds')
     out['thresholds'] = [t for t in th if isinstance(t, dict) and 'metric' in t] if isinstance(th, list) else []
-    for key in ('angle_bins', 'angle_bins_ndotl'):
+    for key in ('angle_bins', 'angle_bins_ndoth', 'angle_bins_ndotl'):
         b = out.get(key)
         out[key] = [x for x in b if isinstance(x, dict)] if isinstance(b, list) else []
     for key in ('role', 'test', 'reference', 'reason', 'physics'):
@@ -178,6 +178,7 @@ def load_scene(run, name, problems):
                 'times': {},
                 'noise': {},
                 'angle_bins': [],
+                'angle_bins_ndoth': [],
                 'angle_bins_ndotl': [],
             }
         )

@@ -31,7 +31,9 @@ def summary_object(R):
                     'thresholds',
                     'times',
                     'angle_bins',
+                    'angle_bins_ndoth',
                     'angle_bins_ndotl',
+                    'bias',
                 )
             }
             o['test_image'] = c.get('test_key')
