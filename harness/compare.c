@@ -808,8 +808,9 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
             worst = 2;
             if (sum->first_failure[0] == '\0')
                 snprintf(sum->first_failure, sizeof sum->first_failure,
-                         "%s: %s: metric %s was not measured or is NaN (threshold %g)", s->name, id, t->metric,
-                         t->fail);
+                         "%s: %s: metric %s was not measured or is NaN (threshold %g); scene key "
+                         "comparisons[%d].thresholds.%s",
+                         s->name, id, t->metric, t->fail, (int)(c - s->comparisons), t->metric);
         } else {
             int hib = compare_higher_is_better(t->metric);
             int fail = hib ? v < t->fail : v > t->fail;
@@ -821,8 +822,10 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
             } else if (warn && worst < 1)
                 worst = 1;
             if (fail && sum->first_failure[0] == '\0')
-                snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s = %.4g %s fail threshold %.4g (%s)",
-                         s->name, id, t->metric, v, hib ? "<" : ">", t->fail, t->why);
+                snprintf(sum->first_failure, sizeof sum->first_failure,
+                         "%s: %s: %s = %.4g %s fail threshold %.4g (%s); scene key comparisons[%d].thresholds.%s",
+                         s->name, id, t->metric, v, hib ? "<" : ">", t->fail, t->why, (int)(c - s->comparisons),
+                         t->metric);
         }
         cJSON_AddStringToObject(o, "verdict", verdict);
         cJSON_AddItemToArray(arr, o);
@@ -1401,6 +1404,11 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
             geo = &mask_src.img;
     }
     if (state != NULL) {
+        /* The renderer's words name the key of the scene it could not take (materials[i].model,
+         * lights[i].range, ...); the comparison's own key is what to change when the renderer
+         * is missing, or to leave the comparison out. */
+        size_t used = strlen(reason);
+        snprintf(reason + used, sizeof reason - used, "; scene key comparisons[%d]", (int)(c - s->comparisons));
         cJSON_AddStringToObject(o, "status", state);
         cJSON_AddStringToObject(o, "reason", reason);
         if (state[0] == 's') {
@@ -1540,8 +1548,10 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     const char *verdict = compare_judge(s, c, o, id, sum);
     if (gate[0] != '\0' || crease_gate[0] != '\0') {
         verdict = "fail";
-        snprintf(reason, sizeof reason, "%s%s%s%s", gate[0] ? "values: " : "", gate,
-                 gate[0] && crease_gate[0] ? "; " : "", crease_gate);
+        /* A gate's words say what to look at, or which metric to state with its reason; the key
+         * that holds such a statement is the comparison's thresholds. */
+        snprintf(reason, sizeof reason, "%s%s%s%s; scene key comparisons[%d].thresholds", gate[0] ? "values: " : "",
+                 gate, gate[0] && crease_gate[0] ? "; " : "", crease_gate, (int)(c - s->comparisons));
         cJSON_AddStringToObject(o, "reason", reason);
     }
     if (part.left_out != 0 && gate[0] == '\0' && crease_gate[0] == '\0')

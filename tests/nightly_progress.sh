@@ -5,7 +5,9 @@
 #  2. a render job that fails is named in the log while another job still runs: a stand-in
 #     POV-Ray fails at once on one scene and holds the other scene's render until the test has
 #     seen the failure named (bounded waits; no sleep-then-assert);
-#  3. the options set what their environment variables set (--runs, --cache, --history,
+#  3. a skipped or errored comparison's reason names the scene key to change: the renderer's
+#     own (materials[0]) and the comparison's (comparisons[0]);
+#  4. the options set what their environment variables set (--runs, --cache, --history,
 #     --latest, --run-id, --no-screenshot), an option wins over its variable, and --help lists
 #     every option with its default and its variable.
 # Usage: bash tests/nightly_progress.sh BUILD
@@ -43,6 +45,9 @@ YAML
 }
 scene fast 24
 scene slow 26
+# POV-Ray has no twin of Cook-Torrance: its render is skipped before POV-Ray is asked.
+sed -e 's/^name: fast/name: ct/' -e 's/model: d3d}/model: cook_torrance, roughness: 0.3}/' "$work/fast.yaml" \
+    > "$work/ct.yaml"
 # fast fails at once; slow writes its pid and waits for the release file (at most 300 s, so a
 # broken test leaves nothing behind), then fails too.
 cat > "$work/bin/povray" <<SH
@@ -60,7 +65,7 @@ chmod +x "$work/bin/povray"
 
 PATH="$work/bin:$PATH" bash harness/nightly.sh --small --no-sweep --no-screenshot --jobs 2 --run-id r1 \
     --runs "$work/runs" --cache "$work/cache" --history "$work/history.jsonl" --latest "$work/latest" \
-    --scenes "$work/fast.yaml" "$work/slow.yaml" > "$work/run.log" 2>&1 &
+    --scenes "$work/fast.yaml" "$work/slow.yaml" "$work/ct.yaml" > "$work/run.log" 2>&1 &
 pid=$!
 named=0
 for _ in $(seq 1500); do
@@ -78,13 +83,31 @@ held=0
 wait "$pid"
 st=$?
 [ $st -eq 1 ] && ok "the run with failed renders exits 1" || bad "exit $st (want 1); see $work/run.log"
-for stage in 'renders: 4/4' 'fits: 4/4' 'stability: 1/1' 'report: 1/1'; do
+for stage in 'renders: 6/6' 'fits: 6/6' 'stability: 1/1' 'report: 1/1'; do
     grep -Eq "^$stage done(, [0-9]+ failed)?, [0-9]+ s elapsed, (about [0-9]+ s left|time left unknown)\$" \
         "$work/run.log" && ok "log line: $stage done, elapsed, time left" ||
         bad "no plain '$stage done ... left' line in $work/run.log"
 done
 grep -q $'\r' "$work/run.log" && bad "a log got terminal rewrites (carriage returns)" ||
     ok "a log gets plain lines only"
+reason() { # reason SCENE: the first comparison's status and reason
+    /usr/bin/python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["comparisons"][0]
+print(c["status"] + ": " + c.get("reason", ""))' "$work/runs/r1/$1/compare.json" 2> /dev/null
+}
+r=$(reason ct)
+[[ $r == "skipped: "*"materials[0] 'm': model cook_torrance has no POV-Ray twin"*"; scene key comparisons[0]" ]] &&
+    ok "a skipped comparison names the keys: $r" || bad "skipped comparison's reason: $r"
+r=$(reason fast)
+[[ $r == "error: "*"; scene key comparisons[0]" ]] && ok "an errored comparison names its key: $r" ||
+    bad "errored comparison's reason: $r"
+# A physics refusal names the physics keys: EEVEE asked for shadows (refused before Blender runs).
+sed -e 's/^name: fast/name: eph/' -e 's/^comparisons:/physics: {shadows: true}\ncomparisons:/' \
+    -e 's/reference: povray/reference: eevee/' -e 's/role: twin/role: validate/' "$work/fast.yaml" > "$work/eph.yaml"
+"$BIN" run "$work/eph.yaml" --renderer eevee --role validate --small --out "$work/eph" > /dev/null 2>&1
+r=$(/usr/bin/python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print(r["status"] + ": " + r["message"])' \
+    "$work/eph/eph/eevee-validate.json" 2> /dev/null)
+[[ $r == "skipped: "*"set physics.shadows and physics.interreflection false and physics.bounces 1"* ]] &&
+    ok "a physics refusal names the physics keys" || bad "physics refusal: $r"
 # Every option landed where it points.
 [ -f "$work/runs/r1/index.html" ] && [ -L "$work/latest" ] && [ -d "$work/cache" ] &&
     grep -q '"run_id":"r1"' "$work/history.jsonl" && [ ! -e "$work/runs/r1/screenshot.png" ] &&

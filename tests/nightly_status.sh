@@ -55,6 +55,10 @@ expect clean 0 ok $?
 scene 1.0e-12 tight
 RUN_ID=tight SCENES="$work/tight.yaml" bash harness/nightly.sh > "$work/tight.log" 2>&1
 expect tight 1 fail $?
+# The failure names the scene key that holds the threshold.
+grep -q 'rel_rms = .* > fail threshold 1e-12 (test threshold); scene key comparisons\[0\]\.thresholds\.rel_rms$' \
+    "$work/tight.log" && ok "tight: the failure names comparisons[0].thresholds.rel_rms" ||
+    bad "tight: the failure does not name its key: $(grep FAIL "$work/tight.log")"
 
 # A POV-Ray that names its version and then crashes on every render.
 cat > "$work/bin/povray" <<'SH'

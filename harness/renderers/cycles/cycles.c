@@ -830,7 +830,8 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         cJSON_Delete(doc);
         status_message(err, errlen,
                        "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
-                       "(reflection) under one environment; put them in separate scenes",
+                       "(reflection) under one environment; put the materials of model cook_torrance and those of "
+                       "model d3d9client in separate scenes",
                        s->path);
         return RC_ERR_RANGE;
     }

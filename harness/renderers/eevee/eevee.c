@@ -88,8 +88,9 @@ static int eevee_physics_refused(const scene *s, char *why, size_t len)
     const physics *ph = &s->physics;
     if (ph->shadows || ph->interreflection || ph->bounces > 1) {
         snprintf(why, len,
-                 "%s: physics: shadows, inter-reflection or more than one bounce; EEVEE renders none of them here "
-                 "(the real-time setting)",
+                 "%s: physics: shadows, interreflection or bounces above 1; EEVEE renders none of them here "
+                 "(the real-time setting): set physics.shadows and physics.interreflection false and "
+                 "physics.bounces 1, or leave eevee out of this scene's validate and agree comparisons",
                  s->path);
         return 1;
     }
