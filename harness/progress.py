@@ -75,6 +75,8 @@ class Progress:
     def eta(self):
         """Seconds left; before the first unit is done, what is left of EXPECTED, else None."""
         elapsed = self.clock() - self.t0
+        if self.total and self.n >= self.total:
+            return 0.0
         if self.weight <= 0 or self.total_weight <= 0:
             # Past the expected time the estimate says nothing: unknown, rather than 0 s.
             if self.expected and elapsed < self.expected and self.n < self.total:
@@ -128,7 +130,7 @@ class Progress:
 
 
 def record_status(path):
-    """A job record's (status, message), or None while it is being written (not yet whole)."""
+    """A job record's (status, message, cached), or None while it is being written (not yet whole)."""
     try:
         with open(path, encoding='utf-8') as f:
             r = json.load(f)
@@ -136,7 +138,19 @@ def record_status(path):
         return None
     if not isinstance(r, dict) or 'renderer' not in r:
         return None
-    return r.get('status'), r.get('message', '')
+    return r.get('status'), r.get('message', ''), r.get('cached') is True
+
+
+def record_done(p, name, status, msg, cached):
+    """Counts one job record in P: a failure named now; a cache hit, which costs nothing, leaves the
+    work to come, and so the estimate, alone."""
+    bad = status not in ('ok', 'skipped')
+    if cached:
+        p.total_weight = max(0.0, p.total_weight - 1.0)
+    p.done(
+        weight=0.0 if cached else 1.0,
+        failed=f'{name}: {status}: {str(msg).splitlines()[0] if msg else ""}' if bad else None,
+    )
 
 
 def watch(run, total, label, every, ended=None, poll=1.0, stream=None):
@@ -152,10 +166,7 @@ def watch(run, total, label, every, ended=None, poll=1.0, stream=None):
             if st is None:
                 continue
             seen.add(path)
-            status, msg = st
-            name = os.path.relpath(path, run)[: -len('.json')]
-            bad = status not in ('ok', 'skipped')
-            p.done(failed=f'{name}: {status}: {str(msg).splitlines()[0] if msg else ""}' if bad else None)
+            record_done(p, os.path.relpath(path, run)[: -len('.json')], *st)
 
     while len(seen) < total:
         scan()

@@ -141,3 +141,21 @@ def test_an_exited_child_not_yet_reaped_is_not_alive():
     assert not progress.alive(pid)
     os.waitpid(pid, 0)
     assert not progress.alive(pid)
+
+
+def test_watch_leaves_cache_hits_out_of_the_estimate(tmp_path):
+    run = tmp_path / 'run'
+    (run / 'a').mkdir(parents=True)
+    # Two of four jobs came from the cache at once; the estimate counts the work that renders.
+    for name, cached in (('raster-twin', True), ('exact-validate', True)):
+        (run / 'a' / f'{name}.json').write_text(json.dumps({'renderer': 'x', 'status': 'ok', 'cached': cached}))
+    clock, out = Clock(), io.StringIO()
+    p = progress.Progress('renders', 4, stream=out, clock=clock)
+    for path in sorted((run / 'a').glob('*.json')):
+        progress.record_done(p, path.stem, *progress.record_status(str(path)))
+    clock.t += 10.0
+    assert p.eta() is None  # nothing rendered yet: no estimate from cache hits
+    progress.record_done(p, 'a/povray-twin', 'ok', '', False)  # one render took 10 s; one is left
+    assert abs(p.eta() - 10.0) < 1e-9
+    progress.record_done(p, 'a/cycles-twin', 'ok', '', False)
+    assert p.eta() == 0.0 and '4/4 done' in p.line()
