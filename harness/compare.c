@@ -1336,6 +1336,23 @@ static void compare_agrees_put(const scene *s, const comparison *c, cJSON *o)
     }
 }
 
+/* The kind of each material the scene's objects use ("material_kinds": {name: kind}): its model,
+ * dielectric or conductor, or "without specular" (material.lobe 0). Figures of one kind under
+ * two physics are not comparable; the report names the difference beside both. */
+static void compare_kinds_put(const scene *s, cJSON *o)
+{
+    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
+    cJSON *kinds = cJSON_AddObjectToObject(o, "material_kinds");
+    for (int i = 0; i < s->n_objects; i++) {
+        const material *m = &s->materials[s->objects[i].material];
+        char kind[64];
+        snprintf(kind, sizeof kind, "%s %s", (unsigned)m->model < 3 ? models[m->model] : "?",
+                 !m->lobe ? "without specular" : (m->conductor ? "conductor" : "dielectric"));
+        if (cJSON_GetObjectItemCaseSensitive(kinds, m->name) == NULL)
+            cJSON_AddStringToObject(kinds, m->name, kind);
+    }
+}
+
 static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
 {
     char id[128], reason[1200];
@@ -1374,8 +1391,10 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
     physics_describe(&s->physics, frame_light_count(s), want_physics, sizeof want_physics);
     if (rr == ROLE_VALIDATE)
         cJSON_AddStringToObject(o, "physics", want_physics);
-    if (c->role == ROLE_VALIDATE)
+    if (c->role == ROLE_VALIDATE) {
         compare_agrees_put(s, c, o);
+        compare_kinds_put(s, o);
+    }
     const compare_side *both[2] = {&t, &r};
     for (int sd = 0; sd < 2 && state == NULL && rr == ROLE_VALIDATE; sd++) {
         const renderer_row *row = registry_row(both[sd]->renderer);

@@ -167,3 +167,32 @@ def test_every_validate_figure_stands_beside_its_agree_or_says_it_has_none():
     assert by[('ct_env', 'cycles')]['agrees'] == []
     assert 'cycles alone' in by[('ct_env', 'cycles')]['agree_none']
     assert by[('glass', 'povray')]['agrees'] == [] and 'povray alone' in by[('glass', 'povray')]['agree_none']
+
+
+def test_one_physics_per_material_kind_or_the_difference_named():
+    """The same plastic under two physics (d3d_blinn_phong: F(N.V), 1 - F diffuse; d3d_scaled:
+    exact F, plain diffuse): both rows name the other's physics. A floor without specular is
+    compared on its diffuse only, so lambert's specular_lights none is no difference."""
+    exact = PHYS.replace('fresnel_specular=nv', 'fresnel_specular=exact').replace('one_minus_f', 'plain')
+    lambert = exact.replace('specular_lights=all', 'specular_lights=none')
+    objs = [
+        {'object': 0, 'material': 'plastic', 'nrmse': 0.2},
+        {'object': 1, 'material': 'floor', 'nrmse': 1e-5},
+    ]
+    plastic = {'plastic': 'd3d dielectric'}
+    both = {'plastic': 'd3d dielectric', 'floor': 'd3d without specular'}
+    floor = {'floor': 'd3d without specular'}
+    R = {
+        'scenes': [
+            scene('blinn', [validate(material_kinds=plastic)]),
+            scene('scaled', [validate(reference='exact', physics=exact, objects=objs, material_kinds=both)]),
+            scene('lambert', [validate(physics=lambert, material_kinds=floor)]),
+            scene('glass', [validate(physics=exact, material_kinds={'glass': 'd3d9client dielectric'})]),
+        ]
+    }
+    by = {(r['scene']['name'], r['material']): r for r in answer_rows(R)}
+    assert by[('blinn', None)]['kinds'] == ['d3d dielectric']
+    assert by[('blinn', None)]['physics_differs'] == [('scaled', 'F lamp exact, F env exact, diffuse plain')]
+    assert by[('scaled', 'plastic')]['physics_differs'] == [('blinn', 'F lamp nv, F env exact, diffuse × (1 − F)')]
+    assert by[('scaled', 'floor')]['physics_differs'] == [] and by[('lambert', None)]['physics_differs'] == []
+    assert by[('glass', None)]['physics_differs'] == []

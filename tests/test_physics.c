@@ -508,6 +508,9 @@ static void test_compare_holds_records_to_the_physics(void **state)
     j = read_json(path);
     assert_int_equal(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(comparison_at(j, 0), "agrees")), 0);
     assert_non_null(strstr(jstr(comparison_at(j, 0), "agree_none"), "cycles alone renders this physics"));
+    /* The material's kind, for the report's one physics per kind. */
+    const cJSON *kinds = cJSON_GetObjectItemCaseSensitive(comparison_at(j, 0), "material_kinds");
+    assert_string_equal(jstr(kinds, "m"), "d3d dielectric");
     cJSON_Delete(j);
 
     /* POV-Ray's record says it lit the diffuse with the environment: not the scene's physics. */

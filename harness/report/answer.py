@@ -15,6 +15,10 @@ validate reference; a scene with no validate comparison gets one row that says s
   test_s, ref_s, crossover                     one frame's seconds each side; the sweep's
                                                crossover text (None: no sweep of this scene)
   twins                                        [(reference, text, status)] of the scene's twins
+  kinds, physics_differs                       the material kinds of the row (compare.json
+                                               material_kinds); [(scene, physics)] of other scenes'
+                                               rows of the same one kind and test under another
+                                               physics: the figures are not comparable
   agrees                                       [(other reference, nrmse, status)]: the scene's agree
                                                comparisons that measure this validate's reference
                                                against a second one; empty: agree_none says that
@@ -136,6 +140,34 @@ def _agrees(measured, ref):
     return out
 
 
+def _physics_for_kind(text, kind):
+    """The physics fields that bear on a material of KIND: a material without specular has no
+    lobe, so the lobes' Fresnel and lights are moot for it."""
+    parts = text.split(', ') if text else []
+    if kind and kind.endswith('without specular'):
+        parts = [p for p in parts if not p.startswith(('F lamp', 'F env', 'specular_lights', 'env_specular'))]
+    return ', '.join(parts)
+
+
+def _name_physics_differences(rows):
+    """One physics per material kind across scenes, or the difference named beside both: each
+    row of one kind gets the other scenes' rows of that kind and test whose physics differ."""
+    for r in rows:
+        r['physics_differs'] = []
+    single = [r for r in rows if not r.get('no_validate') and len(r.get('kinds') or ()) == 1]
+    for r in single:
+        (kind,) = r['kinds']
+        mine = _physics_for_kind(r['physics'], kind)
+        seen = set()
+        for o in single:
+            if o['scene']['name'] == r['scene']['name'] or o['kinds'] != r['kinds'] or o['test'] != r['test']:
+                continue
+            theirs = _physics_for_kind(o['physics'], kind)
+            if theirs != mine and (o['scene']['name'], theirs) not in seen:
+                seen.add((o['scene']['name'], theirs))
+                r['physics_differs'].append((o['scene']['name'], theirs))
+
+
 def answer_rows(R, crossovers=None):
     crossovers = crossovers or {}
     rows = []
@@ -156,6 +188,7 @@ def answer_rows(R, crossovers=None):
                 if agrees
                 else f'none: {c.get("reference")} alone renders this physics here, no second reference measures it'
             )
+            kinds = c.get('material_kinds') if isinstance(c.get('material_kinds'), dict) else {}
             for mat, m in _material_parts(c):
                 rows.append(
                     {
@@ -180,8 +213,12 @@ def answer_rows(R, crossovers=None):
                         'crossover': crossovers.get(s['name']),
                         'twins': twins,
                         'agrees': agrees,
+                        'kinds': sorted(
+                            {kinds[mat]} if mat in kinds else set(kinds.values()) if mat is None else set()
+                        ),
                         'agree_none': agree_none,
                         'no_validate': False,
                     }
                 )
+    _name_physics_differences(rows)
     return rows
