@@ -832,20 +832,26 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
 enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_ASSET, MK_COUNT };
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
-                        yaml_node_t *state_node[2])
+                        yaml_node_t *state_node[3])
 {
     static const char *const keys[] = {
         "ambient",        "diffuse",        "specular",        "emissive",          "power",
         "local_viewer",   "per_vertex",     "clamp",           "normalize_normals", "colour_vertex",
-        "ambient_source", "diffuse_source", "specular_source", "emissive_source"};
+        "ambient_source", "diffuse_source", "specular_source", "emissive_source",   "two_sided"};
     static const char *const sources[] = {"material", "colour1", "colour2"};
-    sf_kv f[14];
+    sf_kv f[15];
     char child[SF_PATHLEN];
     rc_status rc;
-    if ((rc = sf_map(c, n, path, keys, 14, f)))
+    if ((rc = sf_map(c, n, path, keys, 15, f)))
         return rc;
     state_node[0] = f[8].v;
     state_node[1] = f[9].v;
+    state_node[2] = f[14].v;
+    if (f[14].v) {
+        sf_child(child, path, keys[14]);
+        if ((rc = sf_bool(c, f[14].v, child, &d->two_sided)))
+            return rc;
+    }
     if (f[9].v) {
         sf_child(child, path, keys[9]);
         if ((rc = sf_bool(c, f[9].v, child, &d->colour_vertex)))
@@ -1136,7 +1142,7 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         m->model = (model_kind)e;
     }
-    yaml_node_t *state_node[2] = {NULL, NULL};
+    yaml_node_t *state_node[3] = {NULL, NULL, NULL};
     if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))
         return rc;
     /* D3DRS_NORMALIZENORMALS and D3DRS_COLORVERTEX are fixed-function state: the D3D9Client and
@@ -1149,6 +1155,15 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                        "%s applies to the fixed-function model d3d only (%s); allowed: %s, or model: d3d",
                        norm ? "false" : "true", norm ? "D3DRS_NORMALIZENORMALS" : "D3DRS_COLORVERTEX",
                        norm ? "true" : "false");
+    }
+    /* One-sided lighting: the shaders' N.V < 0 has no meaning in their formulas (Cook-Torrance
+     * divides by it), so only the fixed function lights a normal facing away. */
+    if (!m->d3d.two_sided && m->model != MODEL_D3D) {
+        sf_child(sub, path, "d3d");
+        sf_child(child, sub, "two_sided");
+        return sf_fail(c, RC_ERR_RANGE, state_node[2], child,
+                       "false applies to the fixed-function model d3d only (the normal as given, "
+                       "D3DCULL_NONE); allowed: true, or model: d3d");
     }
     yaml_node_t *dissolve_node = NULL;
     if (f[MK_D9].v &&
