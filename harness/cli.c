@@ -10,6 +10,8 @@
 
 #include "fileio.h"
 #include "frame.h"
+#include "jobs.h"
+#include "jsonio.h"
 #include "render.h"
 #include "scene_file.h"
 #include "status.h"
@@ -247,6 +249,51 @@ int cli_parse_double(const char *opt, const char *text, double lo, double hi, do
     return CLI_OK;
 }
 
+/* `check --json SCENE`: the scene file's comparisons and their thresholds as parsed, for
+ * harness/gates.py, which must not read YAML a second way. Parses the file only. */
+static int cli_check_json(const char *path)
+{
+    static const char *const sizes[] = {"", "small", "full"};
+    scene *s = malloc(sizeof *s);
+    char err[1024];
+    if (s == NULL || scene_file_load(path, s, err, sizeof err) != RC_OK) {
+        fprintf(stderr, "reflcheck: %s\n", s ? err : "check: out of memory for a scene");
+        free(s);
+        return s ? CLI_BAD_INPUT : CLI_FAILED;
+    }
+    cJSON *doc = cJSON_CreateObject(), *list = cJSON_AddArrayToObject(doc, "comparisons");
+    cJSON_AddStringToObject(doc, "scene", s->name);
+    for (int i = 0; list && i < s->n_comparisons; i++) {
+        const comparison *c = &s->comparisons[i];
+        cJSON *o = cJSON_CreateObject(), *ths = cJSON_AddArrayToObject(o, "thresholds");
+        char id[96];
+        snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
+                 job_role_names[c->role]);
+        cJSON_AddStringToObject(o, "id", id);
+        cJSON_AddItemToArray(list, o);
+        for (int j = 0; ths && j < c->n_thresholds; j++) {
+            const threshold *t = &c->thresholds[j];
+            cJSON *th = cJSON_CreateObject();
+            cJSON_AddStringToObject(th, "metric", t->metric);
+            cJSON_AddNumberToObject(th, "warn", t->warn);
+            cJSON_AddNumberToObject(th, "fail", t->fail);
+            cJSON_AddStringToObject(th, "why", t->why);
+            cJSON_AddStringToObject(th, "loose", t->loose);
+            if (t->sized_size != SIZED_NONE) {
+                cJSON *z = cJSON_AddObjectToObject(th, "sized");
+                cJSON_AddNumberToObject(z, "figure", t->sized_figure);
+                cJSON_AddStringToObject(z, "size", sizes[t->sized_size]);
+                cJSON_AddStringToObject(z, "run", t->sized_run);
+            }
+            cJSON_AddItemToArray(ths, th);
+        }
+    }
+    int rc = jsonio_print(stdout, doc) == 0 ? CLI_OK : CLI_FAILED;
+    cJSON_Delete(doc);
+    free(s);
+    return rc;
+}
+
 static const struct option cli_check_longopts[] = {{"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
 static const cli_option_help cli_check_options[] = {
     {"help", NULL, "this help, then exit 0"},
@@ -279,8 +326,10 @@ int cli_check(int argc, char **argv)
     for (int i = 1; i < argc && strcmp(argv[i], "--") != 0; i++)
         if (strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0)
             return cli_help("check");
+    if (argc == 3 && strcmp(argv[1], "--json") == 0)
+        return cli_check_json(argv[2]);
     if (argc != 2) {
-        fprintf(stderr, "reflcheck: usage: reflcheck check SCENE\n");
+        fprintf(stderr, "reflcheck: usage: reflcheck check [--json] SCENE\n");
         return CLI_BAD_INPUT;
     }
     scene *s = malloc(sizeof *s);

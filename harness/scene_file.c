@@ -1455,10 +1455,72 @@ static rc_status sf_objects(sf_ctx *c, yaml_node_t *n, scene *s)
 /* Metric names may be dotted paths into the comparison result, e.g. background.rel_rms. */
 static int sf_metric_char(int ch) { return islower(ch) || isdigit(ch) || ch == '_' || ch == '.'; }
 
+/* A threshold's sentence (why, loose): quoted text that fits its field. */
+static rc_status sf_threshold_text(sf_ctx *c, yaml_node_t *v, const char *path, char *out, size_t outlen)
+{
+    const char *text = sf_text(v);
+    if (!text || !text[0])
+        return sf_fail(c, RC_ERR_PARSE, v, path, "expected text, got %s; allowed: a quoted sentence",
+                       text ? "nothing" : sf_kind(v));
+    if (strlen(text) >= outlen)
+        return sf_fail(c, RC_ERR_RANGE, v, path, "text too long; allowed: at most %zu characters", outlen - 1);
+    strcpy(out, text);
+    return RC_OK;
+}
+
+/* sized: {figure: x, size: small|full, run: id}: the figure the gate was set on, all three. */
+static rc_status sf_threshold_sized(sf_ctx *c, yaml_node_t *v, const char *path, threshold *t)
+{
+    static const char *const keys[] = {"figure", "size", "run"};
+    static const char *const sizes[] = {"small", "full"};
+    char sub[SF_PATHLEN];
+    sf_kv f[3];
+    int size = 0;
+    rc_status rc;
+    if ((rc = sf_map(c, v, path, keys, 3, f)) || (rc = sf_need(c, v, path, &f[0], "figure")) ||
+        (rc = sf_need(c, v, path, &f[1], "size")) || (rc = sf_need(c, v, path, &f[2], "run")))
+        return rc;
+    sf_child(sub, path, "figure");
+    if ((rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "the measured figure, a finite number",
+                        &t->sized_figure)))
+        return rc;
+    sf_child(sub, path, "size");
+    if ((rc = sf_enum(c, f[1].v, sub, sizes, 2, &size)))
+        return rc;
+    t->sized_size = size == 0 ? SIZED_SMALL : SIZED_FULL;
+    sf_child(sub, path, "run");
+    return sf_threshold_text(c, f[2].v, sub, t->sized_run, sizeof t->sized_run);
+}
+
+/* One metric's {warn, fail, why, loose, sized}. */
+static rc_status sf_threshold(sf_ctx *c, yaml_node_t *v, const char *path, threshold *t)
+{
+    static const char *const keys[] = {"warn", "fail", "why", "loose", "sized"};
+    char sub[SF_PATHLEN];
+    sf_kv f[5];
+    rc_status rc;
+    if ((rc = sf_map(c, v, path, keys, 5, f)) || (rc = sf_need(c, v, path, &f[0], "warn")) ||
+        (rc = sf_need(c, v, path, &f[1], "fail")))
+        return rc;
+    sf_child(sub, path, "warn");
+    if ((rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->warn)))
+        return rc;
+    sf_child(sub, path, "fail");
+    if ((rc = sf_number(c, f[1].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->fail)))
+        return rc;
+    sf_child(sub, path, "why");
+    if (f[2].v && (rc = sf_threshold_text(c, f[2].v, sub, t->why, sizeof t->why)))
+        return rc;
+    sf_child(sub, path, "loose");
+    if (f[3].v && (rc = sf_threshold_text(c, f[3].v, sub, t->loose, sizeof t->loose)))
+        return rc;
+    sf_child(sub, path, "sized");
+    return f[4].v ? sf_threshold_sized(c, f[4].v, sub, t) : RC_OK;
+}
+
 static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comparison *cmp)
 {
-    static const char *const keys[] = {"warn", "fail", "why"};
-    char child[SF_PATHLEN], sub[SF_PATHLEN];
+    char child[SF_PATHLEN];
     rc_status rc;
     if (n->type != YAML_MAPPING_NODE)
         return sf_fail(c, RC_ERR_PARSE, n, path,
@@ -1474,7 +1536,6 @@ static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comp
         yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
         threshold *t = &cmp->thresholds[i];
         const char *name = k ? sf_text(k) : NULL;
-        sf_kv f[3];
         memset(t, 0, sizeof *t);
         if (!v || !name || !name[0] || strlen(name) >= sizeof t->metric)
             return sf_fail(c, RC_ERR_PARSE, k ? k : n, path,
@@ -1491,30 +1552,8 @@ static rc_status sf_thresholds(sf_ctx *c, yaml_node_t *n, const char *path, comp
         for (int j = 0; j < i; j++)
             if (strcmp(cmp->thresholds[j].metric, name) == 0)
                 return sf_fail(c, RC_ERR_PARSE, k, child, "duplicate metric; allowed: each once");
-        if ((rc = sf_map(c, v, child, keys, 3, f)) || (rc = sf_need(c, v, child, &f[0], "warn")) ||
-            (rc = sf_need(c, v, child, &f[1], "fail")))
+        if ((rc = sf_threshold(c, v, child, t)))
             return rc;
-        sf_child(sub, child, "warn");
-        if ((rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->warn)))
-            return rc;
-        sf_child(sub, child, "fail");
-        if ((rc = sf_number(c, f[1].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->fail)))
-            return rc;
-        if (f[2].v) {
-            const char *why = sf_text(f[2].v);
-            sf_child(sub, child, "why");
-            if (!why)
-                return sf_fail(c, RC_ERR_PARSE, f[2].v, sub,
-                               "expected text, got %s; allowed: a "
-                               "quoted sentence",
-                               sf_kind(f[2].v));
-            if (strlen(why) >= sizeof t->why)
-                return sf_fail(c, RC_ERR_RANGE, f[2].v, sub,
-                               "text too long; allowed: at most %zu "
-                               "characters",
-                               sizeof t->why - 1);
-            strcpy(t->why, why);
-        }
     }
     cmp->n_thresholds = (int)count;
     return RC_OK;

@@ -192,6 +192,14 @@ typedef struct {
     char metric[32]; /* e.g. rel_rms, psnr, max_abs, z_fail_share */
     double warn, fail;
     char why[160];
+    /* Why the gate may sit more than 3x from its figure (a precision floor, a pixel count's
+     * step); "" when it must not (harness/gates.py flags it). */
+    char loose[160];
+    /* The figure the gate was sized on, at which image size, in which run; sized_size 0 when
+     * the file does not say. */
+    double sized_figure;
+    enum { SIZED_NONE, SIZED_SMALL, SIZED_FULL } sized_size;
+    char sized_run[64];
 } threshold;
 
 typedef struct {
