@@ -217,9 +217,10 @@ test-slurm: $(CLI)
 	@bash tests/slurm_nightly.sh $(BUILD)
 	@bash tests/slurm_worker.sh $(BUILD)
 
-# The report generator, and the report opened in headless Chromium.
-test-report:
-	@/usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py
+# The report generator, the report opened in headless Chromium, and the gates table
+# (harness/gates.py: every gate beside its figure, none loose without a stated reason).
+test-report: $(CLI)
+	@REFLCHECK_BIN=$(CLI) /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py tests/test_gates_table.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds; first
 # the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds),
