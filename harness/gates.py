@@ -121,19 +121,20 @@ def gate_rows(binary, scenes_dir, run, limit):
     return rows
 
 
-def fnum(v):
+def fnum(v, digits=4):
+    """A level or figure to 4 significant digits (0.9995 and 0.999 stay apart), a ratio to 3."""
     if v is None:
         return '-'
     if isinstance(v, float) and math.isinf(v):
         return 'inf'
-    return f'{v:.3g}'
+    return f'{v:.{digits}g}'
 
 
 def sized_text(t):
     z = t.get('sized')
     if not z:
         return '-'
-    return f"{fnum(z['figure'])} {z['size']} ({z['run']}), x{fnum(ratio(t['metric'], t['fail'], z['figure']))}"
+    return f"{fnum(z['figure'])} {z['size']} ({z['run']}), x{fnum(ratio(t['metric'], t['fail'], z['figure']), 3)}"
 
 
 COLUMNS = ('scene', 'comparison', 'metric', 'warn', 'fail', 'figure', 'ratio', 'sized on', 'flag', 'stated reason')
@@ -147,7 +148,7 @@ def cells(r):
         fnum(r['warn']),
         fnum(r['fail']),
         fnum(r['figure']),
-        fnum(r['ratio']),
+        fnum(r['ratio'], 3),
         sized_text(r),
         r['flag'],
         r['loose'],
@@ -200,7 +201,7 @@ def main(argv=None):
     for r in loose:
         print(
             f"gates.py: {r['scene']}: {r['comparison']}: {r['metric']}: fail {fnum(r['fail'])} is "
-            f"{fnum(r['ratio'])}x its figure {fnum(r['figure'])}; tighten it to about {a.limit:g}x, or state "
+            f"{fnum(r['ratio'], 3)}x its figure {fnum(r['figure'])}; tighten it to about {a.limit:g}x, or state "
             f"loose: \"reason\" in scenes/{r['scene']}.yaml",
             file=sys.stderr,
         )
