@@ -475,17 +475,6 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
                 return rc;
         }
-        if (!d->two_sided) {
-            /* Cycles turns the shading normal toward the ray and takes a light beyond the surface
-             * as transmission, which a Diffuse BSDF does not reflect: the back face's light
-             * through the surface (D3D's normal as given) is not rendered. */
-            snprintf(what, sizeof what,
-                     "materials[%d] '%s': d3d.two_sided false (Cycles lights a back face with the normal "
-                     "turned toward the ray)",
-                     mi, mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "compare it against povray, or set two_sided to true")) != RC_OK)
-                return rc;
-        }
         /* What no renderer twins: only a validate can judge it. */
         const char *only_validate =
             mesh_material_unnormalised(s, mi)
@@ -506,6 +495,9 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         jw_put_vec(w, dif, "color", "materials.d3d.diffuse", d->diffuse);
         if (cycles_vertex_diffuse(s, c->m, mi, c->twin))
             jw_put_bool(w, dif, "vertex_colour", 1);
+        /* d3d.two_sided false: a back face lit through the surface (cycles_render.py). */
+        if (!d->two_sided && c->twin)
+            jw_put_bool(w, dif, "one_sided", 1);
         break;
     }
     case MODEL_D3D9CLIENT: {

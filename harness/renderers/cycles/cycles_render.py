@@ -430,6 +430,18 @@ def build_material(i, spec, env):
             attr.attribute_name = "Col"
             colour = attr.outputs['Color']
         set_colour(n.inputs['Color'], textured(colour, d.get("texture")))
+        if d.get("one_sided"):
+            # D3D's normal as given (d3d.two_sided false): Cycles turns N toward the ray, so on a
+            # back face the given normal's side is beyond the surface, where a Translucent BSDF
+            # takes light with the same cosine; a Diffuse BSDF there would light the wrong side.
+            back = nt.nodes.new('ShaderNodeBsdfTranslucent')
+            set_colour(back.inputs['Color'], textured(colour, d.get("texture")))
+            geo = nt.nodes.new('ShaderNodeNewGeometry')
+            mix = nt.nodes.new('ShaderNodeMixShader')
+            nt.links.new(geo.outputs['Backfacing'], mix.inputs['Fac'])
+            nt.links.new(n.outputs[0], mix.inputs[1])
+            nt.links.new(back.outputs[0], mix.inputs[2])
+            n = mix
         shaders.append(n.outputs[0])
 
     g = spec.get("glossy")
