@@ -2,8 +2,8 @@
  * a rendered pixel against the D3D formulas worked out by hand (docs/features.md): a0 + a1 d +
  * a2 d^2 with the range cut-off, the power-law spot (profile d3d) with falloff 2, distance-
  * attenuated light ambient with the global ambient and the emissive colour, clamping on and
- * off, Gouraud beside per pixel, and every vertex-colour source (colour1 and colour2 for the
- * diffuse, specular, ambient and emissive colours).
+ * off, Gouraud beside per pixel, the infinite viewer beside the local one, and every vertex-colour source (colour1 and
+ * colour2 for the diffuse, specular, ambient and emissive colours).
  *
  * Usage: make BUILD=x check T=d3d_features
  *
@@ -26,14 +26,14 @@
 #include "scene_file.h"
 #include "tmpdir.h"
 
-#define PI_TEXT "3.14159265358979"
+#define PI_TEXT   "3.14159265358979"
 #define TEST_PI_D 3.14159265358979323846
 
 static const char head[] = "image: {width: 3, height: 3, supersample: 1}\n"
                            "camera: {eye: [0, 2, 0], target: [0, 0, 0], up: [0, 0, -1], hfov: 20}\n";
 
-/* The centre pixel's R, G, B of head + body. */
-static void centre_pixel(const char *body, float rgb[3])
+/* Pixel (col, 1)'s R, G, B of head + body. */
+static void row_pixel(const char *body, int col, float rgb[3])
 {
     char text[4096], err[1024];
     snprintf(text, sizeof text, "%s%s", head, body);
@@ -50,7 +50,7 @@ static void centre_pixel(const char *body, float rgb[3])
     render_image img;
     render_options o = {.threads = 1};
     assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
-    const size_t c = (size_t)img.width + 1;
+    const size_t c = (size_t)img.width + (size_t)col;
     rgb[0] = img.chan[RENDER_R][c];
     rgb[1] = img.chan[RENDER_G][c];
     rgb[2] = img.chan[RENDER_B][c];
@@ -59,6 +59,9 @@ static void centre_pixel(const char *body, float rgb[3])
     mesh_free(&m);
     free(s);
 }
+
+/* The centre pixel's R, G, B of head + body. */
+static void centre_pixel(const char *body, float rgb[3]) { row_pixel(body, 1, rgb); }
 
 static void expect3(const float rgb[3], double r, double g, double b)
 {
@@ -171,6 +174,41 @@ static void test_gouraud(void **state)
     expect3(rgb, g, g, g);
 }
 
+/* D3D's H = norm(L + V) with V the direction to the eye (local viewer) or the fixed eye-to-
+ * target direction (0, 1, 0) (infinite viewer), at pixel (0, 1): its centre ray, nx = -2/3
+ * of tan 10 deg, meets the quad at |x| = (2/3) tan(10 deg) 2 (the light on the axis makes the
+ * side irrelevant). Vd = 0, Vs = 1, P = 20, E/pi = 1/(1 + x^2). */
+static void test_infinite_viewer(void **state)
+{
+    (void)state;
+    static const char fmt[] =
+        "lights:\n  - {type: point, position: [0, 1, 0], intensity: [" PI_TEXT ", " PI_TEXT ", " PI_TEXT "]}\n"
+        "materials:\n  m: {model: d3d, d3d: {diffuse: [0, 0, 0], specular: [1, 1, 1], power: 20, "
+        "local_viewer: %s}}\n"
+        "objects:\n  - {shape: quad, size: [2, 2], material: m}\n";
+    const double x = 2.0 / 3.0 * tan(10.0 * TEST_PI_D / 180.0) * 2.0;
+    const double dl = sqrt(1.0 + x * x), dv = sqrt(4.0 + x * x);
+    const double lx = x / dl, ly = 1.0 / dl; /* to the light and the eye, both along +x from the point */
+    double hx = lx + x / dv, hy = ly + 2.0 / dv;
+    const double local = pow(hy / sqrt(hx * hx + hy * hy), 20.0) / (1.0 + x * x);
+    hx = lx;
+    hy = ly + 1.0;
+    const double inf = pow(hy / sqrt(hx * hx + hy * hy), 20.0) / (1.0 + x * x);
+    char body[1024];
+    float rgb[3];
+    snprintf(body, sizeof body, fmt, "true");
+    row_pixel(body, 0, rgb);
+    /* 20th power: N.H's float error (1e-7) grows 20-fold; 1e-4 relative leaves room. */
+    for (int k = 0; k < 3; k++)
+        if (!(fabs(rgb[k] - local) <= 1e-4 * local))
+            fail_msg("local viewer, channel %d: %.9g, expected %.9g", k, (double)rgb[k], local);
+    snprintf(body, sizeof body, fmt, "false");
+    row_pixel(body, 0, rgb);
+    for (int k = 0; k < 3; k++)
+        if (!(fabs(rgb[k] - inf) <= 1e-4 * inf))
+            fail_msg("infinite viewer, channel %d: %.9g, expected %.9g (local %.9g)", k, (double)rgb[k], inf, local);
+}
+
 /* A PLY quad whose every vertex has colour1 = (255, 51, 102)/255 and colour2 = (0, 255, 153)/255.
  * E/pi = 1, N.H = 1, power 1, Ia = 0.1: the pixel is diffuse + specular + 0.1 ambient + emissive,
  * each from the colour its source names. */
@@ -219,6 +257,7 @@ int main(void)
         cmocka_unit_test(test_attenuation_range), cmocka_unit_test(test_spot_power_law),
         cmocka_unit_test(test_ambient_emissive),  cmocka_unit_test(test_clamp),
         cmocka_unit_test(test_gouraud),           cmocka_unit_test(test_colour_sources),
+        cmocka_unit_test(test_infinite_viewer),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
