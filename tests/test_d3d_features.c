@@ -2,8 +2,9 @@
  * a rendered pixel against the D3D formulas worked out by hand (docs/features.md): a0 + a1 d +
  * a2 d^2 with the range cut-off, the power-law spot (profile d3d) with falloff 2, distance-
  * attenuated light ambient with the global ambient and the emissive colour, clamping on and
- * off, Gouraud beside per pixel, the infinite viewer beside the local one, and every vertex-colour source (colour1 and
- * colour2 for the diffuse, specular, ambient and emissive colours).
+ * off, Gouraud beside per pixel, the infinite viewer beside the local one, and every
+ * vertex-colour source (colour1 and colour2 for the diffuse, specular, ambient and emissive
+ * colours).
  *
  * Usage: make BUILD=x check T=d3d_features
  *
