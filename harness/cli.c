@@ -294,15 +294,19 @@ static int cli_check_json(const char *path)
     return rc;
 }
 
-static const struct option cli_check_longopts[] = {{"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
+static const struct option cli_check_longopts[] = {
+    {"json", no_argument, NULL, 'j'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
 static const cli_option_help cli_check_options[] = {
+    {"json", NULL,
+     "print the scene's comparisons and their thresholds as parsed, as JSON, instead of checking it (parses "
+     "the file only); give it before SCENE"},
     {"help", NULL, "this help, then exit 0"},
     {NULL, NULL, NULL},
 };
 const cli_command cli_check_command = {
     .name = "check",
     .run = cli_check,
-    .operands = "SCENE",
+    .operands = "[--json] SCENE",
     .operand_kind = "scene",
     .summary = "parse and validate a scene, without rendering",
     .description = "Loads everything render loads (the scene file, its meshes, its environment image with its "
