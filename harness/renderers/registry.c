@@ -24,7 +24,8 @@ static const renderer_row registry_rows[] = {
      .package = "povray",
      .partial = {[ROLE_TWIN] = RENDERER_TERM_SPECULAR},
      .cannot = "Cook-Torrance (no Beckmann lobe), conductors (no complex Fresnel), Gouraud, clamping, eq. 8, "
-               "the D3D spot profile, distance-attenuated D3D ambient",
+               "the D3D spot profile, distance-attenuated D3D ambient, one-sided (d3d.two_sided false) with a "
+               "specular colour",
      .cube_maps = 1,
      .render = povray_render_job,
      .physics = povray_physics},
@@ -54,7 +55,8 @@ static const renderer_row registry_rows[] = {
                "the diffuse (they need an integral), shadows, inter-reflection, textures",
      .render = exact_point_render_job,
      .physics = exact_physics},
-    /* A real-time engine, judged like our model: validate against Cycles, agree with the raster.
+    /* A real-time engine, judged like our model: validate against Cycles; a twin of the raster
+     * where it can (eevee_calibration); never in an agree (two approximations).
      * Deterministic (TAA), so not stochastic: its samples reach the key through the scene. */
     {.name = "eevee",
      .title = "Blender 3.4 EEVEE",
