@@ -159,7 +159,7 @@ def test_every_validate_figure_stands_beside_its_agree_or_says_it_has_none():
             scene('glass', [validate(reference='povray'), agree]),
         ]
     }
-    rows = answer_rows(R)
+    rows = answer_rows(R, fold=False)
     by = {(r['scene']['name'], r['reference']): r for r in rows}
     assert by[('toaster', 'cycles')]['agrees'] == [('exact', 0.03, 'pass')]
     assert by[('toaster', 'exact')]['agrees'] == [('cycles', 0.03, 'pass'), ('povray', 0.03, 'warn')]
@@ -196,3 +196,16 @@ def test_one_physics_per_material_kind_or_the_difference_named():
     assert by[('scaled', 'plastic')]['physics_differs'] == [('blinn', 'F lamp nv, F env exact, diffuse × (1 − F)')]
     assert by[('scaled', 'floor')]['physics_differs'] == [] and by[('lambert', None)]['physics_differs'] == []
     assert by[('glass', None)]['physics_differs'] == []
+
+
+def test_one_row_per_approximation_with_the_other_references_under_it():
+    """Two validate references of one material fold into one row: the first gives the figures,
+    the second stands under its NRMSE; another test renderer (eevee) keeps a row of its own."""
+    ex = validate(id='raster-vs-exact-validate', reference='exact', status='warn')
+    ex['regions'] = {'surface': {'rel_median': 0.25, 'nrmse': 0.5}}
+    ee = validate(id='eevee-vs-cycles-validate', test='eevee')
+    R = {'scenes': [scene('toaster', [validate(), ex, ee])]}
+    rows = answer_rows(R)
+    assert [(r['reference'], r['test']) for r in rows] == [('cycles', 'raster'), ('cycles', 'eevee')]
+    assert rows[0]['nrmse'] == 0.4 and rows[0]['others'] == [('exact', 0.5, 0.25, 'warn')]
+    assert rows[1]['others'] == []

@@ -168,7 +168,7 @@ def _name_physics_differences(rows):
                 r['physics_differs'].append((o['scene']['name'], theirs))
 
 
-def answer_rows(R, crossovers=None):
+def answer_rows(R, crossovers=None, fold=True):
     crossovers = crossovers or {}
     rows = []
     for s in R['scenes']:
@@ -221,4 +221,20 @@ def answer_rows(R, crossovers=None):
                     }
                 )
     _name_physics_differences(rows)
-    return rows
+    return _fold_references(rows) if fold else rows
+
+
+def _fold_references(rows):
+    """One row per material as used in a scene and test renderer: the first validate reference
+    gives the row's figures, each further one joins it as (reference, nrmse, median, status) in
+    'others', so the table's length is the number of approximations, not of comparisons."""
+    out, first = [], {}
+    for r in rows:
+        key = (r['scene']['name'], r.get('material'), r.get('test'))
+        if r.get('no_validate') or key not in first:
+            r['others'] = []
+            first[key] = r
+            out.append(r)
+        else:
+            first[key]['others'].append((r['reference'], r.get('nrmse'), r.get('median'), r.get('status')))
+    return out
