@@ -97,6 +97,13 @@ def make_report(args):
     write_atomic(os.path.join(args.run, 'summary.csv'), summary_csv(R))
     write_atomic(os.path.join(args.run, 'junit.xml'), junit_xml(R))
     write_atomic(os.path.join(args.run, 'index.html'), pages.index_html(R, trends, timing, note))
+    extra = []
+    if R['optional']['stability'] is not None:
+        write_atomic(os.path.join(args.run, 'stability.html'), pages.stability_html(R))
+        extra.append('stability.html')
+    if R['optional']['figure1']:
+        write_atomic(os.path.join(args.run, 'figure1.html'), pages.figure1_html(R))
+        extra.append('figure1.html')
     if args.latest:
         point_latest(args.run, args.latest, problems)
     if args.screenshot:
@@ -110,11 +117,13 @@ def make_report(args):
                 )
             # The report as a person opens it: every page in headless Chromium, every table row
             # and image loaded (report.js's markers); a page that fails is named, not ignored.
-            bad = check_pages(args.run, ['index.html'] + [sc['page'] for sc in R['scenes']])
+            opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
+            n_pages = len(opened)
+            bad = check_pages(args.run, opened)
             for page_name, why in bad:
                 print(f'report: {page_name}: {why}', file=sys.stderr)
             print(
-                f'report: opened {1 + len(R["scenes"]) - len(bad)} of {1 + len(R["scenes"])} pages in '
+                f'report: opened {n_pages - len(bad)} of {n_pages} pages in '
                 f'headless Chromium with every image loaded'
             )
             if bad:

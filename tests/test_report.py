@@ -87,9 +87,14 @@ def test_index_lists_failures_first_and_has_filters(built):
     js = read(os.path.join(built['run'], 'report.js'))
     assert 'http://' not in html and 'https://' not in html
     assert 'fetch(' not in js and 'XMLHttpRequest' not in js
-    # optional sections: stability (NaN row flagged), timing table, figure 1
-    assert 'Numerical stability' in html and 'class="row-fail"' in html
-    assert 'cycles_convergence' in html and 'src="figure1.svg"' in html
+    # optional sections: stability and figure 1 on pages of their own, linked with a summary
+    # (the NaN row flagged there); the timing table on the index
+    assert '<a href="stability.html">' in html and '1 flagged' in html and 'id="stability"' not in html
+    stab = read(os.path.join(built['run'], 'stability.html'))
+    assert 'Numerical stability' in stab and 'class="row-fail"' in stab
+    assert '<a href="figure1.html">' in html and 'src="figure1.svg"' not in html
+    assert 'src="figure1.svg"' in read(os.path.join(built['run'], 'figure1.html'))
+    assert 'cycles_convergence' in html
 
 
 def test_scene_pages_reference_view_js(built):

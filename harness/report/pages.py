@@ -421,3 +421,15 @@ def diff_class(ln):
 
 def proposal_html(R, text_, rows):
     return render('proposal.html', 'proposal', R=R, rows=rows, diff=[(diff_class(ln), ln) for ln in text_.splitlines()])
+
+
+# ---------------------------------------------------------------------------------------------
+# Pages of their own: the stability table and Figure 1
+
+
+def stability_html(R):
+    return render('stability_page.html', 'stability', R=R, stability=stability_rows(R['optional']))
+
+
+def figure1_html(R):
+    return render('figure1_page.html', 'figure1', R=R)
