@@ -13,6 +13,7 @@
 #include "jobs.h"
 #include "jsonio.h"
 #include "render.h"
+#include "renderers/registry.h"
 #include "scene_file.h"
 #include "status.h"
 
@@ -160,6 +161,12 @@ void cli_usage(FILE *f)
         fprintf(f, "  %-11s", cli_commands[i]->name);
         cli_wrap(f, cli_commands[i]->summary, 13, 13, 79);
     }
+    /* The renderer names come from the table, so a renderer added there is named here too. */
+    char names[512], line[600];
+    snprintf(line, sizeof line, "%s (run --renderer, scene files; reflcheck renderers for more)",
+             registry_list(names, sizeof names));
+    fprintf(f, "\nrenderers:");
+    cli_wrap(f, line, 11, 2, 79);
     fprintf(f, "\nreflcheck COMMAND --help (or -h) shows a command's options, defaults and an example.\n\n"
                "exit status:");
     cli_wrap(f, cli_exit_text, 12, 2, 79);

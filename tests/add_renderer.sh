@@ -64,7 +64,7 @@ make -s -C "$t" BUILD=build build/reflcheck >/dev/null 2>"$work/build.log" || fa
 bin=$t/build/reflcheck
 
 "$bin" renderers --json | grep -q '"name":[[:space:]]*"fake"' || fail "reflcheck renderers does not list fake"
-"$bin" --help | grep -Eq 'run SCENE --renderer [a-z|]*fake' || fail "usage does not name fake"
+"$bin" --help | tr '\n' ' ' | grep -Eq 'renderers: [a-z_, ]*fake' || fail "usage does not name fake"
 DEPS_LIST=1 bash "$t/harness/deps.sh" | grep -qw 'fake-pkg' || fail "deps.sh does not install the row's package"
 cat > "$work/s.yaml" <<'Y'
 name: addr
