@@ -25,6 +25,7 @@
 #include "mesh.h"
 #include "render.h"
 #include "scene_file.h"
+#include "render_text.h"
 #include "tmpdir.h"
 
 #define PI_TEXT   "3.14159265358979"
@@ -36,29 +37,9 @@ static const char head[] = "image: {width: 3, height: 3, supersample: 1}\n"
 /* Pixel (col, 1)'s R, G, B of head + body. */
 static void row_pixel(const char *body, int col, float rgb[3])
 {
-    char text[4096], err[1024];
+    char text[4096];
     snprintf(text, sizeof text, "%s%s", head, body);
-    scene *s = malloc(sizeof *s);
-    assert_non_null(s);
-    mesh m = {0};
-    env_map env;
-    float *px = NULL;
-    rc_status rc = scene_file_parse(text, strlen(text), "/tmp/features.yaml", s, err, sizeof err);
-    if (rc != RC_OK)
-        fail_msg("%s", err);
-    assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_OK);
-    assert_int_equal(frame_env_load(s, &env, &px, err, sizeof err), RC_OK);
-    render_image img;
-    render_options o = {.threads = 1};
-    assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
-    const size_t c = (size_t)img.width + (size_t)col;
-    rgb[0] = img.chan[RENDER_R][c];
-    rgb[1] = img.chan[RENDER_G][c];
-    rgb[2] = img.chan[RENDER_B][c];
-    render_image_free(&img);
-    free(px);
-    mesh_free(&m);
-    free(s);
+    render_text_pixel(text, "/tmp/features.yaml", col, 1, rgb);
 }
 
 /* The centre pixel's R, G, B of head + body. */

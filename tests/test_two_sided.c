@@ -20,6 +20,7 @@
 #include "frame.h"
 #include "mesh.h"
 #include "render.h"
+#include "render_text.h"
 #include "scene_file.h"
 
 static const char scene_fmt[] =
@@ -31,30 +32,13 @@ static const char scene_fmt[] =
     "objects:\n"
     "  - {shape: quad, size: [2, 2], material: m}\n";
 
-/* The centre pixel's R, G, B of the scene with extra d3d keys. */
+/* The centre pixel's R, G, B of the scene with extra d3d keys: pixel (1, 1), whose one sample
+ * is the quad's centre. */
 static void centre_pixel(const char *extra, float rgb[3])
 {
-    char text[1024], err[1024];
+    char text[1024];
     snprintf(text, sizeof text, scene_fmt, extra);
-    scene *s = malloc(sizeof *s);
-    assert_non_null(s);
-    mesh m = {0};
-    env_map env;
-    float *px = NULL;
-    assert_int_equal(scene_file_parse(text, strlen(text), "two_sided.yaml", s, err, sizeof err), RC_OK);
-    assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_OK);
-    assert_int_equal(frame_env_load(s, &env, &px, err, sizeof err), RC_OK);
-    render_image img;
-    render_options o = {.threads = 1};
-    assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
-    const size_t c = (size_t)img.width + 1; /* pixel (1, 1): its one sample is the quad's centre */
-    rgb[0] = img.chan[RENDER_R][c];
-    rgb[1] = img.chan[RENDER_G][c];
-    rgb[2] = img.chan[RENDER_B][c];
-    render_image_free(&img);
-    free(px);
-    mesh_free(&m);
-    free(s);
+    render_text_pixel(text, "two_sided.yaml", 1, 1, rgb);
 }
 
 static void expect(const float rgb[3], double scale)
