@@ -282,33 +282,28 @@ static int compare_bias_core(const float *const tp[3], const float *const rp[3],
 /* keep = mask without the 1 % of its pixels (nearest rank, floor) of largest |test - ref|
  * summed over R, G, B: the robust bias, which one sub-pixel feature (a reflected sun that k x k
  * point samples and a pixel integral weigh differently) cannot carry, while an offset spread
- * over every pixel still shows in full. */
-static void compare_bias_trim(const float *const tp[3], const float *const rp[3], const unsigned char *mask, size_t np,
-                              unsigned char *keep)
+ * over every pixel still shows in full. Returns 0 when out of memory. */
+static int compare_bias_trim(const float *const tp[3], const float *const rp[3], const unsigned char *mask, size_t np,
+                             unsigned char *keep)
 {
-    size_t n = 0;
-    for (size_t i = 0; i < np; i++)
-        n += mask[i] != 0;
     memcpy(keep, mask, np);
-    size_t drop = n / 100;
-    /* Dropping the largest one at a time: n / 100 passes over np pixels, a few dozen at most
-     * on the canonical sizes, cheaper than a sort's memory. */
-    for (size_t k = 0; k < drop; k++) {
-        size_t worst = np;
-        double wd = -1.0;
-        for (size_t i = 0; i < np; i++) {
-            if (!keep[i])
-                continue;
-            double e = fabs((double)tp[0][i] - rp[0][i]) + fabs((double)tp[1][i] - rp[1][i]) +
-                       fabs((double)tp[2][i] - rp[2][i]);
-            if (!(e <= wd)) {
-                wd = e;
-                worst = i;
-            }
-        }
-        if (worst < np)
-            keep[worst] = 0;
+    metrics_ranked *rank = malloc(np * sizeof *rank);
+    if (rank == NULL)
+        return 0;
+    size_t n = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (!mask[i])
+            continue;
+        double e =
+            fabs((double)tp[0][i] - rp[0][i]) + fabs((double)tp[1][i] - rp[1][i]) + fabs((double)tp[2][i] - rp[2][i]);
+        /* A non-finite pixel is the worst (its comparison fails the value gate anyway). */
+        rank[n++] = (metrics_ranked){isnan(e) ? INFINITY : e, i};
     }
+    metrics_rank_sort_desc(rank, n);
+    for (size_t k = 0; k < n / 100; k++)
+        keep[rank[k].index] = 0;
+    free(rank);
+    return 1;
 }
 
 /* Both bias figures (all surface pixels, and without the worst 1 %) into o as PREFIX_z,
@@ -319,8 +314,7 @@ static void compare_bias_put(const float *const tp[3], const float *const rp[3],
     unsigned char *keep = malloc(np);
     compare_bias_value all, trim;
     if (keep != NULL && compare_bias_core(tp, rp, rv, tv, mask, np, scale, &all)) {
-        compare_bias_trim(tp, rp, mask, np, keep);
-        if (compare_bias_core(tp, rp, rv, tv, keep, np, scale, &trim)) {
+        if (compare_bias_trim(tp, rp, mask, np, keep) && compare_bias_core(tp, rp, rv, tv, keep, np, scale, &trim)) {
             cJSON_AddNumberToObject(o, "bias_z", all.z);
             cJSON_AddNumberToObject(o, "bias_rel", all.rel);
             cJSON_AddNumberToObject(o, "bias_z_trim1", trim.z);

@@ -564,11 +564,6 @@ rc_status metrics_seed_stats(const metrics_image *seeds, int k, float *const mea
 /* The share of pixels metrics_robust trims by default: the "worst 1 %". */
 #define METRICS_TRIM 0.01
 
-typedef struct {
-    double key;
-    size_t index;
-} metrics_ranked;
-
 /* Descending by key, ties ascending by index: the worst first, deterministically. */
 static int metrics_rank_desc(const void *a, const void *b)
 {
@@ -577,6 +572,8 @@ static int metrics_rank_desc(const void *a, const void *b)
         return x->key < y->key ? 1 : -1;
     return x->index < y->index ? -1 : (x->index > y->index);
 }
+
+void metrics_rank_sort_desc(metrics_ranked *r, size_t n) { qsort(r, n, sizeof *r, metrics_rank_desc); }
 
 static int metrics_double_asc(const void *a, const void *b)
 {
@@ -645,7 +642,7 @@ rc_status metrics_robust(const metrics_image *ref, const metrics_image *test, co
     }
     out->n_pixels = n;
     if (n > 0) {
-        qsort(rank, (size_t)n, sizeof *rank, metrics_rank_desc);
+        metrics_rank_sort_desc(rank, (size_t)n);
         qsort(rel, (size_t)n, sizeof *rel, metrics_double_asc);
         long k = (long)ceil(trim * (double)n);
         k = k > n - 1 ? n - 1 : k;

@@ -68,6 +68,14 @@ typedef struct {
 rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
                           const metrics_options *opt, metrics_result *out, char *err, size_t errlen);
 
+/* A pixel's figure and its index; metrics_rank_sort_desc orders them largest first, ties by
+ * index, so "the worst k pixels" is one deterministic set wherever it is taken. */
+typedef struct {
+    double key;
+    size_t index;
+} metrics_ranked;
+void metrics_rank_sort_desc(metrics_ranked *r, size_t n);
+
 /* ---- robust error: how a figure is spread over the pixels ---- */
 typedef struct {
     double rel_eps; /* per-pixel relative error denominator r^2 + rel_eps; 0 -> 1e-2 (as metrics_compare) */
