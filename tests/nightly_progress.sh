@@ -27,22 +27,8 @@ bad() { fail=$((fail + 1)); echo "progress: FAILED: $*"; }
 
 # A Lambert quad under a sun, raster against its POV-Ray twin, WIDTH pixels wide (the stand-in
 # POV-Ray tells the two scenes apart by the width it is asked for: +W<2 * WIDTH>).
-scene() {
-    cat > "$work/$1.yaml" <<YAML
-name: $1
-image: {width: $2, height: 16, supersample: 2}
-camera: {eye: [0, 2, 3], target: [0, 0, 0], hfov: 40}
-lights:
-  - {type: sun, direction: [0.2, -1, -0.3], irradiance: [3, 3, 3]}
-materials:
-  m: {albedo: [0.5, 0.4, 0.3], model: d3d}
-objects:
-  - {shape: quad, center: [0, 0, 0], size: [6, 6], material: m}
-comparisons:
-  - reference: povray
-    role: twin
-YAML
-}
+. tests/quad_scene.sh
+scene() { quad_scene "$work/$1.yaml" "$1" "$2"; }
 scene fast 24
 scene slow 26
 # POV-Ray has no twin of Cook-Torrance: its render is skipped before POV-Ray is asked.

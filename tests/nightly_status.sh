@@ -16,24 +16,8 @@ ok() { pass=$((pass + 1)); echo "status: $*"; }
 bad() { fail=$((fail + 1)); echo "status: FAILED: $*"; }
 
 # A Lambert quad under a sun, raster against its POV-Ray twin; $1 is the rel_rms fail threshold.
-scene() {
-    cat > "$work/$2.yaml" <<YAML
-name: $2
-image: {width: 24, height: 16, supersample: 2}
-camera: {eye: [0, 2, 3], target: [0, 0, 0], hfov: 40}
-lights:
-  - {type: sun, direction: [0.2, -1, -0.3], irradiance: [3, 3, 3]}
-materials:
-  m: {albedo: [0.5, 0.4, 0.3], model: d3d}
-objects:
-  - {shape: quad, center: [0, 0, 0], size: [6, 6], material: m}
-comparisons:
-  - reference: povray
-    role: twin
-    thresholds:
-      rel_rms: {warn: $1, fail: $1, why: "test threshold"}
-YAML
-}
+. tests/quad_scene.sh
+scene() { quad_scene "$work/$2.yaml" "$2" 24 "$1"; }
 record_status() {
     /usr/bin/python3 -c 'import json,sys; print(json.loads(open(sys.argv[1]).read().splitlines()[-1])["status"])' \
         "$HISTORY"
