@@ -12,6 +12,11 @@
 #include "povray/povray.h"
 #include "raster/raster_render.h"
 
+/* What exact renders neither way (pixel integral or at our own samples): one physics, two rows. */
+static const char registry_exact_cannot[] =
+    "a twin (it renders the physics), rough lobes lit by an environment and an environment image on the diffuse "
+    "(they need an integral), shadows, inter-reflection, textures";
+
 static const renderer_row registry_rows[] = {
     {.name = "raster",
      .title = "reflcheck rasterizer",
@@ -42,8 +47,7 @@ static const renderer_row registry_rows[] = {
     {.name = "exact",
      .title = "reflcheck exact physics (pixel integral)",
      .version = "reflcheck-exact-2",
-     .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
-               "the diffuse (they need an integral), shadows, inter-reflection, textures",
+     .cannot = registry_exact_cannot,
      .render = exact_render_job,
      .physics = exact_physics},
     /* exact at the rasterizer's own k x k sample positions: the shading's error alone (the float
@@ -51,8 +55,7 @@ static const renderer_row registry_rows[] = {
     {.name = "exact_point",
      .title = "reflcheck exact physics at the rasterizer's own samples",
      .version = "reflcheck-exact-point-1",
-     .cannot = "a twin (it renders the physics), rough lobes lit by an environment and an environment image on "
-               "the diffuse (they need an integral), shadows, inter-reflection, textures",
+     .cannot = registry_exact_cannot,
      .render = exact_point_render_job,
      .physics = exact_physics},
     /* A real-time engine, judged like our model: validate against Cycles; a twin of the raster
