@@ -15,7 +15,7 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 WARN    += -Wno-format-truncation
 STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
-# The shading kernels' lane loops are `#pragma omp simd` (model/shade_batch.c): the pragma only,
+# The shading kernels' lane loops are `#pragma omp simd` (render/shade_batch.c): the pragma only,
 # no OpenMP runtime.
 OPT     += -fopenmp-simd
 # Value-safe (no reassociation, no FMA contraction in ISO C): math functions need not set errno
@@ -24,16 +24,20 @@ OPT     += -fno-math-errno -fno-trapping-math
 SANFLAGS := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all
 SAN     := $(if $(SANITIZE),$(SANFLAGS))
 DEPFLAGS = -MMD -MP
+# The layers, bottom to top (ARCHITECTURE.md; tests/layers.py fails on an include that points up):
+# every header is found by its name alone, so a file's layer is its folder.
+LAYERS    := core model scene render harness cli
+LAYER_INC := $(LAYERS:%=-I%)
 CFLAGS  ?=
-CFLAGS  += $(STD) $(OPT) $(WARN) $(SAN) -pthread -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+CFLAGS  += $(STD) $(OPT) $(WARN) $(SAN) -pthread $(LAYER_INC) $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 LDLIBS  += $(SAN) -pthread $(shell pkg-config --libs $(PKGS) 2>/dev/null) -ldl -lm
-# One C++ file, harness/image_oiio.cpp, is a C shim over OpenImageIO's C++ API (DDS files), built
+# One C++ file, scene/image_oiio.cpp, is a C shim over OpenImageIO's C++ API (DDS files), built
 # as a plugin with the two model files it uses: linked into the programs, OpenImageIO's 263
-# libraries made every process start take 0.77 s (harness/image_dds.c loads it at first use).
+# libraries made every process start take 0.77 s (scene/image_dds.c loads it at first use).
 OIIO_PKG := OpenImageIO
 CXXFLAGS ?=
 CXXFLAGS += -std=c++17 $(OPT) -Wall -Wextra -Wpedantic -Wshadow -Wformat=2 -Wno-format-truncation $(SAN) -pthread \
-            -fPIC -Imodel -Iharness $(shell pkg-config --cflags $(OIIO_PKG) 2>/dev/null)
+            -fPIC $(LAYER_INC) $(shell pkg-config --cflags $(OIIO_PKG) 2>/dev/null)
 
 BUILD ?= build$(if $(SANITIZE),-san)$(if $(DEBUG),-dbg)
 
@@ -52,28 +56,27 @@ ifeq ($(filter clean,$(MAKECMDGOALS)),)
 $(shell mkdir -p $(BUILD) && { [ "$$(cat $(VERSION_STAMP) 2>/dev/null)" = "$(VERSION) $(REFLCHECK_COMMIT)" ] || echo "$(VERSION) $(REFLCHECK_COMMIT)" > $(VERSION_STAMP); })
 endif
 
-MODEL_SRC   := $(wildcard model/*.c)
-# Each renderer is a folder under harness/renderers/ (registry.c holds the table).
-HARNESS_SRC := $(filter-out harness/main.c,$(wildcard harness/*.c harness/renderers/*.c harness/renderers/*/*.c))
+# The library: every layer's C files but the program's main. Each renderer is a folder under
+# harness/renderers/ (registry.c holds the table).
+LIB_SRC     := $(filter-out cli/main.c,$(wildcard $(LAYERS:%=%/*.c) harness/renderers/*.c harness/renderers/*/*.c))
 TEST_SRC    := $(wildcard tests/test_*.c)
-MODEL_OBJ   := $(MODEL_SRC:%.c=$(BUILD)/%.o)
-HARNESS_OBJ := $(HARNESS_SRC:%.c=$(BUILD)/%.o)
+LIB_OBJ     := $(LIB_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN    := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
-LIBS        := $(BUILD)/libreflcheck_harness.a $(BUILD)/libreflcheck_model.a
+LIBS        := $(BUILD)/libreflcheck.a
 CLI         := $(BUILD)/reflcheck
 OIIO_PLUGIN := $(BUILD)/reflcheck-oiio.so
-OIIO_PLUGIN_OBJ := $(BUILD)/pic/harness/image_oiio.o $(BUILD)/pic/model/fileio.o $(BUILD)/pic/model/status.o
+OIIO_PLUGIN_OBJ := $(BUILD)/pic/scene/image_oiio.o $(BUILD)/pic/core/fileio.o $(BUILD)/pic/core/status.o
 KEY_SOURCES := $(BUILD)/key-sources/.stamp
 # The manual page and the bash completion, written from the command table (tools/gen_man.c).
 GEN_MAN     := $(BUILD)/tools/gen_man
 CLI_DOCS    := $(BUILD)/reflcheck.1 $(BUILD)/reflcheck.bash
 
 .PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
-        test-slurm test-install bench report fuzz fuzz-assimp deps clean install
+        test-slurm test-install test-layers bench report fuzz fuzz-assimp deps clean install
 all: $(CLI) $(TEST_BIN) $(KEY_SOURCES) $(CLI_DOCS)
 
 deps:
-	@bash harness/deps.sh
+	@bash ops/deps.sh
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -87,26 +90,24 @@ $(BUILD)/pic/%.o: %.c
 $(OIIO_PLUGIN): $(OIIO_PLUGIN_OBJ)
 	$(CXX) -shared $(SAN) -pthread $^ $(shell pkg-config --libs $(OIIO_PKG) 2>/dev/null) -o $@
 # The plugin's path, fixed at build time (REFLCHECK_OIIO_PLUGIN overrides it when the program runs).
-$(BUILD)/harness/image_dds.o: CFLAGS += -DREFLCHECK_OIIO_PLUGIN='"$(abspath $(OIIO_PLUGIN))"'
+$(BUILD)/scene/image_dds.o: CFLAGS += -DREFLCHECK_OIIO_PLUGIN='"$(abspath $(OIIO_PLUGIN))"'
 # The tree whose scripts Blender runs, so reflcheck works from any folder (REFLCHECK_DATA_DIR
 # overrides it when the program runs).
 $(BUILD)/harness/renderers/renderer.o: CFLAGS += -DREFLCHECK_DATA_DIR='"$(abspath .)"'
 # Each renderer's cache-key sources from the build's own objects and .d files, never a hand list
 # (harness/renderers/key_sources.py); jobs.c reads them from here (REFLCHECK_KEY_SOURCES overrides).
-$(KEY_SOURCES): $(HARNESS_OBJ) $(MODEL_OBJ) $(OIIO_PLUGIN_OBJ) harness/renderers/key_sources.py
-	python3 harness/renderers/key_sources.py $(BUILD) && touch $@
+$(KEY_SOURCES): $(LIB_OBJ) $(OIIO_PLUGIN_OBJ) harness/renderers/key_sources.py
+	python3 harness/renderers/key_sources.py $(BUILD) $(LIB_OBJ) && touch $@
 $(BUILD)/harness/jobs.o: CFLAGS += -DREFLCHECK_KEY_SOURCES='"$(abspath $(BUILD))/key-sources"'
 
-$(BUILD)/libreflcheck_model.a: $(MODEL_OBJ)
-	rm -f $@ && $(AR) rcs $@ $^
-$(BUILD)/libreflcheck_harness.a: $(HARNESS_OBJ)
+$(BUILD)/libreflcheck.a: $(LIB_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^
 
-$(CLI): $(BUILD)/harness/main.o $(LIBS) | $(OIIO_PLUGIN) $(KEY_SOURCES)
+$(CLI): $(BUILD)/cli/main.o $(LIBS) | $(OIIO_PLUGIN) $(KEY_SOURCES)
 	$(CC) $(CFLAGS) $(filter-out $(OIIO_PLUGIN),$^) $(LDLIBS) -o $@
 
-$(BUILD)/harness/main.o $(BUILD)/tools/gen_man.o: $(VERSION_STAMP)
-$(BUILD)/harness/main.o $(BUILD)/tools/gen_man.o: CFLAGS += $(VERSION_DEFS)
+$(BUILD)/cli/main.o $(BUILD)/tools/gen_man.o: $(VERSION_STAMP)
+$(BUILD)/cli/main.o $(BUILD)/tools/gen_man.o: CFLAGS += $(VERSION_DEFS)
 $(GEN_MAN): $(BUILD)/tools/gen_man.o $(LIBS)
 	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
 $(BUILD)/reflcheck.1: $(GEN_MAN)
@@ -125,7 +126,7 @@ DESTDIR ?=
 INST_DIR  := $(BUILD)/install
 INST_DATA := $(PREFIX)/share/reflcheck
 INST_LIB  := $(PREFIX)/lib/reflcheck
-INST_OBJ  := $(INST_DIR)/harness/renderers/renderer.o $(INST_DIR)/harness/image_dds.o $(INST_DIR)/harness/jobs.o
+INST_OBJ  := $(INST_DIR)/harness/renderers/renderer.o $(INST_DIR)/scene/image_dds.o $(INST_DIR)/harness/jobs.o
 INST_DEFS := -DREFLCHECK_DATA_DIR='"$(INST_DATA)"' -DREFLCHECK_KEY_SOURCES='"$(INST_DATA)/key-sources"' \
              -DREFLCHECK_OIIO_PLUGIN='"$(INST_LIB)/reflcheck-oiio.so"'
 ifneq ($(filter install,$(MAKECMDGOALS)),)
@@ -134,7 +135,7 @@ endif
 $(INST_DIR)/%.o: %.c $(INST_DIR)/prefix.stamp
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) $(INST_DEFS) $(DEPFLAGS) -c $< -o $@
-$(INST_DIR)/reflcheck: $(BUILD)/harness/main.o $(INST_OBJ) $(LIBS)
+$(INST_DIR)/reflcheck: $(BUILD)/cli/main.o $(INST_OBJ) $(LIBS)
 	$(CC) $(CFLAGS) $^ $(LDLIBS) -o $@
 install: $(INST_DIR)/reflcheck $(OIIO_PLUGIN) $(CLI_DOCS) $(KEY_SOURCES)
 	install -d "$(DESTDIR)$(PREFIX)/bin" "$(DESTDIR)$(INST_LIB)" "$(DESTDIR)$(PREFIX)/share/man/man1" \
@@ -159,6 +160,10 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBS) | $(OIIO_PLUGIN)
 test-install: all
 	@bash tests/install.sh $(BUILD)
 
+# The layering (ARCHITECTURE.md): no include points from a layer to one above it.
+test-layers:
+	@python3 tests/layers.py
+
 # Unit tests (also the sanitizer run in CI), then the renderer-backed tests.
 test-unit: $(TEST_BIN) $(CLI)
 	@bash tests/run_unit.sh $(BUILD)
@@ -175,6 +180,7 @@ NPROC := $(shell nproc 2>/dev/null || echo 2)
 test: deps
 	$(MAKE) -j$(NPROC) all
 	@$(MAKE) -q all || { echo "make test: a second 'make all' would rebuild (intermediates deleted?)"; exit 1; }
+	$(MAKE) test-layers
 	$(MAKE) -j$(NPROC) SANITIZE=1 test-unit
 	$(MAKE) test-unit
 	$(MAKE) test-scenes
@@ -218,7 +224,7 @@ test-slurm: $(CLI)
 	@bash tests/slurm_worker.sh $(BUILD)
 
 # The report generator, the report opened in headless Chromium, and the gates table
-# (harness/gates.py: every gate beside its figure, none loose without a stated reason).
+# (tools/gates.py: every gate beside its figure, none loose without a stated reason).
 test-report: $(CLI)
 	@REFLCHECK_BIN=$(CLI) /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py tests/test_gates_table.py
 
@@ -233,11 +239,11 @@ test-scenes: $(CLI)
 # The nightly report: full-size renders in all renderers, metrics, plots, history.
 # SCHEDULER=slurm: the renders, the sweep and compare as Slurm jobs (docs/slurm.md).
 # Your own scenes: make report SCENES="my/a.yaml my/b.yaml" ARGS="--small --no-sweep" (ARGS: the
-# options of bash harness/nightly.sh --help); the run goes to reports/runs/, which git ignores.
+# options of bash ops/nightly.sh --help); the run goes to reports/runs/, which git ignores.
 SCHEDULER ?= make
 report: deps
 	$(MAKE) -j$(NPROC) all
-	@SCHEDULER=$(SCHEDULER) BIN="$${BIN:-$(CLI)}" bash harness/nightly.sh $(ARGS)
+	@SCHEDULER=$(SCHEDULER) BIN="$${BIN:-$(CLI)}" bash ops/nightly.sh $(ARGS)
 
 # Coverage-guided fuzzing (libFuzzer) of the scene parser and the EXR reader; findings go
 # to tests/regress/ once fixed. FUZZ_TIME seconds per target. The fuzz targets link the whole
@@ -246,9 +252,9 @@ report: deps
 FUZZ_CC    ?= clang
 FUZZ_TIME  ?= 300
 FUZZ_CFLAGS := -g -O1 -fopenmp-simd -Wno-pass-failed -fsanitize=address,undefined -fno-sanitize-recover=all \
-               $(STD) -Imodel -Iharness $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+               $(STD) $(LAYER_INC) $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 FUZZ_DIR   := $(abspath $(BUILD))/fuzz
-FUZZ_OBJ   := $(MODEL_SRC:%.c=$(FUZZ_DIR)/obj/%.o) $(HARNESS_SRC:%.c=$(FUZZ_DIR)/obj/%.o)
+FUZZ_OBJ   := $(LIB_SRC:%.c=$(FUZZ_DIR)/obj/%.o)
 
 $(FUZZ_DIR)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -302,5 +308,5 @@ bench: deps
 clean:
 	rm -rf build build-san build-dbg build-san-dbg
 
--include $(MODEL_OBJ:.o=.d) $(HARNESS_OBJ:.o=.d) $(TEST_BIN:=.d) $(BUILD)/harness/main.d $(OIIO_PLUGIN_OBJ:.o=.d) \
+-include $(LIB_OBJ:.o=.d) $(TEST_BIN:=.d) $(BUILD)/cli/main.d $(OIIO_PLUGIN_OBJ:.o=.d) \
          $(BUILD)/tools/gen_man.d $(INST_OBJ:.o=.d)

@@ -27,7 +27,7 @@
  * raw normal, so without a normal pattern it never fires (tests/crease_povray.py renders the
  * diffuse under a light; no mirror lobe). crease_departs gives the rule bits that apply to one
  * sample (unit n, ng, v pointing away from the surface; ng of either orientation). crease_share
- * rasterizes the mesh at the render's samples (model/raster.h, model/render.h's camera) and writes each pixel's rule
+ * rasterizes the mesh at the render's samples (render/raster.h, render/render.h's camera) and writes each pixel's rule
  * bits, the OR over its covered samples, as a float (0 where none departs or none is covered), so compare can leave
  * those pixels out of a comparison with a renderer that has those rules and report them per rule (harness/compare.c).
  * Returns RC_OK, RC_ERR_NOMEM, or RC_ERR_RANGE with one line in err.

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#include "../model/status.h"
+#include "status.h"
 
 /* A comma-separated list of term names (diffuse, specular, reflection, emission) as
  * RENDERER_TERM_* bits; RC_ERR_PARSE naming the word and the allowed ones. */

@@ -8,7 +8,7 @@
  *   fit_run(&scn, &msh, &env, &ref, p, n, &o, &r, err, sizeof err);
  *   r.authored.nrmse, r.best.nrmse, p[i].value, r.evaluations, r.seconds ...
  *
- * The scene is rendered by our rasterizer (model/render.h) at the reference's size with the
+ * The scene is rendered by our rasterizer (render/render.h) at the reference's size with the
  * scene's supersampling, exactly as the validate job renders it; each evaluation changes the
  * parameters of a private copy of the scene and renders again. The objective is the least-squares
  * error over surface pixels: interior pixels of the model's own coverage and object layers

@@ -9,7 +9,7 @@
  *   texture_set ts; frame_textures_load(&scn, &ts, err, sizeof err); ... texture_set_free(&ts);
  * Images by extension: linear EXR (exr.c), DDS (image_oiio.h: a cube map for
  * environment.cube_dds, a 2D image elsewhere; 8-bit colour sRGB-decoded as PNG/JPEG are, BC6H
- * linear), else PNG/JPEG (model/texture.c).
+ * linear), else PNG/JPEG (scene/texture.c).
  * An environment image must have R, G and B channels and finite texels >= 0 (RC_ERR_RANGE
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
@@ -31,14 +31,14 @@
 #include "texture.h"
 
 rc_status frame_env_load(const scene *s, env_map *e, float **pixels, char *err, size_t errlen);
-/* Every material texture of the scene into ts (zeroed first): PNG/JPEG through model/texture.c,
+/* Every material texture of the scene into ts (zeroed first): PNG/JPEG through scene/texture.c,
  * linear EXR (R, G, B, optional A) through exr.c, DDS through image_oiio.h; texels must be finite
  * and >= 0. On error
  * nothing stays allocated; free with texture_set_free. */
 rc_status frame_textures_load(const scene *s, texture_set *ts, char *err, size_t errlen);
 /* The scene's sun extraction (environment.sun_threshold > 0 on an image; else nothing): moves
  * the sun out of pixels (frame_env_load's) into a sun light appended to s->lights, as every
- * renderer must receive it (model/env.h env_extract_sun); *sun (may be NULL) describes it.
+ * renderer must receive it (scene/env.h env_extract_sun); *sun (may be NULL) describes it.
  * RC_ERR_RANGE with one line naming the scene, key and fix when no texel is above the
  * threshold or the lights are full. */
 rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun *sun, char *err, size_t errlen);
@@ -53,7 +53,7 @@ int frame_light_count(const scene *s);
 /* Writes the environment's pixels (interleaved RGB) as a 32-bit float RGB EXR, for renderers
  * that read the image from a file (the split environment). */
 rc_status frame_env_write(const char *path, const env_map *e, char *err, size_t errlen);
-/* Writes a cube map's exact conversion (model/env.h env_cube_to_equirect; its size is
+/* Writes a cube map's exact conversion (scene/env.h env_cube_to_equirect; its size is
  * FRAME_CUBE_EQUIRECT_PER_FACE in frame.c, which the cache key covers) as a 32-bit float RGB EXR,
  * for renderers that read an equirectangular image from a file. */
 rc_status frame_env_cube_write(const char *path, const env_map *cube, char *err, size_t errlen);

@@ -581,7 +581,7 @@ static void job_render(job_ctx *c, job_record *rec)
 {
     /* A renderer that reads the environment from its file gets the split one (frame_env_split_sun),
      * written into its work folder. The cache key covers the original image, the threshold (the
-     * scene file) and the code that splits it (model/env.c, harness/frame.c). */
+     * scene file) and the code that splits it (scene/env.c, harness/frame.c). */
     char split[1100] = "";
     if (registry_row(c->j->renderer)->program != NULL && frame_sun_split(c->s)) {
         char why[600];
@@ -594,7 +594,7 @@ static void job_render(job_ctx *c, job_record *rec)
     }
     /* A renderer that reads the environment from its file gets a cube map as its equirectangular
      * conversion (frame_env_cube_write), unless its row says it looks the cube up itself, as the
-     * in-process ones do. The key covers the faces and the converting code (model/env.c,
+     * in-process ones do. The key covers the faces and the converting code (scene/env.c,
      * harness/frame.c). */
     const renderer_row *row = registry_row(c->j->renderer);
     if (row->program != NULL && !row->cube_maps && c->s->env.kind == ENV_CUBE) {

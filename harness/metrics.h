@@ -33,7 +33,7 @@
 #define REFLCHECK_METRICS_H
 
 #include <stddef.h>
-#include "../model/status.h"
+#include "status.h"
 
 typedef struct {
     int width, height;

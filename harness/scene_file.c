@@ -591,18 +591,18 @@ static rc_status sf_camera(sf_ctx *c, yaml_node_t *n, scene *s)
 }
 
 /* Image files the scene names for textures and cube-map faces: PNG or JPEG (sRGB, through
- * model/texture.c), linear OpenEXR, or a 2D DDS (harness/image_oiio.h; 8-bit colour as sRGB). */
+ * scene/texture.c), linear OpenEXR, or a 2D DDS (scene/image_oiio.h; 8-bit colour as sRGB). */
 static const char *const sf_image_exts[] = {".png", ".jpg", ".jpeg", ".exr", ".dds"};
 #define SF_N_IMAGE_EXTS ((int)(sizeof sf_image_exts / sizeof sf_image_exts[0]))
 /* A cross takes every image but a DDS, the table's last: one DDS file under the environment is a
  * cube map (cube_dds), which harness/frame.c tells from a cross by its extension. */
 #define SF_N_CROSS_EXTS (SF_N_IMAGE_EXTS - 1)
 
-/* cube: {px: file, nx: ..., py, ny, pz, nz}: the six faces of a cube map (model/env.h), each
+/* cube: {px: file, nx: ..., py, ny, pz, nz}: the six faces of a cube map (scene/env.h), each
  * PNG/JPEG (sRGB) or linear EXR; all six required. */
 static rc_status sf_cube(sf_ctx *c, yaml_node_t *n, scene *s)
 {
-    const char *const *keys = env_cube_face_keys; /* model/env.h, D3DCUBEMAP_FACES order */
+    const char *const *keys = env_cube_face_keys; /* scene/env.h, D3DCUBEMAP_FACES order */
     sf_kv f[6];
     char child[SF_PATHLEN];
     rc_status rc;
@@ -999,7 +999,7 @@ static float sf_f0(double eta, double k)
 }
 
 /* texture: {diffuse: file, specular: file}: PNG/JPEG (sRGB) or linear EXR images, each optional
- * (model/texture.h; the slots' meaning is scene.h's material_texture_slot). */
+ * (scene/texture.h; the slots' meaning is scene.h's material_texture_slot). */
 static rc_status sf_texture(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
     static const char *const keys[MAT_TEX_SLOTS] = {"diffuse", "specular"};
@@ -1046,7 +1046,7 @@ static rc_status sf_asset_name(sf_ctx *c, yaml_node_t *n, const char *path, char
 }
 
 /* An imported asset's material (asset: {path: FILE, material: NAME}), mapped by the rule of
- * model/mesh_assimp.h (scenes/FORMAT.md, "Imported assets"). */
+ * scene/mesh_assimp.h (scenes/FORMAT.md, "Imported assets"). */
 static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material *m, int *f0_given)
 {
     static const char *const keys[] = {"path", "material", "texture"};
@@ -1260,7 +1260,7 @@ enum {
 };
 
 /* `scale: k` or `scale: [sx, sy, sz]`: each factor, once stored as float, must pass
- * mesh_scale_ok, the check model/mesh.c makes again for scenes built in code. */
+ * mesh_scale_ok, the check scene/mesh.c makes again for scenes built in code. */
 static rc_status sf_scale_factor(sf_ctx *c, yaml_node_t *n, const char *path, float *out)
 {
     static const char allowed[] = "a number or [sx, sy, sz], each in [1e-06, 1e+06] (no mirroring)";
@@ -1389,7 +1389,7 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        "tube radius exceeds the ring radius (self-intersecting); allowed: radius <= "
                        "major = %g",
                        o->major);
-    /* Besides OBJ and PLY, any extension libassimp reads (model/mesh_assimp.h). */
+    /* Besides OBJ and PLY, any extension libassimp reads (scene/mesh_assimp.h). */
     const char *mp = f[OK_PATH].v ? sf_text(f[OK_PATH].v) : NULL, *dot = mp ? strrchr(mp, '.') : NULL;
     int imported = dot && !sf_ends_with(mp, ".obj") && !sf_ends_with(mp, ".ply") && mesh_assimp_supported(mp);
     char low[16];

@@ -11,7 +11,7 @@
  * RC_ERR_PARSE (YAML syntax, unknown or duplicate key, wrong type, missing required key),
  * RC_ERR_RANGE (NaN/Inf, a value outside its allowed range, unknown material name, file > 1 MiB,
  * a scene, mesh or environment path that is not a regular file, a mesh > 1 GiB), RC_ERR_NOMEM.
- * Files are checked by kind and size before a byte is read (model/fileio.h), so /dev/zero or
+ * Files are checked by kind and size before a byte is read (core/fileio.h), so /dev/zero or
  * a FIFO is refused at once instead of read without end or waited on.
  * Units in the file: degrees for angles (stored as radians), metres, W/sr, W/m^2.
  * Relative paths inside the file (environment image, mesh) are resolved against the directory

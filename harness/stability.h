@@ -84,7 +84,7 @@ int stability_failures(const stability_table *t);
 /* The first row whose function and case start with the given prefixes (NULL = any), or NULL. */
 const stability_row *stability_find(const stability_table *t, const char *function, const char *case_prefix);
 
-/* The table as a JSON document (cJSON, through harness/jsonio): {"reference_mantissa_bits",
+/* The table as a JSON document (cJSON, through core/jsonio): {"reference_mantissa_bits",
  * "samples", "failures", "rows": [{"function", "case", "kind", ...}]}, figures to 6 significant
  * digits, null where not finite. NULL when memory runs out; free with cJSON_Delete. */
 cJSON *stability_json(const stability_table *t);
@@ -96,7 +96,7 @@ int stability_write_csv(FILE *f, const stability_table *t);
 int stability_write_text(FILE *f, const stability_table *t);
 
 /* reflcheck stability [--json FILE] [--csv FILE] [--samples N]: prints the table, exits 1 if
- * any gate fails (also declared for harness/cli.c). */
+ * any gate fails (also declared for cli/cli.c). */
 int cli_stability(int argc, char **argv);
 
 #endif

@@ -10,7 +10,7 @@
  * its maths library; the suffix names the instance:
  *   _f  float, libm (powf)          the scalar models' float factors (Lambert, Blinn)
  *   _d  double, libm                the scalar models, which form their sums in double
- *   _v  float, smath.h, always      the SIMD lanes (model/shade_batch.c): smath's pow, log and exp
+ *   _v  float, smath.h, always      the SIMD lanes (render/shade_batch.c): smath's pow, log and exp
  *       inlined                     vectorise where libm's would stop the loop
  *   _l  long double, libm           harness/stability.c's reference (64-bit significand on x86-64)
  * So the scalar path, the lanes and the high-precision check run the same code: a formula changed
@@ -420,7 +420,7 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
 /* ---- D3D9Client Dissolve (seed 000; our reading of its shader, docs/dissolve.md) ----------- */
 
 /* One texel coordinate of the noise texture read at t (u or v) times scale: x = t scale SIZE -
- * 1/2 in texels (texel centres at (i + 1/2)/SIZE, as model/texture.c's), its whole part wrapped
+ * 1/2 in texels (texel centres at (i + 1/2)/SIZE, as scene/texture.c's), its whole part wrapped
  * to [0, SIZE) (repeat) in *i0, the next texel in *i1, the bilinear weight of *i1 returned. */
 FORMULA_INLINE FT FN(formula_dissolve_coord)(FT t, FT scale, uint32_t *i0, uint32_t *i1)
 {

@@ -38,7 +38,7 @@ typedef struct {
     spot_profile profile;
 } light;
 
-/* ENV_CUBE: a Direct3D cube map (model/env.h gives its orientation and filtering). */
+/* ENV_CUBE: a Direct3D cube map (scene/env.h gives its orientation and filtering). */
 typedef enum { ENV_NONE, ENV_CONSTANT, ENV_IMAGE, ENV_CUBE } env_kind;
 
 typedef struct {
@@ -49,7 +49,7 @@ typedef struct {
     char cube[6][SCENE_PATH_MAX]; /* cube map: its six face images in D3DCUBEMAP_FACES order
                                      (+X, -X, +Y, -Y, +Z, -Z); all empty when path is a cross */
     float sun_threshold;          /* image: > 0 moves the sun (texels of luminance above it, scale applied)
-                                     into a sun light appended to the lights (model/env.h env_extract_sun);
+                                     into a sun light appended to the lights (scene/env.h env_extract_sun);
                                      0 = off (default) */
 } environment;
 
@@ -114,7 +114,7 @@ typedef struct {
     int reflection;        /* environment reflection term CM * Fr, default 1 */
 } ct_params;
 
-/* Material texture slots (model/texture.h): the diffuse colour with alpha multiplies the
+/* Material texture slots (scene/texture.h): the diffuse colour with alpha multiplies the
  * diffuse and emission terms and the alpha (D3D's texture stage MODULATE of Dv; the D3D9Client
  * "colour of the diffuse material or a texture" and "material/texture alpha" of eqs. 6-7); the
  * specular colour map multiplies the specular term (D3D Vs, Cook-Torrance ks). */
@@ -193,7 +193,7 @@ typedef struct {
     double warn, fail;
     char why[160];
     /* Why the gate may sit more than 3x from its figure (a precision floor, a pixel count's
-     * step); "" when it must not (harness/gates.py flags it). */
+     * step); "" when it must not (tools/gates.py flags it). */
     char loose[160];
     /* The figure the gate was sized on, at which image size, in which run; sized_size 0 when
      * the file does not say. */

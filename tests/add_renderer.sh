@@ -9,7 +9,7 @@ build=${1:-build}
 work=$build/add-renderer
 rm -rf "$work"
 mkdir -p "$work/orig"
-cp -r model harness scenes tests Makefile "$work/orig"/
+cp -r core model scene render harness cli tools ops scenes tests Makefile "$work/orig"/
 # The tree to change, with the build's objects, so its build compiles only the new renderer.
 . tests/scratch_tree.sh
 scratch_tree "$work/tree" "$build" || { echo "add-renderer: copying the tree failed" >&2; exit 1; }
@@ -65,7 +65,7 @@ bin=$t/build/reflcheck
 
 "$bin" renderers --json | grep -q '"name":[[:space:]]*"fake"' || fail "reflcheck renderers does not list fake"
 "$bin" --help | tr '\n' ' ' | grep -Eq 'renderers: [a-z_, ]*fake' || fail "usage does not name fake"
-DEPS_LIST=1 bash "$t/harness/deps.sh" | grep -qw 'fake-pkg' || fail "deps.sh does not install the row's package"
+DEPS_LIST=1 bash "$t/ops/deps.sh" | grep -qw 'fake-pkg' || fail "deps.sh does not install the row's package"
 cat > "$work/s.yaml" <<'Y'
 name: addr
 image: {width: 8, height: 6}

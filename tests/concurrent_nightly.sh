@@ -14,8 +14,8 @@ export CACHE=$work/cache SMALL=1 NO_SCREENSHOT=1 NO_SWEEP=1
 export SCENES="scenes/lambert_calibration.yaml scenes/d3d_spot.yaml"
 unset RUN_ID
 
-bash harness/nightly.sh > "$work/a.log" 2>&1 & a=$!
-bash harness/nightly.sh > "$work/b.log" 2>&1 & b=$!
+bash ops/nightly.sh > "$work/a.log" 2>&1 & a=$!
+bash ops/nightly.sh > "$work/b.log" 2>&1 & b=$!
 wait $a; rc_a=$?
 wait $b; rc_b=$?
 fail=0

@@ -5,7 +5,7 @@
 #
 # Usage: bash tests/crease_renderers.sh BUILD      (from the repository root; a few seconds)
 # Writes its renders under BUILD/crease_renderers/; exits 1 when a renderer's render does not
-# show its rule set, 2 when a renderer is not installed (bash harness/deps.sh installs them).
+# show its rule set, 2 when a renderer is not installed (bash ops/deps.sh installs them).
 set -u
 build=${1:?usage: bash tests/crease_renderers.sh BUILD}
 out="$build/crease_renderers"
@@ -13,7 +13,7 @@ rm -rf "$out"
 mkdir -p "$out/blender" "$out/povray"
 for prog in blender povray; do
     if ! command -v "$prog" >/dev/null 2>&1; then
-        echo "crease_renderers: $prog is not installed; run: bash harness/deps.sh" >&2
+        echo "crease_renderers: $prog is not installed; run: bash ops/deps.sh" >&2
         exit 2
     fi
 done

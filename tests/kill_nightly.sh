@@ -12,14 +12,14 @@ mkdir -p "$work"
 export BIN=$build/reflcheck RUNS=$work/runs HISTORY=$work/history.jsonl LATEST=$work/latest
 export CACHE=$work/cache SMALL=1 NO_SCREENSHOT=1 SCENES="scenes/lambert_calibration.yaml scenes/d3d_spot.yaml"
 
-RUN_ID=complete bash harness/nightly.sh > "$work/complete.log" 2>&1 || { echo "kill: the complete run failed; see $work/complete.log"; exit 1; }
+RUN_ID=complete bash ops/nightly.sh > "$work/complete.log" 2>&1 || { echo "kill: the complete run failed; see $work/complete.log"; exit 1; }
 [ -s "$HISTORY" ] || { echo "kill: no history after a complete run"; exit 1; }
 cp "$HISTORY" "$work/history.before"
 
 pass=0; fail=0
 for i in 1 2 3; do
     delay=$(awk -v s="$RANDOM" 'BEGIN { srand(s); printf "%.2f", 0.3 + rand() * 6 }')
-    setsid env RUN_ID="killed-$i" bash harness/nightly.sh > "$work/killed-$i.log" 2>&1 &
+    setsid env RUN_ID="killed-$i" bash ops/nightly.sh > "$work/killed-$i.log" 2>&1 &
     pid=$!
     sleep "$delay"
     if [ "$i" -eq 3 ]; then

@@ -2,7 +2,7 @@
 # The nightly on a user's own scene, in a scratch copy of the tree that is a git repository of
 # its own (so the real checkout is never touched), with every output at its default place:
 #  1. a scene in a folder whose name holds a space and non-ASCII letters, given with the
-#     documented command (bash harness/nightly.sh --small --no-sweep --no-screenshot --scenes
+#     documented command (bash ops/nightly.sh --small --no-sweep --no-screenshot --scenes
 #     PATH, no environment settings) and as a one-per-line SCENES list, runs and compares (exit 0);
 #  2. a space-separated SCENES whose words are not files is refused (exit 2) with one line
 #     naming the word and the fix;
@@ -42,21 +42,21 @@ cd "$tree" || exit 1
 ref_before=$(sha256sum reports/history.jsonl)
 
 # 1. With the documented command and its options alone, then as a SCENES list of one path per line.
-env -u SMALL -u NO_SWEEP -u NO_SCREENSHOT bash harness/nightly.sh --small --no-sweep --no-screenshot \
+env -u SMALL -u NO_SWEEP -u NO_SCREENSHOT bash ops/nightly.sh --small --no-sweep --no-screenshot \
     --scenes "$dir/d3d scaled é.yaml" > "$work/arg.log" 2>&1
 st=$?
 [ $st -eq 0 ] && [ -f "$(ls -d reports/runs/*/d3d_scaled | head -n1)/compare.json" ] &&
     [ ! -e "$(ls -d reports/runs/*/d3d_scaled | head -n1)/../screenshot.png" ] &&
     ok "the documented command on a scene path with a space and non-ASCII letters: exit 0, compared" ||
     bad "scene path as an argument: exit $st; see $work/arg.log"
-RUN_ID=listed SCENES=$'\n'"$dir/d3d scaled é.yaml"$'\n' bash harness/nightly.sh > "$work/list.log" 2>&1
+RUN_ID=listed SCENES=$'\n'"$dir/d3d scaled é.yaml"$'\n' bash ops/nightly.sh > "$work/list.log" 2>&1
 st=$?
 [ $st -eq 0 ] && [ -f reports/runs/listed/d3d_scaled/compare.json ] &&
     ok "the same path in a one-per-line SCENES: exit 0, compared" ||
     bad "scene path in a SCENES list: exit $st; see $work/list.log"
 
 # 2. Space-separated SCENES split the path: refused before anything runs, naming the word.
-RUN_ID=split SCENES="$dir/d3d scaled é.yaml" bash harness/nightly.sh > "$work/split.log" 2>&1
+RUN_ID=split SCENES="$dir/d3d scaled é.yaml" bash ops/nightly.sh > "$work/split.log" 2>&1
 st=$?
 [ $st -eq 2 ] && [ "$(grep -c "scene 'my' is not a file.*one path per line in SCENES" "$work/split.log")" = 1 ] &&
     [ ! -e reports/runs/split ] && ok "a SCENES word that is not a file: exit 2, one line naming it and the fix" ||
@@ -76,7 +76,7 @@ grep -q "reference runs\? from reports/history.jsonl" reports/runs/listed/index.
     bad "the report does not name the histories its trends show; see reports/runs/listed/index.html"
 
 # 4. On purpose: REFERENCE=1 appends to the versioned history, and the local one is untouched.
-bash harness/nightly.sh --run-id reference --reference "$dir/d3d scaled é.yaml" > "$work/ref.log" 2>&1
+bash ops/nightly.sh --run-id reference --reference "$dir/d3d scaled é.yaml" > "$work/ref.log" 2>&1
 st=$?
 [ $st -eq 0 ] && [ "$(git status --porcelain)" = " M reports/history.jsonl" ] &&
     [ "$(tail -n1 reports/history.jsonl | grep -c '"run_id":"reference"')" = 1 ] &&

@@ -49,7 +49,7 @@ exit 1
 SH
 chmod +x "$work/bin/povray"
 
-PATH="$work/bin:$PATH" bash harness/nightly.sh --small --no-sweep --no-screenshot --jobs 2 --run-id r1 \
+PATH="$work/bin:$PATH" bash ops/nightly.sh --small --no-sweep --no-screenshot --jobs 2 --run-id r1 \
     --runs "$work/runs" --cache "$work/cache" --history "$work/history.jsonl" --latest "$work/latest" \
     --scenes "$work/fast.yaml" "$work/slow.yaml" "$work/ct.yaml" > "$work/run.log" 2>&1 &
 pid=$!
@@ -104,15 +104,15 @@ grep -q $'^stability\t[0-9]' "$work/runs/r1/stages.tsv" && ok "stage times recor
 
 # An option wins over its variable: JOBS=0 alone is refused; with --jobs 1 the run gets past it
 # (to the refusal of a missing --bin, which names the option, not BIN).
-out=$(JOBS=0 bash harness/nightly.sh --jobs 1 --bin "$work/none" "$work/fast.yaml" 2>&1)
+out=$(JOBS=0 bash ops/nightly.sh --jobs 1 --bin "$work/none" "$work/fast.yaml" 2>&1)
 [ $? -eq 2 ] && [[ $out == "reflcheck nightly: --bin '$work/none' is not an executable"* ]] &&
     ok "--jobs wins over JOBS, --bin over BIN" || bad "option over variable: $out"
-out=$(JOBS=0 bash harness/nightly.sh "$work/fast.yaml" 2>&1)
+out=$(JOBS=0 bash ops/nightly.sh "$work/fast.yaml" 2>&1)
 [ $? -eq 2 ] && [[ $out == *"JOBS '0'"* ]] && ok "JOBS is the fallback" || bad "JOBS fallback: $out"
 refuse() { # refuse WANT_TEXT ARG...: exit 2, one line holding WANT_TEXT
     local want=$1 out st
     shift
-    out=$(bash harness/nightly.sh "$@" "$work/fast.yaml" 2>&1)
+    out=$(bash ops/nightly.sh "$@" "$work/fast.yaml" 2>&1)
     st=$?
     [ $st -eq 2 ] && [ "$(printf '%s\n' "$out" | wc -l)" -eq 1 ] && [[ $out == *"$want"* ]] &&
         ok "$*: exit 2: $out" || bad "$* (want exit 2 and one line with '$want'): exit $st: $out"
@@ -123,7 +123,7 @@ refuse "--run-id 'a/b': use letters" --run-id a/b
 refuse "option '--bogus' is not known" --bogus
 refuse "--jobs needs a value" --jobs --small
 refuse "option --small takes no '=VALUE'" --small=1
-help=$(bash harness/nightly.sh --help)
+help=$(bash ops/nightly.sh --help)
 missing=
 for o in "--scenes PATH.*SCENES" "--small.*SMALL=1" "--no-sweep.*NO_SWEEP=1" "--no-screenshot.*NO_SCREENSHOT=1" \
     "--jobs N.*default 2.*JOBS" "--runs DIR.*default reports/runs.*RUNS" "--cache DIR.*default reports/cache.*CACHE" \

@@ -30,14 +30,14 @@ expect() {   # expect NAME WANT_EXIT WANT_STATUS GOT_EXIT
 }
 
 scene 1.0e-2 clean
-RUN_ID=clean SCENES="$work/clean.yaml" bash harness/nightly.sh > "$work/clean.log" 2>&1
+RUN_ID=clean SCENES="$work/clean.yaml" bash ops/nightly.sh > "$work/clean.log" 2>&1
 expect clean 0 ok $?
 # No screenshot was asked for: none was taken.
 [ ! -e "$RUNS/clean/screenshot.png" ] && ok "NO_SCREENSHOT=1: no screenshot" || bad "NO_SCREENSHOT=1 took a screenshot"
 
 # The half-float floor alone is about 1e-4: a threshold of 1e-12 fails the twin.
 scene 1.0e-12 tight
-RUN_ID=tight SCENES="$work/tight.yaml" bash harness/nightly.sh > "$work/tight.log" 2>&1
+RUN_ID=tight SCENES="$work/tight.yaml" bash ops/nightly.sh > "$work/tight.log" 2>&1
 expect tight 1 fail $?
 # The failure names the scene key that holds the threshold.
 grep -q 'rel_rms = .* > fail threshold 1e-12 (test threshold); scene key comparisons\[0\]\.thresholds\.rel_rms$' \
@@ -52,7 +52,7 @@ kill -SEGV $$
 SH
 chmod +x "$work/bin/povray"
 scene 1.0e-2 crash
-RUN_ID=crash SCENES="$work/crash.yaml" PATH="$PWD/$work/bin:$PATH" bash harness/nightly.sh > "$work/crash.log" 2>&1
+RUN_ID=crash SCENES="$work/crash.yaml" PATH="$PWD/$work/bin:$PATH" bash ops/nightly.sh > "$work/crash.log" 2>&1
 rc=$?
 expect crash 1 error $rc
 grep -q '"status":[[:space:]]*"crashed"' "$RUNS/crash/crash/povray-twin.json" && ok "crash: job record says crashed" ||
@@ -65,7 +65,7 @@ printf '#!/bin/sh\necho "sbatch: error: Batch job submission failed: Job violate
     > "$work/slurmbin/sbatch"
 printf '#!/bin/sh\nexit 0\n' > "$work/slurmbin/scancel"
 chmod +x "$work/slurmbin"/*
-RUN_ID=refused SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash harness/nightly.sh \
+RUN_ID=refused SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash ops/nightly.sh \
     > "$work/refused.log" 2>&1
 rc=$?
 expect refused 1 failed $rc
@@ -85,7 +85,7 @@ i=0
 while [ ! -e "$PWD/$work/sbatch.release" ] && [ \$i -lt 3000 ]; do sleep 0.1; i=\$((i + 1)); done
 echo 101
 SH
-RUN_ID=interrupted SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash harness/nightly.sh \
+RUN_ID=interrupted SCHEDULER=slurm SCENES="$work/clean.yaml" PATH="$PWD/$work/slurmbin:$PATH" bash ops/nightly.sh \
     > "$work/interrupted.log" 2>&1 &
 pid=$!
 for _ in $(seq 1500); do [ -s "$work/sbatch.pid" ] && break; sleep 0.2; done
@@ -106,7 +106,7 @@ fi
 # written, the nightly exits 1 and the history still records the run, as failed.
 mkdir -p "$work/full"
 if [ "$(id -u)" = 0 ] && mount -t tmpfs -o size=64k reflcheck-test-full "$work/full" 2> /dev/null; then
-    RUN_ID=full RUNS="$work/full" SCENES="$work/clean.yaml" bash harness/nightly.sh > "$work/full.log" 2>&1
+    RUN_ID=full RUNS="$work/full" SCENES="$work/clean.yaml" bash ops/nightly.sh > "$work/full.log" 2>&1
     rc=$?
     umount "$work/full"
     expect full 1 failed $rc
@@ -122,7 +122,7 @@ fi
 refuse() {  # refuse NAME WANT_TEXT ENV...
     local name=$1 text=$2 out
     shift 2
-    out=$(env RUN_ID="bad-$name" SCENES="$work/clean.yaml" "$@" bash harness/nightly.sh 2>&1)
+    out=$(env RUN_ID="bad-$name" SCENES="$work/clean.yaml" "$@" bash ops/nightly.sh 2>&1)
     local st=$?
     if [ $st -eq 2 ] && [ "$(printf '%s\n' "$out" | wc -l)" -eq 1 ] && [[ $out == *"$text"* ]] &&
         [ ! -e "$RUNS/bad-$name" ]; then

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The nightly through Slurm against the nightly run locally, on its own one-node cluster
-# (harness/slurm/local_cluster.sh, started here and stopped on exit):
+# (ops/slurm/local_cluster.sh, started here and stopped on exit):
 #  1. the same small plan (2 scenes, test size, no sweep) run with make and with SCHEDULER=slurm
 #     gives the same verdicts and metrics in every compare.json, bit-identical rasterizer images
 #     (pixels), references within noise, and every render record names its Slurm job, which
@@ -21,8 +21,8 @@ ok() { pass=$((pass + 1)); echo "slurm: $*"; }
 bad() { fail=$((fail + 1)); echo "slurm: FAILED: $*"; }
 
 cluster=$(mktemp -d /tmp/reflcheck-slurm-test-XXXXXX)
-trap 'bash harness/slurm/local_cluster.sh stop "$cluster"; rm -rf "$cluster"' EXIT
-if ! eval "$(bash harness/slurm/local_cluster.sh start "$cluster")"; then
+trap 'bash ops/slurm/local_cluster.sh stop "$cluster"; rm -rf "$cluster"' EXIT
+if ! eval "$(bash ops/slurm/local_cluster.sh start "$cluster")"; then
     echo "slurm: FAILED: the local cluster did not start; logs in $cluster/log" >&2
     cat "$cluster"/log/*.log >&2 2>/dev/null
     exit 1
@@ -36,10 +36,10 @@ common() {
 }
 common
 t0=$(date +%s)
-CACHE=$work/cache-local RUN_ID=local bash harness/nightly.sh > "$work/local.log" 2>&1
+CACHE=$work/cache-local RUN_ID=local bash ops/nightly.sh > "$work/local.log" 2>&1
 st_local=$?
 t1=$(date +%s)
-CACHE=$work/cache-slurm RUN_ID=slurm SCHEDULER=slurm bash harness/nightly.sh > "$work/slurm.log" 2>&1
+CACHE=$work/cache-slurm RUN_ID=slurm SCHEDULER=slurm bash ops/nightly.sh > "$work/slurm.log" 2>&1
 st_slurm=$?
 t2=$(date +%s)
 [ $st_local -eq 0 ] && ok "local nightly: exit 0 ($((t1 - t0)) s)" || bad "local nightly exit $st_local; see $work/local.log"
@@ -53,7 +53,7 @@ else
 fi
 
 # Re-running through Slurm reuses the cache: every job is a cache hit.
-CACHE=$work/cache-slurm RUN_ID=slurm2 SCHEDULER=slurm bash harness/nightly.sh > "$work/slurm2.log" 2>&1
+CACHE=$work/cache-slurm RUN_ID=slurm2 SCHEDULER=slurm bash ops/nightly.sh > "$work/slurm2.log" 2>&1
 st=$?
 n_cached=$(grep -l '"cached":[[:space:]]*true' "$work"/runs/slurm2/*/*.json 2>/dev/null | wc -l)
 # Job records name their renderer; compare.json and the fit files do not.
@@ -93,7 +93,7 @@ exit 1
 SH
 chmod +x "$work/bin/blender"
 release_standin() { : > "$work/release"; }
-trap 'release_standin; bash harness/slurm/local_cluster.sh stop "$cluster"; rm -rf "$cluster"' EXIT
+trap 'release_standin; bash ops/slurm/local_cluster.sh stop "$cluster"; rm -rf "$cluster"' EXIT
 run=$work/runs/fail
 mkdir -p "$run"
 PATH=$PWD/$work/bin:$PATH "$BIN" plan $scenes --out "$run" --cache "$work/cache-fail" --bin "$BIN" --small \
@@ -122,7 +122,7 @@ else
 fi
 scancel "${array}_$running"
 cid=$(sbatch --parsable --dependency="afterany:$ids" -n1 -c1 --time=10 --output="$run/slurm/compare.out" \
-    harness/slurm/compare.sh "$run" "$BIN" $scenes)
+    ops/slurm/compare.sh "$run" "$BIN" $scenes)
 # Polled as the nightly does: sbatch --wait backs off to half a minute between its checks.
 for _ in $(seq 600); do
     [ -z "$(squeue -h -j "${cid%%;*}" -o %T 2>/dev/null)" ] && break

@@ -1,4 +1,4 @@
-"""test_answer.py - harness/report/answer.py: the index's first table, from hand-made records.
+"""test_answer.py - tools/report/answer.py: the index's first table, from hand-made records.
 
 Run: /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_answer.py
 """
@@ -9,7 +9,7 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, 'harness'))
+sys.path.insert(0, os.path.join(ROOT, 'tools'))
 from report.answer import answer_rows, physics_short  # noqa: E402
 
 PHYS = (

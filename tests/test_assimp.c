@@ -1,4 +1,4 @@
-/* test_assimp.c - assets through libassimp (model/mesh_assimp.h): geometry, materials, the
+/* test_assimp.c - assets through libassimp (scene/mesh_assimp.h): geometry, materials, the
  * mapping rule, the scene file's import keys and the child process.
  *
  * Expected values are read from the asset files' text by hand, never from the importer:
@@ -105,7 +105,7 @@ static void test_x_material_rule(void **state)
     assert_non_null(strstr(err, "'top'"));
 }
 
-/* The scene file: the asset's mesh through model/mesh.c's dispatch, one material's faces, the
+/* The scene file: the asset's mesh through scene/mesh.c's dispatch, one material's faces, the
  * material's keys from the asset and the file's own keys over them. */
 static void test_scene_keys(void **state)
 {

@@ -1,4 +1,4 @@
-/* Cube-map environments (model/env.h ENV_CUBE): the Direct3D face selection and face coordinates
+/* Cube-map environments (scene/env.h ENV_CUBE): the Direct3D face selection and face coordinates
  * against values worked out by hand from the D3DCUBEMAP_FACES table (canonical z is D3D -Z), the
  * orientation of every face on a 2 x 2 fixture whose texels all differ, bilinear at texel
  * centres, between them and clamped at a face edge (the seam: no blending across faces), the

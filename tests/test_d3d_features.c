@@ -10,7 +10,7 @@
  *
  * Every scene is a 2 x 2 quad in the XZ plane (normal +Y) seen from straight above; the centre
  * pixel's single sample is the quad's centre, the origin, where N = V = (0, 1, 0). D3D's light
- * colour is E/pi (model/shade.c), E = I / (a0 + a1 d + a2 d^2). */
+ * colour is E/pi (render/shade.c), E = I / (a0 + a1 d + a2 d^2). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

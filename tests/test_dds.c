@@ -1,4 +1,4 @@
-/* DDS cube maps and textures (harness/image_oiio.h through harness/frame.c), judged without
+/* DDS cube maps and textures (scene/image_oiio.h through harness/frame.c), judged without
  * OpenImageIO's help: the files are written here from Microsoft's DDS_HEADER / DDS_PIXELFORMAT
  * documentation (magic "DDS ", a 124-byte header, DDSCAPS2_CUBEMAP with the six face flags) and
  * the expected texels are worked out here: an uncompressed A8R8G8B8 cube whose texels all differ,
@@ -125,7 +125,7 @@ static void write_argb(const char *name, int w, int h, int faces, size_t cut)
     free(b);
 }
 
-/* IEC 61966-2-1, written out here rather than taken from model/texture.c. */
+/* IEC 61966-2-1, written out here rather than taken from scene/texture.c. */
 static double srgb(double c) { return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4); }
 
 static const char *const scene_head = "image: {width: 24, height: 16}\n"

@@ -1,4 +1,4 @@
-"""test_gates_table.py - harness/gates.py: every gate beside its figure, loose ones flagged.
+"""test_gates_table.py - tools/gates.py: every gate beside its figure, loose ones flagged.
 
 Run: REFLCHECK_BIN=build/reflcheck [RUN_DIR=build/test-run] \
      /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_gates_table.py
@@ -18,9 +18,9 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TOOL = os.path.join(ROOT, 'harness', 'gates.py')
+TOOL = os.path.join(ROOT, 'tools', 'gates.py')
 BIN = os.environ.get('REFLCHECK_BIN', os.path.join(ROOT, 'build', 'reflcheck'))
-sys.path.insert(0, os.path.join(ROOT, 'harness'))
+sys.path.insert(0, os.path.join(ROOT, 'tools'))
 from gates import ratio  # noqa: E402
 
 SCENE_HEAD = """name: {name}

@@ -76,7 +76,7 @@ static void test_translator_header_edit_renders_again(void **state)
     }
     char cmd[3 * PATH_MAX], yaml[PATH_MAX];
     /* The scratch tree: the folders the key lists name. */
-    snprintf(cmd, sizeof cmd, "mkdir -p '%s/tree' && cp -r harness model '%s/tree/'", tmpdir, tmpdir);
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s/tree' && cp -r core model scene render harness '%s/tree/'", tmpdir, tmpdir);
     assert_int_equal(system(cmd), 0);
     snprintf(cmd, sizeof cmd, "%s/tree", tmpdir);
     setenv("REFLCHECK_DATA_DIR", cmd, 1);

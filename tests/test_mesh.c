@@ -717,7 +717,7 @@ static void test_mesh_lenient(void **state)
     free(s);
 }
 
-/* Real meshes no one here wrote (Debian's assimp-testmodels, installed by harness/deps.sh): the
+/* Real meshes no one here wrote (Debian's assimp-testmodels, installed by ops/deps.sh): the
  * three the reader used to refuse although every renderer takes them. The counts were worked
  * out apart from mesh.c, by a Python fan triangulation of each file in double precision
  * (docs/meshes.md); the spider's one zero normal serves only zero-area triangles. */
@@ -732,7 +732,7 @@ static void test_assimp_models(void **state)
         char path[256];
         snprintf(path, sizeof path, "/usr/share/assimp/models/%s", want[i].file);
         if (access(path, R_OK) != 0)
-            fail_msg("%s missing: install it with apt-get install assimp-testmodels (harness/deps.sh does)", path);
+            fail_msg("%s missing: install it with apt-get install assimp-testmodels (ops/deps.sh does)", path);
         scene *s = mesh_scene(path, v3(0, 0, 0), v3(0, 0, 0));
         mesh m = {0};
         build_ok(s, &m);

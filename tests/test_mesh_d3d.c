@@ -191,7 +191,7 @@ static void test_translators_refuse_twin(void **state)
     co.role = ROLE_VALIDATE;
     assert_int_equal(cycles_write_job(s, &m, &co, "/tmp/reflcheck_mesh_d3d.json", err, sizeof err), RC_OK);
     /* EEVEE through its render entry (it refuses before starting Blender; xvfb-run is installed
-     * by harness/deps.sh as its row's package needs). */
+     * by ops/deps.sh as its row's package needs). */
     renderer_job ej = {.s = s, .m = &m, .role = ROLE_TWIN, .dir = "/tmp", .exr = "/tmp/reflcheck_mesh_d3d.exr"};
     renderer_result er = {0};
     registry_row(registry_find("eevee"))->render(&ej, &er);

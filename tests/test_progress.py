@@ -1,4 +1,4 @@
-"""test_progress.py - harness/progress.py: done/total, the time left, failures named at once.
+"""test_progress.py - tools/progress.py: done/total, the time left, failures named at once.
 
 A fake clock and a string stream stand in for time and the terminal, so nothing here depends on
 how fast the machine is.
@@ -11,7 +11,7 @@ import os
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, 'harness'))
+sys.path.insert(0, os.path.join(ROOT, 'tools'))
 import progress  # noqa: E402
 
 

@@ -1,5 +1,5 @@
 /* test_raster.c - coverage, fill rule, sample positions, perspective, clipping, depth
- * and thread invariance of model/raster.c. Expected values come from hand-worked pixel
+ * and thread invariance of render/raster.c. Expected values come from hand-worked pixel
  * sets or from analytic ray-plane intersection, never from the rasterizer itself. */
 #include <setjmp.h>
 #include <stdarg.h>

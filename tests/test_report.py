@@ -1,4 +1,4 @@
-"""test_report.py - harness/report.py and its package harness/report/ on a synthetic run folder
+"""test_report.py - tools/report.py and its package tools/report/ on a synthetic run folder
 (tests/fixtures/report/make_run.py).
 
 Run: /usr/bin/python3 -m pytest -q tests/test_report.py   (Debian python3-pytest; the browser
@@ -21,13 +21,13 @@ import xml.etree.ElementTree as ET
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-REPORT = os.path.join(ROOT, 'harness', 'report.py')
+REPORT = os.path.join(ROOT, 'tools', 'report.py')
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
 from make_run import make_run  # noqa: E402
 
-sys.path.insert(0, os.path.join(ROOT, 'harness'))
-from report import browser, figures, history, load, proposal, util  # noqa: E402  (the package harness/report/)
+sys.path.insert(0, os.path.join(ROOT, 'tools'))
+from report import browser, figures, history, load, proposal, util  # noqa: E402  (the package tools/report/)
 
 RUN1 = '20250101-120000-abc1234'
 RUN2 = '20250102-120000-def5678'
@@ -614,20 +614,20 @@ def test_hostile_scene_name_page_loads(tmp_path):
 
 # ------------------------------------------------------------------ templates and shared names
 
-HARNESS = os.path.join(ROOT, 'harness')
+TOOLS = os.path.join(ROOT, 'tools')
 
 
 def test_no_hand_escaping_in_the_package():
     """Pages come from Jinja2 templates with autoescape on: no Python module escapes HTML by hand,
     and no template switches escaping off. json_script (inline <script> JSON) is the one exception."""
-    for d, _, files in os.walk(os.path.join(HARNESS, 'report')):
+    for d, _, files in os.walk(os.path.join(TOOLS, 'report')):
         for f in files:
             text = read(os.path.join(d, f))
             assert 'html.escape' not in text and 'esc(' not in text, f
             assert '|safe' not in text and 'autoescape false' not in text, f
     assert 'import report' not in ''.join(
-        read(os.path.join(HARNESS, 'report', f))
-        for f in os.listdir(os.path.join(HARNESS, 'report'))
+        read(os.path.join(TOOLS, 'report', f))
+        for f in os.listdir(os.path.join(TOOLS, 'report'))
         if f.endswith('.py')
     )
 
@@ -655,10 +655,10 @@ def test_hostile_text_is_escaped(tmp_path):
 def test_ids_come_from_one_file(built):
     """report.js spells no element id or data attribute: it takes them from window.REFLCHECK_IDS,
     which every page embeds from report_assets/ids.json, the file the templates use."""
-    with open(os.path.join(HARNESS, 'report_assets', 'ids.json'), encoding='utf-8') as f:
+    with open(os.path.join(TOOLS, 'report_assets', 'ids.json'), encoding='utf-8') as f:
         ids = json.load(f)
     ids.pop('_doc')
-    js = read(os.path.join(HARNESS, 'report_assets', 'report.js'))
+    js = read(os.path.join(TOOLS, 'report_assets', 'report.js'))
     code = re.sub(r'/\*.*?\*/', '', js, flags=re.S)
     assert 'getElementById(\'' not in code and not re.search(r"'data-[a-z]", code)
     for key in re.findall(r"\bel\('(\w+)'\)", code):
@@ -732,7 +732,7 @@ def test_sweep_columns_come_from_the_sweep(tmp_path):
 
 def test_stylesheet_ids_are_on_the_pages(built):
     """report.css cannot read ids.json: every #id its selectors name must be one the pages carry."""
-    css = re.sub(r'/\*.*?\*/', '', read(os.path.join(HARNESS, 'report_assets', 'report.css')), flags=re.S)
+    css = re.sub(r'/\*.*?\*/', '', read(os.path.join(TOOLS, 'report_assets', 'report.css')), flags=re.S)
     names = {n for sel in re.findall(r'([^{}]*)\{', css) for n in re.findall(r'#([A-Za-z][\w-]*)', sel)}
     pages = ''.join(read(os.path.join(built['run'], p)) for p in ('index.html', 'scene-alpha.html'))
     assert names and all(f'id="{n}"' in pages for n in names), names

@@ -271,7 +271,7 @@ static double json_num(const cJSON *o, const char *key)
 }
 
 /* The JSON written to a stream parses back to the table: every row, key and type the report
- * reads (harness/report/load.py), figures to the 6 significant digits written, null for a
+ * reads (tools/report/load.py), figures to the 6 significant digits written, null for a
  * figure that is not finite. */
 static void test_json_parses_back(void **state)
 {

@@ -1,4 +1,4 @@
-"""test_sweep.py - harness/sweep.py's maths on synthetic data, and report.py showing its output.
+"""test_sweep.py - tools/sweep.py's maths on synthetic data, and report.py showing its output.
 
 Run: /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_sweep.py   (no renderer needed;
 the plot check needs gnuplot). Expected values are worked by hand in the comments, or checked
@@ -19,10 +19,10 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
-spec = importlib.util.spec_from_file_location('reflcheck_sweep', os.path.join(ROOT, 'harness', 'sweep.py'))
+spec = importlib.util.spec_from_file_location('reflcheck_sweep', os.path.join(ROOT, 'tools', 'sweep.py'))
 sweep = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(sweep)
-REPORT = os.path.join(ROOT, 'harness', 'report.py')
+REPORT = os.path.join(ROOT, 'tools', 'report.py')
 L2 = math.log(2.0)
 
 

@@ -225,7 +225,7 @@ static void test_real_asset(void **state)
     (void)state;
     const char *p = "/usr/share/assimp/models/OBJ/SpiderTex.jpg";
     if (access(p, R_OK) != 0)
-        fail_msg("%s missing: install assimp-testmodels (harness/deps.sh does)", p);
+        fail_msg("%s missing: install assimp-testmodels (ops/deps.sh does)", p);
     texture t;
     char err[512];
     assert_int_equal(texture_load(p, &t, err, sizeof err), RC_OK);

@@ -6,7 +6,7 @@
  *
  * The expected pixels come from the D3D formula by hand: a quad in the XZ plane (normal +Y) seen
  * from below, a point light of intensity pi W/sr straight above its centre at distance 1.
- * D3D's diffuse is Vd (I/d^2)/pi (N.L)+ (model/shade.c: light colour E/pi). */
+ * D3D's diffuse is Vd (I/d^2)/pi (N.L)+ (render/shade.c: light colour E/pi). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

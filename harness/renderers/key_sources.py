@@ -1,7 +1,7 @@
 """key_sources.py - the source files each renderer's cache key covers, from the build itself.
 
 Usage (the Makefile runs it after compiling, harness/jobs.c reads what it writes):
-    python3 harness/renderers/key_sources.py BUILD
+    python3 harness/renderers/key_sources.py BUILD OBJECT...   (the library's objects)
 writes BUILD/key-sources/NAME.list for every renderer folder harness/renderers/NAME/: one path a
 line, relative to the source tree, sorted.
 
@@ -22,10 +22,10 @@ import subprocess
 import sys
 
 # Objects whose references are not followed (see above).
-STOP = ("harness/renderers/registry.o", "harness/main.o")
-STOP_PREFIX = ("harness/cli",)
-# The DDS plugin, dlopen'ed by harness/image_dds.c.
-PLUGIN = ("pic/harness/image_oiio.o",)
+STOP = ("harness/renderers/registry.o", "cli/main.o")
+STOP_PREFIX = ("cli/cli",)
+# The DDS plugin, dlopen'ed by scene/image_dds.c.
+PLUGIN = ("pic/scene/image_oiio.o",)
 
 
 def nm(build, objs, *flags):
@@ -50,14 +50,12 @@ def deps(dfile):
 
 
 def main():
-    if len(sys.argv) != 2:
-        sys.exit("usage: key_sources.py BUILD")
+    if len(sys.argv) < 3:
+        sys.exit("usage: key_sources.py BUILD OBJECT...")
     build = sys.argv[1]
-    objs = sorted(
-        os.path.relpath(o, build)
-        for o in glob.glob(os.path.join(build, "harness", "**", "*.o"), recursive=True)
-        + glob.glob(os.path.join(build, "model", "*.o"))
-    )
+    # The library's objects as the Makefile names them: a folder walk would also take objects a
+    # moved or deleted source left behind in an old build folder.
+    objs = sorted(os.path.relpath(o, build) for o in sys.argv[2:])
     defined = {}
     for o, syms in nm(build, objs, "--defined-only", "-g").items():
         for sym in syms:

@@ -1,4 +1,4 @@
-/* libFuzzer target: assets through libassimp (model/mesh_assimp.h), in this process. Each input
+/* libFuzzer target: assets through libassimp (scene/mesh_assimp.h), in this process. Each input
  * is written to an in-memory file (memfd, read as /proc/self/fd/N, as fuzz_texture does); with no
  * extension libassimp picks the format from the content, so one target covers every importer's
  * format detection and our walk of its result. libassimp is the system library, not

@@ -1,4 +1,4 @@
-/* libFuzzer target: the OpenEXR reader (harness/exr.h). exr_read takes a path, so each
+/* libFuzzer target: the OpenEXR reader (scene/exr.h). exr_read takes a path, so each
  * input is written to an in-memory file (memfd) and read back through /proc/self/fd/N: no
  * disk traffic. PATH is cleared at start-up so exr.c's DWA fallback (a posix_spawn of
  * oiiotool) fails at once instead of forking per input; the in-process code, which is what

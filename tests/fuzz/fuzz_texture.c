@@ -1,4 +1,4 @@
-/* libFuzzer target: the PNG and JPEG texture reader (model/texture.h). texture_load takes a
+/* libFuzzer target: the PNG and JPEG texture reader (scene/texture.h). texture_load takes a
  * path, so each input is written to an in-memory file (memfd) and read through /proc/self/fd/N,
  * as fuzz_exr does. The memory limit is set to 256 MiB so that a valid but large image is refused
  * by the reader's own check rather than by libFuzzer's RSS limit (2 GB). libpng and libjpeg are

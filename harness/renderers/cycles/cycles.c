@@ -29,7 +29,7 @@
 
 /* ------------------------------------------------------------------ JSON writing */
 
-/* The job is a cJSON document written through harness/jsonio. Numbers keep 9 significant
+/* The job is a cJSON document written through core/jsonio. Numbers keep 9 significant
  * digits: every float round-trips (Blender stores float32), and the file stays as short as
  * the text of "%.9g". */
 #define CYCLES_JSON_DIGITS 9
@@ -349,7 +349,7 @@ typedef struct {
     int glossy; /* a Beckmann closure lit by the lamps */
 } cycles_usage;
 
-/* Textures (model/texture.h): an Image Texture node, Linear interpolation, repeat, on the mesh's
+/* Textures (scene/texture.h): an Image Texture node, Linear interpolation, repeat, on the mesh's
  * UVs, reading our decoded texels as linear float (renderer_write_textures), multiplies the
  * diffuse and emission colours (diffuse map) or the glossy colour (specular map), as the
  * rasterizer multiplies those terms. */

@@ -1,6 +1,6 @@
 """worker_pool.py - N Blender processes that render Cycles jobs without starting Blender per job.
 
-Usage (Python 3 standard library; harness/sweep.py uses it):
+Usage (Python 3 standard library; tools/sweep.py uses it):
     with WorkerPool(n=2) as pool:
         env = dict(os.environ, **pool.env())        REFLCHECK_CYCLES_WORKER=<socket>
         subprocess.run([bin, 'run', scene, '--renderer', 'cycles', ...], env=env)

@@ -9,7 +9,7 @@
  *   j.options = &o;                    tests: another physics than the scene's manifest
  *   exact_options p = {.point = 1};    the point-sampled variant (below)
  * It renders the scene's physics manifest (scene.physics): every material is replaced by the
- * physical BRDF (model/physical.h) and rendered by the rasterizer (model/render.h), in double
+ * physical BRDF (render/physical.h) and rendered by the rasterizer (render/render.h), in double
  * precision per sample, as a pixel integral: K x K box-filtered samples (exact_supersample:
  * 16 x 16 for every scene supersample k < 16) at positions none of which is one of the
  * rasterizer's own k x k, so raster-vs-exact holds the rasterizer's sampling error too (of a

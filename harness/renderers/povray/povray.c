@@ -616,7 +616,7 @@ static rc_status povray_vertex_colour_check(const scene *s, const mesh *m, int m
     return RC_ERR_RANGE;
 }
 
-/* A Direct3D cube map as a sky_sphere pigment (model/env.h), written from the D3DCUBEMAP_FACES
+/* A Direct3D cube map as a sky_sphere pigment (scene/env.h), written from the D3DCUBEMAP_FACES
  * table itself rather than through our lookup, so the twin checks the table: POV-Ray's canonical
  * frame is ours, D3D Z = -z. Per face, (s, t) is clamped to the texel-centre range
  * [0.5/N, 1 - 0.5/N] and looked up with image_map interpolate 2 (bilinear, texel centres as ours,

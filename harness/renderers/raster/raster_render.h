@@ -4,7 +4,7 @@
  *   renderer_job j = {.s = &scn, .m = &msh, .env = &env, .exr = "out.exr", .threads = 2};
  *   renderer_result r = {0};
  *   raster_render_job(&j, &r);        r.status RUNNER_OK, or why not with r.message
- * Renders in process (model/render.h) and writes every AOV layer (harness/frame.h). Nothing is
+ * Renders in process (render/render.h) and writes every AOV layer (harness/frame.h). Nothing is
  * ever left out: the rasterizer computes the model.
  */
 #ifndef REFLCHECK_RASTER_RENDER_H

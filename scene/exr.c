@@ -1,0 +1,715 @@
+/* exr.c - OpenEXR reading and writing through the OpenEXRCore C API (see exr.h).
+ *
+ * Write: one scanline part, ZIP, 32-bit float channels, string attributes.
+ * Read: part 0 of any scanline or tiled file (level 0 only), half/float/uint channels
+ * converted to float, the data window as the image, every string attribute.
+ * OpenEXRCore before 3.1.10 cannot decompress DWAA/DWAB (openexr issue #1384; Debian 12 ships
+ * 3.1.5), so such files are first converted to float ZIP by OpenImageIO's oiiotool (a project
+ * dependency) in a private temporary directory; the attributes still come from the original.
+ * The library reports details through an error callback; we keep its last message and
+ * fold it into our one-line error so a corrupt file says what the library found. The callback
+ * finds that message through a thread-local pointer, never through exr_get_user_data: the
+ * library calls it while holding the context's lock (e.g. inside exr_write_header on a full
+ * disk), and exr_get_user_data takes the same lock, which hung `render -o /dev/full` forever.
+ * Files go through our own descriptors (custom read and write streams): inputs are opened by
+ * fileio_open_input (regular files only, so a FIFO never blocks), outputs are a temporary file
+ * next to the destination, renamed over it only when complete.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include "exr.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <openexr.h>
+
+#include "fileio.h"
+#include "runner.h"
+
+extern char **environ;
+
+/* Guard against a corrupt header asking for an absurd allocation: 1 << 15 per side is
+ * larger than any render this project makes (and than 8K video), and the product cap
+ * keeps one channel under 1 GiB of floats. */
+#define EXR_MAX_SIDE   (1 << 15)
+#define EXR_MAX_PIXELS ((size_t)1 << 28)
+
+typedef struct {
+    char msg[256];
+} exr_errctx;
+
+/* The message buffer of the exr_read or exr_write running on this thread (NULL outside). */
+static _Thread_local exr_errctx *exr_sink;
+
+static void exr_on_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
+{
+    (void)ctxt;
+    (void)code;
+    if (exr_sink != NULL)
+        snprintf(exr_sink->msg, sizeof exr_sink->msg, "%s", msg ? msg : "");
+}
+
+/* The open file behind a custom stream. */
+typedef struct {
+    int fd;
+    int64_t size;
+} exr_stream;
+
+static int64_t exr_stream_read(exr_const_context_t ctxt, void *ud, void *buffer, uint64_t sz, uint64_t offset,
+                               exr_stream_error_func_ptr_t error_cb)
+{
+    const exr_stream *f = ud;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t n = pread(f->fd, (char *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n < 0) {
+            error_cb(ctxt, EXR_ERR_READ_IO, "read of %" PRIu64 " bytes at %" PRIu64 " failed: %s", sz, offset,
+                     strerror(errno));
+            return -1;
+        }
+        if (n == 0)
+            break;
+        done += (uint64_t)n;
+    }
+    return (int64_t)done;
+}
+
+static int64_t exr_stream_size(exr_const_context_t ctxt, void *ud)
+{
+    (void)ctxt;
+    return ((const exr_stream *)ud)->size;
+}
+
+static int64_t exr_stream_write(exr_const_context_t ctxt, void *ud, const void *buffer, uint64_t sz, uint64_t offset,
+                                exr_stream_error_func_ptr_t error_cb)
+{
+    const exr_stream *f = ud;
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t n = pwrite(f->fd, (const char *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0) {
+            error_cb(ctxt, EXR_ERR_WRITE_IO, "write of %" PRIu64 " bytes failed: %s", sz,
+                     n < 0 ? strerror(errno) : "nothing written");
+            return -1;
+        }
+        done += (uint64_t)n;
+    }
+    return (int64_t)done;
+}
+
+/* The library's own message when it gave one, else its generic text for the code. */
+static const char *lib_msg(const exr_errctx *e, exr_result_t rv)
+{
+    return e->msg[0] ? e->msg : exr_get_default_error_message(rv);
+}
+
+/* exr_read has already opened the file, so a short read there means a truncated file:
+ * a parse error, not an I/O one. */
+static rc_status status_of(exr_result_t rv)
+{
+    switch (rv) {
+    case EXR_ERR_OUT_OF_MEMORY: return RC_ERR_NOMEM;
+    case EXR_ERR_FILE_ACCESS:
+    case EXR_ERR_WRITE_IO: return RC_ERR_IO;
+    default: return RC_ERR_PARSE;
+    }
+}
+
+/* ---------------------------------------------------------------- write */
+
+static int cmp_channel_name(const void *a, const void *b)
+{
+    return strcmp(((const exr_channel *)a)->name, ((const exr_channel *)b)->name);
+}
+
+/* Writes the image into the open stream out; path names it in messages. */
+static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx *ec, int width, int height,
+                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs, char *err,
+                                  size_t errlen)
+{
+    if (width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
+        status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side", path, width,
+                       height, EXR_MAX_SIDE);
+        return RC_ERR_RANGE;
+    }
+    if (n_channels <= 0 || !ch) {
+        status_message(err, errlen, "%s: no channels to write; pass at least one exr_channel", path);
+        return RC_ERR_RANGE;
+    }
+    if (n_attrs < 0 || (n_attrs > 0 && !attrs)) {
+        status_message(err, errlen, "%s: attribute list is NULL but n_attrs = %d", path, n_attrs);
+        return RC_ERR_RANGE;
+    }
+    for (int i = 0; i < n_channels; i++) {
+        if (!ch[i].name || !ch[i].name[0] || !ch[i].data) {
+            status_message(err, errlen, "%s: channel %d has no name or no data; fill both", path, i);
+            return RC_ERR_RANGE;
+        }
+        if (strlen(ch[i].name) >= EXR_NAME_MAX) {
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; shorten it", path,
+                           ch[i].name, EXR_NAME_MAX - 1);
+            return RC_ERR_RANGE;
+        }
+    }
+
+    /* EXR needs the channel list sorted by name; sort a copy and reject duplicates,
+     * which the format cannot store. */
+    exr_channel *sorted = malloc((size_t)n_channels * sizeof *sorted);
+    if (!sorted) {
+        status_message(err, errlen, "%s: out of memory", path);
+        return RC_ERR_NOMEM;
+    }
+    memcpy(sorted, ch, (size_t)n_channels * sizeof *sorted);
+    qsort(sorted, (size_t)n_channels, sizeof *sorted, cmp_channel_name);
+    for (int i = 1; i < n_channels; i++)
+        if (strcmp(sorted[i - 1].name, sorted[i].name) == 0) {
+            status_message(err, errlen, "%s: channel '%s' given twice; channel names must be unique", path,
+                           sorted[i].name);
+            free(sorted);
+            return RC_ERR_RANGE;
+        }
+
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_on_error;
+    init.user_data = out;
+    init.write_fn = exr_stream_write;
+
+    exr_context_t ctxt = NULL;
+    rc_status st = RC_OK;
+    exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        status_message(err, errlen, "%s: cannot start the EXR (%s); check free memory", path, lib_msg(ec, rv));
+        free(sorted);
+        if (ctxt)
+            exr_finish(&ctxt);
+        return RC_ERR_IO;
+    }
+
+    int part = 0;
+    const char *stage = "add part";
+    rv = exr_add_part(ctxt, NULL, EXR_STORAGE_SCANLINE, &part);
+    if (rv == EXR_ERR_SUCCESS) {
+        stage = "required attributes";
+        rv = exr_initialize_required_attr_simple(ctxt, part, width, height, EXR_COMPRESSION_ZIP);
+    }
+    for (int i = 0; rv == EXR_ERR_SUCCESS && i < n_channels; i++) {
+        stage = "add channel";
+        rv = exr_add_channel(ctxt, part, sorted[i].name, EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1);
+    }
+    for (int i = 0; rv == EXR_ERR_SUCCESS && i < n_attrs; i++) {
+        stage = "string attribute";
+        if (!attrs[i].name || !attrs[i].name[0] || !attrs[i].value) {
+            status_message(err, errlen, "%s: attribute %d has no name or value; fill both", path, i);
+            st = RC_ERR_RANGE;
+            goto done;
+        }
+        rv = exr_attr_set_string(ctxt, part, attrs[i].name, attrs[i].value);
+        if (rv != EXR_ERR_SUCCESS) {
+            status_message(err, errlen,
+                           "%s: cannot set string attribute '%s' (%s); use a name that is not a "
+                           "standard EXR attribute",
+                           path, attrs[i].name, lib_msg(ec, rv));
+            st = RC_ERR_RANGE;
+            goto done;
+        }
+    }
+    if (rv == EXR_ERR_SUCCESS) {
+        stage = "write header";
+        rv = exr_write_header(ctxt);
+    }
+
+    int lines = 1;
+    if (rv == EXR_ERR_SUCCESS) {
+        stage = "scanlines per chunk";
+        rv = exr_get_scanlines_per_chunk(ctxt, part, &lines);
+    }
+    for (int y = 0; rv == EXR_ERR_SUCCESS && y < height; y += lines) {
+        exr_chunk_info_t cinfo;
+        exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+        stage = "encode chunk";
+        rv = exr_write_scanline_chunk_info(ctxt, part, y, &cinfo);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        rv = exr_encoding_initialize(ctxt, part, &cinfo, &enc);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        /* Match by name: the pipeline lists channels in the file's order. */
+        for (int c = 0; c < enc.channel_count; c++) {
+            exr_coding_channel_info_t *ci = &enc.channels[c];
+            int k = 0;
+            while (k < n_channels - 1 && strcmp(sorted[k].name, ci->channel_name) != 0)
+                k++;
+            ci->user_pixel_stride = (int32_t)sizeof(float);
+            ci->user_line_stride = (int32_t)(sizeof(float) * (size_t)width);
+            ci->user_bytes_per_element = (int16_t)sizeof(float);
+            ci->user_data_type = EXR_PIXEL_FLOAT;
+            ci->encode_from_ptr = (const uint8_t *)(sorted[k].data + (size_t)cinfo.start_y * (size_t)width);
+        }
+        rv = exr_encoding_choose_default_routines(ctxt, part, &enc);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_encoding_run(ctxt, part, &enc);
+        exr_encoding_destroy(ctxt, &enc);
+    }
+    if (rv != EXR_ERR_SUCCESS && st == RC_OK) {
+        status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions", path, stage,
+                       lib_msg(ec, rv));
+        st = rv == EXR_ERR_OUT_OF_MEMORY ? RC_ERR_NOMEM : RC_ERR_IO;
+    }
+
+done:
+    free(sorted);
+    {
+        exr_result_t frv = exr_finish(&ctxt);
+        if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
+            status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space", path,
+                           lib_msg(ec, frv));
+            st = RC_ERR_IO;
+        }
+    }
+    return st;
+}
+
+rc_status exr_write(const char *path, int width, int height, const exr_channel *ch, int n_channels,
+                    const exr_attr *attrs, int n_attrs, char *err, size_t errlen)
+{
+    if (!path) {
+        status_message(err, errlen, "(null): no file name given to exr_write");
+        return RC_ERR_RANGE;
+    }
+    char target[FILEIO_PATH_MAX], tmp[FILEIO_PATH_MAX];
+    int fd = -1;
+    rc_status st = fileio_output_target(path, target, sizeof target, err, errlen);
+    if (st == RC_OK)
+        st = fileio_temp_open(target, tmp, sizeof tmp, &fd, err, errlen);
+    if (st != RC_OK)
+        return st;
+    exr_errctx ec = {{0}};
+    exr_errctx *outer = exr_sink;
+    exr_sink = &ec;
+    exr_stream out = {fd, 0};
+    st = exr_write_stream(path, &out, &ec, width, height, ch, n_channels, attrs, n_attrs, err, errlen);
+    exr_sink = outer;
+    char why[512];
+    rc_status fst = fileio_temp_finish(fd, tmp, target, st != RC_OK, why, sizeof why);
+    if (st == RC_OK && fst != RC_OK) {
+        status_message(err, errlen, "%s", why);
+        st = fst;
+    }
+    return st;
+}
+
+/* ---------------------------------------------------------------- read */
+
+void exr_image_free(exr_image *img)
+{
+    if (!img)
+        return;
+    if (img->data)
+        for (int c = 0; c < img->n_channels; c++)
+            free(img->data[c]);
+    free(img->data);
+    free(img->names);
+    free(img->attr_names);
+    free(img->attr_values);
+    memset(img, 0, sizeof *img);
+}
+
+const float *exr_image_channel(const exr_image *img, const char *name)
+{
+    if (!img || !name)
+        return NULL;
+    for (int c = 0; c < img->n_channels; c++)
+        if (strcmp(img->names[c], name) == 0)
+            return img->data[c];
+    return NULL;
+}
+
+const char *exr_image_attr(const exr_image *img, const char *name)
+{
+    if (!img || !name)
+        return NULL;
+    for (int a = 0; a < img->n_attrs; a++)
+        if (strcmp(img->attr_names[a], name) == 0)
+            return img->attr_values[a];
+    return NULL;
+}
+
+/* Decode one chunk (scanline block or tile) whose top-left pixel is (x0, y0) in image
+ * coordinates into the per-channel float planes. */
+static exr_result_t decode_chunk(exr_const_context_t ctxt, int part, const exr_chunk_info_t *cinfo, int x0, int y0,
+                                 exr_image *img)
+{
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    exr_result_t rv = exr_decoding_initialize(ctxt, part, cinfo, &dec);
+    if (rv != EXR_ERR_SUCCESS) {
+        exr_decoding_destroy(ctxt, &dec);
+        return rv;
+    }
+    /* The chunk must lie inside the image or the writes below would overrun the planes. */
+    if (x0 < 0 || y0 < 0 || cinfo->width < 0 || cinfo->height < 0 || x0 + cinfo->width > img->width ||
+        y0 + cinfo->height > img->height || dec.channel_count != img->n_channels) {
+        exr_decoding_destroy(ctxt, &dec);
+        return EXR_ERR_CORRUPT_CHUNK;
+    }
+    for (int c = 0; c < dec.channel_count; c++) {
+        exr_coding_channel_info_t *ci = &dec.channels[c];
+        if (ci->width != cinfo->width || ci->height != cinfo->height) {
+            exr_decoding_destroy(ctxt, &dec);
+            return EXR_ERR_CORRUPT_CHUNK;
+        }
+        ci->user_pixel_stride = (int32_t)sizeof(float);
+        ci->user_line_stride = (int32_t)(sizeof(float) * (size_t)img->width);
+        ci->user_bytes_per_element = (int16_t)sizeof(float);
+        ci->user_data_type = EXR_PIXEL_FLOAT;
+        ci->decode_to_ptr = (uint8_t *)(img->data[c] + (size_t)y0 * (size_t)img->width + (size_t)x0);
+    }
+    rv = exr_decoding_choose_default_routines(ctxt, part, &dec);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_decoding_run(ctxt, part, &dec);
+    exr_decoding_destroy(ctxt, &dec);
+    return rv;
+}
+
+static rc_status read_pixels(exr_context_t ctxt, int part, exr_storage_t storage, exr_attr_box2i_t dw, exr_image *img,
+                             const char **stage, exr_result_t *rvout)
+{
+    exr_result_t rv = EXR_ERR_SUCCESS;
+    if (storage == EXR_STORAGE_SCANLINE) {
+        int lines = 0;
+        *stage = "scanlines per chunk";
+        rv = exr_get_scanlines_per_chunk(ctxt, part, &lines);
+        if (rv == EXR_ERR_SUCCESS && lines <= 0)
+            rv = EXR_ERR_INVALID_ATTR;
+        /* Chunk y positions are in data-window coordinates and start at its top. */
+        for (int y = dw.min.y; rv == EXR_ERR_SUCCESS && y <= dw.max.y; y += lines) {
+            exr_chunk_info_t cinfo;
+            *stage = "scanline chunk";
+            rv = exr_read_scanline_chunk_info(ctxt, part, y, &cinfo);
+            if (rv == EXR_ERR_SUCCESS)
+                rv = decode_chunk(ctxt, part, &cinfo, 0, cinfo.start_y - dw.min.y, img);
+        }
+    } else {
+        uint32_t tw = 0, th = 0;
+        exr_tile_level_mode_t lm;
+        exr_tile_round_mode_t rm;
+        *stage = "tile description";
+        rv = exr_get_tile_descriptor(ctxt, part, &tw, &th, &lm, &rm);
+        if (rv == EXR_ERR_SUCCESS && (tw == 0 || th == 0))
+            rv = EXR_ERR_INVALID_ATTR;
+        int ntx = rv == EXR_ERR_SUCCESS ? (int)(((uint32_t)img->width + tw - 1) / tw) : 0;
+        int nty = rv == EXR_ERR_SUCCESS ? (int)(((uint32_t)img->height + th - 1) / th) : 0;
+        for (int ty = 0; rv == EXR_ERR_SUCCESS && ty < nty; ty++)
+            for (int tx = 0; rv == EXR_ERR_SUCCESS && tx < ntx; tx++) {
+                exr_chunk_info_t cinfo;
+                *stage = "tile chunk";
+                rv = exr_read_tile_chunk_info(ctxt, part, tx, ty, 0, 0, &cinfo);
+                if (rv == EXR_ERR_SUCCESS)
+                    rv = decode_chunk(ctxt, part, &cinfo, tx * (int)tw, ty * (int)th, img);
+            }
+    }
+    *rvout = rv;
+    return rv == EXR_ERR_SUCCESS ? RC_OK : status_of(rv);
+}
+
+static rc_status read_attrs(exr_context_t ctxt, int part, exr_image *img)
+{
+    int32_t count = 0;
+    if (exr_get_attribute_count(ctxt, part, &count) != EXR_ERR_SUCCESS || count <= 0)
+        return RC_OK;
+    img->attr_names = calloc((size_t)count, sizeof *img->attr_names);
+    img->attr_values = calloc((size_t)count, sizeof *img->attr_values);
+    if (!img->attr_names || !img->attr_values)
+        return RC_ERR_NOMEM;
+    for (int32_t i = 0; i < count; i++) {
+        const exr_attribute_t *a = NULL;
+        if (exr_get_attribute_by_index(ctxt, part, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS || !a ||
+            a->type != EXR_ATTR_STRING || !a->string || !a->name)
+            continue;
+        /* Names that do not fit the fixed slot are skipped rather than truncated, so a
+         * lookup can never match the wrong attribute; long values are truncated. */
+        if (strlen(a->name) >= EXR_NAME_MAX)
+            continue;
+        snprintf(img->attr_names[img->n_attrs], EXR_NAME_MAX, "%s", a->name);
+        int len = a->string->length;
+        if (len < 0)
+            len = 0;
+        if (len > (int)sizeof img->attr_values[0] - 1)
+            len = (int)sizeof img->attr_values[0] - 1;
+        if (a->string->str)
+            memcpy(img->attr_values[img->n_attrs], a->string->str, (size_t)len);
+        img->attr_values[img->n_attrs][len] = '\0';
+        img->n_attrs++;
+    }
+    return RC_OK;
+}
+
+/* Converts through oiiotool, run as its own process with a time limit (core/runner.h). */
+static int run_oiiotool_convert(const char *in, const char *out)
+{
+    const char *argv[] = {"oiiotool", in, "-d", "float", "--compression", "zip", "-o", out, NULL};
+    runner_result r;
+    return runner_exec(argv, 120.0, NULL, &r) == RUNNER_OK ? 0 : -1;
+}
+
+/* Read a DWA-compressed file through an oiiotool conversion; attributes are taken from the
+ * original header (ctxt) so oiiotool's own additions do not leak into the image. */
+static rc_status read_via_oiiotool(const char *path, exr_context_t ctxt, exr_image *img, char *err, size_t errlen)
+{
+    char dir[] = "/tmp/reflcheck_exr_XXXXXX";
+    if (!mkdtemp(dir)) {
+        status_message(err, errlen, "%s: DWA-compressed EXR needs a temporary directory (%s); check /tmp", path,
+                       strerror(errno));
+        return RC_ERR_IO;
+    }
+    char tmp[sizeof dir + 16];
+    snprintf(tmp, sizeof tmp, "%s/conv.exr", dir);
+    rc_status st;
+    if (run_oiiotool_convert(path, tmp) != 0) {
+        status_message(err, errlen,
+                       "%s: DWA-compressed EXR could not be converted by oiiotool; install "
+                       "openimageio-tools or re-save the file with ZIP compression",
+                       path);
+        st = RC_ERR_PARSE;
+    } else {
+        char sub[256];
+        st = exr_read(tmp, img, sub, sizeof sub);
+        if (st != RC_OK) {
+            status_message(err, errlen,
+                           "%s: DWA-compressed EXR unreadable after conversion (%s); re-save it "
+                           "with ZIP compression",
+                           path, sub);
+        } else {
+            free(img->attr_names);
+            free(img->attr_values);
+            img->attr_names = NULL;
+            img->attr_values = NULL;
+            img->n_attrs = 0;
+            st = read_attrs(ctxt, 0, img);
+            if (st != RC_OK) {
+                status_message(err, errlen, "%s: out of memory reading EXR attributes", path);
+                exr_image_free(img);
+            }
+        }
+    }
+    remove(tmp);
+    rmdir(dir);
+    return st;
+}
+
+/* The most decoded bytes one byte of a compressed chunk can give, per compression: RLE codes a
+ * run of at most 128 bytes in 2; ZIP is deflate (a 258-byte match in 2 bits: 1032); PIZ's
+ * Huffman run code gives 256 16-bit values in 10 bits (410), under deflate's bound, which is used;
+ * PXR24 deflates floats cut to 24 bits (1032 x 4/3); B44A codes a flat 4x4 block of halves (32
+ * bytes) in 3. DWAA/DWAB are lossy and their AC data run-length coded with no such bound: 0, and
+ * only the offset table and the memory limit bound them. */
+static double exr_max_ratio(exr_compression_t comp)
+{
+    switch (comp) {
+    case EXR_COMPRESSION_NONE: return 1.0;
+    case EXR_COMPRESSION_RLE: return 64.0;
+    case EXR_COMPRESSION_ZIPS:
+    case EXR_COMPRESSION_ZIP:
+    case EXR_COMPRESSION_PIZ: return 1032.0;
+    case EXR_COMPRESSION_PXR24: return 1032.0 * 4.0 / 3.0;
+    case EXR_COMPRESSION_B44:
+    case EXR_COMPRESSION_B44A: return 32.0 / 3.0;
+    default: return 0.0;
+    }
+}
+
+/* Before any plane is allocated (or oiiotool started): the file must hold the offset table (8
+ * bytes a chunk) and, within the compression's largest ratio, the samples the data window
+ * needs (half 2 bytes, float and uint 4), and the float planes must fit the memory limit. */
+static rc_status exr_check_budget(const char *path, exr_const_context_t ctxt, int part, const exr_attr_chlist_t *chl,
+                                  int64_t file_bytes, const exr_image *img, char *err, size_t errlen)
+{
+    double px = (double)img->width * (double)img->height, coded = 0.0;
+    for (int c = 0; c < chl->num_channels; c++)
+        coded += px * (chl->entries[c].pixel_type == EXR_PIXEL_HALF ? 2.0 : 4.0);
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    int32_t chunks = 0;
+    exr_get_compression(ctxt, part, &comp);
+    exr_get_chunk_count(ctxt, part, &chunks);
+    double ratio = exr_max_ratio(comp), min_bytes = 8.0 * chunks;
+    if (ratio > 0.0 && coded / ratio > min_bytes)
+        min_bytes = coded / ratio;
+    return fileio_image_budget(path, "OpenEXR", img->width, img->height, min_bytes, (long long)file_bytes,
+                               px * chl->num_channels * sizeof(float), err, errlen);
+}
+
+/* Reads the EXR open on in (path names it in messages) into img. */
+static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *ec, exr_image *img, char *err,
+                                 size_t errlen)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_on_error;
+    init.user_data = in;
+    init.read_fn = exr_stream_read;
+    init.size_fn = exr_stream_size;
+    init.max_image_width = EXR_MAX_SIDE;
+    init.max_image_height = EXR_MAX_SIDE;
+    init.max_tile_width = EXR_MAX_SIDE;
+    init.max_tile_height = EXR_MAX_SIDE;
+
+    exr_context_t ctxt = NULL;
+    exr_result_t rv = exr_start_read(&ctxt, path, &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        rc_status st = status_of(rv);
+        status_message(err, errlen,
+                       "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
+                       "re-render or re-export it",
+                       path, lib_msg(ec, rv));
+        if (ctxt)
+            exr_finish(&ctxt);
+        return st;
+    }
+
+    const int part = 0;
+    rc_status st = RC_OK;
+    const char *stage = "header";
+    exr_storage_t storage;
+    exr_attr_box2i_t dw;
+    const exr_attr_chlist_t *chl = NULL;
+
+    rv = exr_get_storage(ctxt, part, &storage);
+    if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
+        status_message(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
+                       path);
+        st = RC_ERR_PARSE;
+        goto out;
+    }
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctxt, part, &dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_channels(ctxt, part, &chl);
+    if (rv != EXR_ERR_SUCCESS || !chl) {
+        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file", path,
+                       lib_msg(ec, rv));
+        st = RC_ERR_PARSE;
+        goto out;
+    }
+    {
+        int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
+        if (w <= 0 || h <= 0 || w > EXR_MAX_SIDE || h > EXR_MAX_SIDE || (size_t)(w * h) > EXR_MAX_PIXELS) {
+            status_message(err, errlen,
+                           "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
+                           "corrupt",
+                           path, dw.min.x, dw.min.y, dw.max.x, dw.max.y);
+            st = RC_ERR_PARSE;
+            goto out;
+        }
+        img->width = (int)w;
+        img->height = (int)h;
+    }
+    if (chl->num_channels <= 0) {
+        status_message(err, errlen, "%s: EXR has no channels; write at least R, G, B", path);
+        st = RC_ERR_PARSE;
+        goto out;
+    }
+    for (int c = 0; c < chl->num_channels; c++) {
+        const exr_attr_chlist_entry_t *e = &chl->entries[c];
+        if (e->x_sampling != 1 || e->y_sampling != 1) {
+            status_message(err, errlen,
+                           "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
+                           "are supported",
+                           path, e->name.str, e->x_sampling, e->y_sampling);
+            st = RC_ERR_PARSE;
+            goto out;
+        }
+        if (e->name.length >= EXR_NAME_MAX) {
+            status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer", path,
+                           e->name.str, EXR_NAME_MAX - 1);
+            st = RC_ERR_PARSE;
+            goto out;
+        }
+    }
+
+    st = exr_check_budget(path, ctxt, part, chl, in->size, img, err, errlen);
+    if (st != RC_OK)
+        goto out;
+    {
+        exr_compression_t comp;
+        if (exr_get_compression(ctxt, part, &comp) == EXR_ERR_SUCCESS &&
+            (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
+            img->width = img->height = 0;
+            st = read_via_oiiotool(path, ctxt, img, err, errlen);
+            exr_finish(&ctxt);
+            return st;
+        }
+    }
+    img->n_channels = chl->num_channels;
+    img->names = calloc((size_t)img->n_channels, sizeof *img->names);
+    img->data = calloc((size_t)img->n_channels, sizeof *img->data);
+    if (!img->names || !img->data) {
+        st = RC_ERR_NOMEM;
+        status_message(err, errlen, "%s: out of memory reading EXR", path);
+        goto out;
+    }
+    for (int c = 0; c < img->n_channels; c++) {
+        snprintf(img->names[c], EXR_NAME_MAX, "%s", chl->entries[c].name.str);
+        img->data[c] = calloc((size_t)img->width * (size_t)img->height, sizeof(float));
+        if (!img->data[c]) {
+            st = RC_ERR_NOMEM;
+            status_message(err, errlen, "%s: out of memory for a %dx%d channel", path, img->width, img->height);
+            goto out;
+        }
+    }
+
+    st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
+    if (st != RC_OK) {
+        status_message(err, errlen,
+                       "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
+                       "re-render it",
+                       path, stage, lib_msg(ec, rv));
+        goto out;
+    }
+    st = read_attrs(ctxt, part, img);
+    if (st != RC_OK)
+        status_message(err, errlen, "%s: out of memory reading EXR attributes", path);
+
+out:
+    exr_finish(&ctxt);
+    if (st != RC_OK)
+        exr_image_free(img);
+    return st;
+}
+
+rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen)
+{
+    if (!img) {
+        status_message(err, errlen, "%s: exr_read needs an exr_image to fill", path ? path : "(null)");
+        return RC_ERR_RANGE;
+    }
+    memset(img, 0, sizeof *img);
+    if (!path) {
+        status_message(err, errlen, "(null): no file name given to exr_read");
+        return RC_ERR_IO;
+    }
+    /* No byte limit on the file: chunks are read by offset, never the whole file, and what
+     * is allocated is bounded by the header (EXR_MAX_SIDE, EXR_MAX_PIXELS, memory limit). */
+    exr_stream in;
+    long long size = 0;
+    rc_status st = fileio_open_input(path, LLONG_MAX, "an OpenEXR image", &in.fd, &size, err, errlen);
+    if (st != RC_OK)
+        return st;
+    in.size = (int64_t)size;
+    exr_errctx ec = {{0}};
+    exr_errctx *outer = exr_sink;
+    exr_sink = &ec;
+    st = exr_read_stream(path, &in, &ec, img, err, errlen);
+    exr_sink = outer;
+    close(in.fd);
+    return st;
+}
