@@ -40,12 +40,17 @@
 #define SMATH_INLINE static inline
 #endif
 
-#define SMATH_PI     3.14159265358979323846f
-#define SMATH_PI_2   1.57079632679489661923f
+/* pi to 36 digits: the project's one spelling of it (formula.h rounds it once per precision). */
+#define SMATH_PI_DIGITS     3.14159265358979323846264338327950288
+/* A literal's float, long double form: SMATH_SUFFIX(SMATH_PI_DIGITS, f) is the literal with f. */
+#define SMATH_SUFFIX_(x, s) x##s
+#define SMATH_SUFFIX(x, s)  SMATH_SUFFIX_(x, s)
+#define SMATH_PI            SMATH_SUFFIX(SMATH_PI_DIGITS, f)
+#define SMATH_PI_2          1.57079632679489661923f
 /* ln 2 split so that n * SMATH_LN2_HI is exact for |n| < 2^15 (Cody and Waite). */
-#define SMATH_LN2_HI 0.693359375f
-#define SMATH_LN2_LO (-2.12194440e-4f)
-#define SMATH_LOG2E  1.44269504088896340736f
+#define SMATH_LN2_HI        0.693359375f
+#define SMATH_LN2_LO        (-2.12194440e-4f)
+#define SMATH_LOG2E         1.44269504088896340736f
 
 SMATH_INLINE int32_t smath_bits(float f)
 {

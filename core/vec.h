@@ -45,6 +45,8 @@ static inline vec3 v3_norm(vec3 a)
 static inline vec3 v3_lerp(vec3 a, vec3 b, float t) { return v3_add(a, v3_scale(v3_sub(b, a), t)); }
 static inline float v3_max_comp(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
 static inline float v3_sum(vec3 a) { return a.x + a.y + a.z; }
+/* Exactly zero in every channel: a colour that switches a term off, as written, not within a tolerance. */
+static inline int v3_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
 /* Mirror of d about unit n, with d pointing away from the surface: 2(n.d)n - d. */
 static inline vec3 v3_reflect(vec3 d, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(n, d)), d); }
 

@@ -37,13 +37,14 @@
 
 #include "smath.h"
 
-/* pi and 1/pi to 36 digits: every instance's constant is this literal rounded once. */
-#define FORMULA_PI_DIGITS     3.14159265358979323846264338327950288
+/* pi (smath.h's digits) and 1/pi to 36 digits: every instance's constant is the literal rounded
+ * once. */
+#define FORMULA_PI_DIGITS     SMATH_PI_DIGITS
 #define FORMULA_INV_PI_DIGITS 0.318309886183790671537767526745028724
-#define FORMULA_PI_F          3.14159265358979323846264338327950288f
-#define FORMULA_INV_PI_F      0.318309886183790671537767526745028724f
-#define FORMULA_PI_D          3.14159265358979323846264338327950288
-#define FORMULA_PI_L          3.14159265358979323846264338327950288L
+#define FORMULA_PI_F          SMATH_PI
+#define FORMULA_INV_PI_F      SMATH_SUFFIX(FORMULA_INV_PI_DIGITS, f)
+#define FORMULA_PI_D          SMATH_PI_DIGITS
+#define FORMULA_PI_L          SMATH_SUFFIX(SMATH_PI_DIGITS, L)
 
 /* Beckmann D never exceeds this. 1/(pi m^2) reaches it at m = 5.6e-7, a lobe far narrower than
  * any pixel resolves. With the other caps (the lobe's FORMULA_CT_MAX, the attenuation's
@@ -94,8 +95,7 @@ static inline float formula_dissolve_texel(uint32_t i, uint32_t j, uint32_t ch)
 }
 
 /* The instances. FORMULA_C gives a literal the instance's type (2.5 -> 2.5f, 2.5, 2.5L). */
-#define FORMULA_CAT_(a, b) a##b
-#define FORMULA_CAT(a, b)  FORMULA_CAT_(a, b)
+#define FORMULA_CAT(a, b) SMATH_SUFFIX(a, b)
 
 #define FORMULA_T        float
 #define FORMULA_FN(name) name##_f

@@ -235,3 +235,19 @@ void scene_init(scene *s)
     for (int i = 0; i < SCENE_MAX_COMPARISONS; i++)
         s->comparisons[i].role = ROLE_TWIN;
 }
+
+const light *scene_main_light(const scene *s)
+{
+    for (int i = 0; i < s->n_lights; i++)
+        if (s->lights[i].kind == LIGHT_SUN)
+            return &s->lights[i];
+    return s->n_lights > 0 ? &s->lights[0] : NULL;
+}
+
+int scene_material_used(const scene *s, int mi)
+{
+    for (int i = 0; i < s->n_objects; i++)
+        if (s->objects[i].material == mi)
+            return 1;
+    return 0;
+}

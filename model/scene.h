@@ -3,6 +3,7 @@
  * Usage:
  *   scene s; scene_init(&s);         fills every default (see the field comments)
  *   ... fill or parse (harness/scene_file.h) ...
+ *   scene_main_light(&s), scene_material_used(&s, mi): rules every renderer shares
  * The struct owns no heap memory: fixed-size arrays, so copying it is fine.
  * Frame: right-handed, +Y up, metres. Angles in the struct are radians (files use degrees).
  * Lights are radiometric: point/spot intensity I [W/sr] with 1/d^2 falloff, sun irradiance
@@ -264,6 +265,12 @@ void light_init(light *l);
 void material_init(material *m);
 void object_init(object *o);
 void physics_init(physics *p);
+
+/* The main light of D3D9Client's equation (8), one rule for the rasterizer's kernels and every
+ * translator: the first sun, else the first light, else NULL. */
+const light *scene_main_light(const scene *s);
+/* 1 when an object uses material mi: unused materials are left out of every translation. */
+int scene_material_used(const scene *s, int mi);
 
 /* The file words of the enums above, indexed by value. */
 extern const char *const physics_fresnel_names[4];        /* exact, nv, one, schlick */

@@ -140,13 +140,12 @@ static void physical_shade(const shade_context *c, const shade_plan *p, vec3 x, 
     out->alpha = 1.0f;
 }
 
-static int physical_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
 
 rc_status physical_plan_make(const shade_context *c, const material *m, const physics *ph, shade_plan *p, char *why,
                              size_t whylen)
 {
     int env = c->env != NULL && c->env->kind != ENV_NONE;
-    int diffuse = physical_nonzero(m->albedo) && !m->conductor;
+    int diffuse = v3_nonzero(m->albedo) && !m->conductor;
     p->mat = m;
     p->params = ph;
     /* Textures scale the physics as they scale the approximations' terms (the albedo). */
@@ -154,7 +153,7 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     p->fn = physical_shade;
     p->fn_uv = NULL;
     p->batch = shade_batch_scalar;
-    p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (physical_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
+    p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (v3_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     p->path = !m->lobe ? "physical-diffuse" : (m->roughness > 0.0f ? "physical-lobe" : "physical-mirror");
     for (int t = 0; t < MAT_TEX_SLOTS; t++)
         if (m->texture[t][0] != '\0') {

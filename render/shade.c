@@ -169,14 +169,6 @@ static void shade_d3d_full(const shade_context *c, const shade_plan *p, vec3 x, 
     shade_d3d_impl(c, p->mat, x, n, v, out, 1, 1);
 }
 
-const light *shade_main_light(const scene *s)
-{
-    for (int i = 0; i < s->n_lights; i++)
-        if (s->lights[i].kind == LIGHT_SUN)
-            return &s->lights[i];
-    return s->n_lights > 0 ? &s->lights[0] : NULL;
-}
-
 /* dissolve: the texture coordinates (tu, tv) offset the mirror direction (seed 000's Dissolve,
  * d3d9client_dissolve_offset); env_lookup takes the sum as it is, unnormalised, as a cube-map
  * lookup does. The Fresnel R keeps the unperturbed N.V: the effect moves only where phi is read. */
@@ -192,7 +184,7 @@ static inline void shade_d3d9client_impl(const shade_context *c, const shade_pla
     /* Equation (8) takes the sun's angle sigma from geometry alone: a main light that gives
      * nothing here (outside its cone or range) still has a direction. */
     float n_sun = 0.0f;
-    const light *sun = m->d9.sun_angle ? shade_main_light(c->s) : NULL;
+    const light *sun = m->d9.sun_angle ? scene_main_light(c->s) : NULL;
     if (sun != NULL) {
         vec3 to_l, e_perp;
         float atten;
@@ -254,7 +246,6 @@ static void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, v
     shade_ct_impl(c, p->mat, x, n, v, out, 1);
 }
 
-static int shade_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
 
 void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
 {
@@ -262,16 +253,16 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
     int has_env = c->env != NULL && c->env->kind != ENV_NONE;
     int light_ambient = 0;
     for (int i = 0; i < s->n_lights; i++)
-        light_ambient |= shade_nonzero(s->lights[i].ambient);
+        light_ambient |= v3_nonzero(s->lights[i].ambient);
     p->mat = m;
     p->params = NULL;
     p->fn_uv = NULL;
     shade_plan_textures(c, m, p);
-    p->terms = SHADE_TERM_DIFFUSE | (shade_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
+    p->terms = SHADE_TERM_DIFFUSE | (v3_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     switch (m->model) {
     case MODEL_D3D: {
-        int spec = shade_nonzero(m->d3d.specular);
-        int amb = shade_nonzero(m->d3d.ambient) && (light_ambient || shade_nonzero(s->global_ambient));
+        int spec = v3_nonzero(m->d3d.specular);
+        int amb = v3_nonzero(m->d3d.ambient) && (light_ambient || v3_nonzero(s->global_ambient));
         int plain = !spec && !amb && !m->d3d.clamp;
         p->terms |= spec ? SHADE_TERM_SPECULAR : 0u;
         p->fn = plain ? shade_d3d_diffuse : shade_d3d_full;

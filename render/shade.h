@@ -176,9 +176,6 @@ void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade
  * index) stay on shade_eval, lane by lane. */
 int shade_batch_ct_supported(const ct_params *ct);
 
-/* The main light of D3D9Client's equation (8): the first sun, else the first light, else NULL. */
-const light *shade_main_light(const scene *s);
-
 /* Incident light i at x: unit direction to the light and the irradiance it would give at
  * normal incidence (I*A*spot for point/spot, E for a sun). Returns 0 when it gives nothing. */
 int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, float *atten);

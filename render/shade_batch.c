@@ -286,7 +286,7 @@ SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole
 }
 
 /* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
- * alone (shade.c's shade_main_light: it counts even where the light gives nothing). */
+ * alone (scene_main_light: it counts even where the light gives nothing). */
 SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const shade_batch_in *restrict in,
                         float *restrict f, const int kind, const int whole)
 {
@@ -350,7 +350,7 @@ SB_INLINE void sb_d3d9client(const shade_context *c, const shade_plan *p, const 
 
     const float fp = fresnel_d3d9_power(d9->p);
     const int whole = fp == floorf(fp) && fp <= 8.0f;
-    const light *sun = d9->sun_angle ? shade_main_light(c->s) : NULL;
+    const light *sun = d9->sun_angle ? scene_main_light(c->s) : NULL;
     float sun_f[SHADE_BATCH];
     int bad = 0;
     if (sun == NULL) {

@@ -130,7 +130,6 @@ static void jw_put_flat(jw *w, cJSON *obj, const char *name, const char *key, co
 
 /* ------------------------------------------------------------------ translation checks */
 
-static int cycles_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
 
 static int cycles_finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
@@ -165,14 +164,6 @@ static rc_status cycles_cannot(cycles_ctx *c, unsigned term, const char *what, c
         renderer_leave_out(c->o->left_out, term, what);
     c->missing_terms |= term;
     return RC_OK;
-}
-
-static int cycles_material_used(const scene *s, int mi)
-{
-    for (int i = 0; i < s->n_objects; i++)
-        if (s->objects[i].material == mi)
-            return 1;
-    return 0;
 }
 
 /* Largest distance from p to any mesh vertex: decides whether a light's range cuts the geometry. */
@@ -270,15 +261,6 @@ static void cycles_write_fresnel_of(jw *w, cJSON *parent, const char *name, cons
     }
 }
 
-/* The main light of D3D9Client eq. (8), as the rasterizer picks it: the first sun, else the first light. */
-static const light *cycles_main_light(const scene *s)
-{
-    for (int i = 0; i < s->n_lights; i++)
-        if (s->lights[i].kind == LIGHT_SUN)
-            return &s->lights[i];
-    return s->n_lights > 0 ? &s->lights[0] : NULL;
-}
-
 /* The material's physical normal-incidence reflectance: dielectric ((n-1)/(n+1))^2, conductor
  * ((eta-1)^2 + k^2)/((eta+1)^2 + k^2) per channel. */
 static vec3 cycles_f0(const material *mat)
@@ -299,7 +281,7 @@ rc_status cycles_physics(const scene *s, physics *out, char *err, size_t errlen)
     int any_rough = 0;
     for (int mi = 0; mi < s->n_materials; mi++) {
         const material *mat = &s->materials[mi];
-        if (!cycles_material_used(s, mi))
+        if (!scene_material_used(s, mi))
             continue;
         if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f)) {
             status_message(err, errlen,
@@ -408,7 +390,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     const scene *s = c->s;
     const material *mat = &s->materials[mi];
     int has_env = s->env.kind != ENV_NONE;
-    int used = cycles_material_used(s, mi);
+    int used = scene_material_used(s, mi);
     cJSON *o = jw_obj(w, materials, NULL);
     char what[160];
     rc_status rc = RC_OK;
@@ -441,7 +423,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         } else {
             cycles_write_fresnel_of(w, gl, "fresnel", mat);
         }
-        if (cycles_nonzero(mat->d3d.emissive))
+        if (v3_nonzero(mat->d3d.emissive))
             jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
         u->glossy |= used;
         return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
@@ -452,14 +434,14 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT)) {
         int amb_light = 0;
         for (int i = 0; i < s->n_lights; i++)
-            amb_light |= cycles_nonzero(s->lights[i].ambient);
-        if (cycles_nonzero(d->specular)) {
+            amb_light |= v3_nonzero(s->lights[i].ambient);
+        if (v3_nonzero(d->specular)) {
             snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi,
                      mat->name);
             if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK)
                 return rc;
         }
-        if (cycles_nonzero(d->ambient) && (amb_light || cycles_nonzero(s->global_ambient))) {
+        if (v3_nonzero(d->ambient) && (amb_light || v3_nonzero(s->global_ambient))) {
             snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
                      mat->name);
             if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK)
@@ -507,7 +489,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         cJSON *dif = jw_obj(w, o, "diffuse");
         jw_put_vec(w, dif, "color", "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
         if (p->sun_angle) {
-            const light *ml = cycles_main_light(s);
+            const light *ml = scene_main_light(s);
             if (ml != NULL && ml->kind != LIGHT_SUN && used) {
                 snprintf(what, sizeof what,
                          "materials[%d] '%s': eq. (8) with a point or spot main light (position-dependent)", mi,
@@ -537,7 +519,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     case MODEL_COOK_TORRANCE: {
         const ct_params *p = &mat->ct;
         jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->albedo);
-        int lobe = cycles_nonzero(p->ks), env_term = p->reflection && has_env;
+        int lobe = v3_nonzero(p->ks), env_term = p->reflection && has_env;
         if (lobe && used && env_term) {
             /* The mirror below needs the world visible to glossy rays, and then the Beckmann lobe
              * would reflect the environment too (Cycles 3.4 has no light linking); a scene
@@ -591,7 +573,7 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         break;
     }
     }
-    if (cycles_nonzero(d->emissive))
+    if (v3_nonzero(d->emissive))
         jw_put_vec(w, o, "emission", "materials.d3d.emissive", d->emissive);
     return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
 }
@@ -724,9 +706,9 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         for (int i = 0; i < s->n_lights; i++) {
             int any_va = 0;
             for (int mi = 0; mi < s->n_materials; mi++)
-                any_va |= cycles_material_used(s, mi) && s->materials[mi].model != MODEL_COOK_TORRANCE &&
-                          cycles_nonzero(s->materials[mi].d3d.ambient);
-            if (cycles_nonzero(s->lights[i].ambient) && any_va) {
+                any_va |= scene_material_used(s, mi) && s->materials[mi].model != MODEL_COOK_TORRANCE &&
+                          v3_nonzero(s->materials[mi].d3d.ambient);
+            if (v3_nonzero(s->lights[i].ambient) && any_va) {
                 snprintf(what, sizeof what, "lights[%d]: D3D light ambient La", i);
                 if ((rc = cycles_cannot(&c, 0, what, "set the light ambient to 0")) != RC_OK)
                     return rc;
@@ -935,18 +917,13 @@ const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len)
     return buf;
 }
 
-/* reflcheck's names and where they come from in the raw file. */
-static const struct {
-    const char *aov;
-    char c;
-} cycles_layout[] = {
+const cycles_layer cycles_layout[CYCLES_LAYOUT_N] = {
     {"", 'R'},           {"", 'G'},           {"", 'B'},           {"", 'A'},           {"diffuse", 'R'},
     {"diffuse", 'G'},    {"diffuse", 'B'},    {"specular", 'R'},   {"specular", 'G'},   {"specular", 'B'},
     {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'}, {"emission", 'R'},   {"emission", 'G'},
     {"emission", 'B'},   {"background", 'R'}, {"background", 'G'}, {"background", 'B'}, {"coverage", 0},
     {"object", 0},
 };
-#define CYCLES_LAYOUT_N ((int)(sizeof cycles_layout / sizeof cycles_layout[0]))
 
 /* A number, or the sum of a list of numbers, under key in the timing JSON the script writes
  * (one entry per seed); NAN if absent. */

@@ -96,6 +96,15 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
 /* The raw (Blender) channel name for one of reflcheck's layers: ("", 'R') -> "R",
  * ("diffuse", 'G') -> "diffuse.G", ("coverage", 0) -> "coverage.V". Returns buf. */
 const char *cycles_channel_name(const char *aov, char c, char *buf, size_t len);
+/* reflcheck's layers and where they come from in the raw file the scripts write: aov "" is the
+ * full image, c 0 a one-channel layer. cycles_render.py writes all CYCLES_LAYOUT_N,
+ * eevee_render.py all but the last ("object"). */
+typedef struct {
+    const char *aov;
+    char c;
+} cycles_layer;
+#define CYCLES_LAYOUT_N 21
+extern const cycles_layer cycles_layout[CYCLES_LAYOUT_N];
 
 /* The physics its validate job renders (renderer.h, renderer_physics_fn; see validate above). */
 rc_status cycles_physics(const scene *s, physics *rendered, char *err, size_t errlen);

@@ -23,21 +23,11 @@
  * 400 s on llvmpipe, near the 600 s job limit. */
 #define EEVEE_TAA_MAX 32
 
-static int eevee_nonzero(vec3 a) { return a.x != 0.0f || a.y != 0.0f || a.z != 0.0f; }
-
-static int eevee_material_used(const scene *s, int mi)
-{
-    for (int i = 0; i < s->n_objects; i++)
-        if (s->objects[i].material == mi)
-            return 1;
-    return 0;
-}
-
 /* Twin: EEVEE computes what our model computes only for Lambert under lamps. 1 and a message
  * naming what it cannot twin, else 0. */
 static int eevee_twin_refused(const scene *s, char *why, size_t len)
 {
-    if (s->env.kind != ENV_NONE && eevee_nonzero(s->env.radiance)) {
+    if (s->env.kind != ENV_NONE && v3_nonzero(s->env.radiance)) {
         snprintf(why, len,
                  "%s: environment: EEVEE lights every diffuse surface with the world (its probe), which our "
                  "model does not; compare EEVEE in validate or agree",
@@ -54,7 +44,7 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
         }
     for (int mi = 0; mi < s->n_materials; mi++) {
         const material *m = &s->materials[mi];
-        if (!eevee_material_used(s, mi))
+        if (!scene_material_used(s, mi))
             continue;
         if (mesh_material_unnormalised(s, mi)) {
             snprintf(why, len,
@@ -70,7 +60,7 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
                      s->path, mi, m->name);
             return 1;
         }
-        if (m->model == MODEL_COOK_TORRANCE && (eevee_nonzero(m->ct.ks) || m->ct.reflection)) {
+        if (m->model == MODEL_COOK_TORRANCE && (v3_nonzero(m->ct.ks) || m->ct.reflection)) {
             snprintf(why, len,
                      "%s: materials[%d] '%s': EEVEE's glossy lobe is GGX with split-sum and LTC lights, not a "
                      "twin of Beckmann; compare EEVEE in validate or agree",
@@ -94,11 +84,11 @@ static int eevee_physics_refused(const scene *s, char *why, size_t len)
                  s->path);
         return 1;
     }
-    if (ph->env_diffuse || s->env.kind == ENV_NONE || !eevee_nonzero(s->env.radiance))
+    if (ph->env_diffuse || s->env.kind == ENV_NONE || !v3_nonzero(s->env.radiance))
         return 0;
     for (int mi = 0; mi < s->n_materials; mi++) {
         const material *m = &s->materials[mi];
-        if (eevee_material_used(s, mi) && !m->conductor && eevee_nonzero(m->albedo)) {
+        if (scene_material_used(s, mi) && !m->conductor && v3_nonzero(m->albedo)) {
             snprintf(why, len,
                      "%s: physics: env_diffuse false, but EEVEE lights every Lambert term with the world (its "
                      "probe) and materials[%d] '%s' has one; set env_diffuse true to compare EEVEE",
@@ -126,17 +116,8 @@ static void eevee_timing_path(const char *out_exr_path, char *buf, size_t len)
     snprintf(buf, len, "%.*s.timing.json", (int)n, out_exr_path);
 }
 
-/* reflcheck's layers as eevee_render.py names them ("" = the full image). */
-static const struct {
-    const char *aov;
-    char c;
-} eevee_layout[] = {
-    {"", 'R'},           {"", 'G'},           {"", 'B'},           {"", 'A'},           {"diffuse", 'R'},
-    {"diffuse", 'G'},    {"diffuse", 'B'},    {"specular", 'R'},   {"specular", 'G'},   {"specular", 'B'},
-    {"reflection", 'R'}, {"reflection", 'G'}, {"reflection", 'B'}, {"emission", 'R'},   {"emission", 'G'},
-    {"emission", 'B'},   {"background", 'R'}, {"background", 'G'}, {"background", 'B'}, {"coverage", 0},
-};
-#define EEVEE_LAYOUT_N ((int)(sizeof eevee_layout / sizeof eevee_layout[0]))
+/* Cycles' layers but the object index, which eevee_render.py does not write. */
+#define EEVEE_LAYOUT_N (CYCLES_LAYOUT_N - 1)
 
 rc_status eevee_collect(const char *out_exr_path, int keep_raw, char *err, size_t errlen)
 {
@@ -152,8 +133,8 @@ rc_status eevee_collect(const char *out_exr_path, int keep_raw, char *err, size_
     exr_channel ch[EEVEE_LAYOUT_N];
     char names[EEVEE_LAYOUT_N][32], rname[64];
     for (int k = 0; k < EEVEE_LAYOUT_N && rc == RC_OK; k++) {
-        const char *aov = eevee_layout[k].aov;
-        char c = eevee_layout[k].c;
+        const char *aov = cycles_layout[k].aov;
+        char c = cycles_layout[k].c;
         cycles_channel_name(aov, c, rname, sizeof rname);
         ch[k].data = exr_image_channel(&img, rname);
         if (ch[k].data == NULL) {

@@ -395,20 +395,12 @@ static rc_status povray_conductor_refusal(const scene *s, int mi, char *err, siz
     return RC_ERR_RANGE;
 }
 
-static int povray_material_used(const scene *s, int mi)
-{
-    for (int ob = 0; ob < s->n_objects; ob++)
-        if (s->objects[ob].material == mi)
-            return 1;
-    return 0;
-}
-
 rc_status povray_physics(const scene *s, physics *out, char *err, size_t errlen)
 {
     const physics *want = &s->physics;
     int any_rough = 0, any_diffuse = 0;
     for (int mi = 0; mi < s->n_materials; mi++) {
-        if (!povray_material_used(s, mi))
+        if (!scene_material_used(s, mi))
             continue;
         const material *mat = &s->materials[mi];
         if (mat->conductor)
