@@ -238,11 +238,7 @@ static int cli_fit_scene(const char *path, const cli_fit_opts *opt)
     /* The frame the raster validate job renders (harness/jobs.c): environment, textures, and
      * the environment's sun moved into a light where the scene asks. */
     if (st == RC_OK)
-        st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
-    if (st == RC_OK)
-        st = frame_textures_load(s, &tex, err, sizeof err);
-    if (st == RC_OK)
-        st = frame_env_split_sun(s, env_pixels, &env, NULL, err, sizeof err);
+        st = frame_inputs_load(s, &env, &env_pixels, &tex, err, sizeof err);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: %s\n", err);
         rc = st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;

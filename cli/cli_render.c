@@ -149,11 +149,7 @@ int cli_render(int argc, char **argv)
     if (rc == CLI_OK)
         rc = cli_render_check_inputs(out, s);
     if (rc == CLI_OK) {
-        rc_status st = frame_env_load(s, &env, &env_pixels, err, sizeof err);
-        if (st == RC_OK)
-            st = frame_textures_load(s, &tex, err, sizeof err);
-        if (st == RC_OK)
-            st = frame_env_split_sun(s, env_pixels, &env, NULL, err, sizeof err);
+        rc_status st = frame_inputs_load(s, &env, &env_pixels, &tex, err, sizeof err);
         if (st != RC_OK) {
             /* The environment image is the user's input: missing, unreadable or with bad texels
              * is bad input (exit 2), as `check` says for the same file; only memory is ours. */

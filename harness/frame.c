@@ -397,3 +397,14 @@ static rc_status frame_env_cube(const scene *s, env_map *e, float **pixels, char
     *pixels = rgb;
     return RC_OK;
 }
+
+rc_status frame_inputs_load(scene *s, env_map *e, float **env_pixels, texture_set *ts, char *err, size_t errlen)
+{
+    rc_status st = frame_env_load(s, e, env_pixels, err, errlen);
+    if (st == RC_OK)
+        st = frame_textures_load(s, ts, err, errlen);
+    /* Every renderer gets the same split sky: the sun moved into a light here, once. */
+    if (st == RC_OK)
+        st = frame_env_split_sun(s, *env_pixels, e, NULL, err, errlen);
+    return st;
+}

@@ -14,6 +14,7 @@
  * otherwise, naming the first bad texel and the counts); errors name the file and the scene.
  * On error nothing is allocated (*pixels is NULL).
  *   frame_env_split_sun(&scn, pixels, &e, &sun, err, sizeof err);   environment.sun_threshold
+ *   frame_inputs_load(&scn, &e, &pixels, &ts, err, sizeof err);  the three above, in their order
  * frame_write stores every layer the render produced as 32-bit float, with the scene's name
  * and hash, the renderer (reflcheck-raster; frame_write_as names another), the render time, k,
  * the triangle and shaded-sample counts in the header; and the model's "crease" layer: each
@@ -45,6 +46,11 @@ rc_status frame_env_split_sun(scene *s, float *pixels, const env_map *e, env_sun
 /* 1 when the scene asks for its sky's sun as a light (environment.sun_threshold > 0 on an
  * image): what frame_env_split_sun then does, and jobs.c writes the split sky for. */
 int frame_sun_split(const scene *s);
+/* The inputs every frame of the scene needs, in the one order they must come: the environment
+ * (frame_env_load), the material textures (frame_textures_load), then the environment's sun split
+ * into a light (frame_env_split_sun). The first error stops; the caller frees *env_pixels (set
+ * even on error once the environment loaded) and ts (texture_set_free). */
+rc_status frame_inputs_load(scene *s, env_map *e, float **env_pixels, texture_set *ts, char *err, size_t errlen);
 /* The number of lights every renderer receives for the scene as its file gives it: its own,
  * plus the sun frame_env_split_sun appends. Light masks (the physics manifest's
  * diffuse_lights, specular_lights) are read against this count, on the scene file's side

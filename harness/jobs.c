@@ -771,12 +771,7 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     /* The environment is checked here for every renderer, so POV-Ray and Cycles never get one
      * the rasterizer would refuse. */
     if (st == RC_OK)
-        st = frame_env_load(s, &c.env, &env_pixels, err, errlen);
-    if (st == RC_OK)
-        st = frame_textures_load(s, &c.tex, err, errlen);
-    /* Every renderer gets the same split sky: the sun moved into a light here, once. */
-    if (st == RC_OK)
-        st = frame_env_split_sun(s, env_pixels, &c.env, NULL, err, errlen);
+        st = frame_inputs_load(s, &c.env, &env_pixels, &c.tex, err, errlen);
     if (st == RC_OK && j->role == ROLE_TWIN)
         job_twin_switches(s);
 
