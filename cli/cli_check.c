@@ -50,6 +50,22 @@ static int cli_check_json(const char *path)
                 cJSON_AddStringToObject(z, "size", sizes[t->sized_size]);
                 cJSON_AddStringToObject(z, "run", t->sized_run);
             }
+            /* The gate each size is judged by, resolved here so gates.py reads one answer. */
+            for (int k = 0; k < 2; k++) {
+                threshold_gate g;
+                threshold_gate_at(t, k, &g);
+                cJSON *at = cJSON_AddObjectToObject(th, sizes[1 + k]);
+                cJSON_AddNumberToObject(at, "warn", g.warn);
+                cJSON_AddNumberToObject(at, "fail", g.fail);
+                cJSON_AddStringToObject(at, "loose", g.loose);
+                cJSON_AddBoolToObject(at, "own", g.own);
+                if (g.sized_size != SIZED_NONE) {
+                    cJSON *z = cJSON_AddObjectToObject(at, "sized");
+                    cJSON_AddNumberToObject(z, "figure", g.sized_figure);
+                    cJSON_AddStringToObject(z, "size", sizes[g.sized_size]);
+                    cJSON_AddStringToObject(z, "run", g.sized_run);
+                }
+            }
             cJSON_AddItemToArray(ths, th);
         }
     }

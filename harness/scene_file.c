@@ -1492,16 +1492,80 @@ static rc_status sf_threshold_sized(sf_ctx *c, yaml_node_t *v, const char *path,
     return sf_threshold_text(c, f[2].v, sub, t->sized_run, sizeof t->sized_run);
 }
 
-/* One metric's {warn, fail, why, loose, sized}. */
+/* small: or full: {warn, fail, loose, sized: {figure, run}}: the gate at one image size, each
+ * key optional (what it leaves out is the threshold's own); its sized figure was measured at
+ * that size, so the block's sized: names no size. */
+static rc_status sf_threshold_size(sf_ctx *c, yaml_node_t *v, const char *path, int full, threshold *t)
+{
+    static const char *const keys[] = {"warn", "fail", "loose", "sized"};
+    static const char *const sized_keys[] = {"figure", "run"};
+    char sub[SF_PATHLEN], sub2[SF_PATHLEN];
+    sf_kv f[4], z[2];
+    rc_status rc;
+    if ((rc = sf_map(c, v, path, keys, 4, f)))
+        return rc;
+    if (!f[0].v && !f[1].v && !f[2].v && !f[3].v)
+        return sf_fail(c, RC_ERR_PARSE, v, path, "empty block; allowed: one or more of warn, fail, loose, sized");
+    t->at[full].set = 1;
+    sf_child(sub, path, "warn");
+    if (f[0].v && (rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->at[full].warn)))
+        return rc;
+    sf_child(sub, path, "fail");
+    if (f[1].v && (rc = sf_number(c, f[1].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->at[full].fail)))
+        return rc;
+    t->at[full].warn_set = f[0].v != NULL;
+    t->at[full].fail_set = f[1].v != NULL;
+    sf_child(sub, path, "loose");
+    if (f[2].v && (rc = sf_threshold_text(c, f[2].v, sub, t->at[full].loose, sizeof t->at[full].loose)))
+        return rc;
+    if (!f[3].v)
+        return RC_OK;
+    sf_child(sub, path, "sized");
+    if ((rc = sf_map(c, f[3].v, sub, sized_keys, 2, z)) || (rc = sf_need(c, f[3].v, sub, &z[0], "figure")) ||
+        (rc = sf_need(c, f[3].v, sub, &z[1], "run")))
+        return rc;
+    sf_child(sub2, sub, "figure");
+    if ((rc = sf_number(c, z[0].v, sub2, -INFINITY, INFINITY, 0, "the measured figure, a finite number",
+                        &t->at[full].sized_figure)))
+        return rc;
+    t->at[full].sized = 1;
+    sf_child(sub2, sub, "run");
+    return sf_threshold_text(c, z[1].v, sub2, t->at[full].sized_run, sizeof t->at[full].sized_run);
+}
+
+void threshold_gate_at(const threshold *t, int full, threshold_gate *out)
+{
+    int k = full ? 1 : 0;
+    out->own = t->at[k].set;
+    out->warn = t->at[k].warn_set ? t->at[k].warn : t->warn;
+    out->fail = t->at[k].fail_set ? t->at[k].fail : t->fail;
+    out->loose = t->at[k].loose[0] ? t->at[k].loose : t->loose;
+    if (t->at[k].sized) {
+        out->sized_size = full ? SIZED_FULL : SIZED_SMALL;
+        out->sized_figure = t->at[k].sized_figure;
+        out->sized_run = t->at[k].sized_run;
+    } else {
+        out->sized_size = t->sized_size;
+        out->sized_figure = t->sized_figure;
+        out->sized_run = t->sized_run;
+    }
+}
+
+/* One metric's {warn, fail, why, loose, sized, small, full}. */
 static rc_status sf_threshold(sf_ctx *c, yaml_node_t *v, const char *path, threshold *t)
 {
-    static const char *const keys[] = {"warn", "fail", "why", "loose", "sized"};
+    static const char *const keys[] = {"warn", "fail", "why", "loose", "sized", "small", "full"};
     char sub[SF_PATHLEN];
-    sf_kv f[5];
+    sf_kv f[7];
     rc_status rc;
-    if ((rc = sf_map(c, v, path, keys, 5, f)) || (rc = sf_need(c, v, path, &f[0], "warn")) ||
+    if ((rc = sf_map(c, v, path, keys, 7, f)) || (rc = sf_need(c, v, path, &f[0], "warn")) ||
         (rc = sf_need(c, v, path, &f[1], "fail")))
         return rc;
+    for (int k = 0; k < 2; k++) {
+        sf_child(sub, path, keys[5 + k]);
+        if (f[5 + k].v && (rc = sf_threshold_size(c, f[5 + k].v, sub, k, t)))
+            return rc;
+    }
     sf_child(sub, path, "warn");
     if ((rc = sf_number(c, f[0].v, sub, -INFINITY, INFINITY, 0, "a finite number", &t->warn)))
         return rc;

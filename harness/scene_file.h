@@ -17,6 +17,8 @@
  * Relative paths inside the file (environment image, mesh) are resolved against the directory
  * of `path` (scene_file_load) or `path_for_messages` (scene_file_parse; NULL means "<string>"
  * and the current directory). out->hash is FNV-1a 64 of the bytes read.
+ * A threshold's gate at the size a run rendered (small: or full: block, else its own levels):
+ *   threshold_gate g; threshold_gate_at(&s.comparisons[0].thresholds[0], 1, &g);  full size
  */
 #ifndef REFLCHECK_SCENE_FILE_H
 #define REFLCHECK_SCENE_FILE_H
@@ -39,6 +41,21 @@ rc_status scene_file_parse(const char *text, size_t len, const char *path_for_me
  * the renderer's own reason. Call after the environment's sun is split off (frame.h): light
  * masks count it. `reflcheck check` refuses such a scene; a run skips the comparison. */
 rc_status scene_file_physics_check(const scene *s, char *err, size_t errlen);
+/* One threshold's gate at one image size (full 0: the small variant `make test` renders; 1: the
+ * full size): warn and fail from that size's block (scene-file key small: or full:) where it
+ * gives them, else the threshold's own; loose likewise ("" = none). own = 1 when the size has a
+ * block of its own. sized_size, sized_figure, sized_run: the figure the gate was set on (that
+ * size's sized:, else the threshold's own, whichever size it names; SIZED_NONE = not stated). */
+typedef struct {
+    double warn, fail;
+    const char *loose;
+    int own;
+    int sized_size;
+    double sized_figure;
+    const char *sized_run;
+} threshold_gate;
+void threshold_gate_at(const threshold *t, int full, threshold_gate *out);
+
 /* FNV-1a 64-bit hash of len bytes (the scene hash). */
 uint64_t scene_file_hash(const void *bytes, size_t len);
 

@@ -201,6 +201,16 @@ typedef struct {
     double sized_figure;
     enum { SIZED_NONE, SIZED_SMALL, SIZED_FULL } sized_size;
     char sized_run[64];
+    /* The gate at one image size (scene-file keys small: and full:), [0] small, [1] full: set 0
+     * when the file gives none, and then that size is judged by the levels above. Within a set
+     * block a field the file leaves out is the one above (warn_set, fail_set, loose ""), and
+     * its sized figure (sized 0 = none) was measured at that size. */
+    struct {
+        int set, warn_set, fail_set, sized;
+        double warn, fail, sized_figure;
+        char loose[160];
+        char sized_run[64];
+    } at[2];
 } threshold;
 
 typedef struct {

@@ -778,6 +778,74 @@ static void test_hostile_inputs(void **state)
     }
 }
 
+/* Per-size gates: small: and full: blocks override the threshold's own levels for that size
+ * only, field by field; a size without a block keeps the shared levels. */
+static void test_threshold_sizes(void **state)
+{
+    (void)state;
+    static const char text[] =
+        "image: {width: 8, height: 8}\ncamera: {eye: [0,0,1], target: [0,0,0], hfov: 30}\n"
+        "comparisons: [{reference: povray, thresholds: {\n"
+        "  nrmse: {warn: 0.02, fail: 0.03, why: w, loose: shared, sized: {figure: 0.011, size: small, run: s1},\n"
+        "          full: {fail: 0.002, sized: {figure: 7.1e-4, run: n1}}},\n"
+        "  rel_rms: {warn: 1, fail: 2, small: {warn: 0.5, fail: 0.7, loose: floor}}}}]\n";
+    scene *s = malloc(sizeof *s);
+    char err[600] = "";
+    threshold_gate g;
+    assert_non_null(s);
+    if (parse_text(text, strlen(text), s, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+    const threshold *t = s->comparisons[0].thresholds;
+    /* nrmse at full size: fail from the block, warn the shared 0.02, sized on its own figure. */
+    threshold_gate_at(&t[0], 1, &g);
+    assert_int_equal(g.own, 1);
+    assert_float_equal(g.fail, 0.002, 0);
+    assert_float_equal(g.warn, 0.02, 0);
+    assert_string_equal(g.loose, "shared");
+    assert_int_equal(g.sized_size, SIZED_FULL);
+    assert_float_equal(g.sized_figure, 7.1e-4, 0);
+    assert_string_equal(g.sized_run, "n1");
+    /* nrmse small: no block, so the shared levels and the shared sized (small, s1). */
+    threshold_gate_at(&t[0], 0, &g);
+    assert_int_equal(g.own, 0);
+    assert_float_equal(g.fail, 0.03, 0);
+    assert_int_equal(g.sized_size, SIZED_SMALL);
+    assert_float_equal(g.sized_figure, 0.011, 0);
+    /* rel_rms: small has its own levels and reason, full the shared ones and none. */
+    threshold_gate_at(&t[1], 0, &g);
+    assert_float_equal(g.warn, 0.5, 0);
+    assert_float_equal(g.fail, 0.7, 0);
+    assert_string_equal(g.loose, "floor");
+    threshold_gate_at(&t[1], 1, &g);
+    assert_float_equal(g.warn, 1, 0);
+    assert_float_equal(g.fail, 2, 0);
+    assert_string_equal(g.loose, "");
+    assert_int_equal(g.sized_size, SIZED_NONE);
+    /* Refused: an empty block, a size the block already names, a key outside the block's. */
+    static const struct {
+        const char *gate, *message;
+    } bad[] = {
+        {"{warn: 1, fail: 2, full: {}}", "thresholds.rel_rms.full: empty block"},
+        {"{warn: 1, fail: 2, full: {sized: {figure: 1, run: r, size: full}}}", "full.sized.size: unknown key"},
+        {"{warn: 1, fail: 2, full: {fail: 1, why: x}}", "full.why: unknown key; allowed: warn, fail, loose, sized"},
+        {"{warn: 1, fail: 2, full: {sized: {figure: 1}}}", "full.sized.run"},
+        {"{warn: 1, fail: 2, medium: {fail: 1}}", "allowed: warn, fail, why, loose, sized, small, full"},
+        {"{warn: 1, fail: 2, small: {fail: .nan}}", "small.fail"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char buf[600];
+        snprintf(buf, sizeof buf,
+                 "image: {width: 8, height: 8}\ncamera: {eye: [0,0,1], target: [0,0,0], hfov: 30}\n"
+                 "comparisons: [{reference: povray, thresholds: {rel_rms: %s}}]\n",
+                 bad[i].gate);
+        err[0] = '\0';
+        rc_status rc = parse_text(buf, strlen(buf), s, err, sizeof err);
+        if (rc == RC_OK || strncmp(err, "mem.yaml:3:", 11) != 0 || !strstr(err, bad[i].message) || strchr(err, '\n'))
+            fail_msg("'%s': rc %d, %s (want %s)", bad[i].gate, rc, err, bad[i].message);
+    }
+    free(s);
+}
+
 /* Every prefix of the full fixture, and random byte edits of it: any status, never a crash,
  * and a failure always comes with a one-line message naming the file. */
 static void test_truncations_and_mutations(void **state)
@@ -868,6 +936,7 @@ int main(void)
         cmocka_unit_test(test_derived_defaults),
         cmocka_unit_test(test_physics_manifest),
         cmocka_unit_test(test_bad_fixtures),
+        cmocka_unit_test(test_threshold_sizes),
         cmocka_unit_test(test_fixture_list_complete),
         cmocka_unit_test(test_hostile_inputs),
         cmocka_unit_test(test_truncations_and_mutations),
