@@ -780,19 +780,50 @@ static int compare_is_accuracy(const char *metric)
     return 1;
 }
 
-static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp, const char *id, compare_summary *sum)
+/* Whether a comparison's renders are the full size (1) or the small variant (0), from the
+ * job records' variant: it picks each threshold's gate (scene-file small: and full:). A record
+ * without the field (written before it existed) counts as the full size, the only size runs
+ * rendered then. */
+static int compare_full_size(const compare_side *t, const compare_side *r)
+{
+    const char *v = compare_json_str(t->record, "variant");
+    if (v[0] == '\0')
+        v = compare_json_str(r->record, "variant");
+    return strcmp(v, "small") != 0;
+}
+
+/* The gate a threshold applied at this size, and the figure it was sized on, into its entry. */
+static void compare_gate_json(const threshold_gate *g, int full, cJSON *o)
+{
+    static const char *const sizes[] = {"", "small", "full"};
+    cJSON_AddStringToObject(o, "size", full ? "full" : "small");
+    cJSON_AddStringToObject(o, "levels", g->own ? (full ? "full" : "small") : "shared");
+    cJSON_AddStringToObject(o, "loose", g->loose);
+    if (g->sized_size != SIZED_NONE) {
+        cJSON *z = cJSON_AddObjectToObject(o, "sized");
+        cJSON_AddNumberToObject(z, "figure", g->sized_figure);
+        cJSON_AddStringToObject(z, "size", sizes[g->sized_size]);
+        cJSON_AddStringToObject(z, "run", g->sized_run);
+    }
+}
+
+static const char *compare_judge(const scene *s, const comparison *c, int full, cJSON *cmp, const char *id,
+                                 compare_summary *sum)
 {
     cJSON *arr = cJSON_AddArrayToObject(cmp, "thresholds");
     int worst = 0; /* 0 pass, 1 warn, 2 fail */
     int accuracy = 0;
     for (int i = 0; i < c->n_thresholds; i++) {
         const threshold *t = &c->thresholds[i];
+        threshold_gate g;
+        threshold_gate_at(t, full, &g);
         accuracy += compare_is_accuracy(t->metric);
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "metric", t->metric);
-        cJSON_AddNumberToObject(o, "warn", t->warn);
-        cJSON_AddNumberToObject(o, "fail", t->fail);
+        cJSON_AddNumberToObject(o, "warn", g.warn);
+        cJSON_AddNumberToObject(o, "fail", g.fail);
         cJSON_AddStringToObject(o, "why", t->why);
+        compare_gate_json(&g, full, o);
         double v;
         const char *verdict;
         /* A NaN compares false with both limits and would pass: it fails like a missing value. */
@@ -804,11 +835,11 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
                 snprintf(sum->first_failure, sizeof sum->first_failure,
                          "%s: %s: metric %s was not measured or is NaN (threshold %g); scene key "
                          "comparisons[%d].thresholds.%s",
-                         s->name, id, t->metric, t->fail, (int)(c - s->comparisons), t->metric);
+                         s->name, id, t->metric, g.fail, (int)(c - s->comparisons), t->metric);
         } else {
             int hib = compare_higher_is_better(t->metric);
-            int fail = hib ? v < t->fail : v > t->fail;
-            int warn = hib ? v < t->warn : v > t->warn;
+            int fail = hib ? v < g.fail : v > g.fail;
+            int warn = hib ? v < g.warn : v > g.warn;
             verdict = fail ? "fail" : warn ? "warn" : "pass";
             cJSON_AddNumberToObject(o, "value", v);
             if (fail && worst < 2) {
@@ -817,9 +848,10 @@ static const char *compare_judge(const scene *s, const comparison *c, cJSON *cmp
                 worst = 1;
             if (fail && sum->first_failure[0] == '\0')
                 snprintf(sum->first_failure, sizeof sum->first_failure,
-                         "%s: %s: %s = %.4g %s fail threshold %.4g (%s); scene key comparisons[%d].thresholds.%s",
-                         s->name, id, t->metric, v, hib ? "<" : ">", t->fail, t->why, (int)(c - s->comparisons),
-                         t->metric);
+                         "%s: %s: %s = %.4g %s fail threshold %.4g at %s size (%s); scene key "
+                         "comparisons[%d].thresholds.%s%s",
+                         s->name, id, t->metric, v, hib ? "<" : ">", g.fail, full ? "full" : "small", t->why,
+                         (int)(c - s->comparisons), t->metric, g.own ? (full ? ".full" : ".small") : "");
         }
         cJSON_AddStringToObject(o, "verdict", verdict);
         cJSON_AddItemToArray(arr, o);
@@ -1565,7 +1597,7 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: values: %s", s->name, id, gate);
     if (crease_gate[0] != '\0' && sum->first_failure[0] == '\0')
         snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s", s->name, id, crease_gate);
-    const char *verdict = compare_judge(s, c, o, id, sum);
+    const char *verdict = compare_judge(s, c, compare_full_size(&t, &r), o, id, sum);
     if (gate[0] != '\0' || crease_gate[0] != '\0') {
         verdict = "fail";
         /* A gate's words say what to look at, or which metric to state with its reason; the key

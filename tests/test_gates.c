@@ -644,6 +644,80 @@ static void test_guards_alone_are_not_gated(void **state)
     }
 }
 
+/* Sets the variant ("small" or "full") of a side's job record, as jobs.c writes it. */
+static void put_variant(const char *run, const char *name, int r, comparison_role role, const char *variant)
+{
+    char path[1024], buf[2048];
+    job_output_path(run, name, r, role, "json", path, sizeof path);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    cJSON *o = cJSON_Parse(buf);
+    assert_non_null(o);
+    cJSON_AddStringToObject(o, "variant", variant);
+    char *out = cJSON_Print(o);
+    write_text(path, out);
+    free(out);
+    cJSON_Delete(o);
+}
+
+/* A gate given per size: the same images (rel_rms 0.002: 0.001 apart on 0.5, over
+ * sqrt(0.25 + 1e-4)) pass the shared fail 0.02 the small variant is judged by and fail the
+ * full: block's 0.001; compare.json says which size and which levels applied, and the figure
+ * the gate was sized on. A record without a variant (an older run) is the full size. */
+static void test_gate_per_size(void **state)
+{
+    (void)state;
+    char err[2048], text[1024];
+    gate_fixture *f = fixture_make("sizes", "twin", "d3d", "");
+    snprintf(text, sizeof text,
+             "name: sizes\nimage: {width: %d, height: %d}\ncamera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "materials:\n  m: {model: d3d}\n"
+             "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+             "comparisons:\n  - reference: povray\n    role: twin\n    thresholds:\n"
+             "      rel_rms: {warn: 0.01, fail: 0.02, why: \"guard\", sized: {figure: 0.008, size: small, run: s1},\n"
+             "                full: {warn: 5e-4, fail: 1e-3, sized: {figure: 4e-4, run: n1}}}\n",
+             W, H);
+    write_text(f->scn, text);
+    for (int c = 0; c < 3; c++)
+        for (int i = 0; i < NP; i++)
+            f->t.rgb[c][i] = 0.501f;
+    static const struct {
+        const char *variant, *status, *size, *levels, *sized_size;
+        double fail;
+    } want[] = {
+        {"small", "pass", "small", "shared", "small", 0.02},
+        {"full", "fail", "full", "full", "full", 1e-3},
+        {NULL, "fail", "full", "full", "full", 1e-3},
+    };
+    for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
+        fixture_jobs(f, ROLE_TWIN);
+        if (want[k].variant != NULL) {
+            put_variant(f->run, "sizes", registry_find("raster"), ROLE_TWIN, want[k].variant);
+            put_variant(f->run, "sizes", registry_find("povray"), ROLE_TWIN, want[k].variant);
+        }
+        int rc = cli_exec(err, sizeof err, "compare %s --run %s", f->scn, f->run);
+        cJSON *j = read_compare(f->run, "sizes");
+        const cJSON *c = first_comparison(j);
+        const cJSON *th = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(c, "thresholds"), 0);
+        if (strcmp(jstr(c, "status"), want[k].status) != 0)
+            fail_msg("variant %s: status %s, want %s", want[k].variant, jstr(c, "status"), want[k].status);
+        assert_int_equal(rc, strcmp(want[k].status, "fail") == 0);
+        close_rel(jnum(cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(c, "regions"), "surface"),
+                       "rel_rms"),
+                  0.001 / sqrt(0.25 + 1e-4), 1e-3);
+        assert_string_equal(jstr(th, "size"), want[k].size);
+        assert_string_equal(jstr(th, "levels"), want[k].levels);
+        close_rel(jnum(th, "fail"), want[k].fail, 1e-12);
+        assert_string_equal(jstr(cJSON_GetObjectItemCaseSensitive(th, "sized"), "size"), want[k].sized_size);
+        if (strcmp(want[k].status, "fail") == 0)
+            assert_non_null(strstr(err, "at full size (guard); scene key comparisons[0].thresholds.rel_rms.full"));
+        cJSON_Delete(j);
+    }
+}
+
 /* An offset of 0.8 standard deviations on every pixel passes the per-pixel z-test (its Holm
  * limit is near 4), and the mean's z is 0.8 sqrt(N) on the N surface pixels: its gate fails. */
 static void test_bias_over_every_pixel_fails(void **state)
@@ -731,6 +805,7 @@ int main(void)
         cmocka_unit_test(test_view_js_escapes_scene_name),
         cmocka_unit_test(test_crease_region_gated),
         cmocka_unit_test(test_guards_alone_are_not_gated),
+        cmocka_unit_test(test_gate_per_size),
         cmocka_unit_test(test_bias_over_every_pixel_fails),
     };
     return cmocka_run_group_tests_name("gates", tests, setup, teardown);
