@@ -1,22 +1,26 @@
 #!/usr/bin/env python3
-"""gates.py - every scene gate beside the figure it guards, and the loose ones flagged.
+"""gates.py - every scene gate beside the figure it guards, at each image size, loose ones flagged.
 
 Usage:
-  python3 tools/gates.py --run reports/runs/r1 [--bin build/reflcheck] [--scenes scenes]
+  python3 tools/gates.py --run SMALL_RUN [--run FULL_RUN] [--bin build/reflcheck] [--scenes scenes]
                            [--md docs/gates.md] [--limit 3]
 Reads each SCENES/*.yaml's thresholds through `reflcheck check --json` (the C parser, so the
-YAML is read one way only) and RUN/<scene>/compare.json's measured values, and prints one row
-per gate: scene, comparison, metric, warn, fail, figure, ratio, sized-on, stated reason, flag.
+YAML is read one way only, with each size's gate resolved: a small: or full: block, else the
+threshold's own levels) and each RUN/<scene>/compare.json's measured values. A run is one image
+size: the "size" compare.json gives each threshold, else the "variant" of the scene's job records
+(RUN/<scene>/*.json). Prints one row per gate and size of the runs given: scene, comparison,
+metric, size, warn, fail, figure, ratio, sized-on, flag, stated reason; a gate is judged against
+the figure of its own size only.
 Ratio: how far the fail level sits from the figure. For a lower-is-better metric fail / figure;
 for coverage_agreement and ssim (ideal 1) (1 - fail) / (1 - figure); for psnr (ideal +inf) the
 ratio of the RMS errors the two dB levels stand for, 10^((figure - fail) / 20). A figure at the
 ideal (0, or 1, or psnr null = identical) under a gate that allows more gives inf.
-Flags: LOOSE when ratio > limit and the threshold states no `loose:` reason; loose when it
-does; FAILS when the figure is beyond the fail level; unmeasured when the run has no figure
+Flags: LOOSE when ratio > limit and the gate at that size states no `loose:` reason; loose when
+it does; FAILS when the figure is beyond the fail level; unmeasured when the run has no figure
 (scene or comparison not in the run, skipped or error).
 --md writes the table as Markdown to that file as well.
-Exit: 0 none loose without a reason; 1 a LOOSE gate; 2 bad input (no run, a scene the parser
-refuses, a compare.json that is not JSON).
+Exit: 0 none loose without a reason; 1 a LOOSE gate; 2 bad input (no run, two runs of one size,
+a run whose size cannot be told, a scene the parser refuses, a compare.json that is not JSON).
 """
 
 import argparse
@@ -49,16 +53,49 @@ def scene_gates(binary, path):
         raise BadInput(f'{path}: reflcheck check --json printed no JSON ({e}); rebuild reflcheck') from e
 
 
-def run_figures(run, scene):
-    """{(comparison id, occurrence): {metric: value}} from RUN/<scene>/compare.json; {} if absent."""
+SIZES = ('small', 'full')
+
+
+def read_compare(run, scene):
+    """RUN/<scene>/compare.json as a dict; None when the run has no such scene."""
     path = os.path.join(run, scene, 'compare.json')
     if not os.path.isfile(path):
-        return {}
+        return None
     try:
         with open(path, encoding='utf-8') as f:
-            doc = json.load(f)
+            return json.load(f)
     except (OSError, json.JSONDecodeError) as e:
         raise BadInput(f'{path}: not readable JSON ({e}); re-run reflcheck compare on the scene') from e
+
+
+def run_size(run):
+    """'small' or 'full': the size compare.json says a gate applied to, else the job records' variant."""
+    found = set()
+    for path in sorted(glob.glob(os.path.join(run, '*', 'compare.json'))):
+        doc = read_compare(run, os.path.basename(os.path.dirname(path)))
+        found |= {t['size'] for c in doc.get('comparisons', []) for t in c.get('thresholds', []) if 'size' in t}
+    if not found:
+        for path in sorted(glob.glob(os.path.join(run, '*', '*.json'))):
+            try:
+                with open(path, encoding='utf-8') as f:
+                    v = json.load(f).get('variant')
+            except (OSError, ValueError, AttributeError):
+                continue
+            if v in SIZES:
+                found.add(v)
+    if len(found) != 1:
+        raise BadInput(
+            f'{run}: {"no image size" if not found else "sizes " + ", ".join(sorted(found))} in its compare.json '
+            'files and job records; give --run a run of one size (reflcheck compare rewrites compare.json)'
+        )
+    return found.pop()
+
+
+def run_figures(run, scene):
+    """{(comparison id, occurrence): {metric: value}} from RUN/<scene>/compare.json; {} if absent."""
+    doc = read_compare(run, scene)
+    if doc is None:
+        return {}
     out, seen = {}, {}
     for c in doc.get('comparisons', []):
         cid = c.get('id', '')
@@ -94,30 +131,39 @@ def fails(metric, fail, figure):
     return figure > fail
 
 
-def gate_rows(binary, scenes_dir, run, limit):
+def gate_row(scene, cid, t, size, measured, limit):
+    """One gate at one size: that size's levels (check --json resolves them) against its figure."""
+    g = t[size]
+    row = dict(scene=scene, comparison=cid, metric=t['metric'], size=size, warn=g['warn'], fail=g['fail'])
+    row.update(loose=g['loose'], sized=g.get('sized'), own=g['own'])
+    if measured is None or t['metric'] not in measured:
+        row.update(figure=None, ratio=None, flag='unmeasured')
+        return row
+    fig = measured[t['metric']]
+    r = ratio(t['metric'], g['fail'], fig)
+    flag = ''
+    if fails(t['metric'], g['fail'], fig):
+        flag = 'FAILS'
+    elif r is not None and r > limit:
+        flag = 'loose' if g['loose'] else 'LOOSE'
+    row.update(figure=fig, ratio=r, flag=flag)
+    return row
+
+
+def gate_rows(docs, runs, limit):
+    """docs: scene_gates of each scene file; runs: {size: run folder}. Rows per gate, one per
+    size given, small first."""
     rows = []
-    for path in sorted(glob.glob(os.path.join(scenes_dir, '*.yaml'))):
-        doc = scene_gates(binary, path)
+    for doc in docs:
         scene = doc['scene']
-        figures = run_figures(run, scene)
+        figures = {size: run_figures(run, scene) for size, run in runs.items()}
         seen = {}
         for c in doc['comparisons']:
             k = seen[c['id']] = seen.get(c['id'], -1) + 1
-            measured = figures.get((c['id'], k))
             for t in c['thresholds']:
-                row = dict(scene=scene, comparison=c['id'], **t)
-                if measured is None or t['metric'] not in measured:
-                    row.update(figure=None, ratio=None, flag='unmeasured')
-                else:
-                    fig = measured[t['metric']]
-                    r = ratio(t['metric'], t['fail'], fig)
-                    flag = ''
-                    if fails(t['metric'], t['fail'], fig):
-                        flag = 'FAILS'
-                    elif r is not None and r > limit:
-                        flag = 'loose' if t['loose'] else 'LOOSE'
-                    row.update(figure=fig, ratio=r, flag=flag)
-                rows.append(row)
+                for size in SIZES:
+                    if size in runs:
+                        rows.append(gate_row(scene, c['id'], t, size, figures[size].get((c['id'], k)), limit))
     return rows
 
 
@@ -137,7 +183,19 @@ def sized_text(t):
     return f"{fnum(z['figure'])} {z['size']} ({z['run']}), x{fnum(ratio(t['metric'], t['fail'], z['figure']), 3)}"
 
 
-COLUMNS = ('scene', 'comparison', 'metric', 'warn', 'fail', 'figure', 'ratio', 'sized on', 'flag', 'stated reason')
+COLUMNS = (
+    'scene',
+    'comparison',
+    'metric',
+    'size',
+    'warn',
+    'fail',
+    'figure',
+    'ratio',
+    'sized on',
+    'flag',
+    'stated reason',
+)
 
 
 def cells(r):
@@ -145,6 +203,7 @@ def cells(r):
         r['scene'],
         r['comparison'],
         r['metric'],
+        r['size'] + (' (own)' if r['own'] else ''),
         fnum(r['warn']),
         fnum(r['fail']),
         fnum(r['figure']),
@@ -155,15 +214,17 @@ def cells(r):
     )
 
 
-def markdown(rows, run, limit):
+def markdown(rows, runs, limit):
     loose = sum(r['flag'] == 'LOOSE' for r in rows)
+    given = ' '.join(f'--run {runs[z]}' for z in SIZES if z in runs)
     out = [
         '# Gates and the figures they guard',
         '',
-        f'Written by `python3 tools/gates.py --run {run} --md ...` from the scene files\' thresholds and the',
-        f'run\'s compare.json. Ratio: fail level / figure (distance from the ideal for coverage_agreement,',
-        f'ssim, psnr); LOOSE: ratio over {limit:g} with no `loose:` reason in the scene file. {len(rows)} gates,',
-        f'{loose} LOOSE.',
+        f'Written by `python3 tools/gates.py {given} --md ...` from the scene files\' thresholds and the',
+        'runs\' compare.json, each gate at each size against the figure of that size ("own": the scene file',
+        'gives that size a small: or full: block). Ratio: fail level / figure (distance from the ideal for',
+        f'coverage_agreement, ssim, psnr); LOOSE: ratio over {limit:g} with no `loose:` reason for that size.',
+        f'{len(rows)} rows, {loose} LOOSE.',
         '',
         '| ' + ' | '.join(COLUMNS) + ' |',
         '|' + '---|' * len(COLUMNS),
@@ -175,18 +236,31 @@ def markdown(rows, run, limit):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description='Every scene gate beside the figure it guards.')
-    ap.add_argument('--run', required=True, help='a run folder holding <scene>/compare.json')
+    ap.add_argument(
+        '--run',
+        required=True,
+        action='append',
+        help='a run folder holding <scene>/compare.json; give it once per size (a small and a full run)',
+    )
     ap.add_argument('--bin', default=os.environ.get('REFLCHECK_BIN', os.path.join(ROOT, 'build', 'reflcheck')))
     ap.add_argument('--scenes', default=os.path.join(ROOT, 'scenes'))
     ap.add_argument('--md', help='also write the table as Markdown here')
     ap.add_argument('--limit', type=float, default=DEFAULT_LIMIT, help='the ratio above which a gate is loose')
     a = ap.parse_args(argv)
     try:
-        if not os.path.isdir(a.run):
-            raise BadInput(f'{a.run}: no such run folder; give --run the folder reflcheck run wrote')
         if not os.access(a.bin, os.X_OK):
             raise BadInput(f'{a.bin}: no reflcheck binary; build it (make BUILD=x all) and give --bin x/reflcheck')
-        rows = gate_rows(a.bin, a.scenes, a.run, a.limit)
+        # The scene files first: a gate the parser refuses is the error to report, whatever the runs.
+        docs = [scene_gates(a.bin, p) for p in sorted(glob.glob(os.path.join(a.scenes, '*.yaml')))]
+        runs = {}
+        for run in a.run:
+            if not os.path.isdir(run):
+                raise BadInput(f'{run}: no such run folder; give --run the folder reflcheck run wrote')
+            size = run_size(run)
+            if size in runs:
+                raise BadInput(f'{run}: a second {size} run (first {runs[size]}); give one run per size')
+            runs[size] = run
+        rows = gate_rows(docs, runs, a.limit)
     except BadInput as e:
         print(f'gates.py: {e}', file=sys.stderr)
         return 2
@@ -196,13 +270,14 @@ def main(argv=None):
         print('  '.join(str(c).ljust(w) for c, w in zip(cells(r), widths)).rstrip())
     if a.md:
         with open(a.md, 'w', encoding='utf-8') as f:
-            f.write(markdown(rows, a.run, a.limit))
+            f.write(markdown(rows, runs, a.limit))
     loose = [r for r in rows if r['flag'] == 'LOOSE']
     for r in loose:
         print(
-            f"gates.py: {r['scene']}: {r['comparison']}: {r['metric']}: fail {fnum(r['fail'])} is "
-            f"{fnum(r['ratio'], 3)}x its figure {fnum(r['figure'])}; tighten it to about {a.limit:g}x, or state "
-            f"loose: \"reason\" in scenes/{r['scene']}.yaml",
+            f"gates.py: {r['scene']}: {r['comparison']}: {r['metric']}: at {r['size']} size fail {fnum(r['fail'])} "
+            f"is {fnum(r['ratio'], 3)}x its figure {fnum(r['figure'])}; tighten it to about {a.limit:g}x (a "
+            f"{r['size']}: {{fail: ...}} block sets that size alone), or state loose: \"reason\" in "
+            f"scenes/{r['scene']}.yaml",
             file=sys.stderr,
         )
     return 1 if loose else 0
