@@ -422,6 +422,10 @@ if [ -f tools/plots/figure1.gp ]; then
     for p in 2 4 5; do step "$bin" eval fresnel --ior 1.5 --p $p --steps 900 > "$run/p$p.csv"; done
     step gnuplot -e "dir='$run'" tools/plots/figure1.gp > /dev/null 2>&1 || echo "figure1 plot failed" >&2
 fi
+# Figure 1 of each scene's own materials (the report's figure1-<scene>.html), one degree apart.
+for s in "${scenes[@]}"; do
+    step "$bin" eval materials "$s" --out "$run" || echo "reflcheck nightly: $s: no Figure 1 of its materials" >&2
+done
 t2=$(date +%s)
 # shellcheck disable=SC2046
 progress each --label report --log "$run/report.txt" $(expected report) -- /usr/bin/python3 tools/report.py \

@@ -10,6 +10,7 @@ corrupt inputs, threshold proposals, and that the pages render in headless Chrom
 import csv
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -855,3 +856,67 @@ def test_fit_table(tmp_path):
         ('raster-vs-povray-validate', 'wide'),
     ]
     assert summ['fits'][0]['best']['nrmse'] == 0.4248
+
+
+# ------------------------------------------------------------------------- Figure 1 of a scene
+
+FIG1_SCENE = """name: alpha
+image: {width: 16, height: 16}
+camera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}
+materials:
+  glass: {albedo: [0, 0, 0], ior: 1.5, roughness: 0, model: d3d9client, d3d9client: {p: 4, r0: 0.05}}
+  plastic: {albedo: [0.5, 0.5, 0.5], ior: 1.33, model: d3d, d3d: {specular: [0.2, 0.3, 0.4], power: 20}}
+objects:
+  - {shape: sphere, center: [0, 0, 0], radius: 1, material: glass}
+  - {shape: sphere, center: [1.5, 0, 0], radius: 0.5, material: plastic}
+"""
+
+
+def fresnel_dielectric(cos_i, n):
+    """Unpolarised Fresnel reflectance from Snell's law and the s and p amplitudes (Hecht 4.42-4.43)."""
+    sin_t = math.sqrt(1 - cos_i * cos_i) / n
+    cos_t = math.sqrt(1 - sin_t * sin_t)
+    rs = (cos_i - n * cos_t) / (cos_i + n * cos_t)
+    rp = (n * cos_i - cos_t) / (n * cos_i + cos_t)
+    return (rs * rs + rp * rp) / 2
+
+
+def test_figure1_of_a_scenes_own_materials(tmp_path):
+    """`reflcheck eval materials` writes the scene's figure1.json; the report draws one model curve
+    and one physics curve per material on figure1-<scene>.html, linked from the scene's page, and
+    lists their values: at 60 degrees the glass's D3D9Client eq. 3, R0 + m(1 - cos)^p = 0.05 +
+    0.95 * 0.5^4 = 0.109375, beside the exact dielectric of n = 1.5 (0.0891867); the plastic's
+    Blinn-Phong has no Fresnel, its specular colour's mean 0.3, beside n = 1.33's exact value."""
+    binary = os.environ.get('REFLCHECK_BIN', os.path.join(ROOT, 'build', 'reflcheck'))
+    assert os.access(binary, os.X_OK), f'{binary}: build reflcheck first, or set REFLCHECK_BIN'
+    run = make_run(str(tmp_path), RUN1)
+    scene = tmp_path / 'alpha.yaml'
+    scene.write_text(FIG1_SCENE)
+    p = subprocess.run([binary, 'eval', 'materials', str(scene), '--out', run], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    assert '<a href="figure1-alpha.html">' in read(os.path.join(run, 'scene-alpha.html'))
+    assert '<a href="figure1-alpha.html">alpha</a>.' in read(os.path.join(run, 'figure1.html'))
+    assert not os.path.exists(os.path.join(run, 'figure1-beta.html'))  # beta has no figure1.json
+    html = read(os.path.join(run, 'figure1-alpha.html'))
+    rows = re.findall(r'<tr data-material="([^"]*)">(.*?)</tr>\s*<tr>(.*?)</tr>', html, re.S)
+    assert [name for name, _, _ in rows] == ['glass', 'plastic'], html
+    assert '<td rowspan="3">d3d9client</td>' in rows[0][1] and '<td rowspan="3">d3d</td>' in rows[1][1]
+    heads = re.findall(r'<th>(\d+)°</th>', html)
+    at60 = heads.index('60')
+
+    def value(cells, curve):
+        return float(re.findall(rf'data-curve="{curve}">([^<]*)</td>', cells)[at60])
+
+    (_, glass_model, glass_phys), (_, plastic_model, plastic_phys) = rows
+    assert value(glass_model, 'model') == pytest.approx(0.05 + 0.95 * 0.5**4, abs=1e-6)
+    assert value(glass_phys, 'physics') == pytest.approx(fresnel_dielectric(0.5, 1.5), abs=2e-6)
+    assert value(plastic_model, 'model') == pytest.approx((0.2 + 0.3 + 0.4) / 3, abs=1e-6)
+    assert value(plastic_phys, 'physics') == pytest.approx(fresnel_dielectric(0.5, 1.33), abs=2e-6)
+    if HAVE_GNUPLOT:
+        svg = read(os.path.join(run, 'plots', 'figure1-alpha.svg'))
+        # one gnuplot plot per curve, titled <material>_<curve> (plot_id makes ':' a '_')
+        titles = re.findall(r'<g id="gnuplot_plot_\d+" ><title>([a-z]+_(?:model|physics))</title>', svg)
+        assert sorted(titles) == ['glass_model', 'glass_physics', 'plastic_model', 'plastic_physics'], titles
+        assert 'src="plots/figure1-alpha.svg"' in html

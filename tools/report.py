@@ -12,9 +12,11 @@ The command line only: the work is done by the package tools/report/ beside this
 outputs, history, plots, pages with their Jinja2 templates, proposal, browser; reports/README.md).
 Reads what the C harness wrote into the run folder (format: reports/FORMAT.md):
 <scene>/compare.json, <scene>/<renderer>-<role>.json job records, <scene>/view.js, and the
-optional stability.json, timing/*.json and figure1.svg. It never renders or measures.
+optional stability.json, timing/*.json, figure1.svg and <scene>/figure1.json (the scene's
+materials' reflectance against angle, `reflcheck eval materials`). It never renders or measures.
 Writes into the run folder (each file through a temporary name, then rename): index.html,
-scene-<name>.html, report.css, report.js, plots/*.svg, summary.json, summary.csv, junit.xml,
+scene-<name>.html, figure1-<name>.html (where <scene>/figure1.json is), report.css, report.js,
+plots/*.svg, summary.json, summary.csv, junit.xml,
 figures.md (the README's tables of this run),
 and appends one line to the history file (one write() plus fsync, never truncating). The trend
 plots show --reference-history's runs (read only, labelled ref-) and then --history's.
@@ -42,7 +44,7 @@ try:
     from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
-    from report.plots import plot_angles, plot_timing, plot_trends
+    from report.plots import plot_angles, plot_figure1, plot_timing, plot_trends
     from report.proposal import proposal
     from report.util import ASSETS, VERDICTS, write_atomic
 except ImportError as e:  # the one library outside the standard library: Jinja2, for the pages
@@ -85,6 +87,7 @@ def make_report(args):
     note = 'trends: ' + ', then '.join(parts) if parts else 'no --history or --reference-history given: no trends'
     with tempfile.TemporaryDirectory(prefix='reflcheck-report-') as tmp:
         angles = {s['name']: plot_angles(R, s, tmp, problems) for s in R['scenes']}
+        figure1 = {s['name']: plot_figure1(R, s, tmp, problems) for s in R['scenes'] if s.get('figure1')}
         trends = plot_trends(R, history, tmp, problems) if history else {}
         timing = plot_timing(R, tmp, problems)
     for s in R['scenes']:
@@ -104,6 +107,10 @@ def make_report(args):
     if R['optional']['figure1']:
         write_atomic(os.path.join(args.run, 'figure1.html'), pages.figure1_html(R))
         extra.append('figure1.html')
+    for s in R['scenes']:
+        if s['name'] in figure1:
+            write_atomic(os.path.join(args.run, s['figure1_page']), pages.figure1_scene_html(R, s, figure1[s['name']]))
+            extra.append(s['figure1_page'])
     if args.latest:
         point_latest(args.run, args.latest, problems)
     if args.screenshot:

@@ -141,6 +141,8 @@ JOB_FILE = re.compile(r'^([a-z0-9_]+)-([a-z0-9_]+)\.json$')
 # job records' name shape: compare's output and the fit step's (load_fits reads those).
 FIT_FILES = (('fit.json', 'seed'), ('fit-wide.json', 'wide'))
 NOT_JOB_FILES = ('compare.json',) + tuple(f for f, _ in FIT_FILES)
+# Figure 1 of the scene's own materials (`reflcheck eval materials SCENE`, written by the nightly).
+FIGURE1_FILE = 'figure1.json'
 
 
 def load_scene(run, name, problems):
@@ -215,6 +217,8 @@ def load_scene(run, name, problems):
         sc['jobs'].append(rec)
     sc['view'] = read_view(os.path.join(d, 'view.js'), problems, name)
     sc['fits'] = load_fits(d, problems, name)
+    sc['figure1'] = load_figure1(d, problems, name)
+    sc['figure1_page'] = f'figure1-{safe_name(name)}.html' if sc['figure1'] else None
     images = sc['view']['images'] if sc['view'] else []
     jobs = {}
     for j in sc['jobs']:
@@ -226,6 +230,35 @@ def load_scene(run, name, problems):
             c[image_key] = pick_render(images, c[side], c['role'])
             c[job_key] = jobs.get(pick_render(jobs, c[side], c['role']))
     return sc
+
+
+def load_figure1(d, problems, name):
+    """The scene's materials' reflectance against angle (model beside physics), as
+    {'angle_deg': [...], 'value': text, 'materials': [{name, kind, model_curve, physics_curve,
+    model: [...], physics: [...]}]}; None when the run has no figure1.json (an older run) or it
+    does not hold one finite value per angle for each curve (listed as a problem)."""
+    path = os.path.join(d, FIGURE1_FILE)
+    if not os.path.exists(path):
+        return None
+    doc = read_json(path, problems, 'Figure 1 data', name)
+    if doc is None:
+        return None
+    angles = doc.get('angle_deg') if isinstance(doc, dict) else None
+    mats = doc.get('materials') if isinstance(doc, dict) else None
+    ok = isinstance(angles, list) and angles and all(finite(a) for a in angles) and isinstance(mats, list)
+    for m in mats if ok else []:
+        ok = ok and isinstance(m, dict) and isinstance(m.get('name'), str)
+        for key in ('model', 'physics'):
+            v = m.get(key) if isinstance(m, dict) else None
+            ok = ok and isinstance(v, list) and len(v) == len(angles) and all(finite(x) for x in v)
+    if not ok:
+        problems.add(
+            path,
+            'Figure 1 data without one finite value per angle for each curve; re-run ' 'reflcheck eval materials SCENE',
+            name,
+        )
+        return None
+    return {'angle_deg': angles, 'value': str(doc.get('value') or ''), 'materials': mats}
 
 
 def load_fits(d, problems, name):

@@ -433,3 +433,23 @@ def stability_html(R):
 
 def figure1_html(R):
     return render('figure1_page.html', 'figure1', R=R)
+
+
+# The angles the scene's Figure 1 page lists as numbers beside its plot (degrees).
+FIGURE1_TABLE_DEG = (0, 30, 45, 60, 75, 85, 90)
+
+
+def figure1_scene_html(R, s, svg):
+    """Figure 1 of a scene's own materials: the plot and, at FIGURE1_TABLE_DEG, each material's
+    model and physics reflectance (the angles the data holds, to 1e-6 degree)."""
+    f1 = s['figure1']
+    cols = []
+    for deg in FIGURE1_TABLE_DEG:
+        hit = [i for i, a in enumerate(f1['angle_deg']) if abs(a - deg) < 1e-6]
+        if hit:
+            cols.append((deg, hit[0]))
+    rows = [
+        dict(m, points=[(m['model'][i], m['physics'][i], m['model'][i] - m['physics'][i]) for _, i in cols])
+        for m in f1['materials']
+    ]
+    return render('figure1_scene.html', 'figure1', R=R, s=s, svg=svg, cols=[d for d, _ in cols], rows=rows, f1=f1)

@@ -153,6 +153,27 @@ def plot_angles(R, s, tmpdir, problems):
     return out
 
 
+def plot_figure1(R, s, tmpdir, problems):
+    """Figure 1 of the scene's own materials as plots/figure1-<scene>.svg: per material its model's
+    reflectance against angle (solid) and its physics' (dashed, same colour); None without data."""
+    f1 = s.get('figure1')
+    if not f1 or not f1['materials']:
+        return None
+    mats = f1['materials']
+    dat = os.path.join(tmpdir, f'figure1-{safe_name(s["name"])}.dat')
+    header = ['angle'] + [plot_id(f'{m["name"]}:{k}') for m in mats for k in ('model', 'physics')]
+    rows = [[a] + [m[k][i] for m in mats for k in ('model', 'physics')] for i, a in enumerate(f1['angle_deg'])]
+    write_table(dat, header, rows)
+    svg = os.path.join(R['dir'], 'plots', f'figure1-{safe_name(s["name"])}.svg')
+    params = {
+        'datafile': dat,
+        'nmat': len(mats),
+        'height': 340 + 16 * len(mats),
+        'ptitle': f'{s["name"]}: reflectance against angle, model (solid) and physics (dashed)',
+    }
+    return os.path.relpath(svg, R['dir']) if run_gnuplot('figure1_scene.gp', params, svg, problems) else None
+
+
 def plot_trends(R, history, tmpdir, problems):
     out = {}
     for s in R['scenes']:
