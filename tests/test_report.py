@@ -920,3 +920,19 @@ def test_figure1_of_a_scenes_own_materials(tmp_path):
         titles = re.findall(r'<g id="gnuplot_plot_\d+" ><title>([a-z]+_(?:model|physics))</title>', svg)
         assert sorted(titles) == ['glass_model', 'glass_physics', 'plastic_model', 'plastic_physics'], titles
         assert 'src="plots/figure1-alpha.svg"' in html
+
+
+def test_scene_page_says_which_gate_applied(tmp_path):
+    """compare.json's per-size gate (size, own or shared levels, the figure it was sized on) is on
+    the scene page beside the threshold."""
+    run = make_run(str(tmp_path), RUN1)
+    cpath = os.path.join(run, 'alpha', 'compare.json')
+    comp = json.loads(read(cpath))
+    t = comp['comparisons'][0]['thresholds'][0]
+    t.update(size='full', levels='full', loose='', sized={'figure': 0.000706, 'size': 'full', 'run': 'n1'})
+    with open(cpath, 'w', encoding='utf-8') as f:
+        json.dump(comp, f)
+    r = run_report('--run', run)
+    assert r.returncode == 0, r.stderr
+    page = read(os.path.join(run, 'scene-alpha.html'))
+    assert 'full size, its own levels; sized on <span class="mono">0.000706</span> full (n1)' in page
