@@ -829,7 +829,20 @@ static rc_status sf_lights(sf_ctx *c, yaml_node_t *n, scene *s)
     return RC_OK;
 }
 
-enum { MK_ALBEDO, MK_IOR, MK_CONDUCTOR, MK_ROUGHNESS, MK_MODEL, MK_D3D, MK_D9, MK_CT, MK_TEXTURE, MK_ASSET, MK_COUNT };
+enum {
+    MK_ALBEDO,
+    MK_IOR,
+    MK_CONDUCTOR,
+    MK_ROUGHNESS,
+    MK_MODEL,
+    MK_D3D,
+    MK_D9,
+    MK_CT,
+    MK_TEXTURE,
+    MK_ASSET,
+    MK_THIN,
+    MK_COUNT
+};
 
 static rc_status sf_d3d(sf_ctx *c, yaml_node_t *n, const char *path, d3d_params *d, int *diffuse_given,
                         yaml_node_t *state_node[3])
@@ -911,16 +924,24 @@ static rc_status sf_dissolve(sf_ctx *c, yaml_node_t *n, const char *path, d3d9cl
 static rc_status sf_d9(sf_ctx *c, yaml_node_t *n, const char *path, d3d9client_params *d, int *r0_given, int *m_given,
                        yaml_node_t **dissolve_node)
 {
-    static const char *const keys[] = {"p",    "r0",        "m",     "reflect", "fresnel_colour",
-                                       "norm", "sun_angle", "alpha", "dissolve"};
+    static const char *const keys[] = {"p",         "r0",    "m",        "reflect",     "fresnel_colour", "norm",
+                                       "sun_angle", "alpha", "dissolve", "texel_alpha", "blend"};
     static const char *const norms[] = {"max", "mean", "luminance", "euclid"};
-    sf_kv f[9];
+    static const char *const texel_modes[] = {"multiply", "material", "texel"};
+    sf_kv f[11];
     char child[SF_PATHLEN];
     rc_status rc;
     int e;
-    if ((rc = sf_map(c, n, path, keys, 9, f)))
+    if ((rc = sf_map(c, n, path, keys, 11, f)))
         return rc;
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    if (f[9].v) {
+        if ((rc = sf_enum(c, f[9].v, SF_CHILD("texel_alpha"), texel_modes, 3, &e)))
+            return rc;
+        d->texel_alpha = (texel_alpha_mode)e;
+    }
+    if (f[10].v && (rc = sf_bool(c, f[10].v, SF_CHILD("blend"), &d->blend)))
+        return rc;
     if (f[0].v && (rc = sf_float(c, f[0].v, SF_CHILD("p"), 0.0, INFINITY, 0, "a finite power >= 0", &d->p)))
         return rc;
     if (f[1].v && (rc = sf_float(c, f[1].v, SF_CHILD("r0"), 0.0, 1.0, 0, "R0 in [0, 1]", &d->r0)))
@@ -1094,8 +1115,8 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
 
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
-                                               "d3d",    "d3d9client", "cook_torrance", "texture",   "asset"};
+    static const char *const keys[MK_COUNT] = {"albedo",     "ior",           "conductor", "roughness", "model", "d3d",
+                                               "d3d9client", "cook_torrance", "texture",   "asset",     "thin"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
@@ -1136,6 +1157,8 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     }
     if (f[MK_ROUGHNESS].v && (rc = sf_float(c, f[MK_ROUGHNESS].v, SF_CHILD("roughness"), 0.0, INFINITY, 0,
                                             "a finite Beckmann roughness >= 0", &m->roughness)))
+        return rc;
+    if (f[MK_THIN].v && (rc = sf_bool(c, f[MK_THIN].v, SF_CHILD("thin"), &m->thin)))
         return rc;
     if (f[MK_MODEL].v) {
         if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 3, &e)))
@@ -1190,6 +1213,19 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                              "dissolve");
     }
 
+    /* A thin sheet is a smooth dielectric pane (its closed form, docs/physics.md); blending is
+     * the D3D9Client's eq. (7) at work, so only that model's alpha means a coverage. */
+    if (m->thin && (m->conductor || m->roughness != 0.0f))
+        return sf_fail(c, RC_ERR_RANGE, f[MK_THIN].v, (sf_child(child, path, "thin"), child),
+                       "a thin sheet is a smooth dielectric pane; allowed: thin: true with ior (no conductor) "
+                       "and roughness: 0, or thin: false");
+    if (m->d9.blend && m->model != MODEL_D3D9CLIENT) {
+        sf_child(sub, path, "d3d9client");
+        sf_child(child, sub, "blend");
+        return sf_fail(c, RC_ERR_RANGE, f[MK_D9].v, child,
+                       "blend applies to model d3d9client only (its alpha is eq. 7); allowed: model: d3d9client, "
+                       "or blend: false");
+    }
     /* Derived defaults, after the whole material, so key order in the file does not matter. */
     if (!diffuse_given)
         m->d3d.diffuse = m->albedo;

@@ -64,6 +64,16 @@ void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diff
     out->alpha = (isnan(diffuse_alpha) || isnan(rn)) ? NAN : formula_d3d9_alpha_f(diffuse_alpha, rn);
 }
 
+float d3d9client_diffuse_alpha(const d3d9client_params *p, float texel_a)
+{
+    switch (p->texel_alpha) {
+    case TEXEL_ALPHA_MATERIAL: return p->alpha;
+    case TEXEL_ALPHA_TEXEL: return texel_a;
+    case TEXEL_ALPHA_MULTIPLY:
+    default: return p->alpha * texel_a;
+    }
+}
+
 int d3d9client_dissolve_on(const material *m)
 {
     return m->model == MODEL_D3D9CLIENT && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&

@@ -14,6 +14,8 @@
  * formula_colour_norm), shared with the SIMD lanes and the stability reference.
  * Pure functions; every finite argument gives a finite result (sums are formed in double
  * and saturated to +-FLT_MAX); a NaN argument propagates.
+ * Blend (p->blend, D3D's SRCALPHA/INVSRCALPHA; model/render.h composites):
+ *   out = c_rgb * a + behind * (1 - a),  a = render_blend_alpha(r.alpha): c_a clamped to [0, 1]
  * Dissolve (seed 000, our reading: docs/dissolve.md):
  *   if (d3d9client_dissolve_on(mat))
  *       dir = v3_add(reflect(-V, N), d3d9client_dissolve_offset(&mat->d9, u, v));   then phi = env(dir)
@@ -52,6 +54,10 @@ typedef struct {
  * the main light, read only when p->sun_angle (clamped the same way in (8)). */
 void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diffuse_alpha, vec3 env_radiance_phi,
                         float n_v, float n_sun, d3d9client_result *out);
+
+/* d_a of eq. (7) on a textured material whose diffuse texel has alpha texel_a, as p->texel_alpha
+ * says: d_a x texel_a (multiply, the default), d_a (material) or texel_a (texel). */
+float d3d9client_diffuse_alpha(const d3d9client_params *p, float texel_a);
 
 /* Whether a material's reflection is dissolved: model d3d9client, scale and strength both > 0
  * (either 0 turns the effect off, seed 000), and a diffuse texture, the seed's condition (the

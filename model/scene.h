@@ -56,6 +56,9 @@ typedef struct {
 
 typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
 typedef enum { NORM_MAX, NORM_MEAN, NORM_LUMINANCE, NORM_EUCLID } colour_norm;
+/* d_a of eq. (7) on a textured material: the material alpha times the diffuse texel's alpha
+ * (the default), the material alpha alone, or the texel's alpha alone. */
+typedef enum { TEXEL_ALPHA_MULTIPLY, TEXEL_ALPHA_MATERIAL, TEXEL_ALPHA_TEXEL } texel_alpha_mode;
 typedef enum { CT_WALTER, CT_CT1982 } ct_normalisation;
 typedef enum { G_VCAVITY, G_SMITH_WALTER, G_SMITH_EXACT } ct_geometry;
 typedef enum { F_SCHLICK, F_ONE, F_EXACT } ct_fresnel;
@@ -92,14 +95,19 @@ typedef struct {
 } d3d_params;
 
 typedef struct {
-    float p;             /* fresnel power, default 3 */
-    float r0;            /* offset, default ((1-n)/(1+n))^2 from the material ior */
-    float m;             /* multiplier, default 1 - r0 */
-    vec3 reflect;        /* lambda, metallic reflect colour, default 0 */
-    vec3 fresnel_colour; /* s, default white */
-    colour_norm norm;    /* |lambda| and |R_tot|, default max */
-    int sun_angle;       /* equation (8), default 0 */
-    float alpha;         /* d_a, the material/texture alpha of equation (7), default 1 */
+    float p;                      /* fresnel power, default 3 */
+    float r0;                     /* offset, default ((1-n)/(1+n))^2 from the material ior */
+    float m;                      /* multiplier, default 1 - r0 */
+    vec3 reflect;                 /* lambda, metallic reflect colour, default 0 */
+    vec3 fresnel_colour;          /* s, default white */
+    colour_norm norm;             /* |lambda| and |R_tot|, default max */
+    int sun_angle;                /* equation (8), default 0 */
+    float alpha;                  /* d_a, the material/texture alpha of equation (7), default 1 */
+    texel_alpha_mode texel_alpha; /* how a diffuse texel's alpha enters d_a, default multiply */
+    /* 1 = drawn with D3D's SRCALPHA/INVSRCALPHA blend over what lies behind (model/render.h),
+     * after the opaque objects, back to front, without depth write; default 0 (opaque: c_a is
+     * only written into the image's A layer). */
+    int blend;
     /* Dissolve (seed 000, docs/dissolve.md): noise scale ("particle size") and strength, both
      * default 0 (off; either 0 turns it off); only on a material with a diffuse texture. */
     float dissolve_scale, dissolve_strength;
@@ -133,6 +141,9 @@ typedef struct {
      * specular at all: a d3d material without a specular colour and without a roughness written
      * (scene_file.c), so that no reference adds a highlight the user never asked for. Default 1. */
     int lobe;
+    /* 1 = a thin dielectric sheet of index ior (a window pane): both faces, every internal
+     * reflection, no absorption; what validate references render for a blended pane. Default 0. */
+    int thin;
     model_kind model;
     d3d_params d3d; /* also the lit diffuse d of the D3D9Client model */
     d3d9client_params d9;

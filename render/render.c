@@ -7,6 +7,7 @@
 #include <time.h>
 
 #include "d3d.h"
+#include "d3d9client.h"
 #include "fileio.h"
 #include "raster.h"
 #include "shade.h"
@@ -131,6 +132,7 @@ typedef struct {
     int span_px;                                          /* pixels in the current span */
     int centre_lo, centre_hi;                             /* slots [lo, hi): the sample nearest each pixel centre */
     int covered[RENDER_SPAN];                             /* per pixel: covered samples */
+    unsigned char blend_hit[RENDER_SPAN];                 /* per slot: a blended object covers a background sample */
     int object[RENDER_SPAN];                              /* per pixel: object at the centre sample, -1 for none */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
     float centre_nh[RENDER_SPAN];                         /* per pixel: N.H (first light) there */
@@ -138,10 +140,22 @@ typedef struct {
     double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
 } render_scratch;
 
+/* One blended object's samples over the whole frame (width k by height k, row-major, top row
+ * first): what the rasterizer finds of that object alone, with the scene mesh's triangles. */
+typedef struct {
+    int obj;
+    float depth; /* the view depth of its vertices' mean: the back-to-front order */
+    raster_sample *samples;
+} render_blend_layer;
+
 typedef struct {
     const scene *s;
-    const mesh *m;
+    const mesh *m; /* the opaque objects' triangles (all of them when nothing is blended) */
     const render_camera *cam;
+    const mesh *m_all;                /* the scene's mesh: the blended layers' triangles index it */
+    const raster_vertex *clip;        /* per vertex: clip coordinates, w the view depth */
+    const render_blend_layer *layers; /* back to front */
+    int n_blend;
     shade_context sc;
     const shade_plan *plans;         /* one per object */
     const shade_terms *vertex_terms; /* Gouraud: per vertex, NULL where per-pixel */
@@ -462,6 +476,9 @@ static void render_flush_background(const render_job *j, render_scratch *w)
     w->bg_n = 0;
 }
 
+static void render_span_blend(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
+                              int px0, int px1);
+
 /* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
  * samples queued per object and shaded a batch at a time, background rays likewise. */
 static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
@@ -531,6 +548,140 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
     render_flush_background(j, w);
+    if (j->n_blend > 0)
+        render_span_blend(j, tile, w, py0, py1, px0, px1);
+}
+
+float render_blend_alpha(float a)
+{
+    if (isnan(a))
+        return a; /* fminf/fmaxf would drop a NaN, which must show in the image */
+    return fminf(fmaxf(a, 0.0f), 1.0f);
+}
+
+/* The view depth of a sample of triangle tri of m: the world point is linear in the
+ * perspective-correct weights, and the view depth w is linear in the world point. */
+static float render_sample_depth(const mesh *m, const raster_vertex *clip, int32_t tri, float b1, float b2)
+{
+    const uint32_t *t = m->idx + 3 * (size_t)tri;
+    return clip[t[0]].w * (1.0f - b1 - b2) + clip[t[1]].w * b1 + clip[t[2]].w * b2;
+}
+
+/* The angle channels at centre slot q from lane i of the batch just shaded, as
+ * render_flush_object forms them for an opaque sample. */
+static void render_blend_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
+{
+    vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
+    if (j->normal_length[obj] != NULL)
+        nn = v3_norm(nn);
+    const int px = q - w->centre_lo;
+    const vec3 v = shade_lane_get(&w->in.v, i);
+    w->centre_nv[px] = v3_dot(nn, v);
+    w->centre_nl[px] = 0.0f;
+    w->centre_nh[px] = 0.0f;
+    if (j->s->n_lights > 0) {
+        vec3 to_l, e_perp;
+        float atten;
+        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+        w->centre_nl[px] = v3_dot(nn, to_l);
+        const vec3 hv = v3_add(to_l, v);
+        if (v3_dot(hv, hv) > 1e-12f) /* as render_flush_object: no half vector, no N.H bin */
+            w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
+    }
+}
+
+/* x a + y (1 - a) into slot q of three planes. */
+static void render_blend3(float (*plane)[RENDER_PLANE], int q, float x, float y, float z, float a)
+{
+    const float b = 1.0f - a;
+    plane[0][q] = x * a + plane[0][q] * b;
+    plane[1][q] = y * a + plane[1][q] * b;
+    plane[2][q] = z * a + plane[2][q] * b;
+}
+
+/* A blended object's queued samples: shaded as render_flush_object shades them, then blended
+ * over what the slots hold (D3D's SRCALPHA/INVSRCALPHA, the same factors on alpha, as with
+ * D3DRS_SEPARATEALPHABLENDENABLE false). */
+static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
+{
+    render_queue *qu = &w->queue[obj];
+    shade_batch_out *r = &w->res;
+    const int n = qu->n;
+    if (n == 0)
+        return;
+    w->in.n = render_padded(n);
+    for (int i = n; i < w->in.n; i++) {
+        qu->tri[i] = qu->tri[n - 1];
+        qu->b1[i] = qu->b1[n - 1];
+        qu->b2[i] = qu->b2[n - 1];
+    }
+    double t0 = render_clock(w);
+    render_interpolate(j->m_all, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured,
+                       j->two_sided[obj], &w->verts, &w->in);
+    double t1 = render_clock(w);
+    shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
+    double t2 = render_clock(w);
+    w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
+    w->stage[RENDER_STAGE_SHADE] += t2 - t1;
+    render_batch_beauty(r, w->in.n, &w->beauty);
+    const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
+    for (int i = 0; i < n; i++) {
+        const int q = qu->slot[i];
+        const float a = render_blend_alpha(r->alpha[i]);
+        render_blend3(&w->plane[RENDER_P_BEAUTY], q, w->beauty.x[i], w->beauty.y[i], w->beauty.z[i], a);
+        w->plane[RENDER_P_ALPHA][q] = a * a + w->plane[RENDER_P_ALPHA][q] * (1.0f - a);
+        for (int t = 0; t < 4; t++)
+            if (j->term_layers & (1u << t))
+                render_blend3(&w->plane[RENDER_P_TERMS + 3 * t], q, term[t]->x[i], term[t]->y[i], term[t]->z[i], a);
+        if (q >= w->centre_lo && q < w->centre_hi)
+            render_blend_angles(j, w, obj, i, q);
+    }
+    qu->n = 0;
+}
+
+/* The blended objects over the span's shaded opaque samples, back to front: a sample of a layer
+ * is drawn where it lies no farther than the opaque sample (D3DCMP_LESSEQUAL; the background is
+ * infinitely far), and writes no depth. */
+static void render_span_blend(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
+                              int px0, int px1)
+{
+    const int k = tile->k, stride = tile->w * k, c = k / 2;
+    const size_t frame_w = (size_t)j->out->width * (size_t)k;
+    const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
+    memset(w->blend_hit, 0, (size_t)span_px * (size_t)(k * k));
+    for (int l = 0; l < j->n_blend; l++) {
+        const int obj = j->layers[l].obj;
+        render_queue *qu = &w->queue[obj];
+        for (int pi = 0; pi < span_px; pi++) {
+            const int py = py0 + pi / span_w, px = px0 + pi % span_w;
+            const raster_sample *pix =
+                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (px - tile->x0) * k;
+            const raster_sample *lay = j->layers[l].samples + (size_t)py * (size_t)k * frame_w + (size_t)px * (size_t)k;
+            for (int t = 0; t < k; t++)
+                for (int s = 0; s < k; s++) {
+                    const raster_sample *bs = &lay[(size_t)t * frame_w + (size_t)s];
+                    const raster_sample *rs = &pix[(size_t)t * (size_t)stride + (size_t)s];
+                    if (bs->tri < 0 ||
+                        (rs->tri >= 0 && render_sample_depth(j->m_all, j->clip, bs->tri, bs->b1, bs->b2) >
+                                             render_sample_depth(j->m, j->clip, rs->tri, rs->b1, rs->b2)))
+                        continue;
+                    const int q = (t * k + s) * span_px + pi;
+                    if (rs->tri < 0 && !w->blend_hit[q]) {
+                        w->blend_hit[q] = 1;
+                        w->covered[pi]++;
+                    }
+                    if (t == c && s == c)
+                        w->object[pi] = obj;
+                    qu->tri[qu->n] = bs->tri;
+                    qu->b1[qu->n] = bs->b1;
+                    qu->b2[qu->n] = bs->b2;
+                    qu->slot[qu->n++] = (uint16_t)q;
+                    if (qu->n == SHADE_BATCH)
+                        render_flush_blend(j, w, obj);
+                }
+        }
+        render_flush_blend(j, w, obj);
+    }
 }
 
 /* The running sums of the resolve, per pixel: beauty, its square, alpha, then the terms. */
@@ -668,6 +819,120 @@ static void render_tile(void *user, const raster_tile *tile)
     j->shaded[tile->thread] += shaded;
 }
 
+/* Whether each object is blended: the caller's flags, else (the scene's own models) its
+ * material's d3d9client.blend; a caller's plans without flags blend nothing. Returns the count. */
+static int render_blend_flags(const scene *s, const render_options *o, unsigned char *flags)
+{
+    int n = 0;
+    for (int i = 0; i < s->n_objects; i++) {
+        const material *mat = &s->materials[s->objects[i].material];
+        if (o->blend != NULL)
+            flags[i] = o->blend[i] != 0;
+        else
+            flags[i] = (unsigned char)(o->plans == NULL && mat->model == MODEL_D3D9CLIENT && mat->d9.blend);
+        n += flags[i];
+    }
+    return n;
+}
+
+typedef struct {
+    raster_sample *dst;
+    const int32_t *tri_map; /* the layer's triangle -> the scene mesh's */
+    size_t frame_w;
+} render_blend_store;
+
+/* A tile of one blended object's own frame into its layer. */
+static void render_blend_store_tile(void *user, const raster_tile *tile)
+{
+    const render_blend_store *b = user;
+    const size_t stride = (size_t)tile->w * (size_t)tile->k;
+    for (int y = 0; y < tile->h * tile->k; y++) {
+        raster_sample *dst =
+            b->dst + ((size_t)tile->y0 * (size_t)tile->k + (size_t)y) * b->frame_w + (size_t)tile->x0 * (size_t)tile->k;
+        const raster_sample *src = tile->samples + (size_t)y * stride;
+        for (size_t x = 0; x < stride; x++) {
+            dst[x] = src[x];
+            if (src[x].tri >= 0)
+                dst[x].tri = b->tri_map[src[x].tri];
+        }
+    }
+}
+
+static int render_layer_cmp(const void *pa, const void *pb)
+{
+    const render_blend_layer *a = pa, *b = pb;
+    if (a->depth != b->depth)
+        return a->depth > b->depth ? -1 : 1; /* farther first */
+    return a->obj - b->obj;
+}
+
+/* One blended object's layer: its triangles alone through the rasterizer. */
+static rc_status render_blend_layer_make(const mesh *m, const raster_vertex *rv, const raster_options *ro, int obj,
+                                         uint32_t *idx, int32_t *map, render_blend_layer *out)
+{
+    int n = 0;
+    double depth = 0.0;
+    for (int t = 0; t < m->n_tris; t++) {
+        if (m->tri_object[t] != obj)
+            continue;
+        for (int c = 0; c < 3; c++) {
+            idx[3 * n + c] = m->idx[3 * (size_t)t + (size_t)c];
+            depth += rv[idx[3 * n + c]].w;
+        }
+        map[n++] = t;
+    }
+    const size_t frame_w = (size_t)ro->width * (size_t)ro->supersample;
+    const size_t count = frame_w * (size_t)ro->height * (size_t)ro->supersample;
+    out->obj = obj;
+    out->depth = n > 0 ? (float)(depth / (3.0 * n)) : 0.0f;
+    out->samples = malloc(count * sizeof *out->samples);
+    if (out->samples == NULL)
+        return RC_ERR_NOMEM;
+    for (size_t i = 0; i < count; i++)
+        out->samples[i] = (raster_sample){-1, 0.0f, 0.0f}; /* tiles without triangles are not called */
+    render_blend_store st = {out->samples, map, frame_w};
+    return raster_draw(rv, m->n_verts, idx, n, ro, render_blend_store_tile, &st);
+}
+
+/* The opaque mesh (m's arrays with the opaque triangles only, in their order, so depth ties
+ * resolve as before) and one layer per blended object, back to front. On error the caller frees
+ * what render_blend_free frees. */
+static rc_status render_blend_prepare(const mesh *m, const raster_vertex *rv, const raster_options *ro,
+                                      const unsigned char *flags, int n_objects, mesh *opaque,
+                                      render_blend_layer *layers, int *n_layers)
+{
+    *opaque = *m;
+    opaque->n_tris = 0;
+    size_t nt = (size_t)(m->n_tris > 0 ? m->n_tris : 1);
+    opaque->idx = malloc(3 * nt * sizeof *opaque->idx);
+    opaque->tri_object = malloc(nt * sizeof *opaque->tri_object);
+    uint32_t *idx = malloc(3 * nt * sizeof *idx);
+    int32_t *map = malloc(nt * sizeof *map);
+    rc_status st = opaque->idx && opaque->tri_object && idx && map ? RC_OK : RC_ERR_NOMEM;
+    for (int t = 0; st == RC_OK && t < m->n_tris; t++) {
+        if (flags[m->tri_object[t]])
+            continue;
+        memcpy(opaque->idx + 3 * (size_t)opaque->n_tris, m->idx + 3 * (size_t)t, 3 * sizeof *idx);
+        opaque->tri_object[opaque->n_tris++] = m->tri_object[t];
+    }
+    for (int o = 0; st == RC_OK && o < n_objects; o++)
+        if (flags[o])
+            st = render_blend_layer_make(m, rv, ro, o, idx, map, &layers[(*n_layers)++]);
+    free(idx);
+    free(map);
+    if (st == RC_OK)
+        qsort(layers, (size_t)*n_layers, sizeof *layers, render_layer_cmp);
+    return st;
+}
+
+static void render_blend_free(mesh *opaque, render_blend_layer *layers, int n_layers)
+{
+    free(opaque->idx);
+    free(opaque->tri_object);
+    for (int i = 0; i < n_layers; i++)
+        free(layers[i].samples);
+}
+
 void render_image_free(render_image *img)
 {
     for (int c = 0; c < RENDER_CHANNELS; c++) {
@@ -750,6 +1015,12 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
     total += nt * (4.0 * sizeof(uint16_t) + sizeof(uint32_t));
     double tiles = ceil(w / 16.0) * ceil(h / 16.0);
     total += fmin(tiles * 16.0 * raster_thread_count(&ro), (double)(1 << 22)) * 12.0 + tiles * sizeof(size_t);
+    /* Blended objects: a frame of samples each, the opaque triangles' copy and a layer's list. */
+    unsigned char blend[SCENE_MAX_OBJECTS];
+    int n_blend = render_blend_flags(s, opt, blend);
+    if (n_blend > 0)
+        total += n_blend * w * k * h * k * sizeof(raster_sample) +
+                 nt * (2.0 * 3.0 * sizeof(uint32_t) + sizeof(int) + sizeof(int32_t));
     *bytes = total;
     if (layers != NULL)
         *layers = n_layers;
@@ -918,9 +1189,26 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     for (int i = 0; i < n_threads; i++)
         scratch[i].profile = opt->profile != NULL;
 
+    /* Blended objects: each rasterized alone into its layer first; the frame's own draw then
+     * holds the opaque triangles only, and every span blends the layers over them. */
+    unsigned char blend[SCENE_MAX_OBJECTS];
+    render_blend_layer blend_layers[SCENE_MAX_OBJECTS];
+    mesh opaque = *m;
+    int n_layers = 0, any_blend = render_blend_flags(s, opt, blend) > 0;
+    if (any_blend)
+        st = render_blend_prepare(m, rv, &ro, blend, s->n_objects, &opaque, blend_layers, &n_layers);
+    j.m = &opaque;
+    j.m_all = m;
+    j.clip = rv;
+    j.layers = blend_layers;
+    j.n_blend = n_layers;
+
     double t_draw = render_now();
-    st = raster_draw(rv, m->n_verts, m->idx, m->n_tris, &ro, render_tile, &j);
+    if (st == RC_OK)
+        st = raster_draw(rv, m->n_verts, opaque.idx, opaque.n_tris, &ro, render_tile, &j);
     t_draw = render_now() - t_draw;
+    if (any_blend)
+        render_blend_free(&opaque, blend_layers, n_layers);
     for (int i = 0; i < n_threads; i++)
         out->shaded_samples += shaded[i];
     if (opt->profile != NULL && st == RC_OK) {

@@ -11,6 +11,15 @@
  * in the scene's radiometric units; each pixel is the box average of its k x k samples.
  * R, G, B = diffuse + specular + reflection + emission, or the environment where no surface is
  * (the background is in no AOV). A = coverage times the model's alpha (D3D9Client eq. 7).
+ * Blended objects (a D3D9Client material with `blend`, or render_options.blend) are composited
+ * per sample with D3D's SRCALPHA/INVSRCALPHA blend, as a D3D application draws a window pane:
+ * the opaque objects first (depth-tested and written), then the blended objects one by one back
+ * to front (by the view depth of their vertices' mean), each depth-tested against the opaque
+ * depth and never writing depth. Every layer (R, G, B, A and the terms) becomes
+ * x a + behind (1 - a), a = render_blend_alpha(the object's alpha); within one blended object
+ * only its nearest surface per sample is drawn (a flat or convex pane). object and the angle
+ * channels are those of the nearest surface drawn. Without blended objects the frame is
+ * bit-identical to one made before blending existed.
  * "object" is the index of the object at the sample nearest the pixel centre, -1 for none;
  * "ndotv", "ndotl" and "ndoth" are N.V, N.L and N.H there, 0 for none: the axes on which the
  * report plots error against angle. L is the first light's direction (the main light: one fixed
@@ -116,6 +125,8 @@ typedef struct {
                                     never per vertex */
     const texture_set *textures; /* the materials' textures (harness/frame.h frame_textures_load);
                                     NULL = none, and then a textured material is refused */
+    const unsigned char *blend;  /* NULL = each object's material's d3d9client.blend; else one flag per
+                                    object (harness/renderers/exact: its thin sheets) */
     int reuse_image;             /* 1 = out holds an earlier render_scene result (or is zeroed): its
                                     layers of this frame's size are cleared and reused, as an engine
                                     keeps its framebuffers between frames (first-touch page faults of
@@ -138,6 +149,11 @@ void render_image_free(render_image *img);
 /* Bytes render_scene would hold for this frame (env may be NULL), and its layer count. */
 void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *o, double *bytes,
                             int *layers);
+
+/* The blend unit's source alpha: a clamped to [0, 1] (an alpha above 1 would make 1 - a < 0 and
+ * subtract what lies behind, which no fixed-point render target can hold); NaN stays NaN. The
+ * colour is not clamped (a float render target). */
+float render_blend_alpha(float a);
 
 /* Camera: world point to raster clip coordinates (render/raster.h); and the world ray through a
  * screen point (pixel units, row 0 at the top). Exposed for tests, the translators and the

@@ -39,9 +39,10 @@ static inline void shade_texture_mul(const shade_plan *p, const float *dif, cons
         t->diffuse = v3_mul(t->diffuse, c);
         t->emission = v3_mul(t->emission, c);
         if (p->mat->model == MODEL_D3D9CLIENT) {
-            /* eq. (7) again with the texture's alpha: |R_tot| from the reflection term it made. */
+            /* eq. (7) again with the texture's alpha (d_a as texel_alpha says): |R_tot| from the
+             * reflection term it made. */
             float rn = d3d9client_colour_norm(t->reflection, p->mat->d9.norm);
-            t->alpha = formula_d3d9_alpha_f(p->mat->d9.alpha * dif[3], rn);
+            t->alpha = formula_d3d9_alpha_f(d3d9client_diffuse_alpha(&p->mat->d9, dif[3]), rn);
         } else {
             t->alpha *= dif[3];
         }

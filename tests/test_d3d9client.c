@@ -193,13 +193,26 @@ static void test_extremes_finite(void **state)
         fail_msg("%zu of %zu evaluations were not finite", bad, n);
 }
 
+/* texel_alpha: d_a of eq. (7) on a textured material, material alpha 0.5 and texel alpha 0.25. */
+static void test_texel_alpha(void **state)
+{
+    (void)state;
+    d3d9client_params p = {.alpha = 0.5f};
+    p.texel_alpha = TEXEL_ALPHA_MULTIPLY;
+    assert_true(d3d9client_diffuse_alpha(&p, 0.25f) == 0.125f);
+    p.texel_alpha = TEXEL_ALPHA_MATERIAL;
+    assert_true(d3d9client_diffuse_alpha(&p, 0.25f) == 0.5f);
+    p.texel_alpha = TEXEL_ALPHA_TEXEL;
+    assert_true(d3d9client_diffuse_alpha(&p, 0.25f) == 0.25f);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_colour_norm),     cmocka_unit_test(test_combine_point),
         cmocka_unit_test(test_fresnel_ends),    cmocka_unit_test(test_disabled),
         cmocka_unit_test(test_povray_form),     cmocka_unit_test(test_euclid_negative_weight),
-        cmocka_unit_test(test_extremes_finite),
+        cmocka_unit_test(test_extremes_finite), cmocka_unit_test(test_texel_alpha),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
