@@ -155,14 +155,16 @@ rc_status physical_plan_make(const shade_context *c, const material *m, const ph
     p->batch = shade_batch_scalar;
     p->terms = (diffuse ? SHADE_TERM_DIFFUSE : 0u) | (v3_nonzero(m->d3d.emissive) ? SHADE_TERM_EMISSION : 0u);
     p->path = !m->lobe ? "physical-diffuse" : (m->roughness > 0.0f ? "physical-lobe" : "physical-mirror");
-    for (int t = 0; t < MAT_TEX_SLOTS; t++)
-        if (m->texture[t][0] != '\0') {
-            snprintf(why, whylen,
-                     "material '%s': a texture map; the physical model takes the material's constant albedo, so "
-                     "the exact reference renders untextured materials only",
-                     m->name);
-            return RC_ERR_RANGE;
-        }
+    /* A diffuse texture is the albedo varying over the surface (it multiplies the Lambert term,
+     * as Cycles' validate colours its Diffuse BSDF); a specular map scales an approximation's
+     * lobe and has no physical meaning. */
+    if (m->texture[MAT_TEX_SPECULAR][0] != '\0') {
+        snprintf(why, whylen,
+                 "material '%s': a specular texture scales an approximation's specular term and has no physical "
+                 "meaning; the exact reference renders diffuse textures only (remove texture.specular)",
+                 m->name);
+        return RC_ERR_RANGE;
+    }
     if (ph->shadows || ph->interreflection || ph->bounces > 1) {
         snprintf(why, whylen,
                  "physics: %s; the exact reference renders direct light without shadows or inter-reflection "

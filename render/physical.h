@@ -30,8 +30,8 @@
  * float range) and averaged over the k x k samples in float.
  * What needs an integral (a rough lobe reflecting an environment; an environment image on the
  * diffuse) or another light transport (shadows, inter-reflection, bounces > 1) is refused by
- * physical_plan_make with RC_ERR_RANGE and the reason in why; so is a textured material (the
- * physical intent is its constant albedo).
+ * physical_plan_make with RC_ERR_RANGE and the reason in why; so is a specular texture (it
+ * scales an approximation's lobe). A diffuse texture multiplies the albedo.
  */
 #ifndef REFLCHECK_PHYSICAL_H
 #define REFLCHECK_PHYSICAL_H
@@ -45,7 +45,7 @@
  * path, p->batch runs it lane by lane, p->params points at ph (which must outlive the plan).
  * RC_ERR_RANGE, with why naming the material or manifest key and what it would need, for
  * shadows, inter-reflection or bounces > 1, a rough lobe (m > 0) reflecting an environment, or
- * (env_diffuse) an environment image lighting a non-zero diffuse, or a texture map. */
+ * (env_diffuse) an environment image lighting a non-zero diffuse, or a specular texture map. */
 rc_status physical_plan_make(const shade_context *c, const material *m, const physics *ph, shade_plan *p, char *why,
                              size_t whylen);
 

@@ -496,6 +496,65 @@ static void test_refusals(void **state)
     fixture_free(&f);
 }
 
+/* The thin sheet's reflectance against its series summed term by term, with R_s and R_p from
+ * the angle forms (-sin(i - t)/sin(i + t), tan(i - t)/tan(i + t), Snell's law by asin), not the
+ * cosine forms exact.c uses; and the unpolarised variant likewise. */
+static double sheet_series(double r)
+{
+    double sum = r, t2 = (1.0 - r) * (1.0 - r), odd = r;
+    for (int k = 0; k < 400; k++) { /* R^(2k+1) with R <= 0.6 here: 400 terms reach 1e-80 */
+        sum += t2 * odd;
+        odd *= r * r;
+    }
+    return sum;
+}
+
+static void test_thin_sheet(void **state)
+{
+    (void)state;
+    const double n = 1.5, angles[] = {0.0, 30.0, 56.30993247402022 /* Brewster, atan 1.5 */, 75.0, 85.0};
+    for (size_t a = 0; a < sizeof angles / sizeof angles[0]; a++) {
+        double i = deg(angles[a]), t = asin(sin(i) / n), rs, rp;
+        if (angles[a] == 0.0) {
+            rs = rp = ((n - 1.0) / (n + 1.0)) * ((n - 1.0) / (n + 1.0));
+        } else {
+            rs = pow(sin(i - t) / sin(i + t), 2.0);
+            rp = pow(tan(i - t) / tan(i + t), 2.0);
+        }
+        close_rel(exact_thin_sheet_reflectance(cos(i), n), 0.5 * (sheet_series(rs) + sheet_series(rp)), 1e-12);
+        close_rel(exact_thin_sheet_reflectance_unpolarised(cos(i), n), sheet_series(0.5 * (rs + rp)), 1e-12);
+    }
+    /* Normal incidence by hand: R = 0.04, 2R/(1 + R) = 1/13. */
+    close_rel(exact_thin_sheet_reflectance(1.0, 1.5), 1.0 / 13.0, 1e-14);
+}
+
+/* A thin pane in front of an emissive quad under a constant environment L: the centre pixel,
+ * seen along the normal, is R_sheet L + (1 - R_sheet) E with R_sheet = 1/13. */
+static void test_render_thin_sheet(void **state)
+{
+    (void)state;
+    fixture f;
+    fixture_load(&f, "image: {width: 3, height: 3, supersample: 1}\n"
+                     "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 20}\n"
+                     "environment: {constant: [2, 1, 0.5]}\n"
+                     "materials:\n  glass: {albedo: [0, 0, 0], ior: 1.5, roughness: 0, thin: true,\n"
+                     "    model: d3d9client, d3d9client: {blend: true}}\n"
+                     "  back: {albedo: [0, 0, 0], model: d3d, d3d: {emissive: [0.2, 0.4, 0.6]}}\n"
+                     "objects:\n  - {shape: quad, size: [4, 4], rotate: [90, 0, 0], material: back}\n"
+                     "  - {shape: quad, size: [4, 4], rotate: [90, 0, 0], center: [0, 0, 1], material: glass}\n");
+    renderer_result r;
+    exr_image img = {0};
+    render_exact(&f, ROLE_VALIDATE, &point, &r, &img);
+    assert_int_equal(r.status, RUNNER_OK);
+    const int c = 4;
+    const double R = 1.0 / 13.0, L[3] = {2, 1, 0.5}, E[3] = {0.2, 0.4, 0.6};
+    const char *ch[3] = {"R", "G", "B"};
+    for (int k = 0; k < 3; k++)
+        close_rel(exr_image_channel(&img, ch[k])[c], R * L[k] + (1.0 - R) * E[k], 1e-6);
+    exr_image_free(&img);
+    fixture_free(&f);
+}
+
 int main(void)
 {
     if (mkdtemp(tmpdir) == NULL)
@@ -510,6 +569,8 @@ int main(void)
         cmocka_unit_test(test_pixel_integral),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_bias_of_nv_tint),
+        cmocka_unit_test(test_thin_sheet),
+        cmocka_unit_test(test_render_thin_sheet),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     char p[600];

@@ -47,4 +47,17 @@ void exact_point_render_job(const renderer_job *j, renderer_result *r);
  * reflecting the environment, an environment image on the diffuse). */
 rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t errlen);
 
+/* A thin sheet (material.thin, a window pane) is drawn blended (model/render.h) with
+ *   alpha = exact_thin_sheet_reflectance(N.V, ior),   colour = the environment along reflect(-V, N)
+ * so that the pixel is R_sheet phi + (1 - R_sheet) behind: a lossless sheet transmits what it does
+ * not reflect, straight through (the sideways shift of a thin sheet is taken as 0).
+ * R_sheet per polarisation x (s, p) sums the light reflected by the front face and, between the
+ * faces, every odd number of internal reflections (the inner face reflects R_x too, Stokes):
+ *   R_x + T_x^2 R_x (1 + R_x^2 + R_x^4 + ...) = R_x + (1 - R_x)^2 R_x / (1 - R_x^2) = 2 R_x / (1 + R_x)
+ * averaged over s and p for unpolarised light; cos_i clamped to [0, 1]. */
+double exact_thin_sheet_reflectance(double cos_i, double eta);
+/* The same with the unpolarised interface reflectance F = (R_s + R_p)/2 in place of each R_x:
+ * 2F/(1 + F), what a path tracer that carries no polarisation computes (Cycles). */
+double exact_thin_sheet_reflectance_unpolarised(double cos_i, double eta);
+
 #endif
