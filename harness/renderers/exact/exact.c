@@ -52,11 +52,12 @@ static void exact_thin_shade(const shade_context *c, const shade_plan *p, vec3 x
 }
 
 /* Whether the physical model can render s's objects under ph: why names what it cannot. */
-static rc_status exact_plans(const scene *s, const env_map *env, const physics *ph, shade_plan *plans, char *why,
-                             size_t whylen)
+static rc_status exact_plans(const scene *s, const env_map *env, const texture_set *tex, const physics *ph,
+                             shade_plan *plans, char *why, size_t whylen)
 {
     shade_context c;
     shade_context_make(s, env, &c);
+    c.tex = tex; /* a diffuse texture multiplies the albedo (model/physical.h) */
     char one[400];
     for (int i = 0; i < s->n_objects; i++)
         if (physical_plan_make(&c, &s->materials[s->objects[i].material], ph, &plans[i], one, sizeof one) != RC_OK) {
@@ -91,7 +92,7 @@ rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t err
     env_map env = {.kind = s->env.kind};
     shade_plan plans[SCENE_MAX_OBJECTS];
     *rendered = s->physics;
-    return exact_plans(s, &env, &s->physics, plans, err, errlen);
+    return exact_plans(s, &env, NULL, &s->physics, plans, err, errlen);
 }
 
 void exact_render_job(const renderer_job *j, renderer_result *r)
@@ -115,7 +116,7 @@ void exact_render_job(const renderer_job *j, renderer_result *r)
         }
     shade_plan plans[SCENE_MAX_OBJECTS];
     char why[500];
-    if (exact_plans(j->s, j->env, phys, plans, why, sizeof why) != RC_OK) {
+    if (exact_plans(j->s, j->env, j->tex, phys, plans, why, sizeof why) != RC_OK) {
         renderer_fail(r, RUNNER_MISSING, "%s", why);
         return;
     }
