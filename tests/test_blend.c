@@ -28,6 +28,8 @@
 #include "frame.h"
 #include "mesh.h"
 #include "render.h"
+#include "renderers/cycles/cycles.h"
+#include "renderers/povray/povray.h"
 #include "scene_file.h"
 
 static const char scene_fmt[] = "image: {width: 3, height: 3, supersample: 1}\n"
@@ -150,13 +152,42 @@ static void test_key_refused(void **state)
     free(s);
 }
 
+/* POV-Ray and Cycles render neither the blend (twin) nor the thin sheet (validate): refused with
+ * the key named, never drawn opaque. */
+static void test_references_refuse(void **state)
+{
+    (void)state;
+    static const char text[] = "image: {width: 3, height: 3, supersample: 1}\n"
+                               "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 20}\n"
+                               "environment: {constant: [1, 1, 1]}\n"
+                               "materials:\n  g: {albedo: [0, 0, 0], roughness: 0, thin: true, model: d3d9client,\n"
+                               "    d3d9client: {blend: true}}\n"
+                               "objects:\n  - {shape: quad, size: [2, 2], rotate: [90, 0, 0], material: g}\n";
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    char err[1024];
+    assert_int_equal(scene_file_parse(text, strlen(text), "r.yaml", s, err, sizeof err), RC_OK);
+    physics ph;
+    assert_int_equal(povray_physics(s, &ph, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "thin"));
+    assert_int_equal(cycles_physics(s, &ph, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "thin"));
+    mesh m = {0};
+    assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_OK);
+    povray_options twin = {.role = ROLE_TWIN};
+    assert_int_equal(povray_write_scene(s, &m, &twin, "/tmp/reflcheck-blend-never.pov", err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "blend"));
+    mesh_free(&m);
+    free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_over_object), cmocka_unit_test(test_over_background),
         cmocka_unit_test(test_opaque),      cmocka_unit_test(test_hdr_alpha_clamped),
         cmocka_unit_test(test_depth),       cmocka_unit_test(test_render_blend_alpha),
-        cmocka_unit_test(test_key_refused),
+        cmocka_unit_test(test_key_refused), cmocka_unit_test(test_references_refuse),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

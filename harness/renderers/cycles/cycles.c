@@ -283,6 +283,13 @@ rc_status cycles_physics(const scene *s, physics *out, char *err, size_t errlen)
         const material *mat = &s->materials[mi];
         if (!scene_material_used(s, mi))
             continue;
+        if (mat->thin) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': thin (a thin glass sheet, both faces and their internal "
+                           "reflections) is not translated for Cycles; compare it with the exact reference",
+                           s->path, mi, mat->name);
+            return RC_ERR_RANGE;
+        }
         if (!(mat->roughness >= 0.0f && mat->roughness <= 1.0f)) {
             status_message(err, errlen,
                            "%s: materials[%d] '%s': roughness %g outside [0, 1]; Cycles clamps Beckmann alpha "
@@ -463,6 +470,8 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
                 ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
             : d3d9client_dissolve_on(mat)
                 ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
+            : mat->model == MODEL_D3D9CLIENT && mat->d9.blend
+                ? "d3d9client.blend (eq. 7's alpha blend; not translated for Cycles yet)"
                 : NULL;
         if (only_validate != NULL) {
             snprintf(what, sizeof what, "materials[%d] '%s': %s", mi, mat->name, only_validate);

@@ -287,6 +287,13 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                        s->path, mi, name);
         return RC_ERR_RANGE;
     }
+    if (d9 && mat->d9.blend) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': d3d9client.blend (eq. 7's alpha blend) has no POV-Ray twin: a "
+                       "pigment's transmit cannot depend on the reflected environment; judge it with role validate",
+                       s->path, mi, name);
+        return RC_ERR_RANGE;
+    }
     if (d9 && mat->d9.sun_angle) {
         status_message(err, errlen,
                        "%s: materials[%d] '%s': d3d9client.sun_angle (eq. 8) has no POV-Ray twin; "
@@ -405,6 +412,13 @@ rc_status povray_physics(const scene *s, physics *out, char *err, size_t errlen)
         const material *mat = &s->materials[mi];
         if (mat->conductor)
             return povray_conductor_refusal(s, mi, err, errlen);
+        if (mat->thin) {
+            status_message(err, errlen,
+                           "%s: materials[%d] '%s': thin (a thin glass sheet, both faces and their internal "
+                           "reflections) is not translated for POV-Ray; compare it with the exact reference",
+                           s->path, mi, mat->name);
+            return RC_ERR_RANGE;
+        }
         any_rough |= mat->lobe && mat->roughness > 0.0f;
         any_diffuse |= !povray_is_zero(mat->albedo);
     }
