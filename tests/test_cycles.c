@@ -606,6 +606,62 @@ static void test_background_constant(void **state)
     exr_image_free(&r.img);
 }
 
+/* ------------------------------------------------------------------ blend (twin) */
+
+/* D3D9Client eq. (7)'s blend (d3d9client.blend) as the twin renders it: a Mix of a Transparent
+ * BSDF and the surface, factor a = max(d_a, |R_tot|). A pane at z = 0.5 over an emissive quad at
+ * z = 0, both filling the frame, in a constant environment L = (0.5, 1, 2); the pane has
+ * p = 0, m = 0 (R = R0 = 0.2 at every angle), no diffuse, d_a = 0.1, so c = R0 L = (0.1, 0.2, 0.4),
+ * a = 0.4 and every pixel is 0.4 c + 0.6 E, E = (0.2, 0.4, 0.6): (0.16, 0.32, 0.52), by hand as in
+ * tests/test_blend.c. The image mean is compared, within 4 standard errors of the pixels' spread
+ * plus 2e-4 relative. */
+static void test_blend_twin(void **state)
+{
+    (void)state;
+    scene s;
+    mesh m;
+    fixture_mesh f;
+    base_scene(&s, 32, 24);
+    memset(&m, 0, sizeof m);
+    add_quad(&m, &f, v3(-3.0f, -3.0f, 0.0f), v3(6.0f, 0.0f, 0.0f), v3(0.0f, 6.0f, 0.0f), 1);
+    add_quad(&m, &f, v3(-3.0f, -3.0f, 0.5f), v3(6.0f, 0.0f, 0.0f), v3(0.0f, 6.0f, 0.0f), 0);
+    s.n_objects = 2;
+    s.objects[0].material = 0;
+    s.objects[1].material = 1;
+    s.n_materials = 2;
+    s.n_lights = 0;
+    s.env.kind = ENV_CONSTANT;
+    s.env.radiance = v3(0.5f, 1.0f, 2.0f);
+    material *pane = &s.materials[0], *back = &s.materials[1];
+    pane->model = MODEL_D3D9CLIENT;
+    pane->albedo = v3s(0.0f);
+    pane->d3d.diffuse = v3s(0.0f);
+    pane->d9.p = 0.0f;
+    pane->d9.r0 = 0.2f;
+    pane->d9.m = 0.0f;
+    pane->d9.alpha = 0.1f;
+    pane->d9.blend = 1;
+    back->d3d.diffuse = v3s(0.0f);
+    back->d3d.emissive = v3(0.2f, 0.4f, 0.6f);
+    result r;
+    render(&s, &m, "blend", &r);
+    const char *names[3] = {"R", "G", "B"};
+    const double want[3] = {0.16, 0.32, 0.52};
+    for (int c = 0; c < 3; c++) {
+        const float *x = chan(&r, names[c]);
+        double sum = 0.0, sq = 0.0;
+        const int n = r.w * r.h;
+        for (int p = 0; p < n; p++) {
+            sum += x[p];
+            sq += (double)x[p] * x[p];
+        }
+        double mean = sum / n, se = sqrt(fmax(sq / n - mean * mean, 0.0) / n);
+        printf("# blend %s: mean %.6f, want %.6f, standard error %.2g\n", names[c], mean, want[c], se);
+        assert_true(fabs(mean - want[c]) <= 4.0 * se + 2e-4 * want[c]);
+    }
+    exr_image_free(&r.img);
+}
+
 /* ------------------------------------------------------------------ 6: mirror terms (twin) */
 
 typedef struct {
@@ -1102,6 +1158,7 @@ int main(void)
         cmocka_unit_test(test_camera_frame),
         cmocka_unit_test(test_background_constant),
         cmocka_unit_test(test_mirror_terms),
+        cmocka_unit_test(test_blend_twin),
         cmocka_unit_test(test_environment_image_scale),
         cmocka_unit_test(test_validate_role),
     };

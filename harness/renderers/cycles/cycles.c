@@ -470,8 +470,8 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
                 ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
             : d3d9client_dissolve_on(mat)
                 ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
-            : mat->model == MODEL_D3D9CLIENT && mat->d9.blend
-                ? "d3d9client.blend (eq. 7's alpha blend; not translated for Cycles yet)"
+            : mat->model == MODEL_D3D9CLIENT && mat->d9.blend && mat->texture[MAT_TEX_DIFFUSE][0] != '\0'
+                ? "d3d9client.blend on a textured material (eq. 7's texel alpha is not translated)"
                 : NULL;
         if (only_validate != NULL) {
             snprintf(what, sizeof what, "materials[%d] '%s': %s", mi, mat->name, only_validate);
@@ -522,6 +522,18 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             jw_put_num(w, mir, "m", "materials.d9.m", p->m);
             jw_put_num(w, mir, "p", "materials.d9.p", p->p);
             u->mirror |= used;
+        }
+        if (p->blend) {
+            /* Eq. (7)'s blend: cycles_render.py forms a = max(d_a, |R_tot|) clamped to [0, 1] from
+             * the mirror's colour and the environment along the mirror direction, and mixes a
+             * Transparent BSDF in with weight 1 - a. */
+            d3d9client_norm_weights nw = d3d9client_norm_weights_of(p->norm);
+            cJSON *bl = jw_obj(w, o, "blend");
+            jw_put_num(w, bl, "d_a", "materials.d9.alpha", p->alpha);
+            const double wv[5] = {nw.w_max, nw.w_r, nw.w_g, nw.w_b, nw.w_euclid};
+            static const char *const wk[5] = {"w_max", "w_r", "w_g", "w_b", "w_euclid"};
+            for (int k = 0; k < 5; k++)
+                jw_put_num(w, bl, wk[k], "materials.d9.norm", wv[k]);
         }
         break;
     }

@@ -489,8 +489,55 @@ def build_material(i, spec, env):
         nt.links.new(acc, a.inputs[0])
         nt.links.new(sh, a.inputs[1])
         acc = a.outputs[0]
+    bl = spec.get("blend")
+    if bl is not None:
+        # D3D's SRCALPHA/INVSRCALPHA blend: c a + behind (1 - a) is a Mix of a Transparent BSDF
+        # (weight 1 - a, the path goes on straight) and the surface (weight a).
+        mix = nt.nodes.new('ShaderNodeMixShader')
+        a = blend_alpha(nt, e, bl, m, env, where)
+        if isinstance(a, float):
+            mix.inputs['Fac'].default_value = a
+        else:
+            nt.links.new(a, mix.inputs['Fac'])
+        nt.links.new(nt.nodes.new('ShaderNodeBsdfTransparent').outputs[0], mix.inputs[1])
+        nt.links.new(acc, mix.inputs[2])
+        acc = mix.outputs[0]
     nt.links.new(acc, out.inputs['Surface'])
     return mat
+
+
+def blend_alpha(nt, e, bl, mirror, env, where):
+    """D3D9Client eq. (7), a = max(d_a, |R_tot|) clamped to [0, 1] as the blend unit takes it:
+    R_tot = (lambda + (s - lambda) R) phi (eq. 5), phi the environment along the mirror direction
+    (Texture Coordinate Reflection: 2 (N.I) N - I in world space, the direction the world shader
+    looks the image up along), |.| = w_max max + w . c + w_euclid |c|_2 (d3d9client_norm_weights)."""
+    d_a = float(need(bl, "d_a", where + ".blend"))
+    kind = env.get("type", "none")
+    if mirror is None or kind == "none":
+        return min(max(d_a, 0.0), 1.0)  # no environment: R_tot = 0
+    lam, s_col = need(mirror, "lambda", where + ".mirror"), need(mirror, "s", where + ".mirror")
+    r = e.add(mirror["r0"], e.mul(mirror["m"], e.pow(e.sub(1.0, e.cos_nv()), mirror["p"])))
+    if kind == "constant":
+        phi = list(need(env, "radiance", "environment"))
+    else:
+        tc = nt.nodes.new('ShaderNodeTexCoord')
+        tex = nt.nodes.new('ShaderNodeTexEnvironment')
+        tex.image = bpy.data.images.load(need(env, "path", "environment"), check_existing=True)
+        tex.image.colorspace_settings.name = 'Linear'
+        tex.interpolation = 'Linear'
+        tex.projection = 'EQUIRECTANGULAR'
+        nt.links.new(tc.outputs['Reflection'], tex.inputs['Vector'])
+        sep = nt.nodes.new('ShaderNodeSeparateColor')
+        nt.links.new(tex.outputs['Color'], sep.inputs['Color'])
+        scale = need(env, "scale", "environment")
+        phi = [e.mul(sep.outputs[c], float(scale[c])) for c in range(3)]
+    rt = [e.mul(e.add(lam[c], e.mul(s_col[c] - lam[c], r)), phi[c]) for c in range(3)]
+    norm = e.mul(float(bl["w_max"]), e.max(rt[0], e.max(rt[1], rt[2])))
+    for c, k in enumerate(("w_r", "w_g", "w_b")):
+        norm = e.add(norm, e.mul(float(bl[k]), rt[c]))
+    euclid = e.sqrt(e.add(e.mul(rt[0], rt[0]), e.add(e.mul(rt[1], rt[1]), e.mul(rt[2], rt[2]))))
+    norm = e.add(norm, e.mul(float(bl["w_euclid"]), euclid))
+    return e.min(e.max(e.max(d_a, norm), 0.0), 1.0)
 
 
 def setup_objects(job, materials):
@@ -667,6 +714,10 @@ def render_job(job_path, out_path, threads=None):
     setup_lights(job)
     env = setup_world(job)
     mats = [build_material(i, m, env) for i, m in enumerate(need(job, "materials", "job"))]
+    if any(m.get("blend") is not None for m in job["materials"]):
+        # A blended surface passes the path on through a Transparent BSDF: one transparent bounce
+        # per blended surface along a camera ray (render.h draws each blended object once).
+        bpy.context.scene.cycles.transparent_max_bounces = 64
     setup_objects(job, mats)
     stem = out_path[:-4] if out_path.lower().endswith(".exr") else out_path
     tmp_base = "%s.tmp%d_" % (stem, os.getpid())
