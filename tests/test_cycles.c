@@ -1072,6 +1072,40 @@ static void test_job_contents_and_refusals(void **state)
  * Schlick(F0, N.V) with the material's F0 (the twin switches keep F for it); the Beckmann lobe
  * beside it would see the environment the mirror needs, so it is refused, or left out and
  * named with partial. */
+/* A thin sheet in a validate job: a sharp Glass BSDF of the material's ior and the object marked
+ * with the slab's thickness; the exact Fresnel form is required. */
+static void test_thin_sheet_job(void **state)
+{
+    (void)state;
+    scene s;
+    mesh m;
+    fixture_mesh f;
+    base_scene(&s, 16, 8);
+    floor_mesh(&m, &f);
+    s.materials[0].thin = 1;
+    s.materials[0].roughness = 0.0f;
+    s.materials[0].ior = 1.45f;
+    char job[512], err[512];
+    snprintf(job, sizeof job, "%s/thin.json", g_dir);
+    cycles_options o = {.role = ROLE_VALIDATE};
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    cJSON *doc = job_parse(job);
+    close_rel(job_num(job_at(doc, 4, "materials", "#0", "glass", "ior")), 1.45, 1e-7);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 2, "materials", "#0"), "diffuse"));
+    close_rel(job_num(job_at(doc, 3, "objects", "#0", "thin")), 0.002, 1e-9);
+    cJSON_Delete(doc);
+    /* The twin is the model: no slab. */
+    o.role = ROLE_TWIN;
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    doc = job_parse(job);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 2, "objects", "#0"), "thin"));
+    cJSON_Delete(doc);
+    s.physics.fresnel_reflection = PHYS_FRESNEL_SCHLICK;
+    physics ph;
+    assert_int_equal(cycles_physics(&s, &ph, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "thin sheet"));
+}
+
 static void test_ct_environment_term_job(void **state)
 {
     (void)state;
@@ -1159,6 +1193,7 @@ int main(void)
         cmocka_unit_test(test_background_constant),
         cmocka_unit_test(test_mirror_terms),
         cmocka_unit_test(test_blend_twin),
+        cmocka_unit_test(test_thin_sheet_job),
         cmocka_unit_test(test_environment_image_scale),
         cmocka_unit_test(test_validate_role),
     };

@@ -283,10 +283,10 @@ rc_status cycles_physics(const scene *s, physics *out, char *err, size_t errlen)
         const material *mat = &s->materials[mi];
         if (!scene_material_used(s, mi))
             continue;
-        if (mat->thin) {
+        if (mat->thin && want->fresnel_reflection != PHYS_FRESNEL_EXACT) {
             status_message(err, errlen,
-                           "%s: materials[%d] '%s': thin (a thin glass sheet, both faces and their internal "
-                           "reflections) is not translated for Cycles; compare it with the exact reference",
+                           "%s: materials[%d] '%s': a thin sheet (a Glass BSDF slab) reflects with the exact "
+                           "Fresnel of each face; set physics fresnel_reflection: exact",
                            s->path, mi, mat->name);
             return RC_ERR_RANGE;
         }
@@ -408,6 +408,13 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         /* The scene's physics (cycles_physics has checked it is renderable): a dielectric
          * coating over Lambert, or a bare conductor. Roughness 0 is a mirror (SHARP). */
         const physics *ph = &s->physics;
+        if (mat->thin) {
+            /* A glass slab (cycles_render.py: the pane and its copy CYCLES_THIN_THICKNESS behind,
+             * faces reversed) with a sharp Glass BSDF: two faces, every internal reflection. */
+            jw_put_num(w, jw_obj(w, o, "glass"), "ior", "materials.ior", mat->ior);
+            u->mirror |= used; /* its reflection must see the environment */
+            return RC_OK;
+        }
         if (!mat->conductor) {
             cJSON *dif = jw_obj(w, o, "diffuse");
             jw_put_vec(w, dif, "color", "materials.albedo", mat->albedo);
@@ -599,6 +606,10 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
     return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
 }
 
+/* A thin sheet's thickness in the validate render, in metres: the sideways shift of a ray through
+ * it, at most about this much, is far below a pixel at canonical scene sizes (metres across). */
+#define CYCLES_THIN_THICKNESS 0.002
+
 static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const mesh *m, int *remap, int twin)
 {
     for (int oi = 0; oi < s->n_objects && !w->nomem; oi++) {
@@ -626,6 +637,8 @@ static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const me
         jw_put_str(w, o, "name", name);
         jw_put_int(w, o, "material", s->objects[oi].material);
         jw_put_int(w, o, "pass_index", oi + 1);
+        if (!twin && s->materials[s->objects[oi].material].thin)
+            jw_put_num(w, o, "thin", "objects.thin", CYCLES_THIN_THICKNESS);
         jw_put_flat(w, o, "verts", "mesh.pos", m->pos, order, n_verts);
         jw_put_flat(w, o, "normals", "mesh.nrm", m->nrm, order, n_verts);
         const material *mat = &s->materials[s->objects[oi].material];

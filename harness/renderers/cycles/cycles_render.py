@@ -457,6 +457,14 @@ def build_material(i, spec, env):
         )
         shaders.append(n.outputs[0])
 
+    gl = spec.get("glass")
+    if gl is not None:  # validate, a thin sheet: the slab's faces (setup_objects) in sharp glass
+        n = nt.nodes.new('ShaderNodeBsdfGlass')
+        n.distribution = 'SHARP'
+        n.inputs['Color'].default_value = (1.0, 1.0, 1.0, 1.0)
+        n.inputs['IOR'].default_value = float(need(gl, "ior", where + ".glass"))
+        shaders.append(n.outputs[0])
+
     m = spec.get("mirror")
     if m is not None:
         if m["kind"] == "d3d9client":  # eq. (5): lambda + (s - lambda) R, R = R0 + m (1 - N.V)^p
@@ -551,6 +559,16 @@ def setup_objects(job, materials):
         verts = [tuple(to_blender(v[j : j + 3])) for j in range(0, len(v), 3)]
         normals = [tuple(to_blender(nrm[j : j + 3]).normalized()) for j in range(0, len(nrm), 3)]
         faces = [tuple(t[j : j + 3]) for j in range(0, len(t), 3)]
+        thin = o.get("thin")
+        if thin is not None:
+            # A thin sheet: the surface and a copy `thin` behind it along the normal, facing the
+            # other way, so that light crosses two faces; no rim (a ray leaves through the copy).
+            k = len(verts)
+            verts += [tuple(p[c] - thin * q[c] for c in range(3)) for p, q in zip(verts, normals)]
+            normals += [tuple(-q[c] for c in range(3)) for q in normals]
+            faces += [(a + k, c + k, b + k) for a, b, c in faces]
+            if o.get("uvs") is not None:
+                o["uvs"] = o["uvs"] + o["uvs"]
         me = bpy.data.meshes.new("reflcheck_mesh_%d" % i)
         me.from_pydata(verts, [], faces)
         me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))
@@ -589,9 +607,10 @@ def setup_objects(job, materials):
         inter = bool(need(physics, "interreflection", "physics"))
         ob.visible_camera = True
         ob.visible_shadow = bool(need(physics, "shadows", "physics"))
-        ob.visible_glossy = inter
+        ob.visible_glossy = inter or thin is not None  # a sheet's internal reflections
         ob.visible_diffuse = inter
-        ob.visible_transmission = False
+        # Seen through a thin sheet: what lies behind it is reached by transmission rays.
+        ob.visible_transmission = any(x.get("thin") is not None for x in job["objects"])
         ob.visible_volume_scatter = False
         bpy.context.scene.collection.objects.link(ob)
 
@@ -714,6 +733,17 @@ def render_job(job_path, out_path, threads=None):
     setup_lights(job)
     env = setup_world(job)
     mats = [build_material(i, m, env) for i, m in enumerate(need(job, "materials", "job"))]
+    if any(o.get("thin") is not None for o in job["objects"]):
+        # A thin sheet (validate): a camera ray crosses two faces, and every internal reflection
+        # is one more; 16 leave the sum's remainder R^16 < 1e-17 for glass. The diffuse keeps the
+        # physics' bounces: what is behind the sheet is lit directly.
+        cy = bpy.context.scene.cycles
+        cy.max_bounces = max(cy.max_bounces, 16)
+        cy.glossy_bounces = max(cy.glossy_bounces, 16)
+        cy.transmission_bounces = 16
+        # The light a sheet reflects between its faces leaves it as a transmission ray: the world
+        # must be visible to those, as it is to the first face's glossy reflection.
+        bpy.context.scene.world.cycles_visibility.transmission = True
     if any(m.get("blend") is not None for m in job["materials"]):
         # A blended surface passes the path on through a Transparent BSDF: one transparent bounce
         # per blended surface along a camera ray (render.h draws each blended object once).
