@@ -7,7 +7,6 @@
 #include <time.h>
 
 #include "d3d.h"
-#include "d3d9client.h"
 #include "fileio.h"
 #include "raster.h"
 #include "shade.h"
