@@ -14,7 +14,7 @@
  * formula_colour_norm), shared with the SIMD lanes and the stability reference.
  * Pure functions; every finite argument gives a finite result (sums are formed in double
  * and saturated to +-FLT_MAX); a NaN argument propagates.
- * Blend (p->blend, D3D's SRCALPHA/INVSRCALPHA; model/render.h composites):
+ * Blend (p->blend, D3D's SRCALPHA/INVSRCALPHA; render/render.h composites):
  *   out = c_rgb * a + behind * (1 - a),  a = render_blend_alpha(r.alpha): c_a clamped to [0, 1]
  * Dissolve (seed 000, our reading: docs/dissolve.md):
  *   if (d3d9client_dissolve_on(mat))

@@ -104,7 +104,7 @@ typedef struct {
     int sun_angle;                /* equation (8), default 0 */
     float alpha;                  /* d_a, the material/texture alpha of equation (7), default 1 */
     texel_alpha_mode texel_alpha; /* how a diffuse texel's alpha enters d_a, default multiply */
-    /* 1 = drawn with D3D's SRCALPHA/INVSRCALPHA blend over what lies behind (model/render.h),
+    /* 1 = drawn with D3D's SRCALPHA/INVSRCALPHA blend over what lies behind (render/render.h),
      * after the opaque objects, back to front, without depth write; default 0 (opaque: c_a is
      * only written into the image's A layer). */
     int blend;

@@ -1,5 +1,5 @@
 /* test_blend - D3D's SRCALPHA/INVSRCALPHA blend of a D3D9Client pane (d3d9client.blend,
- * model/render.h) over what lies behind it, worked out by hand.
+ * render/render.h) over what lies behind it, worked out by hand.
  *
  * Usage: make BUILD=x check T=blend
  *

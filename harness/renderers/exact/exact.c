@@ -57,7 +57,7 @@ static rc_status exact_plans(const scene *s, const env_map *env, const texture_s
 {
     shade_context c;
     shade_context_make(s, env, &c);
-    c.tex = tex; /* a diffuse texture multiplies the albedo (model/physical.h) */
+    c.tex = tex; /* a diffuse texture multiplies the albedo (render/physical.h) */
     char one[400];
     for (int i = 0; i < s->n_objects; i++)
         if (physical_plan_make(&c, &s->materials[s->objects[i].material], ph, &plans[i], one, sizeof one) != RC_OK) {

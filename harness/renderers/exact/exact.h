@@ -47,7 +47,7 @@ void exact_point_render_job(const renderer_job *j, renderer_result *r);
  * reflecting the environment, an environment image on the diffuse). */
 rc_status exact_physics(const scene *s, physics *rendered, char *err, size_t errlen);
 
-/* A thin sheet (material.thin, a window pane) is drawn blended (model/render.h) with
+/* A thin sheet (material.thin, a window pane) is drawn blended (render/render.h) with
  *   alpha = exact_thin_sheet_reflectance(N.V, ior),   colour = the environment along reflect(-V, N)
  * so that the pixel is R_sheet phi + (1 - R_sheet) behind: a lossless sheet transmits what it does
  * not reflect, straight through (the sideways shift of a thin sheet is taken as 0).
