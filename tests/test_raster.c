@@ -1,6 +1,7 @@
-/* test_raster.c - coverage, fill rule, sample positions, perspective, clipping, depth
- * and thread invariance of render/raster.c. Expected values come from hand-worked pixel
- * sets or from analytic ray-plane intersection, never from the rasterizer itself. */
+/* test_raster.c - coverage, fill rule, sample positions, perspective, clipping, depth,
+ * sub-sample precision at a contour and thread invariance of render/raster.c. Expected values
+ * come from hand-worked pixel sets or from analytic ray-plane intersection, never from the
+ * rasterizer itself. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -416,6 +417,42 @@ static void test_depth(void **state)
     frame_free(&f);
 }
 
+/* A contour: a front triangle (w = 1) whose right edge passes d pixels beside the centre of
+ * pixel (4, 4) of an 8 x 8 image, over a back triangle (w = 2) that covers the image. The
+ * exact geometry says which one the sample sees: the front one for d = +3e-4 (the sample
+ * lies 3e-4 pixels inside), the back one for d = -3e-4. A grid of 1/512 pixel snaps both
+ * edges onto the sample (4.5 * 512 = 2304 +- 0.15), where the fill rule leaves it out: the
+ * sample then sees the surface behind, as WusonOBJ from behind did against POV-Ray. */
+static void test_contour_precision(void **state)
+{
+    (void)state;
+    const int w = 8, h = 8;
+    raster_options o = {.width = w, .height = h, .threads = 1};
+    const double d[2] = {3e-4, -3e-4};
+    const int want[2] = {0, 1};
+    for (int c = 0; c < 2; c++) {
+        double xe = 4.5 + d[c];
+        raster_vertex v[6] = {px_vertex(xe, -1.0, w, h),   px_vertex(xe, 9.0, w, h),    px_vertex(-1.0, 4.0, w, h),
+                              px_vertex(-2.0, -2.0, w, h), px_vertex(10.0, -2.0, w, h), px_vertex(4.0, 10.0, w, h)};
+        for (int i = 3; i < 6; i++) {
+            v[i].x *= 2.0f;
+            v[i].y *= 2.0f;
+            v[i].w = 2.0f;
+        }
+        uint32_t idx[6] = {0, 1, 2, 3, 4, 5};
+        frame f;
+        frame_init(&f, w, h, 1);
+        draw(v, 6, idx, 2, o, &f);
+        if (frame_at(&f, 4, 4)->tri != want[c])
+            fail_msg("edge %+g px from the sample: the sample sees triangle %d, want %d", d[c], frame_at(&f, 4, 4)->tri,
+                     want[c]);
+        /* a sample a whole pixel away on either side is clear-cut whatever the grid */
+        assert_int_equal(frame_at(&f, 3, 4)->tri, 0);
+        assert_int_equal(frame_at(&f, 5, 4)->tri, 1);
+        frame_free(&f);
+    }
+}
+
 static void test_supersample_positions(void **state)
 {
     (void)state;
@@ -555,6 +592,7 @@ int main(void)
         cmocka_unit_test(test_perspective),
         cmocka_unit_test(test_near_clip),
         cmocka_unit_test(test_depth),
+        cmocka_unit_test(test_contour_precision),
         cmocka_unit_test(test_supersample_positions),
         cmocka_unit_test(test_thread_tile_invariance),
         cmocka_unit_test(test_bad_options),
