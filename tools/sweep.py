@@ -9,7 +9,8 @@ Usage (Python 3 standard library only; run from the project root after `make bui
 
 What it renders (in the scene's sweep role, below, through `reflcheck run --small --tag T
 --threads 1`, two jobs at a time; outputs in RUN/timing/renders/<scene>/<tag>/):
-  reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the best reference the scene has.
+  reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the best reference the scene has,
+             as the pixel integral (--supersample 1) in every role.
   cycles     Cycles at 16, 64, 256, 1024 spp (--quick 16, 64, 256), 2 seeds each.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),
              k = 1, 2, 4, 8; tessellation 8, 16, 32, 64, 128 (every object); per-vertex shading.
@@ -513,6 +514,12 @@ def make_zero(like, path):
 # ---------------------------------------------------------------------------------- plan
 
 
+# Cycles as the pixel integral (k = 1: a box over the pixel): a twin's Cycles job otherwise samples
+# the model's own k x k positions (harness/renderers/cycles/cycles.h), against which the raster's
+# sampling error would be nil at the as-is k and the k series would converge to nothing.
+CYCLES_INTEGRAL = ['--supersample', '1']
+
+
 def plan(quick, seed_opt):
     """The jobs of one scene: (key, renderer, tag, options, repeats, series labels, knob value)."""
     spp = QUICK_SPP if quick else CYCLES_SPP
@@ -524,7 +531,7 @@ def plan(quick, seed_opt):
             renderer='cycles',
             tag=f'cycles-spp{ref}',
             label=f'{ref} spp (reference)',
-            opts=['--samples', str(ref), '--seeds', str(SEEDS)],
+            opts=['--samples', str(ref), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL,
             series='cycles spp',
             samples=ref,
         )
@@ -537,7 +544,7 @@ def plan(quick, seed_opt):
                 renderer='cycles',
                 tag=f'cycles-spp{n}' + ('-s2' if seed_opt else ''),
                 label=f'{n} spp',
-                opts=['--samples', str(n), '--seeds', str(SEEDS)] + extra,
+                opts=['--samples', str(n), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL + extra,
                 series='cycles spp',
                 samples=n,
             )

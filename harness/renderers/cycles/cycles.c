@@ -687,11 +687,19 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
         status_message(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
         return RC_ERR_RANGE;
     }
-    int width = o->width > 0 ? o->width : s->width;
-    int height = o->height > 0 ? o->height : s->height;
+    int ss = o->supersample > 1 ? o->supersample : 1;
+    int width = (o->width > 0 ? o->width : s->width) * ss;
+    int height = (o->height > 0 ? o->height : s->height) * ss;
     int samples = o->samples > 0 ? o->samples : s->samples;
     int n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
+    /* k x k sub-pixels share the pixel's samples: the same count per pixel, rounded up. */
+    samples = (samples + ss * ss - 1) / (ss * ss);
     /* Blender refuses images smaller than 4 pixels (docs/conventions.md). */
+    if (o->supersample < 0 || o->supersample > 16) {
+        status_message(err, errlen, "%s: supersample %d: Cycles samples k x k positions for k in 1..16", s->path,
+                       o->supersample);
+        return RC_ERR_RANGE;
+    }
     if (width < 4 || height < 4 || width > 65536 || height > 65536) {
         status_message(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
                        s->path, width, height);
@@ -780,6 +788,10 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
     jw_put_int(&w, doc, "width", width);
     jw_put_int(&w, doc, "height", height);
     jw_put_int(&w, doc, "samples", samples);
+    /* A point per sub-pixel: Blender's narrowest filter (0.01 sub-pixel, a Gaussian: it ignores
+     * a box's width) spreads the samples over 1 % of the 1/k spacing of the positions. */
+    jw_put_num(&w, doc, "filter_width", "filter_width", ss > 1 ? 0.01 : 1.0);
+    jw_put_int(&w, doc, "supersample", ss);
     cJSON *seeds = jw_arr(&w, doc, "seeds");
     for (int i = 0; i < n_seeds; i++)
         jw_push(&w, seeds, cJSON_CreateNumber(o->seed + (unsigned)i));
@@ -974,6 +986,16 @@ static double cycles_timing_value(const cJSON *doc, const char *key)
     return sum;
 }
 
+/* The mean of the k x k block of a row-major plane (row length w) whose first sample is first. */
+static double cycles_block_mean(const float *plane, int w, size_t first, int k)
+{
+    double sum = 0.0;
+    for (int y = 0; y < k; y++)
+        for (int x = 0; x < k; x++)
+            sum += plane[first + (size_t)y * (size_t)w + (size_t)x];
+    return sum / ((double)k * k);
+}
+
 rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char *err, size_t errlen)
 {
     cycles_options defaults = {0};
@@ -1019,7 +1041,14 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
             }
         }
     int nch = n > 1 ? 2 * CYCLES_LAYOUT_N : CYCLES_LAYOUT_N;
-    size_t npix = rc == RC_OK ? (size_t)img[0].width * (size_t)img[0].height : 0;
+    int ss = o->supersample > 1 ? o->supersample : 1;
+    if (rc == RC_OK && (img[0].width % ss != 0 || img[0].height % ss != 0)) {
+        status_message(err, errlen, "%s: %d x %d is not a multiple of supersample %d; render again", out_exr_path,
+                       img[0].width, img[0].height, ss);
+        rc = RC_ERR_PARSE;
+    }
+    int ow = rc == RC_OK ? img[0].width / ss : 0, oh = rc == RC_OK ? img[0].height / ss : 0;
+    size_t npix = (size_t)ow * (size_t)oh;
     if (rc == RC_OK && (data = malloc(sizeof(float) * npix * (size_t)nch)) == NULL) {
         status_message(err, errlen, "%s: out of memory", out_exr_path);
         rc = RC_ERR_NOMEM;
@@ -1041,19 +1070,22 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
             float *var = n > 1 ? data + (size_t)(CYCLES_LAYOUT_N + k) * npix : NULL;
             int is_object = c == 0 && strcmp(aov, "object") == 0;
             for (size_t p = 0; p < npix; p++) {
+                size_t first = (p / (size_t)ow) * (size_t)ss * (size_t)img[0].width + (p % (size_t)ow) * (size_t)ss;
                 if (is_object) {
                     /* An index is not averaged: seed 0's first sample names the object. */
-                    mean[p] = src[0][k][p];
+                    mean[p] = src[0][k][first];
                     if (var)
                         var[p] = 0.0f;
                     continue;
                 }
-                double s1 = 0.0;
-                for (int i = 0; i < n; i++)
-                    s1 += src[i][k][p];
+                double v[64], s1 = 0.0;
+                for (int i = 0; i < n; i++) {
+                    v[i] = cycles_block_mean(src[i][k], img[0].width, first, ss);
+                    s1 += v[i];
+                }
                 double mu = s1 / n, s2 = 0.0;
                 for (int i = 0; i < n; i++)
-                    s2 += (src[i][k][p] - mu) * (src[i][k][p] - mu);
+                    s2 += (v[i] - mu) * (v[i] - mu);
                 mean[p] = (float)mu;
                 /* Variance of the mean: sample variance over the seeds (n - 1 dof) / n. */
                 if (var)
@@ -1081,7 +1113,7 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
                          {"reflcheck.cycles_seeds", seeds},
                          {"reflcheck.cycles_build_s", build},
                          {"reflcheck.cycles_render_s", render}};
-        rc = exr_write(out_exr_path, img[0].width, img[0].height, ch, nch, at, 4, err, errlen);
+        rc = exr_write(out_exr_path, ow, oh, ch, nch, at, 4, err, errlen);
     }
     free(data);
     for (int i = 0; i < loaded; i++)
@@ -1118,6 +1150,11 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
         o = *(const cycles_options *)j->options;
     o.role = j->role;
     o.partial = j->partial;
+    /* A twin computes the model, whose pixel is the mean of k x k point samples: Cycles samples
+     * the same positions (cycles.h). A validate keeps the pixel integral, the physical pixel the
+     * approximation's sampling is part of. */
+    if (o.role == ROLE_TWIN && o.supersample == 0)
+        o.supersample = j->s->supersample;
     o.left_out = r;
     if (j->tex != NULL) {
         if (renderer_write_textures(j, err, sizeof err) != RC_OK) {

@@ -33,6 +33,13 @@
  *             reaches the diffuse and glossy closures its masks say (light ray visibility), the
  *             world those env_diffuse and env_specular say; shadows, inter-reflection and
  *             bounces as asked.
+ * Sample positions: by default Cycles jitters its samples over the whole pixel (box filter of
+ * width 1), a pixel integral. With options.supersample = k > 1 (cycles_render_job sets the
+ * scene's k for a twin) it renders k times the size with a 0.01 sub-pixel Gaussian, so each
+ * sub-pixel's samples sit at the model's sample position (i + (s + 0.5)/k, j + (t + 0.5)/k),
+ * ceil(samples / k^2) of them, and cycles_collect averages each k x k block: a twin then
+ * computes the model's own pixel, the mean of k x k point samples, where an integral and k x k
+ * points part (a hard edge or a texture's detail inside a pixel).
  * Noise: a mirror beside a non-zero diffuse closure carries closure-selection noise (Cycles
  * picks one closure per bounce); the "var." channels measure it.
  *
@@ -71,6 +78,7 @@ typedef struct {
     const char *script;        /* NULL = "harness/renderers/cycles/cycles_render.py" */
     const char *texture_dir;   /* folder holding tex<material>_<slot>.exr (renderer_write_textures);
                                   NULL with a textured material -> RC_ERR_RANGE */
+    int supersample;           /* k > 1: sample the model's k x k positions (below); 0, 1 = the pixel */
 } cycles_options;
 
 rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,

@@ -65,8 +65,13 @@ def setup_render(job):
     cy.sample_clamp_indirect = 0.0
     cy.blur_glossy = 0.0
     cy.film_exposure = 1.0
-    cy.pixel_filter_type = 'BOX'
-    cy.filter_width = 1.0
+    # Width 1: samples jittered over the pixel by the box filter (an integral). Below 1 (a twin
+    # rendered at k times the size, cycles.h): a point per sub-pixel, the model's sample
+    # position; Blender ignores the width of a box filter (its sync sets 1, its UI hides the
+    # field), so the point is a Gaussian of that width, Blender's narrowest (0.01 pixel).
+    width = float(job.get("filter_width", 1.0))
+    cy.pixel_filter_type = 'BOX' if width >= 1.0 else 'GAUSSIAN'
+    cy.filter_width = width
     # Scrambling distance < 1 correlates pixels; 1 keeps the sampler unbiased.
     cy.auto_scrambling_distance = False
     cy.scrambling_distance = 1.0
