@@ -29,7 +29,8 @@
  * sample (unit n, ng, v pointing away from the surface; ng of either orientation). crease_share
  * rasterizes the mesh at the render's samples (render/raster.h, render/render.h's camera) and writes each pixel's rule
  * bits, the OR over its covered samples, as a float (0 where none departs or none is covered), so compare can leave
- * those pixels out of a comparison with a renderer that has those rules and report them per rule (harness/compare.c).
+ * those pixels out of a comparison with a renderer that has those rules and report them per rule (harness/compare.c),
+ * plus CREASE_TIE where a sample lies within crease_tie_band of an open edge.
  * Returns RC_OK, RC_ERR_NOMEM, or RC_ERR_RANGE with one line in err.
  */
 #ifndef REFLCHECK_CREASE_H
@@ -49,6 +50,14 @@ enum {
 /* The rule bits, in bit order, for reports: "back_face", "valid_reflection". */
 extern const char *const crease_rule_names[CREASE_RULE_COUNT];
 #define CREASE_RULES_ALL (CREASE_RULE_BACK_FACE | CREASE_RULE_VALID_REFLECTION)
+/* Not a rule: the layer bit of a pixel with a sample closer to an open edge (below) than the
+ * float clip-space inputs resolve, crease_tie_band: which side it falls on is rounding, ours or
+ * a ray tracer's, so a twin sets such pixels apart with the edges (harness/compare.c). An open
+ * edge is one where the surface seen changes: a triangle's edge that no other triangle shares by
+ * vertex index from the other side on screen (a silhouette, a crack between unwelded parts, a
+ * fold at an occluding contour, a hard edge whose vertices are split for their normals). */
+#define CREASE_TIE       4u
+#define CREASE_LAYER_MAX (CREASE_RULES_ALL | CREASE_TIE)
 
 unsigned crease_departs(vec3 n, vec3 ng, vec3 v);
 rc_status crease_share(const scene *s, const mesh *m, int width, int height, int k, int threads, float *share,
@@ -59,6 +68,13 @@ rc_status crease_share(const scene *s, const mesh *m, int width, int height, int
  * CREASE_RULE_COUNT entries) gets, per rule of rules, the moved pixels it departs at. */
 long crease_classify_rules(unsigned char *cls, const float *layer, size_t np, unsigned rules, long *interior,
                            long *per_rule);
+/* The tie band in samples for a width x height image at k x k samples through s's camera:
+ * 8 roundings of 2^-24 (the float chain of render_camera_clip and the perspective divide, each
+ * relative to the view distance) over the half-width in samples, per unit of tan(hfov / 2). */
+double crease_tie_band(const scene *s, int width, int k);
+/* Each METRICS_PX_INTERIOR pixel of cls whose layer value has CREASE_TIE becomes METRICS_PX_EDGE;
+ * returns the pixels moved, *interior (may be NULL) the interior pixels there were. */
+long crease_classify_ties(unsigned char *cls, const float *layer, size_t np, long *interior);
 /* crease_classify_rules with every rule (fit's reference has a row with some rule). */
 long crease_classify(unsigned char *cls, const float *layer, size_t np, long *interior);
 

@@ -153,6 +153,66 @@ static void test_quad_light(void **state)
     quad_case(1);
 }
 
+/* Two quads side by side on y = 0 under quad_case's camera (12 x 12, world x in [-1, 1] across),
+ * meeting on the line x = xe through the centres of column 6 (x = 0.0833, 6.5 samples) moved by
+ * d samples. Split (the right quad has its own vertices there): the line is an open edge, and a
+ * sample nearer than the tie band (8 2^-24 6 / 0.2 = 1.4e-5 samples here) is a tie in every row
+ * of column 6. Controls: the same quads welded (shared vertex indices: the edge is closed), and
+ * the split ones with the line 1e-3 samples away, 70 bands. */
+static void tie_case(double d, int welded, int want_tie)
+{
+    scene *s = calloc(1, sizeof *s);
+    assert_non_null(s);
+    scene_init(s);
+    snprintf(s->path, sizeof s->path, "test_crease ties");
+    const int w = 12;
+    s->width = s->height = w;
+    s->supersample = 1;
+    s->camera.eye = v3(0.0f, 5.0f, 0.0f);
+    s->camera.target = v3(0.0f, 0.0f, 0.0f);
+    s->camera.up = v3(0.0f, 0.0f, -1.0f);
+    s->camera.hfov = (float)(2.0 * atan(1.0 / 5.0));
+    assert_true(fabs(crease_tie_band(s, w, 1) - 8.0 * ldexp(1.0, -24) * 6.0 / 0.2) < 1e-9);
+    float xe = (float)((6.5 + d) / 6.0 - 1.0);
+    vec3 pos[8] = {v3(-1.2f, 0.0f, -1.2f), v3(xe, 0.0f, -1.2f),   v3(xe, 0.0f, 1.2f),   v3(-1.2f, 0.0f, 1.2f),
+                   v3(xe, 0.0f, -1.2f),    v3(1.2f, 0.0f, -1.2f), v3(1.2f, 0.0f, 1.2f), v3(xe, 0.0f, 1.2f)};
+    vec3 nrm[8];
+    for (int i = 0; i < 8; i++)
+        nrm[i] = v3(0.0f, 1.0f, 0.0f);
+    uint32_t idx[12] = {0, 2, 1, 0, 3, 2, 4, 6, 5, 4, 7, 6};
+    if (welded) {
+        idx[6] = 1;
+        idx[9] = 1;
+        idx[10] = 2;
+    }
+    mesh m = {.n_verts = 8, .n_tris = 4, .pos = pos, .nrm = nrm, .idx = idx};
+    float share[12 * 12];
+    char err[512];
+    assert_int_equal(crease_share(s, &m, w, w, 1, 1, share, err, sizeof err), RC_OK);
+    for (int y = 0; y < w; y++)
+        for (int x = 0; x < w; x++) {
+            float want = want_tie && x == 6 ? (float)CREASE_TIE : 0.0f;
+            if (share[y * w + x] != want)
+                fail_msg("d %g samples, %s: pixel (%d, %d) has %g, want %g", d, welded ? "welded" : "split", x, y,
+                         (double)share[y * w + x], (double)want);
+        }
+    unsigned char cls[12 * 12];
+    memset(cls, METRICS_PX_INTERIOR, sizeof cls);
+    long interior = 0;
+    assert_int_equal(crease_classify_ties(cls, share, sizeof cls, &interior), want_tie ? w : 0);
+    assert_int_equal(interior, w * w);
+    free(s);
+}
+
+static void test_ties(void **state)
+{
+    (void)state;
+    tie_case(4e-6, 0, 1);
+    tie_case(-4e-6, 0, 1);
+    tie_case(4e-6, 1, 0);
+    tie_case(1e-3, 0, 0);
+}
+
 static void test_bad_size(void **state)
 {
     (void)state;
@@ -172,9 +232,10 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_flat_and_back_face), cmocka_unit_test(test_mirror_below),
-        cmocka_unit_test(test_grazing_lift),       cmocka_unit_test(test_normal_away),
-        cmocka_unit_test(test_classify_rules),     cmocka_unit_test(test_quad_mirror),
-        cmocka_unit_test(test_quad_light),         cmocka_unit_test(test_bad_size),
+        cmocka_unit_test(test_grazing_lift),       cmocka_unit_test(test_ties),
+        cmocka_unit_test(test_normal_away),        cmocka_unit_test(test_classify_rules),
+        cmocka_unit_test(test_quad_mirror),        cmocka_unit_test(test_quad_light),
+        cmocka_unit_test(test_bad_size),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
