@@ -557,7 +557,7 @@ static void test_view_js_escapes_scene_name(void **state)
  * pixels apart as the crease region, counted per rule and gated: 2 of 128 surface pixels
  * (1.6 %) pass, 3 (2.3 %) exceed COMPARE_CREASE_MAX_SHARE (2 %) and fail the comparison by
  * themselves, though its rel_rms passes, unless the scene states its own limit. A layer value
- * that is no rule bit (4) sets nothing apart. */
+ * that is no layer bit (8) sets nothing apart. */
 static void crease_case(const char *name, int n_crease, const char *stated, int want_fail)
 {
     char scn[512], run[512], text[1024], err[2048];
@@ -579,7 +579,7 @@ static void crease_case(const char *name, int n_crease, const char *stated, int 
     t.has_crease = 1;
     for (int i = 0; i < n_crease; i++)
         t.crease[40 + i] = 2.0f; /* valid_reflection */
-    t.crease[100] = 4.0f;
+    t.crease[100] = 8.0f;
     put_job(run, name, registry_find("raster"), ROLE_TWIN, "ok", &t);
     put_job(run, name, registry_find("cycles"), ROLE_TWIN, "ok", &r);
     assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), want_fail);
@@ -609,6 +609,52 @@ static void test_crease_region_gated(void **state)
     /* A scene that states its own limit is judged by it: 2.3 % under 5 % passes. */
     crease_case("crease_stated", 3,
                 "      crease.share_of_surface: {warn: 0.03, fail: 0.05, why: \"the mesh's own creases\"}\n", 0);
+}
+
+/* A twin against POV-Ray (no crease rules) moves the pixels whose crease layer has the tie bit
+ * (4, harness/crease.h CREASE_TIE) to the edges and reports them as the region "ties": 1 of 128
+ * surface pixels (0.78 %) exceeds COMPARE_TIE_MAX_SHARE (0.5 %) and fails by itself, though the
+ * images are equal, unless the scene states ties.share_of_surface. */
+static void ties_case(const char *name, const char *stated, int want_fail)
+{
+    char scn[512], run[512], text[1024], err[2048];
+    snprintf(scn, sizeof scn, "%s/%s.yaml", dir, name);
+    snprintf(run, sizeof run, "%s/run-%s", dir, name);
+    snprintf(text, sizeof text,
+             "name: %s\nimage: {width: %d, height: %d}\n"
+             "camera: {eye: [0, 0, 4], target: [0, 0, 0], hfov: 40}\n"
+             "lights:\n  - {type: sun, direction: [0, 0, -1], irradiance: [1, 1, 1]}\n"
+             "materials:\n  m: {model: d3d}\n"
+             "objects:\n  - {shape: quad, size: [10, 10], rotate: [90, 0, 0], material: m}\n"
+             "comparisons:\n  - reference: povray\n    role: twin\n    thresholds:\n"
+             "      rel_rms: {warn: 5e-4, fail: 1e-3, why: \"twin precision floor\"}\n%s",
+             name, W, H, stated);
+    write_text(scn, text);
+    static gate_image t, r;
+    image_flat(&t, 0.5f);
+    image_flat(&r, 0.5f);
+    t.has_crease = 1;
+    t.crease[70] = 4.0f;
+    put_job(run, name, registry_find("raster"), ROLE_TWIN, "ok", &t);
+    put_job(run, name, registry_find("povray"), ROLE_TWIN, "ok", &r);
+    assert_int_equal(cli_exec(err, sizeof err, "compare %s --run %s", scn, run), want_fail);
+    cJSON *j = read_compare(run, name);
+    const cJSON *c = first_comparison(j);
+    const cJSON *regions = cJSON_GetObjectItemCaseSensitive(c, "regions");
+    const cJSON *ties = cJSON_GetObjectItemCaseSensitive(regions, "ties");
+    assert_int_equal((long)jnum(ties, "pixels"), 1);
+    assert_int_equal((long)jnum(cJSON_GetObjectItemCaseSensitive(regions, "surface"), "n_pixels"), NP - 1);
+    assert_string_equal(jstr(c, "status"), want_fail ? "fail" : "pass");
+    if (want_fail)
+        assert_non_null(strstr(jstr(c, "reason"), "tie region 1 of 128 surface pixels"));
+    cJSON_Delete(j);
+}
+
+static void test_ties_region_gated(void **state)
+{
+    (void)state;
+    ties_case("ties_default", "", 1);
+    ties_case("ties_stated", "      ties.share_of_surface: {warn: 0.01, fail: 0.02, why: \"a crack\"}\n", 0);
 }
 
 /* A comparison whose thresholds only guard its inputs (finite values, coverage) is measured and
@@ -804,6 +850,7 @@ int main(void)
         cmocka_unit_test(test_diff_exit_status),
         cmocka_unit_test(test_view_js_escapes_scene_name),
         cmocka_unit_test(test_crease_region_gated),
+        cmocka_unit_test(test_ties_region_gated),
         cmocka_unit_test(test_guards_alone_are_not_gated),
         cmocka_unit_test(test_gate_per_size),
         cmocka_unit_test(test_bias_over_every_pixel_fails),
