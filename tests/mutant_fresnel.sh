@@ -22,16 +22,16 @@ done | sort | tr '\n' ' ' | sed 's/ $//')
 [ -n "$expected" ] || { echo "mutant: no scene uses the D3D9Client Fresnel; update this test" >&2; exit 1; }
 
 rm -rf "$work"
-# With the build's objects: only what includes formula.h compiles again.
+# With the build's objects: only what includes formula.h (and so its body) compiles again.
 . tests/scratch_tree.sh
 scratch_tree "$work" "$build" || { echo "mutant: copying the tree failed" >&2; exit 1; }
-# formula_d3d9_power (model/formula.h) is the one definition of the exponent: every instance
+# formula_d3d9_power (model/formula_body.h) is the one definition of the exponent: every instance
 # of it (the scalar model's double, the SIMD kernels' float, the long-double check) is compiled
 # from that line.
 sed -i 's/FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p; }/FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p + 1; }/' \
-    "$work/model/formula.h"
-if ! grep -q 'FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p + 1; }' "$work/model/formula.h"; then
-    echo "mutant: the Fresnel exponent line was not found in model/formula.h; update this test" >&2
+    "$work/model/formula_body.h"
+if ! grep -q 'FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p + 1; }' "$work/model/formula_body.h"; then
+    echo "mutant: the Fresnel exponent line was not found in model/formula_body.h; update this test" >&2
     exit 1
 fi
 make -s -C "$work" build/reflcheck >/dev/null || { echo "mutant: build failed" >&2; exit 1; }
