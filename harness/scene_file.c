@@ -500,6 +500,23 @@ static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char
 
 /* --- sections ------------------------------------------------------------------------------ */
 
+/* image.samples: a whole number, or `auto` (stored as 0): Cycles then takes the samples the
+ * noise target of the scene's gates asks for (cycles_samples.h); the small variant follows it
+ * unless image.small.samples gives a number. */
+static rc_status sf_samples(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
+{
+    const char *s = sf_text(n);
+    if (s != NULL && strcmp(s, "auto") == 0 && !sf_quoted(n)) {
+        *out = 0;
+        return RC_OK;
+    }
+    rc_status rc = sf_int(c, n, path, 1, 1 << 20, out);
+    if (rc != RC_OK)
+        snprintf(c->err + strlen(c->err), c->errlen - strlen(c->err), "%s",
+                 strlen(c->err) + 64 < c->errlen ? ", or auto (from the gates' noise)" : "");
+    return rc;
+}
+
 static rc_status sf_image(sf_ctx *c, yaml_node_t *n, scene *s)
 {
     static const char *const keys[] = {"width", "height", "supersample", "samples", "small", "timeout"};
@@ -514,7 +531,7 @@ static rc_status sf_image(sf_ctx *c, yaml_node_t *n, scene *s)
         return rc;
     if (f[2].v && (rc = sf_int(c, f[2].v, "image.supersample", 1, 16, &s->supersample)))
         return rc;
-    if (f[3].v && (rc = sf_int(c, f[3].v, "image.samples", 1, 1 << 20, &s->samples)))
+    if (f[3].v && (rc = sf_samples(c, f[3].v, "image.samples", &s->samples)))
         return rc;
     if (f[5].v && (rc = sf_float(c, f[5].v, "image.timeout", 1.0, 1e6, 0, "seconds from 1 to 1e6", &s->timeout)))
         return rc;

@@ -664,6 +664,33 @@ static void expect_fail(const char *text, size_t len, rc_status want)
     free(s);
 }
 
+/* image.samples auto is stored as 0 (Cycles takes the gates' noise, cycles_samples.h); quoted
+ * "auto" is text, and other words are refused naming auto as an answer. */
+#define CAMERA "camera: {eye: [0, 0, 5], target: [0, 0, 0], hfov: 60}\n"
+static void test_samples_auto(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    char err[600] = "";
+    assert_non_null(s);
+    const char *ok = "image: {width: 8, height: 4, samples: auto}\n" CAMERA;
+    assert_int_equal(parse_text(ok, strlen(ok), s, err, sizeof err), RC_OK);
+    assert_int_equal(s->samples, 0);
+    const char *num = "image: {width: 8, height: 4, samples: 48}\n" CAMERA;
+    assert_int_equal(parse_text(num, strlen(num), s, err, sizeof err), RC_OK);
+    assert_int_equal(s->samples, 48);
+    free(s);
+    const char *quoted = "image: {width: 8, height: 4, samples: \"auto\"}\n" CAMERA;
+    expect_fail(quoted, strlen(quoted), RC_ERR_PARSE);
+    const char *word = "image: {width: 8, height: 4, samples: many}\n" CAMERA;
+    expect_fail(word, strlen(word), RC_ERR_PARSE);
+    s = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_int_equal(parse_text(word, strlen(word), s, err, sizeof err), RC_ERR_PARSE);
+    assert_non_null(strstr(err, "or auto"));
+    free(s);
+}
+
 static void test_hostile_inputs(void **state)
 {
     (void)state;
@@ -928,6 +955,7 @@ int main(void)
         cmocka_unit_test(test_hash_vectors),
         cmocka_unit_test(test_good_full),
         cmocka_unit_test(test_good_minimal_defaults),
+        cmocka_unit_test(test_samples_auto),
         cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_scene_names),
         cmocka_unit_test(test_scale_bounds),
