@@ -3,6 +3,7 @@
 #define _XOPEN_SOURCE 700
 
 #include "cycles.h"
+#include "cycles_samples.h"
 #include "cycles_worker.h"
 
 #include <errno.h>
@@ -23,6 +24,7 @@
 #include "fileio.h"
 #include "jsonio.h"
 #include "runner.h"
+#include "../registry.h"
 
 /* Blender's side of the translation, a file of the source tree (renderer_data_path). */
 #define CYCLES_SCRIPT "harness/renderers/cycles/cycles_render.py"
@@ -1141,6 +1143,105 @@ static int cycles_raw_readable(const cycles_options *o, const char *exr)
     return 1;
 }
 
+/* One Blender pass of a job: write job.json for o, render (through a worker when one runs),
+ * collect into j->exr. Adds its wall and CPU time to r; 0 when the image is there, else r
+ * says why. */
+static int cycles_pass(const renderer_job *j, const cycles_options *o, const char *job, renderer_result *r)
+{
+    char err[1024];
+    rc_status st = cycles_write_job(j->s, j->m, o, job, err, sizeof err);
+    cycles_argv a;
+    if (st == RC_OK)
+        st = cycles_command(o, job, j->exr, &a, err, sizeof err);
+    if (st != RC_OK) {
+        r->left_out = 0;
+        if (st == RC_ERR_RANGE)
+            renderer_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
+        else
+            renderer_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
+        return 1;
+    }
+    renderer_command_string((const char *const *)a.argv, r->command, sizeof r->command);
+    runner_result rr;
+    /* A running Blender worker (worker_pool.py) saves Blender's start-up; with none, or with
+     * another Blender or script than the worker's, Blender starts for this job. */
+    const char *worker = o->blender == NULL && o->script == NULL ? getenv(CYCLES_WORKER_ENV) : NULL;
+    if (cycles_worker_run(worker, job, j->exr, o->threads, j->timeout, j->log, &rr)) {
+        char via[2100];
+        snprintf(via, sizeof via, "(blender worker %s) %s", worker, r->command);
+        snprintf(r->command, sizeof r->command, "%s", via);
+    } else
+        runner_exec(a.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    r->wall_s += rr.wall_s;
+    r->cpu_s += rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        renderer_fail_run(r, &rr, "blender", "blender", "", j->log, "error:", j->shown_log);
+        return 1;
+    }
+    st = cycles_collect(o, j->exr, err, sizeof err);
+    if (st != RC_OK) {
+        /* Blender's images unreadable fail the job; readable ones that we could not merge and
+         * write (disk full) are our error. */
+        runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
+        if (st == RC_ERR_IO && cycles_raw_readable(o, j->exr))
+            why = RUNNER_ERROR;
+        renderer_fail(r, why, "%s: %s",
+                      why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable", err);
+        return 1;
+    }
+    return 0;
+}
+
+/* The log's last line says the samples, the noise reached and the gate's target; the job record
+ * reads it (jobs.c). pilot 0: the samples were a number. */
+static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int pilot, double pilot_noise,
+                                double reached, const cycles_noise_need *need)
+{
+    FILE *f = fopen(j->log, "a");
+    if (f == NULL)
+        return;
+    fprintf(f, "reflcheck-samples: samples %d noise %.6g target %.6g pilot %d pilot_noise %.6g gate %s\n",
+            o->samples > 0 ? o->samples : j->s->samples, reached, need->target, pilot, pilot_noise,
+            need->gate[0] != '\0' ? need->gate : "none");
+    fclose(f);
+}
+
+/* image.samples auto (cycles_samples.h): a pilot, then the samples the gates' noise asks for. */
+static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const char *job, renderer_result *r,
+                                const cycles_noise_need *need)
+{
+    if (need->ztest) {
+        renderer_fail(r, RUNNER_ERROR,
+                      "%s: image.samples auto: %s is a z-test gate, whose sample count is part of the gate; give "
+                      "image.samples a number",
+                      j->s->path, need->gate);
+        return;
+    }
+    o->samples = CYCLES_PILOT_SPP;
+    if (o->n_seeds < 2)
+        o->n_seeds = 2; /* the noise is the seeds' spread */
+    if (cycles_pass(j, o, job, r) != 0)
+        return;
+    char err[512];
+    double pilot = 0.0, reached = 0.0;
+    if (cycles_exr_noise(j->exr, &pilot, err, sizeof err) != RC_OK) {
+        renderer_fail(r, RUNNER_FAILED, "image.samples auto: %s", err);
+        return;
+    }
+    reached = pilot;
+    int n = cycles_samples_for(pilot, CYCLES_PILOT_SPP, need);
+    if (n > CYCLES_PILOT_SPP) {
+        o->samples = n;
+        if (cycles_pass(j, o, job, r) != 0)
+            return;
+        if (cycles_exr_noise(j->exr, &reached, err, sizeof err) != RC_OK) {
+            renderer_fail(r, RUNNER_FAILED, "image.samples auto: %s", err);
+            return;
+        }
+    }
+    cycles_samples_line(j, o, CYCLES_PILOT_SPP, pilot, reached, need);
+}
+
 void cycles_render_job(const renderer_job *j, renderer_result *r)
 {
     char job[1100], err[1024], texdir[PATH_MAX];
@@ -1168,43 +1269,16 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
         }
         o.texture_dir = texdir;
     }
-    rc_status st = cycles_write_job(j->s, j->m, &o, job, err, sizeof err);
-    cycles_argv a;
-    if (st == RC_OK)
-        st = cycles_command(&o, job, j->exr, &a, err, sizeof err);
-    if (st != RC_OK) {
-        r->left_out = 0;
-        if (st == RC_ERR_RANGE)
-            renderer_fail(r, RUNNER_MISSING, "cycles cannot represent this scene: %s", err);
-        else
-            renderer_fail(r, RUNNER_ERROR, "cannot write the Cycles job: %s", err);
+    r->wall_s = r->cpu_s = 0.0;
+    /* image.samples auto (0) and no --samples: the samples follow from the gates' noise. */
+    cycles_noise_need need;
+    cycles_noise_need_of(j->s, registry_find("cycles"), o.role, &need);
+    if (o.samples == 0 && j->s->samples == 0) {
+        cycles_auto_samples(j, &o, job, r, &need);
         return;
     }
-    renderer_command_string((const char *const *)a.argv, r->command, sizeof r->command);
-    runner_result rr;
-    /* A running Blender worker (worker_pool.py) saves Blender's start-up; with none, or with
-     * another Blender or script than the worker's, Blender starts for this job. */
-    const char *worker = o.blender == NULL && o.script == NULL ? getenv(CYCLES_WORKER_ENV) : NULL;
-    if (cycles_worker_run(worker, job, j->exr, o.threads, j->timeout, j->log, &rr)) {
-        char via[2100];
-        snprintf(via, sizeof via, "(blender worker %s) %s", worker, r->command);
-        snprintf(r->command, sizeof r->command, "%s", via);
-    } else
-        runner_exec(a.argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
-    r->wall_s = rr.wall_s;
-    r->cpu_s = rr.cpu_s;
-    if (rr.status != RUNNER_OK) {
-        renderer_fail_run(r, &rr, "blender", "blender", "", j->log, "error:", j->shown_log);
-        return;
-    }
-    st = cycles_collect(&o, j->exr, err, sizeof err);
-    if (st != RC_OK) {
-        /* Blender's images unreadable fail the job; readable ones that we could not merge and
-         * write (disk full) are our error. */
-        runner_status why = st == RC_ERR_NOMEM ? RUNNER_ERROR : RUNNER_FAILED;
-        if (st == RC_ERR_IO && cycles_raw_readable(&o, j->exr))
-            why = RUNNER_ERROR;
-        renderer_fail(r, why, "%s: %s",
-                      why == RUNNER_ERROR ? "cannot write the Cycles image" : "cycles output unreadable", err);
-    }
+    double reached = NAN;
+    char err2[512];
+    if (cycles_pass(j, &o, job, r) == 0 && cycles_exr_noise(j->exr, &reached, err2, sizeof err2) == RC_OK)
+        cycles_samples_line(j, &o, 0, 0.0, reached, &need);
 }

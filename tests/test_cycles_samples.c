@@ -1,0 +1,131 @@
+/* test_cycles_samples.c - a Cycles job's samples from its gates' noise (cycles_samples.h).
+ * Expected values are worked out by hand in the comments; the noise image is written here with
+ * known variances, 3 x 2 pixels, one of them uncovered.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "check.h"
+
+#include "renderers/cycles/cycles_samples.h"
+#include "renderers/registry.h"
+#include "exr.h"
+#include "scene.h"
+
+static void add_gate(comparison *c, const char *metric, double fail)
+{
+    threshold *t = &c->thresholds[c->n_thresholds++];
+    memset(t, 0, sizeof *t);
+    snprintf(t->metric, sizeof t->metric, "%s", metric);
+    t->warn = fail / 2.0;
+    t->fail = fail;
+}
+
+/* Comparisons: model/cycles twin (z-test), model/cycles validate nrmse 0.9 and glossy.nrmse
+ * 0.3, povray/cycles agree rel_rms 0.06 and ssim (not an RMS metric), model/povray twin
+ * rel_rms 0.0003 (not Cycles: ignored). */
+static void fixture(scene *s, int cyc, int model, int pov)
+{
+    scene_init(s);
+    snprintf(s->path, sizeof s->path, "fixture.yaml");
+    comparison *c = s->comparisons;
+    c[0] = (comparison){.test = model, .reference = cyc, .role = ROLE_TWIN};
+    add_gate(&c[0], "z_fail_share", 0.002);
+    c[1] = (comparison){.test = model, .reference = cyc, .role = ROLE_VALIDATE};
+    add_gate(&c[1], "nrmse", 0.9);
+    add_gate(&c[1], "glossy.nrmse", 0.3);
+    c[2] = (comparison){.test = pov, .reference = cyc, .role = ROLE_AGREE};
+    add_gate(&c[2], "rel_rms", 0.06);
+    add_gate(&c[2], "ssim", 0.99);
+    c[3] = (comparison){.test = model, .reference = pov, .role = ROLE_TWIN};
+    add_gate(&c[3], "rel_rms", 0.0003);
+    s->n_comparisons = 4;
+}
+
+static void test_need_of_roles(void **state)
+{
+    (void)state;
+    int cyc = registry_find("cycles"), pov = registry_find("povray"), model = registry_find("raster");
+    assert_true(cyc >= 0 && pov >= 0 && model >= 0);
+    scene s;
+    fixture(&s, cyc, model, pov);
+    cycles_noise_need need;
+    /* validate serves validate and agree: min(0.9, 0.3, 0.06) / 3 = 0.02, from the agree's rel_rms */
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
+    assert_false(need.ztest);
+    close_rel(need.target, 0.02, 1e-12);
+    assert_non_null(strstr(need.gate, "comparisons[2] povray/agree rel_rms fail 0.06"));
+    /* twin serves the twin alone: its z-test */
+    cycles_noise_need_of(&s, cyc, ROLE_TWIN, &need);
+    assert_true(need.ztest);
+    assert_non_null(strstr(need.gate, "comparisons[0] raster/twin z_fail_share"));
+    /* without the agree, the validate's glossy.nrmse 0.3 / 3 = 0.1 sets it */
+    s.n_comparisons = 2;
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
+    close_rel(need.target, 0.1, 1e-12);
+    /* a render no comparison gates by an RMS metric asks nothing */
+    s.comparisons[1].n_thresholds = 0;
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
+    assert_true(need.target == 0.0 && !need.ztest);
+}
+
+static void test_samples_for(void **state)
+{
+    (void)state;
+    cycles_noise_need need = {.target = 0.02};
+    /* pilot 16 spp at noise 0.05: 16 (0.05 / 0.02)^2 = 100 */
+    assert_int_equal(cycles_samples_for(0.05, 16, &need), 100);
+    /* 0.0501: 16 * 6.275025 = 100.4 -> 101 (rounded up: the target is a bound) */
+    assert_int_equal(cycles_samples_for(0.0501, 16, &need), 101);
+    /* already quiet enough, or nothing asked: the pilot is the render */
+    assert_int_equal(cycles_samples_for(0.019, 16, &need), 16);
+    need.target = 0.0;
+    assert_int_equal(cycles_samples_for(5.0, 16, &need), 16);
+    /* capped: 16 (1 / 0.02)^2 = 40000 > CYCLES_MAX_SPP */
+    need.target = 0.02;
+    assert_int_equal(cycles_samples_for(1.0, 16, &need), CYCLES_MAX_SPP);
+}
+
+static void test_exr_noise(void **state)
+{
+    (void)state;
+    /* 3 x 2 pixels; pixel 5 uncovered (its huge values must not count). Covered pixels 0..4:
+     * R, G, B = 1, 2, 3 at pixels 0..3 and 2, 2, 2 at pixel 4 -> sum 4 * 6 + 6 = 30 over
+     * 15 values, mean 2; var 0.01 everywhere but pixel 4's 0.04 -> sum 12 * 0.01 + 3 * 0.04
+     * = 0.24, mean 0.016; noise = sqrt(0.016) / 2 = 0.0632456 */
+    float r[6] = {1, 1, 1, 1, 2, 1000}, g[6] = {2, 2, 2, 2, 2, 1000}, b[6] = {3, 3, 3, 3, 2, 1000};
+    float v[6] = {0.01f, 0.01f, 0.01f, 0.01f, 0.04f, 100.0f}, cov[6] = {1, 1, 0.5f, 1, 1, 0};
+    exr_channel ch[] = {{"R", r}, {"G", g}, {"B", b}, {"var.R", v}, {"var.G", v}, {"var.B", v}, {"coverage", cov}};
+    char dir[] = "/tmp/test_cycles_samples_XXXXXX", path[64], err[256];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/noise.exr", dir);
+    assert_int_equal(exr_write(path, 3, 2, ch, 7, NULL, 0, err, sizeof err), RC_OK);
+    double noise = 0.0;
+    assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_OK);
+    close_rel(noise, sqrt(0.016) / 2.0, 1e-6);
+    /* one seed: no var.* channels -> refused, naming the fix */
+    assert_int_equal(exr_write(path, 3, 2, ch, 3, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_ERR_RANGE);
+    assert_non_null(strstr(err, "no var.R/G/B channels"));
+    unlink(path);
+    rmdir(dir);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_need_of_roles),
+        cmocka_unit_test(test_samples_for),
+        cmocka_unit_test(test_exr_noise),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
