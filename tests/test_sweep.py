@@ -346,7 +346,7 @@ class _Runner:
     def __init__(self):
         self.calls = []
 
-    def diff(self, test, ref, mask, leave_out=()):
+    def diff(self, test, ref, mask, leave_out=(), keys=None):
         self.calls.append((test, tuple(leave_out)))
         return {'surface': {'nrmse': 0.0079 if 'specular' in leave_out else 0.0814}}
 
@@ -403,3 +403,128 @@ def test_partial_twin_says_so(tmp_path):
     assert r.returncode == 0, r.stderr
     html = (run / 'index.html').read_text(encoding='utf-8')
     assert 'cycles twin' in html and 'terms compared: diffuse + reflection + emission (specular left out' in html
+
+
+# ------------------------------------------------------------------------------ staged levels
+
+
+def test_stage_one_and_two_plans():
+    """Stage one: the levels below the top against the top level (seeds 0..1) as the reference;
+    stage two: that render becomes the top point (same tag, options: one cache key) and the deep
+    reference comes in, at seeds 4..5 with --seed (disjoint from the points' 2..3 and the top's)."""
+    jobs, ref = sweep.plan(quick=False, seed_opt=True)
+    one, top = sweep.stage_one(jobs, ref)
+    cyc = {j['key']: j for j in one if j['renderer'] == 'cycles'}
+    assert top == 1024 and sorted(cyc) == ['cycles16', 'cycles256', 'cycles64', 'reference']
+    assert cyc['reference']['opts'] == ['--samples', '1024', '--seeds', '2'] and cyc['reference']['samples'] == 1024
+    assert [j for j in one if j['renderer'] != 'cycles'] == [j for j in jobs if j['renderer'] != 'cycles']
+    two, ref2 = sweep.stage_two(one, top, ref, seed_opt=True)
+    cyc2 = {j['key']: j for j in two if j['renderer'] == 'cycles'}
+    assert ref2 == 4096 and sorted(cyc2) == ['cycles1024', 'cycles16', 'cycles256', 'cycles64', 'reference']
+    assert (
+        cyc2['cycles1024']['tag'] == cyc['reference']['tag'] and cyc2['cycles1024']['opts'] == cyc['reference']['opts']
+    )
+    assert cyc2['reference']['opts'] == ['--samples', '4096', '--seeds', '2', '--seed', '4']
+    assert cyc2['reference']['tag'] == 'cycles-spp4096-s4'
+    # Without --seed (nested): the deep reference is seeds 0..1 as before.
+    two_n, _ = sweep.stage_two(sweep.stage_one(*sweep.plan(quick=False, seed_opt=False))[0], 1024, 4096, False)
+    assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '4096', '--seeds', '2']
+
+
+def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05)):
+    """A stage-one analysis dict as deeper_reasons reads it."""
+    cyc = [
+        {'samples': n, 'error': e, 'is_reference': False, 'time_s': 1.0 + n / 100}
+        for n, e in zip((16, 64, 256), cycles_errors)
+    ]
+    local = sweep.local_slopes([p['samples'] for p in cyc], [p['error'] for p in cyc])
+    fit = sweep.fit_loglog([p['samples'] for p in cyc], [p['error'] for p in cyc])
+    fit['local'] = local
+    return {
+        'reference': {'noise_nrmse': noise_ref},
+        'series': [
+            {'label': 'cycles spp', 'renderer': 'cycles', 'fit_spp': fit, 'points': cyc},
+            {'label': 'raster k', 'renderer': 'raster', 'points': [{'error': raster, 'is_reference': False}]},
+        ],
+        'crossover': {'spp': 64.0, 'extrapolated': None},
+        'crossover_best_raster': None,
+    }
+
+
+def test_deeper_reasons_rule():
+    # Errors 0.2, 0.1, 0.05 at 16, 64, 256: slope ln(1/2)/ln 4 = -0.5 throughout; crossover
+    # inside; reference noise 0.01 < 0.1 / 3: stage one decides everything.
+    assert sweep.deeper_reasons(_staged()) == []
+    # Crossover beyond 256 spp.
+    t = _staged()
+    t['crossover_best_raster'] = {'spp': 900.0, 'extrapolated': 'above'}
+    assert any('crossover best raster at 900 spp' in w for w in sweep.deeper_reasons(t))
+    # 64 -> 256: 0.1 -> 0.08, slope ln(0.8)/ln 4 = -0.161 > -0.4: a floor may begin.
+    assert any('slower than -0.5' in w for w in sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.1, 0.08))))
+    # Faster than -0.5 (0.2 -> 0.05 -> 0.0125: -1.0) is stratification, decided in stage one.
+    assert sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.05, 0.0125))) == []
+    # Reference noise 0.04 > raster 0.1 / 3 = 0.0333 (0.03 is under it).
+    assert any('reference noise 0.04' in w for w in sweep.deeper_reasons(_staged(noise_ref=0.04)))
+    assert sweep.deeper_reasons(_staged(noise_ref=0.03)) == []
+
+
+# ------------------------------------------------------------------------------ second run
+
+
+class _Args:
+    def __init__(self, cache, binary):
+        self.bin, self.cache, self.threads, self.scheduler, self.full_size = binary, cache, 1, 'local', False
+        self.run = os.path.dirname(cache)
+
+
+def _fake_bin(tmp_path):
+    """A stand-in reflcheck: `run` writes a record (key k1, wall_s from a counter: 0.3, 0.2,
+    0.1, ...) and `diff` prints a JSON naming its call number; both count their calls."""
+    counter = tmp_path / 'calls'
+    counter.write_text('0')
+    exe = tmp_path / 'reflcheck'
+    exe.write_text(
+        '#!/usr/bin/python3\n'
+        'import json, os, sys\n'
+        f'c = {str(counter)!r}\n'
+        'n = int(open(c).read()) + 1\n'
+        'open(c, "w").write(str(n))\n'
+        'a = sys.argv[1:]\n'
+        'if a[0] == "run" and "--seed" in a and a[a.index("--seed") + 1] == "0" and len(a) == 3:\n'
+        '    sys.exit(2)\n'
+        'if a[0] == "run":\n'
+        '    out, tag, r = a[a.index("--out") + 1], a[a.index("--tag") + 1], a[a.index("--renderer") + 1]\n'
+        '    d = os.path.join(out, "s", tag)\n'
+        '    os.makedirs(d, exist_ok=True)\n'
+        '    rec = {"status": "ok", "key": "00000000000000k1".replace("k", "a"), "wall_s": 0.4 - 0.1 * n,\n'
+        '           "cpu_s": 0.01, "cached": "--cache" in a}\n'
+        '    json.dump(rec, open(os.path.join(d, r + "-validate.json"), "w"))\n'
+        'else:\n'
+        '    print(json.dumps({"surface": {"nrmse": n}}))\n'
+    )
+    exe.chmod(0o755)
+    return str(exe), counter
+
+
+def test_second_run_reads_repeats_and_diffs_from_the_cache(tmp_path):
+    """A raster job's repeats and a diff of cached renders are kept in the cache: the second run
+    over it renders the job once (through the cache) and diffs nothing."""
+    exe, counter = _fake_bin(tmp_path)
+    runner = sweep.Runner(_Args(str(tmp_path / 'cache'), exe))
+    runner.roles['s'] = 'validate'
+    calls0 = int(counter.read_text())  # the --seed probe
+    rec = runner.run('s.yaml', 's', 'raster', 'raster-k1', [], repeats=3)
+    assert int(counter.read_text()) - calls0 == 3  # first through the cache, two repeats
+    assert rec['wall_s'] == pytest.approx(0.4 - 0.1 * (calls0 + 3))  # the fastest: the last
+    keys = ('00000000000000a1', '00000000000000b2', '00000000000000c3')
+    d1 = runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'], keys=keys)
+    n1 = int(counter.read_text())
+    # Second run: one cached render, the kept repeat time, and the kept diff.
+    rec2 = runner.run('s.yaml', 's', 'raster', 'raster-k1', [], repeats=3)
+    assert int(counter.read_text()) == n1 + 1 and rec2['wall_s'] == pytest.approx(rec['wall_s'])
+    assert runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'], keys=keys) == d1
+    assert int(counter.read_text()) == n1 + 1
+    # Other terms left out, or no keys: a diff of its own.
+    runner.diff('t.exr', 'r.exr', 'm.exr', [], keys=keys)
+    runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'])
+    assert int(counter.read_text()) == n1 + 3

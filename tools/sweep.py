@@ -12,6 +12,14 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the best reference the scene has,
              as the pixel integral (--supersample 1) in every role.
   cycles     Cycles at 16, 64, 256, 1024 spp (--quick 16, 64, 256), 2 seeds each.
+  Levels (--levels staged, the default): stage one renders the levels below the top against the
+  top level (1024 spp, seeds 0..1) as the reference; stage two adds the deep reference (REF spp,
+  seeds 4..5 with `run --seed`), the top level becoming a point, only on the scenes where stage
+  one leaves a crossover beyond its levels, a slope slower than -0.5 at its top, or a reference
+  noise above a third of the smallest non-Cycles error (deeper_reasons). --levels all: every
+  level and the deep reference everywhere. sweep.json lists each deep scene and why.
+  Second runs: a raster job's repeats (CACHE/repeats/<key>.json) and the diffs of cached renders
+  (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),
              k = 1, 2, 4, 8; tessellation 8, 16, 32, 64, 128 (every object); per-vertex shading.
              Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times without the
@@ -93,6 +101,7 @@ swept (reference or raster as-is missing), 2 bad usage.
 import argparse
 import concurrent.futures as cf
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -131,6 +140,9 @@ JOB_TIMEOUT_S = 3600
 # Spp slope within this of -0.5 is "Monte Carlo rate": with 4 levels and 2 seeds, the scatter of
 # a fitted slope is a few hundredths; 0.1 flags a real departure, not noise.
 SLOPE_TOL = 0.1
+# The reference's noise may be a third of the smallest error it measures: in quadrature that
+# moves the error by at most 5.4 % (sqrt(1 + 1/9)), inside the scatter of two seeds.
+NOISE_MARGIN = 3.0
 BUDGETS_S = (1.0, 10.0, 100.0)
 
 
@@ -412,10 +424,16 @@ class Runner:
             + (['--small'] if self.small else [])
             + opts
         )
-        cmd += ['--no-cache'] if repeats > 1 else ['--cache', self.cache]
         best, t0 = None, time.monotonic()
-        for _ in range(repeats):
-            r = subprocess.run(self.prefix + cmd, capture_output=True, text=True, timeout=JOB_TIMEOUT_S, env=self.env)
+        for i in range(repeats):
+            # The first render goes through the cache (its key names the repeats' times below);
+            # the repeats must render, so they skip it.
+            extra = ['--cache', self.cache] if i == 0 else ['--no-cache']
+            if i == 1 and self.repeats_known(best, repeats):
+                break
+            r = subprocess.run(
+                self.prefix + cmd + extra, capture_output=True, text=True, timeout=JOB_TIMEOUT_S, env=self.env
+            )
             rec_path = self.out(scene, tag, renderer) + '.json'
             try:
                 with open(rec_path, encoding='utf-8') as f:
@@ -434,21 +452,68 @@ class Runner:
                 best = rec
                 break
             if best is None or rec.get('wall_s', math.inf) < best.get('wall_s', math.inf):
-                best = rec
+                best = dict(rec, key=(best or rec).get('key'), cached=(best or rec).get('cached'))
+        if repeats > 1 and best.get('status') == 'ok':
+            self.repeats_store(best, repeats)
         best['sweep_elapsed_s'] = time.monotonic() - t0
         best['exr'] = self.out(scene, tag, renderer) + '.exr'
         if renderer == 'cycles':
             best['render_s'] = cycles_render_s(self.out(scene, tag, renderer) + '.log')
         return best
 
-    def diff(self, test, ref, mask, leave_out=()):
+    def repeats_path(self, rec):
+        """Where the fastest of a cached job's repeats is kept: CACHE/repeats/<key>.json. A
+        second run over the same cache takes the time from there instead of rendering again."""
+        key = rec.get('key') if rec else None
+        return os.path.join(self.cache, 'repeats', key + '.json') if key and re.fullmatch(r'[0-9a-f]+', key) else None
+
+    def repeats_known(self, rec, repeats):
+        """True (and rec takes the kept times) when the repeats of rec's key were timed before."""
+        path = self.repeats_path(rec)
+        try:
+            with open(path, encoding='utf-8') as f:
+                kept = json.load(f)
+        except (OSError, TypeError, ValueError):
+            return False
+        if kept.get('repeats', 0) < repeats or not isinstance(kept.get('wall_s'), (int, float)):
+            return False
+        rec.update(wall_s=kept['wall_s'], cpu_s=kept.get('cpu_s'), repeats_cached=True)
+        return True
+
+    def repeats_store(self, rec, repeats):
+        path = self.repeats_path(rec)
+        if path and not rec.get('repeats_cached'):
+            with contextlib.suppress(OSError):
+                write_json(path, {'repeats': repeats, 'wall_s': rec.get('wall_s'), 'cpu_s': rec.get('cpu_s')})
+
+    def diff_path(self, keys, leave_out):
+        """CACHE/diffs/<hash>.json for a diff of three cached renders (test, reference, mask: their
+        cache keys) by this reflcheck (path, size and time: a rebuilt one diffs again)."""
+        if not all(k and re.fullmatch(r'[0-9a-z-]+', k) for k in keys):
+            return None
+        st = os.stat(self.bin)
+        ident = f'{os.path.abspath(self.bin)} {st.st_size} {st.st_mtime_ns} {" ".join(keys)} {",".join(leave_out)}'
+        return os.path.join(self.cache, 'diffs', hashlib.sha256(ident.encode()).hexdigest()[:32] + '.json')
+
+    def diff(self, test, ref, mask, leave_out=(), keys=None):
+        """`reflcheck diff` of two images (masked); keys: the three images' cache keys, with which
+        the answer is kept in the cache and a second run reads it instead of diffing again."""
+        path = self.diff_path(keys, leave_out) if keys else None
+        if path and os.path.exists(path):
+            with contextlib.suppress(OSError, ValueError):
+                with open(path, encoding='utf-8') as f:
+                    return json.load(f)
         cmd = [self.bin, 'diff', test, ref, '--mask', mask] + (
             ['--leave-out', ','.join(leave_out)] if leave_out else []
         )
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
         if r.returncode != 0:
             raise RuntimeError(f'reflcheck diff {test} {ref}: ' + (r.stderr.strip().splitlines() or ['failed'])[-1])
-        return json.loads(r.stdout)
+        out = json.loads(r.stdout)
+        if path:
+            with contextlib.suppress(OSError):
+                write_json(path, out)
+        return out
 
 
 def scene_diffs(runner, jobs, recs, zero):
@@ -462,12 +527,15 @@ def scene_diffs(runner, jobs, recs, zero):
     for j in jobs:
         if recs[j['key']].get('status') != 'ok':
             continue
+        keys = (recs[j['key']].get('key'), recs['reference'].get('key'), recs['as_is'].get('key'))
         try:
-            diffs[j['key']] = runner.diff(recs[j['key']]['exr'], ref, mask, left)
+            diffs[j['key']] = runner.diff(recs[j['key']]['exr'], ref, mask, left, keys=keys)
         except (RuntimeError, ValueError) as e:
             diffs[j['key'] + ':err'] = str(e)
         if j['renderer'] == 'cycles':
-            noises[j['key']] = noise_nrmse(runner, recs[j['key']]['exr'], mask, zero)
+            # The zero image is made from the mask's render: 'zero-' and its key name it.
+            zkeys = (f'zero-{keys[2]}', keys[0], keys[2]) if keys[0] and keys[2] else None
+            noises[j['key']] = noise_nrmse(runner, recs[j['key']]['exr'], mask, zero, zkeys)
     return diffs, noises, left
 
 
@@ -484,14 +552,14 @@ def cycles_render_s(log_path):
     return float(m[-1][0]) + sum(float(v) for v in m[-1][1].split())
 
 
-def noise_nrmse(runner, exr, mask, zero):
+def noise_nrmse(runner, exr, mask, zero, keys=None):
     """A render's own noise, as NRMSE (RMS of the var.* std-dev over the mean of the image):
     `diff ZERO X` gives rmse = rms(X) and nrmse = rms/mean over the surface, and its
     noise.ref_rel_rms = sqrt(sum var / sum X^2); so noise/mean = ref_rel_rms * nrmse."""
     if zero is None:
         return None
     try:
-        d = runner.diff(zero, exr, mask)
+        d = runner.diff(zero, exr, mask, keys=keys)
     except (RuntimeError, ValueError):
         return None
     rel = (d.get('noise') or {}).get('ref_rel_rms')
@@ -621,6 +689,102 @@ def plan(quick, seed_opt):
     return jobs, ref
 
 
+def stage_one(jobs, ref_spp):
+    """The first stage of a scene's Cycles levels: the top level (seeds 0..1) stands in for the
+    reference, the levels below it are points. Returns (jobs, reference spp). The top level is
+    the same render as stage two's top point (same samples and seeds: one cache key), so a scene
+    that goes on to stage two renders nothing twice."""
+    levels = sorted(j['samples'] for j in jobs if j['renderer'] == 'cycles' and j['key'] != 'reference')
+    if len(levels) < 2:
+        return jobs, ref_spp
+    top = levels[-1]
+    out = []
+    for j in jobs:
+        if j['key'] in ('reference', f'cycles{top}'):
+            continue
+        out.append(j)
+    out.insert(0, top_job(top, 'reference', f'{top} spp (reference)'))
+    return out, top
+
+
+def top_job(top, key, label):
+    """The top Cycles level at seeds 0..1: stage one's reference, stage two's top point."""
+    return dict(
+        key=key,
+        renderer='cycles',
+        tag=f'cycles-spp{top}',
+        label=label,
+        opts=['--samples', str(top), '--seeds', str(SEEDS)],
+        series='cycles spp',
+        samples=top,
+    )
+
+
+# Stage two's reference seeds (with `run --seed`): past the points' 2..3 and the top level's
+# 0..1, so that it is independent of every point it measures.
+DEEP_SEED = 2 * SEEDS
+
+
+def stage_two(jobs1, top, ref_spp, seed_opt):
+    """Stage one's jobs with the deep reference added: the stage-one reference becomes the top
+    point, the reference is ref_spp at seeds DEEP_SEED.. (with --seed; else 0.., nested as
+    before). Returns (jobs, ref_spp)."""
+    out = [dict(j) for j in jobs1 if j['key'] != 'reference']
+    out.append(top_job(top, f'cycles{top}', f'{top} spp'))
+    extra = ['--seed', str(DEEP_SEED)] if seed_opt else []
+    ref = dict(
+        key='reference',
+        renderer='cycles',
+        tag=f'cycles-spp{ref_spp}' + (f'-s{DEEP_SEED}' if seed_opt else ''),
+        label=f'{ref_spp} spp (reference)',
+        opts=['--samples', str(ref_spp), '--seeds', str(SEEDS)] + extra,
+        series='cycles spp',
+        samples=ref_spp,
+    )
+    return [ref] + out, ref_spp
+
+
+def deeper_reasons(t):
+    """Why a scene swept against its stage-one reference needs the top level as a point and the
+    deep reference (the rule: a render is spent where it decides a slope, a crossover or an
+    error). Empty when stage one decides all three:
+      crossover   Cycles reaches the raster's error (as-is or best) beyond the levels measured:
+                  only higher levels place it;
+      slope       between the top two levels the error falls slower than spp^-0.5 by more than
+                  SLOPE_TOL: a floor (reference noise, bias) may begin, and only higher levels show
+                  it (faster than -0.5 is PMJ's stratification, which stage one measures);
+      reference   the reference's noise is above a third of the smallest non-Cycles error it
+                  measures: the quadrature subtraction would move that error by more than 5.4 %
+                  (sqrt(1 + 1/9)), so the error needs a quieter reference. (Cycles' own points
+                  are corrected exactly for the reference's noise, nested or independent.)"""
+    why = []
+    for k in ('crossover', 'crossover_best_raster'):
+        c = t.get(k)
+        if c and c.get('extrapolated') == 'above':
+            why.append(f"{k.replace('_', ' ')} at {c['spp']:.0f} spp, above the levels measured")
+            break
+    cyc = next((s for s in t['series'] if s['label'] == 'cycles spp'), None)
+    fs = cyc and cyc.get('fit_spp')
+    if fs is None:
+        why.append('no spp slope from stage one')
+    else:
+        top = (fs.get('local') or [{}])[-1].get('slope', fs['slope'])
+        if top > -0.5 + SLOPE_TOL:
+            why.append(f'spp slope {top:.2f} between the top two levels, slower than -0.5: a floor may begin there')
+    noise = (t.get('reference') or {}).get('noise_nrmse')
+    errs = [
+        p['error']
+        for s in t['series']
+        for p in s['points']
+        if s['renderer'] != 'cycles' and not p['is_reference'] and p.get('error')
+    ]
+    if noise and errs and noise > min(errs) / NOISE_MARGIN:
+        why.append(f'reference noise {noise:.3g} above a third of the smallest error {min(errs):.3g}')
+    elif noise and not errs:
+        why.append('no error measured against the stage-one reference')
+    return why
+
+
 def expected_cost(job):
     """Longest jobs first keeps both workers busy to the end (LPT scheduling)."""
     if job['renderer'] == 'cycles':
@@ -668,7 +832,9 @@ def terms_left_out(rec):
     return [t for t in TERMS if t in left]
 
 
-def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate', left_out=()):
+def analyse(
+    scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall_s', role='validate', left_out=(), ref_seed=0
+):
     """Everything but the rendering: points, fits, Pareto frontier, equal time, crossover.
     left_out: the terms the reference left out, which every diff left out too."""
     noise_ref = noises.get('reference')
@@ -803,7 +969,7 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
             'terms_left_out': list(left_out),
             'terms_compared': [t for t in TERMS if t not in left_out],
             'samples': ref_spp,
-            'seeds': list(range(SEEDS)),
+            'seeds': list(range(ref_seed, ref_seed + SEEDS)),
             'noise_nrmse': noise_ref,
             'nested': nested,
             'note': (
@@ -815,6 +981,12 @@ def analyse(scene, jobs, recs, diffs, noises, ref_spp, nested, size, clock='wall
             else (
                 'sweep points use seeds 2..3, disjoint from the reference\'s; error takes '
                 'the reference noise out in quadrature'
+            )
+            if ref_seed == 0
+            else (
+                f'sweep points use seeds 2..3 and the top level seeds 0..1, disjoint from the '
+                f'reference\'s {ref_seed}..{ref_seed + SEEDS - 1}; error takes the reference noise out '
+                'in quadrature'
             ),
         },
         'series': out_series,
@@ -872,6 +1044,45 @@ def collect(futs, recs, progress, cost):
     progress.close()
 
 
+def run_work(runner, n, work, recs, label):
+    """Renders the (scene path, name, job) list, n at a time, longest first (LPT), into recs."""
+    work = sorted(work, key=lambda w: -expected_cost(w[2]))
+    if not work:
+        return
+    with cf.ThreadPoolExecutor(max_workers=n) as ex:
+        futs = {
+            ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
+            for sp, name, j in work
+        }
+        cost = {(sp, j['key']): expected_cost(j) for sp, name, j in work}
+        collect(futs, recs, Progress(label, len(work), sum(cost.values())), cost)
+
+
+def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
+    """One scene's timing JSON from its records r (job key -> record), or the reason it has
+    none (its reference or raster as-is failed)."""
+    if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
+        bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
+        return f'the {bad} render failed: {r[bad].get("message")}; see its log under {runner.renders}/{name}'
+    zero = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
+    diffs, noises, left = scene_diffs(runner, jobs, r, zero)
+    rec0 = r['as_is']
+    return analyse(
+        name,
+        jobs,
+        r,
+        diffs,
+        noises,
+        ref_spp,
+        nested,
+        [rec0.get('width'), rec0.get('height')],
+        args.clock + '_s',
+        runner.roles.get(name, 'validate'),
+        left,
+        ref_seed,
+    )
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description='error against render time for every renderer knob (see the docstring)')
     ap.add_argument('--run', required=True, help='run folder; writes RUN/timing/<scene>.json')
@@ -898,6 +1109,14 @@ def main(argv=None):
         choices=('local', 'slurm'),
         default='local',
         help='slurm: run inside a Slurm allocation (the nightly submits the sweep), each job an srun step',
+    )
+    ap.add_argument(
+        '--levels',
+        choices=('staged', 'all'),
+        default='staged',
+        help="staged (default): every level below the top against the top level, then the top "
+        "level and the deep reference only where a slope, crossover or error needs them "
+        "(deeper_reasons); all: every level and the deep reference on every scene (as before)",
     )
     ap.add_argument(
         '--no-worker',
@@ -943,8 +1162,7 @@ def main(argv=None):
         runner.roles[scene_name(sp)] = sweep_role(sp)
     nested = not runner.seed_opt
     t_start = time.monotonic()
-    plans = {}
-    work = []
+    plans, full = {}, {}
     for sp in scenes:
         name = scene_name(sp)
         jobs, ref_spp = plan(args.quick, runner.seed_opt)
@@ -953,23 +1171,36 @@ def main(argv=None):
         # EEVEE is swept where it is judged: a scene without an EEVEE comparison would spend
         # 30-75 s a job on figures nobody asked for.
         jobs = [j for j in jobs if j['renderer'] != 'eevee' or names_renderer(sp, 'eevee')]
-        plans[sp] = (name, jobs, ref_spp)
-        work += [(sp, name, j) for j in jobs]
-    work.sort(key=lambda w: -expected_cost(w[2]))
-    recs = {}
+        full[sp] = (jobs, ref_spp)
+        plans[sp] = (name, jobs, ref_spp) if args.levels == 'all' else (name, *stage_one(jobs, ref_spp))
+    work = [(sp, name, j) for sp, (name, jobs, _) in plans.items() for j in jobs]
+    recs, deeper = {}, {}
     # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
     # start-up is paid once per worker, not once per job, and job times no longer include it.
     use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
     pool = WorkerPool(args.jobs, log_dir=args.run) if use_pool else contextlib.nullcontext()
-    with pool, cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
+    with pool:
         if use_pool:
             runner.env = dict(os.environ, **pool.env())
-        futs = {
-            ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
-            for sp, name, j in work
-        }
-        cost = {(sp, j['key']): expected_cost(j) for sp, name, j in work}
-        collect(futs, recs, Progress('sweep', len(work), sum(expected_cost(w[2]) for w in work)), cost)
+        run_work(runner, args.jobs, work, recs, 'sweep')
+        if args.levels == 'staged':
+            # Stage two: the top level and the deep reference, only where stage one left a
+            # slope, a crossover or an error undecided (deeper_reasons).
+            more = []
+            for sp in scenes:
+                name, jobs, top = plans[sp]
+                r = {j['key']: recs[(sp, j['key'])] for j in jobs}
+                t = sweep_scene(runner, args, name, jobs, r, top, nested)
+                why = deeper_reasons(t) if isinstance(t, dict) else []
+                if not why:
+                    continue
+                deeper[sp] = why
+                recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
+                jobs2, ref_spp = stage_two(jobs, top, full[sp][1], runner.seed_opt)
+                plans[sp] = (name, jobs2, ref_spp)
+                more += [(sp, name, j) for j in jobs2 if j['key'] == 'reference']
+            run_work(runner, args.jobs, more, recs, 'sweep, deep references')
+            work += more
     t_render = time.monotonic() - t_start
 
     rc = 0
@@ -986,40 +1217,26 @@ def main(argv=None):
         'quick': args.quick,
         'size': 'full' if args.full_size else 'small',
         'nested_reference': nested,
+        'levels': args.levels,
+        'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
     }
     for sp in scenes:
         name, jobs, ref_spp = plans[sp]
         r = {j['key']: recs[(sp, j['key'])] for j in jobs}
-        if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
-            bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
-            print(
-                f'sweep.py: {sp}: the {bad} render failed: {r[bad].get("message")}; see its log under '
-                f'{runner.renders}/{name}',
-                file=sys.stderr,
-            )
+        t = sweep_scene(
+            runner, args, name, jobs, r, ref_spp, nested, DEEP_SEED if sp in deeper and runner.seed_opt else 0
+        )
+        if not isinstance(t, dict):
+            print(f'sweep.py: {sp}: {t}', file=sys.stderr)
             rc = 1
             continue
-        zero = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
-        diffs, noises, left = scene_diffs(runner, jobs, r, zero)
-        rec0 = r['as_is']
-        t = analyse(
-            name,
-            jobs,
-            r,
-            diffs,
-            noises,
-            ref_spp,
-            nested,
-            [rec0.get('width'), rec0.get('height')],
-            args.clock + '_s',
-            runner.roles.get(name, 'validate'),
-            left,
-        )
         t['sweep'] = {
             'jobs': len(jobs),
             'cached': sum(1 for v in r.values() if v.get('cached')),
             'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
             'threads_per_job': args.threads,
+            'stage': 2 if sp in deeper or args.levels == 'all' else 1,
+            'deep_reference_why': deeper.get(sp, []),
         }
         write_json(os.path.join(args.run, 'timing', f'{name}.json'), clean_nan(t))
         summary['scenes'][name] = t['sweep']
