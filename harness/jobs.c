@@ -354,6 +354,40 @@ static int job_slurm_id(const job_spec *j, char *buf, size_t len)
     return 1;
 }
 
+/* A stochastic render's samples and the noise it reached, from its log's last
+ * "reflcheck-samples:" line (harness/renderers/cycles/cycles_samples.h): "samples" becomes the
+ * count rendered (image.samples auto picks it) and "noise" says the noise NRMSE reached, the
+ * target its gates set (0: none) and the gate. Returns the samples, or `samples` without a line. */
+static int job_samples_from_log(const char *log, int samples, cJSON *o)
+{
+    FILE *f = log[0] != '\0' ? fopen(log, "r") : NULL;
+    if (f == NULL)
+        return samples;
+    char line[1024], last[1024] = "";
+    while (fgets(line, sizeof line, f) != NULL)
+        if (strncmp(line, "reflcheck-samples: ", 19) == 0)
+            snprintf(last, sizeof last, "%s", line);
+    fclose(f);
+    int n = 0, pilot = 0, at = 0;
+    double noise = 0.0, target = 0.0, pilot_noise = 0.0;
+    if (sscanf(last, "reflcheck-samples: samples %d noise %lf target %lf pilot %d pilot_noise %lf gate %n", &n, &noise,
+               &target, &pilot, &pilot_noise, &at) < 5 ||
+        at == 0 || n < 1)
+        return samples;
+    last[strcspn(last, "\n")] = '\0';
+    cJSON *x = cJSON_AddObjectToObject(o, "noise");
+    cJSON_AddNumberToObject(x, "nrmse", noise);
+    cJSON_AddNumberToObject(x, "target", target);
+    cJSON_AddBoolToObject(x, "reached", target <= 0.0 || noise <= target);
+    cJSON_AddStringToObject(x, "gate", last + at);
+    cJSON_AddStringToObject(x, "samples_from", pilot > 0 ? "auto" : "image.samples");
+    if (pilot > 0) {
+        cJSON_AddNumberToObject(x, "pilot_samples", pilot);
+        cJSON_AddNumberToObject(x, "pilot_nrmse", pilot_noise);
+    }
+    return n;
+}
+
 static rc_status job_write_record(const job_ctx *c, const job_record *r, const char *path, uint64_t key, char *err,
                                   size_t errlen)
 {
@@ -379,7 +413,7 @@ static rc_status job_write_record(const job_ctx *c, const job_record *r, const c
     cJSON_AddNumberToObject(o, "width", s->width);
     cJSON_AddNumberToObject(o, "height", s->height);
     cJSON_AddNumberToObject(o, "supersample", s->supersample);
-    cJSON_AddNumberToObject(o, "samples", row->stochastic ? s->samples : 0);
+    cJSON_AddNumberToObject(o, "samples", row->stochastic ? job_samples_from_log(r->log, s->samples, o) : 0);
     cJSON_AddNumberToObject(o, "seeds", row->stochastic ? (c->j->seeds > 0 ? c->j->seeds : 2) : 0);
     cJSON_AddNumberToObject(o, "seed", row->stochastic ? c->j->seed : 0);
     cJSON_AddNumberToObject(o, "tessellation", s->n_objects > 0 ? s->objects[0].tessellation : 0);
