@@ -314,7 +314,12 @@ if [ "$scheduler" = make ]; then
     # a failed job at once.
     n=$(grep -c '^all: ' "$run/jobs.mk")
     say "renders: $n jobs, $jobs at a time (their output: $run/renders.txt)"
-    make -k -j"$jobs" -f "$run/jobs.mk" all > "$run/renders.txt" 2>&1 &
+    # Cycles jobs hand their render to one of $jobs Blender workers (worker_pool.py), so Blender
+    # starts once per worker, not once per job; the workers stop with make.
+    pool=()
+    grep -q -e "--renderer cycles " "$run/jobs.mk" && command -v blender > /dev/null &&
+        pool=(/usr/bin/python3 harness/renderers/cycles/worker_pool.py --workers "$jobs" --log-dir "$run" --)
+    "${pool[@]}" make -k -j"$jobs" -f "$run/jobs.mk" all > "$run/renders.txt" 2>&1 &
     mk=$!
     progress watch "$run" --total "$n" --pid "$mk" --label renders
     wait "$mk" || { say "some render jobs failed; see $run/renders.txt and the job records"; rc=1; }

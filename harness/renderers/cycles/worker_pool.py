@@ -115,3 +115,36 @@ class WorkerPool:
             self.sock.close()
         shutil.rmtree(self.dir, ignore_errors=True)
         return False
+
+
+def main(argv):
+    """`python3 worker_pool.py --workers N [--log-dir DIR] -- COMMAND ...`: COMMAND runs with
+    REFLCHECK_CYCLES_WORKER set, so every `reflcheck run` it starts (the nightly's make) hands
+    its Cycles render to one of N Blender workers; the workers stop when COMMAND ends. Exit
+    status: COMMAND's (SIGTERM, SIGINT, SIGHUP end COMMAND first, then the workers)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=main.__doc__.split('\n')[0])
+    ap.add_argument('--workers', type=int, default=2, help='Blender workers (default 2)')
+    ap.add_argument('--log-dir', help="the workers' logs (worker-N.log; default a temporary folder)")
+    ap.add_argument('command', nargs=argparse.REMAINDER, help='-- COMMAND ...')
+    args = ap.parse_args(argv)
+    cmd = args.command[1:] if args.command[:1] == ['--'] else args.command
+    if not cmd or args.workers < 1:
+        ap.error('give --workers N (1 or more) and a command after --')
+    with WorkerPool(args.workers, log_dir=args.log_dir) as pool:
+        child = subprocess.Popen(cmd, env=dict(os.environ, **pool.env()))
+
+        def stop(signum, _frame):
+            child.send_signal(signum)
+
+        for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+            signal.signal(s, stop)
+        rc = child.wait()
+        return rc if rc >= 0 else 128 - rc  # a signal's death as a shell reports it
+
+
+if __name__ == '__main__':
+    import sys
+
+    sys.exit(main(sys.argv[1:]))
