@@ -195,11 +195,13 @@ test-kill: $(CLI)
 	@bash tests/kill_nightly.sh $(BUILD)
 
 # The nightly's exit status and recorded run status: ok, a failing comparison, a crashing renderer;
-# its progress lines, a failed job named while the run goes on, its options and their variables.
+# its progress lines, a failed job named while the run goes on, its options and their variables;
+# a second run over the same cache takes the fits and the stability table from it.
 test-status: $(CLI)
 	@bash tests/nightly_status.sh $(BUILD)
 	@bash tests/nightly_paths.sh $(BUILD)
 	@bash tests/nightly_progress.sh $(BUILD)
+	@bash tests/nightly_cache.sh $(BUILD)
 
 # Two nightlies at once on one cache: both complete, the shared jobs render once, and both
 # history lines are intact.

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# fit_cache.sh - `reflcheck fit` through a cache, so that a nightly run over an unchanged tree
+# hands back each scene's fit instead of fitting again (hundreds of renders a scene).
+#
+# Usage: bash harness/fit_cache.sh CACHE BIN SCENE.yaml RUN BOUNDS [--small]
+#   runs BIN fit SCENE --out RUN --cache CACHE --bounds BOUNDS [--small], or copies its record
+#   (RUN/<scene>/fit.json, fit-wide.json with BOUNDS wide) and its output line from
+#   CACHE/fits/<key>/. Exit status: fit's (a cache hit: 0).
+# The key (SHA-256) covers what the fit reads: the scene file's bytes, the bounds and size, the
+# reflcheck program (path, size, modification time: a rebuilt one fits again) and the cache
+# keys of the scene's render records in RUN/<scene>/ (the references the fit compares with;
+# each key covers the scene's meshes and images, the renderer and the code behind it). A scene
+# whose records are not there yet, or a failed fit, is not cached.
+set -uo pipefail
+[ $# -ge 5 ] || { echo "fit_cache.sh: usage: CACHE BIN SCENE RUN BOUNDS [--small]" >&2; exit 2; }
+cache=$1 bin=$2 scene=$3 run=$4 bounds=$5
+shift 5
+fit=("$bin" fit "$scene" --out "$run" --cache "$cache" --bounds "$bounds" "$@")
+record=fit.json
+[ "$bounds" = wide ] && record="fit-wide.json"
+# The scene's folder in RUN: the one whose records name this scene file.
+dir=$(grep -lF "\"scene_path\":	\"$scene\"" "$run"/*/*.json 2> /dev/null | head -n1)
+dir=${dir%/*}
+keys=$([ -n "$dir" ] && grep -hoE '"key":[[:space:]]*"[0-9a-f]+"' "$dir"/*.json 2> /dev/null | sort -u)
+binstat=$(stat -Lc '%s %Y' "$bin" 2> /dev/null)
+if [ -z "$dir" ] || [ -z "$keys" ] || [ -z "$binstat" ] || [ ! -r "$scene" ]; then
+    exec "${fit[@]}"
+fi
+key=$({
+    echo "reflcheck-fit-cache 1 $bounds $* $(readlink -f "$bin") $binstat"
+    sha256sum < "$scene"
+    echo "$keys"
+} | sha256sum | cut -c1-32)
+entry=$cache/fits/$key
+if [ -f "$entry/ok" ] && cp "$entry/$record" "$dir/$record.tmp.$$" 2> /dev/null; then
+    mv "$dir/$record.tmp.$$" "$dir/$record" && cat "$entry/out.txt" && exit 0
+fi
+mkdir -p "$cache/fits" || exec "${fit[@]}"
+tmp=$(mktemp -d "$cache/fits/tmp-$key-XXXXXX") || exec "${fit[@]}"
+trap 'rm -rf "$tmp"' EXIT
+"${fit[@]}" > "$tmp/out.txt"
+st=$?
+cat "$tmp/out.txt"
+if [ $st -eq 0 ] && cp "$dir/$record" "$tmp/$record" 2> /dev/null && : > "$tmp/ok"; then
+    # Published whole by rename; a concurrent run that published first keeps its entry.
+    mv -T "$tmp" "$entry" 2> /dev/null
+fi
+exit $st

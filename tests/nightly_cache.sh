@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# A second nightly run over the same cache does none of the work again: the fits come back from
+# CACHE/fits (harness/fit_cache.sh) and the stability table from CACHE/stability, equal to the
+# first run's; a changed scene file fits again. Scene: d3d_scaled (raster against POV-Ray and the
+# exact renderer: validate references to fit, no Blender), small, no sweep.
+# Usage: bash tests/nightly_cache.sh BUILD
+set -uo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+work=$PWD/$build/nightly-cache-test
+rm -rf "$work"
+mkdir -p "$work"
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); echo "cache: $*"; }
+bad() { fail=$((fail + 1)); echo "cache: FAILED: $*"; }
+nightly() { # RUN_ID SCENE: one run into $work, its stderr in $work/RUN_ID.err
+    REFLCHECK_PROGRESS=log bash harness/nightly.sh --small --no-sweep --no-screenshot --bin "$build/reflcheck" \
+        --runs "$work/runs" --cache "$work/cache" --history "$work/history.jsonl" --latest "$work/latest" \
+        --run-id "$1" "$2" > "$work/$1.out" 2> "$work/$1.err"
+}
+entries() { find "$work/cache/fits" -mindepth 2 -maxdepth 2 -name ok 2> /dev/null | wc -l; }
+scene=scenes/d3d_scaled.yaml
+nightly first "$scene" && ok "first run exit 0" || bad "first run exit $? ($work/first.err)"
+n1=$(entries)
+[ "$n1" = 2 ] && ok "two fits (seed and wide bounds) kept in the cache" || bad "$n1 fits kept, not 2"
+nightly second "$scene" && ok "second run exit 0" || bad "second run exit $? ($work/second.err)"
+# A fit that ran again would print its own timing ("(N renders, T s)"): the same text is the kept one.
+if cmp -s "$work/runs/first/fit.txt" "$work/runs/second/fit.txt" && [ "$(entries)" = 2 ]; then
+    ok "second run: the fits came back from the cache"
+else
+    bad "second run fitted again (fit.txt differs or new cache entries)"
+fi
+for f in fit.json fit-wide.json; do
+    cmp -s "$work/runs/first/d3d_scaled/$f" "$work/runs/second/d3d_scaled/$f" &&
+        ok "$f equal to the first run's" || bad "$f differs from the first run's"
+done
+grep -q "stability: unchanged program" "$work/second.err" && ! grep -q "stability: unchanged" "$work/first.err" &&
+    cmp -s "$work/runs/first/stability.json" "$work/runs/second/stability.json" &&
+    ok "second run: the stability table from the cache, equal" || bad "stability table not taken from the cache"
+cmp -s <(grep -v '^reflcheck' "$work/runs/first/compare.txt") <(grep -v '^reflcheck' "$work/runs/second/compare.txt") &&
+    ok "same verdicts" || bad "verdicts differ between the runs"
+# The scene changed (one comment line more): its fits run again.
+mkdir -p "$work/scenes"
+{ echo "# changed"; cat "$scene"; } > "$work/scenes/d3d_scaled.yaml"
+nightly third "$work/scenes/d3d_scaled.yaml" && ok "changed scene: exit 0" || bad "changed scene: exit $?"
+[ "$(entries)" = 4 ] && ok "changed scene: fitted again" || bad "changed scene: $(entries) cache entries, not 4"
+echo "cache: $pass passed, $fail failed"
+[ $fail -eq 0 ]
