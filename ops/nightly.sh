@@ -290,8 +290,20 @@ if [ -z "${REFLCHECK_PROGRESS:-}" ]; then
 fi
 progress() { step /usr/bin/python3 tools/progress.py "$@"; }
 # Each stage's wall time goes to RUN/stages.tsv; the last run's ($latest) is the next run's
-# estimate of a stage of one unit (stability, the report) before it ends.
-stage_done() { printf '%s\t%s\n' "$1" "$(($(date +%s) - $2))" >> "$run/stages.tsv"; }
+# estimate of a stage of one unit (stability, the report) before it ends. The third column is
+# the stage's CPU seconds (user + system of the processes it waited for, Blender workers
+# included): on a shared machine wall time measures the others' load too, CPU time does not.
+# `times` runs in this shell (a $(...) subshell has no children of its own); its second line is
+# the children's "XmY.YYYs XmY.YYYs".
+cpu_mark=0
+stage_done() {
+    local now
+    times > "$run/.times"
+    now=$(awk 'NR == 2 { s = 0; for (i = 1; i <= 2; i++) { split($i, t, "m"); s += t[1] * 60 + t[2] } printf "%.1f", s }' "$run/.times")
+    rm -f "$run/.times"
+    printf '%s\t%s\t%s\n' "$1" "$(($(date +%s) - $2))" "$(awk -v a="$now" -v b="$cpu_mark" 'BEGIN { printf "%.1f", a - b }')" >> "$run/stages.tsv"
+    cpu_mark=$now
+}
 expected() {
     local s
     s=$(awk -F'\t' -v k="$1" '$1 == k { v = $2 } END { if (v != "") print v }' "$latest/stages.tsv" 2> /dev/null)

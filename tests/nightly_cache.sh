@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A second nightly run over the same cache does none of the work again: the fits come back from
 # CACHE/fits (harness/fit_cache.sh) and the stability table from CACHE/stability, equal to the
-# first run's; a changed scene file fits again. Scene: d3d_scaled (raster against POV-Ray and the
+# first run's; a changed scene file fits again; stages.tsv holds each stage's CPU seconds. Scene: d3d_scaled (raster against POV-Ray and the
 # exact renderer: validate references to fit, no Blender), small, no sweep.
 # Usage: bash tests/nightly_cache.sh BUILD
 set -uo pipefail
@@ -40,6 +40,12 @@ grep -q "stability: unchanged program" "$work/second.err" && ! grep -q "stabilit
     ok "second run: the stability table from the cache, equal" || bad "stability table not taken from the cache"
 cmp -s <(grep -v '^reflcheck' "$work/runs/first/compare.txt") <(grep -v '^reflcheck' "$work/runs/second/compare.txt") &&
     ok "same verdicts" || bad "verdicts differ between the runs"
+# Each stage's wall and CPU seconds: the fits of the first run took CPU, the second's almost none
+# (copying two files: under 1 s even on a loaded machine).
+awk -F'\t' '$1 == "fits" && NF == 3 && $3 > 0.5 { f = 1 } END { exit !f }' "$work/runs/first/stages.tsv" &&
+    awk -F'\t' '$1 == "fits" && NF == 3 && $3 < 1.0 { f = 1 } END { exit !f }' "$work/runs/second/stages.tsv" &&
+    ok "stages.tsv: the fits' CPU seconds, first run and (less than 1 s) second" ||
+    bad "stages.tsv lacks the fits' CPU seconds or the second run's fits took CPU: $(tr '\n\t' '; ' < "$work/runs/second/stages.tsv")"
 # The scene changed (one comment line more): its fits run again.
 mkdir -p "$work/scenes"
 { echo "# changed"; cat "$scene"; } > "$work/scenes/d3d_scaled.yaml"
