@@ -1058,6 +1058,19 @@ def run_work(runner, n, work, recs, label):
         collect(futs, recs, Progress(label, len(work), sum(cost.values())), cost)
 
 
+def analyse_all(runner, args, scenes, plans, recs, nested, ref_seeds):
+    """sweep_scene for every scene, --jobs at a time (the diffs are processes of their own, so
+    threads overlap them): scene path -> timing dict or the reason there is none."""
+
+    def one(sp):
+        name, jobs, ref_spp = plans[sp]
+        r = {j['key']: recs[(sp, j['key'])] for j in jobs}
+        return sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seeds.get(sp, 0))
+
+    with cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
+        return dict(zip(scenes, ex.map(one, scenes)))
+
+
 def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
     """One scene's timing JSON from its records r (job key -> record), or the reason it has
     none (its reference or raster as-is failed)."""
@@ -1187,11 +1200,10 @@ def main(argv=None):
             # Stage two: the top level and the deep reference, only where stage one left a
             # slope, a crossover or an error undecided (deeper_reasons).
             more = []
+            first = analyse_all(runner, args, scenes, plans, recs, nested, {})
             for sp in scenes:
                 name, jobs, top = plans[sp]
-                r = {j['key']: recs[(sp, j['key'])] for j in jobs}
-                t = sweep_scene(runner, args, name, jobs, r, top, nested)
-                why = deeper_reasons(t) if isinstance(t, dict) else []
+                why = deeper_reasons(first[sp]) if isinstance(first[sp], dict) else []
                 if not why:
                     continue
                 deeper[sp] = why
@@ -1220,12 +1232,12 @@ def main(argv=None):
         'levels': args.levels,
         'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
     }
+    seeds = {sp: DEEP_SEED for sp in deeper if runner.seed_opt}
+    final = analyse_all(runner, args, scenes, plans, recs, nested, seeds)
     for sp in scenes:
         name, jobs, ref_spp = plans[sp]
         r = {j['key']: recs[(sp, j['key'])] for j in jobs}
-        t = sweep_scene(
-            runner, args, name, jobs, r, ref_spp, nested, DEEP_SEED if sp in deeper and runner.seed_opt else 0
-        )
+        t = final[sp]
         if not isinstance(t, dict):
             print(f'sweep.py: {sp}: {t}', file=sys.stderr)
             rc = 1
