@@ -112,6 +112,33 @@ static void test_renderer_fails(void **state)
     assert_non_null(strstr(r.message, ".log"));
 }
 
+/* A stochastic render's record takes the samples and the noise from its log's last
+ * reflcheck-samples line (cycles_samples.h): here a fake Blender prints two, then fails. */
+static void test_record_samples_and_noise(void **state)
+{
+    (void)state;
+    fake("blender", "echo 'reflcheck-samples: samples 5 noise 1 target 0 pilot 0 pilot_noise 0 gate none'\n"
+                    "echo 'reflcheck-samples: samples 77 noise 0.03 target 0.02 pilot 16 pilot_noise 0.066 gate "
+                    "comparisons[1] raster/validate nrmse fail 0.06'; exit 1");
+    job_record r = run_job(registry_find("cycles"), 30);
+    assert_int_equal(r.status, RUNNER_FAILED);
+    char *text = fileio_read_all(r.record, NULL);
+    assert_non_null(text);
+    cJSON *o = cJSON_Parse(text);
+    free(text);
+    assert_non_null(o);
+    assert_int_equal(cJSON_GetObjectItem(o, "samples")->valueint, 77);
+    cJSON *n = cJSON_GetObjectItem(o, "noise");
+    assert_non_null(n);
+    assert_true(cJSON_GetObjectItem(n, "nrmse")->valuedouble == 0.03);
+    assert_true(cJSON_GetObjectItem(n, "target")->valuedouble == 0.02);
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(n, "reached"))); /* 0.03 > 0.02 */
+    assert_string_equal(cJSON_GetObjectItem(n, "gate")->valuestring, "comparisons[1] raster/validate nrmse fail 0.06");
+    assert_string_equal(cJSON_GetObjectItem(n, "samples_from")->valuestring, "auto");
+    assert_int_equal(cJSON_GetObjectItem(n, "pilot_samples")->valueint, 16);
+    cJSON_Delete(o);
+}
+
 static void test_renderer_crashes(void **state)
 {
     (void)state;
@@ -560,21 +587,14 @@ static void test_killed_run_without_cache(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_renderer_fails),
-        cmocka_unit_test(test_renderer_crashes),
-        cmocka_unit_test(test_renderer_hangs),
-        cmocka_unit_test(test_renderer_writes_garbage),
-        cmocka_unit_test(test_renderer_missing_and_results_kept),
-        cmocka_unit_test(test_run_exit_status),
-        cmocka_unit_test(test_run_bad_input_is_2),
-        cmocka_unit_test(test_record_mesh_repairs),
-        cmocka_unit_test(test_cache_folder_error_is_recorded),
-        cmocka_unit_test(test_full_disk_is_an_error),
-        cmocka_unit_test(test_cache_key_covers_referenced_files),
-        cmocka_unit_test(test_two_runs_share_a_cache),
-        cmocka_unit_test(test_killed_run_sigkill),
-        cmocka_unit_test(test_killed_run_sigterm),
-        cmocka_unit_test(test_killed_run_without_cache),
+        cmocka_unit_test(test_renderer_fails),          cmocka_unit_test(test_record_samples_and_noise),
+        cmocka_unit_test(test_renderer_crashes),        cmocka_unit_test(test_renderer_hangs),
+        cmocka_unit_test(test_renderer_writes_garbage), cmocka_unit_test(test_renderer_missing_and_results_kept),
+        cmocka_unit_test(test_run_exit_status),         cmocka_unit_test(test_run_bad_input_is_2),
+        cmocka_unit_test(test_record_mesh_repairs),     cmocka_unit_test(test_cache_folder_error_is_recorded),
+        cmocka_unit_test(test_full_disk_is_an_error),   cmocka_unit_test(test_cache_key_covers_referenced_files),
+        cmocka_unit_test(test_two_runs_share_a_cache),  cmocka_unit_test(test_killed_run_sigkill),
+        cmocka_unit_test(test_killed_run_sigterm),      cmocka_unit_test(test_killed_run_without_cache),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
