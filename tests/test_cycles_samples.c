@@ -98,12 +98,12 @@ static void test_samples_for(void **state)
 static void test_exr_noise(void **state)
 {
     (void)state;
-    /* 3 x 2 pixels; pixel 5 uncovered (its huge values must not count). Covered pixels 0..4:
-     * R, G, B = 1, 2, 3 at pixels 0..3 and 2, 2, 2 at pixel 4 -> sum 4 * 6 + 6 = 30 over
-     * 15 values, mean 2; var 0.01 everywhere but pixel 4's 0.04 -> sum 12 * 0.01 + 3 * 0.04
-     * = 0.24, mean 0.016; noise = sqrt(0.016) / 2 = 0.0632456 */
-    float r[6] = {1, 1, 1, 1, 2, 1000}, g[6] = {2, 2, 2, 2, 2, 1000}, b[6] = {3, 3, 3, 3, 2, 1000};
-    float v[6] = {0.01f, 0.01f, 0.01f, 0.01f, 0.04f, 100.0f}, cov[6] = {1, 1, 0.5f, 1, 1, 0};
+    /* 3 x 2 pixels; pixel 2 half covered (an edge) and pixel 5 uncovered: neither counts (their
+     * huge values would show). Pixels 0, 1, 3: R, G, B = 1, 2, 3, var 0.01; pixel 4: 2, 2, 2,
+     * var 0.04 -> values sum 3 * 6 + 6 = 24 over 12, mean 2; variances 9 * 0.01 + 3 * 0.04 =
+     * 0.21, mean 0.0175; noise = sqrt(0.0175) / 2 = 0.0661438 */
+    float r[6] = {1, 1, 500, 1, 2, 1000}, g[6] = {2, 2, 500, 2, 2, 1000}, b[6] = {3, 3, 500, 3, 2, 1000};
+    float v[6] = {0.01f, 0.01f, 50.0f, 0.01f, 0.04f, 100.0f}, cov[6] = {1, 1, 0.5f, 1, 1, 0};
     exr_channel ch[] = {{"R", r}, {"G", g}, {"B", b}, {"var.R", v}, {"var.G", v}, {"var.B", v}, {"coverage", cov}};
     char dir[] = "/tmp/test_cycles_samples_XXXXXX", path[64], err[256];
     assert_non_null(mkdtemp(dir));
@@ -111,7 +111,7 @@ static void test_exr_noise(void **state)
     assert_int_equal(exr_write(path, 3, 2, ch, 7, NULL, 0, err, sizeof err), RC_OK);
     double noise = 0.0;
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_OK);
-    close_rel(noise, sqrt(0.016) / 2.0, 1e-6);
+    close_rel(noise, sqrt(0.0175) / 2.0, 1e-6);
     /* one seed: no var.* channels -> refused, naming the fix */
     assert_int_equal(exr_write(path, 3, 2, ch, 3, NULL, 0, err, sizeof err), RC_OK);
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_ERR_RANGE);

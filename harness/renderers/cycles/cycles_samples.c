@@ -88,7 +88,9 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
     long n = 0;
     size_t np = (size_t)img.width * (size_t)img.height;
     for (size_t p = 0; ok && p < np; p++) {
-        if (cov != NULL && !(cov[p] > 0.0f))
+        /* The surface: fully covered pixels. A pixel an edge crosses holds the coverage's own
+         * sample variance, which the metrics judge apart (the edges region). */
+        if (cov != NULL && !(cov[p] >= 1.0f))
             continue;
         for (int c = 0; c < 3; c++) {
             sv += v[c][p];
@@ -99,7 +101,7 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
     exr_image_free(&img);
     if (!ok || n == 0 || !(sx > 0.0)) {
         status_message(err, errlen, "%s: %s; render two seeds or more of a scene with a lit surface", exr_path,
-                       !ok ? "no var.R/G/B channels" : "no covered pixel of non-zero mean");
+                       !ok ? "no var.R/G/B channels" : "no fully covered pixel of non-zero mean");
         return RC_ERR_RANGE;
     }
     *noise = sqrt(sv / (double)n) / (sx / (double)n);
