@@ -98,22 +98,36 @@ static void test_samples_for(void **state)
 static void test_exr_noise(void **state)
 {
     (void)state;
-    /* 3 x 2 pixels; pixel 2 half covered (an edge) and pixel 5 uncovered: neither counts (their
-     * huge values would show). Pixels 0, 1, 3: R, G, B = 1, 2, 3, var 0.01; pixel 4: 2, 2, 2,
-     * var 0.04 -> values sum 3 * 6 + 6 = 24 over 12, mean 2; variances 9 * 0.01 + 3 * 0.04 =
-     * 0.21, mean 0.0175; noise = sqrt(0.0175) / 2 = 0.0661438 */
-    float r[6] = {1, 1, 500, 1, 2, 1000}, g[6] = {2, 2, 500, 2, 2, 1000}, b[6] = {3, 3, 500, 3, 2, 1000};
-    float v[6] = {0.01f, 0.01f, 50.0f, 0.01f, 0.04f, 100.0f}, cov[6] = {1, 1, 0.5f, 1, 1, 0};
-    exr_channel ch[] = {{"R", r}, {"G", g}, {"B", b}, {"var.R", v}, {"var.G", v}, {"var.B", v}, {"coverage", cov}};
+    /* 6 x 4 pixels, as metrics_classify sees them (border neighbours skipped): column 3 half
+     * covered (an edge, and so is column 2 beside it), columns 4-5 uncovered, row 3 another
+     * object (rows 2-3 an object boundary). Interior: x 0..1, y 0..1, four pixels; every other
+     * pixel holds 500 with variance 50, which would show. Interior R, G, B = 1, 2, 3, var 0.01,
+     * but (1, 1): 2, 2, 2, var 0.04 -> values 3 * 6 + 6 = 24 over 12, mean 2; variances
+     * 9 * 0.01 + 3 * 0.04 = 0.21, mean 0.0175; noise = sqrt(0.0175) / 2 = 0.0661438 */
+    enum { W = 6, H = 4, N = W * H };
+    float r[N], g[N], b[N], v[N], cov[N], obj[N];
+    for (int p = 0; p < N; p++) {
+        int x = p % W, y = p / W, interior = x <= 1 && y <= 1;
+        r[p] = interior ? 1.0f : 500.0f;
+        g[p] = interior ? 2.0f : 500.0f;
+        b[p] = interior ? 3.0f : 500.0f;
+        v[p] = interior ? 0.01f : 50.0f;
+        cov[p] = x <= 2 ? 1.0f : x == 3 ? 0.5f : 0.0f;
+        obj[p] = y == 3 ? 1.0f : 0.0f;
+    }
+    r[W + 1] = g[W + 1] = b[W + 1] = 2.0f;
+    v[W + 1] = 0.04f;
+    exr_channel ch[] = {{"R", r},     {"G", g},     {"B", b},          {"var.R", v},
+                        {"var.G", v}, {"var.B", v}, {"coverage", cov}, {"object", obj}};
     char dir[] = "/tmp/test_cycles_samples_XXXXXX", path[64], err[256];
     assert_non_null(mkdtemp(dir));
     snprintf(path, sizeof path, "%s/noise.exr", dir);
-    assert_int_equal(exr_write(path, 3, 2, ch, 7, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(exr_write(path, W, H, ch, 8, NULL, 0, err, sizeof err), RC_OK);
     double noise = 0.0;
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_OK);
     close_rel(noise, sqrt(0.0175) / 2.0, 1e-6);
     /* one seed: no var.* channels -> refused, naming the fix */
-    assert_int_equal(exr_write(path, 3, 2, ch, 3, NULL, 0, err, sizeof err), RC_OK);
+    assert_int_equal(exr_write(path, W, H, ch, 3, NULL, 0, err, sizeof err), RC_OK);
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_ERR_RANGE);
     assert_non_null(strstr(err, "no var.R/G/B channels"));
     unlink(path);

@@ -3,9 +3,11 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "exr.h"
+#include "metrics.h"
 #include "status.h"
 #include "../registry.h"
 
@@ -74,7 +76,6 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
     rc_status st = exr_read(exr_path, &img, err, errlen);
     if (st != RC_OK)
         return st;
-    const float *cov = exr_image_channel(&img, "coverage");
     const float *v[3], *x[3];
     int ok = 1;
     for (int c = 0; c < 3; c++) {
@@ -84,13 +85,17 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
         x[c] = exr_image_channel(&img, name + 4);
         ok &= v[c] != NULL && x[c] != NULL;
     }
+    /* The surface as the metrics take it: interior pixels, not an edge's (whose variance is its
+     * coverage's, judged apart in the edges region), nor a boundary between two objects. */
+    size_t np = (size_t)img.width * (size_t)img.height;
+    unsigned char *cls = ok ? malloc(np) : NULL;
+    if (cls != NULL)
+        metrics_classify(img.width, img.height, exr_image_channel(&img, "coverage"), exr_image_channel(&img, "object"),
+                         cls);
     double sv = 0.0, sx = 0.0;
     long n = 0;
-    size_t np = (size_t)img.width * (size_t)img.height;
-    for (size_t p = 0; ok && p < np; p++) {
-        /* The surface: fully covered pixels. A pixel an edge crosses holds the coverage's own
-         * sample variance, which the metrics judge apart (the edges region). */
-        if (cov != NULL && !(cov[p] >= 1.0f))
+    for (size_t p = 0; cls != NULL && p < np; p++) {
+        if (cls[p] != METRICS_PX_INTERIOR)
             continue;
         for (int c = 0; c < 3; c++) {
             sv += v[c][p];
@@ -98,10 +103,11 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
         }
         n += 3;
     }
+    free(cls);
     exr_image_free(&img);
-    if (!ok || n == 0 || !(sx > 0.0)) {
+    if (!ok || n == 0 || !(sx > 0.0)) { /* a failed malloc reads as no interior pixel */
         status_message(err, errlen, "%s: %s; render two seeds or more of a scene with a lit surface", exr_path,
-                       !ok ? "no var.R/G/B channels" : "no fully covered pixel of non-zero mean");
+                       !ok ? "no var.R/G/B channels" : "no interior pixel of non-zero mean");
         return RC_ERR_RANGE;
     }
     *noise = sqrt(sv / (double)n) / (sx / (double)n);

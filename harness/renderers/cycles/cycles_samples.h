@@ -18,10 +18,11 @@
  * whatever the noise, its power (the smallest error it flags, z_crit times the noise) is what
  * the samples buy, so its sample count is part of the gate: a scene keeps image.samples a
  * number there.
- * Noise (cycles_exr_noise): sqrt(mean of var.R/G/B) / mean of R/G/B over the fully covered
- * pixels (coverage 1: the surface; an edge pixel's variance is its coverage's, judged apart in
- * the edges region), the noise NRMSE of the seeds' mean, as `nrmse` normalises an error
- * (rel_rms divides by the RMS instead, never below the mean, so the target is conservative).
+ * Noise (cycles_exr_noise): sqrt(mean of var.R/G/B) / mean of R/G/B over the interior pixels
+ * (metrics_classify on the image's coverage and object: the surface region, without edges,
+ * whose variance is their coverage's, or object boundaries), the noise NRMSE of the seeds'
+ * mean, as `nrmse` normalises an error (rel_rms divides by the RMS instead, never below the
+ * mean, so the target is conservative there; crease pixels stay in, conservative too).
  */
 #ifndef REFLCHECK_CYCLES_SAMPLES_H
 #define REFLCHECK_CYCLES_SAMPLES_H
@@ -55,7 +56,7 @@ void cycles_noise_need_of(const scene *s, int row, comparison_role role, cycles_
 int cycles_samples_for(double noise, int n_pilot, const cycles_noise_need *need);
 
 /* The noise NRMSE of a collected Cycles image (above); RC_ERR_RANGE when it has no var.*
- * channels (one seed) or no fully covered pixel of non-zero mean. */
+ * channels (one seed) or no interior pixel of non-zero mean. */
 rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_t errlen);
 
 #endif
