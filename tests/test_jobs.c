@@ -139,6 +139,46 @@ static void test_record_samples_and_noise(void **state)
     cJSON_Delete(o);
 }
 
+/* With a cache, a renderer's version line is asked once per install (CACHE/versions): a fake
+ * POV-Ray counts its --version calls; two jobs ask once, a reinstalled one (new size) again. */
+static void test_version_asked_once_per_install(void **state)
+{
+    (void)state;
+    char script[512], count[256], cache[256], body[1024];
+    snprintf(count, sizeof count, "%s/version-calls", work);
+    snprintf(cache, sizeof cache, "%s/cache", work);
+    snprintf(script, sizeof script, "%s/povray", bin_dir);
+    snprintf(body, sizeof body,
+             "#!/bin/sh\ncase \"$1\" in --version) echo x >> %s; echo 'POV-Ray 3.7.0.10.fake'; exit 0;; esac\nexit 3\n",
+             count);
+    mkdir(bin_dir, 0755);
+    for (int round = 0; round < 2; round++) {
+        FILE *f = fopen(script, "w");
+        assert_non_null(f);
+        fprintf(f, "%s%s", body, round ? "# reinstalled\n" : "");
+        fclose(f);
+        chmod(script, 0755);
+        for (int i = 0; i < 2; i++) {
+            job_spec j = {.scene_path = "scenes/d3d_spot.yaml",
+                          .renderer = registry_find("povray"),
+                          .role = ROLE_TWIN,
+                          .variant = JOB_SMALL,
+                          .out_dir = out_dir,
+                          .cache_dir = cache,
+                          .timeout_s = 30,
+                          .threads = 1};
+            job_record rec;
+            char err[1024];
+            assert_int_equal(job_run(&j, &rec, err, sizeof err), RC_OK);
+            assert_int_equal(rec.status, RUNNER_FAILED); /* the fake renders nothing */
+        }
+        char *calls = fileio_read_all(count, NULL);
+        assert_non_null(calls);
+        assert_int_equal((int)strlen(calls), 2 * (round + 1)); /* "x\n" per call */
+        free(calls);
+    }
+}
+
 static void test_renderer_crashes(void **state)
 {
     (void)state;
@@ -587,14 +627,23 @@ static void test_killed_run_without_cache(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_renderer_fails),          cmocka_unit_test(test_record_samples_and_noise),
-        cmocka_unit_test(test_renderer_crashes),        cmocka_unit_test(test_renderer_hangs),
-        cmocka_unit_test(test_renderer_writes_garbage), cmocka_unit_test(test_renderer_missing_and_results_kept),
-        cmocka_unit_test(test_run_exit_status),         cmocka_unit_test(test_run_bad_input_is_2),
-        cmocka_unit_test(test_record_mesh_repairs),     cmocka_unit_test(test_cache_folder_error_is_recorded),
-        cmocka_unit_test(test_full_disk_is_an_error),   cmocka_unit_test(test_cache_key_covers_referenced_files),
-        cmocka_unit_test(test_two_runs_share_a_cache),  cmocka_unit_test(test_killed_run_sigkill),
-        cmocka_unit_test(test_killed_run_sigterm),      cmocka_unit_test(test_killed_run_without_cache),
+        cmocka_unit_test(test_renderer_fails),
+        cmocka_unit_test(test_record_samples_and_noise),
+        cmocka_unit_test(test_version_asked_once_per_install),
+        cmocka_unit_test(test_renderer_crashes),
+        cmocka_unit_test(test_renderer_hangs),
+        cmocka_unit_test(test_renderer_writes_garbage),
+        cmocka_unit_test(test_renderer_missing_and_results_kept),
+        cmocka_unit_test(test_run_exit_status),
+        cmocka_unit_test(test_run_bad_input_is_2),
+        cmocka_unit_test(test_record_mesh_repairs),
+        cmocka_unit_test(test_cache_folder_error_is_recorded),
+        cmocka_unit_test(test_full_disk_is_an_error),
+        cmocka_unit_test(test_cache_key_covers_referenced_files),
+        cmocka_unit_test(test_two_runs_share_a_cache),
+        cmocka_unit_test(test_killed_run_sigkill),
+        cmocka_unit_test(test_killed_run_sigterm),
+        cmocka_unit_test(test_killed_run_without_cache),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
