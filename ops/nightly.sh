@@ -414,7 +414,7 @@ cat "$run/compare.txt"
 # The best each approximation can do (harness/fit.h): its parameters fitted to every validate
 # reference, which the job cache hands back without rendering again, within the seeds' ranges
 # (RUN/<scene>/fit.json) and within wide ones (fit-wide.json). A fit of unchanged inputs comes
-# back from CACHE/fits (harness/fit_cache.sh).
+# back from CACHE/fits (ops/fit_cache.sh).
 : > "$run/fit.txt"
 # One fit per scene and bounds, so that progress counts scenes and a failed fit is named at once.
 fits=()
@@ -424,7 +424,7 @@ done
 t2=$(date +%s)
 # shellcheck disable=SC2046
 progress each --label fits --log "$run/fit.txt" $(expected fits) -- \
-    bash harness/fit_cache.sh "$cache" "$bin" '{2}' "$run" '{1}' $small ::: "${fits[@]}"
+    bash ops/fit_cache.sh "$cache" "$bin" '{2}' "$run" '{1}' $small ::: "${fits[@]}"
 st=$?
 [ $st -ne 0 ] && { echo "reflcheck nightly: a fit failed (exit $st); see $run/fit.txt" >&2; rc=1; }
 stage_done fits "$t2"

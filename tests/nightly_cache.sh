@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A second nightly run over the same cache does none of the work again: the fits come back from
-# CACHE/fits (harness/fit_cache.sh) and the stability table from CACHE/stability, equal to the
+# CACHE/fits (ops/fit_cache.sh) and the stability table from CACHE/stability, equal to the
 # first run's; a changed scene file fits again; stages.tsv holds each stage's CPU seconds. Scene: d3d_scaled (raster against POV-Ray and the
 # exact renderer: validate references to fit, no Blender), small, no sweep.
 # Usage: bash tests/nightly_cache.sh BUILD
@@ -15,7 +15,7 @@ fail=0
 ok() { pass=$((pass + 1)); echo "cache: $*"; }
 bad() { fail=$((fail + 1)); echo "cache: FAILED: $*"; }
 nightly() { # RUN_ID SCENE: one run into $work, its stderr in $work/RUN_ID.err
-    REFLCHECK_PROGRESS=log bash harness/nightly.sh --small --no-sweep --no-screenshot --bin "$build/reflcheck" \
+    REFLCHECK_PROGRESS=log bash ops/nightly.sh --small --no-sweep --no-screenshot --bin "$build/reflcheck" \
         --runs "$work/runs" --cache "$work/cache" --history "$work/history.jsonl" --latest "$work/latest" \
         --run-id "$1" "$2" > "$work/$1.out" 2> "$work/$1.err"
 }

@@ -2,7 +2,7 @@
 # fit_cache.sh - `reflcheck fit` through a cache, so that a nightly run over an unchanged tree
 # hands back each scene's fit instead of fitting again (hundreds of renders a scene).
 #
-# Usage: bash harness/fit_cache.sh CACHE BIN SCENE.yaml RUN BOUNDS [--small]
+# Usage: bash ops/fit_cache.sh CACHE BIN SCENE.yaml RUN BOUNDS [--small]
 #   runs BIN fit SCENE --out RUN --cache CACHE --bounds BOUNDS [--small], or copies its record
 #   (RUN/<scene>/fit.json, fit-wide.json with BOUNDS wide) and its output line from
 #   CACHE/fits/<key>/. Exit status: fit's (a cache hit: 0).
