@@ -224,15 +224,17 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
         return;
     }
     /* Agree: EEVEE renders the physical material, as against Cycles; the other side (our
-     * model) is the second approximation of it. */
-    cycles_options co = {.role = j->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE,
-                         .samples = o.samples > 0 ? o.samples
-                                                  : (j->s->samples < EEVEE_TAA_MAX ? j->s->samples : EEVEE_TAA_MAX),
-                         .n_seeds = 1,
-                         .width = o.width,
-                         .height = o.height,
-                         .partial = j->partial,
-                         .left_out = r};
+     * model) is the second approximation of it. image.samples auto (0) sizes Cycles' noise;
+     * EEVEE's TAA is no noise, so it takes its most. */
+    cycles_options co = {
+        .role = j->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE,
+        .samples = o.samples > 0 ? o.samples
+                                 : (j->s->samples > 0 && j->s->samples < EEVEE_TAA_MAX ? j->s->samples : EEVEE_TAA_MAX),
+        .n_seeds = 1,
+        .width = o.width,
+        .height = o.height,
+        .partial = j->partial,
+        .left_out = r};
     snprintf(job, sizeof job, "%s/job.json", j->dir);
     rc_status st = cycles_write_job(j->s, j->m, &co, job, err, sizeof err);
     if (st != RC_OK) {
