@@ -858,6 +858,7 @@ enum {
     MK_TEXTURE,
     MK_ASSET,
     MK_THIN,
+    MK_DISTRIBUTION,
     MK_COUNT
 };
 
@@ -1132,9 +1133,11 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
 
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo",     "ior",           "conductor", "roughness", "model", "d3d",
-                                               "d3d9client", "cook_torrance", "texture",   "asset",     "thin"};
+    static const char *const keys[MK_COUNT] = {"albedo",  "ior",   "conductor",  "roughness",
+                                               "model",   "d3d",   "d3d9client", "cook_torrance",
+                                               "texture", "asset", "thin",       "distribution"};
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
+    static const char *const dists[] = {"beckmann", "ggx"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
     char child[SF_PATHLEN], sub[SF_PATHLEN];
@@ -1181,6 +1184,11 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
         if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 3, &e)))
             return rc;
         m->model = (model_kind)e;
+    }
+    if (f[MK_DISTRIBUTION].v) {
+        if ((rc = sf_enum(c, f[MK_DISTRIBUTION].v, SF_CHILD("distribution"), dists, 2, &e)))
+            return rc;
+        m->distribution = (microfacet_distribution)e;
     }
     yaml_node_t *state_node[3] = {NULL, NULL, NULL};
     if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))

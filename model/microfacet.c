@@ -57,4 +57,30 @@ double microfacet_smith_g_exact(double n_v, double n_l, double m)
     return microfacet_smith_g1_exact(n_v, m) * microfacet_smith_g1_exact(n_l, m);
 }
 
+double microfacet_ggx_d(double sin2_h, double cos2_h, double alpha)
+{
+    double a2 = alpha * alpha;
+    if (!(alpha > 0.0))
+        return sin2_h > 0.0 ? 0.0 : MICROFACET_D_MAX;
+    double t = a2 * cos2_h + sin2_h;
+    /* t > 0 unless cos and sin are both 0 (not a direction): D's limit there is the cap. */
+    double d = t > 0.0 ? a2 / (FORMULA_PI_D * t * t) : (double)MICROFACET_D_MAX;
+    return d < MICROFACET_D_MAX ? d : MICROFACET_D_MAX;
+}
+
+double microfacet_ggx_g1(double cos_theta, double alpha)
+{
+    if (!(cos_theta > 0.0))
+        return 0.0;
+    if (cos_theta >= 1.0)
+        return 1.0;
+    double c2 = cos_theta * cos_theta;
+    return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * (1.0 - c2) / c2));
+}
+
+double microfacet_ggx_g(double n_v, double n_l, double alpha)
+{
+    return microfacet_ggx_g1(n_v, alpha) * microfacet_ggx_g1(n_l, alpha);
+}
+
 double microfacet_lambert_brdf(double albedo) { return formula_lambert_brdf_d(albedo); }

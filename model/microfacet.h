@@ -49,6 +49,17 @@ double microfacet_smith_g1_exact(double cos_theta, double m);
 float microfacet_smith_g_walter(float n_v, float n_l, float m);
 double microfacet_smith_g_exact(double n_v, double n_l, double m);
 
+/* GGX / Trowbridge-Reitz (Walter et al. 2007, eq. 33), of slope width alpha:
+ * alpha^2 / (pi (alpha^2 cos^2 + sin^2)^2), the form 1/(pi alpha^2) at the peak; sin2_h and
+ * cos2_h of N to H given apart (sin^2 from a cross product: 1 - cos^2 cancels at a sharp peak).
+ * alpha <= 0 is the delta limit (MICROFACET_D_MAX at sin2_h = 0, else 0); capped at D_MAX. */
+double microfacet_ggx_d(double sin2_h, double cos2_h, double alpha);
+/* Smith G1 for GGX, exact (Walter et al. 2007, eq. 34): 2 / (1 + sqrt(1 + alpha^2 tan^2)), as
+ * Cycles 3.4 evaluates it (bsdf_microfacet_ggx_eval_reflect). cos <= 0 gives 0, cos >= 1 gives 1. */
+double microfacet_ggx_g1(double cos_theta, double alpha);
+/* Separable Smith for GGX: G1(N.V) G1(N.L), Cycles 3.4's form (not the height-correlated one). */
+double microfacet_ggx_g(double n_v, double n_l, double alpha);
+
 /* Lambert BRDF with 1/pi, the radiometric reference: albedo / pi (no cosine). */
 double microfacet_lambert_brdf(double albedo);
 

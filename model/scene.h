@@ -123,6 +123,10 @@ typedef struct {
     int reflection;        /* environment reflection term CM * Fr, default 1 */
 } ct_params;
 
+/* The physical intent's microfacet distribution: what `roughness` means to every physical
+ * reference. Beckmann m (default), or GGX / Trowbridge-Reitz alpha (Walter et al. 2007). */
+typedef enum { DIST_BECKMANN, DIST_GGX } microfacet_distribution;
+
 /* Material texture slots (scene/texture.h): the diffuse colour with alpha multiplies the
  * diffuse and emission terms and the alpha (D3D's texture stage MODULATE of Dv; the D3D9Client
  * "colour of the diffuse material or a texture" and "material/texture alpha" of eqs. 6-7); the
@@ -136,7 +140,9 @@ typedef struct {
     float ior;       /* dielectric index n, default 1.5 */
     int conductor;   /* 1 if eta/k given */
     vec3 eta, k;     /* conductor complex index per channel */
-    float roughness; /* Beckmann m, default 0.3 */
+    float roughness; /* Beckmann m, default 0.3; GGX alpha with distribution ggx */
+    /* What roughness means to the references; default beckmann. */
+    microfacet_distribution distribution;
     /* 1 = the physics has the material's lobe (Beckmann of roughness, a mirror at 0); 0 = no
      * specular at all: a d3d material without a specular colour and without a roughness written
      * (scene_file.c), so that no reference adds a highlight the user never asked for. Default 1. */

@@ -75,8 +75,14 @@ dvec3 physical_lobe(const material *mat, physics_fresnel f, dvec3 n, dvec3 v, dv
         return dv3(0, 0, 0);
     /* sin^2 of N to H from the cross product: 1 - cos^2 cancels at the peak of a sharp lobe. */
     dvec3 nxh = dv3_cross(n, h);
-    double d = formula_beckmann_d_d(dv3_dot(nxh, nxh), n_h * n_h, 1.0 / (m * m), formula_beckmann_log_norm_d(m, 1));
-    double g = microfacet_smith_g_exact(n_v, n_l, m);
+    double d, g;
+    if (mat->distribution == DIST_GGX) {
+        d = microfacet_ggx_d(dv3_dot(nxh, nxh), n_h * n_h, m);
+        g = microfacet_ggx_g(n_v, n_l, m);
+    } else {
+        d = formula_beckmann_d_d(dv3_dot(nxh, nxh), n_h * n_h, 1.0 / (m * m), formula_beckmann_log_norm_d(m, 1));
+        g = microfacet_smith_g_exact(n_v, n_l, m);
+    }
     double lobe = formula_ct_lobe_d(d, g, formula_ct_k_d(1), formula_cos_floor_d(n_v));
     /* V.H = |L + V|/2 >= 0 exactly; only rounding can leave [0, 1]. */
     double v_h = dv3_dot(v, h);

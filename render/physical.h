@@ -14,7 +14,9 @@
  *             by a constant environment (albedo L: its unoccluded cosine-weighted irradiance is
  *             pi L);
  *   specular  m > 0: F D G / (4 N.V) times E for the lights of specular_lights: Beckmann D
- *             (walter normalisation), the separable Smith G with the exact Beckmann G1 (erf),
+ *             (walter normalisation), the separable Smith G with the exact Beckmann G1 (erf);
+ *             with the material's distribution ggx, GGX D of alpha = roughness and the separable
+ *             Smith G with the exact GGX G1 (Cycles 3.4's Glossy GGX, model/microfacet.h);
  *             F of fresnel_specular (exact: the dielectric or conductor Fresnel of V.H per
  *             microfacet; nv: of N.V for the whole lobe; one; schlick of V.H with F0 the exact
  *             F at normal incidence). m = 0 is a mirror, whose delta lobe gives a point, spot or

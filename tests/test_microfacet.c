@@ -217,6 +217,27 @@ static void test_extremes_finite(void **state)
         fail_msg("%zu of %zu evaluations were not finite or out of range", bad, n);
 }
 
+/* GGX (Walter et al. 2007, as Cycles 3.4's Glossy GGX): alpha 0.25 at the peak, 1/(pi alpha^2)
+ * = 5.0929582; alpha 1 is 1/pi at every N.H (cos^2 0.64, sin^2 0.36: 1/(pi 1^2) = 0.3183099);
+ * alpha 0.5, cos^2 0.81, sin^2 0.19: 0.25 / (pi (0.25 * 0.81 + 0.19)^2) = 0.25 / (pi 0.3925^2)
+ * = 0.5165482. G1 at cos 0.5, alpha 0.25: tan^2 = 3, 2 / (1 + sqrt(1 + 0.0625 * 3)) =
+ * 2 / 2.0897247 = 0.9570638; at cos 0.6, alpha 1: tan^2 = 16/9, 2 / (1 + sqrt(25/9)) = 2 / (8/3)
+ * = 0.75. */
+static void test_ggx_points(void **state)
+{
+    (void)state;
+    close_rel(microfacet_ggx_d(0.0, 1.0, 0.25), 5.0929581789, 1e-9);
+    close_rel(microfacet_ggx_d(0.36, 0.64, 1.0), 0.3183098862, 1e-9);
+    close_rel(microfacet_ggx_d(0.19, 0.81, 0.5), 0.5165482, 1e-6);
+    close_rel(microfacet_ggx_g1(0.5, 0.25), 0.9570638494, 1e-9);
+    close_rel(microfacet_ggx_g1(0.6, 1.0), 0.75, 1e-12);
+    close_rel(microfacet_ggx_g(0.5, 0.6, 1.0), microfacet_ggx_g1(0.5, 1.0) * 0.75, 1e-12);
+    assert_true(microfacet_ggx_g1(0.0, 0.3) == 0.0 && microfacet_ggx_g1(1.0, 0.3) == 1.0);
+    /* the delta limit and the cap */
+    assert_true(microfacet_ggx_d(0.1, 0.9, 0.0) == 0.0);
+    assert_true(microfacet_ggx_d(0.0, 1.0, 1e-9) == MICROFACET_D_MAX);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -228,6 +249,7 @@ int main(void)
         cmocka_unit_test(test_smith_walter_accuracy),
         cmocka_unit_test(test_lambert),
         cmocka_unit_test(test_extremes_finite),
+        cmocka_unit_test(test_ggx_points),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -425,6 +425,10 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         }
         cJSON *gl = jw_obj(w, o, "glossy");
         jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
+        /* Glossy's GGX: alpha = Roughness^2 as for Beckmann, separable Smith G with the exact GGX
+         * G1 (svm/closure.h, closure/bsdf_microfacet.h), the physics of model/physical.h. */
+        if (mat->distribution == DIST_GGX)
+            jw_put_str(w, gl, "distribution", "ggx");
         /* A material without a lobe (material.lobe 0) reflects nothing: a black glossy. */
         jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(mat->lobe ? 1.0f : 0.0f));
         /* One closure reflects lamps and environment: a rough lobe takes the lamps' form

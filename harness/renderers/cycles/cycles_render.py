@@ -453,8 +453,10 @@ def build_material(i, spec, env):
     if g is not None:
         n = nt.nodes.new('ShaderNodeBsdfGlossy')
         rough = float(need(g, "roughness", where + ".glossy"))
-        # Roughness 0 is a perfect mirror: SHARP, which Beckmann cannot reach (alpha > 0).
-        n.distribution = 'SHARP' if rough == 0.0 else 'BECKMANN'
+        # Roughness 0 is a perfect mirror: SHARP, which Beckmann cannot reach (alpha > 0). GGX
+        # (a validate of a material with distribution ggx): alpha = Roughness^2 too.
+        rough_dist = 'GGX' if g.get("distribution") == "ggx" else 'BECKMANN'
+        n.distribution = 'SHARP' if rough == 0.0 else rough_dist
         n.inputs['Roughness'].default_value = rough
         factor = fresnel_factor(g.get("fresnel"), where + ".glossy.fresnel")
         set_colour(
