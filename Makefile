@@ -70,10 +70,13 @@ KEY_SOURCES := $(BUILD)/key-sources/.stamp
 # The manual page and the bash completion, written from the command table (tools/gen_man.c).
 GEN_MAN     := $(BUILD)/tools/gen_man
 CLI_DOCS    := $(BUILD)/reflcheck.1 $(BUILD)/reflcheck.bash
+# Users' shading models built as shared objects (rules below): the example and the test fixtures.
+USER_FIXTURES := no_entry abi_2 nan bad_bounds null_eval
+USER_MODELS := $(BUILD)/examples/ggx/ggx.so $(USER_FIXTURES:%=$(BUILD)/tests/user_models/%.so)
 
 .PHONY: all check test test-unit test-scenes test-mutant test-kill test-status test-concurrent test-report test-fuzz test-renderer \
         test-slurm test-install test-layers bench report fuzz fuzz-assimp deps clean install
-all: $(CLI) $(TEST_BIN) $(KEY_SOURCES) $(CLI_DOCS)
+all: $(CLI) $(TEST_BIN) $(KEY_SOURCES) $(CLI_DOCS) $(USER_MODELS)
 
 deps:
 	@bash ops/deps.sh
@@ -99,6 +102,19 @@ $(BUILD)/harness/renderers/renderer.o: CFLAGS += -DREFLCHECK_DATA_DIR='"$(abspat
 $(KEY_SOURCES): $(LIB_OBJ) $(OIIO_PLUGIN_OBJ) harness/renderers/key_sources.py
 	python3 harness/renderers/key_sources.py $(BUILD) $(LIB_OBJ) && touch $@
 $(BUILD)/harness/jobs.o: CFLAGS += -DREFLCHECK_KEY_SOURCES='"$(abspath $(BUILD))/key-sources"'
+
+# Users' shading models (model/user_model.h, docs/user_models.md): the shipped example and the
+# loader tests' broken models (tests/user_model_fixture.c, one -D per way of being wrong). Each is
+# a shared object on its own, built from model/user_model.h alone, as a user builds theirs.
+USER_CFLAGS := -std=c11 -O2 -fPIC -shared $(WARN) -Imodel
+$(BUILD)/examples/ggx/ggx.so: examples/ggx/ggx.c model/user_model.h
+	@mkdir -p $(dir $@)
+	$(CC) $(USER_CFLAGS) $< -lm -o $@
+$(BUILD)/tests/user_models/%.so: tests/user_model_fixture.c model/user_model.h
+	@mkdir -p $(dir $@)
+	$(CC) $(USER_CFLAGS) -DFIXTURE_$(shell echo $* | tr a-z A-Z) $< -o $@
+$(BUILD)/tests/test_user_model: | $(USER_MODELS)
+$(BUILD)/tests/test_user_model.o: CFLAGS += -DUSER_MODELS_DIR='"$(abspath $(BUILD))"'
 
 $(BUILD)/libreflcheck.a: $(LIB_OBJ)
 	rm -f $@ && $(AR) rcs $@ $^

@@ -1413,12 +1413,12 @@ static void compare_agrees_put(const scene *s, const comparison *c, cJSON *o)
  * two physics are not comparable; the report names the difference beside both. */
 static void compare_kinds_put(const scene *s, cJSON *o)
 {
-    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
+    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance", "user"};
     cJSON *kinds = cJSON_AddObjectToObject(o, "material_kinds");
     for (int i = 0; i < s->n_objects; i++) {
         const material *m = &s->materials[s->objects[i].material];
         char kind[64];
-        snprintf(kind, sizeof kind, "%s %s", (unsigned)m->model < 3 ? models[m->model] : "?",
+        snprintf(kind, sizeof kind, "%s %s", (unsigned)m->model < 4 ? models[m->model] : "?",
                  !m->lobe ? "without specular" : (m->conductor ? "conductor" : "dielectric"));
         if (cJSON_GetObjectItemCaseSensitive(kinds, m->name) == NULL)
             cJSON_AddStringToObject(kinds, m->name, kind);

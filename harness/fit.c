@@ -123,6 +123,7 @@ int fit_default_params(const scene *s, fit_bounds b, fit_param *p, int max)
             if (mt->ct.m > 0.0f)
                 fit_add(p, max, &n, b, FIT_CT_M, i, mt->ct.m);
             break;
+        case MODEL_USER: break;
         }
     }
     return n;

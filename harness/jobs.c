@@ -203,6 +203,10 @@ static rc_status job_key_inputs(const scene *s, uint64_t *h, char *err, size_t e
         for (int k = 0; st == RC_OK && k < MAT_TEX_SLOTS; k++)
             if (s->materials[i].texture[k][0] != '\0')
                 st = job_key_file(h, "materials.texture", s->materials[i].texture[k], err, errlen);
+    /* A user's model is code the sources do not hold: its shared object's bytes. */
+    for (int i = 0; st == RC_OK && i < s->n_materials; i++)
+        if (s->materials[i].model == MODEL_USER)
+            st = job_key_file(h, "materials.user.path", s->materials[i].user.path, err, errlen);
     /* A DDS is decoded by the OpenImageIO loaded at run time, which the sources do not name. */
     if (st == RC_OK && job_uses_dds(s)) {
         const char *v = image_oiio_version();

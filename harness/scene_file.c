@@ -23,6 +23,7 @@
 #include "mesh.h"
 #include "mesh_assimp.h"
 #include "scene_file.h"
+#include "user_load.h"
 
 /* Deeper than any scene needs (the format nests 4 levels), small enough to keep libyaml linear. */
 #define SF_MAX_DEPTH 32
@@ -858,6 +859,7 @@ enum {
     MK_TEXTURE,
     MK_ASSET,
     MK_THIN,
+    MK_USER,
     MK_DISTRIBUTION,
     MK_COUNT
 };
@@ -1131,12 +1133,55 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
     return RC_OK;
 }
 
+/* user: {path: FILE.so, params: {name: value, ...}}: the shared object is loaded here (code
+ * execution by design: only a path the scene names), its parameters checked against the bounds
+ * it declares, and the model probed at the scene's values (model/user_load.h). */
+_Static_assert(USER_PARAMS_MAX == REFLCHECK_USER_PARAMS_MAX, "scene.h holds every parameter a model may declare");
+static rc_status sf_user(sf_ctx *c, yaml_node_t *n, const char *path, user_params *u)
+{
+    static const char *const keys[] = {"path", "params"};
+    static const char *const exts[] = {".so"};
+    sf_kv f[2], pf[USER_PARAMS_MAX];
+    char child[SF_PATHLEN], sub[SF_PATHLEN], why[SCENE_PATH_MAX + 600];
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, keys, 2, f)) || (rc = sf_need(c, n, path, &f[0], "path")))
+        return rc;
+    sf_child(child, path, "path");
+    if ((rc = sf_file(c, f[0].v, child, exts, 1, "a user model's shared object", FILEIO_MESH_MAX_BYTES, u->path)))
+        return rc;
+    const reflcheck_user_model *um;
+    if ((rc = user_model_load(u->path, &um, why, sizeof why)))
+        return sf_fail(c, rc, f[0].v, child, "%s", why);
+    u->model = um;
+    user_model_defaults(um, u->params);
+    sf_child(child, path, "params");
+    if (f[1].v) {
+        const char *names[USER_PARAMS_MAX];
+        for (int i = 0; i < um->n_params; i++)
+            names[i] = um->params[i].name;
+        if ((rc = sf_map(c, f[1].v, child, names, um->n_params, pf)))
+            return rc;
+        for (int i = 0; i < um->n_params; i++) {
+            if (!pf[i].v)
+                continue;
+            sf_child(sub, child, names[i]);
+            if ((rc = sf_number(c, pf[i].v, sub, -INFINITY, INFINITY, 0, "a finite number", &u->params[i])))
+                return rc;
+            if ((rc = user_model_check_value(um, u->path, i, u->params[i], why, sizeof why)))
+                return sf_fail(c, rc, pf[i].v, sub, "%s", why);
+        }
+    }
+    if ((rc = user_model_probe(um, u->path, u->params, why, sizeof why)))
+        return sf_fail(c, rc, f[1].v ? f[1].v : n, child, "%s", why);
+    return RC_OK;
+}
+
 static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo",  "ior",   "conductor",  "roughness",
-                                               "model",   "d3d",   "d3d9client", "cook_torrance",
-                                               "texture", "asset", "thin",       "distribution"};
-    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance"};
+    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
+                                               "d3d",    "d3d9client", "cook_torrance", "texture",   "asset",
+                                               "thin",   "user",       "distribution"};
+    static const char *const models[] = {"d3d", "d3d9client", "cook_torrance", "user"};
     static const char *const dists[] = {"beckmann", "ggx"};
     static const char *const ckeys[] = {"eta", "k"};
     sf_kv f[MK_COUNT], cf[2];
@@ -1181,7 +1226,7 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     if (f[MK_THIN].v && (rc = sf_bool(c, f[MK_THIN].v, SF_CHILD("thin"), &m->thin)))
         return rc;
     if (f[MK_MODEL].v) {
-        if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 3, &e)))
+        if ((rc = sf_enum(c, f[MK_MODEL].v, SF_CHILD("model"), models, 4, &e)))
             return rc;
         m->model = (model_kind)e;
     }
@@ -1190,6 +1235,13 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
             return rc;
         m->distribution = (microfacet_distribution)e;
     }
+    if ((m->model == MODEL_USER) != (f[MK_USER].v != NULL))
+        return sf_fail(c, RC_ERR_PARSE, f[MK_USER].v ? f[MK_USER].k : n, SF_CHILD("user"),
+                       m->model == MODEL_USER ? "model user needs its shared object; allowed: add user: {path: "
+                                                "FILE.so, params: {...}} (docs/user_models.md)"
+                                              : "user applies to model user only; allowed: model: user, or no user");
+    if (f[MK_USER].v && (rc = sf_user(c, f[MK_USER].v, SF_CHILD("user"), &m->user)))
+        return rc;
     yaml_node_t *state_node[3] = {NULL, NULL, NULL};
     if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))
         return rc;

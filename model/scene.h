@@ -54,7 +54,8 @@ typedef struct {
                                      0 = off (default) */
 } environment;
 
-typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE } model_kind;
+/* MODEL_USER: a user's shading model from a shared object (model/user_model.h). */
+typedef enum { MODEL_D3D, MODEL_D3D9CLIENT, MODEL_COOK_TORRANCE, MODEL_USER } model_kind;
 typedef enum { NORM_MAX, NORM_MEAN, NORM_LUMINANCE, NORM_EUCLID } colour_norm;
 /* d_a of eq. (7) on a textured material: the material alpha times the diffuse texel's alpha
  * (the default), the material alpha alone, or the texel's alpha alone. */
@@ -123,6 +124,17 @@ typedef struct {
     int reflection;        /* environment reflection term CM * Fr, default 1 */
 } ct_params;
 
+/* A user's model (model/user_model.h, docs/user_models.md): the shared object the scene names and
+ * its parameter values. The model pointer is the object's own static description, loaded by
+ * model/user_load.h and never unloaded, so copying the struct is fine. */
+#define USER_PARAMS_MAX 8 /* = REFLCHECK_USER_PARAMS_MAX */
+struct reflcheck_user_model;
+typedef struct {
+    char path[SCENE_PATH_MAX]; /* resolved relative to the scene file */
+    const struct reflcheck_user_model *model;
+    double params[USER_PARAMS_MAX]; /* in the model's order: the scene's value, else its default */
+} user_params;
+
 /* The physical intent's microfacet distribution: what `roughness` means to every physical
  * reference. Beckmann m (default), or GGX / Trowbridge-Reitz alpha (Walter et al. 2007). */
 typedef enum { DIST_BECKMANN, DIST_GGX } microfacet_distribution;
@@ -154,6 +166,8 @@ typedef struct {
     d3d_params d3d; /* also the lit diffuse d of the D3D9Client model */
     d3d9client_params d9;
     ct_params ct;
+    /* Model user only. */
+    user_params user;
     char texture[MAT_TEX_SLOTS][SCENE_PATH_MAX]; /* image files, resolved like mesh paths; "" = none */
 } material;
 

@@ -7,6 +7,7 @@
 #include "d3d.h"
 #include "d3d9client.h"
 #include "formula.h"
+#include "user_load.h"
 
 void shade_context_make(const scene *s, const env_map *env, shade_context *c)
 {
@@ -247,6 +248,34 @@ static void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, v
     shade_ct_impl(c, p->mat, x, n, v, out, 1);
 }
 
+/* A user's model (model/user_model.h): its BRDF f per light, times E N.L, in double as the
+ * interface passes it; scalar only (the batch runs it lane by lane: shade_batch_scalar). Lights
+ * only: no environment term; the material's emissive colour as for every model. */
+static void shade_user(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
+{
+    const material *m = p->mat;
+    dvec3 diffuse = dv3(0, 0, 0), spec = dv3(0, 0, 0);
+    dvec3 nd = dv3_norm(dv3_from(n)), vd = dv3_norm(dv3_from(v));
+    for (int i = 0; i < c->s->n_lights; i++) {
+        vec3 to_l, e_perp;
+        float atten;
+        if (!shade_light_incident(&c->s->lights[i], x, &to_l, &e_perp, &atten))
+            continue;
+        reflcheck_user_output o;
+        dvec3 ld = dv3_norm(dv3_from(to_l));
+        if (!user_model_eval(m->user.model, m->user.params, nd, vd, ld, dv3_from(m->albedo), &o))
+            continue;
+        dvec3 e = dv3_scale(dv3_from(e_perp), dv3_dot(nd, ld));
+        diffuse = dv3_add(diffuse, dv3_mul(dv3(o.diffuse[0], o.diffuse[1], o.diffuse[2]), e));
+        spec = dv3_add(spec, dv3_mul(dv3(o.specular[0], o.specular[1], o.specular[2]), e));
+    }
+    out->diffuse = v3_from_d(diffuse);
+    out->specular = v3_from_d(spec);
+    out->reflection = v3s(0.0f);
+    out->emission = m->d3d.emissive;
+    out->alpha = 1.0f;
+}
+
 
 void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
 {
@@ -292,6 +321,12 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
         p->path = refl ? "cook-torrance-env" : "cook-torrance-lights";
         break;
     }
+    case MODEL_USER:
+        p->terms |= SHADE_TERM_SPECULAR;
+        p->fn = shade_user;
+        p->batch = shade_batch_scalar;
+        p->path = "user";
+        break;
     }
 }
 

@@ -493,7 +493,15 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
         }
     }
 
+    if (used && mat->model == MODEL_USER) {
+        status_message(c->err, c->errlen,
+                       "%s: materials[%d] '%s': model user (%s) has no Cycles twin: a twin needs a translator of "
+                       "the user's model, which none was given; judge it with role validate",
+                       s->path, mi, mat->name, mat->user.path);
+        return RC_ERR_RANGE;
+    }
     switch (mat->model) {
+    case MODEL_USER: break;
     case MODEL_D3D: {
         cJSON *dif = jw_obj(w, o, "diffuse");
         jw_put_vec(w, dif, "color", "materials.d3d.diffuse", d->diffuse);

@@ -60,6 +60,13 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
                      s->path, mi, m->name);
             return 1;
         }
+        if (m->model == MODEL_USER) {
+            snprintf(why, len,
+                     "%s: materials[%d] '%s': model user (%s) has no EEVEE twin: a twin needs a translator of the "
+                     "user's model, which none was given; compare EEVEE in validate or agree",
+                     s->path, mi, m->name, m->user.path);
+            return 1;
+        }
         if (m->model == MODEL_COOK_TORRANCE && (v3_nonzero(m->ct.ks) || m->ct.reflection)) {
             snprintf(why, len,
                      "%s: materials[%d] '%s': EEVEE's glossy lobe is GGX with split-sum and LTC lights, not a "

@@ -256,6 +256,13 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
     const material *mat = &s->materials[mi];
     const d3d_params *d = &mat->d3d;
     const char *name = mat->name[0] ? mat->name : "(unnamed)";
+    if (mat->model == MODEL_USER) {
+        status_message(err, errlen,
+                       "%s: materials[%d] '%s': model user (%s) has no POV-Ray twin: a twin needs a translator of "
+                       "the user's model, which none was given; use role validate",
+                       s->path, mi, name, mat->user.path);
+        return RC_ERR_RANGE;
+    }
     if (mat->model == MODEL_COOK_TORRANCE) {
         status_message(err, errlen,
                        "%s: materials[%d] '%s': model cook_torrance has no POV-Ray twin (no Beckmann "
