@@ -74,7 +74,7 @@ static cJSON *cli_fit_global_json(const fit_result *r, const scene *sc, const fi
         cJSON *a = cJSON_AddObjectToObject(o, "start"), *e = cJSON_AddObjectToObject(o, "end");
         for (int i = 0; i < n; i++) {
             char key[SCENE_NAME_MAX + 8];
-            snprintf(key, sizeof key, "%s.%s", sc->materials[p[i].material].name, fit_param_name(p[i].kind));
+            snprintf(key, sizeof key, "%s.%s", sc->materials[p[i].material].name, fit_param_label(sc, &p[i]));
             cJSON_AddNumberToObject(a, key, st->start[i]);
             cJSON_AddNumberToObject(e, key, st->end[i]);
         }
@@ -183,7 +183,7 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
     for (int i = 0; i < n; i++) {
         cJSON *q = cJSON_CreateObject();
         cJSON_AddStringToObject(q, "material", s->materials[p[i].material].name);
-        cJSON_AddStringToObject(q, "name", fit_param_name(p[i].kind));
+        cJSON_AddStringToObject(q, "name", fit_param_label(s, &p[i]));
         cJSON_AddNumberToObject(q, "authored", p[i].authored);
         cJSON_AddNumberToObject(q, "fitted", p[i].value);
         cJSON_AddNumberToObject(q, "lo", p[i].lo);
@@ -198,7 +198,7 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
         cJSON_AddItemToArray(pa, q);
         if (used < sizeof vals)
             used += (size_t)snprintf(vals + used, sizeof vals - used, " %s.%s=%.4g", s->materials[p[i].material].name,
-                                     fit_param_name(p[i].kind), p[i].value);
+                                     fit_param_label(s, &p[i]), p[i].value);
     }
     cJSON_AddNumberToObject(o, "evaluations", r.evaluations);
     cJSON_AddItemToObject(o, "global", cli_fit_global_json(&r, s, p, n, opt));

@@ -1,4 +1,5 @@
 #include "fit.h"
+#include "user_model.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -69,8 +70,34 @@ const char *fit_param_name(fit_param_kind k)
     case FIT_D3D_VS: return "Vs";
     case FIT_D3D_POWER: return "P";
     case FIT_CT_M: return "m";
+    case FIT_USER: return "user";
     }
     return "?";
+}
+
+const char *fit_param_label(const scene *s, const fit_param *p)
+{
+    if (p->kind == FIT_USER)
+        return s->materials[p->material].user.model->params[p->user_index].name;
+    return fit_param_name(p->kind);
+}
+
+/* A user model's parameters: its own bounds and scale (the authored value is within them: the
+ * scene parser refuses one outside). */
+static void fit_add_user(fit_param *p, int max, int *n, int mat, const material *mt)
+{
+    const reflcheck_user_model *um = mt->user.model;
+    for (int i = 0; um != NULL && i < um->n_params && *n < max; i++) {
+        fit_param *q = &p[(*n)++];
+        memset(q, 0, sizeof *q);
+        q->kind = FIT_USER;
+        q->material = mat;
+        q->user_index = i;
+        q->lo = um->params[i].lo;
+        q->hi = um->params[i].hi;
+        q->log_scale = um->params[i].log_scale;
+        q->authored = q->value = mt->user.params[i];
+    }
 }
 
 static void fit_add(fit_param *p, int max, int *n, fit_bounds b, fit_param_kind kind, int mat, double authored)
@@ -123,7 +150,7 @@ int fit_default_params(const scene *s, fit_bounds b, fit_param *p, int max)
             if (mt->ct.m > 0.0f)
                 fit_add(p, max, &n, b, FIT_CT_M, i, mt->ct.m);
             break;
-        case MODEL_USER: break;
+        case MODEL_USER: fit_add_user(p, max, &n, i, mt); break;
         }
     }
     return n;
@@ -148,6 +175,7 @@ void fit_apply(scene *s, const fit_param *p, int n, const double *values)
         }
         case FIT_D3D_POWER: mt->d3d.power = v; break;
         case FIT_CT_M: mt->ct.m = v; break;
+        case FIT_USER: mt->user.params[p[i].user_index] = values[i]; break;
         }
     }
 }

@@ -46,6 +46,8 @@
  *     specular colour (hue kept), in [0, 1] ([0, 2]), and the power P in [1, 256] ([1, 1e4]);
  *   Cook-Torrance: the Beckmann m per material in [0.01, 1] ([0.001, 1]); it shapes the light
  *     lobe only: the environment term CM.Fr does not depend on m.
+ *   A user's model (model/user_model.h): every parameter it declares, within its declared bounds
+ *     and scale, under both bound sets.
  * Each range is widened to hold the authored value, so the as-authored point is feasible.
  * fit_run returns RC_OK with the result, RC_ERR_RANGE for a reference of another size, no
  * parameters or no surface pixels, RC_ERR_NOMEM, or the renderer's error; err says which.
@@ -77,7 +79,9 @@
  * amount below which two fits' NRMSE figures do not differ in any threshold we gate. */
 #define FIT_UNCERTAINTY_TOL 0.01
 
-typedef enum { FIT_D9_P, FIT_D9_R0, FIT_D3D_VS, FIT_D3D_POWER, FIT_CT_M } fit_param_kind;
+/* FIT_USER: a parameter of a user's model (model/user_model.h), with the bounds and scale the
+ * model declares (the same under both bound sets: the model's author knows its range). */
+typedef enum { FIT_D9_P, FIT_D9_R0, FIT_D3D_VS, FIT_D3D_POWER, FIT_CT_M, FIT_USER } fit_param_kind;
 typedef enum { FIT_BOUNDS_SEED = 0, FIT_BOUNDS_WIDE = 1 } fit_bounds;
 
 typedef struct {
@@ -90,6 +94,7 @@ typedef struct {
     int at_bound;                /* the fitted value is within 1e-3 of the range of a bound */
     int tied;                    /* FIT_D9_R0: m = 1 - r0 follows r0 */
     vec3 colour;                 /* FIT_D3D_VS: the authored specular colour, whose hue is kept */
+    int user_index;              /* FIT_USER: the parameter's index in the model's params */
     double uncertainty;          /* fit_run: the change raising the NRMSE by FIT_UNCERTAINTY_TOL of itself,
                                     from the objective's curvature; NAN where it does not curve up or
                                     the value is held by a bound */
@@ -138,6 +143,8 @@ typedef struct {
 
 /* The parameter's name as the fit record writes it: "p", "r0", "Vs", "P", "m". */
 const char *fit_param_name(fit_param_kind k);
+/* The name as the fit record writes it: fit_param_name's, or a user model's own parameter name. */
+const char *fit_param_label(const scene *s, const fit_param *p);
 /* Fills p with the scene's free parameters (see above), at most max; returns how many. */
 int fit_default_params(const scene *s, fit_bounds b, fit_param *p, int max);
 /* Writes values into a scene's materials (m = 1 - r0 follows r0 where fit_default_params tied

@@ -2,7 +2,7 @@
  * loader's one-line errors (missing file, missing symbol, another ABI, bad bounds, no eval, NaN
  * found by the probe), the scene file's (a parameter out of bounds, an unknown one, model user
  * without its object and the reverse), the shipped GGX example (examples/ggx/ggx.c) against
- * values worked out by hand, the rasterizer's shading path through it.
+ * values worked out by hand, the rasterizer's shading path through it, and fit's parameters.
  * The shared objects are built by the Makefile into USER_MODELS_DIR (the build folder). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -14,6 +14,7 @@
 
 #include "check.h"
 
+#include "fit.h"
 #include "scene_file.h"
 #include "shade.h"
 #include "user_load.h"
@@ -207,12 +208,36 @@ static void test_shade_path(void **state)
     assert_true(out.specular.y[0] == t.specular.y && out.diffuse.x[0] == t.diffuse.x);
 }
 
+/* fit: the model's own parameters, bounds and scales, named as the model names them. */
+static void test_fit_params(void **state)
+{
+    (void)state;
+    static scene s;
+    char err[2048];
+    assert_int_equal(
+        parse_with("user", "    user: {path: " GGX_SO ", params: {roughness: 0.4, f0: 0.1}}\n", &s, err, sizeof err),
+        RC_OK);
+    fit_param p[FIT_MAX_PARAMS];
+    assert_int_equal(fit_default_params(&s, FIT_BOUNDS_SEED, p, FIT_MAX_PARAMS), 2);
+    assert_string_equal(fit_param_label(&s, &p[0]), "roughness");
+    assert_string_equal(fit_param_label(&s, &p[1]), "f0");
+    close_rel(p[0].lo, 0.03, 0);
+    close_rel(p[0].hi, 1.0, 0);
+    assert_true(p[0].log_scale && !p[1].log_scale);
+    close_rel(p[0].authored, 0.4, 0);
+    double v[2] = {0.7, 0.3};
+    fit_apply(&s, p, 2, v);
+    close_rel(s.materials[0].user.params[0], 0.7, 0);
+    close_rel(s.materials[0].user.params[1], 0.3, 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_load_ggx),        cmocka_unit_test(test_load_errors),
         cmocka_unit_test(test_probe_finds_nan), cmocka_unit_test(test_scene_errors),
         cmocka_unit_test(test_ggx_hand_points), cmocka_unit_test(test_shade_path),
+        cmocka_unit_test(test_fit_params),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
