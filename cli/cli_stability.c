@@ -13,6 +13,7 @@
 #include "fileio.h"
 #include "jsonio.h"
 #include "stability.h"
+#include "user_load.h"
 
 static int cli_stability_write(const char *path, const stability_table *t, int json)
 {
@@ -50,13 +51,10 @@ static int cli_stability_write(const char *path, const stability_table *t, int j
 }
 
 static const struct option stability_longopts[] = {
-    {"json", required_argument, NULL, 'j'},
-    {"csv", required_argument, NULL, 'c'},
-    {"samples", required_argument, NULL, 's'},
-    {"seed", required_argument, NULL, 'r'},
-    {"quiet", no_argument, NULL, 'q'},
-    {"help", no_argument, NULL, 'h'},
-    {NULL, 0, NULL, 0},
+    {"json", required_argument, NULL, 'j'},    {"csv", required_argument, NULL, 'c'},
+    {"samples", required_argument, NULL, 's'}, {"seed", required_argument, NULL, 'r'},
+    {"quiet", no_argument, NULL, 'q'},         {"user-model", required_argument, NULL, 'u'},
+    {"help", no_argument, NULL, 'h'},          {NULL, 0, NULL, 0},
 };
 static const cli_option_help stability_options_help[] = {
     {"json", "FILE", "also write the table as JSON to FILE; default: none"},
@@ -66,6 +64,9 @@ static const cli_option_help stability_options_help[] = {
      "the seed of each sweep's random part, 1 to 2147483647; default: a fixed seed (the same "
      "table every run)"},
     {"quiet", NULL, "print no table on standard output; default: the table"},
+    {"user-model", "FILE",
+     "also sweep a user's shading model, the shared object FILE (loading it runs its code: "
+     "docs/user_models.md); default: none"},
     {"help", NULL, "this help, then exit 0"},
     {NULL, NULL, NULL},
 };
@@ -107,6 +108,14 @@ int cli_stability(int argc, char **argv)
             break;
         }
         case 'q': quiet = 1; break;
+        case 'u': {
+            char why[1024];
+            if (user_model_load(optarg, &o.user, why, sizeof why) != RC_OK) {
+                fprintf(stderr, "reflcheck: stability: --user-model: %s\n", why);
+                rc = CLI_BAD_INPUT;
+            }
+            break;
+        }
         case 'h': return cli_help("stability");
         default:
             rc = cli_bad_option("stability", argc, argv, "h", stability_longopts, "see reflcheck stability --help");
@@ -117,7 +126,7 @@ int cli_stability(int argc, char **argv)
     if (optind != argc) {
         fprintf(stderr,
                 "reflcheck: stability: unexpected argument '%s'; usage: reflcheck stability "
-                "[--json FILE] [--csv FILE] [--samples N]\n",
+                "[--json FILE] [--csv FILE] [--samples N] [--user-model FILE]\n",
                 argv[optind]);
         return CLI_BAD_INPUT;
     }

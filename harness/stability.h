@@ -42,6 +42,13 @@ typedef struct {
     int samples;     /* samples per sweep case; 0 = STABILITY_DEFAULT_SAMPLES */
     unsigned seed;   /* PRNG seed of the random part of each sweep; 0 = fixed default */
     int albedo_grid; /* albedo quadrature: grid x grid stratified samples; 0 = 96 */
+    /* A user's model (model/user_load.h) to sweep too, NULL = none: its rows (function
+     * "user[NAME]") count NaN, Inf and negative outputs over grazing, peak and random inputs with
+     * every parameter at its bounds, take the output at float-rounded directions (the
+     * rasterizer's geometry) against the output at the exact directions (APPROX: the model's
+     * sensitivity to float input, no long double form exists), and report its largest
+     * directional albedo (not gated: a user's model need not conserve energy). */
+    const struct reflcheck_user_model *user;
 } stability_options;
 
 typedef enum { STABILITY_ROUNDING, STABILITY_APPROX, STABILITY_PHYSICS } stability_kind;

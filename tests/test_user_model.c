@@ -17,6 +17,7 @@
 #include "fit.h"
 #include "scene_file.h"
 #include "shade.h"
+#include "stability.h"
 #include "user_load.h"
 
 #ifndef USER_MODELS_DIR
@@ -231,13 +232,45 @@ static void test_fit_params(void **state)
     close_rel(s.materials[0].user.params[1], 0.3, 0);
 }
 
+/* The stability sweep of a user model: its rows, finite for the example, its albedo (Karis' G
+ * and F = 1 at the smallest roughness reflect just under 1: the quadrature sees the lobe), and
+ * the NaN fixture failing the gate. */
+static void test_stability_rows(void **state)
+{
+    (void)state;
+    static stability_table t;
+    char err[1024];
+    stability_options o = {.samples = 64, .albedo_grid = 48};
+    assert_int_equal(user_model_load(GGX_SO, &o.user, err, sizeof err), RC_OK);
+    assert_int_equal(stability_run(&o, &t), RC_OK);
+    int rows = 0;
+    for (int i = 0; i < t.n_rows; i++) {
+        const stability_row *r = &t.rows[i];
+        if (strcmp(r->function, "user[ggx]") != 0)
+            continue;
+        rows++;
+        assert_true(r->nan == 0 && r->inf == 0 && r->negative == 0 && r->samples > 0);
+    }
+    assert_int_equal(rows, 4);
+    const stability_row *al = stability_find(&t, "user[ggx]", "max directional albedo");
+    assert_non_null(al);
+    assert_true(al->value > 0.9 && al->value <= 1.0);
+    assert_int_equal(stability_failures(&t), 0);
+    assert_int_equal(user_model_load(FIXTURE("nan"), &o.user, err, sizeof err), RC_OK);
+    assert_int_equal(stability_run(&o, &t), RC_OK);
+    const stability_row *g = stability_find(&t, "user[fixture]", "grazing");
+    assert_non_null(g);
+    assert_true(g->nan > 0);
+    assert_true(stability_failures(&t) >= 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_load_ggx),        cmocka_unit_test(test_load_errors),
         cmocka_unit_test(test_probe_finds_nan), cmocka_unit_test(test_scene_errors),
         cmocka_unit_test(test_ggx_hand_points), cmocka_unit_test(test_shade_path),
-        cmocka_unit_test(test_fit_params),
+        cmocka_unit_test(test_fit_params),      cmocka_unit_test(test_stability_rows),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
