@@ -1135,7 +1135,7 @@ static rc_status sf_asset(sf_ctx *c, yaml_node_t *n, const char *path, material 
 
 /* user: {path: FILE.so, params: {name: value, ...}}: the shared object is loaded here (code
  * execution by design: only a path the scene names), its parameters checked against the bounds
- * it declares, and the model probed at the scene's values (model/user_load.h). */
+ * it declares, and the model probed at the scene's values (scene/user_load.h). */
 _Static_assert(USER_PARAMS_MAX == REFLCHECK_USER_PARAMS_MAX, "scene.h holds every parameter a model may declare");
 static rc_status sf_user(sf_ctx *c, yaml_node_t *n, const char *path, user_params *u)
 {

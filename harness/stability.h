@@ -42,7 +42,7 @@ typedef struct {
     int samples;     /* samples per sweep case; 0 = STABILITY_DEFAULT_SAMPLES */
     unsigned seed;   /* PRNG seed of the random part of each sweep; 0 = fixed default */
     int albedo_grid; /* albedo quadrature: grid x grid stratified samples; 0 = 96 */
-    /* A user's model (model/user_load.h) to sweep too, NULL = none: its rows (function
+    /* A user's model (scene/user_load.h) to sweep too, NULL = none: its rows (function
      * "user[NAME]") count NaN, Inf and negative outputs over grazing, peak and random inputs with
      * every parameter at its bounds, take the output at float-rounded directions (the
      * rasterizer's geometry) against the output at the exact directions (APPROX: the model's

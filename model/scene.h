@@ -126,7 +126,7 @@ typedef struct {
 
 /* A user's model (model/user_model.h, docs/user_models.md): the shared object the scene names and
  * its parameter values. The model pointer is the object's own static description, loaded by
- * model/user_load.h and never unloaded, so copying the struct is fine. */
+ * scene/user_load.h and never unloaded, so copying the struct is fine. */
 #define USER_PARAMS_MAX 8 /* = REFLCHECK_USER_PARAMS_MAX */
 struct reflcheck_user_model;
 typedef struct {

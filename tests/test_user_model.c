@@ -1,4 +1,4 @@
-/* test_user_model.c - a user's shading model (model/user_model.h, model/user_load.h): the
+/* test_user_model.c - a user's shading model (model/user_model.h, scene/user_load.h): the
  * loader's one-line errors (missing file, missing symbol, another ABI, bad bounds, no eval, NaN
  * found by the probe), the scene file's (a parameter out of bounds, an unknown one, model user
  * without its object and the reverse), the shipped GGX example (examples/ggx/ggx.c) against
