@@ -24,7 +24,7 @@
  * (r.bad_input = 0).
  *
  * Cache: an entry CACHE/<key>/ is keyed by FNV-1a 64 over the scene file's bytes, the bytes of
- * every file it references (meshes, environment image), the options that reach the image
+ * every file it references (meshes, environment image, a user model's shared object), the options that reach the image
  * (renderer, role, variant, size, k, samples, seeds, seed, tessellation, per-vertex), the
  * renderer's version line and executable (path, size, times), and the code the render depends
  * on (the files of the scene pipeline and the renderer's translator as the build's objects and
