@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# How the nightly's cost grows with the number of scenes: the nightly (local make, test-size
+# renders, no sweep, no screenshot, JOBS at a time, a fresh cache each) on the first 1, 10 and
+# 24 canonical scenes and on 100 generated variants of them (tools/cost_scenes.py, written to
+# OUT/scenes100, never into scenes/). Each run's folder gets cost.txt: the nightly's wall time,
+# its CPU time (user + sys of the nightly and every process it waited for, renderers included)
+# and the load average before and after (the machine may be shared); and calls.tsv: every call
+# of the reflcheck program (plan, each job's run, compare, fit, stability, eval) with its wall
+# and CPU seconds, the renderer it started included, through OUT/reflcheck, a wrapper the
+# nightly is given as its BIN. Then tools/cost_table.py OUT/runs/scenes-* writes the table
+# (docs/cost.md).
+#
+# Usage: bash tools/cost_growth.sh BUILD [OUT] [COUNT...]    (from the project root)
+#   bash tools/cost_growth.sh build build/cost            # 1, 10, 24 and 100 scenes
+#   bash tools/cost_growth.sh build build/cost 1 10       # only those counts (at most the
+#                                                         # canonical scenes' number, or 100)
+#   /usr/bin/python3 tools/cost_table.py build/cost/runs/scenes-* > docs/cost.md
+# OUT defaults to BUILD/cost; everything is written there (git ignores build folders).
+# JOBS (default 2) render jobs at a time. Exit status: 0 when every nightly ran (a nightly's
+# own failed comparison does not count: the cost is what is measured), 1 otherwise, 2 bad usage.
+set -uo pipefail
+cd "$(dirname "$0")/.." || exit 2
+build=${1:?usage: bash tools/cost_growth.sh BUILD [OUT] [COUNT...]}
+out=${2:-$build/cost}
+case $out in /*) ;; *) out=$PWD/$out ;; esac
+shift $(($# < 2 ? $# : 2))
+counts=("$@")
+[ ${#counts[@]} -gt 0 ] || counts=(1 10 24 100)
+jobs=${JOBS:-2}
+[ -x "$build/reflcheck" ] || { echo "cost_growth: $build/reflcheck is not built; run make all" >&2; exit 2; }
+mkdir -p "$out/runs"
+# The wrapper: one line per call, appended (O_APPEND: whole short lines from parallel jobs).
+real_bin=$(cd "$(dirname "$build/reflcheck")" && pwd)/reflcheck
+cat > "$out/reflcheck" << SH
+#!/bin/sh
+exec /usr/bin/time -a -o "\$REFLCHECK_CALLS" -f '%e\t%U\t%S\t%C' "$real_bin" "\$@"
+SH
+chmod +x "$out/reflcheck"
+canonical=(scenes/*.yaml)
+rc=0
+for n in "${counts[@]}"; do
+    if [ "$n" = 100 ]; then
+        rm -rf "$out/scenes100"
+        mapfile -t list < <(/usr/bin/python3 tools/cost_scenes.py 100 "$out/scenes100") || exit 1
+    elif [ "$n" -ge 1 ] 2> /dev/null && [ "$n" -le ${#canonical[@]} ]; then
+        list=("${canonical[@]:0:$n}")
+    else
+        echo "cost_growth: count '$n': give 1 to ${#canonical[@]} (canonical scenes) or 100 (variants)" >&2
+        exit 2
+    fi
+    run=$out/runs/scenes-$n
+    rm -rf "$run" "$out/cache-$n"
+    load0=$(cut -d' ' -f1-3 /proc/loadavg)
+    echo "cost_growth: $n scenes, $jobs jobs at a time (load $load0)" >&2
+    rm -f "$out/calls-$n.tsv"
+    /usr/bin/time -f '%e %U %S' -o "$out/time-$n" \
+        env SMALL=1 NO_SWEEP=1 NO_SCREENSHOT=1 JOBS="$jobs" SCHEDULER=make BIN="$out/reflcheck" \
+        REFLCHECK_CALLS="$out/calls-$n.tsv" \
+        RUNS="$out/runs" RUN_ID="scenes-$n" CACHE="$out/cache-$n" HISTORY="$out/history.jsonl" \
+        LATEST="$out/latest-$n" REFERENCE_HISTORY= bash harness/nightly.sh "${list[@]}" > "$out/nightly-$n.log" 2>&1
+    st=$?
+    load1=$(cut -d' ' -f1-3 /proc/loadavg)
+    if [ ! -d "$run" ]; then
+        echo "cost_growth: the $n-scene nightly made no run folder (exit $st); see $out/nightly-$n.log" >&2
+        rc=1
+        continue
+    fi
+    mv "$out/calls-$n.tsv" "$run/calls.tsv"
+    read -r wall user sys < "$out/time-$n"
+    printf 'scenes %s\njobs_at_a_time %s\nexit %s\nwall_s %s\nuser_s %s\nsys_s %s\nload_before %s\nload_after %s\ncpus %s\n' \
+        "$n" "$jobs" "$st" "$wall" "$user" "$sys" "$load0" "$load1" "$(nproc)" > "$run/cost.txt"
+    echo "cost_growth: $n scenes: exit $st, $wall s wall, $user + $sys CPU-s (load $load1)" >&2
+done
+exit $rc
