@@ -1,0 +1,267 @@
+#!/usr/bin/python3
+"""cost_table.py - docs/cost.md from the runs of tools/cost_growth.sh: how the nightly's cost
+grows with the number of scenes, and what a Slurm cluster of N nodes would take.
+
+Usage: /usr/bin/python3 tools/cost_table.py [--cpus C] RUN... > docs/cost.md
+  RUN: a run folder of tools/cost_growth.sh (RUN/cost.txt, RUN/calls.tsv, RUN/stages.tsv, the
+  job records RUN/<scene>/<renderer>-<role>.json and the plan RUN/jobs.mk). --cpus: CPUs per
+  node of the estimate (default 2, this machine's).
+
+Everything printed comes from those files: the nightly's wall and CPU time (cost.txt); each
+job's CPU seconds, whole (its `reflcheck run` call in calls.tsv, the renderer it started
+included) and the renderer's alone (its record's cpu_s); the CPU seconds of every other call
+of the reflcheck program (compare, fit, stability, ...; calls.tsv); each stage's wall time
+(stages.tsv). The estimate for the largest run is a list schedule over its measured jobs (see
+`estimate`).
+"""
+
+import glob
+import heapq
+import json
+import os
+import re
+import sys
+
+NODES = (1, 2, 4, 8, 16, 32)
+
+
+def read_cost(run):
+    out = {}
+    with open(os.path.join(run, 'cost.txt'), encoding='utf-8') as f:
+        for line in f:
+            k, _, v = line.rstrip('\n').partition(' ')
+            out[k] = v
+    return out
+
+
+def read_stages(run):
+    stages = {}
+    try:
+        with open(os.path.join(run, 'stages.tsv'), encoding='utf-8') as f:
+            for line in f:
+                k, v = line.split('\t')
+                stages[k] = float(v)
+    except OSError:
+        pass
+    return stages
+
+
+def plan_order(run):
+    """The record paths in the plan's order (the order make and Slurm take the jobs in)."""
+    with open(os.path.join(run, 'jobs.mk'), encoding='utf-8') as f:
+        return [m.group(1) for m in re.finditer(r'^all: (\S+)$', f.read(), re.M)]
+
+
+def read_calls(run):
+    """{subcommand: [(cpu_s, wall_s, words)]}: calls.tsv's lines (wall, user, sys, command line);
+    GNU time's own notes ("Command exited with non-zero status 1") are skipped."""
+    calls = {}
+    with open(os.path.join(run, 'calls.tsv'), encoding='utf-8') as f:
+        for line in f:
+            parts = line.rstrip('\n').split('\t')
+            if len(parts) != 4:
+                continue
+            words = parts[3].split()
+            sub = words[1] if len(words) > 1 else '?'
+            calls.setdefault(sub, []).append((float(parts[1]) + float(parts[2]), float(parts[0]), words))
+    return calls
+
+
+def run_cpu(calls):
+    """{(scene path, renderer, role): CPU s} of the `reflcheck run` calls."""
+    out = {}
+    for cpu, _, words in calls.get('run', []):
+        opt = {words[i]: words[i + 1] for i in range(len(words) - 1) if words[i].startswith('--')}
+        out[(words[-1], opt.get('--renderer'), opt.get('--role'))] = cpu
+    return out
+
+
+def read_jobs(run, calls):
+    """[(record path, renderer, status, whole job's CPU s, renderer's CPU s)] in plan order."""
+    jobs = []
+    whole = run_cpu(calls)
+    for path in plan_order(run):
+        try:
+            with open(path, encoding='utf-8') as f:
+                rec = json.load(f)
+        except (OSError, ValueError):
+            jobs.append((path, '?', 'missing', 0.0, 0.0))
+            continue
+        key = (rec['scene_path'], rec['renderer'], rec['role'])
+        if key not in whole:
+            raise ValueError(f'{path}: no `reflcheck run` call for it in calls.tsv')
+        jobs.append((path, rec['renderer'], rec['status'], whole[key], float(rec['cpu_s'])))
+    return jobs
+
+
+def estimate(durations, cpus):
+    """Makespan of a list schedule: each job, in order, to the CPU that frees first (what
+    Slurm's FIFO scheduler does with one-CPU array tasks on idle nodes)."""
+    free = [0.0] * cpus
+    heapq.heapify(free)
+    end = 0.0
+    for d in durations:
+        t = heapq.heappop(free) + d
+        end = max(end, t)
+        heapq.heappush(free, t)
+    return end
+
+
+def fmt(x, digits=1):
+    return f'{x:,.{digits}f}'
+
+
+def main(argv):
+    args = argv[1:]
+    cpus = 2
+    if '--cpus' in args:
+        i = args.index('--cpus')
+        cpus = int(args[i + 1])
+        del args[i : i + 2]
+    if not args:
+        print(__doc__, file=sys.stderr)
+        return 2
+    runs = []
+    for run in args:
+        try:
+            cost = read_cost(run)
+            calls = read_calls(run)
+            cost['calls'] = calls
+            with open(os.path.join(run, 'summary.json'), encoding='utf-8') as f:
+                commit = json.load(f).get('commit', '?')
+            # The nightly names a tree outside git (a copied checkout) "nogit".
+            cost['commit'] = 'a copy outside git' if commit == 'nogit' else commit
+            runs.append((int(cost['scenes']), run, cost, read_stages(run), read_jobs(run, calls)))
+        except (OSError, KeyError, ValueError) as e:
+            print(f'cost_table.py: {run}: {e}; give run folders of tools/cost_growth.sh', file=sys.stderr)
+            return 1
+    runs.sort()
+    with open(os.path.join(runs[-1][1], 'summary.json'), encoding='utf-8') as f:
+        summary = json.load(f)
+    renderers = sorted({j[1] for r in runs for j in r[4]})
+    p = print
+    first = runs[0][2]
+    p("# How the nightly's cost grows")
+    p()
+    p('<!-- Generated by tools/cost_table.py from the runs of tools/cost_growth.sh; do not edit by hand. -->')
+    p()
+    p(
+        'The nightly (local make, test-size renders, no sweep, '
+        'no screenshot, a fresh cache each) on the first 1, 10 and 24 canonical scenes (sorted by name) and '
+        'on 100 variants of them (`tools/cost_scenes.py`: the canonical scenes in turn, renamed, field of view '
+        f'widened 0.1 % per round), {summary.get("time", "?")[:10]}, '
+        f'{first["cpus"]} CPUs shared with other work. The load average is beside each run: wall times are '
+        'inflated by it, CPU times (user + sys) much less, so CPU time is the measure. Regenerate: '
+        '`bash tools/cost_growth.sh build build/cost && /usr/bin/python3 tools/cost_table.py '
+        'build/cost/runs/scenes-* > docs/cost.md`.'
+    )
+    p()
+    p('## The nightly against the number of scenes (CPU seconds but where named wall)')
+    p()
+    p(
+        '| scenes | render jobs | nightly wall | nightly CPU | render jobs | compare | fits | stability '
+        '| the rest | CPU per scene | load before, after | jobs at a time | commit | exit |'
+    )
+    p('| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: |')
+    for n, run, cost, stages, jobs in runs:
+        cpu = float(cost['user_s']) + float(cost['sys_s'])
+        part = {k: sum(c[0] for c in v) for k, v in cost['calls'].items()}
+        jcpu = sum(j[3] for j in jobs)
+        rest = cpu - sum(part.values())
+        p(
+            f'| {n} | {len(jobs)} | {fmt(float(cost["wall_s"]))} | {fmt(cpu)} | {fmt(jcpu)} '
+            f'| {fmt(part.get("compare", 0))} | {fmt(part.get("fit", 0))} | {fmt(part.get("stability", 0))} '
+            f'| {fmt(rest)} | {fmt(cpu / n, 2)} '
+            f'| {cost["load_before"].split()[0]}, {cost["load_after"].split()[0]} | {cost["jobs_at_a_time"]} '
+            f'| {cost.get("commit", "?")} | {cost["exit"]} |'
+        )
+    p()
+    p(
+        'The nightly\'s CPU time is the nightly and every process it waited for. Render jobs: their '
+        '`reflcheck run` calls, the renderer each started included; compare, fits (seed and wide bounds, one '
+        'call per scene each) and stability: their calls; the rest: the report (Python), progress, make, '
+        'the shell and the Figure 1 plot. Exit 1 is a comparison that failed or a job not ok (listed below): '
+        'its time is counted as measured.'
+    )
+    p()
+    p('## By renderer: jobs; CPU seconds of the whole jobs; of the renderer alone (records\' `cpu_s`)')
+    p()
+    p('| renderer | ' + ' | '.join(f'{r[0]} scenes' for r in runs) + ' | CPU s per job, whole (renderer) |')
+    p('| --- | ' + ' | '.join('---:' for _ in runs) + ' | ---: |')
+    for name in renderers:
+        cells = []
+        for _, _, _, _, jobs in runs:
+            mine = [j for j in jobs if j[1] == name]
+            cells.append(
+                f'{len(mine)}; {fmt(sum(j[3] for j in mine))}; {fmt(sum(j[4] for j in mine))}' if mine else '-'
+            )
+        mine = [j for j in runs[-1][4] if j[1] == name]
+        per = (
+            f'{fmt(sum(j[3] for j in mine) / len(mine), 2)} ({fmt(sum(j[4] for j in mine) / len(mine), 2)})'
+            if mine
+            else '-'
+        )
+        p(f'| {name} | ' + ' | '.join(cells) + f' | {per} |')
+    p()
+    p(
+        f'The last column is the {runs[-1][0]}-scene run\'s. A job\'s time beyond its renderer\'s is '
+        '`reflcheck run`\'s own: the scene, the cache key (which reads the renderer\'s version), the '
+        'image and the record.'
+    )
+    p()
+    p('## Stages, wall seconds (stages.tsv; inflated by the load)')
+    p()
+    names = [s for s in ('renders', 'sweep', 'fits', 'stability', 'report') if any(s in r[3] for r in runs)]
+    p('| scenes | ' + ' | '.join(names) + ' |')
+    p('| ---: | ' + ' | '.join('---:' for _ in names) + ' |')
+    for n, _, _, stages, _ in runs:
+        p(f'| {n} | ' + ' | '.join(fmt(stages[s], 0) if s in stages else '-' for s in names) + ' |')
+    p()
+    n, run, cost, stages, jobs = runs[-1]
+    durations = [j[3] for j in jobs]
+    total_cpu = float(cost['user_s']) + float(cost['sys_s'])
+    compare = sum(c[0] for c in cost['calls'].get('compare', []))
+    after = total_cpu - sum(durations) - compare
+    p(f'## {n} scenes on a Slurm cluster of N nodes (estimate from the measured jobs)')
+    p()
+    p(
+        'Model: under `SCHEDULER=slurm` every render job is a one-CPU array task, and Slurm starts pending '
+        'tasks in submission order (the plan\'s) on whichever CPU frees first; so the renders take the '
+        f'makespan of a list schedule of the {len(durations)} measured job CPU times (whole `reflcheck run` '
+        f'calls, in plan order) on N x {cpus} CPUs. Compare waits for every render (afterany) and runs as one '
+        f'one-CPU job: {fmt(compare)} CPU-s measured. Everything else ({fmt(after)} CPU-s: plan, fits, '
+        'stability, the report, make and the shell) runs on the submitting machine after compare and is '
+        'added as serial time: an upper bound (the fits run side by side there). Left out: Slurm\'s launch '
+        'cost per task (about 0.4 s more than a fork, docs/slurm.md), a shared filesystem\'s latency, and '
+        'the sweep (skipped in these runs; under Slurm one job on one node).'
+    )
+    p()
+    p(
+        '| nodes | CPUs | renders (makespan) s | + compare s | + the rest (serial) s | total s '
+        '| renders\' speed-up over 1 node |'
+    )
+    p('| ---: | ---: | ---: | ---: | ---: | ---: | ---: |')
+    base = estimate(durations, cpus)
+    for nodes in NODES:
+        m = estimate(durations, nodes * cpus)
+        p(
+            f'| {nodes} | {nodes * cpus} | {fmt(m)} | {fmt(compare)} | {fmt(after)} | {fmt(m + compare + after)} '
+            f'| {fmt(base / m, 2)}x |'
+        )
+    longest = max(jobs, key=lambda j: j[3])
+    p()
+    p(
+        f'No schedule ends the renders before the longest job ({fmt(longest[3], 2)} CPU-s, '
+        f'`{os.path.relpath(longest[0], run)}`) nor before their CPU total shared by the CPUs '
+        f'({fmt(sum(durations))} CPU-s); past about {max(1, round(sum(durations) / max(longest[3], 1e-9) / cpus))} '
+        'nodes the longest job and the serial rest set the time.'
+    )
+    bad = [(r[0], os.path.relpath(j[0], r[1]), j[2]) for r in runs for j in r[4] if j[2] != 'ok']
+    if bad:
+        p()
+        p('Jobs not ok: ' + '; '.join(f'{n} scenes: `{path}` {st}' for n, path, st in bad) + '.')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv))
