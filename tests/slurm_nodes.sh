@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The nightly through Slurm on two nodes, then with one of them lost mid-run, against the same
-# nightly on one node (harness/slurm/local_cluster.sh clusters, started here, stopped on exit;
+# nightly on one node (ops/slurm/local_cluster.sh clusters, started here, stopped on exit;
 # one at a time):
 #  1. one node: the small nightly of three scenes (no sweep) through Slurm;
 #  2. two nodes (slurmd -N n1 and -N n2, one CPU each): srun -N2 runs on both; the same nightly
@@ -26,7 +26,7 @@ bad() { fail=$((fail + 1)); echo "nodes: FAILED: $*"; }
 
 cluster=
 stop_cluster() {
-    [ -n "$cluster" ] && bash harness/slurm/local_cluster.sh stop "$cluster" && rm -rf "$cluster"
+    [ -n "$cluster" ] && bash ops/slurm/local_cluster.sh stop "$cluster" && rm -rf "$cluster"
     cluster=
 }
 # The stand-ins' hold ends with the test, whatever happens to it.
@@ -34,7 +34,7 @@ trap ': > "$work/release"; stop_cluster' EXIT
 # start ARG...: a fresh cluster in a temporary folder, SLURM_CONF exported; exit 1 if it fails.
 start_cluster() {
     cluster=$(mktemp -d /tmp/reflcheck-slurm-nodes-XXXXXX)
-    if ! eval "$(bash harness/slurm/local_cluster.sh start "$@" "$cluster")"; then
+    if ! eval "$(bash ops/slurm/local_cluster.sh start "$@" "$cluster")"; then
         echo "nodes: FAILED: the local cluster ($*) did not start; logs in $cluster/log" >&2
         cat "$cluster"/log/*.log >&2 2> /dev/null
         exit 1
@@ -46,7 +46,7 @@ export BIN=$build/reflcheck RUNS=$work/runs HISTORY=$work/history.jsonl LATEST=$
 export SMALL=1 NO_SWEEP=1 NO_SCREENSHOT=1 SCENES=$scenes SCHEDULER=slurm
 # run_nightly ID: the nightly through the running cluster, fresh cache; its exit status.
 run_nightly() {
-    CACHE=$work/cache-$1 RUN_ID=$1 /usr/bin/time -f '%e %U %S' -o "$work/$1.time" bash harness/nightly.sh \
+    CACHE=$work/cache-$1 RUN_ID=$1 /usr/bin/time -f '%e %U %S' -o "$work/$1.time" bash ops/nightly.sh \
         > "$work/$1.log" 2>&1
 }
 # nightly_ok ID STATUS: the nightly's exit status, wall and CPU seconds (the nightly's own
@@ -130,7 +130,7 @@ if [ "${held_node:-}" = n2 ]; then
     ok "task $held_task is held on n2 (its renderer waits for the node's death)"
     # What the run has written so far, to find unchanged at the end.
     written "$work/runs/lost" > "$work/before-kill.txt"
-    ok "$(bash harness/slurm/local_cluster.sh kill-node n2 "$cluster")"
+    ok "$(bash ops/slurm/local_cluster.sh kill-node n2 "$cluster")"
     ok "$(wc -l < "$work/before-kill.txt") jobs written before the kill: $(cut -d' ' -f1 "$work/before-kill.txt" | paste -sd' ')"
 else
     bad "no job was held on n2 (held: '$(cat "$work/held" 2> /dev/null)'); see $work/lost.log"

@@ -4,7 +4,7 @@
 Usage: /usr/bin/python3 tests/slurm_where.py RUN JOBCOMP [--nodes N1,N2...] [--lost NODE TASK]
        (tests/slurm_nodes.sh)
 
-JOBCOMP is the cluster's job completion log (jobcomp/filetxt, harness/slurm/local_cluster.sh):
+JOBCOMP is the cluster's job completion log (jobcomp/filetxt, ops/slurm/local_cluster.sh):
 one line per end of a job, a requeue included, with its JobState and NodeList. Prints one line
 per render job RUN submitted (RUN/slurm/arrays): its Slurm array task, its record, the node the
 record names, and every end Slurm logged for that task (STATE@NODES, in order). Checks,

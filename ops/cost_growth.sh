@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # How the nightly's cost grows with the number of scenes: the nightly (local make, test-size
 # renders, no sweep, no screenshot, JOBS at a time, a fresh cache each) on the first 1, 10 and
-# 24 canonical scenes and on 100 generated variants of them (tools/cost_scenes.py, written to
+# 24 canonical scenes and on 100 generated variants of them (ops/cost_scenes.py, written to
 # OUT/scenes100, never into scenes/). Each run's folder gets cost.txt: the nightly's wall time,
 # its CPU time (user + sys of the nightly and every process it waited for, renderers included)
 # and the load average before and after (the machine may be shared); and calls.tsv: every call
@@ -10,9 +10,9 @@
 # nightly is given as its BIN. Then tools/cost_table.py OUT/runs/scenes-* writes the table
 # (docs/cost.md).
 #
-# Usage: bash tools/cost_growth.sh BUILD [OUT] [COUNT...]    (from the project root)
-#   bash tools/cost_growth.sh build build/cost            # 1, 10, 24 and 100 scenes
-#   bash tools/cost_growth.sh build build/cost 1 10       # only those counts (at most the
+# Usage: bash ops/cost_growth.sh BUILD [OUT] [COUNT...]    (from the project root)
+#   bash ops/cost_growth.sh build build/cost            # 1, 10, 24 and 100 scenes
+#   bash ops/cost_growth.sh build build/cost 1 10       # only those counts (at most the
 #                                                         # canonical scenes' number, or 100)
 #   /usr/bin/python3 tools/cost_table.py build/cost/runs/scenes-* > docs/cost.md
 # OUT defaults to BUILD/cost; everything is written there (git ignores build folders).
@@ -20,7 +20,7 @@
 # own failed comparison does not count: the cost is what is measured), 1 otherwise, 2 bad usage.
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 2
-build=${1:?usage: bash tools/cost_growth.sh BUILD [OUT] [COUNT...]}
+build=${1:?usage: bash ops/cost_growth.sh BUILD [OUT] [COUNT...]}
 out=${2:-$build/cost}
 case $out in /*) ;; *) out=$PWD/$out ;; esac
 shift $(($# < 2 ? $# : 2))
@@ -41,7 +41,7 @@ rc=0
 for n in "${counts[@]}"; do
     if [ "$n" = 100 ]; then
         rm -rf "$out/scenes100"
-        mapfile -t list < <(/usr/bin/python3 tools/cost_scenes.py 100 "$out/scenes100") || exit 1
+        mapfile -t list < <(/usr/bin/python3 ops/cost_scenes.py 100 "$out/scenes100") || exit 1
     elif [ "$n" -ge 1 ] 2> /dev/null && [ "$n" -le ${#canonical[@]} ]; then
         list=("${canonical[@]:0:$n}")
     else
@@ -57,7 +57,7 @@ for n in "${counts[@]}"; do
         env SMALL=1 NO_SWEEP=1 NO_SCREENSHOT=1 JOBS="$jobs" SCHEDULER=make BIN="$out/reflcheck" \
         REFLCHECK_CALLS="$out/calls-$n.tsv" \
         RUNS="$out/runs" RUN_ID="scenes-$n" CACHE="$out/cache-$n" HISTORY="$out/history.jsonl" \
-        LATEST="$out/latest-$n" REFERENCE_HISTORY= bash harness/nightly.sh "${list[@]}" > "$out/nightly-$n.log" 2>&1
+        LATEST="$out/latest-$n" REFERENCE_HISTORY= bash ops/nightly.sh "${list[@]}" > "$out/nightly-$n.log" 2>&1
     st=$?
     load1=$(cut -d' ' -f1-3 /proc/loadavg)
     if [ ! -d "$run" ]; then

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """cost_scenes.py - N scene variants of the canonical scenes, for measuring how cost grows.
 
-Usage: /usr/bin/python3 tools/cost_scenes.py N OUT [SCENE.yaml ...]   (tools/cost_growth.sh)
+Usage: /usr/bin/python3 ops/cost_scenes.py N OUT [SCENE.yaml ...]   (ops/cost_growth.sh)
 
 Writes OUT/<name>_vNNN.yaml for NNN = 0 .. N-1: the canonical scenes (default scenes/*.yaml,
 sorted) taken in turn, each copy renamed and its camera's horizontal field of view widened by
