@@ -206,7 +206,8 @@ def main(argv):
     p(
         f'The last column is the {runs[-1][0]}-scene run\'s. A job\'s time beyond its renderer\'s is '
         '`reflcheck run`\'s own: the scene, the cache key (which reads the renderer\'s version), the '
-        'image and the record.'
+        'image and the record. The renderers that run inside `reflcheck run` (raster, exact, exact_point) '
+        'record the render\'s wall time as `cpu_s`, which the load inflates past the whole job\'s CPU time.'
     )
     p()
     p('## Stages, wall seconds (stages.tsv; inflated by the load)')
