@@ -66,7 +66,8 @@ for n in "${counts[@]}"; do
         continue
     fi
     mv "$out/calls-$n.tsv" "$run/calls.tsv"
-    read -r wall user sys < "$out/time-$n"
+    # GNU time puts "Command exited with non-zero status N" before its line when the status is not 0.
+    read -r wall user sys < <(tail -n 1 "$out/time-$n")
     printf 'scenes %s\njobs_at_a_time %s\nexit %s\nwall_s %s\nuser_s %s\nsys_s %s\nload_before %s\nload_after %s\ncpus %s\n' \
         "$n" "$jobs" "$st" "$wall" "$user" "$sys" "$load0" "$load1" "$(nproc)" > "$run/cost.txt"
     echo "cost_growth: $n scenes: exit $st, $wall s wall, $user + $sys CPU-s (load $load1)" >&2

@@ -34,6 +34,15 @@ def read_cost(run):
     return out
 
 
+def read_summary(run):
+    """The run's summary.json ({} when the run stopped before its report)."""
+    try:
+        with open(os.path.join(run, 'summary.json'), encoding='utf-8') as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return {}
+
+
 def read_stages(run):
     stages = {}
     try:
@@ -111,6 +120,45 @@ def fmt(x, digits=1):
     return f'{x:,.{digits}f}'
 
 
+def complete(run):
+    """A run that got to its report (not stopped on the way: exit 130 or 143)."""
+    return run[2]['exit'] not in ('130', '143') and 'report' in run[3]
+
+
+def head_time(runs):
+    """(CPU s, how it was found) of what runs on the submitting machine for the largest run: plan,
+    fits, stability, the report, make and the shell. For a run stopped on the way they come from
+    the largest complete run: its CPU per fit call (two calls a scene), its stability (once) and
+    the rest per scene."""
+    n, _, cost, _, jobs = runs[-1]
+    if complete(runs[-1]):
+        total = float(cost['user_s']) + float(cost['sys_s'])
+        compare = sum(c[0] for c in cost['calls'].get('compare', []))
+        return (
+            total - sum(j[3] for j in jobs) - compare,
+            'plan, fits, stability, the report, make and the shell, measured',
+        )
+    done = [r for r in runs if complete(r)][-1]
+    d_total = float(done[2]['user_s']) + float(done[2]['sys_s'])
+    d_parts = {k: sum(c[0] for c in v) for k, v in done[2]['calls'].items()}
+    d_rest = d_total - sum(d_parts.values())
+    per_fit = d_parts.get('fit', 0.0) / max(1, len(done[2]['calls'].get('fit', [])))
+    stability = d_parts.get('stability', 0.0)
+    return per_fit * 2 * n + stability + d_rest / done[0] * n, (
+        f'the {n}-scene run was stopped in its fits, so from the {done[0]}-scene run: {2 * n} fits at '
+        f'{fmt(per_fit, 2)} CPU-s each, stability {fmt(stability)}, and the report, make and the shell at '
+        f'{fmt(d_rest / done[0], 2)} per scene'
+    )
+
+
+def exit_text(cost, n):
+    """The nightly's exit status; a run stopped on the way says where."""
+    if cost['exit'] not in ('130', '143'):
+        return cost['exit']
+    fits = len(cost['calls'].get('fit', []))
+    return f'{cost["exit"]}: stopped in the fits ({fits} of {2 * n} done)'
+
+
 def main(argv):
     args = argv[1:]
     cpus = 2
@@ -127,8 +175,7 @@ def main(argv):
             cost = read_cost(run)
             calls = read_calls(run)
             cost['calls'] = calls
-            with open(os.path.join(run, 'summary.json'), encoding='utf-8') as f:
-                commit = json.load(f).get('commit', '?')
+            commit = read_summary(run).get('commit', '?')
             # The nightly names a tree outside git (a copied checkout) "nogit".
             cost['commit'] = 'a copy outside git' if commit == 'nogit' else commit
             runs.append((int(cost['scenes']), run, cost, read_stages(run), read_jobs(run, calls)))
@@ -136,8 +183,7 @@ def main(argv):
             print(f'cost_table.py: {run}: {e}; give run folders of ops/cost_growth.sh', file=sys.stderr)
             return 1
     runs.sort()
-    with open(os.path.join(runs[-1][1], 'summary.json'), encoding='utf-8') as f:
-        summary = json.load(f)
+    summary = read_summary(runs[0][1])
     renderers = sorted({j[1] for r in runs for j in r[4]})
     p = print
     first = runs[0][2]
@@ -173,7 +219,7 @@ def main(argv):
             f'| {fmt(part.get("compare", 0))} | {fmt(part.get("fit", 0))} | {fmt(part.get("stability", 0))} '
             f'| {fmt(rest)} | {fmt(cpu / n, 2)} '
             f'| {cost["load_before"].split()[0]}, {cost["load_after"].split()[0]} | {cost["jobs_at_a_time"]} '
-            f'| {cost.get("commit", "?")} | {cost["exit"]} |'
+            f'| {cost.get("commit", "?")} | {exit_text(cost, n)} |'
         )
     p()
     p(
@@ -220,9 +266,8 @@ def main(argv):
     p()
     n, run, cost, stages, jobs = runs[-1]
     durations = [j[3] for j in jobs]
-    total_cpu = float(cost['user_s']) + float(cost['sys_s'])
     compare = sum(c[0] for c in cost['calls'].get('compare', []))
-    after = total_cpu - sum(durations) - compare
+    head, how = head_time(runs)
     p(f'## {n} scenes on a Slurm cluster of N nodes (estimate from the measured jobs)')
     p()
     p(
@@ -230,11 +275,10 @@ def main(argv):
         'tasks in submission order (the plan\'s) on whichever CPU frees first; so the renders take the '
         f'makespan of a list schedule of the {len(durations)} measured job CPU times (whole `reflcheck run` '
         f'calls, in plan order) on N x {cpus} CPUs. Compare waits for every render (afterany) and runs as one '
-        f'one-CPU job: {fmt(compare)} CPU-s measured. Everything else ({fmt(after)} CPU-s: plan, fits, '
-        'stability, the report, make and the shell) runs on the submitting machine after compare and is '
-        'added as serial time: an upper bound (the fits run side by side there). Left out: Slurm\'s launch '
-        'cost per task (about 0.4 s more than a fork, docs/slurm.md), a shared filesystem\'s latency, and '
-        'the sweep (skipped in these runs; under Slurm one job on one node).'
+        f'one-CPU job: {fmt(compare)} CPU-s measured. Everything else ({fmt(head)} CPU-s: {how}) runs on the '
+        'submitting machine after compare, the fits one after another, and is added as serial time. Left '
+        'out: Slurm\'s launch cost per task (about 0.4 s more than a fork, docs/slurm.md), a shared '
+        'filesystem\'s latency, and the sweep (skipped in these runs; under Slurm one job on one node).'
     )
     p()
     p(
@@ -246,7 +290,7 @@ def main(argv):
     for nodes in NODES:
         m = estimate(durations, nodes * cpus)
         p(
-            f'| {nodes} | {nodes * cpus} | {fmt(m)} | {fmt(compare)} | {fmt(after)} | {fmt(m + compare + after)} '
+            f'| {nodes} | {nodes * cpus} | {fmt(m)} | {fmt(compare)} | {fmt(head)} | {fmt(m + compare + head)} '
             f'| {fmt(base / m, 2)}x |'
         )
     longest = max(jobs, key=lambda j: j[3])
