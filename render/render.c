@@ -253,14 +253,17 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
                 val[9 + 3 * c + d] = nrm[vi + (size_t)d];
             }
         }
-        /* Whole vectors from i: what lies past e is overwritten by the next run. */
-        const int end = i + render_padded(e - i);
+        /* Whole vectors of RENDER_LANES from i, each a fixed-length loop (one unaligned store
+         * per vector, no loop peeling: most runs are a few samples long, at 10^6 triangles a
+         * single one); what lies past e is overwritten by the next run. */
         for (int c = 0; c < 18; c++) {
             float *restrict dst = vl->v[c];
             const float x = val[c];
+            for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
 #pragma omp simd
-            for (int l = i; l < end; l++)
-                dst[l] = x;
+                for (int l = 0; l < RENDER_LANES; l++)
+                    dst[l0 + l] = x;
+            }
         }
         i = e;
     }
@@ -496,11 +499,17 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     w->centre_lo = (c * k + c) * span_px;
     w->centre_hi = w->centre_lo + span_px;
     const int32_t *tri_object = j->m->tri_object;
+    /* A sample's offset in its pixel, ((float)s + 0.5f) / (float)k as the loop would form it:
+     * once per span instead of a division per background sample (same bits). */
+    float offs[16];
+    for (int s = 0; s < k; s++)
+        offs[s] = ((float)s + 0.5f) / (float)k;
     int last_tri = -1, obj = 0, per_vertex = 0;
+    render_queue *qu = &w->queue[0];
     for (int pi = 0; pi < span_px; pi++) {
         const int py = py0 + pi / span_w, px = px0 + pi % span_w;
         const raster_sample *pix = tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (px - tile->x0) * k;
-        int covered = 0, centre_obj = -1;
+        int covered = 0;
         w->centre_nv[pi] = 0.0f;
         w->centre_nl[pi] = 0.0f;
         w->centre_nh[pi] = 0.0f;
@@ -511,10 +520,12 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                 const int q = (t * k + s) * span_px + pi;
                 const int32_t tri = rs->tri;
                 if (tri < 0) {
-                    w->bg_sx[w->bg_n] = (float)px + ((float)s + 0.5f) / (float)k;
-                    w->bg_sy[w->bg_n] = (float)py + ((float)t + 0.5f) / (float)k;
-                    w->bg_slot[w->bg_n++] = (uint16_t)q;
-                    if (w->bg_n == SHADE_BATCH)
+                    const int b = w->bg_n;
+                    w->bg_sx[b] = (float)px + offs[s];
+                    w->bg_sy[b] = (float)py + offs[t];
+                    w->bg_slot[b] = (uint16_t)q;
+                    w->bg_n = b + 1;
+                    if (b + 1 == SHADE_BATCH)
                         render_flush_background(j, w);
                     continue;
                 }
@@ -523,26 +534,28 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
                     last_tri = tri;
                     obj = tri_object[tri];
                     per_vertex = j->per_vertex[obj];
+                    qu = &w->queue[obj];
                 }
-                if (t == c && s == c)
-                    centre_obj = obj;
                 if (per_vertex) {
                     shade_terms st;
                     render_blend_vertex(j, rs, &st);
                     render_put_terms(j, w, q, &st);
                     continue;
                 }
-                render_queue *qu = &w->queue[obj];
-                qu->tri[qu->n] = tri;
-                qu->b1[qu->n] = rs->b1;
-                qu->b2[qu->n] = rs->b2;
-                qu->slot[qu->n++] = (uint16_t)q;
-                if (qu->n == SHADE_BATCH)
+                const int n = qu->n;
+                qu->tri[n] = tri;
+                qu->b1[n] = rs->b1;
+                qu->b2[n] = rs->b2;
+                qu->slot[n] = (uint16_t)q;
+                qu->n = n + 1;
+                if (n + 1 == SHADE_BATCH)
                     render_flush_object(j, w, obj);
             }
         }
+        /* The object at the sample nearest the pixel centre, -1 for the background. */
+        const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
         w->covered[pi] = covered;
-        w->object[pi] = centre_obj;
+        w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
     }
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
@@ -713,7 +726,8 @@ static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], uns
             for (int i = 0; i < n; i++)
                 as[i] += a[i];
         }
-        for (int t = 0; t < 12; t++) {
+        /* Only the terms the image has: a beauty-only frame (the common case) skips the loop. */
+        for (int t = 0; t < 12 && term_layers != 0; t++) {
             if (!(term_layers & (1u << (t / 3))))
                 continue;
             const float *restrict src = plane[RENDER_P_TERMS + t] + base;
