@@ -128,7 +128,7 @@ typedef struct {
     const unsigned char *blend;  /* NULL = each object's material's d3d9client.blend; else one flag per
                                     object (harness/renderers/exact: its thin sheets) */
     int reuse_image;             /* 1 = out holds an earlier render_scene result (or is zeroed): its
-                                    layers of this frame's size are cleared and reused, as an engine
+                                    layers of this frame's size are reused (overwritten), as an engine
                                     keeps its framebuffers between frames (first-touch page faults of
                                     fresh layers cost more than the resolve's arithmetic); the others
                                     are freed. 0 = out is overwritten unread. Same output */
