@@ -18,6 +18,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdint.h>
 
 #include "cooktorrance.h"
 #include "d3d9client.h"
@@ -70,7 +71,13 @@ void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade
         sb_scalar_lane(c, p, in, out, i);
 }
 
-/* phi: the environment's radiance along each lane's mirror direction reflect(V, N). */
+/* phi: the environment's radiance along each lane's mirror direction reflect(V, N).
+ * env_lookup_n reads lanes [0, n) of dir, all written by the loop; GCC 12 loses track of that
+ * in some of the clones it inlines this into and warns, hence the pragma. */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *restrict in, shade_vec3_n *restrict phi)
 {
     shade_vec3_n dir;
@@ -80,6 +87,9 @@ SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *re
         shade_lane_set(&dir, i, v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)));
     env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
 }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 /* phi along the mirror direction plus Dissolve's offset at each lane's (tu, tv): shade.c's
  * shade_d3d9client_impl, formula_dissolve_offset per channel (d3d9client_dissolve_offset). */
@@ -108,7 +118,7 @@ typedef struct {
     float cone; /* cos_in - cos_out, 1 where the cones coincide (no division then) */
 } sb_light;
 
-static sb_light sb_light_make(const light *l)
+static sb_light sb_light_compute(const light *l)
 {
     sb_light b = {v3s(0.0f), v3s(0.0f), 0.0f, 0.0f, 0.0f, 1.0f};
     b.to_sun = v3_neg(v3_norm(l->direction));
@@ -118,6 +128,49 @@ static sb_light sb_light_make(const light *l)
     b.falloff = l->falloff;
     b.cone = formula_spot_cone_f(b.cos_in, b.cos_out);
     return b;
+}
+
+/* sb_light_compute depends on the light's direction, cone angles and falloff alone; a batch of
+ * 64 lanes recomputed its two double cosines per light (2 % of a frame), so the last few
+ * lights' results are kept per thread and reused while those fields are unchanged (compared
+ * by value, so an edited or reused light struct is never served a stale entry). */
+#define SB_LIGHT_CACHE 4
+typedef struct {
+    vec3 direction;
+    float inner, outer, falloff;
+    sb_light b;
+    int used;
+} sb_light_entry;
+
+/* Bit equality (a NaN equals itself, -0 differs from +0): the entry is reused only where
+ * sb_light_compute would see the very same input bits. */
+static int sb_same_bits(float a, float b)
+{
+    union {
+        float f;
+        uint32_t u;
+    } x = {a}, y = {b};
+    return x.u == y.u;
+}
+
+static int sb_light_same(const sb_light_entry *e, const light *l)
+{
+    return e->used && sb_same_bits(e->direction.x, l->direction.x) && sb_same_bits(e->direction.y, l->direction.y) &&
+           sb_same_bits(e->direction.z, l->direction.z) && sb_same_bits(e->inner, l->inner) &&
+           sb_same_bits(e->outer, l->outer) && sb_same_bits(e->falloff, l->falloff);
+}
+
+static sb_light sb_light_make(const light *l)
+{
+    static _Thread_local sb_light_entry cache[SB_LIGHT_CACHE];
+    static _Thread_local int next;
+    for (int i = 0; i < SB_LIGHT_CACHE; i++)
+        if (sb_light_same(&cache[i], l))
+            return cache[i].b;
+    sb_light_entry *e = &cache[next];
+    next = (next + 1) % SB_LIGHT_CACHE;
+    *e = (sb_light_entry){l->direction, l->inner, l->outer, l->falloff, sb_light_compute(l), 1};
+    return e->b;
 }
 
 /* shade_light_incident for one lane: unit direction to the light and the attenuation
