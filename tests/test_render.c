@@ -134,6 +134,14 @@ static void test_reuse_image(void **state)
     assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK);
     assert_int_equal(b.width, 40);
     images_equal(&c, &b);
+    /* Reused layers are not cleared first: the resolve must write every pixel of every layer,
+     * partial tiles (40 x 24 is not a multiple of the 16-pixel tile) included. NaN everywhere
+     * beforehand shows any pixel it missed. */
+    for (int k = 0; k < RENDER_CHANNELS; k++)
+        for (size_t i = 0; b.chan[k] != NULL && i < (size_t)b.width * (size_t)b.height; i++)
+            b.chan[k][i] = NAN;
+    assert_int_equal(render_scene(s, &m, &env, &reuse, &b, err, sizeof err), RC_OK);
+    images_equal(&c, &b);
     render_image_free(&c);
 
     /* Beauty only: the term layers reused before are freed, not left behind. */
