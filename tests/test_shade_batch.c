@@ -52,6 +52,7 @@
 #include <float.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "env.h"
@@ -395,6 +396,44 @@ static void test_d3d_diffuse(void **state)
     run_case(&c, &p, &spec, SHADE_BATCH, MAX_BATCHES, &st);
     stat_print("d3d-diffuse (sun, point, smooth spot)", &st);
     assert_int_equal(st.failures, 0);
+}
+
+/* The kernels keep a light's cone set-up from one batch to the next (shade_batch.c,
+ * sb_light_make). Editing the same light struct's direction and cone between two batches must
+ * show in the second: its lanes equal, bit for bit, a batch shaded on a second scene that had
+ * the edited light from the start. The same inputs both times, so only the light differs. */
+static void test_light_edit_between_batches(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s), *t = malloc(sizeof *t);
+    assert_non_null(s);
+    assert_non_null(t);
+    base_scene(s);
+    light *l = add_spot(s, SPOT_D3D);
+    l->falloff = 2.0f;
+    s->materials[0].d3d.diffuse = v3(0.7f, 0.5f, 0.3f);
+    env_map env = {.kind = ENV_NONE};
+    shade_context c, ct;
+    shade_plan p, pt;
+    plan_for(s, &env, &c, &p, shade_batch_d3d_diffuse);
+    static shade_batch_in in;
+    static shade_batch_out before, after, fresh;
+    rng_seed(7);
+    make_inputs(&c, &s->materials[0], SHADE_BATCH, &in);
+    shade_eval_n(&c, &p, &in, &before);
+    /* A narrower cone turned a little: some lanes leave it, others change their factor. */
+    l->direction = v3(0.3f, -2.0f, 0.1f);
+    l->inner = (float)deg(10.0);
+    l->outer = (float)deg(25.0);
+    l->falloff = 1.5f;
+    shade_eval_n(&c, &p, &in, &after);
+    *t = *s; /* the edited light from the start, in another struct */
+    plan_for(t, &env, &ct, &pt, shade_batch_d3d_diffuse);
+    shade_eval_n(&ct, &pt, &in, &fresh);
+    assert_memory_equal(&after.diffuse, &fresh.diffuse, sizeof after.diffuse);
+    assert_memory_not_equal(&after.diffuse, &before.diffuse, sizeof after.diffuse);
+    free(s);
+    free(t);
 }
 
 /* Blinn powers 0, 1, 40, 1e4 with local and infinite viewer. Measured worst specular errors
@@ -1091,6 +1130,7 @@ int main(void)
         cmocka_unit_test(test_cook_torrance),
         cmocka_unit_test(test_partial_batches),
         cmocka_unit_test(test_unsafe_lane_fallback),
+        cmocka_unit_test(test_light_edit_between_batches),
         cmocka_unit_test(test_env_lookup_n),
         cmocka_unit_test(test_env_lookup_n_pole_negative_zero),
     };
