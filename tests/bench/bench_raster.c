@@ -32,9 +32,10 @@
 #include "render.h"
 #include "shade.h"
 
-/* The speed target (issue 11): at least this many times Mesa llvmpipe's time on the same frame
- * at 1024^2, 4 x 4 samples, 2 threads, for every triangle count measured there (10^4, 10^6). */
-#define BENCH_SPEED_TARGET 2.0
+/* The speed target (issue 26, raised from issue 11's 2x): at least this many times Mesa
+ * llvmpipe's time on the same frame at 1024^2, 4 x 4 samples, 2 threads, for every triangle
+ * count measured there (10^4, 10^6). */
+#define BENCH_SPEED_TARGET 3.0
 
 /* Floating-point operations per sample of the D3D9Client path with one point light and one
  * sun, counted from the formulas (tests/bench/README.md, "Flop count"): add/mul/compare-free arithmetic 1,
@@ -573,7 +574,7 @@ typedef struct {
     char model[128];
     double mhz;
     int cores, flop_per_cycle;
-    char isa[16];
+    char isa[24];
     double peak_gflops;
 } bench_machine;
 
@@ -581,7 +582,7 @@ static void bench_machine_read(bench_machine *mc)
 {
     memset(mc, 0, sizeof *mc);
     snprintf(mc->model, sizeof mc->model, "unknown");
-    int avx512 = 0, avx2 = 0, fma = 0, avx = 0;
+    int avx512 = 0, avx2 = 0, fma = 0, avx = 0, amd = 0, family = 0;
     FILE *f = fopen("/proc/cpuinfo", "r");
     char line[4096];
     while (f && fgets(line, sizeof line, f)) {
@@ -592,6 +593,10 @@ static void bench_machine_read(bench_machine *mc)
         if (!strncmp(line, "model name", 10) && !strcmp(mc->model, "unknown")) {
             snprintf(mc->model, sizeof mc->model, "%s", val);
             mc->model[strcspn(mc->model, "\n")] = 0;
+        } else if (!strncmp(line, "vendor_id", 9)) {
+            amd = strstr(val, "AuthenticAMD") != NULL;
+        } else if (!strncmp(line, "cpu family", 10) && family == 0) {
+            family = atoi(val);
         } else if (!strncmp(line, "cpu MHz", 7) && mc->mhz == 0) {
             mc->mhz = atof(val);
         } else if (!strncmp(line, "flags", 5) && !avx) {
@@ -606,7 +611,12 @@ static void bench_machine_read(bench_machine *mc)
     mc->cores = (int)sysconf(_SC_NPROCESSORS_ONLN);
     /* Single precision, two FMA pipes per core (every AVX2/AVX-512 Xeon core since Haswell
      * has two; some AVX-512 parts have one 512-bit unit, which halves the AVX-512 figure). */
-    if (avx512 && fma)
+    /* AMD family 19h with AVX-512 is Zen 4, which runs a 512-bit operation on its two 256-bit
+     * FMA pipes ("double-pumped"): 32 flop/cycle like AVX2, not 64 (AMD's Zen 4 software
+     * optimisation guide, family 19h; A. Yee, "Zen4's AVX512 Teardown", numberworld.org). */
+    if (avx512 && fma && amd && family == 25)
+        mc->flop_per_cycle = 32, snprintf(mc->isa, sizeof mc->isa, "avx512/2x256+fma");
+    else if (avx512 && fma)
         mc->flop_per_cycle = 64, snprintf(mc->isa, sizeof mc->isa, "avx512+fma");
     else if (avx2 && fma)
         mc->flop_per_cycle = 32, snprintf(mc->isa, sizeof mc->isa, "avx2+fma");
