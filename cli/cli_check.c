@@ -14,8 +14,21 @@
 #include "jsonio.h"
 #include "scene_file.h"
 
+/* The scene's own facts beside its comparisons: its full size, supersampling and Cycles samples
+ * as parsed (samples 0: `auto`, from the gates' noise), for tools/sweep/. */
+static void cli_check_json_image(cJSON *doc, const scene *s)
+{
+    cJSON *img = cJSON_AddObjectToObject(doc, "image");
+    cJSON_AddNumberToObject(img, "width", s->width);
+    cJSON_AddNumberToObject(img, "height", s->height);
+    cJSON_AddNumberToObject(img, "supersample", s->supersample);
+    cJSON_AddNumberToObject(img, "samples", s->samples);
+}
+
 /* `check --json SCENE`: the scene file's comparisons and their thresholds as parsed, for
- * tools/gates.py, which must not read YAML a second way. Parses the file only. */
+ * tools/gates.py and tools/sweep/, which must not read YAML a second way. Each comparison names
+ * its test (the default resolved: `test_is_model` says it computes the model), its reference
+ * and its role. Parses the file only. */
 static int cli_check_json(const char *path)
 {
     static const char *const sizes[] = {"", "small", "full"};
@@ -28,6 +41,7 @@ static int cli_check_json(const char *path)
     }
     cJSON *doc = cJSON_CreateObject(), *list = cJSON_AddArrayToObject(doc, "comparisons");
     cJSON_AddStringToObject(doc, "scene", s->name);
+    cli_check_json_image(doc, s);
     for (int i = 0; list && i < s->n_comparisons; i++) {
         const comparison *c = &s->comparisons[i];
         cJSON *o = cJSON_CreateObject(), *ths = cJSON_AddArrayToObject(o, "thresholds");
@@ -35,6 +49,10 @@ static int cli_check_json(const char *path)
         snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
                  job_role_names[c->role]);
         cJSON_AddStringToObject(o, "id", id);
+        cJSON_AddStringToObject(o, "test", registry_name(c->test));
+        cJSON_AddBoolToObject(o, "test_is_model", c->test == registry_model());
+        cJSON_AddStringToObject(o, "reference", registry_name(c->reference));
+        cJSON_AddStringToObject(o, "role", job_role_names[c->role]);
         cJSON_AddItemToArray(list, o);
         for (int j = 0; ths && j < c->n_thresholds; j++) {
             const threshold *t = &c->thresholds[j];

@@ -18,6 +18,7 @@
 
 #include "cli.h"
 #include "cli_exec.h"
+#include "jsonio.h"
 #include "tmpdir.h"
 
 /* Exactly one line on stderr. */
@@ -284,6 +285,39 @@ static void test_version(void **state)
         fail_msg("--version: '%s' after the commit", rest);
 }
 
+/* Issue 22: `check --json` gives tools/sweep/ the scene facts it read with regular expressions.
+ * Expected values read by hand from scenes/d3d9_glass.yaml: image {256, 192, 4, 64}; six
+ * comparisons, the fourth `test: povray` (not the model), the sixth `test: exact_point`, the rest
+ * the default test (the model, raster). */
+static void test_check_json_scene_facts(void **state)
+{
+    (void)state;
+    static char out[1 << 17];
+    char err[4096];
+    assert_int_equal(cli_output(out, sizeof out, err, sizeof err, "check --json scenes/d3d9_glass.yaml"), 0);
+    cJSON *doc = cJSON_Parse(out);
+    assert_non_null(doc);
+    const cJSON *img = cJSON_GetObjectItem(doc, "image");
+    static const char *const ik[] = {"width", "height", "supersample", "samples"};
+    static const int iv[] = {256, 192, 4, 64};
+    for (int i = 0; i < 4; i++)
+        assert_int_equal(cJSON_GetNumberValue(cJSON_GetObjectItem(img, ik[i])), iv[i]);
+    static const char *const want[][3] = {
+        {"raster", "povray", "twin"},  {"raster", "cycles", "twin"},    {"raster", "povray", "validate"},
+        {"povray", "cycles", "agree"}, {"raster", "exact", "validate"}, {"exact_point", "povray", "agree"},
+    };
+    const cJSON *list = cJSON_GetObjectItem(doc, "comparisons");
+    assert_int_equal(cJSON_GetArraySize(list), 6);
+    for (int i = 0; i < 6; i++) {
+        const cJSON *c = cJSON_GetArrayItem(list, i);
+        assert_string_equal(cJSON_GetStringValue(cJSON_GetObjectItem(c, "test")), want[i][0]);
+        assert_string_equal(cJSON_GetStringValue(cJSON_GetObjectItem(c, "reference")), want[i][1]);
+        assert_string_equal(cJSON_GetStringValue(cJSON_GetObjectItem(c, "role")), want[i][2]);
+        assert_int_equal(cJSON_IsTrue(cJSON_GetObjectItem(c, "test_is_model")), i != 3 && i != 5);
+    }
+    cJSON_Delete(doc);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -297,6 +331,7 @@ int main(void)
         cmocka_unit_test(test_every_command_help),
         cmocka_unit_test(test_top_help),
         cmocka_unit_test(test_version),
+        cmocka_unit_test(test_check_json_scene_facts),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
