@@ -26,6 +26,21 @@ REPORT = os.path.join(ROOT, 'tools', 'report.py')
 L2 = math.log(2.0)
 
 
+# The scene around a fixture's comparisons: the sweep asks `reflcheck check --json` (the C parser),
+# which reads only whole scenes, so each fixture is this floor under a light plus its comparisons.
+SCENE_BODY = (
+    'image: {width: 8, height: 6}\ncamera: {eye: [0, 1, 3], target: [0, 0, 0], hfov: 40}\n'
+    'lights:\n  - {type: point, position: [0, 1, 0], intensity: [1, 1, 1]}\n'
+    'materials:\n  floor: {albedo: [0.5, 0.5, 0.5], model: d3d}\n'
+    'objects:\n  - {shape: quad, center: [0, 0, 0], size: [4, 4], material: floor}\n'
+)
+
+
+def scene_text(text):
+    """text (a name line and comparisons) with SCENE_BODY before its comparisons."""
+    return text.replace('\ncomparisons:', '\n' + SCENE_BODY + 'comparisons:', 1)
+
+
 # ------------------------------------------------------------------------------------ fits
 
 
@@ -187,18 +202,24 @@ def test_slope_note():
 def test_lists_cycles_validate(tmp_path):
     yes = tmp_path / 'yes.yaml'
     yes.write_text(
-        'name: yes\ncomparisons:\n  - reference: povray\n    role: twin\n'
-        '  - reference: cycles\n    role: validate\n    thresholds:\n      nrmse: {warn: 1, fail: 2}\n'
+        scene_text(
+            'name: yes\ncomparisons:\n  - reference: povray\n    role: twin\n'
+            '  - reference: cycles\n    role: validate\n    thresholds:\n      nrmse: {warn: 1, fail: 2}\n'
+        )
     )
     agree = tmp_path / 'agree.yaml'
     agree.write_text(
-        'name: agree\ncomparisons:\n  - reference: cycles\n    role: twin\n'
-        '  - test: povray\n    reference: cycles\n    role: validate\n'
+        scene_text(
+            'name: agree\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+            '  - test: povray\n    reference: cycles\n    role: validate\n'
+        )
     )
     mixed = tmp_path / 'mixed.yaml'  # cycles twin + povray validate: no cycles validate item
     mixed.write_text(
-        'name: mixed\ncomparisons:\n  - reference: cycles\n    role: twin\n'
-        '  - reference: povray\n    role: validate\n'
+        scene_text(
+            'name: mixed\ncomparisons:\n  - reference: cycles\n    role: twin\n'
+            '  - reference: povray\n    role: validate\n'
+        )
     )
     assert sweep.lists_cycles_validate(str(yes))
     assert not sweep.lists_cycles_validate(str(agree))
@@ -208,12 +229,16 @@ def test_lists_cycles_validate(tmp_path):
     assert sweep.sweep_role(str(yes)) == 'validate'
     assert sweep.sweep_role(str(agree)) == 'twin'
     assert sweep.sweep_role(str(mixed)) == 'twin'
+    # Quoted values and a flow-style item are YAML the C parser reads like any other.
+    quoted = tmp_path / 'quoted.yaml'
+    quoted.write_text(scene_text('name: "quoted"\ncomparisons:\n  - {reference: "cycles", role: \'validate\'}\n'))
+    assert sweep.sweep_role(str(quoted)) == 'validate' and sweep.scene_name(str(quoted)) == 'quoted'
     none = tmp_path / 'none.yaml'
-    none.write_text('name: none\ncomparisons:\n  - reference: povray\n    role: twin\n')
+    none.write_text(scene_text('name: none\ncomparisons:\n  - reference: povray\n    role: twin\n'))
     assert sweep.sweep_role(str(none)) is None
 
 
-def test_renderers_from_cli(tmp_path, monkeypatch):
+def test_renderers_from_cli(tmp_path):
     """The sweep takes the renderers from `reflcheck renderers --json`, not from a list: the
     model renderer counts as a comparison's test whether or not the scene names it."""
     fake = tmp_path / 'reflcheck'
@@ -225,12 +250,15 @@ def test_renderers_from_cli(tmp_path, monkeypatch):
     table = sweep.renderer_table(str(fake))
     assert list(table) == ['ours', 'cycles'] and table['ours']['model']
     named = tmp_path / 'named.yaml'
-    named.write_text('name: named\ncomparisons:\n  - test: ours\n    reference: cycles\n    role: validate\n')
-    assert not sweep.lists_cycles_validate(str(named))  # before the table is read: not the model
-    monkeypatch.setattr(sweep, 'MODEL', 'ours')
+    # The C parser resolves the test: the model renderer named explicitly counts as the default.
+    named.write_text(
+        scene_text('name: named\ncomparisons:\n  - test: raster\n    reference: cycles\n    role: validate\n')
+    )
     assert sweep.lists_cycles_validate(str(named))
     other = tmp_path / 'other.yaml'
-    other.write_text('name: other\ncomparisons:\n  - test: povray\n    reference: cycles\n    role: validate\n')
+    other.write_text(
+        scene_text('name: other\ncomparisons:\n  - test: povray\n    reference: cycles\n    role: validate\n')
+    )
     assert not sweep.lists_cycles_validate(str(other))
 
 
@@ -326,11 +354,15 @@ def test_eevee_swept_only_where_named(tmp_path):
     """EEVEE jobs go to the scenes whose comparisons name it, not to one that only mentions it."""
     named = tmp_path / 'named.yaml'
     named.write_text(
-        'name: a\ncomparisons:\n  - reference: cycles\n    role: validate\n  - test: eevee\n    reference: cycles\n'
+        scene_text(
+            'name: a\ncomparisons:\n  - reference: cycles\n    role: validate\n  - test: eevee\n    reference: cycles\n'
+        )
     )
     other = tmp_path / 'other.yaml'
     other.write_text(
-        '# eevee is not judged here; test: eevee in a comment\nname: b\ncomparisons:\n  - reference: cycles\n'
+        scene_text(
+            '# eevee is not judged here; test: eevee in a comment\nname: b\ncomparisons:\n  - reference: cycles\n'
+        )
     )
     assert sweep.names_renderer(str(named), 'eevee') and not sweep.names_renderer(str(other), 'eevee')
     assert [j['samples'] for j in sweep.plan(quick=False, seed_opt=False)[0] if j['renderer'] == 'eevee'] == [1, 16]
@@ -528,3 +560,4 @@ def test_second_run_reads_repeats_and_diffs_from_the_cache(tmp_path):
     runner.diff('t.exr', 'r.exr', 'm.exr', [], keys=keys)
     runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'])
     assert int(counter.read_text()) == n1 + 3
+

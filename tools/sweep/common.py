@@ -1,0 +1,55 @@
+"""common.py - the sweep's levels and tolerances, and its atomic JSON writer (every module reads them)."""
+
+import json
+import math
+import os
+import tempfile
+
+# The project root (tools/sweep/ is two folders below it).
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+FORMAT = 'reflcheck-sweep-1'
+CYCLES_SPP = (16, 64, 256, 1024)
+REF_SPP = 4096
+QUICK_SPP, QUICK_REF = (16, 64, 256), 1024
+RASTER_K = (1, 2, 4, 8)
+RASTER_TESS = (8, 16, 32, 64, 128)
+POV_K = (1, 2, 4)
+QUICK_K, QUICK_TESS, QUICK_POV = (1, 2, 4), (16, 64), (1, 2)
+# EEVEE's TAA samples per pixel: deterministic, so one render per level (no seeds). Its error
+# is its approximation's, not sampling's (d3d_blinn_phong: 0.0827 at 1, 0.0824 at 16) and a job
+# costs 30-75 s on llvmpipe, so two levels draw its line.
+EEVEE_TAA = (1, 16)
+QUICK_EEVEE = (1, 16)
+SEEDS = 2
+# The image terms, in the order of the renderers' layers and of RENDERER_TERM_* (renderer.h).
+TERMS = ('diffuse', 'specular', 'reflection', 'emission')
+RASTER_REPEATS = 3
+JOB_TIMEOUT_S = 3600
+# Spp slope within this of -0.5 is "Monte Carlo rate": with 4 levels and 2 seeds, the scatter of
+# a fitted slope is a few hundredths; 0.1 flags a real departure, not noise.
+SLOPE_TOL = 0.1
+# The reference's noise may be a third of the smallest error it measures: in quadrature that
+# moves the error by at most 5.4 % (sqrt(1 + 1/9)), inside the scatter of two seeds.
+NOISE_MARGIN = 3.0
+BUDGETS_S = (1.0, 10.0, 100.0)
+
+
+def write_json(path, obj):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix='.sweep', suffix='.tmp')
+    with os.fdopen(fd, 'w', encoding='utf-8') as f:
+        json.dump(obj, f, indent=1, allow_nan=False, default=lambda o: None)
+        f.write('\n')
+    os.replace(tmp, path)
+
+
+def clean_nan(o):
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, dict):
+        return {k: clean_nan(v) for k, v in o.items()}
+    if isinstance(o, list):
+        return [clean_nan(v) for v in o]
+    return o

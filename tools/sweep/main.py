@@ -1,0 +1,283 @@
+"""main.py - the command line: scenes chosen, jobs planned and run (a Blender worker pool, local
+or Slurm), stage two where stage one leaves a question, and the files written."""
+
+import argparse
+import concurrent.futures as cf
+import contextlib
+import os
+import subprocess
+import sys
+import time
+
+from .analysis import analyse, make_zero, one_line, scene_diffs
+from .common import ROOT, clean_nan, write_json
+from .plan import DEEP_SEED, deeper_reasons, expected_cost, plan, stage_one, stage_two
+from .runner import Runner
+from .scenes import SceneError, names_renderer, renderer_table, scene_name, sweep_role, use_bin
+
+sys.path.insert(0, os.path.join(ROOT, 'harness', 'renderers', 'cycles'))
+from worker_pool import WorkerPool  # noqa: E402  (needs the path above)
+
+sys.path.insert(0, os.path.join(ROOT, 'tools'))
+from progress import Progress  # noqa: E402  (needs the path above)
+
+
+def collect(futs, recs, progress, cost):
+    """Gathers the jobs' records as they finish, showing progress at least every 10 s and
+    naming a failed job when it fails (tools/progress.py)."""
+    pending = set(futs)
+    while pending:
+        finished, pending = cf.wait(pending, timeout=progress.every, return_when=cf.FIRST_COMPLETED)
+        progress.tick()
+        for f in finished:
+            sp, key = futs[f]
+            try:
+                rec = f.result()
+            except (OSError, subprocess.TimeoutExpired) as e:
+                rec = {'status': 'error', 'message': str(e)}
+            recs[(sp, key)] = rec
+            bad = rec.get('status') not in ('ok', 'skipped')
+            why = str(rec.get('message') or '').splitlines()[:1]
+            failed = f'{scene_name(sp)}/{key}: {rec.get("status")}: {"".join(why)}' if bad else None
+            progress.done(cost[(sp, key)], failed)
+    progress.close()
+
+
+def run_work(runner, n, work, recs, label):
+    """Renders the (scene path, name, job) list, n at a time, longest first (LPT), into recs."""
+    work = sorted(work, key=lambda w: -expected_cost(w[2]))
+    if not work:
+        return
+    with cf.ThreadPoolExecutor(max_workers=n) as ex:
+        futs = {
+            ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
+            for sp, name, j in work
+        }
+        cost = {(sp, j['key']): expected_cost(j) for sp, name, j in work}
+        collect(futs, recs, Progress(label, len(work), sum(cost.values())), cost)
+
+
+def analyse_all(runner, args, scenes, plans, recs, nested, ref_seeds):
+    """sweep_scene for every scene, --jobs at a time (the diffs are processes of their own, so
+    threads overlap them): scene path -> timing dict or the reason there is none."""
+
+    def one(sp):
+        name, jobs, ref_spp = plans[sp]
+        r = {j['key']: recs[(sp, j['key'])] for j in jobs}
+        return sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seeds.get(sp, 0))
+
+    with cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
+        return dict(zip(scenes, ex.map(one, scenes)))
+
+
+def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
+    """One scene's timing JSON from its records r (job key -> record), or the reason it has
+    none (its reference or raster as-is failed)."""
+    if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
+        bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
+        return f'the {bad} render failed: {r[bad].get("message")}; see its log under {runner.renders}/{name}'
+    zero = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
+    diffs, noises, left = scene_diffs(runner, jobs, r, zero)
+    rec0 = r['as_is']
+    return analyse(
+        name,
+        jobs,
+        r,
+        diffs,
+        noises,
+        ref_spp,
+        nested,
+        [rec0.get('width'), rec0.get('height')],
+        args.clock + '_s',
+        runner.roles.get(name, 'validate'),
+        left,
+        ref_seed,
+    )
+
+
+def parser():
+    ap = argparse.ArgumentParser(description='error against render time for every renderer knob (see the docstring)')
+    ap.add_argument('--run', required=True, help='run folder; writes RUN/timing/<scene>.json')
+    ap.add_argument(
+        '--cache',
+        default=os.path.join('reports', 'cache', 'sweep'),
+        help='job cache (keep it apart from the nightly cache: its records were timed with other threads)',
+    )
+    ap.add_argument('--scenes', nargs='*', help='scene files (default: every scene listing cycles validate)')
+    ap.add_argument('--quick', action='store_true', help='fewer levels, reference at 1024 spp')
+    ap.add_argument('--full-size', action='store_true', help="the scenes' full size instead of the small variant")
+    ap.add_argument('--jobs', type=int, default=2, help='jobs at a time (default 2)')
+    ap.add_argument('--threads', type=int, default=1, help='threads per job (default 1, for comparable times)')
+    ap.add_argument('--bin', default=os.path.join('build', 'reflcheck'))
+    ap.add_argument(
+        '--clock',
+        choices=('wall', 'cpu'),
+        default='wall',
+        help="time_s: the job's wall time (default) or its CPU time (robust when other work "
+        "shares the cores; equal to wall on an idle core with --threads 1)",
+    )
+    ap.add_argument(
+        '--scheduler',
+        choices=('local', 'slurm'),
+        default='local',
+        help='slurm: run inside a Slurm allocation (the nightly submits the sweep), each job an srun step',
+    )
+    ap.add_argument(
+        '--levels',
+        choices=('staged', 'all'),
+        default='staged',
+        help="staged (default): every level below the top against the top level, then the top "
+        "level and the deep reference only where a slope, crossover or error needs them "
+        "(deeper_reasons); all: every level and the deep reference on every scene (as before)",
+    )
+    ap.add_argument(
+        '--no-worker',
+        action='store_true',
+        help='start Blender for every Cycles job (the way before the worker pool; for comparisons)',
+    )
+    return ap
+
+
+def usage_error(args):
+    """The one line that says what is wrong with the options, or None."""
+    if args.scheduler == 'slurm' and not os.environ.get('SLURM_JOB_ID'):
+        return (
+            '--scheduler slurm runs inside a Slurm allocation; submit it with sbatch '
+            '(SCHEDULER=slurm make report does)'
+        )
+    if not os.path.isfile(args.bin) or not os.access(args.bin, os.X_OK):
+        return f'--bin {args.bin}: not an executable; build it with `make build/reflcheck`'
+    if args.jobs < 1 or args.threads < 1:
+        return '--jobs and --threads must be at least 1'
+    return None
+
+
+def write_scenes(args, scenes, plans, recs, deeper, final, summary):
+    """RUN/timing/<scene>.json for every scene analysed (final), with its own cost, and one line
+    each; a scene without one is named on stderr. Returns the exit status (1: one is missing)."""
+    rc = 0
+    for sp in scenes:
+        name, jobs, ref_spp = plans[sp]
+        r = {j['key']: recs[(sp, j['key'])] for j in jobs}
+        t = final[sp]
+        if not isinstance(t, dict):
+            print(f'sweep.py: {sp}: {t}', file=sys.stderr)
+            rc = 1
+            continue
+        t['sweep'] = {
+            'jobs': len(jobs),
+            'cached': sum(1 for v in r.values() if v.get('cached')),
+            'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
+            'threads_per_job': args.threads,
+            'stage': 2 if sp in deeper or args.levels == 'all' else 1,
+            'deep_reference_why': deeper.get(sp, []),
+        }
+        write_json(os.path.join(args.run, 'timing', f'{name}.json'), clean_nan(t))
+        summary['scenes'][name] = t['sweep']
+        print(one_line(t))
+    return rc
+
+
+def main(argv=None):
+    args = parser().parse_args(argv)
+    bad = usage_error(args)
+    if bad:
+        print(f'sweep.py: {bad}', file=sys.stderr)
+        return 2
+    try:
+        table = renderer_table(args.bin)
+    except (OSError, ValueError, subprocess.SubprocessError) as e:
+        print(
+            f'sweep.py: {args.bin} renderers --json: {e}; build a reflcheck that lists its renderers', file=sys.stderr
+        )
+        return 2
+    use_bin(args.bin)
+    scenes = args.scenes or sorted(os.path.join('scenes', f) for f in os.listdir('scenes') if f.endswith('.yaml'))
+    for s in scenes:
+        if not os.path.isfile(s):
+            print(f'sweep.py: --scenes {s}: no such scene file; list scenes/*.yaml', file=sys.stderr)
+            return 2
+    # The best reference each scene has: Cycles validate, else Cycles twin (sweep_role), as the
+    # C parser reads the scene (scenes.py).
+    try:
+        roles = {s: sweep_role(s) for s in scenes}
+    except SceneError as e:
+        print(f'sweep.py: {e}', file=sys.stderr)
+        return 2
+    left_out = [s for s in scenes if roles[s] is None]
+    scenes = [s for s in scenes if s not in left_out]
+    if left_out:
+        print(f'sweep: left out (no cycles comparison): {" ".join(left_out)}')
+
+    runner = Runner(args)
+    for sp in scenes:
+        runner.roles[scene_name(sp)] = roles[sp]
+    nested = not runner.seed_opt
+    t_start = time.monotonic()
+    plans, full = {}, {}
+    for sp in scenes:
+        name = scene_name(sp)
+        jobs, ref_spp = plan(args.quick, runner.seed_opt)
+        # Knobs of a renderer this reflcheck does not have are not swept.
+        jobs = [j for j in jobs if j['renderer'] in table]
+        # EEVEE is swept where it is judged: a scene without an EEVEE comparison would spend
+        # 30-75 s a job on figures nobody asked for.
+        jobs = [j for j in jobs if j['renderer'] != 'eevee' or names_renderer(sp, 'eevee')]
+        full[sp] = (jobs, ref_spp)
+        plans[sp] = (name, jobs, ref_spp) if args.levels == 'all' else (name, *stage_one(jobs, ref_spp))
+    work = [(sp, name, j) for sp, (name, jobs, _) in plans.items() for j in jobs]
+    recs, deeper = {}, {}
+    # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
+    # start-up is paid once per worker, not once per job, and job times no longer include it.
+    use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
+    pool = WorkerPool(args.jobs, log_dir=args.run) if use_pool else contextlib.nullcontext()
+    with pool:
+        if use_pool:
+            runner.env = dict(os.environ, **pool.env())
+        run_work(runner, args.jobs, work, recs, 'sweep')
+        if args.levels == 'staged':
+            # Stage two: the top level and the deep reference, only where stage one left a
+            # slope, a crossover or an error undecided (deeper_reasons).
+            more = []
+            first = analyse_all(runner, args, scenes, plans, recs, nested, {})
+            for sp in scenes:
+                name, jobs, top = plans[sp]
+                why = deeper_reasons(first[sp]) if isinstance(first[sp], dict) else []
+                if not why:
+                    continue
+                deeper[sp] = why
+                recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
+                jobs2, ref_spp = stage_two(jobs, top, full[sp][1], runner.seed_opt)
+                plans[sp] = (name, jobs2, ref_spp)
+                more += [(sp, name, j) for j in jobs2 if j['key'] == 'reference']
+            run_work(runner, args.jobs, more, recs, 'sweep, deep references')
+            work += more
+    t_render = time.monotonic() - t_start
+
+    summary = {
+        'scenes': {},
+        'render_wall_s': t_render,
+        'jobs': len(work),
+        'cached': sum(1 for r in recs.values() if r.get('cached')),
+        'job_time_sum_s': sum(r.get('sweep_elapsed_s') or 0 for r in recs.values()),
+        'threads_per_job': args.threads,
+        'parallel_jobs': args.jobs,
+        'blender_worker': use_pool,
+        'scheduler': args.scheduler,
+        'quick': args.quick,
+        'size': 'full' if args.full_size else 'small',
+        'nested_reference': nested,
+        'levels': args.levels,
+        'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
+    }
+    seeds = {sp: DEEP_SEED for sp in deeper if runner.seed_opt}
+    final = analyse_all(runner, args, scenes, plans, recs, nested, seeds)
+    rc = write_scenes(args, scenes, plans, recs, deeper, final, summary)
+    summary['wall_s'] = time.monotonic() - t_start
+    write_json(os.path.join(args.run, 'sweep.json'), clean_nan(summary))
+    print(
+        f"sweep: {len(scenes)} scenes, {summary['jobs']} jobs ({summary['cached']} cached), "
+        f"{summary['wall_s']:.1f} s wall on {args.jobs} workers x {args.threads} thread(s); "
+        f"serial job time {summary['job_time_sum_s']:.1f} s"
+    )
+    return rc
