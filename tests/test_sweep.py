@@ -561,3 +561,28 @@ def test_second_run_reads_repeats_and_diffs_from_the_cache(tmp_path):
     runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'])
     assert int(counter.read_text()) == n1 + 3
 
+
+def test_missing_run_folder_is_one_line(tmp_path):
+    """`--run DIR` with no DIR: exit 2 and one line naming it (it was a traceback from the Blender
+    worker pool's log), before any scene is read or job started."""
+    exe = os.environ.get('REFLCHECK_BIN') or os.path.join(ROOT, 'build', 'reflcheck')
+    missing = tmp_path / 'missing'
+    p = subprocess.run(
+        [
+            sys.executable,
+            os.path.join(ROOT, 'tools', 'sweep.py'),
+            '--run',
+            str(missing),
+            '--bin',
+            exe,
+            '--cache',
+            str(tmp_path / 'cache'),
+            '--scenes',
+            os.path.join(ROOT, 'scenes', 'stiff_near_light.yaml'),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 2 and p.stderr.count('\n') == 1, p.stderr
+    assert f'--run {missing}: no such folder' in p.stderr and not missing.exists()

@@ -149,6 +149,10 @@ def usage_error(args):
         return f'--bin {args.bin}: not an executable; build it with `make build/reflcheck`'
     if args.jobs < 1 or args.threads < 1:
         return '--jobs and --threads must be at least 1'
+    # The run folder holds the Blender workers' logs from the start: a missing one was a
+    # traceback from the worker pool.
+    if not os.path.isdir(args.run):
+        return f'--run {args.run}: no such folder; create it (mkdir -p) or name a run folder'
     return None
 
 
