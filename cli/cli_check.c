@@ -97,7 +97,8 @@ static const struct option cli_check_longopts[] = {
     {"json", no_argument, NULL, 'j'}, {"help", no_argument, NULL, 'h'}, {NULL, 0, NULL, 0}};
 static const cli_option_help cli_check_options[] = {
     {"json", NULL,
-     "print the scene's comparisons and their thresholds as parsed, as JSON, instead of checking it (parses "
+     "print the scene's name, image (width, height, supersample, samples) and comparisons (test, test_is_model, "
+     "reference, role, thresholds) as parsed, as JSON, instead of checking it (parses "
      "the file only); give it before SCENE"},
     {"help", NULL, "this help, then exit 0"},
     {NULL, NULL, NULL},
