@@ -11,7 +11,7 @@
 #include "microfacet.h"
 #include "stability_sweep.h"
 
-void stab_sweep_fresnel(sweep *s)
+static void fresnel_r0_rows(sweep *s)
 {
     int n = s->n;
     stability_row *row;
@@ -34,6 +34,12 @@ void stab_sweep_fresnel(sweep *s)
         ADD(row, fresnel_r0_from_ior(ior), stab_ref_r0(ior), "n=%.9g", ior);
     }
     stab_row_end(row);
+}
+
+static void fresnel_schlick_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *name;
@@ -59,6 +65,12 @@ void stab_sweep_fresnel(sweep *s)
         }
         stab_row_end(row);
     }
+}
+
+static void fresnel_d3d9_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *name;
@@ -94,8 +106,14 @@ void stab_sweep_fresnel(sweep *s)
         }
         stab_row_end(row);
     }
+}
 
-    /* The double exact references, judged in double ulps. */
+/* The double exact references, judged in double ulps. */
+static void fresnel_exact_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
+
     row = stab_row_begin(s, "fresnel_dielectric", "cos->0 (1e-300..0.1)", STABILITY_ROUNDING, 53);
     for (int i = 0; i < n; i++) {
         double c = stab_lsp(i, n, 1e-300, 0.1), eta = stab_rng_range(&s->r, 1.01, 3.0);
@@ -132,8 +150,14 @@ void stab_sweep_fresnel(sweep *s)
         ADD(row, fresnel_conductor(c, eta, k), stab_ref_conductor(c, eta, k), "cos=%.17g eta=%.9g k=%.9g", c, eta, k);
     }
     stab_row_end(row);
+}
 
-    /* Approximation error against the exact dielectric (Figure 1's numbers). */
+/* Approximation error against the exact dielectric (Figure 1's numbers). */
+static void fresnel_approx_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
+
     struct {
         const char *fn;
         double ior, p;
@@ -156,9 +180,18 @@ void stab_sweep_fresnel(sweep *s)
     }
 }
 
+void stab_sweep_fresnel(sweep *s)
+{
+    fresnel_r0_rows(s);
+    fresnel_schlick_rows(s);
+    fresnel_d3d9_rows(s);
+    fresnel_exact_rows(s);
+    fresnel_approx_rows(s);
+}
+
 /* -------------------------------------------------------------------- microfacet sweeps */
 
-void stab_sweep_microfacet(sweep *s)
+static void microfacet_beckmann_rows(sweep *s)
 {
     int n = s->n;
     stability_row *row;
@@ -203,6 +236,12 @@ void stab_sweep_microfacet(sweep *s)
             stab_row_end(row);
         }
     }
+}
+
+static void microfacet_vcavity_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *name;
@@ -236,6 +275,12 @@ void stab_sweep_microfacet(sweep *s)
         }
         stab_row_end(row);
     }
+}
+
+static void microfacet_smith_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *name;
@@ -281,9 +326,16 @@ void stab_sweep_microfacet(sweep *s)
     stab_row_end(row);
 }
 
+void stab_sweep_microfacet(sweep *s)
+{
+    microfacet_beckmann_rows(s);
+    microfacet_vcavity_rows(s);
+    microfacet_smith_rows(s);
+}
+
 /* ------------------------------------------------------------------------- D3D sweeps */
 
-void stab_sweep_d3d(sweep *s)
+static void d3d_blinn_lambert_rows(sweep *s)
 {
     int n = s->n;
     stability_row *row;
@@ -326,6 +378,12 @@ void stab_sweep_d3d(sweep *s)
         ADD(row, d3d_lambert(nl), stab_ref_lambert(nl), "N.L=%.9g", nl);
     }
     stab_row_end(row);
+}
+
+static void d3d_attenuation_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *name;
@@ -367,6 +425,12 @@ void stab_sweep_d3d(sweep *s)
         }
         stab_row_end(row);
     }
+}
+
+static void d3d_spot_rows(sweep *s)
+{
+    int n = s->n;
+    stability_row *row;
 
     struct {
         const char *fn;
@@ -411,6 +475,13 @@ void stab_sweep_d3d(sweep *s)
         }
         stab_row_end(row);
     }
+}
+
+void stab_sweep_d3d(sweep *s)
+{
+    d3d_blinn_lambert_rows(s);
+    d3d_attenuation_rows(s);
+    d3d_spot_rows(s);
 }
 
 /* ---------------------------------------------------------------- D3D9Client combine */
