@@ -136,7 +136,8 @@ static void check_albedo_ct(sweep *s, int grid, const char *fn, ct_normalisation
              why ? "; " : "", why ? why : "");
 }
 
-void stab_check_physics(sweep *s, int grid)
+/* Fresnel monotonic in angle: steps = 10 x the samples per case. */
+static void check_fresnel_monotonic(sweep *s)
 {
     int steps = s->n * 10;
     /* The exact unpolarised reflectance is monotonic only for n < 2 + sqrt(3) = 3.732 (and for
@@ -185,9 +186,12 @@ void stab_check_physics(sweep *s, int grid)
         check_monotonic(s, "fresnel_conductor", cs, fr_conductor, cd[i], 53, 8.0, 0,
                         "physical: conductors dip before grazing", steps);
     }
+}
 
-    /* Lambert: a white Lambert surface reflects everything. Midpoint rule in mu = cos theta,
-     * exact for the linear integrand mu / pi. */
+/* Lambert: a white Lambert surface reflects everything. Midpoint rule in mu = cos theta,
+ * exact for the linear integrand mu / pi. */
+static void check_lambert(sweep *s, int grid)
+{
     stability_row *row = stab_row_begin(s, "microfacet_lambert_brdf", "white albedo (rho = 1)", STABILITY_PHYSICS, 0);
     double sum = 0.0;
     for (int i = 0; i < grid; i++)
@@ -196,11 +200,15 @@ void stab_check_physics(sweep *s, int grid)
     row->value = sum;
     row->check_ok = fabs(sum - 1.0) < 1e-12; /* rounding of grid additions only */
     snprintf(row->note, sizeof row->note, "albedo %.15f", sum);
+}
 
-    /* Quadrature tolerance: against a 1536^2 grid, the 96^2 estimate differs by at most 5e-4
-     * for the Smith rows with m >= 0.05 (4.5e-3 for V-cavity at m = 1, 89 deg, reported only).
-     * Where the albedo comes close to 1 (normal view, small m) every sample weight G V.H /
-     * (N.V N.H) = G <= 1, so the estimate itself cannot exceed 1 there. 1e-3 = 2x margin. */
+/* The Cook-Torrance albedo rows. Quadrature tolerance: against a 1536^2 grid, the 96^2 estimate
+ * differs by at most 5e-4 for the Smith rows with m >= 0.05 (4.5e-3 for V-cavity at m = 1,
+ * 89 deg, reported only). Where the albedo comes close to 1 (normal view, small m) every sample
+ * weight G V.H / (N.V N.H) = G <= 1, so the estimate itself cannot exceed 1 there. 1e-3 = 2x
+ * margin. */
+static void check_albedo_ct_rows(sweep *s, int grid)
+{
     double tol = 1e-3;
     size_t nm = sizeof albedo_ms / sizeof albedo_ms[0], nt = sizeof albedo_tiny_ms / sizeof albedo_tiny_ms[0];
     check_albedo_ct(s, grid, "albedo ct walter smith-exact F=1", CT_WALTER, G_SMITH_EXACT, F_ONE, 1, tol, albedo_ms, nm,
@@ -216,50 +224,60 @@ void stab_check_physics(sweep *s, int grid)
                     nm, "ct1982: D without pi, k = pi (4x walter)");
     check_albedo_ct(s, grid, "albedo ct walter smith-exact F=1", CT_WALTER, G_SMITH_EXACT, F_ONE, 0, tol,
                     albedo_tiny_ms, nt, "numerical: N.H rounded to float before D (cooktorrance.c)");
+}
 
-    /* D3D9Client "white furnace": white diffuse (rho = 1 under unit radiance gives d = 1),
-     * unit environment phi, s white; per norm the smallest diffuse weight 1 - |lambda| and
-     * the largest channel albedo d w + lambda (1 - R) + R over lambda in [0,1]^3 and N.V. */
+/* D3D9Client "white furnace" for one colour norm: white diffuse (rho = 1 under unit radiance
+ * gives d = 1), unit environment phi, s white; the smallest diffuse weight 1 - |lambda| and the
+ * largest channel albedo d w + lambda (1 - R) + R over lambda in [0,1]^3 and N.V. */
+static void check_d3d9client_furnace(sweep *s, int norm)
+{
     static const char *nname[4] = {"max", "mean", "luminance", "euclid"};
-    for (int norm = 0; norm < 4; norm++) {
-        char fn[40];
-        snprintf(fn, sizeof fn, "albedo d3d9client norm=%s", nname[norm]);
-        row = stab_row_begin(s, fn, "lambda in [0,1]^3, N.V 0..1, R0 0.04", STABILITY_PHYSICS, 0);
-        material mat;
-        material_init(&mat);
-        mat.d9.norm = (colour_norm)norm;
-        double wmin = 1e30, amax = -1e30;
-        char wat[128] = "", aat[128] = "";
-        int steps_l = 6;
-        for (int a = 0; a <= steps_l; a++)
-            for (int b = 0; b <= steps_l; b++)
-                for (int c = 0; c <= steps_l; c++)
-                    for (int q = 0; q <= 10; q++) {
-                        mat.d9.reflect = v3((float)a / steps_l, (float)b / steps_l, (float)c / steps_l);
-                        float nv = (float)q / 10.0f;
-                        d3d9client_result r;
-                        d3d9client_combine(&mat.d9, v3s(1.0f), 1.0f, v3s(1.0f), nv, 0.0f, &r);
-                        row->samples++;
-                        if (isnan(r.rgb.x) || isnan(r.diffuse_weight))
-                            row->nan++;
-                        if (r.diffuse_weight < wmin) {
-                            wmin = r.diffuse_weight;
-                            snprintf(wat, sizeof wat, "lambda=(%.2f,%.2f,%.2f)", mat.d9.reflect.x, mat.d9.reflect.y,
-                                     mat.d9.reflect.z);
-                        }
-                        float cm = v3_max_comp(r.rgb);
-                        if (cm > amax) {
-                            amax = cm;
-                            snprintf(aat, sizeof aat, "lambda=(%.2f,%.2f,%.2f) N.V=%.1f", mat.d9.reflect.x,
-                                     mat.d9.reflect.y, mat.d9.reflect.z, nv);
-                        }
+    char fn[40];
+    snprintf(fn, sizeof fn, "albedo d3d9client norm=%s", nname[norm]);
+    stability_row *row = stab_row_begin(s, fn, "lambda in [0,1]^3, N.V 0..1, R0 0.04", STABILITY_PHYSICS, 0);
+    material mat;
+    material_init(&mat);
+    mat.d9.norm = (colour_norm)norm;
+    double wmin = 1e30, amax = -1e30;
+    char wat[128] = "", aat[128] = "";
+    int steps_l = 6;
+    for (int a = 0; a <= steps_l; a++)
+        for (int b = 0; b <= steps_l; b++)
+            for (int c = 0; c <= steps_l; c++)
+                for (int q = 0; q <= 10; q++) {
+                    mat.d9.reflect = v3((float)a / steps_l, (float)b / steps_l, (float)c / steps_l);
+                    float nv = (float)q / 10.0f;
+                    d3d9client_result r;
+                    d3d9client_combine(&mat.d9, v3s(1.0f), 1.0f, v3s(1.0f), nv, 0.0f, &r);
+                    row->samples++;
+                    if (isnan(r.rgb.x) || isnan(r.diffuse_weight))
+                        row->nan++;
+                    if (r.diffuse_weight < wmin) {
+                        wmin = r.diffuse_weight;
+                        snprintf(wat, sizeof wat, "lambda=(%.2f,%.2f,%.2f)", mat.d9.reflect.x, mat.d9.reflect.y,
+                                 mat.d9.reflect.z);
                     }
-        row->value = amax;
-        row->aux = wmin;
-        row->check_ok = amax <= 1.0 + 1e-6 && wmin >= 0.0; /* 1e-6: float rounding of the sum */
-        row->expect_ok = 0;
-        snprintf(row->where, sizeof row->where, "albedo at %s; weight at %s", aat, wat);
-        snprintf(row->note, sizeof row->note, "albedo max %.4f; min diffuse weight 1-|lambda| = %.4f%s", amax, wmin,
-                 wmin < 0 ? " (NEGATIVE: diffuse light subtracted)" : "");
-    }
+                    float cm = v3_max_comp(r.rgb);
+                    if (cm > amax) {
+                        amax = cm;
+                        snprintf(aat, sizeof aat, "lambda=(%.2f,%.2f,%.2f) N.V=%.1f", mat.d9.reflect.x,
+                                 mat.d9.reflect.y, mat.d9.reflect.z, nv);
+                    }
+                }
+    row->value = amax;
+    row->aux = wmin;
+    row->check_ok = amax <= 1.0 + 1e-6 && wmin >= 0.0; /* 1e-6: float rounding of the sum */
+    row->expect_ok = 0;
+    snprintf(row->where, sizeof row->where, "albedo at %s; weight at %s", aat, wat);
+    snprintf(row->note, sizeof row->note, "albedo max %.4f; min diffuse weight 1-|lambda| = %.4f%s", amax, wmin,
+             wmin < 0 ? " (NEGATIVE: diffuse light subtracted)" : "");
+}
+
+void stab_check_physics(sweep *s, int grid)
+{
+    check_fresnel_monotonic(s);
+    check_lambert(s, grid);
+    check_albedo_ct_rows(s, grid);
+    for (int norm = 0; norm < 4; norm++)
+        check_d3d9client_furnace(s, norm);
 }
