@@ -17,7 +17,7 @@
  * difference is the float function's own error. On x86-64 long double has a 64-bit
  * significand: 40 bits beyond float, 11 beyond double; glibc's expl/powl/logl/erfl are
  * accurate to a few long double ulps, so the reference's own error is below 1e-9 float ulp
- * and 1e-2 double ulp (x 100 where exp/pow amplify, see stability.c) - far below the
+ * and 1e-2 double ulp (x 100 where exp/pow amplify, see stability_ref.c) - far below the
  * 0.5 ulp a correctly rounded result already has. MPFR is therefore not needed.
  * max_ulp is |result - reference| / ulp(reference) in the result's own precision (float
  * or double): 0.5 is a correctly rounded result. Rows of kind STABILITY_APPROX compare an
