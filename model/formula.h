@@ -12,7 +12,7 @@
  *   _d  double, libm                the scalar models, which form their sums in double
  *   _v  float, smath.h, always      the SIMD lanes (render/shade_batch.c): smath's pow, log and exp
  *       inlined                     vectorise where libm's would stop the loop
- *   _l  long double, libm           harness/stability.c's reference (64-bit significand on x86-64)
+ *   _l  long double, libm           harness/stability_ref.c's reference (64-bit significand on x86-64)
  * So the scalar path, the lanes and the high-precision check run the same code: a formula changed
  * here changes all three, and tests/test_formula.c compares the instances.
  *
