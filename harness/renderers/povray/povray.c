@@ -250,8 +250,9 @@ static double povray_comp(dvec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y 
 
 static int povray_is_zero(vec3 v) { return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f; }
 
-static rc_status povray_material_twin(const scene *s, int mi, const povray_light *lights, const povray_resolved *r,
-                                      povray_finish *f, char *err, size_t errlen)
+/* The model features a POV-Ray twin cannot express, checked in this order: RC_ERR_RANGE
+ * naming the first one the material uses. */
+static rc_status povray_twin_refusal(const scene *s, int mi, const povray_resolved *r, char *err, size_t errlen)
 {
     const material *mat = &s->materials[mi];
     const d3d_params *d = &mat->d3d;
@@ -308,11 +309,7 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                        s->path, mi, name);
         return RC_ERR_RANGE;
     }
-    double keep = d9 ? formula_d3d9_diffuse_weight_d(d3d9client_colour_norm_d(mat->d9.reflect, mat->d9.norm)) : 1.0;
-    f->pigment = dv3_scale(dv3_from(d->diffuse), keep);
-    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
-    f->one_sided = !d->two_sided;
-    if (f->one_sided && (r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
+    if (!d->two_sided && (r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
         status_message(err, errlen,
                        "%s: materials[%d] '%s': d3d.two_sided false with a d3d.specular highlight has no POV-Ray "
                        "twin: D3D lights a back face's highlight from the far side, POV-Ray only its diffuse; "
@@ -320,9 +317,18 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                        s->path, mi, name);
         return RC_ERR_RANGE;
     }
+    return RC_OK;
+}
 
-    /* The constant part: D3D ambient Va*(Ia + sum La*A) (diffuse term, scaled by 1 - |lambda|
-     * like all of d) and Ve. POV-Ray has it only as emission, times the pigment. */
+/* The constant part: D3D ambient Va*(Ia + sum La*A) (diffuse term, scaled by keep = 1 - |lambda|
+ * like all of d) and Ve. POV-Ray has it only as emission, times the pigment: f->emission is
+ * that constant over f->pigment. */
+static rc_status povray_twin_emission(const scene *s, int mi, const povray_light *lights, const povray_resolved *r,
+                                      double keep, povray_finish *f, char *err, size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    const d3d_params *d = &mat->d3d;
+    const char *name = mat->name[0] ? mat->name : "(unnamed)";
     dvec3 amb = dv3_from(s->global_ambient);
     for (int i = 0; i < s->n_lights; i++) {
         if (povray_is_zero(s->lights[i].ambient) || povray_is_zero(d->ambient) || lights[i].skip)
@@ -354,12 +360,21 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
                            "%s: materials[%d] '%s': emissive/ambient colour on channel %d where the "
                            "POV-Ray pigment (d3d.diffuse%s) is 0; POV-Ray multiplies emission by the "
                            "pigment, so give that channel a non-zero diffuse",
-                           s->path, mi, name, c, d9 ? " * (1 - |reflect|)" : "");
+                           s->path, mi, name, c, mat->model == MODEL_D3D9CLIENT ? " * (1 - |reflect|)" : "");
             return RC_ERR_RANGE;
         }
     }
     f->emission = dv3(e[0], e[1], e[2]);
+    return RC_OK;
+}
 
+/* The Blinn-Phong highlight as POV-Ray's specular (a scalar, roughness 1 / power). */
+static rc_status povray_twin_specular(const scene *s, int mi, const povray_resolved *r, povray_finish *f, char *err,
+                                      size_t errlen)
+{
+    const material *mat = &s->materials[mi];
+    const d3d_params *d = &mat->d3d;
+    const char *name = mat->name[0] ? mat->name : "(unnamed)";
     f->specular = 0.0;
     f->roughness = 1.0;
     if ((r->term & POVRAY_TERM_SPECULAR) && d->power > 0.0f && !povray_is_zero(d->specular)) {
@@ -381,9 +396,14 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
         f->specular = d->specular.x;
         f->roughness = 1.0 / d->power;
     }
+    return RC_OK;
+}
 
+/* The D3D9Client environment reflection as POV-Ray's variable reflection. */
+static void povray_twin_reflection(const material *mat, const povray_resolved *r, povray_finish *f)
+{
     f->reflection = 0;
-    if (d9 && (r->term & POVRAY_TERM_REFLECTION)) {
+    if (mat->model == MODEL_D3D9CLIENT && (r->term & POVRAY_TERM_REFLECTION)) {
         /* eq. 5: lambda + (s - lambda) R, R = R0 + m (1 - cos)^p, is POV-Ray's
          * Rmin + (Rmax - Rmin)(1 - cos)^falloff with these end points. */
         dvec3 lam = dv3_from(mat->d9.reflect), sc = dv3_from(mat->d9.fresnel_colour);
@@ -394,6 +414,27 @@ static rc_status povray_material_twin(const scene *s, int mi, const povray_light
         if (dv3_dot(f->rmin, f->rmin) > 0.0 || dv3_dot(f->rmax, f->rmax) > 0.0)
             f->reflection = 1;
     }
+}
+
+static rc_status povray_material_twin(const scene *s, int mi, const povray_light *lights, const povray_resolved *r,
+                                      povray_finish *f, char *err, size_t errlen)
+{
+    rc_status st = povray_twin_refusal(s, mi, r, err, errlen);
+    if (st != RC_OK)
+        return st;
+    const material *mat = &s->materials[mi];
+    const d3d_params *d = &mat->d3d;
+    double keep = mat->model == MODEL_D3D9CLIENT
+                      ? formula_d3d9_diffuse_weight_d(d3d9client_colour_norm_d(mat->d9.reflect, mat->d9.norm))
+                      : 1.0;
+    f->pigment = dv3_scale(dv3_from(d->diffuse), keep);
+    f->diffuse = (r->term & POVRAY_TERM_DIFFUSE) ? 1.0 : 0.0;
+    f->one_sided = !d->two_sided;
+    if ((st = povray_twin_emission(s, mi, lights, r, keep, f, err, errlen)) != RC_OK)
+        return st;
+    if ((st = povray_twin_specular(s, mi, r, f, err, errlen)) != RC_OK)
+        return st;
+    povray_twin_reflection(mat, r, f);
     return RC_OK;
 }
 
@@ -699,15 +740,10 @@ static rc_status povray_check_paths(const scene *s, const povray_options *o, cha
     return RC_OK;
 }
 
-rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
-                             size_t errlen)
+/* The scene's own consistency before anything is written: the camera, the counts, and every
+ * triangle's object and material in range. */
+static rc_status povray_check_scene(const scene *s, const mesh *m, char *err, size_t errlen)
 {
-    povray_resolved r;
-    rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
-    if (st != RC_OK)
-        return st;
-    if ((st = povray_check_paths(s, o, err, errlen)) != RC_OK)
-        return st;
     /* A perspective angle must stay below 180 degrees (tan(hfov/2) finite). */
     if (s->width <= 0 || s->height <= 0 || !(s->camera.hfov > 0.0f && (double)s->camera.hfov < FORMULA_PI_D) ||
         !povray_finite3(s->camera.eye) || !povray_finite3(s->camera.target) || !povray_finite3(s->camera.up)) {
@@ -732,29 +768,23 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             return RC_ERR_RANGE;
         }
     }
-    int vcol[SCENE_MAX_MATERIALS] = {0};
-    for (int mi = 0; mi < s->n_materials; mi++)
-        if ((vcol[mi] = mesh_material_vertex_coloured(s, m, mi)) &&
-            (st = povray_vertex_colour_check(s, m, mi, &r, err, errlen)) != RC_OK)
-            return st;
+    return RC_OK;
+}
 
-    int coverage = o != NULL && o->coverage;
-    if (r.validate && !coverage && (st = renderer_physics_check(povray_physics, s, err, errlen)) != RC_OK)
-        return st;
-    povray_light lights[SCENE_MAX_LIGHTS];
-    for (int i = 0; i < s->n_lights && !coverage; i++)
-        if ((st = povray_light_convert(s, m, i, &r, &lights[i], err, errlen)) != RC_OK)
-            return st;
-
-    povray_finish fin[SCENE_MAX_MATERIALS];
+/* Every used material's finish (fin[mi]): the model twin or the physical material, then its
+ * texture; vcol[mi] marks a material drawn with D3D vertex colours. Nothing in a coverage pass. */
+static rc_status povray_materials(const scene *s, const mesh *m, const povray_options *o, const povray_resolved *r,
+                                  const povray_light *lights, const int *vcol, int coverage, povray_finish *fin,
+                                  char *err, size_t errlen)
+{
     int used[SCENE_MAX_MATERIALS] = {0};
     for (int t = 0; t < m->n_tris; t++)
         used[s->objects[m->tri_object[t]].material] = 1;
     for (int mi = 0; mi < s->n_materials; mi++) {
         if (!used[mi] || coverage)
             continue;
-        st = r.validate ? povray_material_physical(s, mi, &r, &fin[mi], err, errlen)
-                        : povray_material_twin(s, mi, lights, &r, &fin[mi], err, errlen);
+        rc_status st = r->validate ? povray_material_physical(s, mi, r, &fin[mi], err, errlen)
+                                   : povray_material_twin(s, mi, lights, r, &fin[mi], err, errlen);
         if (st == RC_OK)
             st = povray_material_texture(s, mi, o, m, &fin[mi], err, errlen);
         if (st != RC_OK)
@@ -769,8 +799,224 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
             return RC_ERR_RANGE;
         }
     }
+    return RC_OK;
+}
 
-    int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
+/* The file's first lines: what it is, and the global settings. */
+static void povray_write_header(FILE *fp, const scene *s, const povray_resolved *r)
+{
+    fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n", s->name,
+            r->validate ? "validate" : "twin", r->term, r->scale);
+    if (r->validate) {
+        char ph[400];
+        fprintf(fp, "// physics: %s\n", physics_describe(&s->physics, s->n_lights, ph, sizeof ph));
+    }
+    fprintf(fp, "#version 3.7;\n");
+    fprintf(fp,
+            "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
+            "max_trace_level %d }\n\n",
+            r->max_trace_level);
+}
+
+static void povray_write_camera(FILE *fp, const scene *s)
+{
+    /* Right-handed Y-up canonical frame: POV-Ray keeps it with a negative right vector. */
+    fprintf(fp, "camera {\n  perspective\n  location ");
+    povray_put_fvec(fp, s->camera.eye);
+    fprintf(fp, "\n  right -x*%.9g\n  up y\n  sky ", (double)s->width / (double)s->height);
+    povray_put_fvec(fp, s->camera.up);
+    fprintf(fp, "\n  angle %.9g\n  look_at ", (double)s->camera.hfov * 180.0 / FORMULA_PI_D);
+    povray_put_fvec(fp, s->camera.target);
+    fprintf(fp, "\n}\n\n");
+}
+
+/* The background camera rays and reflections see: black without an environment (or without
+ * the reflection term), else a constant, cube-map or image sky. */
+static void povray_write_environment(FILE *fp, const scene *s, const povray_options *o, const povray_resolved *r,
+                                     int with_env)
+{
+    if (!with_env) {
+        fprintf(fp, "background { color rgb 0 }\n\n");
+    } else if (s->env.kind == ENV_CONSTANT) {
+        fprintf(fp, "sky_sphere { pigment { color rgb ");
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r->scale));
+        fprintf(fp, " } }\n\n");
+    } else if (s->env.kind == ENV_CUBE) {
+        povray_put_cube_sky(fp, o);
+        fprintf(fp, "  emission rgb ");
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r->scale));
+        fprintf(fp, "\n}\n\n");
+    } else {
+        /* rotate y*180: POV-Ray's map_type 1 otherwise shows the image's -x along +x. */
+        fprintf(fp,
+                "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
+                "rotate y*180 }\n  emission rgb ",
+                o != NULL && o->env_file != NULL ? o->env_file : s->env.path);
+        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r->scale));
+        fprintf(fp, "\n}\n\n");
+    }
+}
+
+/* One light_source per converted light (pl); a skipped light leaves a comment. */
+static void povray_write_light(FILE *fp, const scene *s, int i, const povray_light *pl, dvec3 bc, double br)
+{
+    const light *l = &s->lights[i];
+    if (pl->skip) {
+        fprintf(fp, "// lights[%d]: every surface is beyond its range\n", i);
+        return;
+    }
+    dvec3 dir = dv3_norm(dv3_from(l->direction));
+    fprintf(fp, "light_source {\n  ");
+    if (l->kind == LIGHT_SUN) {
+        /* Outside the geometry's bounding sphere, so that no surface is behind it. */
+        dvec3 from = dv3_sub(bc, dv3_scale(dir, 4.0 * br + 10.0));
+        povray_put_vec(fp, from);
+        fprintf(fp, "\n  color rgb ");
+        povray_put_vec(fp, pl->colour);
+        fprintf(fp, "\n  parallel\n  point_at ");
+        povray_put_vec(fp, dv3_add(from, dir));
+        fprintf(fp, "\n");
+    } else {
+        povray_put_fvec(fp, l->position);
+        fprintf(fp, "\n  color rgb ");
+        povray_put_vec(fp, pl->colour);
+        fprintf(fp, "\n");
+        if (l->kind == LIGHT_SPOT) {
+            /* POV-Ray's radius/falloff are half angles; tightness 1 = the extra cos. */
+            fprintf(fp, "  spotlight\n  radius %.9g\n  falloff %.9g\n  tightness 1\n  point_at ",
+                    (double)l->inner * 90.0 / FORMULA_PI_D, (double)l->outer * 90.0 / FORMULA_PI_D);
+            povray_put_vec(fp, dv3_add(dv3_from(l->position), dir));
+            fprintf(fp, "\n");
+        }
+        if (pl->fade_power > 0)
+            fprintf(fp, "  fade_distance %.9g\n  fade_power %d\n", pl->fade_distance, pl->fade_power);
+    }
+    fprintf(fp, "}\n\n");
+}
+
+/* What povray_write_object needs beside the scene: the pass, the finishes, and two vertex maps
+ * (mesh vertex -> the object's, and back) sized to the mesh, reused for every object. */
+typedef struct {
+    const povray_resolved *r;
+    int coverage;
+    const povray_finish *fin;
+    const int *vcol;
+    int *remap;
+    int *local;
+} povray_object_ctx;
+
+/* Objects[ob]'s vertices in order of first use: remap and local filled, counts returned. */
+static void povray_object_vertices(const mesh *m, int ob, int *remap, int *local, int *n_verts, int *n_tris)
+{
+    int nv = 0, nt = 0;
+    for (int v = 0; v < m->n_verts; v++)
+        remap[v] = -1;
+    for (int t = 0; t < m->n_tris; t++) {
+        if (m->tri_object[t] != ob)
+            continue;
+        nt++;
+        for (int c = 0; c < 3; c++) {
+            uint32_t v = m->idx[3 * t + c];
+            if (remap[v] < 0) {
+                remap[v] = nv;
+                local[nv++] = (int)v;
+            }
+        }
+    }
+    *n_verts = nv;
+    *n_tris = nt;
+}
+
+/* The mesh2's vertex, normal and (textured) uv vectors. */
+static void povray_write_vectors(FILE *fp, const mesh *m, const int *local, int nv, int with_uv)
+{
+    fprintf(fp, "  vertex_vectors { %d", nv);
+    for (int v = 0; v < nv; v++) {
+        fprintf(fp, ",\n    ");
+        povray_put_fvec(fp, m->pos[local[v]]);
+    }
+    fprintf(fp, "\n  }\n  normal_vectors { %d", nv);
+    for (int v = 0; v < nv; v++) {
+        fprintf(fp, ",\n    ");
+        povray_put_fvec(fp, m->nrm[local[v]]);
+    }
+    fprintf(fp, "\n  }\n");
+    if (with_uv) {
+        /* Without uv_indices POV-Ray indexes uv_vectors with face_indices, as here. */
+        fprintf(fp, "  uv_vectors { %d", nv);
+        for (int v = 0; v < nv; v++)
+            fprintf(fp, ",\n    <%.9g, %.9g>", (double)m->uv[2 * local[v]], (double)m->uv[2 * local[v] + 1]);
+        fprintf(fp, "\n  }\n");
+    }
+}
+
+/* One mesh2 for objects[ob] (nothing when it has no triangles). */
+static void povray_write_object(FILE *fp, const scene *s, const mesh *m, int ob, const povray_object_ctx *c)
+{
+    int nv, nt;
+    povray_object_vertices(m, ob, c->remap, c->local, &nv, &nt);
+    if (nt == 0)
+        return;
+    int mi = s->objects[ob].material;
+    fprintf(fp, "// objects[%d], material %d\nmesh2 {\n", ob, mi);
+    povray_write_vectors(fp, m, c->local, nv, m->uv != NULL && !c->coverage && c->fin[mi].texture[0] != '\0');
+    int per_vertex_tex = !c->coverage && c->vcol[mi];
+    if (per_vertex_tex) {
+        /* D3D's diffuse colour1: one texture per vertex, its pigment the vertex colour; with
+         * three texture indices per face POV-Ray interpolates the pigments across it, as
+         * the rasterizer interpolates the colour per pixel. */
+        povray_finish vf = c->fin[mi];
+        fprintf(fp, "  texture_list { %d,\n", nv);
+        for (int v = 0; v < nv; v++) {
+            vf.pigment = dv3_from(m->col1[c->local[v]]);
+            povray_write_finish(fp, &vf);
+        }
+        fprintf(fp, "  }\n");
+    }
+    fprintf(fp, "  face_indices { %d", nt);
+    for (int t = 0; t < m->n_tris; t++) {
+        if (m->tri_object[t] != ob)
+            continue;
+        int a = c->remap[m->idx[3 * t]], b = c->remap[m->idx[3 * t + 1]], d = c->remap[m->idx[3 * t + 2]];
+        fprintf(fp, ",\n    <%d, %d, %d>", a, b, d);
+        if (per_vertex_tex)
+            fprintf(fp, ", %d, %d, %d", a, b, d);
+    }
+    fprintf(fp, "\n  }\n");
+    if (c->coverage)
+        fprintf(fp,
+                "  texture {\n    pigment { color rgb <1, %d, 0> }\n    finish { ambient 0 diffuse 0 "
+                "specular 0 phong 0 reflection 0 emission 1 }\n  }\n",
+                ob + 1);
+    else
+        povray_write_finish(fp, &c->fin[mi]);
+    /* The model has no shadows; a physical reference has them when its physics asks. */
+    fprintf(fp, "%s  no_reflection\n}\n\n", c->r->validate && s->physics.shadows ? "" : "  no_shadow\n");
+}
+
+/* Everything checked and converted before the file is opened: the lights (lights), the
+ * materials' finishes (fin) and which materials take vertex colours (vcol). */
+static rc_status povray_prepare(const scene *s, const mesh *m, const povray_options *o, const povray_resolved *r,
+                                povray_light *lights, povray_finish *fin, int *vcol, char *err, size_t errlen)
+{
+    rc_status st = povray_check_scene(s, m, err, errlen);
+    if (st != RC_OK)
+        return st;
+    for (int mi = 0; mi < s->n_materials; mi++)
+        if ((vcol[mi] = mesh_material_vertex_coloured(s, m, mi)) &&
+            (st = povray_vertex_colour_check(s, m, mi, r, err, errlen)) != RC_OK)
+            return st;
+
+    int coverage = o != NULL && o->coverage;
+    if (r->validate && !coverage && (st = renderer_physics_check(povray_physics, s, err, errlen)) != RC_OK)
+        return st;
+    for (int i = 0; i < s->n_lights && !coverage; i++)
+        if ((st = povray_light_convert(s, m, i, r, &lights[i], err, errlen)) != RC_OK)
+            return st;
+    if ((st = povray_materials(s, m, o, r, lights, vcol, coverage, fin, err, errlen)) != RC_OK)
+        return st;
+
+    int with_env = s->env.kind != ENV_NONE && (r->term & POVRAY_TERM_REFLECTION) && !coverage;
     if (with_env && s->env.kind == ENV_CUBE && (o->cube_dir == NULL || o->cube_size <= 0)) {
         status_message(err, errlen,
                        "%s: environment: a cube map needs its faces as linear EXR files, which povray_render_job "
@@ -778,6 +1024,25 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
                        s->path);
         return RC_ERR_RANGE;
     }
+    return RC_OK;
+}
+
+rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options *o, const char *sdl_path, char *err,
+                             size_t errlen)
+{
+    povray_resolved r;
+    rc_status st = povray_resolve(s, o, &r, sdl_path, err, errlen);
+    if (st != RC_OK)
+        return st;
+    if ((st = povray_check_paths(s, o, err, errlen)) != RC_OK)
+        return st;
+    povray_light lights[SCENE_MAX_LIGHTS];
+    povray_finish fin[SCENE_MAX_MATERIALS];
+    int vcol[SCENE_MAX_MATERIALS] = {0};
+    if ((st = povray_prepare(s, m, o, &r, lights, fin, vcol, err, errlen)) != RC_OK)
+        return st;
+    int coverage = o != NULL && o->coverage;
+    int with_env = s->env.kind != ENV_NONE && (r.term & POVRAY_TERM_REFLECTION) && !coverage;
 
     int *remap = malloc(sizeof *remap * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
     int *local = malloc(sizeof *local * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
@@ -795,156 +1060,17 @@ rc_status povray_write_scene(const scene *s, const mesh *m, const povray_options
         return RC_ERR_IO;
     }
 
-    fprintf(fp, "// reflcheck scene '%s' for POV-Ray 3.7, role %s, terms 0x%x, output scale %.9g\n", s->name,
-            r.validate ? "validate" : "twin", r.term, r.scale);
-    if (r.validate) {
-        char ph[400];
-        fprintf(fp, "// physics: %s\n", physics_describe(&s->physics, s->n_lights, ph, sizeof ph));
-    }
-    fprintf(fp, "#version 3.7;\n");
-    fprintf(fp,
-            "global_settings { assumed_gamma 1.0 ambient_light 0 adc_bailout 0 "
-            "max_trace_level %d }\n\n",
-            r.max_trace_level);
-
-    /* Right-handed Y-up canonical frame: POV-Ray keeps it with a negative right vector. */
-    fprintf(fp, "camera {\n  perspective\n  location ");
-    povray_put_fvec(fp, s->camera.eye);
-    fprintf(fp, "\n  right -x*%.9g\n  up y\n  sky ", (double)s->width / (double)s->height);
-    povray_put_fvec(fp, s->camera.up);
-    fprintf(fp, "\n  angle %.9g\n  look_at ", (double)s->camera.hfov * 180.0 / FORMULA_PI_D);
-    povray_put_fvec(fp, s->camera.target);
-    fprintf(fp, "\n}\n\n");
-
-    if (!with_env) {
-        fprintf(fp, "background { color rgb 0 }\n\n");
-    } else if (s->env.kind == ENV_CONSTANT) {
-        fprintf(fp, "sky_sphere { pigment { color rgb ");
-        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
-        fprintf(fp, " } }\n\n");
-    } else if (s->env.kind == ENV_CUBE) {
-        povray_put_cube_sky(fp, o);
-        fprintf(fp, "  emission rgb ");
-        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
-        fprintf(fp, "\n}\n\n");
-    } else {
-        /* rotate y*180: POV-Ray's map_type 1 otherwise shows the image's -x along +x. */
-        fprintf(fp,
-                "sky_sphere {\n  pigment { image_map { exr \"%s\" map_type 1 interpolate 2 } "
-                "rotate y*180 }\n  emission rgb ",
-                o != NULL && o->env_file != NULL ? o->env_file : s->env.path);
-        povray_put_vec(fp, dv3_scale(dv3_from(s->env.radiance), r.scale));
-        fprintf(fp, "\n}\n\n");
-    }
-
+    povray_write_header(fp, s, &r);
+    povray_write_camera(fp, s);
+    povray_write_environment(fp, s, o, &r, with_env);
     dvec3 bc;
     double br;
     povray_mesh_bounds(m, &bc, &br);
-    for (int i = 0; i < s->n_lights && !coverage; i++) {
-        const light *l = &s->lights[i];
-        const povray_light *pl = &lights[i];
-        if (pl->skip) {
-            fprintf(fp, "// lights[%d]: every surface is beyond its range\n", i);
-            continue;
-        }
-        dvec3 dir = dv3_norm(dv3_from(l->direction));
-        fprintf(fp, "light_source {\n  ");
-        if (l->kind == LIGHT_SUN) {
-            /* Outside the geometry's bounding sphere, so that no surface is behind it. */
-            dvec3 from = dv3_sub(bc, dv3_scale(dir, 4.0 * br + 10.0));
-            povray_put_vec(fp, from);
-            fprintf(fp, "\n  color rgb ");
-            povray_put_vec(fp, pl->colour);
-            fprintf(fp, "\n  parallel\n  point_at ");
-            povray_put_vec(fp, dv3_add(from, dir));
-            fprintf(fp, "\n");
-        } else {
-            povray_put_fvec(fp, l->position);
-            fprintf(fp, "\n  color rgb ");
-            povray_put_vec(fp, pl->colour);
-            fprintf(fp, "\n");
-            if (l->kind == LIGHT_SPOT) {
-                /* POV-Ray's radius/falloff are half angles; tightness 1 = the extra cos. */
-                fprintf(fp, "  spotlight\n  radius %.9g\n  falloff %.9g\n  tightness 1\n  point_at ",
-                        (double)l->inner * 90.0 / FORMULA_PI_D, (double)l->outer * 90.0 / FORMULA_PI_D);
-                povray_put_vec(fp, dv3_add(dv3_from(l->position), dir));
-                fprintf(fp, "\n");
-            }
-            if (pl->fade_power > 0)
-                fprintf(fp, "  fade_distance %.9g\n  fade_power %d\n", pl->fade_distance, pl->fade_power);
-        }
-        fprintf(fp, "}\n\n");
-    }
-
-    for (int ob = 0; ob < s->n_objects; ob++) {
-        int nv = 0, nt = 0;
-        for (int v = 0; v < m->n_verts; v++)
-            remap[v] = -1;
-        for (int t = 0; t < m->n_tris; t++) {
-            if (m->tri_object[t] != ob)
-                continue;
-            nt++;
-            for (int c = 0; c < 3; c++) {
-                uint32_t v = m->idx[3 * t + c];
-                if (remap[v] < 0) {
-                    remap[v] = nv;
-                    local[nv++] = (int)v;
-                }
-            }
-        }
-        if (nt == 0)
-            continue;
-        fprintf(fp, "// objects[%d], material %d\nmesh2 {\n  vertex_vectors { %d", ob, s->objects[ob].material, nv);
-        for (int v = 0; v < nv; v++) {
-            fprintf(fp, ",\n    ");
-            povray_put_fvec(fp, m->pos[local[v]]);
-        }
-        fprintf(fp, "\n  }\n  normal_vectors { %d", nv);
-        for (int v = 0; v < nv; v++) {
-            fprintf(fp, ",\n    ");
-            povray_put_fvec(fp, m->nrm[local[v]]);
-        }
-        fprintf(fp, "\n  }\n");
-        if (m->uv != NULL && !coverage && fin[s->objects[ob].material].texture[0] != '\0') {
-            /* Without uv_indices POV-Ray indexes uv_vectors with face_indices, as here. */
-            fprintf(fp, "  uv_vectors { %d", nv);
-            for (int v = 0; v < nv; v++)
-                fprintf(fp, ",\n    <%.9g, %.9g>", (double)m->uv[2 * local[v]], (double)m->uv[2 * local[v] + 1]);
-            fprintf(fp, "\n  }\n");
-        }
-        int per_vertex_tex = !coverage && vcol[s->objects[ob].material];
-        if (per_vertex_tex) {
-            /* D3D's diffuse colour1: one texture per vertex, its pigment the vertex colour; with
-             * three texture indices per face POV-Ray interpolates the pigments across it, as
-             * the rasterizer interpolates the colour per pixel. */
-            povray_finish vf = fin[s->objects[ob].material];
-            fprintf(fp, "  texture_list { %d,\n", nv);
-            for (int v = 0; v < nv; v++) {
-                vf.pigment = dv3_from(m->col1[local[v]]);
-                povray_write_finish(fp, &vf);
-            }
-            fprintf(fp, "  }\n");
-        }
-        fprintf(fp, "  face_indices { %d", nt);
-        for (int t = 0; t < m->n_tris; t++) {
-            if (m->tri_object[t] != ob)
-                continue;
-            int a = remap[m->idx[3 * t]], b = remap[m->idx[3 * t + 1]], c = remap[m->idx[3 * t + 2]];
-            fprintf(fp, ",\n    <%d, %d, %d>", a, b, c);
-            if (per_vertex_tex)
-                fprintf(fp, ", %d, %d, %d", a, b, c);
-        }
-        fprintf(fp, "\n  }\n");
-        if (coverage)
-            fprintf(fp,
-                    "  texture {\n    pigment { color rgb <1, %d, 0> }\n    finish { ambient 0 diffuse 0 "
-                    "specular 0 phong 0 reflection 0 emission 1 }\n  }\n",
-                    ob + 1);
-        else
-            povray_write_finish(fp, &fin[s->objects[ob].material]);
-        /* The model has no shadows; a physical reference has them when its physics asks. */
-        fprintf(fp, "%s  no_reflection\n}\n\n", r.validate && s->physics.shadows ? "" : "  no_shadow\n");
-    }
+    for (int i = 0; i < s->n_lights && !coverage; i++)
+        povray_write_light(fp, s, i, &lights[i], bc, br);
+    povray_object_ctx ctx = {.r = &r, .coverage = coverage, .fin = fin, .vcol = vcol, .remap = remap, .local = local};
+    for (int ob = 0; ob < s->n_objects; ob++)
+        povray_write_object(fp, s, m, ob, &ctx);
     free(remap);
     free(local);
     int bad = ferror(fp);
