@@ -132,7 +132,6 @@ static void jw_put_flat(jw *w, cJSON *obj, const char *name, const char *key, co
 
 /* ------------------------------------------------------------------ translation checks */
 
-
 static int cycles_finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
 typedef struct {
@@ -394,105 +393,235 @@ static int cycles_vertex_diffuse(const scene *s, const mesh *m, int mi, int twin
     return !d3d_uses_vertex_colours(&rest, have);
 }
 
+/* A validate's material: the scene's physics (cycles_physics has checked it is renderable), a
+ * dielectric coating over Lambert, or a bare conductor. Roughness 0 is a mirror (SHARP). */
+static rc_status cycles_material_physical(cycles_ctx *c, jw *w, cJSON *o, int mi, int used, cycles_usage *u)
+{
+    const scene *s = c->s;
+    const material *mat = &s->materials[mi];
+    const physics *ph = &s->physics;
+    if (mat->thin) {
+        /* A glass slab (cycles_render.py: the pane and its copy CYCLES_THIN_THICKNESS behind,
+         * faces reversed) with a sharp Glass BSDF: two faces, every internal reflection. */
+        jw_put_num(w, jw_obj(w, o, "glass"), "ior", "materials.ior", mat->ior);
+        u->mirror |= used; /* its reflection must see the environment */
+        return RC_OK;
+    }
+    if (!mat->conductor) {
+        cJSON *dif = jw_obj(w, o, "diffuse");
+        jw_put_vec(w, dif, "color", "materials.albedo", mat->albedo);
+        if (ph->diffuse_weight == PHYS_DIFFUSE_ONE_MINUS_F)
+            jw_put_num(w, dif, "fresnel_ior", "materials.ior", mat->ior);
+    }
+    cJSON *gl = jw_obj(w, o, "glossy");
+    jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
+    /* Glossy's GGX: alpha = Roughness^2 as for Beckmann, separable Smith G with the exact GGX
+     * G1 (svm/closure.h, closure/bsdf_microfacet.h), the physics of model/physical.h. */
+    if (mat->distribution == DIST_GGX)
+        jw_put_str(w, gl, "distribution", "ggx");
+    /* A material without a lobe (material.lobe 0) reflects nothing: a black glossy. */
+    jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(mat->lobe ? 1.0f : 0.0f));
+    /* One closure reflects lamps and environment: a rough lobe takes the lamps' form
+     * (cycles_physics refuses two forms on one lobe), a mirror the environment's. */
+    physics_fresnel form = mat->roughness > 0.0f ? ph->fresnel_specular : ph->fresnel_reflection;
+    if (form == PHYS_FRESNEL_ONE) {
+        jw_put_str(w, jw_obj(w, gl, "fresnel"), "kind", "one");
+    } else if (form == PHYS_FRESNEL_SCHLICK) {
+        cJSON *f = jw_obj(w, gl, "fresnel");
+        jw_put_str(w, f, "kind", "schlick");
+        jw_put_vec(w, f, "f0", "materials.f0", cycles_f0(mat));
+    } else {
+        cycles_write_fresnel_of(w, gl, "fresnel", mat);
+    }
+    if (v3_nonzero(mat->d3d.emissive))
+        jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
+    u->glossy |= used;
+    return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
+}
+
+/* A used D3D or D3D9Client material's features a Cycles twin has no closure for: a whole term
+ * left out under options.partial (cycles_cannot), else an error. */
+static rc_status cycles_twin_d3d_refusals(cycles_ctx *c, int mi)
+{
+    const scene *s = c->s;
+    const material *mat = &s->materials[mi];
+    const d3d_params *d = &mat->d3d;
+    char what[160];
+    rc_status rc;
+    int amb_light = 0;
+    for (int i = 0; i < s->n_lights; i++)
+        amb_light |= v3_nonzero(s->lights[i].ambient);
+    if (v3_nonzero(d->specular)) {
+        snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi, mat->name);
+        if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK)
+            return rc;
+    }
+    if (v3_nonzero(d->ambient) && (amb_light || v3_nonzero(s->global_ambient))) {
+        snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
+                 mat->name);
+        if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK)
+            return rc;
+    }
+    if (d->per_vertex) {
+        snprintf(what, sizeof what, "materials[%d] '%s': Gouraud (per-vertex) shading", mi, mat->name);
+        if ((rc = cycles_cannot(c, 0, what, "shade per pixel")) != RC_OK)
+            return rc;
+    }
+    if (d->clamp) {
+        snprintf(what, sizeof what, "materials[%d] '%s': D3D clamping to [0, 1]", mi, mat->name);
+        if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
+            return rc;
+    }
+    /* What no renderer twins: only a validate can judge it. */
+    const char *only_validate =
+        mesh_material_unnormalised(s, mi)
+            ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
+        : d3d9client_dissolve_on(mat)
+            ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
+        : mat->model == MODEL_D3D9CLIENT && mat->d9.blend && mat->texture[MAT_TEX_DIFFUSE][0] != '\0'
+            ? "d3d9client.blend on a textured material (eq. 7's texel alpha is not translated)"
+            : NULL;
+    if (only_validate != NULL) {
+        snprintf(what, sizeof what, "materials[%d] '%s': %s", mi, mat->name, only_validate);
+        if ((rc = cycles_cannot(c, 0, what, "judge it with role validate")) != RC_OK)
+            return rc;
+    }
+    return RC_OK;
+}
+
+/* The D3D9Client twin: eq. (6)'s weighted diffuse, eq. (8)'s sun angle, eq. (5)'s mirror under
+ * an environment and eq. (7)'s blend. */
+static rc_status cycles_twin_d3d9client(cycles_ctx *c, jw *w, cJSON *o, int mi, int used, cycles_usage *u)
+{
+    const scene *s = c->s;
+    const material *mat = &s->materials[mi];
+    const d3d9client_params *p = &mat->d9;
+    char what[160];
+    rc_status rc;
+    /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
+    float weight = 1.0f - d3d9client_colour_norm(p->reflect, p->norm);
+    cJSON *dif = jw_obj(w, o, "diffuse");
+    jw_put_vec(w, dif, "color", "materials.d3d.diffuse", v3_scale(mat->d3d.diffuse, weight));
+    if (p->sun_angle) {
+        const light *ml = scene_main_light(s);
+        if (ml != NULL && ml->kind != LIGHT_SUN && used) {
+            snprintf(what, sizeof what,
+                     "materials[%d] '%s': eq. (8) with a point or spot main light (position-dependent)", mi, mat->name);
+            if ((rc = cycles_cannot(c, 0, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
+                return rc;
+        } else if (ml != NULL) {
+            cJSON *sa = jw_obj(w, dif, "sun_angle");
+            jw_put_vec(w, sa, "to_sun", "lights.direction", v3_neg(v3_norm(ml->direction)));
+            jw_put_num(w, sa, "r0", "materials.d9.r0", p->r0);
+            jw_put_num(w, sa, "m", "materials.d9.m", p->m);
+            jw_put_num(w, sa, "p", "materials.d9.p", p->p);
+        }
+    }
+    if (s->env.kind != ENV_NONE) {
+        cJSON *mir = jw_obj(w, o, "mirror");
+        jw_put_str(w, mir, "kind", "d3d9client");
+        jw_put_vec(w, mir, "lambda", "materials.d9.reflect", p->reflect);
+        jw_put_vec(w, mir, "s", "materials.d9.fresnel_colour", p->fresnel_colour);
+        jw_put_num(w, mir, "r0", "materials.d9.r0", p->r0);
+        jw_put_num(w, mir, "m", "materials.d9.m", p->m);
+        jw_put_num(w, mir, "p", "materials.d9.p", p->p);
+        u->mirror |= used;
+    }
+    if (p->blend) {
+        /* Eq. (7)'s blend: cycles_render.py forms a = max(d_a, |R_tot|) clamped to [0, 1] from
+         * the mirror's colour and the environment along the mirror direction, and mixes a
+         * Transparent BSDF in with weight 1 - a. */
+        d3d9client_norm_weights nw = d3d9client_norm_weights_of(p->norm);
+        cJSON *bl = jw_obj(w, o, "blend");
+        jw_put_num(w, bl, "d_a", "materials.d9.alpha", p->alpha);
+        const double wv[5] = {nw.w_max, nw.w_r, nw.w_g, nw.w_b, nw.w_euclid};
+        static const char *const wk[5] = {"w_max", "w_r", "w_g", "w_b", "w_euclid"};
+        for (int k = 0; k < 5; k++)
+            jw_put_num(w, bl, wk[k], "materials.d9.norm", wv[k]);
+    }
+    return RC_OK;
+}
+
+/* The Cook-Torrance twin: Lambert, a Beckmann lobe when Cycles' matches the model's, and the
+ * mirror term CM * Fr under an environment. */
+static rc_status cycles_twin_cook_torrance(cycles_ctx *c, jw *w, cJSON *o, int mi, int used, cycles_usage *u)
+{
+    const scene *s = c->s;
+    const material *mat = &s->materials[mi];
+    const ct_params *p = &mat->ct;
+    char what[160];
+    rc_status rc;
+    jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->albedo);
+    int lobe = v3_nonzero(p->ks), env_term = p->reflection && s->env.kind != ENV_NONE;
+    if (lobe && used && env_term) {
+        /* The mirror below needs the world visible to glossy rays, and then the Beckmann lobe
+         * would reflect the environment too (Cycles 3.4 has no light linking); a scene
+         * without an environment (ct_toaster) is the lobe's twin. */
+        snprintf(what, sizeof what,
+                 "materials[%d] '%s': its Beckmann lobe would reflect the environment its mirror term needs", mi,
+                 mat->name);
+        if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what,
+                                "switch the reflection off (cook_torrance reflection: false)")) != RC_OK)
+            return rc;
+        lobe = 0;
+    }
+    if (lobe && used && (p->g != G_SMITH_WALTER || p->f != F_ONE || p->norm != CT_WALTER)) {
+        snprintf(what, sizeof what,
+                 "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
+                 mat->name);
+        if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set ct g smith_walter, f one, norm walter")) != RC_OK)
+            return rc;
+        lobe = 0;
+    }
+    if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
+        status_message(c->err, c->errlen,
+                       "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
+                       "so use m in (0, 1]",
+                       s->path, mi, mat->name, (double)p->m);
+        return RC_ERR_RANGE;
+    }
+    if (lobe) {
+        /* Cycles: alpha = Roughness^2 and alpha is Beckmann's m. */
+        cJSON *gl = jw_obj(w, o, "glossy");
+        jw_put_num(w, gl, "roughness", "materials.ct.m", sqrt((double)p->m));
+        jw_put_vec(w, gl, "color", "materials.ct.ks", p->ks);
+        u->glossy |= used;
+    }
+    if (env_term) {
+        /* CM * Fr: a Glossy Sharp closure sees env(reflect(-V, N)) through the path tracer,
+         * coloured by Fr(N.V) as cooktorrance_reflection_weight picks it (Schlick as
+         * authored: the twin switches keep F for such a material). */
+        if (p->f == F_ONE) {
+            jw_put_str(w, jw_obj(w, o, "mirror"), "kind", "one");
+        } else if (p->f == F_EXACT) {
+            cycles_write_fresnel_of(w, o, "mirror", mat);
+        } else {
+            cJSON *f = jw_obj(w, o, "mirror");
+            jw_put_str(w, f, "kind", "schlick");
+            jw_put_vec(w, f, "f0", "materials.ct.f0", p->f0);
+        }
+        u->mirror |= used;
+    }
+    return RC_OK;
+}
+
 static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, int mi, cycles_usage *u)
 {
     const scene *s = c->s;
     const material *mat = &s->materials[mi];
-    int has_env = s->env.kind != ENV_NONE;
     int used = scene_material_used(s, mi);
     cJSON *o = jw_obj(w, materials, NULL);
-    char what[160];
     rc_status rc = RC_OK;
 
     jw_put_str(w, o, "name", mat->name);
-
-    if (!c->twin) {
-        /* The scene's physics (cycles_physics has checked it is renderable): a dielectric
-         * coating over Lambert, or a bare conductor. Roughness 0 is a mirror (SHARP). */
-        const physics *ph = &s->physics;
-        if (mat->thin) {
-            /* A glass slab (cycles_render.py: the pane and its copy CYCLES_THIN_THICKNESS behind,
-             * faces reversed) with a sharp Glass BSDF: two faces, every internal reflection. */
-            jw_put_num(w, jw_obj(w, o, "glass"), "ior", "materials.ior", mat->ior);
-            u->mirror |= used; /* its reflection must see the environment */
-            return RC_OK;
-        }
-        if (!mat->conductor) {
-            cJSON *dif = jw_obj(w, o, "diffuse");
-            jw_put_vec(w, dif, "color", "materials.albedo", mat->albedo);
-            if (ph->diffuse_weight == PHYS_DIFFUSE_ONE_MINUS_F)
-                jw_put_num(w, dif, "fresnel_ior", "materials.ior", mat->ior);
-        }
-        cJSON *gl = jw_obj(w, o, "glossy");
-        jw_put_num(w, gl, "roughness", "materials.roughness", sqrt(fmax((double)mat->roughness, 0.0)));
-        /* Glossy's GGX: alpha = Roughness^2 as for Beckmann, separable Smith G with the exact GGX
-         * G1 (svm/closure.h, closure/bsdf_microfacet.h), the physics of model/physical.h. */
-        if (mat->distribution == DIST_GGX)
-            jw_put_str(w, gl, "distribution", "ggx");
-        /* A material without a lobe (material.lobe 0) reflects nothing: a black glossy. */
-        jw_put_vec(w, gl, "color", "materials.glossy_color", v3s(mat->lobe ? 1.0f : 0.0f));
-        /* One closure reflects lamps and environment: a rough lobe takes the lamps' form
-         * (cycles_physics refuses two forms on one lobe), a mirror the environment's. */
-        physics_fresnel form = mat->roughness > 0.0f ? ph->fresnel_specular : ph->fresnel_reflection;
-        if (form == PHYS_FRESNEL_ONE) {
-            jw_put_str(w, jw_obj(w, gl, "fresnel"), "kind", "one");
-        } else if (form == PHYS_FRESNEL_SCHLICK) {
-            cJSON *f = jw_obj(w, gl, "fresnel");
-            jw_put_str(w, f, "kind", "schlick");
-            jw_put_vec(w, f, "f0", "materials.f0", cycles_f0(mat));
-        } else {
-            cycles_write_fresnel_of(w, gl, "fresnel", mat);
-        }
-        if (v3_nonzero(mat->d3d.emissive))
-            jw_put_vec(w, o, "emission", "materials.emissive", mat->d3d.emissive);
-        u->glossy |= used;
-        return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
-    }
+    if (!c->twin)
+        return cycles_material_physical(c, w, o, mi, used, u);
 
     /* Twin: the rasterizer's own terms (harness/CONTRACT.md). */
     const d3d_params *d = &mat->d3d;
-    if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT)) {
-        int amb_light = 0;
-        for (int i = 0; i < s->n_lights; i++)
-            amb_light |= v3_nonzero(s->lights[i].ambient);
-        if (v3_nonzero(d->specular)) {
-            snprintf(what, sizeof what, "materials[%d] '%s': Cycles has no Blinn-Phong lobe (d3d specular)", mi,
-                     mat->name);
-            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set the d3d specular colour to 0")) != RC_OK)
-                return rc;
-        }
-        if (v3_nonzero(d->ambient) && (amb_light || v3_nonzero(s->global_ambient))) {
-            snprintf(what, sizeof what, "materials[%d] '%s': D3D ambient Va*(Ia + La) has no Cycles equivalent", mi,
-                     mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "set the material ambient to 0")) != RC_OK)
-                return rc;
-        }
-        if (d->per_vertex) {
-            snprintf(what, sizeof what, "materials[%d] '%s': Gouraud (per-vertex) shading", mi, mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "shade per pixel")) != RC_OK)
-                return rc;
-        }
-        if (d->clamp) {
-            snprintf(what, sizeof what, "materials[%d] '%s': D3D clamping to [0, 1]", mi, mat->name);
-            if ((rc = cycles_cannot(c, 0, what, "turn clamp off")) != RC_OK)
-                return rc;
-        }
-        /* What no renderer twins: only a validate can judge it. */
-        const char *only_validate =
-            mesh_material_unnormalised(s, mi)
-                ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
-            : d3d9client_dissolve_on(mat)
-                ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
-            : mat->model == MODEL_D3D9CLIENT && mat->d9.blend && mat->texture[MAT_TEX_DIFFUSE][0] != '\0'
-                ? "d3d9client.blend on a textured material (eq. 7's texel alpha is not translated)"
-                : NULL;
-        if (only_validate != NULL) {
-            snprintf(what, sizeof what, "materials[%d] '%s': %s", mi, mat->name, only_validate);
-            if ((rc = cycles_cannot(c, 0, what, "judge it with role validate")) != RC_OK)
-                return rc;
-        }
-    }
-
+    if (used && (mat->model == MODEL_D3D || mat->model == MODEL_D3D9CLIENT) &&
+        (rc = cycles_twin_d3d_refusals(c, mi)) != RC_OK)
+        return rc;
     if (used && mat->model == MODEL_USER) {
         status_message(c->err, c->errlen,
                        "%s: materials[%d] '%s': model user (%s) has no Cycles twin: a twin needs a translator of "
@@ -512,109 +641,11 @@ static rc_status cycles_write_material(cycles_ctx *c, jw *w, cJSON *materials, i
             jw_put_bool(w, dif, "one_sided", 1);
         break;
     }
-    case MODEL_D3D9CLIENT: {
-        const d3d9client_params *p = &mat->d9;
-        /* eq. (6): the lit diffuse d times 1 - |lambda| (a constant, formed here as the rasterizer does). */
-        float weight = 1.0f - d3d9client_colour_norm(p->reflect, p->norm);
-        cJSON *dif = jw_obj(w, o, "diffuse");
-        jw_put_vec(w, dif, "color", "materials.d3d.diffuse", v3_scale(d->diffuse, weight));
-        if (p->sun_angle) {
-            const light *ml = scene_main_light(s);
-            if (ml != NULL && ml->kind != LIGHT_SUN && used) {
-                snprintf(what, sizeof what,
-                         "materials[%d] '%s': eq. (8) with a point or spot main light (position-dependent)", mi,
-                         mat->name);
-                if ((rc = cycles_cannot(c, 0, what, "make the first light a sun or turn sun_angle off")) != RC_OK)
-                    return rc;
-            } else if (ml != NULL) {
-                cJSON *sa = jw_obj(w, dif, "sun_angle");
-                jw_put_vec(w, sa, "to_sun", "lights.direction", v3_neg(v3_norm(ml->direction)));
-                jw_put_num(w, sa, "r0", "materials.d9.r0", p->r0);
-                jw_put_num(w, sa, "m", "materials.d9.m", p->m);
-                jw_put_num(w, sa, "p", "materials.d9.p", p->p);
-            }
-        }
-        if (has_env) {
-            cJSON *mir = jw_obj(w, o, "mirror");
-            jw_put_str(w, mir, "kind", "d3d9client");
-            jw_put_vec(w, mir, "lambda", "materials.d9.reflect", p->reflect);
-            jw_put_vec(w, mir, "s", "materials.d9.fresnel_colour", p->fresnel_colour);
-            jw_put_num(w, mir, "r0", "materials.d9.r0", p->r0);
-            jw_put_num(w, mir, "m", "materials.d9.m", p->m);
-            jw_put_num(w, mir, "p", "materials.d9.p", p->p);
-            u->mirror |= used;
-        }
-        if (p->blend) {
-            /* Eq. (7)'s blend: cycles_render.py forms a = max(d_a, |R_tot|) clamped to [0, 1] from
-             * the mirror's colour and the environment along the mirror direction, and mixes a
-             * Transparent BSDF in with weight 1 - a. */
-            d3d9client_norm_weights nw = d3d9client_norm_weights_of(p->norm);
-            cJSON *bl = jw_obj(w, o, "blend");
-            jw_put_num(w, bl, "d_a", "materials.d9.alpha", p->alpha);
-            const double wv[5] = {nw.w_max, nw.w_r, nw.w_g, nw.w_b, nw.w_euclid};
-            static const char *const wk[5] = {"w_max", "w_r", "w_g", "w_b", "w_euclid"};
-            for (int k = 0; k < 5; k++)
-                jw_put_num(w, bl, wk[k], "materials.d9.norm", wv[k]);
-        }
-        break;
+    case MODEL_D3D9CLIENT: rc = cycles_twin_d3d9client(c, w, o, mi, used, u); break;
+    case MODEL_COOK_TORRANCE: rc = cycles_twin_cook_torrance(c, w, o, mi, used, u); break;
     }
-    case MODEL_COOK_TORRANCE: {
-        const ct_params *p = &mat->ct;
-        jw_put_vec(w, jw_obj(w, o, "diffuse"), "color", "materials.albedo", mat->albedo);
-        int lobe = v3_nonzero(p->ks), env_term = p->reflection && has_env;
-        if (lobe && used && env_term) {
-            /* The mirror below needs the world visible to glossy rays, and then the Beckmann lobe
-             * would reflect the environment too (Cycles 3.4 has no light linking); a scene
-             * without an environment (ct_toaster) is the lobe's twin. */
-            snprintf(what, sizeof what,
-                     "materials[%d] '%s': its Beckmann lobe would reflect the environment its mirror term needs", mi,
-                     mat->name);
-            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what,
-                                    "switch the reflection off (cook_torrance reflection: false)")) != RC_OK)
-                return rc;
-            lobe = 0;
-        }
-        if (lobe && used && (p->g != G_SMITH_WALTER || p->f != F_ONE || p->norm != CT_WALTER)) {
-            snprintf(what, sizeof what,
-                     "materials[%d] '%s': Cycles' Beckmann lobe is walter-normalised, Smith-Walter G, F = 1", mi,
-                     mat->name);
-            if ((rc = cycles_cannot(c, RENDERER_TERM_SPECULAR, what, "set ct g smith_walter, f one, norm walter")) !=
-                RC_OK)
-                return rc;
-            lobe = 0;
-        }
-        if (lobe && used && !(p->m > 0.0f && p->m <= 1.0f)) {
-            status_message(c->err, c->errlen,
-                           "%s: materials[%d] '%s': ct m %g outside (0, 1]; Cycles clamps Beckmann alpha to 1, "
-                           "so use m in (0, 1]",
-                           s->path, mi, mat->name, (double)p->m);
-            return RC_ERR_RANGE;
-        }
-        if (lobe) {
-            /* Cycles: alpha = Roughness^2 and alpha is Beckmann's m. */
-            cJSON *gl = jw_obj(w, o, "glossy");
-            jw_put_num(w, gl, "roughness", "materials.ct.m", sqrt((double)p->m));
-            jw_put_vec(w, gl, "color", "materials.ct.ks", p->ks);
-            u->glossy |= used;
-        }
-        if (env_term) {
-            /* CM * Fr: a Glossy Sharp closure sees env(reflect(-V, N)) through the path tracer,
-             * coloured by Fr(N.V) as cooktorrance_reflection_weight picks it (Schlick as
-             * authored: the twin switches keep F for such a material). */
-            if (p->f == F_ONE) {
-                jw_put_str(w, jw_obj(w, o, "mirror"), "kind", "one");
-            } else if (p->f == F_EXACT) {
-                cycles_write_fresnel_of(w, o, "mirror", mat);
-            } else {
-                cJSON *f = jw_obj(w, o, "mirror");
-                jw_put_str(w, f, "kind", "schlick");
-                jw_put_vec(w, f, "f0", "materials.ct.f0", p->f0);
-            }
-            u->mirror |= used;
-        }
-        break;
-    }
-    }
+    if (rc != RC_OK)
+        return rc;
     if (v3_nonzero(d->emissive))
         jw_put_vec(w, o, "emission", "materials.d3d.emissive", d->emissive);
     return used ? cycles_write_textures(c, w, o, mi) : RC_OK;
@@ -688,76 +719,90 @@ static void cycles_write_objects(jw *w, cJSON *objects, const scene *s, const me
     }
 }
 
-rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,
-                           size_t errlen)
+/* The image the job asks for: options over the scene, k x k sub-pixels per pixel. */
+typedef struct {
+    int ss; /* supersample k, at least 1 */
+    int width, height;
+    int samples; /* per sub-pixel */
+    int n_seeds;
+} cycles_job_size;
+
+static rc_status cycles_size(const scene *s, const cycles_options *o, cycles_job_size *z, char *err, size_t errlen)
 {
-    cycles_options defaults = {0};
-    if (o == NULL)
-        o = &defaults;
-    cycles_ctx c = {.s = s, .m = m, .o = o, .err = err, .errlen = errlen};
-    /* agree compares the two validate renders: the same translation. */
-    c.twin = o->role == ROLE_TWIN;
-    if (o->role != ROLE_TWIN && o->role != ROLE_VALIDATE && o->role != ROLE_AGREE) {
-        status_message(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
-        return RC_ERR_RANGE;
-    }
-    int ss = o->supersample > 1 ? o->supersample : 1;
-    int width = (o->width > 0 ? o->width : s->width) * ss;
-    int height = (o->height > 0 ? o->height : s->height) * ss;
+    z->ss = o->supersample > 1 ? o->supersample : 1;
+    z->width = (o->width > 0 ? o->width : s->width) * z->ss;
+    z->height = (o->height > 0 ? o->height : s->height) * z->ss;
     int samples = o->samples > 0 ? o->samples : s->samples;
-    int n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
+    z->n_seeds = o->n_seeds > 0 ? o->n_seeds : 1;
     /* k x k sub-pixels share the pixel's samples: the same count per pixel, rounded up. */
-    samples = (samples + ss * ss - 1) / (ss * ss);
+    z->samples = (samples + z->ss * z->ss - 1) / (z->ss * z->ss);
     /* Blender refuses images smaller than 4 pixels (docs/conventions.md). */
     if (o->supersample < 0 || o->supersample > 16) {
         status_message(err, errlen, "%s: supersample %d: Cycles samples k x k positions for k in 1..16", s->path,
                        o->supersample);
         return RC_ERR_RANGE;
     }
-    if (width < 4 || height < 4 || width > 65536 || height > 65536) {
+    if (z->width < 4 || z->height < 4 || z->width > 65536 || z->height > 65536) {
         status_message(err, errlen, "%s: image %d x %d: Cycles needs 4 to 65536 pixels per side; change width/height",
-                       s->path, width, height);
+                       s->path, z->width, z->height);
         return RC_ERR_RANGE;
     }
-    if (samples < 1 || n_seeds > 64) {
+    if (z->samples < 1 || z->n_seeds > 64) {
         status_message(err, errlen, "%s: samples %d, seeds %d: need samples >= 1 and at most 64 seeds", s->path,
-                       samples, n_seeds);
+                       z->samples, z->n_seeds);
         return RC_ERR_RANGE;
     }
+    return RC_OK;
+}
+
+/* The mesh must be this scene's (mesh_build): arrays present, every index in range, and
+ * vertex colours only where the role can render them. */
+static rc_status cycles_check_mesh(const cycles_ctx *c)
+{
+    const scene *s = c->s;
+    const mesh *m = c->m;
     if (m->n_tris > 0 && (m->tri_object == NULL || m->idx == NULL || m->pos == NULL || m->nrm == NULL)) {
-        status_message(err, errlen, "%s: mesh arrays missing; build the mesh with mesh_build", s->path);
+        status_message(c->err, c->errlen, "%s: mesh arrays missing; build the mesh with mesh_build", s->path);
         return RC_ERR_RANGE;
     }
     for (int t = 0; t < m->n_tris; t++) {
         if (m->tri_object[t] < 0 || m->tri_object[t] >= s->n_objects) {
-            status_message(err, errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path, t,
-                           m->tri_object[t], s->n_objects);
+            status_message(c->err, c->errlen, "%s: mesh triangle %d names object %d of %d; rebuild the mesh", s->path,
+                           t, m->tri_object[t], s->n_objects);
             return RC_ERR_RANGE;
         }
         for (int k = 0; k < 3; k++)
             if (m->idx[3 * t + k] >= (uint32_t)m->n_verts) {
-                status_message(err, errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path, t,
-                               m->idx[3 * t + k], m->n_verts);
+                status_message(c->err, c->errlen, "%s: mesh triangle %d has vertex %u of %d; rebuild the mesh", s->path,
+                               t, m->idx[3 * t + k], m->n_verts);
                 return RC_ERR_RANGE;
             }
     }
     for (int mi = 0; mi < s->n_materials; mi++)
-        if (mesh_material_vertex_coloured(s, m, mi) && !cycles_vertex_diffuse(s, m, mi, c.twin)) {
-            status_message(err, errlen, "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex): %s; %s",
+        if (mesh_material_vertex_coloured(s, m, mi) && !cycles_vertex_diffuse(s, m, mi, c->twin)) {
+            status_message(c->err, c->errlen, "%s: materials[%d] '%s': D3D vertex colours (d3d.colour_vertex): %s; %s",
                            s->path, mi, s->materials[mi].name,
-                           c.twin ? "Cycles' twin takes the diffuse colour alone from the vertex (diffuse_source "
-                                    "colour1)"
-                                  : "a validate renders the physics, which has no vertex colours",
-                           c.twin ? "select the material for the others" : "set colour_vertex false");
+                           c->twin ? "Cycles' twin takes the diffuse colour alone from the vertex (diffuse_source "
+                                     "colour1)"
+                                   : "a validate renders the physics, which has no vertex colours",
+                           c->twin ? "select the material for the others" : "set colour_vertex false");
             return RC_ERR_RANGE;
         }
+    return RC_OK;
+}
+
+/* Every light Cycles can render, the physics a validate asks for, and no D3D light ambient La
+ * on a used material's Va in a twin. */
+static rc_status cycles_check_lights(cycles_ctx *c)
+{
+    const scene *s = c->s;
     rc_status rc;
     for (int i = 0; i < s->n_lights; i++)
-        if ((rc = cycles_check_light(&c, i)) != RC_OK)
+        if ((rc = cycles_check_light(c, i)) != RC_OK)
             return rc;
-    if (!c.twin && (rc = renderer_physics_check(cycles_physics, s, err, errlen)) != RC_OK)
+    if (!c->twin && (rc = renderer_physics_check(cycles_physics, s, c->err, c->errlen)) != RC_OK)
         return rc;
-    if (c.twin) {
+    if (c->twin) {
         char what[160];
         for (int i = 0; i < s->n_lights; i++) {
             int any_va = 0;
@@ -766,13 +811,19 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
                           v3_nonzero(s->materials[mi].d3d.ambient);
             if (v3_nonzero(s->lights[i].ambient) && any_va) {
                 snprintf(what, sizeof what, "lights[%d]: D3D light ambient La", i);
-                if ((rc = cycles_cannot(&c, 0, what, "set the light ambient to 0")) != RC_OK)
+                if ((rc = cycles_cannot(c, 0, what, "set the light ambient to 0")) != RC_OK)
                     return rc;
             }
         }
     }
+    return RC_OK;
+}
 
-    char env_path[PATH_MAX] = "";
+/* The environment image's absolute path for Blender (env_path, PATH_MAX bytes; "" without an
+ * image); a cube map is refused: Blender takes its equirectangular conversion. */
+static rc_status cycles_env_path(const scene *s, char *env_path, char *err, size_t errlen)
+{
+    env_path[0] = '\0';
     if (s->env.kind == ENV_CUBE) {
         status_message(err, errlen,
                        "%s: environment: a cube map reaches Blender as its equirectangular conversion, which "
@@ -788,110 +839,171 @@ rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *
             return RC_ERR_IO;
         }
     }
+    return RC_OK;
+}
 
-    jw w = {0};
-    cJSON *doc = cJSON_CreateObject();
-    jw_put_str(&w, doc, "format", "reflcheck-cycles-job");
-    jw_put_int(&w, doc, "version", 1);
-    jw_put_str(&w, doc, "scene", s->name);
-    jw_put_str(&w, doc, "scene_path", s->path);
+/* The job's identity and image: format, scene, role, size, samples, filter and seeds. */
+static void cycles_write_header(jw *w, cJSON *doc, const cycles_ctx *c, const cycles_job_size *z)
+{
+    const scene *s = c->s;
+    jw_put_str(w, doc, "format", "reflcheck-cycles-job");
+    jw_put_int(w, doc, "version", 1);
+    jw_put_str(w, doc, "scene", s->name);
+    jw_put_str(w, doc, "scene_path", s->path);
     char hash[24];
     snprintf(hash, sizeof hash, "%016llx", (unsigned long long)s->hash);
-    jw_put_str(&w, doc, "scene_hash", hash);
-    jw_put_str(&w, doc, "role", c.twin ? "twin" : "validate");
-    jw_put_int(&w, doc, "width", width);
-    jw_put_int(&w, doc, "height", height);
-    jw_put_int(&w, doc, "samples", samples);
+    jw_put_str(w, doc, "scene_hash", hash);
+    jw_put_str(w, doc, "role", c->twin ? "twin" : "validate");
+    jw_put_int(w, doc, "width", z->width);
+    jw_put_int(w, doc, "height", z->height);
+    jw_put_int(w, doc, "samples", z->samples);
     /* A point per sub-pixel: Blender's narrowest filter (0.01 sub-pixel, a Gaussian: it ignores
      * a box's width) spreads the samples over 1 % of the 1/k spacing of the positions. */
-    jw_put_num(&w, doc, "filter_width", "filter_width", ss > 1 ? 0.01 : 1.0);
-    jw_put_int(&w, doc, "supersample", ss);
-    cJSON *seeds = jw_arr(&w, doc, "seeds");
-    for (int i = 0; i < n_seeds; i++)
-        jw_push(&w, seeds, cJSON_CreateNumber(o->seed + (unsigned)i));
+    jw_put_num(w, doc, "filter_width", "filter_width", z->ss > 1 ? 0.01 : 1.0);
+    jw_put_int(w, doc, "supersample", z->ss);
+    cJSON *seeds = jw_arr(w, doc, "seeds");
+    for (int i = 0; i < z->n_seeds; i++)
+        jw_push(w, seeds, cJSON_CreateNumber(c->o->seed + (unsigned)i));
+}
 
+static void cycles_write_camera(jw *w, cJSON *doc, const scene *s, const mesh *m)
+{
     /* Camera rays start at clip_start: keep it far below any scene distance. */
     double far = cycles_max_dist(m, s->camera.eye);
-    cJSON *cam = jw_obj(&w, doc, "camera");
-    jw_put_vec(&w, cam, "eye", "camera.eye", s->camera.eye);
-    jw_put_vec(&w, cam, "target", "camera.target", s->camera.target);
-    jw_put_vec(&w, cam, "up", "camera.up", s->camera.up);
-    jw_put_num(&w, cam, "hfov", "camera.hfov", s->camera.hfov);
-    jw_put_num(&w, cam, "clip_start", "camera.clip_start", fmax(1e-6, 1e-5 * far));
-    jw_put_num(&w, cam, "clip_end", "camera.clip_end", fmax(1.0, 4.0 * far));
-    cJSON *lights = jw_arr(&w, doc, "lights");
-    for (int i = 0; i < s->n_lights; i++)
-        cycles_write_light(&w, lights, &s->lights[i]);
-    /* The physics (validate): which closures each lamp lights, shadows, inter-reflection and
-     * bounces. A twin computes the model: every lamp on every closure, nothing else. */
-    const physics *ph = &s->physics;
-    cJSON *phj = jw_obj(&w, doc, "physics");
-    cJSON *lv = jw_arr(&w, phj, "light_visibility");
-    for (int i = 0; i < s->n_lights; i++) {
-        cJSON *e = jw_obj(&w, lv, NULL);
-        jw_put_bool(&w, e, "diffuse", c.twin || (ph->diffuse_lights & (1u << i)) != 0);
-        jw_put_bool(&w, e, "glossy", c.twin || (ph->specular_lights & (1u << i)) != 0);
-    }
-    jw_put_bool(&w, phj, "shadows", !c.twin && ph->shadows);
-    jw_put_bool(&w, phj, "interreflection", !c.twin && ph->interreflection);
-    jw_put_int(&w, phj, "bounces", c.twin ? 1 : ph->bounces);
-    cJSON *env = jw_obj(&w, doc, "environment");
-    switch (s->env.kind) {
-    case ENV_NONE: jw_put_str(&w, env, "type", "none"); break;
-    case ENV_CONSTANT:
-        jw_put_str(&w, env, "type", "constant");
-        jw_put_vec(&w, env, "radiance", "environment.radiance", s->env.radiance);
-        break;
-    case ENV_CUBE: /* refused above */
-    case ENV_IMAGE:
-        jw_put_str(&w, env, "type", "image");
-        jw_put_str(&w, env, "path", env_path);
-        jw_put_vec(&w, env, "scale", "environment.radiance", s->env.radiance);
-        break;
-    }
-    cJSON *materials = jw_arr(&w, doc, "materials");
-    cycles_usage u = {0};
-    for (int mi = 0; mi < s->n_materials; mi++) {
-        if ((rc = cycles_write_material(&c, &w, materials, mi, &u)) != RC_OK) {
-            cJSON_Delete(doc);
-            return rc;
-        }
-    }
+    cJSON *cam = jw_obj(w, doc, "camera");
+    jw_put_vec(w, cam, "eye", "camera.eye", s->camera.eye);
+    jw_put_vec(w, cam, "target", "camera.target", s->camera.target);
+    jw_put_vec(w, cam, "up", "camera.up", s->camera.up);
+    jw_put_num(w, cam, "hfov", "camera.hfov", s->camera.hfov);
+    jw_put_num(w, cam, "clip_start", "camera.clip_start", fmax(1e-6, 1e-5 * far));
+    jw_put_num(w, cam, "clip_end", "camera.clip_end", fmax(1.0, 4.0 * far));
+}
 
+/* The physics (validate): which closures each lamp lights, shadows, inter-reflection and
+ * bounces. A twin computes the model: every lamp on every closure, nothing else. */
+static void cycles_write_physics(jw *w, cJSON *doc, const scene *s, int twin)
+{
+    const physics *ph = &s->physics;
+    cJSON *phj = jw_obj(w, doc, "physics");
+    cJSON *lv = jw_arr(w, phj, "light_visibility");
+    for (int i = 0; i < s->n_lights; i++) {
+        cJSON *e = jw_obj(w, lv, NULL);
+        jw_put_bool(w, e, "diffuse", twin || (ph->diffuse_lights & (1u << i)) != 0);
+        jw_put_bool(w, e, "glossy", twin || (ph->specular_lights & (1u << i)) != 0);
+    }
+    jw_put_bool(w, phj, "shadows", !twin && ph->shadows);
+    jw_put_bool(w, phj, "interreflection", !twin && ph->interreflection);
+    jw_put_int(w, phj, "bounces", twin ? 1 : ph->bounces);
+}
+
+static void cycles_write_environment(jw *w, cJSON *doc, const scene *s, const char *env_path)
+{
+    cJSON *env = jw_obj(w, doc, "environment");
+    switch (s->env.kind) {
+    case ENV_NONE: jw_put_str(w, env, "type", "none"); break;
+    case ENV_CONSTANT:
+        jw_put_str(w, env, "type", "constant");
+        jw_put_vec(w, env, "radiance", "environment.radiance", s->env.radiance);
+        break;
+    case ENV_CUBE: /* refused by cycles_env_path */
+    case ENV_IMAGE:
+        jw_put_str(w, env, "type", "image");
+        jw_put_str(w, env, "path", env_path);
+        jw_put_vec(w, env, "scale", "environment.radiance", s->env.radiance);
+        break;
+    }
+}
+
+/* Which rays see the world, the AOV the glossy passes go to, and the terms left out. */
+static rc_status cycles_write_world(jw *w, cJSON *doc, const cycles_ctx *c, const cycles_usage *u)
+{
+    const scene *s = c->s;
+    const physics *ph = &s->physics;
     /* Glossy passes hold every glossy closure: they can be routed to one AOV only. A Beckmann
      * lobe also sees the environment whenever a mirror needs the world visible to glossy rays. */
-    if (c.twin && u.mirror && u.glossy) {
-        cJSON_Delete(doc);
-        status_message(err, errlen,
+    if (c->twin && u->mirror && u->glossy) {
+        status_message(c->err, c->errlen,
                        "%s: a Cycles twin cannot separate a Cook-Torrance lobe (specular) from a D3D9Client mirror "
                        "(reflection) under one environment; put the materials of model cook_torrance and those of "
                        "model d3d9client in separate scenes",
                        s->path);
         return RC_ERR_RANGE;
     }
-    int world_diffuse = !c.twin && ph->env_diffuse, world_glossy = c.twin ? u.mirror : ph->env_specular;
+    int world_diffuse = !c->twin && ph->env_diffuse, world_glossy = c->twin ? u->mirror : ph->env_specular;
     /* Light-sampling the world only helps closures that sample lights: diffuse and Beckmann,
      * not a mirror. Skipping it saves the importance map (~1.7 s for a 1024 x 512 image). */
-    int world_sampled = s->env.kind != ENV_NONE && (world_diffuse || (world_glossy && u.glossy));
-    cJSON *vis = jw_obj(&w, doc, "world_visibility");
-    jw_put_bool(&w, vis, "diffuse", world_diffuse);
-    jw_put_bool(&w, vis, "glossy", world_glossy);
-    jw_put_bool(&w, vis, "light_sampling", world_sampled);
-    jw_put_str(&w, doc, "glossy_aov", u.mirror ? "reflection" : "specular");
-    cJSON *missing = jw_arr(&w, doc, "missing");
-    for (int i = 0; i < c.n_missing; i++)
-        jw_push(&w, missing, cJSON_CreateString(c.missing[i]));
-    cJSON *objects = jw_arr(&w, doc, "objects");
+    int world_sampled = s->env.kind != ENV_NONE && (world_diffuse || (world_glossy && u->glossy));
+    cJSON *vis = jw_obj(w, doc, "world_visibility");
+    jw_put_bool(w, vis, "diffuse", world_diffuse);
+    jw_put_bool(w, vis, "glossy", world_glossy);
+    jw_put_bool(w, vis, "light_sampling", world_sampled);
+    jw_put_str(w, doc, "glossy_aov", u->mirror ? "reflection" : "specular");
+    cJSON *missing = jw_arr(w, doc, "missing");
+    for (int i = 0; i < c->n_missing; i++)
+        jw_push(w, missing, cJSON_CreateString(c->missing[i]));
+    return RC_OK;
+}
+
+/* The whole document after the checks: every section in the job's order. */
+static rc_status cycles_write_doc(jw *w, cJSON *doc, cycles_ctx *c, const cycles_job_size *z, const char *env_path,
+                                  const char *job_json_path)
+{
+    const scene *s = c->s;
+    const mesh *m = c->m;
+    rc_status rc;
+    cycles_write_header(w, doc, c, z);
+    cycles_write_camera(w, doc, s, m);
+    cJSON *lights = jw_arr(w, doc, "lights");
+    for (int i = 0; i < s->n_lights; i++)
+        cycles_write_light(w, lights, &s->lights[i]);
+    cycles_write_physics(w, doc, s, c->twin);
+    cycles_write_environment(w, doc, s, env_path);
+    cJSON *materials = jw_arr(w, doc, "materials");
+    cycles_usage u = {0};
+    for (int mi = 0; mi < s->n_materials; mi++)
+        if ((rc = cycles_write_material(c, w, materials, mi, &u)) != RC_OK)
+            return rc;
+    if ((rc = cycles_write_world(w, doc, c, &u)) != RC_OK)
+        return rc;
+    cJSON *objects = jw_arr(w, doc, "objects");
     int *remap = malloc(sizeof(int) * 2 * (size_t)(m->n_verts > 0 ? m->n_verts : 1));
     if (remap == NULL) {
-        cJSON_Delete(doc);
-        status_message(err, errlen, "%s: out of memory for the vertex map", job_json_path);
+        status_message(c->err, c->errlen, "%s: out of memory for the vertex map", job_json_path);
         return RC_ERR_NOMEM;
     }
     for (int i = 0; i < m->n_verts; i++)
         remap[i] = -1;
-    cycles_write_objects(&w, objects, s, m, remap, c.twin);
+    cycles_write_objects(w, objects, s, m, remap, c->twin);
     free(remap);
+    return RC_OK;
+}
+
+rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,
+                           size_t errlen)
+{
+    cycles_options defaults = {0};
+    if (o == NULL)
+        o = &defaults;
+    cycles_ctx c = {.s = s, .m = m, .o = o, .err = err, .errlen = errlen};
+    /* agree compares the two validate renders: the same translation. */
+    c.twin = o->role == ROLE_TWIN;
+    if (o->role != ROLE_TWIN && o->role != ROLE_VALIDATE && o->role != ROLE_AGREE) {
+        status_message(err, errlen, "cycles: options.role %d unknown; use twin, validate or agree", (int)o->role);
+        return RC_ERR_RANGE;
+    }
+    cycles_job_size z;
+    rc_status rc;
+    char env_path[PATH_MAX];
+    if ((rc = cycles_size(s, o, &z, err, errlen)) != RC_OK || (rc = cycles_check_mesh(&c)) != RC_OK ||
+        (rc = cycles_check_lights(&c)) != RC_OK || (rc = cycles_env_path(s, env_path, err, errlen)) != RC_OK)
+        return rc;
+
+    jw w = {0};
+    cJSON *doc = cJSON_CreateObject();
+    if ((rc = cycles_write_doc(&w, doc, &c, &z, env_path, job_json_path)) != RC_OK) {
+        cJSON_Delete(doc);
+        return rc;
+    }
     if (w.bad) {
         cJSON_Delete(doc);
         status_message(err, errlen, "%s: %s is NaN or infinite; fix the scene value", s->path, w.bad_key);
@@ -1010,6 +1122,129 @@ static double cycles_block_mean(const float *plane, int w, size_t first, int k)
     return sum / ((double)k * k);
 }
 
+/* The seed images OUT.cyc<i>.exr (img[0..n-1], *loaded of them read) and, in src, each
+ * layout channel of each; the first error stops. */
+static rc_status cycles_collect_load(const char *out_exr_path, int n, exr_image *img, int *loaded,
+                                     const float *src[][CYCLES_LAYOUT_N], char *err, size_t errlen)
+{
+    char path[PATH_MAX], raw[64];
+    rc_status rc = RC_OK;
+    for (int i = 0; i < n && rc == RC_OK; i++) {
+        if (cycles_raw_path(out_exr_path, i, path, sizeof path) != RC_OK) {
+            status_message(err, errlen, "%s: path too long", out_exr_path);
+            rc = RC_ERR_RANGE;
+            break;
+        }
+        rc = exr_read(path, &img[i], err, errlen);
+        if (rc != RC_OK)
+            break;
+        (*loaded)++;
+        if (img[i].width != img[0].width || img[i].height != img[0].height) {
+            status_message(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
+                           img[i].height, img[0].width, img[0].height);
+            rc = RC_ERR_PARSE;
+        }
+    }
+    for (int i = 0; i < *loaded && rc == RC_OK; i++)
+        for (int k = 0; k < CYCLES_LAYOUT_N && rc == RC_OK; k++) {
+            cycles_channel_name(cycles_layout[k].aov, cycles_layout[k].c, raw, sizeof raw);
+            src[i][k] = exr_image_channel(&img[i], raw);
+            if (src[i][k] == NULL) {
+                cycles_raw_path(out_exr_path, i, path, sizeof path);
+                status_message(err, errlen, "%s: channel %s missing; the file is not from cycles_render.py", path, raw);
+                rc = RC_ERR_PARSE;
+            }
+        }
+    return rc;
+}
+
+/* One layout channel k reduced to ow x oh pixels: the mean over the seeds of each k x k block
+ * (mean) and, with n >= 2 seeds, the variance of that mean (var, else NULL). */
+static void cycles_collect_channel(const float *src[][CYCLES_LAYOUT_N], int k, int n, int w_raw, int ss, int ow,
+                                   size_t npix, float *mean, float *var)
+{
+    int is_object = cycles_layout[k].c == 0 && strcmp(cycles_layout[k].aov, "object") == 0;
+    for (size_t p = 0; p < npix; p++) {
+        size_t first = (p / (size_t)ow) * (size_t)ss * (size_t)w_raw + (p % (size_t)ow) * (size_t)ss;
+        if (is_object) {
+            /* An index is not averaged: seed 0's first sample names the object. */
+            mean[p] = src[0][k][first];
+            if (var)
+                var[p] = 0.0f;
+            continue;
+        }
+        double v[64], s1 = 0.0;
+        for (int i = 0; i < n; i++) {
+            v[i] = cycles_block_mean(src[i][k], w_raw, first, ss);
+            s1 += v[i];
+        }
+        double mu = s1 / n, s2 = 0.0;
+        for (int i = 0; i < n; i++)
+            s2 += (v[i] - mu) * (v[i] - mu);
+        mean[p] = (float)mu;
+        /* Variance of the mean: sample variance over the seeds (n - 1 dof) / n. */
+        if (var)
+            var[p] = (float)(s2 / (n - 1) / n);
+    }
+}
+
+/* out.exr: the reduced channels (data: CYCLES_LAYOUT_N means, then as many variances when
+ * n > 1) under reflcheck's names, with the seed count and Blender's timings as attributes. */
+static rc_status cycles_collect_write(const char *out_exr_path, const float *src[][CYCLES_LAYOUT_N], int n, int w_raw,
+                                      int ss, int ow, int oh, float *data, char *err, size_t errlen)
+{
+    size_t npix = (size_t)ow * (size_t)oh;
+    char names[CYCLES_LAYOUT_N][32], vnames[CYCLES_LAYOUT_N][40];
+    exr_channel ch[2 * CYCLES_LAYOUT_N];
+    for (int k = 0; k < CYCLES_LAYOUT_N; k++) {
+        const char *aov = cycles_layout[k].aov;
+        char c = cycles_layout[k].c;
+        if (aov[0] == '\0')
+            snprintf(names[k], sizeof names[k], "%c", c);
+        else if (c == 0)
+            snprintf(names[k], sizeof names[k], "%s", aov);
+        else
+            snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
+        snprintf(vnames[k], sizeof vnames[k], "var.%s", names[k]);
+        float *mean = data + (size_t)k * npix;
+        float *var = n > 1 ? data + (size_t)(CYCLES_LAYOUT_N + k) * npix : NULL;
+        cycles_collect_channel(src, k, n, w_raw, ss, ow, npix, mean, var);
+        ch[k].name = names[k];
+        ch[k].data = mean;
+        if (var) {
+            ch[CYCLES_LAYOUT_N + k].name = vnames[k];
+            ch[CYCLES_LAYOUT_N + k].data = var;
+        }
+    }
+    char tpath[PATH_MAX], seeds[32], build[32] = "", render[32] = "";
+    snprintf(tpath, sizeof tpath, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
+    char *text = fileio_read_all(tpath, NULL);
+    cJSON *timing = text != NULL ? cJSON_Parse(text) : NULL;
+    if (timing != NULL) {
+        snprintf(build, sizeof build, "%.3f", cycles_timing_value(timing, "build_s"));
+        snprintf(render, sizeof render, "%.3f", cycles_timing_value(timing, "render_s"));
+    }
+    cJSON_Delete(timing);
+    free(text);
+    snprintf(seeds, sizeof seeds, "%d", n);
+    exr_attr at[] = {{"reflcheck.renderer", "cycles"},
+                     {"reflcheck.cycles_seeds", seeds},
+                     {"reflcheck.cycles_build_s", build},
+                     {"reflcheck.cycles_render_s", render}};
+    return exr_write(out_exr_path, ow, oh, ch, n > 1 ? 2 * CYCLES_LAYOUT_N : CYCLES_LAYOUT_N, at, 4, err, errlen);
+}
+
+/* Removes the n seed images and the timing file beside out.exr. */
+static void cycles_collect_remove_raw(const char *out_exr_path, int n)
+{
+    char path[PATH_MAX];
+    for (int i = 0; i < n; i++)
+        if (cycles_raw_path(out_exr_path, i, path, sizeof path) == RC_OK)
+            remove(path);
+    snprintf(path, sizeof path, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
+    remove(path);
+}
+
 rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char *err, size_t errlen)
 {
     cycles_options defaults = {0};
@@ -1022,38 +1257,10 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
     }
     exr_image img[64];
     memset(img, 0, sizeof img);
-    char path[PATH_MAX];
-    rc_status rc = RC_OK;
     int loaded = 0;
     float *data = NULL;
-    for (int i = 0; i < n && rc == RC_OK; i++) {
-        if (cycles_raw_path(out_exr_path, i, path, sizeof path) != RC_OK) {
-            status_message(err, errlen, "%s: path too long", out_exr_path);
-            rc = RC_ERR_RANGE;
-            break;
-        }
-        rc = exr_read(path, &img[i], err, errlen);
-        if (rc != RC_OK)
-            break;
-        loaded++;
-        if (img[i].width != img[0].width || img[i].height != img[0].height) {
-            status_message(err, errlen, "%s: %d x %d differs from seed 0's %d x %d; render again", path, img[i].width,
-                           img[i].height, img[0].width, img[0].height);
-            rc = RC_ERR_PARSE;
-        }
-    }
     const float *src[64][CYCLES_LAYOUT_N];
-    char raw[64];
-    for (int i = 0; i < loaded && rc == RC_OK; i++)
-        for (int k = 0; k < CYCLES_LAYOUT_N && rc == RC_OK; k++) {
-            cycles_channel_name(cycles_layout[k].aov, cycles_layout[k].c, raw, sizeof raw);
-            src[i][k] = exr_image_channel(&img[i], raw);
-            if (src[i][k] == NULL) {
-                cycles_raw_path(out_exr_path, i, path, sizeof path);
-                status_message(err, errlen, "%s: channel %s missing; the file is not from cycles_render.py", path, raw);
-                rc = RC_ERR_PARSE;
-            }
-        }
+    rc_status rc = cycles_collect_load(out_exr_path, n, img, &loaded, src, err, errlen);
     int nch = n > 1 ? 2 * CYCLES_LAYOUT_N : CYCLES_LAYOUT_N;
     int ss = o->supersample > 1 ? o->supersample : 1;
     if (rc == RC_OK && (img[0].width % ss != 0 || img[0].height % ss != 0)) {
@@ -1067,78 +1274,13 @@ rc_status cycles_collect(const cycles_options *o, const char *out_exr_path, char
         status_message(err, errlen, "%s: out of memory", out_exr_path);
         rc = RC_ERR_NOMEM;
     }
-    if (rc == RC_OK) {
-        char names[CYCLES_LAYOUT_N][32], vnames[CYCLES_LAYOUT_N][40];
-        exr_channel ch[2 * CYCLES_LAYOUT_N];
-        for (int k = 0; k < CYCLES_LAYOUT_N; k++) {
-            const char *aov = cycles_layout[k].aov;
-            char c = cycles_layout[k].c;
-            if (aov[0] == '\0')
-                snprintf(names[k], sizeof names[k], "%c", c);
-            else if (c == 0)
-                snprintf(names[k], sizeof names[k], "%s", aov);
-            else
-                snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
-            snprintf(vnames[k], sizeof vnames[k], "var.%s", names[k]);
-            float *mean = data + (size_t)k * npix;
-            float *var = n > 1 ? data + (size_t)(CYCLES_LAYOUT_N + k) * npix : NULL;
-            int is_object = c == 0 && strcmp(aov, "object") == 0;
-            for (size_t p = 0; p < npix; p++) {
-                size_t first = (p / (size_t)ow) * (size_t)ss * (size_t)img[0].width + (p % (size_t)ow) * (size_t)ss;
-                if (is_object) {
-                    /* An index is not averaged: seed 0's first sample names the object. */
-                    mean[p] = src[0][k][first];
-                    if (var)
-                        var[p] = 0.0f;
-                    continue;
-                }
-                double v[64], s1 = 0.0;
-                for (int i = 0; i < n; i++) {
-                    v[i] = cycles_block_mean(src[i][k], img[0].width, first, ss);
-                    s1 += v[i];
-                }
-                double mu = s1 / n, s2 = 0.0;
-                for (int i = 0; i < n; i++)
-                    s2 += (v[i] - mu) * (v[i] - mu);
-                mean[p] = (float)mu;
-                /* Variance of the mean: sample variance over the seeds (n - 1 dof) / n. */
-                if (var)
-                    var[p] = (float)(s2 / (n - 1) / n);
-            }
-            ch[k].name = names[k];
-            ch[k].data = mean;
-            if (var) {
-                ch[CYCLES_LAYOUT_N + k].name = vnames[k];
-                ch[CYCLES_LAYOUT_N + k].data = var;
-            }
-        }
-        char tpath[PATH_MAX], seeds[32], build[32] = "", render[32] = "";
-        snprintf(tpath, sizeof tpath, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
-        char *text = fileio_read_all(tpath, NULL);
-        cJSON *timing = text != NULL ? cJSON_Parse(text) : NULL;
-        if (timing != NULL) {
-            snprintf(build, sizeof build, "%.3f", cycles_timing_value(timing, "build_s"));
-            snprintf(render, sizeof render, "%.3f", cycles_timing_value(timing, "render_s"));
-        }
-        cJSON_Delete(timing);
-        free(text);
-        snprintf(seeds, sizeof seeds, "%d", n);
-        exr_attr at[] = {{"reflcheck.renderer", "cycles"},
-                         {"reflcheck.cycles_seeds", seeds},
-                         {"reflcheck.cycles_build_s", build},
-                         {"reflcheck.cycles_render_s", render}};
-        rc = exr_write(out_exr_path, ow, oh, ch, nch, at, 4, err, errlen);
-    }
+    if (rc == RC_OK)
+        rc = cycles_collect_write(out_exr_path, src, n, img[0].width, ss, ow, oh, data, err, errlen);
     free(data);
     for (int i = 0; i < loaded; i++)
         exr_image_free(&img[i]);
-    if (rc == RC_OK && !o->keep_raw) {
-        for (int i = 0; i < n; i++)
-            if (cycles_raw_path(out_exr_path, i, path, sizeof path) == RC_OK)
-                remove(path);
-        snprintf(path, sizeof path, "%.*s.timing.json", (int)cycles_stem_len(out_exr_path), out_exr_path);
-        remove(path);
-    }
+    if (rc == RC_OK && !o->keep_raw)
+        cycles_collect_remove_raw(out_exr_path, n);
     return rc;
 }
 
