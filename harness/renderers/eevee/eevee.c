@@ -201,21 +201,19 @@ static void eevee_log_line(const char *log, const char *prefix, char *buf, size_
         fclose(f);
 }
 
-void eevee_render_job(const renderer_job *j, renderer_result *r)
+/* What EEVEE cannot render at all: no xvfb-run, a twin or physics it has no translation for,
+ * D3D vertex colours. 1 with r failed, else 0. */
+static int eevee_refused(const renderer_job *j, const char *xvfb, renderer_result *r)
 {
-    eevee_options o = {0};
-    if (j->options != NULL)
-        o = *(const eevee_options *)j->options;
-    const char *xvfb = o.xvfb_run ? o.xvfb_run : "xvfb-run";
-    char where[PATH_MAX], why[600], err[1024], job[1100];
+    char where[PATH_MAX], why[600];
     if (!runner_which(xvfb, where, sizeof where)) {
         renderer_fail(r, RUNNER_MISSING, "%s is not installed: EEVEE needs a display; install it with: %s", xvfb,
                       EEVEE_INSTALL);
-        return;
+        return 1;
     }
     if (j->role == ROLE_TWIN && eevee_twin_refused(j->s, why, sizeof why)) {
         renderer_fail(r, RUNNER_MISSING, "eevee cannot twin this scene: %s", why);
-        return;
+        return 1;
     }
     for (int mi = 0; mi < j->s->n_materials; mi++)
         if (mesh_material_vertex_coloured(j->s, j->m, mi)) {
@@ -224,25 +222,32 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
                           "eevee cannot represent this scene: materials[%d] '%s': D3D vertex colours "
                           "(d3d.colour_vertex) are not translated to EEVEE; set colour_vertex false",
                           mi, j->s->materials[mi].name);
-            return;
+            return 1;
         }
     if (j->role != ROLE_TWIN && eevee_physics_refused(j->s, why, sizeof why)) {
         renderer_fail(r, RUNNER_MISSING, "eevee cannot render this scene's physics: %s", why);
-        return;
+        return 1;
     }
+    return 0;
+}
+
+/* The scene as Cycles' job file (job, in j->dir): 1 written, else 0 with r failed. */
+static int eevee_write_job(const renderer_job *j, const eevee_options *o, const char *job, renderer_result *r)
+{
+    char err[1024];
     /* Agree: EEVEE renders the physical material, as against Cycles; the other side (our
      * model) is the second approximation of it. image.samples auto (0) sizes Cycles' noise;
      * EEVEE's TAA is no noise, so it takes its most. */
-    cycles_options co = {
-        .role = j->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE,
-        .samples = o.samples > 0 ? o.samples
+    cycles_options co = {.role = j->role == ROLE_TWIN ? ROLE_TWIN : ROLE_VALIDATE,
+                         .samples =
+                             o->samples > 0
+                                 ? o->samples
                                  : (j->s->samples > 0 && j->s->samples < EEVEE_TAA_MAX ? j->s->samples : EEVEE_TAA_MAX),
-        .n_seeds = 1,
-        .width = o.width,
-        .height = o.height,
-        .partial = j->partial,
-        .left_out = r};
-    snprintf(job, sizeof job, "%s/job.json", j->dir);
+                         .n_seeds = 1,
+                         .width = o->width,
+                         .height = o->height,
+                         .partial = j->partial,
+                         .left_out = r};
     rc_status st = cycles_write_job(j->s, j->m, &co, job, err, sizeof err);
     if (st != RC_OK) {
         r->left_out = 0;
@@ -250,47 +255,67 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
             renderer_fail(r, RUNNER_MISSING, "eevee cannot represent this scene: %s", err);
         else
             renderer_fail(r, RUNNER_ERROR, "cannot write the EEVEE job: %s", err);
-        return;
+        return 0;
     }
+    return 1;
+}
+
+/* The command line and the strings it points into. */
+typedef struct {
+    const char *argv[24];
+    char display[32], threads[48], script[PATH_MAX];
+} eevee_argv;
+
+/* xvfb-run [env LP_NUM_THREADS=n] blender -b ... -P eevee_render.py -- JOB OUT: 1 built, else
+ * 0 with r failed (the script missing). */
+static int eevee_command(const renderer_job *j, const eevee_options *o, const char *xvfb, const char *job,
+                         eevee_argv *a, renderer_result *r)
+{
     /* xvfb-run -a searches upwards from -n for a free display: starting from a number of our
      * own keeps two jobs started at once (make -j2) from racing for the same one. */
-    char display[32], threads[48];
-    snprintf(display, sizeof display, "%d", 100 + (int)(getpid() % 800));
-    const char *argv[24];
+    snprintf(a->display, sizeof a->display, "%d", 100 + (int)(getpid() % 800));
     int n = 0;
-    argv[n++] = xvfb;
-    argv[n++] = "-a";
-    argv[n++] = "-n";
-    argv[n++] = display;
-    argv[n++] = "-s";
-    argv[n++] = "-screen 0 640x480x24";
+    a->argv[n++] = xvfb;
+    a->argv[n++] = "-a";
+    a->argv[n++] = "-n";
+    a->argv[n++] = a->display;
+    a->argv[n++] = "-s";
+    a->argv[n++] = "-screen 0 640x480x24";
     if (j->threads > 0) {
         /* llvmpipe draws with LP_NUM_THREADS threads, unset one per core (0 would mean none). */
-        snprintf(threads, sizeof threads, "LP_NUM_THREADS=%d", j->threads);
-        argv[n++] = "env";
-        argv[n++] = threads;
+        snprintf(a->threads, sizeof a->threads, "LP_NUM_THREADS=%d", j->threads);
+        a->argv[n++] = "env";
+        a->argv[n++] = a->threads;
     }
-    argv[n++] = o.blender ? o.blender : "blender";
-    argv[n++] = "-b";
-    argv[n++] = "--factory-startup";
+    a->argv[n++] = o->blender ? o->blender : "blender";
+    a->argv[n++] = "-b";
+    a->argv[n++] = "--factory-startup";
     /* without this a Python exception still exits 0 */
-    argv[n++] = "--python-exit-code";
-    argv[n++] = "1";
-    argv[n++] = "-P";
-    char script[PATH_MAX];
-    if (o.script == NULL && !renderer_data_path("harness/renderers/eevee/eevee_render.py", script, sizeof script)) {
+    a->argv[n++] = "--python-exit-code";
+    a->argv[n++] = "1";
+    a->argv[n++] = "-P";
+    if (o->script == NULL &&
+        !renderer_data_path("harness/renderers/eevee/eevee_render.py", a->script, sizeof a->script)) {
         renderer_fail(r, RUNNER_ERROR, "eevee: %s is missing; set REFLCHECK_DATA_DIR to the reflcheck source tree",
-                      script);
-        return;
+                      a->script);
+        return 0;
     }
-    argv[n++] = o.script ? o.script : script;
-    argv[n++] = "--";
-    argv[n++] = job;
-    argv[n++] = j->exr;
-    argv[n] = NULL;
-    renderer_command_string(argv, r->command, sizeof r->command);
+    a->argv[n++] = o->script ? o->script : a->script;
+    a->argv[n++] = "--";
+    a->argv[n++] = job;
+    a->argv[n++] = j->exr;
+    a->argv[n] = NULL;
+    return 1;
+}
+
+/* Runs the command and collects Blender's image into j->exr; r holds the outcome. 1 when
+ * Blender wrote its image (collected or not), 0 when it did not: the job then stays for a look. */
+static int eevee_run(const renderer_job *j, const eevee_options *o, const eevee_argv *a, renderer_result *r)
+{
+    char err[1024];
+    renderer_command_string(a->argv, r->command, sizeof r->command);
     runner_result rr;
-    runner_exec(argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    runner_exec(a->argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
     r->wall_s = rr.wall_s;
     r->cpu_s = rr.cpu_s;
     if (rr.status != RUNNER_OK) {
@@ -298,21 +323,39 @@ void eevee_render_job(const renderer_job *j, renderer_result *r)
         eevee_log_line(j->log, "xvfb-run: error", line, sizeof line);
         if (line[0] != '\0' && rr.status == RUNNER_FAILED) {
             renderer_fail(r, RUNNER_MISSING, "no display for EEVEE (%s); install Xvfb with: %s", line, EEVEE_INSTALL);
-            return;
+            return 0;
         }
         renderer_fail_run(r, &rr, "blender", "blender", " under xvfb-run", j->log, "error:", j->shown_log);
-        return;
+        return 0;
     }
     char raw[PATH_MAX];
     if (eevee_raw_path(j->exr, raw, sizeof raw) != RC_OK || access(raw, R_OK) != 0) {
         renderer_fail(r, RUNNER_FAILED, "blender under xvfb-run wrote no image %s; see %s", raw,
                       j->shown_log ? j->shown_log : j->log);
-        return;
+        return 0;
     }
-    st = eevee_collect(j->exr, o.keep_raw, err, sizeof err);
+    rc_status st = eevee_collect(j->exr, o->keep_raw, err, sizeof err);
     if (st != RC_OK)
         renderer_fail(r, st == RC_ERR_NOMEM || st == RC_ERR_IO ? RUNNER_ERROR : RUNNER_FAILED, "%s: %s",
                       st == RC_ERR_IO ? "cannot write the EEVEE image" : "eevee output unreadable", err);
-    if (!o.keep_raw)
+    return 1;
+}
+
+void eevee_render_job(const renderer_job *j, renderer_result *r)
+{
+    eevee_options o = {0};
+    if (j->options != NULL)
+        o = *(const eevee_options *)j->options;
+    const char *xvfb = o.xvfb_run ? o.xvfb_run : "xvfb-run";
+    char job[1100];
+    if (eevee_refused(j, xvfb, r))
+        return;
+    snprintf(job, sizeof job, "%s/job.json", j->dir);
+    if (!eevee_write_job(j, &o, job, r))
+        return;
+    eevee_argv a;
+    if (!eevee_command(j, &o, xvfb, job, &a, r))
+        return;
+    if (eevee_run(j, &o, &a, r) && !o.keep_raw)
         remove(job);
 }
