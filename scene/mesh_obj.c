@@ -1,0 +1,280 @@
+/* mesh_obj.c - the Wavefront OBJ reader: v (with an optional r g b colour), vn, vt, f and usemtl
+ * into a polygon soup (mesh_internal.h); every other statement carries nothing we shade with.
+ * Debian 12 ships no C library for OBJ (tinyobjloader is C++), so the reader is here: small and
+ * bounds-checked, on the whole file read into memory (mesh.c).
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_internal.h"
+#include "status.h"
+
+/* OBJ index: 1-based, or negative relative to the count so far. -1 on error. */
+static int mesh_obj_index(long i, int count)
+{
+    if (i > 0 && i <= count)
+        return (int)(i - 1);
+    if (i < 0 && i >= -(long)count) /* not -i <= count: -LONG_MIN overflows */
+        return (int)(count + i);
+    return -1;
+}
+
+static int mesh_parse_doubles(char **cur, double *v, int max)
+{
+    int n = 0;
+    for (;;) {
+        char *s = *cur, *end;
+        while (*s == ' ' || *s == '\t')
+            s++;
+        if (!*s)
+            break;
+        if (n == max)
+            return -1;
+        errno = 0;
+        v[n] = strtod(s, &end);
+        if (end == s || (*end && *end != ' ' && *end != '\t'))
+            return -1;
+        n++;
+        *cur = end;
+    }
+    return n;
+}
+
+/* The message for a 'v' line that is not 'v x y z [w | r g b]': names the first token that is
+ * not a number, or says how many numbers there are. */
+static void mesh_obj_bad_vertex(const char *text, const char *label, int line, char *err, size_t errlen)
+{
+    const char *q = text;
+    while (*q == ' ' || *q == '\t')
+        q++;
+    q++; /* the 'v' */
+    int count = 0;
+    for (;;) {
+        while (*q == ' ' || *q == '\t')
+            q++;
+        if (!*q)
+            break;
+        const char *e = q;
+        while (*e && *e != ' ' && *e != '\t')
+            e++;
+        char tok[40];
+        size_t n = (size_t)(e - q) < sizeof tok - 1 ? (size_t)(e - q) : sizeof tok - 1;
+        memcpy(tok, q, n);
+        tok[n] = '\0';
+        char *end;
+        strtod(tok, &end);
+        if (end == tok || *end) {
+            status_message(err, errlen, "%s:%d: bad vertex: '%s' is not a number; fix: write 'v x y z' with 3 numbers",
+                           label, line, tok);
+            return;
+        }
+        count++;
+        q = e;
+    }
+    status_message(err, errlen, "%s:%d: bad vertex: %d numbers; fix: write 'v x y z' (optionally w, or r g b)", label,
+                   line, count);
+}
+
+/* A byte-order mark: UTF-8's is skipped (the text after it is plain OBJ); UTF-16 and UTF-32
+ * text is refused by name. Returns the bytes to skip, or -1 (message in err). */
+static int mesh_obj_bom(const char *buf, size_t len, const char *label, char *err, size_t errlen)
+{
+    const unsigned char *u = (const unsigned char *)buf;
+    if (len >= 3 && u[0] == 0xEF && u[1] == 0xBB && u[2] == 0xBF)
+        return 3;
+    if (len >= 2 && ((u[0] == 0xFE && u[1] == 0xFF) || (u[0] == 0xFF && u[1] == 0xFE))) {
+        status_message(err, errlen,
+                       "%s:1: UTF-16 or UTF-32 text (byte-order mark %02X %02X) is not supported; fix: save "
+                       "the OBJ as UTF-8 or ASCII",
+                       label, u[0], u[1]);
+        return -1;
+    }
+    return 0;
+}
+
+/* `v x y z r g b`: a colour1 (linear RGB as written: OBJ does not say, and the files in use write
+ * 0..1). Every vertex or none: a file that starts colouring halfway is refused at its end. */
+static rc_status mesh_obj_colour(mesh_soup *s, const double *v, int n, const char *label, int line, char *err,
+                                 size_t errlen)
+{
+    if (n != 6)
+        return RC_OK;
+    for (int c = 3; c < 6; c++)
+        if (!(isfinite(v[c]) && v[c] >= 0.0 && v[c] <= 1e30)) {
+            status_message(err, errlen,
+                           "%s:%d: vertex colour %g is not a finite value >= 0; fix: 'v x y z r g b' with "
+                           "r g b >= 0",
+                           label, line, v[c]);
+            return RC_ERR_RANGE;
+        }
+    double c[6] = {v[3], v[4], v[5], 0, 0, 0};
+    return mesh_soup_colour(s, c, 1) ? RC_OK : RC_ERR_NOMEM;
+}
+
+rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
+{
+    int line = 0;
+    int take = s->usemtl == NULL || s->usemtl[0] == '\0'; /* faces are kept (usemtl filter) */
+    char *p = buf, *endbuf = buf + len;
+    int skip = mesh_obj_bom(buf, len, label, err, errlen);
+    if (skip < 0)
+        return RC_ERR_PARSE;
+    p += skip;
+    while (p < endbuf) {
+        char *nl = memchr(p, '\n', (size_t)(endbuf - p));
+        char *le = nl ? nl : endbuf;
+        line++;
+        if (memchr(p, '\0', (size_t)(le - p))) {
+            status_message(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ", label,
+                           line);
+            return RC_ERR_PARSE;
+        }
+        *le = '\0';
+        char *hash = strchr(p, '#');
+        if (hash)
+            *hash = '\0';
+        for (char *q = p; *q; q++)
+            if (*q == '\r')
+                *q = ' ';
+        char *cur = p;
+        while (*cur == ' ' || *cur == '\t')
+            cur++;
+        char *kw = cur;
+        while (*cur && *cur != ' ' && *cur != '\t')
+            cur++;
+        size_t kwlen = (size_t)(cur - kw);
+        double v[8];
+        if (kwlen == 1 && kw[0] == 'v') {
+            int n = mesh_parse_doubles(&cur, v, 7);
+            if (n < 3) {
+                mesh_obj_bad_vertex(p, label, line, err, errlen);
+                return RC_ERR_PARSE;
+            }
+            if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 || fabs(v[1]) > 1e30 ||
+                fabs(v[2]) > 1e30) {
+                status_message(err, errlen,
+                               "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
+                               "finite coordinates",
+                               label, line);
+                return RC_ERR_RANGE;
+            }
+            if (!mesh_soup_pos(s, v))
+                return RC_ERR_NOMEM;
+            rc_status crc = mesh_obj_colour(s, v, n, label, line, err, errlen);
+            if (crc != RC_OK)
+                return crc;
+        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
+            int n = mesh_parse_doubles(&cur, v, 3);
+            if (n != 3) {
+                status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label, line);
+                return RC_ERR_PARSE;
+            }
+            mesh_normal_screen(v);
+            if (!mesh_soup_nrm(s, v))
+                return RC_ERR_NOMEM;
+        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 't') {
+            /* u [v [w]]: a missing v is 0 (the OBJ default); w has no meaning for 2D images. */
+            int n = mesh_parse_doubles(&cur, v, 3);
+            if (n < 1 || !isfinite(v[0]) || (n > 1 && !isfinite(v[1]))) {
+                status_message(err, errlen, "%s:%d: bad texture coordinate; fix: write 'vt u v' with finite numbers",
+                               label, line);
+                return RC_ERR_PARSE;
+            }
+            if (n < 2)
+                v[1] = 0.0;
+            if (!mesh_soup_tex(s, v))
+                return RC_ERR_NOMEM;
+        } else if (kwlen == 6 && strncmp(kw, "usemtl", 6) == 0) {
+            if (s->usemtl != NULL && s->usemtl[0] != '\0') {
+                while (*cur == ' ' || *cur == '\t')
+                    cur++;
+                char *e = cur + strlen(cur);
+                while (e > cur && (e[-1] == ' ' || e[-1] == '\t'))
+                    *--e = '\0';
+                take = strcmp(cur, s->usemtl) == 0;
+            }
+        } else if (kwlen == 1 && kw[0] == 'f' && !take) {
+            /* a face of another material (usemtl filter): not this object's */
+        } else if (kwlen == 1 && kw[0] == 'f') {
+            int corners = 0;
+            for (;;) {
+                while (*cur == ' ' || *cur == '\t')
+                    cur++;
+                if (!*cur)
+                    break;
+                /* strtol saturates an index beyond long at LONG_MAX or LONG_MIN, out of range
+                 * either way; messages quote the corner as written, not the saturated value. */
+                char *e, *corner = cur;
+                long vi = strtol(cur, &e, 10), ni = 0, ti = 0;
+                int ok = e != cur;
+                if (ok && *e == '/') {
+                    cur = e + 1;
+                    if (*cur != '/') {
+                        ti = strtol(cur, &e, 10);
+                        ok = e != cur;
+                    } else {
+                        e = cur;
+                    }
+                    if (ok && *e == '/') {
+                        cur = e + 1;
+                        ni = strtol(cur, &e, 10);
+                        ok = e != cur;
+                    }
+                }
+                if (!ok || (*e && *e != ' ' && *e != '\t')) {
+                    status_message(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn", label,
+                                   line);
+                    return RC_ERR_PARSE;
+                }
+                cur = e;
+                int cn = (int)(e - corner < 60 ? e - corner : 60);
+                int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
+                if (pv < 0) {
+                    status_message(err, errlen,
+                                   "%s:%d: corner '%.*s': vertex index out of range (%d vertices so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, cn, corner, s->n_pos, s->n_pos);
+                    return RC_ERR_RANGE;
+                }
+                if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
+                    status_message(err, errlen,
+                                   "%s:%d: corner '%.*s': normal index out of range (%d normals so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, cn, corner, s->n_nrm, s->n_nrm);
+                    return RC_ERR_RANGE;
+                }
+                int pt = -1;
+                if (ti != 0 && (pt = mesh_obj_index(ti, s->n_tex)) < 0) {
+                    status_message(err, errlen,
+                                   "%s:%d: corner '%.*s': texture coordinate index out of range (%d so far); "
+                                   "fix: indices 1..%d or negative",
+                                   label, line, cn, corner, s->n_tex, s->n_tex);
+                    return RC_ERR_RANGE;
+                }
+                if (!mesh_soup_corner(s, pv, pn))
+                    return RC_ERR_NOMEM;
+                s->ct[s->n_corner - 1] = pt;
+                corners++;
+            }
+            if (corners < 3) {
+                status_message(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line, corners);
+                return RC_ERR_PARSE;
+            }
+            if (!mesh_soup_face(s, line))
+                return RC_ERR_NOMEM;
+        }
+        /* Everything else (o, g, s, mtllib, l, ...) carries nothing we shade with. */
+        p = le + 1;
+    }
+    if (s->col_given > 0 && s->col_given < s->n_pos) {
+        status_message(err, errlen,
+                       "%s: %d of %d vertices carry a colour ('v x y z r g b'); fix: a colour on every vertex "
+                       "or on none",
+                       label, s->col_given, s->n_pos);
+        return RC_ERR_PARSE;
+    }
+    return RC_OK;
+}
