@@ -114,10 +114,198 @@ static rc_status mesh_obj_colour(mesh_soup *s, const double *v, int n, const cha
     return mesh_soup_colour(s, c, 1) ? RC_OK : RC_ERR_NOMEM;
 }
 
+/* The reader's place: the soup it fills, the file and line for messages, the usemtl filter. */
+typedef struct {
+    mesh_soup *s;
+    const char *label;
+    int line;
+    int take; /* faces are kept: no usemtl filter, or the last usemtl named the object's material */
+    char *err;
+    size_t errlen;
+} obj_reader;
+
+/* `v x y z [w | r g b]`; text is the whole line, for the message. */
+static rc_status mesh_obj_v(obj_reader *o, const char *text, char *cur)
+{
+    double v[8];
+    int n = mesh_parse_doubles(&cur, v, 7);
+    if (n < 3) {
+        mesh_obj_bad_vertex(text, o->label, o->line, o->err, o->errlen);
+        return RC_ERR_PARSE;
+    }
+    if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 || fabs(v[1]) > 1e30 ||
+        fabs(v[2]) > 1e30) {
+        status_message(o->err, o->errlen, "%s:%d: vertex coordinate not finite or beyond 1e30; fix: finite coordinates",
+                       o->label, o->line);
+        return RC_ERR_RANGE;
+    }
+    if (!mesh_soup_pos(o->s, v))
+        return RC_ERR_NOMEM;
+    return mesh_obj_colour(o->s, v, n, o->label, o->line, o->err, o->errlen);
+}
+
+/* `vn x y z`. */
+static rc_status mesh_obj_vn(obj_reader *o, char *cur)
+{
+    double v[3];
+    if (mesh_parse_doubles(&cur, v, 3) != 3) {
+        status_message(o->err, o->errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", o->label, o->line);
+        return RC_ERR_PARSE;
+    }
+    mesh_normal_screen(v);
+    return mesh_soup_nrm(o->s, v) ? RC_OK : RC_ERR_NOMEM;
+}
+
+/* `vt u [v [w]]`: a missing v is 0 (the OBJ default); w has no meaning for 2D images. */
+static rc_status mesh_obj_vt(obj_reader *o, char *cur)
+{
+    double v[3];
+    int n = mesh_parse_doubles(&cur, v, 3);
+    if (n < 1 || !isfinite(v[0]) || (n > 1 && !isfinite(v[1]))) {
+        status_message(o->err, o->errlen, "%s:%d: bad texture coordinate; fix: write 'vt u v' with finite numbers",
+                       o->label, o->line);
+        return RC_ERR_PARSE;
+    }
+    if (n < 2)
+        v[1] = 0.0;
+    return mesh_soup_tex(o->s, v) ? RC_OK : RC_ERR_NOMEM;
+}
+
+/* `usemtl name`: the faces after it are kept when name is the object's material (when it has one). */
+static void mesh_obj_usemtl(obj_reader *o, char *cur)
+{
+    const char *want = o->s->usemtl;
+    if (want == NULL || want[0] == '\0')
+        return;
+    while (*cur == ' ' || *cur == '\t')
+        cur++;
+    char *e = cur + strlen(cur);
+    while (e > cur && (e[-1] == ' ' || e[-1] == '\t'))
+        *--e = '\0';
+    o->take = strcmp(cur, want) == 0;
+}
+
+/* One face corner `v`, `v/vt`, `v/vt/vn` or `v//vn` at *cur (moved past it) as soup indices
+ * (-1: none). strtol saturates an index beyond long at LONG_MAX or LONG_MIN, out of range either
+ * way; messages quote the corner as written, not the saturated value. */
+static rc_status mesh_obj_corner(obj_reader *o, char **cur, int *pv, int *pn, int *pt)
+{
+    const mesh_soup *s = o->s;
+    char *e, *corner = *cur;
+    long vi = strtol(*cur, &e, 10), ni = 0, ti = 0;
+    int ok = e != *cur;
+    if (ok && *e == '/') {
+        *cur = e + 1;
+        if (**cur != '/') {
+            ti = strtol(*cur, &e, 10);
+            ok = e != *cur;
+        } else {
+            e = *cur;
+        }
+        if (ok && *e == '/') {
+            *cur = e + 1;
+            ni = strtol(*cur, &e, 10);
+            ok = e != *cur;
+        }
+    }
+    if (!ok || (*e && *e != ' ' && *e != '\t')) {
+        status_message(o->err, o->errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn", o->label,
+                       o->line);
+        return RC_ERR_PARSE;
+    }
+    *cur = e;
+    int cn = (int)(e - corner < 60 ? e - corner : 60);
+    *pn = *pt = -1;
+    if ((*pv = mesh_obj_index(vi, s->n_pos)) < 0) {
+        status_message(o->err, o->errlen,
+                       "%s:%d: corner '%.*s': vertex index out of range (%d vertices so far); "
+                       "fix: indices 1..%d or negative",
+                       o->label, o->line, cn, corner, s->n_pos, s->n_pos);
+        return RC_ERR_RANGE;
+    }
+    if (ni != 0 && (*pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
+        status_message(o->err, o->errlen,
+                       "%s:%d: corner '%.*s': normal index out of range (%d normals so far); "
+                       "fix: indices 1..%d or negative",
+                       o->label, o->line, cn, corner, s->n_nrm, s->n_nrm);
+        return RC_ERR_RANGE;
+    }
+    if (ti != 0 && (*pt = mesh_obj_index(ti, s->n_tex)) < 0) {
+        status_message(o->err, o->errlen,
+                       "%s:%d: corner '%.*s': texture coordinate index out of range (%d so far); "
+                       "fix: indices 1..%d or negative",
+                       o->label, o->line, cn, corner, s->n_tex, s->n_tex);
+        return RC_ERR_RANGE;
+    }
+    return RC_OK;
+}
+
+/* `f c1 c2 c3 ...`: a polygon of at least 3 corners. */
+static rc_status mesh_obj_f(obj_reader *o, char *cur)
+{
+    mesh_soup *s = o->s;
+    int corners = 0;
+    for (;;) {
+        while (*cur == ' ' || *cur == '\t')
+            cur++;
+        if (!*cur)
+            break;
+        int pv, pn, pt;
+        rc_status rc = mesh_obj_corner(o, &cur, &pv, &pn, &pt);
+        if (rc != RC_OK)
+            return rc;
+        if (!mesh_soup_corner(s, pv, pn))
+            return RC_ERR_NOMEM;
+        s->ct[s->n_corner - 1] = pt;
+        corners++;
+    }
+    if (corners < 3) {
+        status_message(o->err, o->errlen, "%s:%d: face with %d corners; fix: at least 3", o->label, o->line, corners);
+        return RC_ERR_PARSE;
+    }
+    return mesh_soup_face(s, o->line) ? RC_OK : RC_ERR_NOMEM;
+}
+
+/* One line, p up to le (the newline or the end): comment and carriage returns cut, then its
+ * statement. Everything but v, vn, vt, usemtl and f (o, g, s, mtllib, l, ...) carries nothing we
+ * shade with. */
+static rc_status mesh_obj_line(obj_reader *o, char *p, char *le)
+{
+    if (memchr(p, '\0', (size_t)(le - p))) {
+        status_message(o->err, o->errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ",
+                       o->label, o->line);
+        return RC_ERR_PARSE;
+    }
+    *le = '\0';
+    char *hash = strchr(p, '#');
+    if (hash)
+        *hash = '\0';
+    for (char *q = p; *q; q++)
+        if (*q == '\r')
+            *q = ' ';
+    char *cur = p;
+    while (*cur == ' ' || *cur == '\t')
+        cur++;
+    char *kw = cur;
+    while (*cur && *cur != ' ' && *cur != '\t')
+        cur++;
+    size_t kwlen = (size_t)(cur - kw);
+    if (kwlen == 1 && kw[0] == 'v')
+        return mesh_obj_v(o, p, cur);
+    if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n')
+        return mesh_obj_vn(o, cur);
+    if (kwlen == 2 && kw[0] == 'v' && kw[1] == 't')
+        return mesh_obj_vt(o, cur);
+    if (kwlen == 6 && strncmp(kw, "usemtl", 6) == 0)
+        mesh_obj_usemtl(o, cur);
+    else if (kwlen == 1 && kw[0] == 'f' && o->take)
+        return mesh_obj_f(o, cur);
+    return RC_OK;
+}
+
 rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s, char *err, size_t errlen)
 {
-    int line = 0;
-    int take = s->usemtl == NULL || s->usemtl[0] == '\0'; /* faces are kept (usemtl filter) */
+    obj_reader o = {s, label, 0, s->usemtl == NULL || s->usemtl[0] == '\0', err, errlen};
     char *p = buf, *endbuf = buf + len;
     int skip = mesh_obj_bom(buf, len, label, err, errlen);
     if (skip < 0)
@@ -126,147 +314,10 @@ rc_status mesh_obj_parse(char *buf, size_t len, const char *label, mesh_soup *s,
     while (p < endbuf) {
         char *nl = memchr(p, '\n', (size_t)(endbuf - p));
         char *le = nl ? nl : endbuf;
-        line++;
-        if (memchr(p, '\0', (size_t)(le - p))) {
-            status_message(err, errlen, "%s:%d: NUL byte: not a text OBJ file; fix: export as Wavefront OBJ", label,
-                           line);
-            return RC_ERR_PARSE;
-        }
-        *le = '\0';
-        char *hash = strchr(p, '#');
-        if (hash)
-            *hash = '\0';
-        for (char *q = p; *q; q++)
-            if (*q == '\r')
-                *q = ' ';
-        char *cur = p;
-        while (*cur == ' ' || *cur == '\t')
-            cur++;
-        char *kw = cur;
-        while (*cur && *cur != ' ' && *cur != '\t')
-            cur++;
-        size_t kwlen = (size_t)(cur - kw);
-        double v[8];
-        if (kwlen == 1 && kw[0] == 'v') {
-            int n = mesh_parse_doubles(&cur, v, 7);
-            if (n < 3) {
-                mesh_obj_bad_vertex(p, label, line, err, errlen);
-                return RC_ERR_PARSE;
-            }
-            if (!isfinite(v[0]) || !isfinite(v[1]) || !isfinite(v[2]) || fabs(v[0]) > 1e30 || fabs(v[1]) > 1e30 ||
-                fabs(v[2]) > 1e30) {
-                status_message(err, errlen,
-                               "%s:%d: vertex coordinate not finite or beyond 1e30; fix: "
-                               "finite coordinates",
-                               label, line);
-                return RC_ERR_RANGE;
-            }
-            if (!mesh_soup_pos(s, v))
-                return RC_ERR_NOMEM;
-            rc_status crc = mesh_obj_colour(s, v, n, label, line, err, errlen);
-            if (crc != RC_OK)
-                return crc;
-        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 'n') {
-            int n = mesh_parse_doubles(&cur, v, 3);
-            if (n != 3) {
-                status_message(err, errlen, "%s:%d: bad normal; fix: write 'vn x y z' with 3 numbers", label, line);
-                return RC_ERR_PARSE;
-            }
-            mesh_normal_screen(v);
-            if (!mesh_soup_nrm(s, v))
-                return RC_ERR_NOMEM;
-        } else if (kwlen == 2 && kw[0] == 'v' && kw[1] == 't') {
-            /* u [v [w]]: a missing v is 0 (the OBJ default); w has no meaning for 2D images. */
-            int n = mesh_parse_doubles(&cur, v, 3);
-            if (n < 1 || !isfinite(v[0]) || (n > 1 && !isfinite(v[1]))) {
-                status_message(err, errlen, "%s:%d: bad texture coordinate; fix: write 'vt u v' with finite numbers",
-                               label, line);
-                return RC_ERR_PARSE;
-            }
-            if (n < 2)
-                v[1] = 0.0;
-            if (!mesh_soup_tex(s, v))
-                return RC_ERR_NOMEM;
-        } else if (kwlen == 6 && strncmp(kw, "usemtl", 6) == 0) {
-            if (s->usemtl != NULL && s->usemtl[0] != '\0') {
-                while (*cur == ' ' || *cur == '\t')
-                    cur++;
-                char *e = cur + strlen(cur);
-                while (e > cur && (e[-1] == ' ' || e[-1] == '\t'))
-                    *--e = '\0';
-                take = strcmp(cur, s->usemtl) == 0;
-            }
-        } else if (kwlen == 1 && kw[0] == 'f' && !take) {
-            /* a face of another material (usemtl filter): not this object's */
-        } else if (kwlen == 1 && kw[0] == 'f') {
-            int corners = 0;
-            for (;;) {
-                while (*cur == ' ' || *cur == '\t')
-                    cur++;
-                if (!*cur)
-                    break;
-                /* strtol saturates an index beyond long at LONG_MAX or LONG_MIN, out of range
-                 * either way; messages quote the corner as written, not the saturated value. */
-                char *e, *corner = cur;
-                long vi = strtol(cur, &e, 10), ni = 0, ti = 0;
-                int ok = e != cur;
-                if (ok && *e == '/') {
-                    cur = e + 1;
-                    if (*cur != '/') {
-                        ti = strtol(cur, &e, 10);
-                        ok = e != cur;
-                    } else {
-                        e = cur;
-                    }
-                    if (ok && *e == '/') {
-                        cur = e + 1;
-                        ni = strtol(cur, &e, 10);
-                        ok = e != cur;
-                    }
-                }
-                if (!ok || (*e && *e != ' ' && *e != '\t')) {
-                    status_message(err, errlen, "%s:%d: bad face corner; fix: use v, v/vt, v/vt/vn or v//vn", label,
-                                   line);
-                    return RC_ERR_PARSE;
-                }
-                cur = e;
-                int cn = (int)(e - corner < 60 ? e - corner : 60);
-                int pv = mesh_obj_index(vi, s->n_pos), pn = -1;
-                if (pv < 0) {
-                    status_message(err, errlen,
-                                   "%s:%d: corner '%.*s': vertex index out of range (%d vertices so far); "
-                                   "fix: indices 1..%d or negative",
-                                   label, line, cn, corner, s->n_pos, s->n_pos);
-                    return RC_ERR_RANGE;
-                }
-                if (ni != 0 && (pn = mesh_obj_index(ni, s->n_nrm)) < 0) {
-                    status_message(err, errlen,
-                                   "%s:%d: corner '%.*s': normal index out of range (%d normals so far); "
-                                   "fix: indices 1..%d or negative",
-                                   label, line, cn, corner, s->n_nrm, s->n_nrm);
-                    return RC_ERR_RANGE;
-                }
-                int pt = -1;
-                if (ti != 0 && (pt = mesh_obj_index(ti, s->n_tex)) < 0) {
-                    status_message(err, errlen,
-                                   "%s:%d: corner '%.*s': texture coordinate index out of range (%d so far); "
-                                   "fix: indices 1..%d or negative",
-                                   label, line, cn, corner, s->n_tex, s->n_tex);
-                    return RC_ERR_RANGE;
-                }
-                if (!mesh_soup_corner(s, pv, pn))
-                    return RC_ERR_NOMEM;
-                s->ct[s->n_corner - 1] = pt;
-                corners++;
-            }
-            if (corners < 3) {
-                status_message(err, errlen, "%s:%d: face with %d corners; fix: at least 3", label, line, corners);
-                return RC_ERR_PARSE;
-            }
-            if (!mesh_soup_face(s, line))
-                return RC_ERR_NOMEM;
-        }
-        /* Everything else (o, g, s, mtllib, l, ...) carries nothing we shade with. */
+        o.line++;
+        rc_status rc = mesh_obj_line(&o, p, le);
+        if (rc != RC_OK)
+            return rc;
         p = le + 1;
     }
     if (s->col_given > 0 && s->col_given < s->n_pos) {
