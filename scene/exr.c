@@ -134,10 +134,9 @@ static int cmp_channel_name(const void *a, const void *b)
     return strcmp(((const exr_channel *)a)->name, ((const exr_channel *)b)->name);
 }
 
-/* Writes the image into the open stream out; path names it in messages. */
-static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx *ec, int width, int height,
-                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs, char *err,
-                                  size_t errlen)
+/* The arguments of a write: the size, each channel's name and data, the attribute list. */
+static rc_status exr_write_check(const char *path, int width, int height, const exr_channel *ch, int n_channels,
+                                 const exr_attr *attrs, int n_attrs, char *err, size_t errlen)
 {
     if (width <= 0 || height <= 0 || width > EXR_MAX_SIDE || height > EXR_MAX_SIDE) {
         status_message(err, errlen, "%s: cannot write a %dx%d EXR; give a size between 1 and %d per side", path, width,
@@ -163,9 +162,14 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
             return RC_ERR_RANGE;
         }
     }
+    return RC_OK;
+}
 
-    /* EXR needs the channel list sorted by name; sort a copy and reject duplicates,
-     * which the format cannot store. */
+/* EXR needs the channel list sorted by name: a sorted copy in *out (the caller frees it),
+ * refusing duplicates, which the format cannot store. */
+static rc_status exr_write_sorted(const char *path, const exr_channel *ch, int n_channels, exr_channel **out, char *err,
+                                  size_t errlen)
+{
     exr_channel *sorted = malloc((size_t)n_channels * sizeof *sorted);
     if (!sorted) {
         status_message(err, errlen, "%s: out of memory", path);
@@ -180,40 +184,34 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
             free(sorted);
             return RC_ERR_RANGE;
         }
+    *out = sorted;
+    return RC_OK;
+}
 
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = exr_on_error;
-    init.user_data = out;
-    init.write_fn = exr_stream_write;
-
-    exr_context_t ctxt = NULL;
-    rc_status st = RC_OK;
-    exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
-    if (rv != EXR_ERR_SUCCESS) {
-        status_message(err, errlen, "%s: cannot start the EXR (%s); check free memory", path, lib_msg(ec, rv));
-        free(sorted);
-        if (ctxt)
-            exr_finish(&ctxt);
-        return RC_ERR_IO;
-    }
-
+/* The header: one scanline part (ZIP), the channels as float, the string attributes. A bad
+ * attribute is refused here with its own message (*st); a library failure is returned with the
+ * step in *stage. */
+static exr_result_t exr_write_head(exr_context_t ctxt, exr_errctx *ec, const char *path, int width, int height,
+                                   const exr_channel *sorted, int n_channels, const exr_attr *attrs, int n_attrs,
+                                   const char **stage, rc_status *st, char *err, size_t errlen)
+{
     int part = 0;
-    const char *stage = "add part";
-    rv = exr_add_part(ctxt, NULL, EXR_STORAGE_SCANLINE, &part);
+    *stage = "add part";
+    exr_result_t rv = exr_add_part(ctxt, NULL, EXR_STORAGE_SCANLINE, &part);
     if (rv == EXR_ERR_SUCCESS) {
-        stage = "required attributes";
+        *stage = "required attributes";
         rv = exr_initialize_required_attr_simple(ctxt, part, width, height, EXR_COMPRESSION_ZIP);
     }
     for (int i = 0; rv == EXR_ERR_SUCCESS && i < n_channels; i++) {
-        stage = "add channel";
+        *stage = "add channel";
         rv = exr_add_channel(ctxt, part, sorted[i].name, EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1);
     }
     for (int i = 0; rv == EXR_ERR_SUCCESS && i < n_attrs; i++) {
-        stage = "string attribute";
+        *stage = "string attribute";
         if (!attrs[i].name || !attrs[i].name[0] || !attrs[i].value) {
             status_message(err, errlen, "%s: attribute %d has no name or value; fill both", path, i);
-            st = RC_ERR_RANGE;
-            goto done;
+            *st = RC_ERR_RANGE;
+            return rv;
         }
         rv = exr_attr_set_string(ctxt, part, attrs[i].name, attrs[i].value);
         if (rv != EXR_ERR_SUCCESS) {
@@ -221,31 +219,36 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
                            "%s: cannot set string attribute '%s' (%s); use a name that is not a "
                            "standard EXR attribute",
                            path, attrs[i].name, lib_msg(ec, rv));
-            st = RC_ERR_RANGE;
-            goto done;
+            *st = RC_ERR_RANGE;
+            return rv;
         }
     }
     if (rv == EXR_ERR_SUCCESS) {
-        stage = "write header";
+        *stage = "write header";
         rv = exr_write_header(ctxt);
     }
+    return rv;
+}
 
+/* The pixels: one chunk of scanlines after another, each channel matched by name (the pipeline
+ * lists channels in the file's order). */
+static exr_result_t exr_write_chunks(exr_context_t ctxt, int width, int height, const exr_channel *sorted,
+                                     int n_channels, const char **stage)
+{
+    const int part = 0; /* the one part exr_write_head added */
     int lines = 1;
-    if (rv == EXR_ERR_SUCCESS) {
-        stage = "scanlines per chunk";
-        rv = exr_get_scanlines_per_chunk(ctxt, part, &lines);
-    }
+    *stage = "scanlines per chunk";
+    exr_result_t rv = exr_get_scanlines_per_chunk(ctxt, part, &lines);
     for (int y = 0; rv == EXR_ERR_SUCCESS && y < height; y += lines) {
         exr_chunk_info_t cinfo;
         exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-        stage = "encode chunk";
+        *stage = "encode chunk";
         rv = exr_write_scanline_chunk_info(ctxt, part, y, &cinfo);
         if (rv != EXR_ERR_SUCCESS)
             break;
         rv = exr_encoding_initialize(ctxt, part, &cinfo, &enc);
         if (rv != EXR_ERR_SUCCESS)
             break;
-        /* Match by name: the pipeline lists channels in the file's order. */
         for (int c = 0; c < enc.channel_count; c++) {
             exr_coding_channel_info_t *ci = &enc.channels[c];
             int k = 0;
@@ -262,21 +265,50 @@ static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx 
             rv = exr_encoding_run(ctxt, part, &enc);
         exr_encoding_destroy(ctxt, &enc);
     }
+    return rv;
+}
+
+/* Writes the image into the open stream out; path names it in messages. */
+static rc_status exr_write_stream(const char *path, exr_stream *out, exr_errctx *ec, int width, int height,
+                                  const exr_channel *ch, int n_channels, const exr_attr *attrs, int n_attrs, char *err,
+                                  size_t errlen)
+{
+    exr_channel *sorted = NULL;
+    rc_status st = exr_write_check(path, width, height, ch, n_channels, attrs, n_attrs, err, errlen);
+    if (st == RC_OK)
+        st = exr_write_sorted(path, ch, n_channels, &sorted, err, errlen);
+    if (st != RC_OK)
+        return st;
+
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_on_error;
+    init.user_data = out;
+    init.write_fn = exr_stream_write;
+    exr_context_t ctxt = NULL;
+    exr_result_t rv = exr_start_write(&ctxt, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        status_message(err, errlen, "%s: cannot start the EXR (%s); check free memory", path, lib_msg(ec, rv));
+        free(sorted);
+        if (ctxt)
+            exr_finish(&ctxt);
+        return RC_ERR_IO;
+    }
+
+    const char *stage = "add part";
+    rv = exr_write_head(ctxt, ec, path, width, height, sorted, n_channels, attrs, n_attrs, &stage, &st, err, errlen);
+    if (st == RC_OK && rv == EXR_ERR_SUCCESS)
+        rv = exr_write_chunks(ctxt, width, height, sorted, n_channels, &stage);
     if (rv != EXR_ERR_SUCCESS && st == RC_OK) {
         status_message(err, errlen, "%s: EXR write failed at %s (%s); check disk space and permissions", path, stage,
                        lib_msg(ec, rv));
         st = rv == EXR_ERR_OUT_OF_MEMORY ? RC_ERR_NOMEM : RC_ERR_IO;
     }
-
-done:
     free(sorted);
-    {
-        exr_result_t frv = exr_finish(&ctxt);
-        if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
-            status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space", path,
-                           lib_msg(ec, frv));
-            st = RC_ERR_IO;
-        }
+    exr_result_t frv = exr_finish(&ctxt);
+    if (st == RC_OK && frv != EXR_ERR_SUCCESS) {
+        status_message(err, errlen, "%s: EXR write failed while closing (%s); check disk space", path,
+                       lib_msg(ec, frv));
+        st = RC_ERR_IO;
     }
     return st;
 }
