@@ -581,9 +581,9 @@ static rc_status exr_check_budget(const char *path, exr_const_context_t ctxt, in
                                px * chl->num_channels * sizeof(float), err, errlen);
 }
 
-/* Reads the EXR open on in (path names it in messages) into img. */
-static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *ec, exr_image *img, char *err,
-                                 size_t errlen)
+/* Opens the EXR on in for reading, sides bounded by EXR_MAX_SIDE before anything is allocated. */
+static rc_status exr_read_open(const char *path, exr_stream *in, exr_errctx *ec, exr_context_t *ctxt, char *err,
+                               size_t errlen)
 {
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = exr_on_error;
@@ -594,61 +594,27 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
     init.max_image_height = EXR_MAX_SIDE;
     init.max_tile_width = EXR_MAX_SIDE;
     init.max_tile_height = EXR_MAX_SIDE;
-
-    exr_context_t ctxt = NULL;
-    exr_result_t rv = exr_start_read(&ctxt, path, &init);
+    *ctxt = NULL;
+    exr_result_t rv = exr_start_read(ctxt, path, &init);
     if (rv != EXR_ERR_SUCCESS) {
         rc_status st = status_of(rv);
         status_message(err, errlen,
                        "%s: not an OpenEXR file, or its header is truncated or damaged (%s); "
                        "re-render or re-export it",
                        path, lib_msg(ec, rv));
-        if (ctxt)
-            exr_finish(&ctxt);
+        if (*ctxt)
+            exr_finish(ctxt);
         return st;
     }
+    return RC_OK;
+}
 
-    const int part = 0;
-    rc_status st = RC_OK;
-    const char *stage = "header";
-    exr_storage_t storage;
-    exr_attr_box2i_t dw;
-    const exr_attr_chlist_t *chl = NULL;
-
-    rv = exr_get_storage(ctxt, part, &storage);
-    if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
-        status_message(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
-                       path);
-        st = RC_ERR_PARSE;
-        goto out;
-    }
-    if (rv == EXR_ERR_SUCCESS)
-        rv = exr_get_data_window(ctxt, part, &dw);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = exr_get_channels(ctxt, part, &chl);
-    if (rv != EXR_ERR_SUCCESS || !chl) {
-        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file", path,
-                       lib_msg(ec, rv));
-        st = RC_ERR_PARSE;
-        goto out;
-    }
-    {
-        int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
-        if (w <= 0 || h <= 0 || w > EXR_MAX_SIDE || h > EXR_MAX_SIDE || (size_t)(w * h) > EXR_MAX_PIXELS) {
-            status_message(err, errlen,
-                           "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is "
-                           "corrupt",
-                           path, dw.min.x, dw.min.y, dw.max.x, dw.max.y);
-            st = RC_ERR_PARSE;
-            goto out;
-        }
-        img->width = (int)w;
-        img->height = (int)h;
-    }
+/* Each channel full resolution, with a name that fits EXR_NAME_MAX. */
+static rc_status exr_read_check_channels(const char *path, const exr_attr_chlist_t *chl, char *err, size_t errlen)
+{
     if (chl->num_channels <= 0) {
         status_message(err, errlen, "%s: EXR has no channels; write at least R, G, B", path);
-        st = RC_ERR_PARSE;
-        goto out;
+        return RC_ERR_PARSE;
     }
     for (int c = 0; c < chl->num_channels; c++) {
         const exr_attr_chlist_entry_t *e = &chl->entries[c];
@@ -657,61 +623,116 @@ static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *e
                            "%s: channel '%s' is subsampled (%dx%d); only full-resolution channels "
                            "are supported",
                            path, e->name.str, e->x_sampling, e->y_sampling);
-            st = RC_ERR_PARSE;
-            goto out;
+            return RC_ERR_PARSE;
         }
         if (e->name.length >= EXR_NAME_MAX) {
             status_message(err, errlen, "%s: channel name '%s' is longer than %d characters; rename the layer", path,
                            e->name.str, EXR_NAME_MAX - 1);
-            st = RC_ERR_PARSE;
-            goto out;
+            return RC_ERR_PARSE;
         }
     }
+    return RC_OK;
+}
 
-    st = exr_check_budget(path, ctxt, part, chl, in->size, img, err, errlen);
-    if (st != RC_OK)
-        goto out;
-    {
-        exr_compression_t comp;
-        if (exr_get_compression(ctxt, part, &comp) == EXR_ERR_SUCCESS &&
-            (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)) {
-            img->width = img->height = 0;
-            st = read_via_oiiotool(path, ctxt, img, err, errlen);
-            exr_finish(&ctxt);
-            return st;
-        }
+/* The header of part 0: a flat (not deep) image, its data window (img's size) and its channels. */
+static rc_status exr_read_head(const char *path, exr_context_t ctxt, exr_errctx *ec, exr_storage_t *storage,
+                               exr_attr_box2i_t *dw, const exr_attr_chlist_t **chl, exr_image *img, char *err,
+                               size_t errlen)
+{
+    const int part = 0;
+    *chl = NULL;
+    exr_result_t rv = exr_get_storage(ctxt, part, storage);
+    if (rv == EXR_ERR_SUCCESS && *storage != EXR_STORAGE_SCANLINE && *storage != EXR_STORAGE_TILED) {
+        status_message(err, errlen, "%s: deep EXR images are not supported; write a flat scanline or tiled image",
+                       path);
+        return RC_ERR_PARSE;
     }
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctxt, part, dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_channels(ctxt, part, chl);
+    if (rv != EXR_ERR_SUCCESS || !*chl) {
+        status_message(err, errlen, "%s: EXR header lacks data window or channel list (%s); re-export the file", path,
+                       lib_msg(ec, rv));
+        return RC_ERR_PARSE;
+    }
+    int64_t w = (int64_t)dw->max.x - dw->min.x + 1, h = (int64_t)dw->max.y - dw->min.y + 1;
+    if (w <= 0 || h <= 0 || w > EXR_MAX_SIDE || h > EXR_MAX_SIDE || (size_t)(w * h) > EXR_MAX_PIXELS) {
+        status_message(err, errlen, "%s: EXR data window (%d,%d)-(%d,%d) is empty or too large; the file is corrupt",
+                       path, dw->min.x, dw->min.y, dw->max.x, dw->max.y);
+        return RC_ERR_PARSE;
+    }
+    img->width = (int)w;
+    img->height = (int)h;
+    return exr_read_check_channels(path, *chl, err, errlen);
+}
+
+/* Whether part 0 is DWAA or DWAB compressed (read through oiiotool). */
+static int exr_read_is_dwa(exr_const_context_t ctxt)
+{
+    exr_compression_t comp;
+    return exr_get_compression(ctxt, 0, &comp) == EXR_ERR_SUCCESS &&
+           (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB);
+}
+
+/* img's channel names and zeroed float planes. */
+static rc_status exr_read_planes(const char *path, const exr_attr_chlist_t *chl, exr_image *img, char *err,
+                                 size_t errlen)
+{
     img->n_channels = chl->num_channels;
     img->names = calloc((size_t)img->n_channels, sizeof *img->names);
     img->data = calloc((size_t)img->n_channels, sizeof *img->data);
     if (!img->names || !img->data) {
-        st = RC_ERR_NOMEM;
         status_message(err, errlen, "%s: out of memory reading EXR", path);
-        goto out;
+        return RC_ERR_NOMEM;
     }
     for (int c = 0; c < img->n_channels; c++) {
         snprintf(img->names[c], EXR_NAME_MAX, "%s", chl->entries[c].name.str);
         img->data[c] = calloc((size_t)img->width * (size_t)img->height, sizeof(float));
         if (!img->data[c]) {
-            st = RC_ERR_NOMEM;
             status_message(err, errlen, "%s: out of memory for a %dx%d channel", path, img->width, img->height);
-            goto out;
+            return RC_ERR_NOMEM;
         }
     }
+    return RC_OK;
+}
 
-    st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
-    if (st != RC_OK) {
-        status_message(err, errlen,
-                       "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
-                       "re-render it",
-                       path, stage, lib_msg(ec, rv));
-        goto out;
-    }
-    st = read_attrs(ctxt, part, img);
+/* Reads the EXR open on in (path names it in messages) into img: the header, the budget check,
+ * the planes, the pixels, the string attributes. */
+static rc_status exr_read_stream(const char *path, exr_stream *in, exr_errctx *ec, exr_image *img, char *err,
+                                 size_t errlen)
+{
+    exr_context_t ctxt;
+    rc_status st = exr_read_open(path, in, ec, &ctxt, err, errlen);
     if (st != RC_OK)
+        return st;
+    const int part = 0;
+    exr_storage_t storage;
+    exr_attr_box2i_t dw;
+    const exr_attr_chlist_t *chl;
+    st = exr_read_head(path, ctxt, ec, &storage, &dw, &chl, img, err, errlen);
+    if (st == RC_OK)
+        st = exr_check_budget(path, ctxt, part, chl, in->size, img, err, errlen);
+    if (st == RC_OK && exr_read_is_dwa(ctxt)) {
+        img->width = img->height = 0;
+        st = read_via_oiiotool(path, ctxt, img, err, errlen);
+        exr_finish(&ctxt);
+        return st;
+    }
+    if (st == RC_OK)
+        st = exr_read_planes(path, chl, img, err, errlen);
+    if (st == RC_OK) {
+        const char *stage = "header";
+        exr_result_t rv;
+        st = read_pixels(ctxt, part, storage, dw, img, &stage, &rv);
+        if (st != RC_OK)
+            status_message(err, errlen,
+                           "%s: EXR pixel data unreadable at %s (%s); the file is truncated or corrupt, "
+                           "re-render it",
+                           path, stage, lib_msg(ec, rv));
+    }
+    if (st == RC_OK && (st = read_attrs(ctxt, part, img)) != RC_OK)
         status_message(err, errlen, "%s: out of memory reading EXR attributes", path);
-
-out:
     exr_finish(&ctxt);
     if (st != RC_OK)
         exr_image_free(img);
