@@ -201,102 +201,83 @@ runner_status runner_exec(const char *const argv[], double timeout_s, const char
     return runner_exec_in(argv, NULL, timeout_s, log_path, r);
 }
 
-runner_status runner_exec_in(const char *const argv[], const runner_where *where, double timeout_s,
-                             const char *log_path, runner_result *r)
-{
-    memset(r, 0, sizeof *r);
-    char full[4400];
-    if (!runner_resolve(argv[0], full, sizeof full))
-        return r->status = RUNNER_MISSING;
-    const char *dir = where != NULL ? where->dir : NULL;
-    const char *err_path = where != NULL ? where->err_log : NULL;
-    int log = open(log_path ? log_path : "/dev/null", O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (log < 0)
-        return r->status = RUNNER_ERROR;
-    int errlog = err_path != NULL ? open(err_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644) : -1;
+/* The child's output files and the pipe its exec failure comes back through. */
+typedef struct {
+    int log, errlog; /* errlog -1: stderr goes with stdout to log */
     int errpipe[2];
-    if ((err_path != NULL && errlog < 0) || pipe(errpipe) != 0) {
-        close(log);
-        if (errlog >= 0)
-            close(errlog);
-        return r->status = RUNNER_ERROR;
-    }
-    fcntl(errpipe[0], F_SETFD, FD_CLOEXEC);
-    fcntl(errpipe[1], F_SETFD, FD_CLOEXEC);
+} runner_fds;
 
-    struct sigaction old[RUNNER_N_FORWARDED];
-    runner_forward_signals(old);
-    pid_t parent = getpid();
-    double t0 = runner_now();
-    pid_t pid = fork();
-    if (pid < 0) {
-        runner_restore_signals(old);
-        close(log);
-        if (errlog >= 0)
-            close(errlog);
-        close(errpipe[0]);
-        close(errpipe[1]);
-        return r->status = RUNNER_ERROR;
+/* Opens the logs (log_path NULL: /dev/null) and the exec-error pipe; 0, or -1 with none left open. */
+static int runner_open_fds(const char *log_path, const char *err_path, runner_fds *f)
+{
+    f->log = open(log_path ? log_path : "/dev/null", O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (f->log < 0)
+        return -1;
+    f->errlog = err_path != NULL ? open(err_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644) : -1;
+    if ((err_path != NULL && f->errlog < 0) || pipe(f->errpipe) != 0) {
+        close(f->log);
+        if (f->errlog >= 0)
+            close(f->errlog);
+        return -1;
     }
-    if (pid == 0)
-        runner_child(argv, full, dir, log, errlog, errpipe[1], parent);
-    setpgid(pid, pid);
-    runner_group = pid;
-    close(log);
-    if (errlog >= 0)
-        close(errlog);
-    close(errpipe[1]);
-    /* Blocks until the exec happened (EOF) or failed (its errno). */
+    fcntl(f->errpipe[0], F_SETFD, FD_CLOEXEC);
+    fcntl(f->errpipe[1], F_SETFD, FD_CLOEXEC);
+    return 0;
+}
+
+/* Blocks until the child's exec happened (EOF: 0) or failed (its errno). */
+static int runner_exec_errno(int fd)
+{
     int exec_errno = 0;
     ssize_t got;
-    while ((got = read(errpipe[0], &exec_errno, sizeof exec_errno)) < 0 && errno == EINTR)
+    while ((got = read(fd, &exec_errno, sizeof exec_errno)) < 0 && errno == EINTR)
         continue;
-    close(errpipe[0]);
-    if (got != (ssize_t)sizeof exec_errno)
-        exec_errno = 0;
+    close(fd);
+    return got == (ssize_t)sizeof exec_errno ? exec_errno : 0;
+}
 
-    int status = 0, killed = 0;
-    struct rusage ru;
-    memset(&ru, 0, sizeof ru);
+/* Waits for the child pid, started at t0, with its resource use; past timeout_s (> 0) its group
+ * gets SIGTERM, then SIGKILL 2 s later (*killed 1, 2). -1 when waiting itself fails. */
+static int runner_wait(pid_t pid, double t0, double timeout_s, int *status, int *killed, struct rusage *ru)
+{
     double kill_at = 0.0;
+    *status = *killed = 0;
+    memset(ru, 0, sizeof *ru);
     for (;;) {
-        pid_t w = wait4(pid, &status, WNOHANG, &ru);
+        pid_t w = wait4(pid, status, WNOHANG, ru);
         if (w == pid)
-            break;
-        if (w < 0 && errno != EINTR) {
-            runner_kill_group(pid);
-            runner_group = 0;
-            runner_restore_signals(old);
-            return r->status = RUNNER_ERROR;
-        }
+            return 0;
+        if (w < 0 && errno != EINTR)
+            return -1;
         double now = runner_now();
-        if (!killed && timeout_s > 0 && now - t0 > timeout_s) {
+        if (!*killed && timeout_s > 0 && now - t0 > timeout_s) {
             kill(-pid, SIGTERM);
-            killed = 1;
+            *killed = 1;
             kill_at = now + 2.0;
-        } else if (killed == 1 && now > kill_at) {
+        } else if (*killed == 1 && now > kill_at) {
             kill(-pid, SIGKILL);
-            killed = 2;
+            *killed = 2;
         }
         /* 10 ms polling: negligible against renders that take seconds. */
         struct timespec nap = {0, 10 * 1000 * 1000};
         nanosleep(&nap, NULL);
     }
-    /* The leader is gone; what it started in its group goes with it. */
-    kill(-pid, SIGKILL);
-    runner_group = 0;
-    runner_restore_signals(old);
-    r->wall_s = runner_now() - t0;
-    r->cpu_s = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
-               1e-6 * (double)ru.ru_stime.tv_usec;
-    r->max_rss_kb = ru.ru_maxrss;
+}
+
+/* The outcome of a child that ended: how, its exit code or signal, its CPU time and memory. */
+static void runner_outcome(const char *program, int status, int killed, int exec_errno, const struct rusage *ru,
+                           runner_result *r)
+{
+    r->cpu_s = (double)ru->ru_utime.tv_sec + 1e-6 * (double)ru->ru_utime.tv_usec + (double)ru->ru_stime.tv_sec +
+               1e-6 * (double)ru->ru_stime.tv_usec;
+    r->max_rss_kb = ru->ru_maxrss;
     r->exec_errno = exec_errno;
     if (exec_errno != 0) {
         /* On PATH a moment ago: gone now is "not installed"; anything else (still there but
          * its interpreter or loader missing, not executable) is an installed program that
          * does not start. */
         r->exit_code = 127;
-        r->status = exec_errno == ENOENT && !runner_available(argv[0]) ? RUNNER_MISSING : RUNNER_FAILED;
+        r->status = exec_errno == ENOENT && !runner_available(program) ? RUNNER_MISSING : RUNNER_FAILED;
     } else if (killed)
         r->status = RUNNER_TIMEOUT;
     else if (WIFSIGNALED(status)) {
@@ -307,6 +288,56 @@ runner_status runner_exec_in(const char *const argv[], const runner_where *where
         /* 127 is the program's own exit status here (an exec failure came through the pipe). */
         r->status = r->exit_code == 0 ? RUNNER_OK : RUNNER_FAILED;
     }
+}
+
+runner_status runner_exec_in(const char *const argv[], const runner_where *where, double timeout_s,
+                             const char *log_path, runner_result *r)
+{
+    memset(r, 0, sizeof *r);
+    char full[4400];
+    if (!runner_resolve(argv[0], full, sizeof full))
+        return r->status = RUNNER_MISSING;
+    const char *dir = where != NULL ? where->dir : NULL;
+    runner_fds f;
+    if (runner_open_fds(log_path, where != NULL ? where->err_log : NULL, &f) != 0)
+        return r->status = RUNNER_ERROR;
+
+    struct sigaction old[RUNNER_N_FORWARDED];
+    runner_forward_signals(old);
+    pid_t parent = getpid();
+    double t0 = runner_now();
+    pid_t pid = fork();
+    if (pid == 0)
+        runner_child(argv, full, dir, f.log, f.errlog, f.errpipe[1], parent);
+    if (pid > 0) {
+        setpgid(pid, pid);
+        runner_group = pid;
+    }
+    close(f.log);
+    if (f.errlog >= 0)
+        close(f.errlog);
+    close(f.errpipe[1]);
+    if (pid < 0) {
+        close(f.errpipe[0]);
+        runner_restore_signals(old);
+        return r->status = RUNNER_ERROR;
+    }
+    int exec_errno = runner_exec_errno(f.errpipe[0]);
+
+    int status, killed;
+    struct rusage ru;
+    if (runner_wait(pid, t0, timeout_s, &status, &killed, &ru) != 0) {
+        runner_kill_group(pid);
+        runner_group = 0;
+        runner_restore_signals(old);
+        return r->status = RUNNER_ERROR;
+    }
+    /* The leader is gone; what it started in its group goes with it. */
+    kill(-pid, SIGKILL);
+    runner_group = 0;
+    runner_restore_signals(old);
+    r->wall_s = runner_now() - t0;
+    runner_outcome(argv[0], status, killed, exec_errno, &ru, r);
     return r->status;
 }
 
