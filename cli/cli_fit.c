@@ -88,6 +88,116 @@ static cJSON *cli_fit_global_json(const fit_result *r, const scene *sc, const fi
     return g;
 }
 
+/* Marks the record o an error with reason why. */
+static void cli_fit_error(cJSON *o, const char *why)
+{
+    cJSON_AddStringToObject(o, "status", "error");
+    cJSON_AddStringToObject(o, "reason", why);
+}
+
+/* The reference image of comparison id: its validate job through the cache, read and passed
+ * through compare's value gate. Returns 1 with *img filled (the caller frees it), or 0 with the
+ * exit status this comparison earns in *exit_status and the reason in o. */
+static int cli_fit_reference(const char *path, const scene *s, int reference, const char *id, const cli_fit_opts *opt,
+                             cJSON *o, exr_image *img, job_record *rec, int *exit_status)
+{
+    job_spec j = {.scene_path = path,
+                  .renderer = reference,
+                  .role = ROLE_VALIDATE,
+                  .variant = opt->variant,
+                  .out_dir = opt->out_dir,
+                  .cache_dir = opt->cache_dir,
+                  .threads = opt->fo.threads};
+    char err[1024];
+    rc_status st = job_run(&j, rec, err, sizeof err);
+    if (st != RC_OK) {
+        fprintf(stderr, "reflcheck: fit: %s\n", err);
+        cli_fit_error(o, err);
+        return *exit_status = job_exit_status(st, rec), 0;
+    }
+    if (rec->status != RUNNER_OK) {
+        int skipped = rec->status == RUNNER_MISSING;
+        cJSON_AddStringToObject(o, "status", skipped ? "skipped" : "error");
+        char why[700];
+        snprintf(why, sizeof why, "%s validate job %s: %s", registry_name(reference), runner_status_name(rec->status),
+                 rec->message);
+        cJSON_AddStringToObject(o, "reason", why);
+        printf("%-20s %-28s %s: %s\n", s->name, id, skipped ? "skipped" : "error", why);
+        if (!skipped)
+            fprintf(stderr, "reflcheck: fit: %s: %s\n", path, why);
+        return *exit_status = skipped ? CLI_OK : CLI_FAILED, 0;
+    }
+    if (exr_read(rec->exr, img, err, sizeof err) != RC_OK) {
+        fprintf(stderr, "reflcheck: fit: %s: the reference image: %s\n", path, err);
+        cli_fit_error(o, err);
+        return *exit_status = CLI_FAILED, 0;
+    }
+    /* compare's value gate, the same function: a reference compare would fail for a NaN or Inf
+     * (or a negative) value is no reference to fit to, though the fit's sums could skip it. */
+    char gate[900];
+    if (compare_value_gate(s, img, reference, ROLE_VALIDATE, "ref", gate, sizeof gate)) {
+        char why[1100];
+        snprintf(why, sizeof why, "values: %s (%s)", gate, rec->exr);
+        fprintf(stderr, "reflcheck: fit: %s: %s: %s; the comparison fails on it, so no fit is made\n", path, id, why);
+        cli_fit_error(o, why);
+        printf("%-20s %-28s error: %s\n", s->name, id, why);
+        exr_image_free(img);
+        return *exit_status = CLI_FAILED, 0;
+    }
+    return 1;
+}
+
+/* The fitted parameters as the record's "parameters" array, and as " material.name=value" for
+ * the summary line in vals. */
+static void cli_fit_params_json(cJSON *o, const scene *s, const fit_param *p, int n, char *vals, size_t vals_len)
+{
+    cJSON *pa = cJSON_AddArrayToObject(o, "parameters");
+    size_t used = 0;
+    vals[0] = '\0';
+    for (int i = 0; i < n; i++) {
+        cJSON *q = cJSON_CreateObject();
+        cJSON_AddStringToObject(q, "material", s->materials[p[i].material].name);
+        cJSON_AddStringToObject(q, "name", fit_param_label(s, &p[i]));
+        cJSON_AddNumberToObject(q, "authored", p[i].authored);
+        cJSON_AddNumberToObject(q, "fitted", p[i].value);
+        cJSON_AddNumberToObject(q, "lo", p[i].lo);
+        cJSON_AddNumberToObject(q, "hi", p[i].hi);
+        cJSON_AddStringToObject(q, "scale", p[i].log_scale ? "log" : "linear");
+        cJSON_AddBoolToObject(q, "at_bound", p[i].at_bound);
+        if (p[i].kind == FIT_D9_R0)
+            cJSON_AddBoolToObject(q, "m_follows", p[i].tied);
+        cli_fit_num(q, "uncertainty", p[i].uncertainty);
+        cJSON_AddNumberToObject(q, "spread_lo", p[i].spread_lo);
+        cJSON_AddNumberToObject(q, "spread_hi", p[i].spread_hi);
+        cJSON_AddItemToArray(pa, q);
+        if (used < vals_len)
+            used += (size_t)snprintf(vals + used, vals_len - used, " %s.%s=%.4g", s->materials[p[i].material].name,
+                                     fit_param_label(s, &p[i]), p[i].value);
+    }
+}
+
+/* A finished fit into the record o, and its summary line on standard output. */
+static void cli_fit_record(cJSON *o, const scene *s, const char *id, const char *exr, const fit_result *r,
+                           const fit_param *p, int n, const cli_fit_opts *opt)
+{
+    char vals[512];
+    cJSON_AddStringToObject(o, "status", "ok");
+    cJSON_AddStringToObject(o, "reference_exr", exr);
+    cJSON_AddItemToObject(o, "authored", cli_fit_error_json(&r->authored));
+    cJSON_AddItemToObject(o, "best", cli_fit_error_json(&r->best));
+    cli_fit_params_json(o, s, p, n, vals, sizeof vals);
+    cJSON_AddNumberToObject(o, "evaluations", r->evaluations);
+    cJSON_AddItemToObject(o, "global", cli_fit_global_json(r, s, p, n, opt));
+    cJSON_AddNumberToObject(o, "seconds", r->seconds);
+    cJSON_AddStringToObject(o, "stop", r->stop);
+    cJSON_AddNumberToObject(o, "width", r->width);
+    cJSON_AddNumberToObject(o, "height", r->height);
+    cJSON_AddNumberToObject(o, "supersample", r->supersample);
+    printf("%-20s %-28s nrmse %.4g -> %.4g, median %.4g -> %.4g (%d renders, %.1f s)%s\n", s->name, id,
+           r->authored.nrmse, r->best.nrmse, r->authored.median_rel, r->best.median_rel, r->evaluations, r->seconds,
+           vals);
+}
+
 /* One validate comparison: its reference through the job cache, then the fit. Returns the exit
  * status this comparison earns; the record goes into fits. */
 static int cli_fit_one(const char *path, const scene *s, const mesh *m, const env_map *env, const texture_set *tex,
@@ -110,54 +220,11 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
         printf("%-20s %-28s skipped: no free parameter\n", s->name, id);
         return CLI_OK;
     }
-    job_spec j = {.scene_path = path,
-                  .renderer = reference,
-                  .role = ROLE_VALIDATE,
-                  .variant = opt->variant,
-                  .out_dir = opt->out_dir,
-                  .cache_dir = opt->cache_dir,
-                  .threads = opt->fo.threads};
-    job_record rec;
-    char err[1024];
-    rc_status st = job_run(&j, &rec, err, sizeof err);
-    if (st != RC_OK) {
-        fprintf(stderr, "reflcheck: fit: %s\n", err);
-        cJSON_AddStringToObject(o, "status", "error");
-        cJSON_AddStringToObject(o, "reason", err);
-        return job_exit_status(st, &rec);
-    }
-    if (rec.status != RUNNER_OK) {
-        int skipped = rec.status == RUNNER_MISSING;
-        cJSON_AddStringToObject(o, "status", skipped ? "skipped" : "error");
-        char why[700];
-        snprintf(why, sizeof why, "%s validate job %s: %s", registry_name(reference), runner_status_name(rec.status),
-                 rec.message);
-        cJSON_AddStringToObject(o, "reason", why);
-        printf("%-20s %-28s %s: %s\n", s->name, id, skipped ? "skipped" : "error", why);
-        if (!skipped)
-            fprintf(stderr, "reflcheck: fit: %s: %s\n", path, why);
-        return skipped ? CLI_OK : CLI_FAILED;
-    }
     exr_image img;
-    if ((st = exr_read(rec.exr, &img, err, sizeof err)) != RC_OK) {
-        fprintf(stderr, "reflcheck: fit: %s: the reference image: %s\n", path, err);
-        cJSON_AddStringToObject(o, "status", "error");
-        cJSON_AddStringToObject(o, "reason", err);
-        return CLI_FAILED;
-    }
-    /* compare's value gate, the same function: a reference compare would fail for a NaN or Inf
-     * (or a negative) value is no reference to fit to, though the fit's sums could skip it. */
-    char gate[900];
-    if (compare_value_gate(s, &img, reference, ROLE_VALIDATE, "ref", gate, sizeof gate)) {
-        char why[1100];
-        snprintf(why, sizeof why, "values: %s (%s)", gate, rec.exr);
-        fprintf(stderr, "reflcheck: fit: %s: %s: %s; the comparison fails on it, so no fit is made\n", path, id, why);
-        cJSON_AddStringToObject(o, "status", "error");
-        cJSON_AddStringToObject(o, "reason", why);
-        printf("%-20s %-28s error: %s\n", s->name, id, why);
-        exr_image_free(&img);
-        return CLI_FAILED;
-    }
+    job_record rec;
+    int exit_status;
+    if (!cli_fit_reference(path, s, reference, id, opt, o, &img, &rec, &exit_status))
+        return exit_status;
     metrics_image ref = {img.width,
                          img.height,
                          {exr_image_channel(&img, "R"), exr_image_channel(&img, "G"), exr_image_channel(&img, "B")}};
@@ -165,50 +232,15 @@ static int cli_fit_one(const char *path, const scene *s, const mesh *m, const en
     fit_options fo = opt->fo;
     fo.textures = tex;
     fo.crease_rules = registry_row(reference)->crease_rules;
-    st = fit_run(s, m, env, &ref, p, n, &fo, &r, err, sizeof err);
+    char err[1024];
+    rc_status st = fit_run(s, m, env, &ref, p, n, &fo, &r, err, sizeof err);
     exr_image_free(&img);
     if (st != RC_OK) {
         fprintf(stderr, "reflcheck: fit: %s\n", err);
-        cJSON_AddStringToObject(o, "status", "error");
-        cJSON_AddStringToObject(o, "reason", err);
+        cli_fit_error(o, err);
         return CLI_FAILED;
     }
-    cJSON_AddStringToObject(o, "status", "ok");
-    cJSON_AddStringToObject(o, "reference_exr", rec.exr);
-    cJSON_AddItemToObject(o, "authored", cli_fit_error_json(&r.authored));
-    cJSON_AddItemToObject(o, "best", cli_fit_error_json(&r.best));
-    cJSON *pa = cJSON_AddArrayToObject(o, "parameters");
-    char vals[512] = "";
-    size_t used = 0;
-    for (int i = 0; i < n; i++) {
-        cJSON *q = cJSON_CreateObject();
-        cJSON_AddStringToObject(q, "material", s->materials[p[i].material].name);
-        cJSON_AddStringToObject(q, "name", fit_param_label(s, &p[i]));
-        cJSON_AddNumberToObject(q, "authored", p[i].authored);
-        cJSON_AddNumberToObject(q, "fitted", p[i].value);
-        cJSON_AddNumberToObject(q, "lo", p[i].lo);
-        cJSON_AddNumberToObject(q, "hi", p[i].hi);
-        cJSON_AddStringToObject(q, "scale", p[i].log_scale ? "log" : "linear");
-        cJSON_AddBoolToObject(q, "at_bound", p[i].at_bound);
-        if (p[i].kind == FIT_D9_R0)
-            cJSON_AddBoolToObject(q, "m_follows", p[i].tied);
-        cli_fit_num(q, "uncertainty", p[i].uncertainty);
-        cJSON_AddNumberToObject(q, "spread_lo", p[i].spread_lo);
-        cJSON_AddNumberToObject(q, "spread_hi", p[i].spread_hi);
-        cJSON_AddItemToArray(pa, q);
-        if (used < sizeof vals)
-            used += (size_t)snprintf(vals + used, sizeof vals - used, " %s.%s=%.4g", s->materials[p[i].material].name,
-                                     fit_param_label(s, &p[i]), p[i].value);
-    }
-    cJSON_AddNumberToObject(o, "evaluations", r.evaluations);
-    cJSON_AddItemToObject(o, "global", cli_fit_global_json(&r, s, p, n, opt));
-    cJSON_AddNumberToObject(o, "seconds", r.seconds);
-    cJSON_AddStringToObject(o, "stop", r.stop);
-    cJSON_AddNumberToObject(o, "width", r.width);
-    cJSON_AddNumberToObject(o, "height", r.height);
-    cJSON_AddNumberToObject(o, "supersample", r.supersample);
-    printf("%-20s %-28s nrmse %.4g -> %.4g, median %.4g -> %.4g (%d renders, %.1f s)%s\n", s->name, id,
-           r.authored.nrmse, r.best.nrmse, r.authored.median_rel, r.best.median_rel, r.evaluations, r.seconds, vals);
+    cli_fit_record(o, s, id, rec.exr, &r, p, n, opt);
     return CLI_OK;
 }
 
