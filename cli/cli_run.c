@@ -88,6 +88,78 @@ const cli_command cli_run_command = {
     .example = "reflcheck run scenes/d3d9_glass.yaml --renderer povray --role validate --small --out /tmp/run1",
 };
 
+/* --record-status: only the verdicts a scheduler gives a job that ended without its record. */
+static int cli_run_record_status(const char *value, job_spec *j)
+{
+    j->record_only = 1;
+    if (strcmp(value, "failed") == 0)
+        j->record_status = RUNNER_FAILED;
+    else if (strcmp(value, "crashed") == 0)
+        j->record_status = RUNNER_CRASHED;
+    else if (strcmp(value, "timeout") == 0)
+        j->record_status = RUNNER_TIMEOUT;
+    else if (strcmp(value, "error") == 0)
+        j->record_status = RUNNER_ERROR;
+    else {
+        fprintf(stderr, "reflcheck: run: --record-status '%s': use failed, crashed, timeout or error\n", value);
+        return CLI_BAD_INPUT;
+    }
+    return CLI_OK;
+}
+
+/* One option c (its value in optarg) into the job. */
+static int cli_run_option(int c, job_spec *j, int argc, char **argv)
+{
+    int rc = CLI_OK, v;
+    switch (c) {
+    case 'r':
+        if ((v = registry_find(optarg)) < 0) {
+            char names[200];
+            fprintf(stderr, "reflcheck: run: --renderer '%s': use %s\n", optarg, registry_list(names, sizeof names));
+            rc = CLI_BAD_INPUT;
+        }
+        j->renderer = v;
+        break;
+    case 'R':
+        if ((v = job_role_from_name(optarg)) < 0) {
+            fprintf(stderr, "reflcheck: run: --role '%s': use twin, validate or agree\n", optarg);
+            rc = CLI_BAD_INPUT;
+        }
+        j->role = (comparison_role)v;
+        break;
+    case 's': j->variant = JOB_SMALL; break;
+    case 'o': j->out_dir = optarg; break;
+    case 'c': j->cache_dir = optarg; break;
+    case 'n': j->cache_dir = NULL; break;
+    case 'T': {
+        double t;
+        rc = cli_parse_double("--timeout", optarg, 0.1, 1e6, &t);
+        j->timeout_s = t;
+        break;
+    }
+    case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &j->threads); break;
+    case 'S': rc = cli_parse_int("--seeds", optarg, 1, 64, &j->seeds); break;
+    case 'k': rc = cli_parse_int("--supersample", optarg, 1, 16, &j->supersample); break;
+    case 'N': rc = cli_parse_int("--samples", optarg, 1, 1 << 20, &j->samples); break;
+    case 'e': rc = cli_parse_int("--tessellation", optarg, 3, 4096, &j->tessellation); break;
+    case 'v': j->per_vertex = 1; break;
+    case 'E': rc = cli_parse_int("--seed", optarg, 0, 1 << 20, &j->seed); break;
+    case 'J': j->slurm_job = optarg; break;
+    case 'X': rc = cli_run_record_status(optarg, j); break;
+    case 'M': j->record_message = optarg; break;
+    case 'L': j->record_log = optarg; break;
+    case 'g':
+        if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
+            fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);
+            rc = CLI_BAD_INPUT;
+        }
+        j->tag = optarg;
+        break;
+    default: rc = cli_bad_option("run", argc, argv, "o:h", run_longopts, "see reflcheck run --help");
+    }
+    return rc;
+}
+
 int cli_run(int argc, char **argv)
 {
     job_spec j = {.renderer = registry_model(),
@@ -95,77 +167,16 @@ int cli_run(int argc, char **argv)
                   .variant = JOB_FULL,
                   .out_dir = "reports/runs/manual",
                   .cache_dir = "reports/cache"};
-    int c, rc = CLI_OK, v;
+    int c, rc = CLI_OK;
     unsigned char seen[256] = {0};
     optind = 1;
     opterr = 0;
     while (rc == CLI_OK && (c = getopt_long(argc, argv, "o:h", run_longopts, NULL)) != -1) {
         if (c != '?' && (rc = cli_check_option("run", c, seen, "o:h", run_longopts)) != CLI_OK)
             break;
-        switch (c) {
-        case 'r':
-            if ((v = registry_find(optarg)) < 0) {
-                char names[200];
-                fprintf(stderr, "reflcheck: run: --renderer '%s': use %s\n", optarg,
-                        registry_list(names, sizeof names));
-                rc = CLI_BAD_INPUT;
-            }
-            j.renderer = v;
-            break;
-        case 'R':
-            if ((v = job_role_from_name(optarg)) < 0) {
-                fprintf(stderr, "reflcheck: run: --role '%s': use twin, validate or agree\n", optarg);
-                rc = CLI_BAD_INPUT;
-            }
-            j.role = (comparison_role)v;
-            break;
-        case 's': j.variant = JOB_SMALL; break;
-        case 'o': j.out_dir = optarg; break;
-        case 'c': j.cache_dir = optarg; break;
-        case 'n': j.cache_dir = NULL; break;
-        case 'T': {
-            double t;
-            rc = cli_parse_double("--timeout", optarg, 0.1, 1e6, &t);
-            j.timeout_s = t;
-            break;
-        }
-        case 't': rc = cli_parse_int("--threads", optarg, 1, 256, &j.threads); break;
-        case 'S': rc = cli_parse_int("--seeds", optarg, 1, 64, &j.seeds); break;
-        case 'k': rc = cli_parse_int("--supersample", optarg, 1, 16, &j.supersample); break;
-        case 'N': rc = cli_parse_int("--samples", optarg, 1, 1 << 20, &j.samples); break;
-        case 'e': rc = cli_parse_int("--tessellation", optarg, 3, 4096, &j.tessellation); break;
-        case 'v': j.per_vertex = 1; break;
-        case 'E': rc = cli_parse_int("--seed", optarg, 0, 1 << 20, &j.seed); break;
-        case 'J': j.slurm_job = optarg; break;
-        case 'X':
-            /* Only the verdicts a scheduler gives a job that ended without its record. */
-            j.record_only = 1;
-            if (strcmp(optarg, "failed") == 0)
-                j.record_status = RUNNER_FAILED;
-            else if (strcmp(optarg, "crashed") == 0)
-                j.record_status = RUNNER_CRASHED;
-            else if (strcmp(optarg, "timeout") == 0)
-                j.record_status = RUNNER_TIMEOUT;
-            else if (strcmp(optarg, "error") == 0)
-                j.record_status = RUNNER_ERROR;
-            else {
-                fprintf(stderr, "reflcheck: run: --record-status '%s': use failed, crashed, timeout or error\n",
-                        optarg);
-                rc = CLI_BAD_INPUT;
-            }
-            break;
-        case 'M': j.record_message = optarg; break;
-        case 'L': j.record_log = optarg; break;
-        case 'h': return cli_help("run");
-        case 'g':
-            if (optarg[0] == '\0' || strspn(optarg, "abcdefghijklmnopqrstuvwxyz0123456789_-") != strlen(optarg)) {
-                fprintf(stderr, "reflcheck: run: --tag '%s': use a-z, 0-9, _ and -\n", optarg);
-                rc = CLI_BAD_INPUT;
-            }
-            j.tag = optarg;
-            break;
-        default: rc = cli_bad_option("run", argc, argv, "o:h", run_longopts, "see reflcheck run --help");
-        }
+        if (c == 'h')
+            return cli_help("run");
+        rc = cli_run_option(c, &j, argc, argv);
     }
     if (rc != CLI_OK)
         return rc;
