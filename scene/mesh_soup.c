@@ -213,22 +213,20 @@ static rc_status mesh_soup_vertex(const mesh_soup *s, mesh_builder *b, mesh_vtab
     return RC_OK;
 }
 
-/* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
- * Vertices are shared per (position, normal, texture coordinate). Zero-area triangles (in double, or once the
- * positions are stored as float) are left out and counted, as every renderer skips them; only a
- * mesh left with none is refused. */
-rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj, char *err, size_t errlen)
+/* Whether the soup can give triangles: some faces (after the usemtl filter), and texture
+ * coordinates when the material has a texture. *ntri: its fan triangles. */
+static rc_status mesh_soup_check(const mesh_soup *s, const mesh_builder *b, const char *label, size_t *ntri, char *err,
+                                 size_t errlen)
 {
-    mesh *m = b->m;
-    size_t ntri = 0, kept = 0, dropped = 0;
+    *ntri = 0;
     for (int f = 0; f < s->n_face; f++)
-        ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
-    if (ntri == 0 && s->usemtl != NULL && s->usemtl[0] != '\0') {
+        *ntri += (size_t)(s->face_start[f + 1] - s->face_start[f] - 2);
+    if (*ntri == 0 && s->usemtl != NULL && s->usemtl[0] != '\0') {
         status_message(err, errlen, "%s: no face after `usemtl %s`; fix: a material name from the file's usemtl lines",
                        label, s->usemtl);
         return RC_ERR_RANGE;
     }
-    if (ntri == 0) {
+    if (*ntri == 0) {
         status_message(err, errlen,
                        "%s: no faces (points and lines are not drawn); fix: a mesh with at least one "
                        "triangle or polygon",
@@ -242,21 +240,30 @@ rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label,
                        label);
         return RC_ERR_RANGE;
     }
-    dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
-    mesh_vtable t = {16, NULL, NULL, NULL};
-    while (t.cap < 2 * (size_t)s->n_corner)
-        t.cap *= 2;
-    t.key = malloc(t.cap * sizeof *t.key);
-    t.tex = malloc(t.cap * sizeof *t.tex);
-    t.val = malloc(t.cap * sizeof *t.val);
-    rc_status rc = RC_OK;
-    if (!acc || !t.key || !t.tex || !t.val) {
-        rc = RC_ERR_NOMEM;
-        goto done;
-    }
-    for (size_t i = 0; i < t.cap; i++)
-        t.key[i] = -1;
+    return RC_OK;
+}
 
+/* An empty vertex table with room for every corner at half load. */
+static rc_status mesh_vtable_make(mesh_vtable *t, int n_corner)
+{
+    *t = (mesh_vtable){16, NULL, NULL, NULL};
+    while (t->cap < 2 * (size_t)n_corner)
+        t->cap *= 2;
+    t->key = malloc(t->cap * sizeof *t->key);
+    t->tex = malloc(t->cap * sizeof *t->tex);
+    t->val = malloc(t->cap * sizeof *t->val);
+    if (!t->key || !t->tex || !t->val)
+        return RC_ERR_NOMEM;
+    for (size_t i = 0; i < t->cap; i++)
+        t->key[i] = -1;
+    return RC_OK;
+}
+
+/* Each position's area-weighted normal sum over the triangles of nonzero area (in double) into
+ * acc; returns how many such triangles there are. */
+static size_t mesh_soup_accumulate(const mesh_soup *s, dvec3 *acc)
+{
+    size_t kept = 0;
     for (int f = 0; f < s->n_face; f++)
         for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1]; k++) {
             int c[3];
@@ -269,7 +276,58 @@ rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label,
             for (int q = 0; q < 3; q++)
                 acc[s->cv[c[q]]] = dv3_add(acc[s->cv[c[q]]], cr);
         }
-    if (kept == 0) {
+    return kept;
+}
+
+/* The fan triangles into the mesh, each zero-area one (in double, or once stored as float)
+ * counted in *dropped instead. */
+static rc_status mesh_soup_triangles(const mesh_soup *s, mesh_builder *b, mesh_vtable *t, const dvec3 *acc,
+                                     const char *label, int is_obj, size_t *dropped, char *err, size_t errlen)
+{
+    rc_status rc = RC_OK;
+    for (int f = 0; f < s->n_face && rc == RC_OK; f++)
+        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1] && rc == RC_OK; k++) {
+            int c[3];
+            uint32_t v[3];
+            mesh_soup_fan(s, f, k, c);
+            if (dv3_len(mesh_soup_cross(s, c)) == 0.0) {
+                (*dropped)++;
+                continue;
+            }
+            for (int q = 0; q < 3 && rc == RC_OK; q++)
+                rc = mesh_soup_vertex(s, b, t, acc, c[q], label, is_obj, &v[q], err, errlen);
+            if (rc != RC_OK)
+                break;
+            dvec3 cr;
+            /* Nonzero in the file's precision can still collapse once stored as float. */
+            if (mesh_tri_area2(b->m, v[0], v[1], v[2], &cr) == 0.0) {
+                (*dropped)++;
+                continue;
+            }
+            mesh_tri(b->m, v[0], v[1], v[2], b->object);
+        }
+    return rc;
+}
+
+/* Triangulates the soup (fans), computes missing normals (area-weighted), appends to the mesh.
+ * Vertices are shared per (position, normal, texture coordinate). Zero-area triangles (in double, or once the
+ * positions are stored as float) are left out and counted, as every renderer skips them; only a
+ * mesh left with none is refused. */
+rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label, int is_obj, char *err, size_t errlen)
+{
+    mesh *m = b->m;
+    size_t ntri, kept, dropped = 0;
+    rc_status rc = mesh_soup_check(s, b, label, &ntri, err, errlen);
+    if (rc != RC_OK)
+        return rc;
+    dvec3 *acc = calloc((size_t)s->n_pos, sizeof *acc);
+    mesh_vtable t;
+    rc = mesh_vtable_make(&t, s->n_corner);
+    if (rc == RC_OK && !acc)
+        rc = RC_ERR_NOMEM;
+    if (rc != RC_OK)
+        goto done;
+    if ((kept = mesh_soup_accumulate(s, acc)) == 0) {
         status_message(err, errlen,
                        "%s: all %zu triangles have zero area (corners coincide or are collinear); fix: "
                        "a mesh with at least one proper face",
@@ -282,27 +340,7 @@ rc_status mesh_soup_emit(const mesh_soup *s, mesh_builder *b, const char *label,
     if ((rc = mesh_reserve(m, (size_t)s->n_corner, kept)) != RC_OK)
         goto done;
     m->colours[b->object] = (unsigned char)s->col_bits;
-    for (int f = 0; f < s->n_face && rc == RC_OK; f++)
-        for (int k = s->face_start[f] + 1; k + 1 < s->face_start[f + 1] && rc == RC_OK; k++) {
-            int c[3];
-            uint32_t v[3];
-            mesh_soup_fan(s, f, k, c);
-            if (dv3_len(mesh_soup_cross(s, c)) == 0.0) {
-                dropped++;
-                continue;
-            }
-            for (int q = 0; q < 3 && rc == RC_OK; q++)
-                rc = mesh_soup_vertex(s, b, &t, acc, c[q], label, is_obj, &v[q], err, errlen);
-            if (rc != RC_OK)
-                break;
-            dvec3 cr;
-            /* Nonzero in the file's precision can still collapse once stored as float. */
-            if (mesh_tri_area2(m, v[0], v[1], v[2], &cr) == 0.0) {
-                dropped++;
-                continue;
-            }
-            mesh_tri(m, v[0], v[1], v[2], b->object);
-        }
+    rc = mesh_soup_triangles(s, b, &t, acc, label, is_obj, &dropped, err, errlen);
     m->dropped[b->object] += (int)dropped;
     if (rc == RC_OK && dropped == ntri) {
         status_message(err, errlen,
