@@ -47,7 +47,7 @@ void mesh_assimp_soup_free(mesh_assimp_soup *g)
 }
 
 /* The import every caller shares: triangles only, node transforms applied, no normals invented
- * (scene/mesh.c computes missing ones by its own rule, as for OBJ and PLY). */
+ * (scene/mesh_soup.c computes missing ones by its own rule, as for OBJ and PLY). */
 static const struct aiScene *mas_open(const char *path, char *err, size_t errlen)
 {
     int fd;
