@@ -17,11 +17,11 @@ typedef struct {
     int log_scale; /* powers and roughness act multiplicatively */
 } fit_range;
 
-/* Seed ranges: seed 000 (docs/models.md, D3D9Client eq. 3), "A typical range for the power parameter is 2.5 to 3.5 ...
+/* Seed ranges: source 000 (docs/models.md, D3D9Client eq. 3), "A typical range for the power parameter is 2.5 to 3.5 ...
  * the offset R_0 ... 0.05 to 0.25", the multiplier set to 1 - offset. Direct3D colours are
  * fractions of the light, and a Blinn power beyond 256 is a glint at our sizes (a lobe about 7
  * degrees wide). Beckmann m below 0.01 is a lobe narrower than a pixel here; 1 is the roughest
- * surface seed 004 describes.
+ * surface source 004 describes.
  * Wide ranges, to see where the best value lies when a seed range holds it at a bound: p up to
  * 10 (Schlick's own exponent is 5), any r0, Vs up to 2 (an over-bright highlight), P up to 1e4
  * and m down to 0.001 (the stiff scenes' values). */

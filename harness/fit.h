@@ -39,7 +39,7 @@
  * tolerance is reported beside it and shows a second basin as good as the best.
  * Free parameters per model (fit_default_params; materials no object uses are left out), with
  * their FIT_BOUNDS_SEED ranges (FIT_BOUNDS_WIDE in brackets):
- *   D3D9Client: p in the seed's typical range [2.5, 3.5] ([1, 10]), and r0 in [0.05, 0.25]
+ *   D3D9Client: p in the source's typical range [2.5, 3.5] ([1, 10]), and r0 in [0.05, 0.25]
  *     ([0, 1]) with m = 1 - r0 as the D3D9Client material editor sets it (r0 alone when the
  *     scene authors its own m);
  *   Direct3D Blinn-Phong (a material with a specular colour): Vs, the largest channel of the

@@ -204,7 +204,7 @@ void stab_sweep_shade(sweep *s)
     free(sc);
 }
 
-/* D3DRS_NORMALIZENORMALS off under scale (seed 003), the stiff case of scaled meshes: an object
+/* D3DRS_NORMALIZENORMALS off under scale (source 003), the stiff case of scaled meshes: an object
  * scaled by 10 (D3D's normal a tenth long: N.L and N.H shrink) and by 0.1 (ten times long: both
  * pass 1 and D3D's clamp to [0, 1] must hold them). Each scale also varies per axis by up to
  * 2x and the rotation is random, so the length 1/|S R^T n| (mesh_normal_length_of, float) is

@@ -16,7 +16,7 @@
  * and saturated to +-FLT_MAX); a NaN argument propagates.
  * Blend (p->blend, D3D's SRCALPHA/INVSRCALPHA; render/render.h composites):
  *   out = c_rgb * a + behind * (1 - a),  a = render_blend_alpha(r.alpha): c_a clamped to [0, 1]
- * Dissolve (seed 000, our reading: docs/dissolve.md):
+ * Dissolve (source 000, our reading: docs/dissolve.md):
  *   if (d3d9client_dissolve_on(mat))
  *       dir = v3_add(reflect(-V, N), d3d9client_dissolve_offset(&mat->d9, u, v));   then phi = env(dir)
  */
@@ -60,7 +60,7 @@ void d3d9client_combine(const d3d9client_params *p, vec3 diffuse_rgb, float diff
 float d3d9client_diffuse_alpha(const d3d9client_params *p, float texel_a);
 
 /* Whether a material's reflection is dissolved: model d3d9client, scale and strength both > 0
- * (either 0 turns the effect off, seed 000), and a diffuse texture, the seed's condition (the
+ * (either 0 turns the effect off, source 000), and a diffuse texture, the source's condition (the
  * scene file refuses dissolve on an untextured material, so this is only a guard). */
 int d3d9client_dissolve_on(const material *m);
 /* Dissolve's offset to the mirror direction at texture coordinates (u, v):

@@ -1,11 +1,11 @@
-/* formula.h - every seed equation once, as pure inline functions on plain numbers.
+/* formula.h - every source equation once, as pure inline functions on plain numbers.
  *
  * Usage:
  *   #include "formula.h"
  *   double f = formula_schlick_d(0.04, v_h);                    (4.9), the scalar model
  *   float  g = formula_vcavity_g_v(n_h, n_v, n_l, v_h);          (4.10)/(4.11), one SIMD lane
  *   long double d = formula_beckmann_d_l(s2, c2, inv_m2, norm);  (4.12), the stability reference
- *   float o = formula_dissolve_offset_v(u, v, scale, strength, 0);  seed 000's Dissolve, x axis
+ *   float o = formula_dissolve_offset_v(u, v, scale, strength, 0);  source 000's Dissolve, x axis
  * One body (formula_body.h) is compiled once per instance, each with its type and
  * its maths library; the suffix names the instance:
  *   _f  float, libm (powf)          the scalar models' float factors (Lambert, Blinn)
@@ -67,8 +67,8 @@
 /* Walter et al. 2007's rational Smith G1 is 1 for a = 1/(m tan) >= 1.6, i.e. m tan <= 1/1.6. */
 #define FORMULA_WALTER_INV_A_MAX 0.625
 
-/* Dissolve (seed 000): the side of the square noise texture, in texels; a power of two so that
- * the repeat wrap is a mask. The seed's "particle" is one texel, 1/(256 scale) of the UV square:
+/* Dissolve (source 000): the side of the square noise texture, in texels; a power of two so that
+ * the repeat wrap is a mask. The source's "particle" is one texel, 1/(256 scale) of the UV square:
  * at the typical scales 0.2 to 3 about a pixel on an object a few hundred pixels across, so the
  * noise reads as noise, which pixel averaging turns into blur. */
 #define FORMULA_DISSOLVE_SIZE      256

@@ -100,7 +100,7 @@ FORMULA_INLINE FT FN(formula_d3d9_power)(FT p) { return p < 0 ? 0 : p; }
  * m = 1 - R0. */
 FORMULA_INLINE FT FN(formula_d3d9_fresnel)(FT r0, FT m, FT x_p) { return r0 + m * x_p; }
 
-/* ---- Direct3D fixed function (docs/models.md §1, seed 003) ---------------------------------- */
+/* ---- Direct3D fixed function (docs/models.md §1, source 003) ---------------------------------- */
 
 /* Light attenuation over distance: A = 1/(a0 + a1 d + a2 d^2), 0 for d > range. d2 is d^2 as the
  * caller has it (the lanes' squared distance, or d*d). A zero coefficient adds nothing even at
@@ -151,7 +151,7 @@ FORMULA_INLINE FT FN(formula_blinn)(FT n_h, FT power)
  * |L + V| < FORMULA_HALF_MIN (the zero-length guard: H is then the zero vector). */
 FORMULA_INLINE FT FN(formula_half_scale)(FT len) { return len >= (FT)FORMULA_HALF_MIN ? 1 / len : 0; }
 
-/* ---- Cook-Torrance microfacet terms (docs/models.md §3, seed 004) ------------------------- */
+/* ---- Cook-Torrance microfacet terms (docs/models.md §3, source 004) ------------------------- */
 
 /* The zero-cosine guard: a positive cosine raised to FORMULA_COS_MIN. */
 FORMULA_INLINE FT FN(formula_cos_floor)(FT c) { return c < (FT)FORMULA_COS_MIN ? (FT)FORMULA_COS_MIN : c; }
@@ -234,7 +234,7 @@ FORMULA_INLINE FT FN(formula_ct_lobe)(FT d, FT g, FT k, FT n_v) { return d * g /
 /* Lambert BRDF with 1/pi, the radiometric reference: albedo / pi, no cosine. */
 FORMULA_INLINE FT FN(formula_lambert_brdf)(FT albedo) { return albedo / FC(FORMULA_PI_DIGITS); }
 
-/* ---- D3D9Client reflection (docs/models.md §2, seeds 000/001) -------------------------------- */
+/* ---- D3D9Client reflection (docs/models.md §2, sources 000/001) -------------------------------- */
 
 /* |c| of a colour as weights fixed per norm (formula_norm_weights in the model file):
  * w_max max(c) + w . c + w_euclid |c|_2, one of them non-zero, so a lane loop has no switch.
@@ -269,7 +269,7 @@ FORMULA_INLINE FT FN(formula_d3d9_alpha)(FT d_alpha, FT norm_r_tot)
     return d_alpha > norm_r_tot ? d_alpha : norm_r_tot;
 }
 
-/* ---- D3D9Client Dissolve (seed 000; our reading of its shader, docs/dissolve.md) ----------- */
+/* ---- D3D9Client Dissolve (source 000; our reading of its shader, docs/dissolve.md) ----------- */
 
 /* One texel coordinate of the noise texture read at t (u or v) times scale: x = t scale SIZE -
  * 1/2 in texels (texel centres at (i + 1/2)/SIZE, as scene/texture.c's), its whole part wrapped
@@ -288,7 +288,7 @@ FORMULA_INLINE FT FN(formula_dissolve_coord)(FT t, FT scale, uint32_t *i0, uint3
 /* Dissolve, one component: the offset added to the mirror direction reflect(-V, N) before the
  * environment lookup, (t - 1/2) strength, t channel ch of the noise texture read bilinearly,
  * wrapping, at (u scale, v scale) (the texel's j counts up in v). If either parameter is 0 the
- * effect is off (the seed): the offset is 0 (scale 0 alone would read one constant texel). */
+ * effect is off (the source): the offset is 0 (scale 0 alone would read one constant texel). */
 FORMULA_INLINE FT FN(formula_dissolve_offset)(FT u, FT v, FT scale, FT strength, uint32_t ch)
 {
     uint32_t i0, i1, j0, j1;

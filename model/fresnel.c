@@ -25,7 +25,7 @@ float fresnel_d3d9(float r0, float m, float p, float cos_theta)
 {
     double e = formula_d3d9_power_d(p);
     double x = formula_one_minus_cos_d(cos_theta), xe;
-    /* Small whole powers (the seed's p = 2..5 and Schlick's 5) by repeated multiplication:
+    /* Small whole powers (the source's p = 2..5 and Schlick's 5) by repeated multiplication:
      * at most 7 double roundings, far below float resolution, and no libm pow per pixel. */
     if (e == floor(e) && e <= 8.0) {
         xe = 1.0;

@@ -109,7 +109,7 @@ typedef struct {
      * after the opaque objects, back to front, without depth write; default 0 (opaque: c_a is
      * only written into the image's A layer). */
     int blend;
-    /* Dissolve (seed 000, docs/dissolve.md): noise scale ("particle size") and strength, both
+    /* Dissolve (source 000, docs/dissolve.md): noise scale ("particle size") and strength, both
      * default 0 (off; either 0 turns it off); only on a material with a diffuse texture. */
     float dissolve_scale, dissolve_strength;
 } d3d9client_params;

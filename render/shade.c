@@ -171,7 +171,7 @@ static void shade_d3d_full(const shade_context *c, const shade_plan *p, vec3 x, 
     shade_d3d_impl(c, p->mat, x, n, v, out, 1, 1);
 }
 
-/* dissolve: the texture coordinates (tu, tv) offset the mirror direction (seed 000's Dissolve,
+/* dissolve: the texture coordinates (tu, tv) offset the mirror direction (source 000's Dissolve,
  * d3d9client_dissolve_offset); env_lookup takes the sum as it is, unnormalised, as a cube-map
  * lookup does. The Fresnel R keeps the unperturbed N.V: the effect moves only where phi is read. */
 static inline void shade_d3d9client_impl(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu,

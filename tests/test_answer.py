@@ -71,7 +71,7 @@ def test_one_row_with_where_fit_cost_and_twins():
     assert r['term'][0] == 'glossy' and r['term'][1] == pytest.approx(0.9)
     assert r['nv'][:2] == (0.1, 0.2) and r['nv'][2] == pytest.approx(0.9 / 1.4)
     assert r['nl'][:2] == (0.0, 0.1) and r['nl'][2] == pytest.approx(1.0)
-    assert (r['fit_nrmse'], r['fit_median']) == (0.25, 0.1)  # the seed-range fit, not the wide one
+    assert (r['fit_nrmse'], r['fit_median']) == (0.25, 0.1)  # the source-range fit, not the wide one
     assert (r['test_s'], r['ref_s'], r['crossover']) == (0.02, 2.5, {'spp': 64})
     assert r['twins'] == [('povray', 'at floor', 'pass'), ('cycles', '7 pixels off', 'fail')]
     assert r['physics'] == 'F lamp nv, F env exact, diffuse × (1 − F)'

@@ -1150,7 +1150,7 @@ static void test_job_contents_and_refusals(void **state)
     assert_string_equal(buf, "d/x.cyc1.exr");
 }
 
-/* Seed 004's environment term in a twin: CM * Fr is a Glossy 'SHARP' closure coloured by
+/* Source 004's environment term in a twin: CM * Fr is a Glossy 'SHARP' closure coloured by
  * Schlick(F0, N.V) with the material's F0 (the twin switches keep F for it); the Beckmann lobe
  * beside it would see the environment the mirror needs, so it is refused, or left out and
  * named with partial. */

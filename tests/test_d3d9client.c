@@ -1,4 +1,4 @@
-/* D3D9Client model: seed equations (3)-(8) at a hand-worked point, the colour-norm options
+/* D3D9Client model: source equations (3)-(8) at a hand-worked point, the colour-norm options
  * (including euclid's negative diffuse weight, which must show), the POV-Ray reflection
  * form as a second formula, and a sweep of extreme arguments that must stay finite. */
 #include <stdarg.h>

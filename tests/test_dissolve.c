@@ -1,4 +1,4 @@
-/* D3D9Client Dissolve (seed 000, docs/dissolve.md): the noise texels against values worked out
+/* D3D9Client Dissolve (source 000, docs/dissolve.md): the noise texels against values worked out
  * by hand (the published lowbias32 hash, in Python), the offset at texel centres and between
  * them, the off switch and strength scaling, the noise's mean and variance (which the
  * validate's roughness m = strength / sqrt(54) rests on), every formula instance and the SIMD
@@ -323,7 +323,7 @@ static void test_scene_file(void **state)
                  "expected a list of 2 numbers");
     expect_error("{model: d3d9client, d3d9client: {dissolve: 1}, texture: {diffuse: TEX}}", RC_ERR_PARSE, "dissolve");
     expect_error("{model: d3d9client, d3d9client: {dissolve: [1, 0.1]}}", RC_ERR_RANGE,
-                 "dissolve needs a textured surface (seed 000");
+                 "dissolve needs a textured surface (source 000");
     expect_error("{model: d3d, d3d9client: {dissolve: [1, 0.1]}, texture: {diffuse: TEX}}", RC_ERR_RANGE,
                  "dissolve applies to model d3d9client only");
     /* Off (a zero parameter) needs no texture: nothing to apply. */
@@ -357,7 +357,7 @@ static void test_twins_refused(void **state)
         assert_int_equal(
             cli_exec(err, sizeof err, "run %s --renderer %s --role twin --small --out %s", SCENE, renderer[i], dir), 0);
         expect_refused(dir, "d3d9_dissolve", renderer[i],
-                       "d3d9client.dissolve (seed 000's noise on the reflected direction");
+                       "d3d9client.dissolve (source 000's noise on the reflected direction");
         expect_refused(dir, "d3d9_dissolve", renderer[i], "judge it with role validate");
     }
     char tex[PATH_MAX], scn[600];
@@ -374,7 +374,7 @@ static void test_twins_refused(void **state)
     fclose(f);
     assert_int_equal(cli_exec(err, sizeof err, "run %s --renderer eevee --role twin --out %s", scn, dir), 0);
     expect_refused(dir, "noenv", "eevee",
-                   "d3d9client.dissolve (seed 000's noise on the reflected direction) has no EEVEE twin");
+                   "d3d9client.dissolve (source 000's noise on the reflected direction) has no EEVEE twin");
     char cmd[700];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     assert_int_equal(system(cmd), 0);

@@ -132,7 +132,7 @@ static void test_recovers_d3d9client_p(void **state)
     world_free(&w);
 }
 
-/* Wide bounds reach a p the seed range cannot: truth p = 5 (Schlick's exponent), where the seed
+/* Wide bounds reach a p the source range cannot: truth p = 5 (Schlick's exponent), where the seed
  * fit stops at its bound 3.5 and says so. */
 static void test_wide_bounds_reach_beyond_the_seed(void **state)
 {
@@ -321,7 +321,7 @@ static void test_measures_by_hand_and_budget(void **state)
     world_free(&w);
 }
 
-/* Bounds hold the authored value (r0 = 0.04 for n = 1.5 lies below the seed's 0.05); a scene
+/* Bounds hold the authored value (r0 = 0.04 for n = 1.5 lies below the source's 0.05); a scene
  * that authors its own m fits r0 alone; a wrongly sized reference and no parameter refuse. */
 static void test_bounds_and_refusals(void **state)
 {

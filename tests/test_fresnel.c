@@ -52,7 +52,7 @@ static void test_schlick(void **state)
     assert_true(isnan(fresnel_schlick(0.04f, NAN)));
 }
 
-/* (1)/(3): R0 + m (1 - c)^p. The seed's checks: c = 1 (0 deg) gives R0, c = 0 (90 deg)
+/* (1)/(3): R0 + m (1 - c)^p. The source's checks: c = 1 (0 deg) gives R0, c = 0 (90 deg)
  * gives R0 + m. Interior: 0.05 + 0.5 * 0.4^2 = 0.13; 0.2 + 0.8 * 0.25^2.5 = 0.2 + 0.8/32
  * = 0.225. */
 static void test_d3d9(void **state)

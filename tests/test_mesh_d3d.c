@@ -1,6 +1,6 @@
-/* test_mesh_d3d.c - object scale with Direct3D's D3DRS_NORMALIZENORMALS off (seed 003).
+/* test_mesh_d3d.c - object scale with Direct3D's D3DRS_NORMALIZENORMALS off (source 003).
  *
- * The pixel values are worked by hand from the seed's formulas: a quad scaled by (2, s_y, 2)
+ * The pixel values are worked by hand from the source's formulas: a quad scaled by (2, s_y, 2)
  * has the D3D normal R S^-1 (0, 1, 0) = (0, 1/s_y, 0), so with the unit light L at 60 degrees
  * from the normal and the viewer straight above (H at 30 degrees):
  *   Rd = clamp(0.5 / s_y, 0, 1),  Rs = clamp(cos 30 / s_y, 0, 1)^P.

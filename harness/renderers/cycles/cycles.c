@@ -477,7 +477,7 @@ static rc_status cycles_twin_d3d_refusals(cycles_ctx *c, int mi)
         mesh_material_unnormalised(s, mi)
             ? "d3d.normalize_normals false on a scaled object (Cycles normalises every normal)"
         : d3d9client_dissolve_on(mat)
-            ? "d3d9client.dissolve (seed 000's noise on the reflected direction; no renderer reproduces it)"
+            ? "d3d9client.dissolve (source 000's noise on the reflected direction; no renderer reproduces it)"
         : mat->model == MODEL_D3D9CLIENT && mat->d9.blend && mat->texture[MAT_TEX_DIFFUSE][0] != '\0'
             ? "d3d9client.blend on a textured material (eq. 7's texel alpha is not translated)"
             : NULL;

@@ -55,7 +55,7 @@ static int eevee_twin_refused(const scene *s, char *why, size_t len)
         }
         if (d3d9client_dissolve_on(m)) {
             snprintf(why, len,
-                     "%s: materials[%d] '%s': d3d9client.dissolve (seed 000's noise on the reflected direction) has "
+                     "%s: materials[%d] '%s': d3d9client.dissolve (source 000's noise on the reflected direction) has "
                      "no EEVEE twin: no renderer reproduces that noise; compare EEVEE in validate or agree",
                      s->path, mi, m->name);
             return 1;

@@ -289,7 +289,7 @@ static rc_status povray_twin_refusal(const scene *s, int mi, const povray_resolv
     int d9 = mat->model == MODEL_D3D9CLIENT;
     if (d3d9client_dissolve_on(mat)) {
         status_message(err, errlen,
-                       "%s: materials[%d] '%s': d3d9client.dissolve (seed 000's noise on the reflected "
+                       "%s: materials[%d] '%s': d3d9client.dissolve (source 000's noise on the reflected "
                        "direction) has no POV-Ray twin: no renderer reproduces that noise; judge it with "
                        "role validate",
                        s->path, mi, name);
