@@ -1425,109 +1425,142 @@ static void compare_kinds_put(const scene *s, cJSON *o)
     }
 }
 
-static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
+/* One comparison's working state, shared by the stages of compare_one below: both sides as
+ * loaded, the raster geometry that classifies pixels, and the words of a gate or an error. */
+typedef struct {
+    const scene *s;
+    const comparison *c;
+    comparison_role rr; /* agree compares the two validate renders themselves, never a third setup */
+    char id[128];
+    char reason[1200];
+    compare_side t, r, mask_src;
+    compare_partial part;
+    const exr_image *geo;
+    metrics_image tm, rm;
+    size_t np;
+    unsigned char *cls, *mask[4];
+    char gate[900];
+    char crease_gate[1000];
+} compare_work;
+
+/* Stage 1: the comparison's names. */
+static cJSON *compare_header(compare_work *wk)
 {
-    char id[128], reason[1200];
-    /* agree compares the two validate renders themselves, never a third setup. */
-    comparison_role rr = c->role == ROLE_AGREE ? ROLE_VALIDATE : c->role;
-    snprintf(id, sizeof id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
+    const comparison *c = wk->c;
+    wk->rr = c->role == ROLE_AGREE ? ROLE_VALIDATE : c->role;
+    snprintf(wk->id, sizeof wk->id, "%s-vs-%s-%s", registry_name(c->test), registry_name(c->reference),
              job_role_names[c->role]);
     cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "id", id);
+    cJSON_AddStringToObject(o, "id", wk->id);
     cJSON_AddStringToObject(o, "test", registry_name(c->test));
     cJSON_AddStringToObject(o, "reference", registry_name(c->reference));
     cJSON_AddStringToObject(o, "role", job_role_names[c->role]);
+    return o;
+}
 
-    compare_side t = {.renderer = c->test, .role = rr}, r = {.renderer = c->reference, .role = rr};
-    compare_side mask_src = {.renderer = registry_model(), .role = rr};
+/* Stage 2: load both sides; NULL when they can be compared, else "error" or "skipped" with
+ * the reason in wk->reason. */
+static const char *compare_load_both(compare_work *wk, const char *run)
+{
+    const scene *s = wk->s;
     char why_t[600] = "", why_r[600] = "";
-    compare_side_state ts = compare_load_side(run, s->name, &t, why_t, sizeof why_t);
-    compare_side_state rs = compare_load_side(run, s->name, &r, why_r, sizeof why_r);
-    const char *state = NULL;
+    compare_side_state ts = compare_load_side(run, s->name, &wk->t, why_t, sizeof why_t);
+    compare_side_state rs = compare_load_side(run, s->name, &wk->r, why_r, sizeof why_r);
     if (ts == COMPARE_SIDE_ERROR || rs == COMPARE_SIDE_ERROR) {
-        state = "error";
-        snprintf(reason, sizeof reason, "%s%s%s", ts == COMPARE_SIDE_ERROR ? why_t : "",
+        snprintf(wk->reason, sizeof wk->reason, "%s%s%s", ts == COMPARE_SIDE_ERROR ? why_t : "",
                  ts == COMPARE_SIDE_ERROR && rs == COMPARE_SIDE_ERROR ? "; " : "",
                  rs == COMPARE_SIDE_ERROR ? why_r : "");
-    } else if (ts == COMPARE_SIDE_SKIPPED || rs == COMPARE_SIDE_SKIPPED) {
-        state = "skipped";
-        snprintf(reason, sizeof reason, "%s%s%s", why_t, why_t[0] && why_r[0] ? "; " : "", why_r);
-    } else if (t.img.width != r.img.width || t.img.height != r.img.height) {
-        state = "error";
-        snprintf(reason, sizeof reason, "image sizes differ: %s is %dx%d, %s is %dx%d", t.path, t.img.width,
-                 t.img.height, r.path, r.img.width, r.img.height);
+        return "error";
     }
-    /* A validate's references must render the scene's one physics: a record that says
-     * otherwise (a translator drifted, or an old run) is an error, never a figure. */
+    if (ts == COMPARE_SIDE_SKIPPED || rs == COMPARE_SIDE_SKIPPED) {
+        snprintf(wk->reason, sizeof wk->reason, "%s%s%s", why_t, why_t[0] && why_r[0] ? "; " : "", why_r);
+        return "skipped";
+    }
+    if (wk->t.img.width != wk->r.img.width || wk->t.img.height != wk->r.img.height) {
+        snprintf(wk->reason, sizeof wk->reason, "image sizes differ: %s is %dx%d, %s is %dx%d", wk->t.path,
+                 wk->t.img.width, wk->t.img.height, wk->r.path, wk->r.img.width, wk->r.img.height);
+        return "error";
+    }
+    return NULL;
+}
+
+/* Stage 3: a validate's references must render the scene's one physics: a record that says
+ * otherwise (a translator drifted, or an old run) is an error, never a figure. */
+static const char *compare_physics_check(compare_work *wk, const char *state, cJSON *o)
+{
+    const scene *s = wk->s;
     char want_physics[400];
     physics_describe(&s->physics, frame_light_count(s), want_physics, sizeof want_physics);
-    if (rr == ROLE_VALIDATE)
+    if (wk->rr == ROLE_VALIDATE)
         cJSON_AddStringToObject(o, "physics", want_physics);
-    if (c->role == ROLE_VALIDATE) {
-        compare_agrees_put(s, c, o);
+    if (wk->c->role == ROLE_VALIDATE) {
+        compare_agrees_put(s, wk->c, o);
         compare_kinds_put(s, o);
     }
-    const compare_side *both[2] = {&t, &r};
-    for (int sd = 0; sd < 2 && state == NULL && rr == ROLE_VALIDATE; sd++) {
+    const compare_side *both[2] = {&wk->t, &wk->r};
+    for (int sd = 0; sd < 2 && state == NULL && wk->rr == ROLE_VALIDATE; sd++) {
         const renderer_row *row = registry_row(both[sd]->renderer);
         if (row == NULL || row->physics == NULL)
             continue;
         const char *got = compare_json_str(both[sd]->record, "physics");
         if (strcmp(got, want_physics) != 0) {
             state = "error";
-            snprintf(reason, sizeof reason,
+            snprintf(wk->reason, sizeof wk->reason,
                      "%s validate rendered physics '%s', the scene's is '%s'; every validate reference must "
                      "render the scene's physics: re-render it",
                      row->name, got[0] ? got : "(not recorded)", want_physics);
         }
     }
-    /* A partial twin: the terms either side left out are removed from the other (its own
-     * layers), so both images hold the same sum of terms. */
-    compare_partial part = {0};
-    if (state == NULL && compare_partial_setup(&t, &r, &part, reason, sizeof reason) != 0)
+    return state;
+}
+
+/* Stage 4: a partial twin (the terms either side left out are removed from the other, its own
+ * layers, so both images hold the same sum of terms) and the raster geometry that classifies
+ * pixels: the raster side itself, else the raster's render of the same size. */
+static const char *compare_setup(compare_work *wk, const char *run, const char *state)
+{
+    const comparison *c = wk->c;
+    if (state == NULL && compare_partial_setup(&wk->t, &wk->r, &wk->part, wk->reason, sizeof wk->reason) != 0)
         state = "error";
-    const exr_image *geo = NULL;
     if (state == NULL) {
         char tmp[600];
-        geo = c->test == registry_model() ? &t.img : (c->reference == registry_model() ? &r.img : NULL);
-        if (geo == NULL && compare_load_side(run, s->name, &mask_src, tmp, sizeof tmp) == COMPARE_SIDE_OK &&
-            mask_src.img.width == t.img.width && mask_src.img.height == t.img.height)
-            geo = &mask_src.img;
+        wk->geo = c->test == registry_model() ? &wk->t.img : (c->reference == registry_model() ? &wk->r.img : NULL);
+        if (wk->geo == NULL && compare_load_side(run, wk->s->name, &wk->mask_src, tmp, sizeof tmp) == COMPARE_SIDE_OK &&
+            wk->mask_src.img.width == wk->t.img.width && wk->mask_src.img.height == wk->t.img.height)
+            wk->geo = &wk->mask_src.img;
     }
-    if (state != NULL) {
-        /* The renderer's words name the key of the scene it could not take (materials[i].model,
-         * lights[i].range, ...); the comparison's own key is what to change when the renderer
-         * is missing, or to leave the comparison out. */
-        size_t used = strlen(reason);
-        snprintf(reason + used, sizeof reason - used, "; scene key comparisons[%d]", (int)(c - s->comparisons));
-        cJSON_AddStringToObject(o, "status", state);
-        cJSON_AddStringToObject(o, "reason", reason);
-        if (state[0] == 's') {
-            sum->skipped++;
-        } else {
-            sum->error++;
-            if (sum->first_failure[0] == '\0')
-                snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: error: %s", s->name, id, reason);
-        }
-        compare_side_free(&t);
-        compare_side_free(&r);
-        compare_side_free(&mask_src);
-        compare_partial_free(&part);
-        return o;
-    }
+    return state;
+}
 
-    int w = t.img.width, h = t.img.height;
-    size_t np = (size_t)w * (size_t)h;
-    unsigned char *cls = malloc(np), *mask[4] = {malloc(np), malloc(np), malloc(np), malloc(np)};
-    metrics_image tm = compare_planes(&t.img, ""), rm = compare_planes(&r.img, "");
-    compare_partial_apply(&part, &tm, &rm);
-    compare_partial_json(&part, o);
-    /* The largest finite value of each side (a half-float EXR overflows to Inf above 65504). */
-    const metrics_image *sides[2] = {&tm, &rm};
+/* A comparison that could not be made: its state and reason, counted in the summary. */
+static void compare_put_unmade(compare_work *wk, const char *state, cJSON *o, compare_summary *sum)
+{
+    /* The renderer's words name the key of the scene it could not take (materials[i].model,
+     * lights[i].range, ...); the comparison's own key is what to change when the renderer
+     * is missing, or to leave the comparison out. */
+    size_t used = strlen(wk->reason);
+    snprintf(wk->reason + used, sizeof wk->reason - used, "; scene key comparisons[%d]",
+             (int)(wk->c - wk->s->comparisons));
+    cJSON_AddStringToObject(o, "status", state);
+    cJSON_AddStringToObject(o, "reason", wk->reason);
+    if (state[0] == 's') {
+        sum->skipped++;
+    } else {
+        sum->error++;
+        if (sum->first_failure[0] == '\0')
+            snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: error: %s", wk->s->name, wk->id,
+                     wk->reason);
+    }
+}
+
+/* Stage 5: the largest finite value of each side (a half-float EXR overflows to Inf above 65504). */
+static void compare_max_put(const compare_work *wk, cJSON *o)
+{
+    const metrics_image *sides[2] = {&wk->tm, &wk->rm};
     const char *side_names[2] = {"test", "ref"};
     for (int sd = 0; sd < 2; sd++) {
         double vmax = 0.0;
-        for (size_t i = 0; i < np; i++)
+        for (size_t i = 0; i < wk->np; i++)
             for (int ch = 0; ch < 3; ch++) {
                 double v = sides[sd]->c[ch][i];
                 if (isfinite(v) && v > vmax)
@@ -1537,117 +1570,145 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         snprintf(key, sizeof key, "%s_max", side_names[sd]);
         cJSON_AddNumberToObject(o, key, vmax);
     }
-    /* The value gate: every layer either image holds that the comparison may read, all pixels,
-     * whatever the thresholds say. */
-    int promise = compare_scene_nonnegative(s);
+}
+
+/* Stage 6: the value gate: every layer either image holds that the comparison may read, all
+ * pixels, whatever the thresholds say. */
+static void compare_values_put(compare_work *wk, cJSON *o)
+{
+    const comparison *c = wk->c;
+    int promise = compare_scene_nonnegative(wk->s);
     compare_values vt = {.negative_allowed = compare_negative_allowed(promise, c->test, c->role)};
     compare_values vr = {.negative_allowed = compare_negative_allowed(promise, c->reference, c->role)};
     compare_values vm = {0};
-    compare_scan_image(&t.img, c->role == ROLE_TWIN, 0, &vt);
-    compare_scan_image(&r.img, c->role == ROLE_TWIN, 0, &vr);
-    if (geo == &mask_src.img)
-        compare_scan_image(&mask_src.img, 0, 1, &vm);
-    char gate[900] = "";
+    compare_scan_image(&wk->t.img, c->role == ROLE_TWIN, 0, &vt);
+    compare_scan_image(&wk->r.img, c->role == ROLE_TWIN, 0, &vr);
+    if (wk->geo == &wk->mask_src.img)
+        compare_scan_image(&wk->mask_src.img, 0, 1, &vm);
     cJSON *values = cJSON_AddObjectToObject(o, "values");
-    compare_values_report(&vt, "test", registry_name(c->test), values, gate, sizeof gate);
-    compare_values_report(&vr, "ref", registry_name(c->reference), values, gate, sizeof gate);
-    if (geo == &mask_src.img)
-        compare_values_report(&vm, "mask", "raster geometry", values, gate, sizeof gate);
+    compare_values_report(&vt, "test", registry_name(c->test), values, wk->gate, sizeof wk->gate);
+    compare_values_report(&vr, "ref", registry_name(c->reference), values, wk->gate, sizeof wk->gate);
+    if (wk->geo == &wk->mask_src.img)
+        compare_values_report(&vm, "mask", "raster geometry", values, wk->gate, sizeof wk->gate);
     cJSON_AddNumberToObject(o, "test_nonfinite", (double)vt.nonfinite);
     cJSON_AddNumberToObject(o, "ref_nonfinite", (double)vr.nonfinite);
     cJSON_AddNumberToObject(o, "test_negative", (double)vt.negative);
     cJSON_AddNumberToObject(o, "ref_negative", (double)vr.negative);
-    /* The built-in gates' clauses: the crease region's share, a twin's bias and coverage. */
-    char crease_gate[1000] = "";
+}
+
+/* Stage 7a: the pixel classes, the crease and tie clauses, and the figures per region. */
+static void compare_regions_put(compare_work *wk, cJSON *o, cJSON *regions)
+{
     const char *region_names[4] = {"surface", "edges", "background", "crease"};
     const int region_class[4] = {METRICS_PX_INTERIOR, METRICS_PX_EDGE, METRICS_PX_BACKGROUND, METRICS_PX_CREASE};
-    cJSON *regions = cJSON_AddObjectToObject(o, "regions");
-    if (cls && mask[0] && mask[1] && mask[2] && mask[3]) {
-        const float *cov = geo ? exr_image_channel(geo, "coverage") : NULL;
-        const float *obj = geo ? exr_image_channel(geo, "object") : NULL;
-        metrics_classify(w, h, cov, obj, cls);
-        compare_crease(c, geo, cls, np, o, crease_gate, sizeof crease_gate);
-        compare_ties(c, s, geo, cls, np, regions, crease_gate, sizeof crease_gate);
-        for (int i = 0; i < 4; i++) {
-            metrics_mask_from_class(w, h, cls, region_class[i], NULL, 0.0f, mask[i]);
-            cJSON *m = compare_region(&rm, &tm, mask[i]);
-            if (m != NULL && region_class[i] == METRICS_PX_CREASE)
-                compare_crease_noise(&r.img, &rm, &t.img, &tm, mask[i], m);
-            if (m != NULL)
-                cJSON_AddItemToObject(regions, region_names[i], m);
-        }
-        compare_crease_beside(o, regions);
-        /* Per object (and so per material): surface pixels whose centre sample is that object. */
-        const float *obj_layer = geo ? exr_image_channel(geo, "object") : NULL;
-        if (obj_layer != NULL && s->n_objects > 1) {
-            cJSON *objs = cJSON_AddArrayToObject(o, "objects");
-            unsigned char *om = malloc(np);
-            for (int ob = 0; om != NULL && ob < s->n_objects; ob++) {
-                if (metrics_mask_from_class(w, h, cls, METRICS_PX_INTERIOR, obj_layer, (float)ob, om) == 0)
-                    continue;
-                cJSON *m = compare_region(&rm, &tm, om);
-                if (m == NULL)
-                    continue;
-                cJSON_AddNumberToObject(m, "object", ob);
-                cJSON_AddStringToObject(m, "material", s->materials[s->objects[ob].material].name);
-                cJSON_AddItemToArray(objs, m);
-            }
-            free(om);
-        }
-        /* Layers line up only in twins: a physical reference splits its light differently
-         * (Cycles files an environment mirror under glossy, our model under reflection). */
-        cJSON *aovs = cJSON_AddObjectToObject(o, "aovs");
-        for (int a = 0; a < 3 && c->role == ROLE_TWIN; a++) {
-            if (part.left_out & renderer_term_from_name(compare_aovs[a]))
-                continue;
-            metrics_image ta = compare_planes(&t.img, compare_aovs[a]), ra = compare_planes(&r.img, compare_aovs[a]);
-            if (!ta.c[0] || !ta.c[1] || !ta.c[2] || !ra.c[0] || !ra.c[1] || !ra.c[2])
-                continue;
-            cJSON *m = compare_region(&ra, &ta, mask[0]);
-            if (m != NULL)
-                cJSON_AddItemToObject(aovs, compare_aovs[a], m);
-        }
-        cJSON *terms = compare_terms(&t.img, &r.img, &rm, part.left_out, c->role == ROLE_TWIN, mask[0]);
-        cJSON_AddItemToObject(o, "terms", terms);
-        compare_bias_summary(&tm, &rm, &t.img, &r.img, terms, mask[0], o);
-        compare_bias_gate(c, o, crease_gate, sizeof crease_gate);
-        const float *rc = exr_image_channel(&r.img, "coverage"), *tc = exr_image_channel(&t.img, "coverage");
-        if (rc != NULL && tc != NULL) {
-            long agree = 0;
-            /* A pixel disagrees when the covered shares differ by half a pixel or more: a
-             * silhouette moved by half a pixel. Smaller differences are the sample pattern
-             * (k x k ordered samples against Cycles' jittered ones). */
-            for (size_t i = 0; i < np; i++)
-                agree += fabsf(rc[i] - tc[i]) < 0.5f;
-            cJSON_AddNumberToObject(o, "coverage_agreement", (double)agree / (double)np);
-            compare_coverage_gate(c, (double)agree / (double)np, crease_gate, sizeof crease_gate);
-        }
-        cJSON *noise = compare_noise(&r.img, &rm, &t.img, &tm, mask[0]);
-        if (noise != NULL)
-            cJSON_AddItemToObject(o, "noise", noise);
-        compare_angle_bins_put(s, c, geo, &t.img, &r.img, &tm, &rm, part.left_out, mask[0], o);
+    int w = wk->t.img.width, h = wk->t.img.height;
+    const exr_image *geo = wk->geo;
+    const float *cov = geo ? exr_image_channel(geo, "coverage") : NULL;
+    const float *obj = geo ? exr_image_channel(geo, "object") : NULL;
+    metrics_classify(w, h, cov, obj, wk->cls);
+    compare_crease(wk->c, geo, wk->cls, wk->np, o, wk->crease_gate, sizeof wk->crease_gate);
+    compare_ties(wk->c, wk->s, geo, wk->cls, wk->np, regions, wk->crease_gate, sizeof wk->crease_gate);
+    for (int i = 0; i < 4; i++) {
+        metrics_mask_from_class(w, h, wk->cls, region_class[i], NULL, 0.0f, wk->mask[i]);
+        cJSON *m = compare_region(&wk->rm, &wk->tm, wk->mask[i]);
+        if (m != NULL && region_class[i] == METRICS_PX_CREASE)
+            compare_crease_noise(&wk->r.img, &wk->rm, &wk->t.img, &wk->tm, wk->mask[i], m);
+        if (m != NULL)
+            cJSON_AddItemToObject(regions, region_names[i], m);
     }
+    compare_crease_beside(o, regions);
+}
+
+/* Stage 7b: per object (and so per material): surface pixels whose centre sample is that object. */
+static void compare_objects_put(const compare_work *wk, cJSON *o)
+{
+    const scene *s = wk->s;
+    const float *obj_layer = wk->geo ? exr_image_channel(wk->geo, "object") : NULL;
+    if (obj_layer == NULL || s->n_objects <= 1)
+        return;
+    int w = wk->t.img.width, h = wk->t.img.height;
+    cJSON *objs = cJSON_AddArrayToObject(o, "objects");
+    unsigned char *om = malloc(wk->np);
+    for (int ob = 0; om != NULL && ob < s->n_objects; ob++) {
+        if (metrics_mask_from_class(w, h, wk->cls, METRICS_PX_INTERIOR, obj_layer, (float)ob, om) == 0)
+            continue;
+        cJSON *m = compare_region(&wk->rm, &wk->tm, om);
+        if (m == NULL)
+            continue;
+        cJSON_AddNumberToObject(m, "object", ob);
+        cJSON_AddStringToObject(m, "material", s->materials[s->objects[ob].material].name);
+        cJSON_AddItemToArray(objs, m);
+    }
+    free(om);
+}
+
+/* Stage 7c: the layers, terms, bias, coverage, noise and angle bins over the surface mask. */
+static void compare_layers_put(compare_work *wk, cJSON *o)
+{
+    const comparison *c = wk->c;
+    const unsigned char *surface = wk->mask[0];
+    /* Layers line up only in twins: a physical reference splits its light differently
+     * (Cycles files an environment mirror under glossy, our model under reflection). */
+    cJSON *aovs = cJSON_AddObjectToObject(o, "aovs");
+    for (int a = 0; a < 3 && c->role == ROLE_TWIN; a++) {
+        if (wk->part.left_out & renderer_term_from_name(compare_aovs[a]))
+            continue;
+        metrics_image ta = compare_planes(&wk->t.img, compare_aovs[a]),
+                      ra = compare_planes(&wk->r.img, compare_aovs[a]);
+        if (!ta.c[0] || !ta.c[1] || !ta.c[2] || !ra.c[0] || !ra.c[1] || !ra.c[2])
+            continue;
+        cJSON *m = compare_region(&ra, &ta, surface);
+        if (m != NULL)
+            cJSON_AddItemToObject(aovs, compare_aovs[a], m);
+    }
+    cJSON *terms = compare_terms(&wk->t.img, &wk->r.img, &wk->rm, wk->part.left_out, c->role == ROLE_TWIN, surface);
+    cJSON_AddItemToObject(o, "terms", terms);
+    compare_bias_summary(&wk->tm, &wk->rm, &wk->t.img, &wk->r.img, terms, surface, o);
+    compare_bias_gate(c, o, wk->crease_gate, sizeof wk->crease_gate);
+    const float *rc = exr_image_channel(&wk->r.img, "coverage"), *tc = exr_image_channel(&wk->t.img, "coverage");
+    if (rc != NULL && tc != NULL) {
+        long agree = 0;
+        /* A pixel disagrees when the covered shares differ by half a pixel or more: a
+         * silhouette moved by half a pixel. Smaller differences are the sample pattern
+         * (k x k ordered samples against Cycles' jittered ones). */
+        for (size_t i = 0; i < wk->np; i++)
+            agree += fabsf(rc[i] - tc[i]) < 0.5f;
+        cJSON_AddNumberToObject(o, "coverage_agreement", (double)agree / (double)wk->np);
+        compare_coverage_gate(c, (double)agree / (double)wk->np, wk->crease_gate, sizeof wk->crease_gate);
+    }
+    cJSON *noise = compare_noise(&wk->r.img, &wk->rm, &wk->t.img, &wk->tm, surface);
+    if (noise != NULL)
+        cJSON_AddItemToObject(o, "noise", noise);
+    compare_angle_bins_put(wk->s, c, wk->geo, &wk->t.img, &wk->r.img, &wk->tm, &wk->rm, wk->part.left_out, surface, o);
+}
+
+/* Stage 8: both sides' render times, then the verdict under the gates and thresholds. */
+static void compare_verdict_put(compare_work *wk, cJSON *o, compare_summary *sum)
+{
+    const scene *s = wk->s;
     cJSON *times = cJSON_AddObjectToObject(o, "times");
-    const cJSON *tw = cJSON_GetObjectItemCaseSensitive(t.record, "wall_s");
-    const cJSON *rw = cJSON_GetObjectItemCaseSensitive(r.record, "wall_s");
+    const cJSON *tw = cJSON_GetObjectItemCaseSensitive(wk->t.record, "wall_s");
+    const cJSON *rw = cJSON_GetObjectItemCaseSensitive(wk->r.record, "wall_s");
     cJSON_AddNumberToObject(times, "test_wall_s", cJSON_IsNumber(tw) ? tw->valuedouble : 0.0);
     cJSON_AddNumberToObject(times, "reference_wall_s", cJSON_IsNumber(rw) ? rw->valuedouble : 0.0);
 
+    const char *gate = wk->gate, *crease_gate = wk->crease_gate;
     if (gate[0] != '\0' && sum->first_failure[0] == '\0')
-        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: values: %s", s->name, id, gate);
+        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: values: %s", s->name, wk->id, gate);
     if (crease_gate[0] != '\0' && sum->first_failure[0] == '\0')
-        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s", s->name, id, crease_gate);
-    const char *verdict = compare_judge(s, c, compare_full_size(&t, &r), o, id, sum);
+        snprintf(sum->first_failure, sizeof sum->first_failure, "%s: %s: %s", s->name, wk->id, crease_gate);
+    const char *verdict = compare_judge(s, wk->c, compare_full_size(&wk->t, &wk->r), o, wk->id, sum);
     if (gate[0] != '\0' || crease_gate[0] != '\0') {
         verdict = "fail";
         /* A gate's words say what to look at, or which metric to state with its reason; the key
          * that holds such a statement is the comparison's thresholds. */
-        snprintf(reason, sizeof reason, "%s%s%s%s; scene key comparisons[%d].thresholds", gate[0] ? "values: " : "",
-                 gate, gate[0] && crease_gate[0] ? "; " : "", crease_gate, (int)(c - s->comparisons));
-        cJSON_AddStringToObject(o, "reason", reason);
+        snprintf(wk->reason, sizeof wk->reason, "%s%s%s%s; scene key comparisons[%d].thresholds",
+                 gate[0] ? "values: " : "", gate, gate[0] && crease_gate[0] ? "; " : "", crease_gate,
+                 (int)(wk->c - s->comparisons));
+        cJSON_AddStringToObject(o, "reason", wk->reason);
     }
-    if (part.left_out != 0 && gate[0] == '\0' && crease_gate[0] == '\0')
-        cJSON_AddStringToObject(o, "reason", part.reason);
+    if (wk->part.left_out != 0 && gate[0] == '\0' && crease_gate[0] == '\0')
+        cJSON_AddStringToObject(o, "reason", wk->part.reason);
     cJSON_AddStringToObject(o, "status", verdict);
     if (strcmp(verdict, "fail") == 0)
         sum->fail++;
@@ -1657,13 +1718,55 @@ static cJSON *compare_one(const scene *s, const comparison *c, const char *run, 
         sum->not_gated++;
     else
         sum->pass++;
-    free(cls);
+}
+
+static void compare_work_free(compare_work *wk)
+{
+    free(wk->cls);
     for (int i = 0; i < 4; i++)
-        free(mask[i]);
-    compare_side_free(&t);
-    compare_side_free(&r);
-    compare_side_free(&mask_src);
-    compare_partial_free(&part);
+        free(wk->mask[i]);
+    compare_side_free(&wk->t);
+    compare_side_free(&wk->r);
+    compare_side_free(&wk->mask_src);
+    compare_partial_free(&wk->part);
+}
+
+/* One comparison, stage by stage: names, both sides loaded and checked, then the figures and
+ * gates, then the verdict. */
+static cJSON *compare_one(const scene *s, const comparison *c, const char *run, compare_summary *sum)
+{
+    compare_work wk = {.s = s, .c = c};
+    cJSON *o = compare_header(&wk);
+    wk.t = (compare_side){.renderer = c->test, .role = wk.rr};
+    wk.r = (compare_side){.renderer = c->reference, .role = wk.rr};
+    wk.mask_src = (compare_side){.renderer = registry_model(), .role = wk.rr};
+    const char *state = compare_load_both(&wk, run);
+    state = compare_physics_check(&wk, state, o);
+    state = compare_setup(&wk, run, state);
+    if (state != NULL) {
+        compare_put_unmade(&wk, state, o, sum);
+        compare_work_free(&wk);
+        return o;
+    }
+    wk.np = (size_t)wk.t.img.width * (size_t)wk.t.img.height;
+    wk.cls = malloc(wk.np);
+    for (int i = 0; i < 4; i++)
+        wk.mask[i] = malloc(wk.np);
+    wk.tm = compare_planes(&wk.t.img, "");
+    wk.rm = compare_planes(&wk.r.img, "");
+    compare_partial_apply(&wk.part, &wk.tm, &wk.rm);
+    compare_partial_json(&wk.part, o);
+    compare_max_put(&wk, o);
+    compare_values_put(&wk, o);
+    /* The built-in gates' clauses: the crease region's share, a twin's bias and coverage. */
+    cJSON *regions = cJSON_AddObjectToObject(o, "regions");
+    if (wk.cls && wk.mask[0] && wk.mask[1] && wk.mask[2] && wk.mask[3]) {
+        compare_regions_put(&wk, o, regions);
+        compare_objects_put(&wk, o);
+        compare_layers_put(&wk, o);
+    }
+    compare_verdict_put(&wk, o, sum);
+    compare_work_free(&wk);
     return o;
 }
 
