@@ -828,6 +828,102 @@ static rc_status job_check_dirs(const job_spec *j, char *err, size_t errlen)
     return RC_ERR_RANGE;
 }
 
+/* Step 1 of a job: the scene as this job renders it (variant, overrides, mesh, environment,
+ * twin switches), the renderer's row and version, and the cache key. */
+static rc_status job_prepare(job_ctx *c, job_record *rec, float **env_pixels, const renderer_row **row, uint64_t *key,
+                             char *err, size_t errlen)
+{
+    const job_spec *j = c->j;
+    scene *s = c->s;
+    rc_status st = scene_file_load(j->scene_path, s, err, errlen);
+    if (st == RC_OK) {
+        job_apply_variant(s, j->variant);
+        job_apply_overrides(s, j);
+        char why[900];
+        st = mesh_build(s, c->m, why, sizeof why);
+        if (st != RC_OK)
+            snprintf(err, errlen, "%s: objects: %s", j->scene_path, why);
+        else if (mesh_repair_note(s, c->m, why, sizeof why))
+            fprintf(stderr, "reflcheck: note: %s: %s\n", j->scene_path, why);
+    }
+    /* The environment is checked here for every renderer, so POV-Ray and Cycles never get one
+     * the rasterizer would refuse. */
+    if (st == RC_OK)
+        st = frame_inputs_load(s, &c->env, env_pixels, &c->tex, err, errlen);
+    if (st == RC_OK && j->role == ROLE_TWIN)
+        job_twin_switches(s);
+
+    c->timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
+    *row = registry_row(j->renderer);
+    if (st == RC_OK && *row == NULL) {
+        snprintf(err, errlen, "renderer %d: not a row of the renderer table", j->renderer);
+        st = RC_ERR_RANGE;
+    }
+    if (st == RC_OK) {
+        if ((*row)->program == NULL)
+            snprintf(c->version, sizeof c->version, "%s", (*row)->version ? (*row)->version : (*row)->name);
+        else
+            job_probe_version(*row, c, rec);
+        st = job_key(j, s, c->version, key, err, errlen);
+    }
+    return st;
+}
+
+/* Step 2: the job's result, from the scheduler's record, the cache, or a render in a locked
+ * work folder under DEST_DIR (WORK names that folder for removal). */
+static void job_execute(job_ctx *c, job_record *rec, const renderer_row *row, const char *dest_dir, const char *keyhex,
+                        int *lock_fd, char *work, size_t worklen)
+{
+    const job_spec *j = c->j;
+    if (j->record_only) {
+        /* The scheduler's verdict: its output file is the only log the job left. */
+        job_fail(rec, j->record_status, "%s", j->record_message ? j->record_message : "");
+        snprintf(c->command, sizeof c->command, "(record written for the scheduler)");
+        if (j->record_log != NULL)
+            snprintf(c->log, sizeof c->log, "%s", j->record_log);
+    } else if (rec->status == RUNNER_OK && j->cache_dir != NULL)
+        job_cached(c, rec, keyhex, lock_fd, work, worklen);
+    else if (rec->status == RUNNER_OK) {
+        /* Without a cache the job still locks itself (in OUT), so that the work folders a
+         * killed run left can be told from a running one's and removed. */
+        char prefix[64], lockname[80];
+        snprintf(prefix, sizeof prefix, "tmp-%s-%s", row->name, job_role_names[j->role]);
+        snprintf(lockname, sizeof lockname, ".%s.lock", prefix);
+        *lock_fd = job_lock(dest_dir, lockname);
+        if (*lock_fd >= 0)
+            job_clean_own(dest_dir, prefix);
+        if (*lock_fd < 0 || job_make_work(c, dest_dir, prefix) != 0)
+            job_fail(rec, RUNNER_ERROR, "%s: cannot create a work folder: %s; check --out and its space", dest_dir,
+                     strerror(errno));
+        else {
+            snprintf(work, worklen, "%s", c->dir);
+            job_render(c, rec);
+        }
+    }
+}
+
+/* Step 3: the image and this job's log copied to their places, the work folder removed, and
+ * the record written. */
+static rc_status job_finish(job_ctx *c, job_record *rec, const char *dest_exr, const char *dest_json,
+                            const char *dest_log, const char *work, int lock_fd, uint64_t key, char *err, size_t errlen)
+{
+    if (rec->status == RUNNER_OK && fileio_copy(c->exr, dest_exr) != 0)
+        job_fail(rec, RUNNER_ERROR, "cannot copy %s to %s: %s; check the output folder and its space", c->exr, dest_exr,
+                 strerror(errno));
+    /* This job's log or none: an older run's must not pass for this one's. */
+    unlink(dest_log);
+    if (c->log[0] != '\0' && access(c->log, R_OK) == 0)
+        fileio_copy(c->log, dest_log);
+    if (work[0] != '\0')
+        job_remove_tree(work, 0);
+    if (lock_fd >= 0)
+        close(lock_fd);
+    snprintf(rec->exr, sizeof rec->exr, "%s", rec->status == RUNNER_OK ? dest_exr : "");
+    snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
+    snprintf(rec->record, sizeof rec->record, "%s", dest_json);
+    return job_write_record(c, rec, dest_json, key, err, errlen);
+}
+
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
 {
     memset(rec, 0, sizeof *rec);
@@ -845,37 +941,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     job_ctx c = {.j = j, .s = s, .m = &m};
     float *env_pixels = NULL;
     uint64_t key = 0;
-    rc_status st = scene_file_load(j->scene_path, s, err, errlen);
-    if (st == RC_OK) {
-        job_apply_variant(s, j->variant);
-        job_apply_overrides(s, j);
-        char why[900];
-        st = mesh_build(s, &m, why, sizeof why);
-        if (st != RC_OK)
-            snprintf(err, errlen, "%s: objects: %s", j->scene_path, why);
-        else if (mesh_repair_note(s, &m, why, sizeof why))
-            fprintf(stderr, "reflcheck: note: %s: %s\n", j->scene_path, why);
-    }
-    /* The environment is checked here for every renderer, so POV-Ray and Cycles never get one
-     * the rasterizer would refuse. */
-    if (st == RC_OK)
-        st = frame_inputs_load(s, &c.env, &env_pixels, &c.tex, err, errlen);
-    if (st == RC_OK && j->role == ROLE_TWIN)
-        job_twin_switches(s);
-
-    c.timeout = j->timeout_s > 0 ? j->timeout_s : (s->timeout > 0 ? s->timeout : 600.0);
-    const renderer_row *row = registry_row(j->renderer);
-    if (st == RC_OK && row == NULL) {
-        snprintf(err, errlen, "renderer %d: not a row of the renderer table", j->renderer);
-        st = RC_ERR_RANGE;
-    }
-    if (st == RC_OK) {
-        if (row->program == NULL)
-            snprintf(c.version, sizeof c.version, "%s", row->version ? row->version : row->name);
-        else
-            job_probe_version(row, &c, rec);
-        st = job_key(j, s, c.version, &key, err, errlen);
-    }
+    const renderer_row *row = NULL;
+    rc_status st = job_prepare(&c, rec, &env_pixels, &row, &key, err, errlen);
     if (st != RC_OK) {
         /* Nothing written: the scene, a file it references or an option is bad. */
         rec->bad_input = st != RC_ERR_NOMEM;
@@ -910,46 +977,8 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     c.shown_log = dest_log;
     int lock_fd = -1;
     char work[1100] = "";
-    if (j->record_only) {
-        /* The scheduler's verdict: its output file is the only log the job left. */
-        job_fail(rec, j->record_status, "%s", j->record_message ? j->record_message : "");
-        snprintf(c.command, sizeof c.command, "(record written for the scheduler)");
-        if (j->record_log != NULL)
-            snprintf(c.log, sizeof c.log, "%s", j->record_log);
-    } else if (rec->status == RUNNER_OK && j->cache_dir != NULL)
-        job_cached(&c, rec, keyhex, &lock_fd, work, sizeof work);
-    else if (rec->status == RUNNER_OK) {
-        /* Without a cache the job still locks itself (in OUT), so that the work folders a
-         * killed run left can be told from a running one's and removed. */
-        char prefix[64], lockname[80];
-        snprintf(prefix, sizeof prefix, "tmp-%s-%s", row->name, job_role_names[j->role]);
-        snprintf(lockname, sizeof lockname, ".%s.lock", prefix);
-        lock_fd = job_lock(dest_dir, lockname);
-        if (lock_fd >= 0)
-            job_clean_own(dest_dir, prefix);
-        if (lock_fd < 0 || job_make_work(&c, dest_dir, prefix) != 0)
-            job_fail(rec, RUNNER_ERROR, "%s: cannot create a work folder: %s; check --out and its space", dest_dir,
-                     strerror(errno));
-        else {
-            snprintf(work, sizeof work, "%s", c.dir);
-            job_render(&c, rec);
-        }
-    }
-    if (rec->status == RUNNER_OK && fileio_copy(c.exr, dest_exr) != 0)
-        job_fail(rec, RUNNER_ERROR, "cannot copy %s to %s: %s; check the output folder and its space", c.exr, dest_exr,
-                 strerror(errno));
-    /* This job's log or none: an older run's must not pass for this one's. */
-    unlink(dest_log);
-    if (c.log[0] != '\0' && access(c.log, R_OK) == 0)
-        fileio_copy(c.log, dest_log);
-    if (work[0] != '\0')
-        job_remove_tree(work, 0);
-    if (lock_fd >= 0)
-        close(lock_fd);
-    snprintf(rec->exr, sizeof rec->exr, "%s", rec->status == RUNNER_OK ? dest_exr : "");
-    snprintf(rec->log, sizeof rec->log, "%s", access(dest_log, R_OK) == 0 ? dest_log : "");
-    snprintf(rec->record, sizeof rec->record, "%s", dest_json);
-    st = job_write_record(&c, rec, dest_json, key, err, errlen);
+    job_execute(&c, rec, row, dest_dir, keyhex, &lock_fd, work, sizeof work);
+    st = job_finish(&c, rec, dest_exr, dest_json, dest_log, work, lock_fd, key, err, errlen);
     free(env_pixels);
     texture_set_free(&c.tex);
     mesh_free(&m);
