@@ -1413,32 +1413,30 @@ static rc_status sf_object_scale(sf_ctx *c, yaml_node_t *n, const char *path, ve
     return RC_OK;
 }
 
-static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
+static const char *const sf_object_keys[OK_COUNT] = {"shape", "center",       "rotate", "scale",    "radius", "major",
+                                                     "size",  "tessellation", "path",   "material", "usemtl"};
+static const char *const sf_object_shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
+/* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
+static const unsigned char sf_object_use[5][OK_COUNT] = {
+    /*          shape center rotate scale radius major size tess path material usemtl */
+    /* sphere */ {2, 1, 1, 1, 2, 0, 0, 1, 0, 2, 0},
+    /* quad   */ {2, 1, 1, 1, 0, 0, 2, 0, 0, 2, 0},
+    /* box    */ {2, 1, 1, 1, 1, 0, 2, 1, 0, 2, 0},
+    /* torus  */ {2, 1, 1, 1, 2, 2, 0, 1, 0, 2, 0},
+    /* mesh   */ {2, 1, 1, 1, 0, 0, 0, 0, 2, 2, 1},
+};
+
+/* An object's shape, and the keys that shape allows and needs. */
+static rc_status sf_object_shape(sf_ctx *c, yaml_node_t *n, const char *path, sf_kv *f, object *o)
 {
-    static const char *const keys[OK_COUNT] = {"shape", "center",       "rotate", "scale",    "radius", "major",
-                                               "size",  "tessellation", "path",   "material", "usemtl"};
-    static const char *const shapes[] = {"sphere", "quad", "box", "torus", "mesh"};
-    static const char *const mesh_exts[] = {".obj", ".ply"};
-    /* Per shape: 0 = not allowed, 1 = optional, 2 = required. */
-    static const unsigned char use[5][OK_COUNT] = {
-        /*          shape center rotate scale radius major size tess path material usemtl */
-        /* sphere */ {2, 1, 1, 1, 2, 0, 0, 1, 0, 2, 0},
-        /* quad   */ {2, 1, 1, 1, 0, 0, 2, 0, 0, 2, 0},
-        /* box    */ {2, 1, 1, 1, 1, 0, 2, 1, 0, 2, 0},
-        /* torus  */ {2, 1, 1, 1, 2, 2, 0, 1, 0, 2, 0},
-        /* mesh   */ {2, 1, 1, 1, 0, 0, 0, 0, 2, 2, 1},
-    };
-    /* Tessellation limits: a sphere needs 2 rings (segments/2), a torus tube 3 segments. */
-    static const int tess_lo[5] = {4, 0, 1, 3, 0}, tess_hi[5] = {1024, 0, 256, 1024, 0};
-    sf_kv f[OK_COUNT];
     char child[SF_PATHLEN], allowed[200], what[32];
     rc_status rc;
     int shape;
 
-    if ((rc = sf_map(c, n, path, keys, OK_COUNT, f)) || (rc = sf_need(c, n, path, &f[OK_SHAPE], "shape")))
+    if ((rc = sf_map(c, n, path, sf_object_keys, OK_COUNT, f)) || (rc = sf_need(c, n, path, &f[OK_SHAPE], "shape")))
         return rc;
     sf_child(child, path, "shape");
-    if ((rc = sf_enum(c, f[OK_SHAPE].v, child, shapes, 5, &shape)))
+    if ((rc = sf_enum(c, f[OK_SHAPE].v, child, sf_object_shapes, 5, &shape)))
         return rc;
     object_init(o);
     o->shape = (shape_kind)shape;
@@ -1448,18 +1446,29 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
     const char *names[OK_COUNT];
     int nn = 0;
     for (int i = 0; i < OK_COUNT; i++)
-        if (use[shape][i])
-            names[nn++] = keys[i];
+        if (sf_object_use[shape][i])
+            names[nn++] = sf_object_keys[i];
     sf_join(allowed, sizeof allowed, names, nn);
-    snprintf(what, sizeof what, "a %s", shapes[shape]);
+    snprintf(what, sizeof what, "a %s", sf_object_shapes[shape]);
     for (int i = 0; i < OK_COUNT; i++) {
-        if (!use[shape][i] && (rc = sf_forbid(c, path, &f[i], keys[i], what, allowed)))
+        if (!sf_object_use[shape][i] && (rc = sf_forbid(c, path, &f[i], sf_object_keys[i], what, allowed)))
             return rc;
-        if (use[shape][i] == 2 && (rc = sf_need(c, n, path, &f[i], keys[i])))
+        if (sf_object_use[shape][i] == 2 && (rc = sf_need(c, n, path, &f[i], sf_object_keys[i])))
             return rc;
     }
+    return RC_OK;
+}
 
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
+
+/* An object's placement and dimensions, each checked against its shape. */
+static rc_status sf_object_dims(sf_ctx *c, const char *path, const sf_kv *f, object *o)
+{
+    /* Tessellation limits: a sphere needs 2 rings (segments/2), a torus tube 3 segments. */
+    static const int tess_lo[5] = {4, 0, 1, 3, 0}, tess_hi[5] = {1024, 0, 256, 1024, 0};
+    char child[SF_PATHLEN];
+    rc_status rc;
+    int shape = (int)o->shape;
     if (f[OK_CENTER].v && (rc = sf_point(c, f[OK_CENTER].v, SF_CHILD("center"), &o->center)))
         return rc;
     if (f[OK_ROTATE].v) {
@@ -1502,6 +1511,15 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        "tube radius exceeds the ring radius (self-intersecting); allowed: radius <= "
                        "major = %g",
                        o->major);
+    return RC_OK;
+}
+
+/* A mesh object's file and the OBJ material (or asset mesh) it selects. */
+static rc_status sf_object_mesh(sf_ctx *c, const char *path, const sf_kv *f, object *o)
+{
+    static const char *const mesh_exts[] = {".obj", ".ply"};
+    char child[SF_PATHLEN];
+    rc_status rc;
     /* Besides OBJ and PLY, any extension libassimp reads (scene/mesh_assimp.h). */
     const char *mp = f[OK_PATH].v ? sf_text(f[OK_PATH].v) : NULL, *dot = mp ? strrchr(mp, '.') : NULL;
     int imported = dot && !sf_ends_with(mp, ".obj") && !sf_ends_with(mp, ".ply") && mesh_assimp_supported(mp);
@@ -1524,7 +1542,13 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                            "usemtl selects faces of an OBJ file, and this mesh is a PLY; allowed: usemtl with an "
                            ".obj path");
     }
+    return RC_OK;
+}
 
+/* The object's material, by name among the scene's materials. */
+static rc_status sf_object_material(sf_ctx *c, const char *path, const sf_kv *f, const scene *s, object *o)
+{
+    char child[SF_PATHLEN];
     const char *mt = sf_text(f[OK_MATERIAL].v);
     int mi = -1;
     for (int i = 0; mt && i < s->n_materials; i++)
@@ -1542,8 +1566,18 @@ static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const sc
                        s->n_materials ? known : "(none defined: add a materials: section)");
     }
     o->material = mi;
-#undef SF_CHILD
     return RC_OK;
+}
+#undef SF_CHILD
+
+static rc_status sf_object(sf_ctx *c, yaml_node_t *n, const char *path, const scene *s, object *o)
+{
+    sf_kv f[OK_COUNT];
+    rc_status rc;
+    if ((rc = sf_object_shape(c, n, path, f, o)) || (rc = sf_object_dims(c, path, f, o)) ||
+        (rc = sf_object_mesh(c, path, f, o)))
+        return rc;
+    return sf_object_material(c, path, f, s, o);
 }
 
 static rc_status sf_objects(sf_ctx *c, yaml_node_t *n, scene *s)
