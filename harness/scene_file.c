@@ -713,14 +713,14 @@ enum {
     LK_COUNT
 };
 
-static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
+static const char *const sf_light_keys[LK_COUNT] = {"type",       "position", "direction",   "intensity",
+                                                    "irradiance", "ambient",  "attenuation", "range",
+                                                    "inner",      "outer",    "falloff",     "profile"};
+static const char *const sf_light_types[] = {"point", "sun", "spot"};
+
+/* A light's type, and the keys that type accepts and requires. */
+static rc_status sf_light_type(sf_ctx *c, yaml_node_t *n, const char *path, sf_kv *f, light *l)
 {
-    static const char *const keys[LK_COUNT] = {"type",       "position", "direction",   "intensity",
-                                               "irradiance", "ambient",  "attenuation", "range",
-                                               "inner",      "outer",    "falloff",     "profile"};
-    static const char *const types[] = {"point", "sun", "spot"};
-    static const char *const profiles[] = {"d3d", "smooth"};
-    /* Keys each light type accepts, and the ones it requires. */
     static const int point_ok[] = {LK_TYPE, LK_POSITION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION, LK_RANGE, -1};
     static const int sun_ok[] = {LK_TYPE, LK_DIRECTION, LK_IRRADIANCE, LK_AMBIENT, -1};
     static const int spot_ok[] = {LK_TYPE,  LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_AMBIENT, LK_ATTENUATION,
@@ -730,17 +730,16 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
     static const int spot_req[] = {LK_POSITION, LK_DIRECTION, LK_INTENSITY, LK_INNER, LK_OUTER, -1};
     static const int *const ok_of[] = {point_ok, sun_ok, spot_ok};
     static const int *const req_of[] = {point_req, sun_req, spot_req};
-    sf_kv f[LK_COUNT];
     char child[SF_PATHLEN], allowed[300];
     rc_status rc;
     int type;
 
-    if ((rc = sf_map(c, n, path, keys, LK_COUNT, f)))
+    if ((rc = sf_map(c, n, path, sf_light_keys, LK_COUNT, f)))
         return rc;
     if ((rc = sf_need(c, n, path, &f[LK_TYPE], "type")))
         return rc;
     sf_child(child, path, "type");
-    if ((rc = sf_enum(c, f[LK_TYPE].v, child, types, 3, &type)))
+    if ((rc = sf_enum(c, f[LK_TYPE].v, child, sf_light_types, 3, &type)))
         return rc;
     light_init(l);
     l->kind = (light_kind)type;
@@ -748,7 +747,7 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
     const char *names[LK_COUNT];
     int nn = 0;
     for (const int *k = ok_of[type]; *k >= 0; k++)
-        names[nn++] = keys[*k];
+        names[nn++] = sf_light_keys[*k];
     sf_join(allowed, sizeof allowed, names, nn);
     for (int i = 0; i < LK_COUNT; i++) {
         int ok = 0;
@@ -756,16 +755,52 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
             ok |= *k == i;
         if (!ok) {
             char what[32];
-            snprintf(what, sizeof what, "a %s light", types[type]);
-            if ((rc = sf_forbid(c, path, &f[i], keys[i], what, allowed)))
+            snprintf(what, sizeof what, "a %s light", sf_light_types[type]);
+            if ((rc = sf_forbid(c, path, &f[i], sf_light_keys[i], what, allowed)))
                 return rc;
         }
     }
     for (const int *k = req_of[type]; *k >= 0; k++)
-        if ((rc = sf_need(c, n, path, &f[*k], keys[*k])))
+        if ((rc = sf_need(c, n, path, &f[*k], sf_light_keys[*k])))
             return rc;
+    return RC_OK;
+}
 
 #define SF_CHILD(key) (sf_child(child, path, (key)), child)
+
+/* A spot light's cone: inner and outer angles, falloff and profile. */
+static rc_status sf_light_spot(sf_ctx *c, const char *path, const sf_kv *f, light *l)
+{
+    static const char *const profiles[] = {"d3d", "smooth"};
+    char child[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_angle(c, f[LK_INNER].v, SF_CHILD("inner"), 0.0, 180.0, SF_HI_OPEN,
+                       "full cone angle in degrees, 0 <= inner <= outer < 180", &l->inner)) ||
+        (rc = sf_angle(c, f[LK_OUTER].v, SF_CHILD("outer"), 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN,
+                       "full cone angle in degrees, 0 < outer < 180", &l->outer)))
+        return rc;
+    if (l->inner > l->outer)
+        return sf_fail(c, RC_ERR_RANGE, f[LK_INNER].v, SF_CHILD("inner"),
+                       "inner cone is wider than outer; allowed: inner <= outer");
+    if (f[LK_FALLOFF].v && (rc = sf_float(c, f[LK_FALLOFF].v, SF_CHILD("falloff"), 0.0, INFINITY, 0,
+                                          "a finite exponent >= 0", &l->falloff)))
+        return rc;
+    if (f[LK_PROFILE].v) {
+        int p;
+        if ((rc = sf_enum(c, f[LK_PROFILE].v, SF_CHILD("profile"), profiles, 2, &p)))
+            return rc;
+        l->profile = p ? SPOT_SMOOTH : SPOT_D3D;
+    }
+    return RC_OK;
+}
+
+static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
+{
+    sf_kv f[LK_COUNT];
+    char child[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_light_type(c, n, path, f, l)))
+        return rc;
     if (f[LK_POSITION].v && (rc = sf_point(c, f[LK_POSITION].v, SF_CHILD("position"), &l->position)))
         return rc;
     if (f[LK_DIRECTION].v && (rc = sf_direction(c, f[LK_DIRECTION].v, SF_CHILD("direction"), &l->direction)))
@@ -792,28 +827,11 @@ static rc_status sf_light(sf_ctx *c, yaml_node_t *n, const char *path, light *l)
     if (f[LK_RANGE].v && (rc = sf_float(c, f[LK_RANGE].v, SF_CHILD("range"), 0.0, INFINITY, SF_LO_OPEN | SF_ALLOW_INF,
                                         "a number > 0 or .inf [m]", &l->range)))
         return rc;
-    if (type == LIGHT_SPOT) {
-        if ((rc = sf_angle(c, f[LK_INNER].v, SF_CHILD("inner"), 0.0, 180.0, SF_HI_OPEN,
-                           "full cone angle in degrees, 0 <= inner <= outer < 180", &l->inner)) ||
-            (rc = sf_angle(c, f[LK_OUTER].v, SF_CHILD("outer"), 0.0, 180.0, SF_LO_OPEN | SF_HI_OPEN,
-                           "full cone angle in degrees, 0 < outer < 180", &l->outer)))
-            return rc;
-        if (l->inner > l->outer)
-            return sf_fail(c, RC_ERR_RANGE, f[LK_INNER].v, SF_CHILD("inner"),
-                           "inner cone is wider than outer; allowed: inner <= outer");
-        if (f[LK_FALLOFF].v && (rc = sf_float(c, f[LK_FALLOFF].v, SF_CHILD("falloff"), 0.0, INFINITY, 0,
-                                              "a finite exponent >= 0", &l->falloff)))
-            return rc;
-        if (f[LK_PROFILE].v) {
-            int p;
-            if ((rc = sf_enum(c, f[LK_PROFILE].v, SF_CHILD("profile"), profiles, 2, &p)))
-                return rc;
-            l->profile = p ? SPOT_SMOOTH : SPOT_D3D;
-        }
-    }
-#undef SF_CHILD
+    if (l->kind == LIGHT_SPOT)
+        return sf_light_spot(c, path, f, l);
     return RC_OK;
 }
+#undef SF_CHILD
 
 /* The head every list section shares: a YAML sequence of at most max items (the scene's fixed
  * arrays). name is the section ("lights"), first_key the key its items start with ("type"). */
@@ -1176,23 +1194,49 @@ static rc_status sf_user(sf_ctx *c, yaml_node_t *n, const char *path, user_param
     return RC_OK;
 }
 
-static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
+/* What a material's file gave, so the derived defaults fill only what it left out. */
+typedef struct {
+    int diffuse, r0, d9m, ctm, f0;
+    yaml_node_t *dissolve; /* the d3d9client dissolve key, checked after the whole material */
+} sf_mat_given;
+
+#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+
+/* A conductor's complex index: conductor: {eta: [r, g, b], k: [r, g, b]}. */
+static rc_status sf_material_conductor(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
 {
-    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
-                                               "d3d",    "d3d9client", "cook_torrance", "texture",   "asset",
-                                               "thin",   "user",       "distribution"};
+    static const char *const ckeys[] = {"eta", "k"};
+    sf_kv cf[2];
+    char sub[SF_PATHLEN];
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, ckeys, 2, cf)) || (rc = sf_need(c, n, path, &cf[0], "eta")) ||
+        (rc = sf_need(c, n, path, &cf[1], "k")))
+        return rc;
+    float eta[3], k[3];
+    sf_child(sub, path, "eta");
+    if ((rc = sf_floats(c, cf[0].v, sub, 3, 0.0, INFINITY, SF_LO_OPEN, "[r, g, b], 3 finite numbers > 0", eta)))
+        return rc;
+    sf_child(sub, path, "k");
+    if ((rc = sf_floats(c, cf[1].v, sub, 3, 0.0, INFINITY, 0, "[r, g, b], 3 finite numbers >= 0", k)))
+        return rc;
+    m->conductor = 1;
+    m->eta = v3(eta[0], eta[1], eta[2]);
+    m->k = v3(k[0], k[1], k[2]);
+    return RC_OK;
+}
+
+/* The material's physics: asset, albedo, index or conductor, roughness, thin, model,
+ * distribution and a user model's object. */
+static rc_status sf_material_physics(sf_ctx *c, yaml_node_t *n, const char *path, const sf_kv *f, material *m,
+                                     sf_mat_given *g)
+{
     static const char *const models[] = {"d3d", "d3d9client", "cook_torrance", "user"};
     static const char *const dists[] = {"beckmann", "ggx"};
-    static const char *const ckeys[] = {"eta", "k"};
-    sf_kv f[MK_COUNT], cf[2];
-    char child[SF_PATHLEN], sub[SF_PATHLEN];
+    char child[SF_PATHLEN];
     rc_status rc;
-    int diffuse_given = 0, r0_given = 0, d9m_given = 0, ctm_given = 0, f0_given = 0, e;
-    if ((rc = sf_map(c, n, path, keys, MK_COUNT, f)))
-        return rc;
-#define SF_CHILD(key) (sf_child(child, path, (key)), child)
+    int e;
     /* First, so that every other key of the material replaces what the asset states. */
-    if (f[MK_ASSET].v && (rc = sf_asset(c, f[MK_ASSET].v, SF_CHILD("asset"), m, &f0_given)))
+    if (f[MK_ASSET].v && (rc = sf_asset(c, f[MK_ASSET].v, SF_CHILD("asset"), m, &g->f0)))
         return rc;
     if (f[MK_ALBEDO].v && (rc = sf_colour(c, f[MK_ALBEDO].v, SF_CHILD("albedo"), &m->albedo)))
         return rc;
@@ -1203,23 +1247,8 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
     if (f[MK_IOR].v && (rc = sf_float(c, f[MK_IOR].v, SF_CHILD("ior"), 0.0, INFINITY, SF_LO_OPEN,
                                       "a finite refractive index > 0", &m->ior)))
         return rc;
-    if (f[MK_CONDUCTOR].v) {
-        SF_CHILD("conductor");
-        if ((rc = sf_map(c, f[MK_CONDUCTOR].v, child, ckeys, 2, cf)) ||
-            (rc = sf_need(c, f[MK_CONDUCTOR].v, child, &cf[0], "eta")) ||
-            (rc = sf_need(c, f[MK_CONDUCTOR].v, child, &cf[1], "k")))
-            return rc;
-        float eta[3], k[3];
-        sf_child(sub, child, "eta");
-        if ((rc = sf_floats(c, cf[0].v, sub, 3, 0.0, INFINITY, SF_LO_OPEN, "[r, g, b], 3 finite numbers > 0", eta)))
-            return rc;
-        sf_child(sub, child, "k");
-        if ((rc = sf_floats(c, cf[1].v, sub, 3, 0.0, INFINITY, 0, "[r, g, b], 3 finite numbers >= 0", k)))
-            return rc;
-        m->conductor = 1;
-        m->eta = v3(eta[0], eta[1], eta[2]);
-        m->k = v3(k[0], k[1], k[2]);
-    }
+    if (f[MK_CONDUCTOR].v && (rc = sf_material_conductor(c, f[MK_CONDUCTOR].v, SF_CHILD("conductor"), m)))
+        return rc;
     if (f[MK_ROUGHNESS].v && (rc = sf_float(c, f[MK_ROUGHNESS].v, SF_CHILD("roughness"), 0.0, INFINITY, 0,
                                             "a finite Beckmann roughness >= 0", &m->roughness)))
         return rc;
@@ -1242,8 +1271,16 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                                               : "user applies to model user only; allowed: model: user, or no user");
     if (f[MK_USER].v && (rc = sf_user(c, f[MK_USER].v, SF_CHILD("user"), &m->user)))
         return rc;
+    return RC_OK;
+}
+
+/* The models' own sections (d3d, d3d9client, cook_torrance) and the texture. */
+static rc_status sf_material_sections(sf_ctx *c, const char *path, const sf_kv *f, material *m, sf_mat_given *g)
+{
+    char child[SF_PATHLEN], sub[SF_PATHLEN];
+    rc_status rc;
     yaml_node_t *state_node[3] = {NULL, NULL, NULL};
-    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &diffuse_given, state_node)))
+    if (f[MK_D3D].v && (rc = sf_d3d(c, f[MK_D3D].v, SF_CHILD("d3d"), &m->d3d, &g->diffuse, state_node)))
         return rc;
     /* D3DRS_NORMALIZENORMALS and D3DRS_COLORVERTEX are fixed-function state: the D3D9Client and
      * Cook-Torrance models are shaders, which take the normal and colours they are given. */
@@ -1265,23 +1302,28 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                        "false applies to the fixed-function model d3d only (the normal as given, "
                        "D3DCULL_NONE); allowed: true, or model: d3d");
     }
-    yaml_node_t *dissolve_node = NULL;
-    if (f[MK_D9].v &&
-        (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &r0_given, &d9m_given, &dissolve_node)))
+    if (f[MK_D9].v && (rc = sf_d9(c, f[MK_D9].v, SF_CHILD("d3d9client"), &m->d9, &g->r0, &g->d9m, &g->dissolve)))
         return rc;
-    if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &ctm_given, &f0_given)))
+    if (f[MK_CT].v && (rc = sf_ct(c, f[MK_CT].v, SF_CHILD("cook_torrance"), &m->ct, &g->ctm, &g->f0)))
         return rc;
     if (f[MK_TEXTURE].v && (rc = sf_texture(c, f[MK_TEXTURE].v, SF_CHILD("texture"), m)))
         return rc;
+    return RC_OK;
+}
 #undef SF_CHILD
+
+/* The checks across keys, after the whole material, so key order does not matter. */
+static rc_status sf_material_combos(sf_ctx *c, const char *path, const sf_kv *f, const material *m,
+                                    const sf_mat_given *g)
+{
+    char child[SF_PATHLEN], sub[SF_PATHLEN];
     /* Seed 000: Dissolve "can be only applied to non-normal mapped surface that has a texture" (it
-     * reads the texture coordinates); a D3D9Client shader effect. Checked after the whole
-     * material, so key order does not matter. */
-    if (dissolve_node != NULL && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&
+     * reads the texture coordinates); a D3D9Client shader effect. */
+    if (g->dissolve != NULL && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&
         (m->model != MODEL_D3D9CLIENT || m->texture[MAT_TEX_DIFFUSE][0] == '\0')) {
         sf_child(sub, path, "d3d9client");
         sf_child(child, sub, "dissolve");
-        return sf_fail(c, RC_ERR_RANGE, dissolve_node, child,
+        return sf_fail(c, RC_ERR_RANGE, g->dissolve, child,
                        m->model != MODEL_D3D9CLIENT
                            ? "dissolve applies to model d3d9client only (a D3D9Client shader effect); allowed: "
                              "model: d3d9client, or no dissolve"
@@ -1303,23 +1345,42 @@ static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, materi
                        "blend applies to model d3d9client only (its alpha is eq. 7); allowed: model: d3d9client, "
                        "or blend: false");
     }
-    /* Derived defaults, after the whole material, so key order in the file does not matter. */
-    if (!diffuse_given)
+    return RC_OK;
+}
+
+/* Derived defaults, after the whole material, so key order in the file does not matter. */
+static void sf_material_defaults(const sf_kv *f, const sf_mat_given *g, material *m)
+{
+    if (!g->diffuse)
         m->d3d.diffuse = m->albedo;
-    if (!r0_given)
+    if (!g->r0)
         m->d9.r0 = sf_f0(m->ior, 0.0);
-    if (!d9m_given)
+    if (!g->d9m)
         m->d9.m = 1.0f - m->d9.r0;
-    if (!ctm_given)
+    if (!g->ctm)
         m->ct.m = m->roughness;
     /* A d3d material without a specular colour shows no highlight: its physics gets no lobe
      * either, unless the file writes a roughness (then the user asked for one). */
     if (m->model == MODEL_D3D && !f[MK_ROUGHNESS].v && m->d3d.specular.x == 0.0f && m->d3d.specular.y == 0.0f &&
         m->d3d.specular.z == 0.0f)
         m->lobe = 0;
-    if (!f0_given)
+    if (!g->f0)
         m->ct.f0 = m->conductor ? v3(sf_f0(m->eta.x, m->k.x), sf_f0(m->eta.y, m->k.y), sf_f0(m->eta.z, m->k.z))
                                 : v3s(sf_f0(m->ior, 0.0));
+}
+
+static rc_status sf_material(sf_ctx *c, yaml_node_t *n, const char *path, material *m)
+{
+    static const char *const keys[MK_COUNT] = {"albedo", "ior",        "conductor",     "roughness", "model",
+                                               "d3d",    "d3d9client", "cook_torrance", "texture",   "asset",
+                                               "thin",   "user",       "distribution"};
+    sf_kv f[MK_COUNT];
+    sf_mat_given g = {0};
+    rc_status rc;
+    if ((rc = sf_map(c, n, path, keys, MK_COUNT, f)) || (rc = sf_material_physics(c, n, path, f, m, &g)) ||
+        (rc = sf_material_sections(c, path, f, m, &g)) || (rc = sf_material_combos(c, path, f, m, &g)))
+        return rc;
+    sf_material_defaults(f, &g, m);
     return RC_OK;
 }
 
