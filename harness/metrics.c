@@ -159,41 +159,20 @@ static int pixel_finite(const metrics_image *a, const metrics_image *b, size_t p
     return 1;
 }
 
-rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
-                          const metrics_options *opt, metrics_result *out, char *err, size_t errlen)
+/* The per-channel sums of one comparison, accumulated in scan order. */
+typedef struct {
+    double sabs[3], ssq[3], srel[3];
+    double peak;
+} metrics_sums;
+
+/* Step 1 of a comparison: the sums, the largest difference and the pixels used (USE), with
+ * their luminances (YR, YT) for SSIM. */
+static void metrics_accumulate(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                               double thr, double eps, unsigned char *use, float *yr, float *yt, metrics_sums *sm,
+                               metrics_result *out)
 {
-    if (!out) {
-        status_message(err, errlen, "metrics_compare: result pointer is NULL; pass a metrics_result");
-        return RC_ERR_RANGE;
-    }
-    memset(out, 0, sizeof *out);
-    out->max_x = out->max_y = out->max_c = -1;
-    if (!check_image(ref, "reference", 0, 0, err, errlen) ||
-        !check_image(test, "test", ref->width, ref->height, err, errlen))
-        return RC_ERR_RANGE;
-    double thr = opt && opt->threshold > 0 ? opt->threshold : METRICS_THRESHOLD;
-    double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
-    if (opt && (opt->threshold < 0 || opt->rel_eps < 0 || opt->psnr_peak < 0 || opt->ssim_range < 0)) {
-        status_message(err, errlen,
-                       "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
-                       "ssim_range %g); use 0 for the default",
-                       opt->threshold, opt->rel_eps, opt->psnr_peak, opt->ssim_range);
-        return RC_ERR_RANGE;
-    }
-
     const int w = ref->width, h = ref->height;
-    const size_t np = (size_t)w * (size_t)h;
-    unsigned char *use = malloc(np);
-    float *yr = malloc(np * sizeof *yr), *yt = malloc(np * sizeof *yt);
-    if (!use || !yr || !yt) {
-        free(use);
-        free(yr);
-        free(yt);
-        status_message(err, errlen, "metrics_compare: out of memory for a %dx%d image", w, h);
-        return RC_ERR_NOMEM;
-    }
-
-    double sabs[3] = {0}, ssq[3] = {0}, srel[3] = {0};
+    double *sabs = sm->sabs, *ssq = sm->ssq, *srel = sm->srel;
     double peak = 1.0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
@@ -234,7 +213,17 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
             yr[p] = (float)metrics_luminance(ref->c[0][p], ref->c[1][p], ref->c[2][p]);
             yt[p] = (float)metrics_luminance(test->c[0][p], test->c[1][p], test->c[2][p]);
         }
+    sm->peak = peak;
+}
 
+/* Step 2: the means, PSNR and SSIM from the sums. */
+static rc_status metrics_summarise(const metrics_image *ref, const metrics_image *test, const unsigned char *use,
+                                   const float *yr, const float *yt, const metrics_options *opt, const metrics_sums *sm,
+                                   metrics_result *out, char *err, size_t errlen)
+{
+    const int w = ref->width, h = ref->height;
+    const double *sabs = sm->sabs, *ssq = sm->ssq, *srel = sm->srel;
+    double peak = sm->peak;
     rc_status st = RC_OK;
     if (out->n_pixels > 0) {
         double n = (double)out->n_pixels;
@@ -263,6 +252,46 @@ rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, c
         for (int c = 0; c < 3; c++)
             out->mae_ch[c] = out->rmse_ch[c] = out->rel_mse_ch[c] = out->ssim_ch[c] = NAN;
     }
+    return st;
+}
+
+rc_status metrics_compare(const metrics_image *ref, const metrics_image *test, const unsigned char *mask,
+                          const metrics_options *opt, metrics_result *out, char *err, size_t errlen)
+{
+    if (!out) {
+        status_message(err, errlen, "metrics_compare: result pointer is NULL; pass a metrics_result");
+        return RC_ERR_RANGE;
+    }
+    memset(out, 0, sizeof *out);
+    out->max_x = out->max_y = out->max_c = -1;
+    if (!check_image(ref, "reference", 0, 0, err, errlen) ||
+        !check_image(test, "test", ref->width, ref->height, err, errlen))
+        return RC_ERR_RANGE;
+    double thr = opt && opt->threshold > 0 ? opt->threshold : METRICS_THRESHOLD;
+    double eps = opt && opt->rel_eps > 0 ? opt->rel_eps : METRICS_REL_EPS;
+    if (opt && (opt->threshold < 0 || opt->rel_eps < 0 || opt->psnr_peak < 0 || opt->ssim_range < 0)) {
+        status_message(err, errlen,
+                       "metrics_compare: negative option (threshold %g, rel_eps %g, psnr_peak %g, "
+                       "ssim_range %g); use 0 for the default",
+                       opt->threshold, opt->rel_eps, opt->psnr_peak, opt->ssim_range);
+        return RC_ERR_RANGE;
+    }
+
+    const int w = ref->width, h = ref->height;
+    const size_t np = (size_t)w * (size_t)h;
+    unsigned char *use = malloc(np);
+    float *yr = malloc(np * sizeof *yr), *yt = malloc(np * sizeof *yt);
+    if (!use || !yr || !yt) {
+        free(use);
+        free(yr);
+        free(yt);
+        status_message(err, errlen, "metrics_compare: out of memory for a %dx%d image", w, h);
+        return RC_ERR_NOMEM;
+    }
+
+    metrics_sums sm = {0};
+    metrics_accumulate(ref, test, mask, thr, eps, use, yr, yt, &sm, out);
+    rc_status st = metrics_summarise(ref, test, use, yr, yt, opt, &sm, out, err, errlen);
     free(use);
     free(yr);
     free(yt);
@@ -408,6 +437,103 @@ static int z_of(const metrics_image *rm, const metrics_image *rv, const metrics_
     return 1;
 }
 
+/* The inputs of one z-test, shared by its steps. */
+typedef struct {
+    const metrics_image *rm, *rv, *t, *tv;
+    double floor_abs, floor_rel;
+} ztest_in;
+
+/* Step 1: which pixels are testable (all three channels), and so m, the number of tests. */
+static void ztest_testable(const ztest_in *in, const unsigned char *mask, size_t np, unsigned char *use,
+                           metrics_ztest_result *out)
+{
+    for (size_t p = 0; p < np; p++) {
+        double z, pv;
+        use[p] = 0;
+        if (mask && !mask[p])
+            continue;
+        int ok = 1;
+        for (int c = 0; c < 3 && ok; c++)
+            ok = z_of(in->rm, in->rv, in->t, in->tv, in->floor_abs, in->floor_rel, p, c, &z, &pv);
+        if (!ok) {
+            out->n_nonfinite++;
+            continue;
+        }
+        use[p] = 1;
+        out->n_tests += 3;
+    }
+}
+
+/* Step 2: the p at or below which a value fails, under the multiple-test correction. */
+static rc_status ztest_level(const ztest_in *in, const unsigned char *use, size_t np, double alpha, int corr,
+                             metrics_ztest_result *out, double *level_out, char *err, size_t errlen)
+{
+    long m = out->n_tests;
+    double level = 0.0; /* a value fails when its p <= level */
+    if (m > 0) {
+        if (corr == METRICS_SIDAK)
+            level = -expm1(log1p(-alpha) / (double)m);
+        else
+            level = alpha / (double)m;
+        out->z_crit = -metrics_norm_quantile(0.5 * level);
+        if (corr == METRICS_HOLM) {
+            double *ps = malloc((size_t)m * sizeof *ps);
+            if (!ps) {
+                status_message(err, errlen, "metrics_ztest: out of memory for %ld p-values", m);
+                *level_out = level;
+                return RC_ERR_NOMEM;
+            }
+            long k = 0;
+            for (size_t p = 0; p < np; p++)
+                for (int c = 0; use[p] && c < 3; c++) {
+                    double z = 0.0, pv = 1.0;
+                    z_of(in->rm, in->rv, in->t, in->tv, in->floor_abs, in->floor_rel, p, c, &z, &pv);
+                    ps[k++] = pv;
+                }
+            qsort(ps, (size_t)m, sizeof *ps, cmp_double);
+            /* Step down: reject the i-th smallest while p_(i) <= alpha / (m - i). Tied values
+             * share a fate, so the last rejected p is a threshold for all. */
+            long i = 0;
+            while (i < m && ps[i] <= alpha / (double)(m - i))
+                i++;
+            level = i > 0 ? ps[i - 1] : -1.0;
+            free(ps);
+        }
+    }
+    *level_out = level;
+    return RC_OK;
+}
+
+/* Step 3: the failing values and pixels, the largest |z| and the smallest p. */
+static void ztest_count(const ztest_in *in, const unsigned char *use, int w, int h, double level,
+                        metrics_ztest_result *out)
+{
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = (size_t)y * (size_t)w + (size_t)x;
+            if (!use[p])
+                continue;
+            int failed = 0;
+            for (int c = 0; c < 3; c++) {
+                double z = 0.0, pv = 1.0;
+                z_of(in->rm, in->rv, in->t, in->tv, in->floor_abs, in->floor_rel, p, c, &z, &pv);
+                if (fabs(z) > out->max_abs_z || out->max_c < 0) {
+                    out->max_abs_z = fabs(z);
+                    out->max_x = x;
+                    out->max_y = y;
+                    out->max_c = c;
+                }
+                if (pv < out->min_p)
+                    out->min_p = pv;
+                if (pv <= level) {
+                    out->n_fail++;
+                    failed = 1;
+                }
+            }
+            out->n_fail_pixels += failed;
+        }
+}
+
 rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_var, const metrics_image *test,
                         const metrics_image *test_var, const unsigned char *mask, const metrics_ztest_options *opt,
                         metrics_ztest_result *out, char *err, size_t errlen)
@@ -444,80 +570,12 @@ rc_status metrics_ztest(const metrics_image *ref_mean, const metrics_image *ref_
         status_message(err, errlen, "metrics_ztest: out of memory");
         return RC_ERR_NOMEM;
     }
-    /* First pass: which pixels are testable (all three channels), and m. */
-    for (size_t p = 0; p < np; p++) {
-        double z, pv;
-        use[p] = 0;
-        if (mask && !mask[p])
-            continue;
-        int ok = 1;
-        for (int c = 0; c < 3 && ok; c++)
-            ok = z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
-        if (!ok) {
-            out->n_nonfinite++;
-            continue;
-        }
-        use[p] = 1;
-        out->n_tests += 3;
-    }
-    long m = out->n_tests;
-    double level = 0.0; /* a value fails when its p <= level */
-    rc_status st = RC_OK;
-    if (m > 0) {
-        if (corr == METRICS_SIDAK)
-            level = -expm1(log1p(-alpha) / (double)m);
-        else
-            level = alpha / (double)m;
-        out->z_crit = -metrics_norm_quantile(0.5 * level);
-        if (corr == METRICS_HOLM) {
-            double *ps = malloc((size_t)m * sizeof *ps);
-            if (!ps) {
-                status_message(err, errlen, "metrics_ztest: out of memory for %ld p-values", m);
-                st = RC_ERR_NOMEM;
-                goto done;
-            }
-            long k = 0;
-            for (size_t p = 0; p < np; p++)
-                for (int c = 0; use[p] && c < 3; c++) {
-                    double z = 0.0, pv = 1.0;
-                    z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
-                    ps[k++] = pv;
-                }
-            qsort(ps, (size_t)m, sizeof *ps, cmp_double);
-            /* Step down: reject the i-th smallest while p_(i) <= alpha / (m - i). Tied values
-             * share a fate, so the last rejected p is a threshold for all. */
-            long i = 0;
-            while (i < m && ps[i] <= alpha / (double)(m - i))
-                i++;
-            level = i > 0 ? ps[i - 1] : -1.0;
-            free(ps);
-        }
-    }
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            size_t p = (size_t)y * (size_t)w + (size_t)x;
-            if (!use[p])
-                continue;
-            int failed = 0;
-            for (int c = 0; c < 3; c++) {
-                double z = 0.0, pv = 1.0;
-                z_of(ref_mean, ref_var, test, test_var, floor_abs, floor_rel, p, c, &z, &pv);
-                if (fabs(z) > out->max_abs_z || out->max_c < 0) {
-                    out->max_abs_z = fabs(z);
-                    out->max_x = x;
-                    out->max_y = y;
-                    out->max_c = c;
-                }
-                if (pv < out->min_p)
-                    out->min_p = pv;
-                if (pv <= level) {
-                    out->n_fail++;
-                    failed = 1;
-                }
-            }
-            out->n_fail_pixels += failed;
-        }
-done:
+    ztest_in in = {ref_mean, ref_var, test, test_var, floor_abs, floor_rel};
+    ztest_testable(&in, mask, np, use, out);
+    double level = 0.0;
+    rc_status st = ztest_level(&in, use, np, alpha, corr, out, &level, err, errlen);
+    if (st == RC_OK)
+        ztest_count(&in, use, w, h, level, out);
     free(use);
     return st;
 }
