@@ -1065,24 +1065,18 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
         *layers = n_layers;
 }
 
-rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt, render_image *out,
-                       char *err, size_t errlen)
+/* Step 1 of a frame: its size, checked against the memory limit, and its layers allocated
+ * (reusing PREV's when the caller asked). */
+static rc_status render_frame_alloc(const scene *s, const mesh *m, const env_map *env, const render_options *opt,
+                                    render_image *out, render_image *prev, char *err, size_t errlen)
 {
-    static const render_options defaults = {0};
-    if (opt == NULL)
-        opt = &defaults;
-    double t0 = render_now();
-    render_image prev = {0};
-    if (opt->reuse_image)
-        prev = *out;
-    memset(out, 0, sizeof *out);
     out->width = opt->width > 0 ? opt->width : s->width;
     out->height = opt->height > 0 ? opt->height : s->height;
     out->supersample = opt->supersample > 0 ? opt->supersample : s->supersample;
     if (out->width <= 0 || out->height <= 0 || out->supersample <= 0 || out->supersample > 16) {
         snprintf(err, errlen, "%s: image %dx%d with supersample %d; width and height must be > 0, supersample 1..16",
                  s->path, out->width, out->height, out->supersample);
-        render_image_free(&prev); /* an error leaves out empty, reused or not */
+        render_image_free(prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
     /* Refuse up front what would not fit, instead of mapping tens of GiB and meeting the
@@ -1091,7 +1085,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     char why[256];
     if (fileio_memory_limit(&limit, why, sizeof why) != RC_OK) {
         snprintf(err, errlen, "%s: %s", s->path, why);
-        render_image_free(&prev); /* an error leaves out empty, reused or not */
+        render_image_free(prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
     double need = 0.0;
@@ -1104,69 +1098,195 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                  "smaller (--width, --height), with fewer layers (--aovs none) or raise REFLCHECK_MEMORY_LIMIT",
                  s->path, out->width, out->height, out->supersample, layers, need / 1073741824.0,
                  (double)limit / 1073741824.0);
-        render_image_free(&prev); /* an error leaves out empty, reused or not */
+        render_image_free(prev); /* an error leaves out empty, reused or not */
         return RC_ERR_RANGE;
     }
-    unsigned aovs = render_aov_bits(opt);
-    rc_status st = render_alloc(out, &prev, aovs, err, errlen);
-    if (st != RC_OK)
-        return st;
+    return render_alloc(out, prev, render_aov_bits(opt), err, errlen);
+}
 
-    render_camera cam;
-    render_camera_make(s, out->width, out->height, &cam);
-    render_job j = {.s = s, .m = m, .cam = &cam, .out = out};
-    for (int a = 0; a < 4; a++)
-        if (out->chan[RENDER_DIFFUSE_R + 3 * a] != NULL)
-            j.term_layers |= 1u << a;
-    shade_context_make(s, env, &j.sc);
-    j.sc.tex = opt->textures;
+/* Every texture a material names must be loaded, with UVs on the mesh to read it by. */
+static rc_status render_textures_check(const scene *s, const mesh *m, const render_options *opt, char *err,
+                                       size_t errlen)
+{
     for (int i = 0; i < s->n_materials; i++)
         for (int k = 0; k < MAT_TEX_SLOTS; k++)
             if (s->materials[i].texture[k][0] != '\0' &&
                 (opt->textures == NULL || opt->textures->map[i][k].width <= 0 || m->uv == NULL)) {
-                render_image_free(out);
                 snprintf(err, errlen,
                          "%s: materials '%s': texture %s is not loaded (or the mesh has no UVs); load it with "
                          "frame_textures_load and pass it in render_options.textures",
                          s->path, s->materials[i].name, s->materials[i].texture[k]);
                 return RC_ERR_RANGE;
             }
+    return RC_OK;
+}
 
+/* Each object's shading: its plan, Gouraud or per sample, sidedness, vertex colours and the
+ * unnormalised normal's length (D3D with NORMALIZENORMALS off). */
+typedef struct {
     shade_plan plans[SCENE_MAX_OBJECTS];
     mesh_normal_length lengths[SCENE_MAX_OBJECTS];
     const mesh_normal_length *normal_length[SCENE_MAX_OBJECTS];
-    unsigned char vertex_colours[SCENE_MAX_OBJECTS] = {0};
-    unsigned char per_vertex[SCENE_MAX_OBJECTS] = {0};
-    unsigned char two_sided[SCENE_MAX_OBJECTS] = {0};
+    unsigned char vertex_colours[SCENE_MAX_OBJECTS];
+    unsigned char per_vertex[SCENE_MAX_OBJECTS];
+    unsigned char two_sided[SCENE_MAX_OBJECTS];
+} render_objects;
+
+/* Step 2: the objects' shading, set into J; 1 when any object is shaded per vertex. */
+static int render_objects_make(const render_options *opt, render_objects *ob, render_job *j)
+{
+    const scene *s = j->s;
+    const mesh *m = j->m;
     int any_per_vertex = 0;
     for (int i = 0; i < s->n_objects; i++) {
         const material *mat = &s->materials[s->objects[i].material];
         if (opt->plans != NULL)
-            plans[i] = opt->plans[i];
+            ob->plans[i] = opt->plans[i];
         else if (opt->general)
-            shade_plan_make_general(&j.sc, mat, &plans[i]);
+            shade_plan_make_general(&j->sc, mat, &ob->plans[i]);
         else
-            shade_plan_make(&j.sc, mat, &plans[i]);
+            shade_plan_make(&j->sc, mat, &ob->plans[i]);
         /* Gouraud belongs to the D3D model; a caller's plan is another model, shaded per sample. */
-        per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
+        ob->per_vertex[i] = (unsigned char)(opt->plans == NULL && mat->d3d.per_vertex != 0);
         /* One-sided is D3D fixed-function state (scene_file.c refuses it on the shaders). */
-        two_sided[i] = (unsigned char)(opt->plans != NULL || mat->model != MODEL_D3D || mat->d3d.two_sided != 0);
-        normal_length[i] = NULL;
-        vertex_colours[i] = (unsigned char)(opt->plans == NULL && mat->model == MODEL_D3D &&
-                                                    d3d_uses_vertex_colours(&mat->d3d, m->colours[i])
-                                                ? m->colours[i]
-                                                : 0);
+        ob->two_sided[i] = (unsigned char)(opt->plans != NULL || mat->model != MODEL_D3D || mat->d3d.two_sided != 0);
+        ob->normal_length[i] = NULL;
+        ob->vertex_colours[i] = (unsigned char)(opt->plans == NULL && mat->model == MODEL_D3D &&
+                                                        d3d_uses_vertex_colours(&mat->d3d, m->colours[i])
+                                                    ? m->colours[i]
+                                                    : 0);
         if (opt->plans == NULL && mat->model == MODEL_D3D && !mat->d3d.normalize_normals) {
-            mesh_normal_length_make(&s->objects[i], &lengths[i]);
-            normal_length[i] = &lengths[i];
+            mesh_normal_length_make(&s->objects[i], &ob->lengths[i]);
+            ob->normal_length[i] = &ob->lengths[i];
         }
-        any_per_vertex |= per_vertex[i];
+        any_per_vertex |= ob->per_vertex[i];
     }
-    j.plans = plans;
-    j.normal_length = normal_length;
-    j.vertex_colours = vertex_colours;
-    j.per_vertex = per_vertex;
-    j.two_sided = two_sided;
+    j->plans = ob->plans;
+    j->normal_length = ob->normal_length;
+    j->vertex_colours = ob->vertex_colours;
+    j->per_vertex = ob->per_vertex;
+    j->two_sided = ob->two_sided;
+    return any_per_vertex;
+}
+
+/* Step 3, Gouraud: D3D evaluates the lighting once per vertex (seed 003); a vertex shared by
+ * objects does not exist, as mesh_build never merges objects. */
+static void render_gouraud(render_job *j, const render_camera *cam, shade_terms *vt)
+{
+    const mesh *m = j->m;
+    for (int t = 0; t < m->n_tris; t++) {
+        int obj = m->tri_object[t];
+        if (!j->per_vertex[obj])
+            continue;
+        for (int c = 0; c < 3; c++) {
+            uint32_t vi = m->idx[3 * (size_t)t + (size_t)c];
+            vec3 x = m->pos[vi];
+            vec3 v = v3_norm(v3_sub(cam->eye, x));
+            vec3 n = m->nrm[vi];
+            if (j->two_sided[obj] && v3_dot(n, v) < 0.0f)
+                n = v3_neg(n);
+            /* D3D per vertex with NORMALIZENORMALS off: exactly its unnormalised normal. */
+            if (j->normal_length[obj] != NULL)
+                n = v3_scale(n, mesh_normal_length_of(j->normal_length[obj], n));
+            /* Per vertex: the lighting only; the texture is applied per sample. */
+            if (j->vertex_colours[obj]) {
+                /* D3D's own case: the vertex's colours in the lighting of that vertex. */
+                uint32_t one[3] = {vi, vi, vi};
+                material vm;
+                render_vertex_material(j, obj, one, 1.0f, 0.0f, 0.0f, &vm);
+                shade_plan vp;
+                render_vertex_plan(j, obj, &vm, &vp);
+                vp.fn(&j->sc, &vp, x, n, v, &vt[vi]);
+            } else {
+                j->plans[obj].fn(&j->sc, &j->plans[obj], x, n, v, &vt[vi]);
+            }
+        }
+    }
+}
+
+/* Step 5, the profile: per worker, the tiles' time less what the stages inside took is
+ * queueing; the workers' share of the draw's wall time outside tiles is the rasterizer's (and
+ * waiting). */
+static void render_profile_put(render_profile *p, const render_scratch *scratch, int n_threads, double t_draw)
+{
+    memset(p, 0, sizeof *p);
+    double in_tiles = 0.0;
+    for (int i = 0; i < n_threads; i++) {
+        const double *g = scratch[i].stage;
+        in_tiles += g[RENDER_STAGE_RASTER];
+        double inner = 0.0;
+        for (int k = RENDER_STAGE_INTERPOLATE; k < RENDER_STAGE_COUNT; k++) {
+            p->seconds[k] += g[k];
+            inner += g[k];
+        }
+        p->seconds[RENDER_STAGE_QUEUE] += g[RENDER_STAGE_RASTER] - inner;
+    }
+    p->seconds[RENDER_STAGE_RASTER] = fmax((double)n_threads * t_draw - in_tiles, 0.0);
+    p->threads = n_threads;
+}
+
+/* Step 4: the blended objects' layers, then the frame's draw. Blended objects are each
+ * rasterized alone into their layer first; the frame's own draw then holds the opaque
+ * triangles only, and every span blends the layers over them. */
+static rc_status render_draw(render_job *j, const render_options *opt, raster_vertex *rv, const raster_options *ro,
+                             double *t_draw)
+{
+    const scene *s = j->s;
+    const mesh *m = j->m_all;
+    unsigned char blend[SCENE_MAX_OBJECTS];
+    render_blend_layer blend_layers[SCENE_MAX_OBJECTS];
+    mesh opaque = *m;
+    rc_status st = RC_OK;
+    int n_layers = 0, any_blend = render_blend_flags(s, opt, blend) > 0;
+    if (any_blend)
+        st = render_blend_prepare(m, rv, ro, blend, s->n_objects, &opaque, blend_layers, &n_layers);
+    j->m = &opaque;
+    j->clip = rv;
+    j->layers = blend_layers;
+    j->n_blend = n_layers;
+
+    *t_draw = render_now();
+    if (st == RC_OK)
+        st = raster_draw(rv, m->n_verts, opaque.idx, opaque.n_tris, ro, render_tile, j);
+    *t_draw = render_now() - *t_draw;
+    if (any_blend)
+        render_blend_free(&opaque, blend_layers, n_layers);
+    /* The opaque mesh and the layers were this step's own: J points back at the scene's mesh. */
+    j->m = m;
+    j->layers = NULL;
+    j->n_blend = 0;
+    return st;
+}
+
+rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt, render_image *out,
+                       char *err, size_t errlen)
+{
+    static const render_options defaults = {0};
+    if (opt == NULL)
+        opt = &defaults;
+    double t0 = render_now();
+    render_image prev = {0};
+    if (opt->reuse_image)
+        prev = *out;
+    memset(out, 0, sizeof *out);
+    rc_status st = render_frame_alloc(s, m, env, opt, out, &prev, err, errlen);
+    if (st != RC_OK)
+        return st;
+
+    render_camera cam;
+    render_camera_make(s, out->width, out->height, &cam);
+    render_job j = {.s = s, .m = m, .m_all = m, .cam = &cam, .out = out};
+    for (int a = 0; a < 4; a++)
+        if (out->chan[RENDER_DIFFUSE_R + 3 * a] != NULL)
+            j.term_layers |= 1u << a;
+    shade_context_make(s, env, &j.sc);
+    j.sc.tex = opt->textures;
+    if ((st = render_textures_check(s, m, opt, err, errlen)) != RC_OK) {
+        render_image_free(out);
+        return st;
+    }
+    render_objects ob = {0};
+    int any_per_vertex = render_objects_make(opt, &ob, &j);
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
     shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
@@ -1175,8 +1295,9 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                          .supersample = out->supersample,
                          .threads = opt->threads,
                          .tile = opt->tile};
-    long long *shaded = calloc((size_t)raster_thread_count(&ro), sizeof *shaded);
-    render_scratch *scratch = calloc((size_t)raster_thread_count(&ro), sizeof *scratch);
+    const int n_threads = raster_thread_count(&ro);
+    long long *shaded = calloc((size_t)n_threads, sizeof *shaded);
+    render_scratch *scratch = calloc((size_t)n_threads, sizeof *scratch);
     if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL || scratch == NULL) {
         free(rv);
         free(vt);
@@ -1188,87 +1309,20 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     }
     for (int i = 0; i < m->n_verts; i++)
         rv[i] = render_camera_clip(&cam, m->pos[i]);
-
-    if (any_per_vertex) {
-        /* Gouraud: D3D evaluates the lighting once per vertex (seed 003); a vertex shared by
-         * objects does not exist, as mesh_build never merges objects. */
-        for (int t = 0; t < m->n_tris; t++) {
-            int obj = m->tri_object[t];
-            if (!per_vertex[obj])
-                continue;
-            for (int c = 0; c < 3; c++) {
-                uint32_t vi = m->idx[3 * (size_t)t + (size_t)c];
-                vec3 x = m->pos[vi];
-                vec3 v = v3_norm(v3_sub(cam.eye, x));
-                vec3 n = m->nrm[vi];
-                if (two_sided[obj] && v3_dot(n, v) < 0.0f)
-                    n = v3_neg(n);
-                /* D3D per vertex with NORMALIZENORMALS off: exactly its unnormalised normal. */
-                if (normal_length[obj] != NULL)
-                    n = v3_scale(n, mesh_normal_length_of(normal_length[obj], n));
-                /* Per vertex: the lighting only; the texture is applied per sample. */
-                if (vertex_colours[obj]) {
-                    /* D3D's own case: the vertex's colours in the lighting of that vertex. */
-                    uint32_t one[3] = {vi, vi, vi};
-                    material vm;
-                    render_vertex_material(&j, obj, one, 1.0f, 0.0f, 0.0f, &vm);
-                    shade_plan vp;
-                    render_vertex_plan(&j, obj, &vm, &vp);
-                    vp.fn(&j.sc, &vp, x, n, v, &vt[vi]);
-                } else {
-                    plans[obj].fn(&j.sc, &plans[obj], x, n, v, &vt[vi]);
-                }
-            }
-        }
-    }
+    if (any_per_vertex)
+        render_gouraud(&j, &cam, vt);
     j.vertex_terms = vt;
     j.shaded = shaded;
     j.scratch = scratch;
-    const int n_threads = raster_thread_count(&ro);
     for (int i = 0; i < n_threads; i++)
         scratch[i].profile = opt->profile != NULL;
 
-    /* Blended objects: each rasterized alone into its layer first; the frame's own draw then
-     * holds the opaque triangles only, and every span blends the layers over them. */
-    unsigned char blend[SCENE_MAX_OBJECTS];
-    render_blend_layer blend_layers[SCENE_MAX_OBJECTS];
-    mesh opaque = *m;
-    int n_layers = 0, any_blend = render_blend_flags(s, opt, blend) > 0;
-    if (any_blend)
-        st = render_blend_prepare(m, rv, &ro, blend, s->n_objects, &opaque, blend_layers, &n_layers);
-    j.m = &opaque;
-    j.m_all = m;
-    j.clip = rv;
-    j.layers = blend_layers;
-    j.n_blend = n_layers;
-
-    double t_draw = render_now();
-    if (st == RC_OK)
-        st = raster_draw(rv, m->n_verts, opaque.idx, opaque.n_tris, &ro, render_tile, &j);
-    t_draw = render_now() - t_draw;
-    if (any_blend)
-        render_blend_free(&opaque, blend_layers, n_layers);
+    double t_draw = 0.0;
+    st = render_draw(&j, opt, rv, &ro, &t_draw);
     for (int i = 0; i < n_threads; i++)
         out->shaded_samples += shaded[i];
-    if (opt->profile != NULL && st == RC_OK) {
-        /* Per worker, the tiles' time less what the stages inside took is queueing; the workers'
-         * share of the draw's wall time outside tiles is the rasterizer's (and waiting). */
-        render_profile *p = opt->profile;
-        memset(p, 0, sizeof *p);
-        double in_tiles = 0.0;
-        for (int i = 0; i < n_threads; i++) {
-            const double *g = scratch[i].stage;
-            in_tiles += g[RENDER_STAGE_RASTER];
-            double inner = 0.0;
-            for (int k = RENDER_STAGE_INTERPOLATE; k < RENDER_STAGE_COUNT; k++) {
-                p->seconds[k] += g[k];
-                inner += g[k];
-            }
-            p->seconds[RENDER_STAGE_QUEUE] += g[RENDER_STAGE_RASTER] - inner;
-        }
-        p->seconds[RENDER_STAGE_RASTER] = fmax((double)n_threads * t_draw - in_tiles, 0.0);
-        p->threads = n_threads;
-    }
+    if (opt->profile != NULL && st == RC_OK)
+        render_profile_put(opt->profile, scratch, n_threads, t_draw);
     free(rv);
     free(vt);
     free(shaded);
