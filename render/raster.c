@@ -543,8 +543,9 @@ static void raster_free(raster_ctx *c)
     free(c->tile_uv);
 }
 
-rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris, const raster_options *opt,
-                      raster_tile_fn fn, void *user)
+/* Step 1 of a draw: the arguments, refused whole when any is out of range. */
+static rc_status raster_check_args(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris,
+                                   const raster_options *opt, raster_tile_fn fn)
 {
     if (!opt || !fn || n_verts < 0 || n_tris < 0)
         return RC_ERR_RANGE;
@@ -561,96 +562,125 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
     for (size_t i = 0; i < 3 * (size_t)n_tris; i++)
         if (idx[i] >= (uint32_t)n_verts)
             return RC_ERR_RANGE;
+    return RC_OK;
+}
 
+/* Step 2: the fixed-point grid, its guard band and the tiles. */
+static rc_status raster_setup_grid(raster_ctx *c, const raster_options *opt)
+{
+    c->width = opt->width;
+    c->height = opt->height;
+    c->k = opt->supersample ? opt->supersample : 1;
+    c->tile = opt->tile ? opt->tile : 16;
+    if ((int64_t)c->tile * c->k > RASTER_MAX_TILE_SAMPLES)
+        return RC_ERR_RANGE;
+    c->near = opt->near > 0 ? opt->near : 1e-3;
+    /* The finest grid whose guard band still reaches 3 (below): step * k * max(W, H) <= 2^28. */
+    int64_t across = (int64_t)c->k * (c->width > c->height ? c->width : c->height);
+    c->step = RASTER_STEP_MAX;
+    while (c->step > RASTER_STEP_MIN && c->step * across > (int64_t)RASTER_FIX_LIMIT / 2)
+        c->step /= 2;
+    c->half = c->step / 2;
+    double fix_per_px = (double)c->k * (double)c->step;
+    c->gx = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c->width) - 1.0;
+    c->gy = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c->height) - 1.0;
+    /* The guard band must sit well outside the image (3 = at least one image width on
+     * each side); a larger image would not fit the fixed-point range. */
+    if (c->gx < 3.0 || c->gy < 3.0)
+        return RC_ERR_RANGE;
+    c->half_w_fix = 0.5 * c->width * fix_per_px;
+    c->half_h_fix = 0.5 * c->height * fix_per_px;
+    c->tiles_x = (c->width + c->tile - 1) / c->tile;
+    c->tiles_y = (c->height + c->tile - 1) / c->tile;
+    /* tile ranges are cached as uint16 per axis */
+    if (c->tiles_x > UINT16_MAX || c->tiles_y > UINT16_MAX)
+        return RC_ERR_RANGE;
+    if ((int64_t)c->tiles_x * c->tiles_y > INT32_MAX / 2)
+        return RC_ERR_RANGE;
+    c->n_tiles = c->tiles_x * c->tiles_y;
+    return RC_OK;
+}
+
+/* Step 3: the triangles' chunks (binned in parallel) and every buffer of the draw. */
+static rc_status raster_alloc_bins(raster_ctx *c, int n_tris)
+{
+    int max_chunks = RASTER_MAX_CHUNK_CELLS / c->n_tiles;
+    c->n_chunks = 16 * c->n_threads;
+    if (c->n_chunks > n_tris / 1024 + 1)
+        c->n_chunks = n_tris / 1024 + 1;
+    if (c->n_chunks > max_chunks)
+        c->n_chunks = max_chunks;
+    if (c->n_chunks < 1)
+        c->n_chunks = 1;
+    c->chunk_len = (n_tris + c->n_chunks - 1) / c->n_chunks;
+    if (c->chunk_len < 1)
+        c->chunk_len = 1;
+
+    size_t cells = (size_t)c->n_chunks * c->n_tiles;
+    c->counts = calloc(cells, sizeof *c->counts);
+    c->offsets = malloc(cells * sizeof *c->offsets);
+    c->tile_start = malloc(((size_t)c->n_tiles + 1) * sizeof *c->tile_start);
+    c->tile_samples = calloc((size_t)c->n_threads, sizeof *c->tile_samples);
+    c->tile_depth = calloc((size_t)c->n_threads, sizeof *c->tile_depth);
+    c->tile_uv = calloc((size_t)c->n_threads, sizeof *c->tile_uv);
+    c->rects = malloc(((size_t)n_tris + 1) * sizeof *c->rects);
+    if (!c->rects || !c->counts || !c->offsets || !c->tile_start || !c->tile_samples || !c->tile_depth || !c->tile_uv)
+        return RC_ERR_NOMEM;
+    size_t tsn = (size_t)c->tile * c->k;
+    for (int i = 0; i < c->n_threads; i++) {
+        c->tile_samples[i] = malloc(tsn * tsn * sizeof(raster_sample));
+        c->tile_depth[i] = malloc(tsn * tsn * sizeof(double));
+        c->tile_uv[i] = malloc(2 * tsn * sizeof(double));
+        if (!c->tile_samples[i] || !c->tile_depth[i] || !c->tile_uv[i])
+            return RC_ERR_NOMEM;
+    }
+    return RC_OK;
+}
+
+/* Step 4: each tile's and chunk's place in the bins, from the counts; 0 when the bins
+ * cannot be allocated. */
+static int raster_place_bins(raster_ctx *c)
+{
+    size_t total = 0;
+    for (int t = 0; t < c->n_tiles; t++) {
+        c->tile_start[t] = total;
+        for (int ch = 0; ch < c->n_chunks; ch++) {
+            size_t cell = (size_t)ch * c->n_tiles + t;
+            c->offsets[cell] = total;
+            total += c->counts[cell];
+        }
+    }
+    c->tile_start[c->n_tiles] = total;
+    c->bins = malloc((total ? total : 1) * sizeof *c->bins);
+    return c->bins != NULL;
+}
+
+rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, int n_tris, const raster_options *opt,
+                      raster_tile_fn fn, void *user)
+{
+    rc_status rc = raster_check_args(v, n_verts, idx, n_tris, opt, fn);
+    if (rc != RC_OK)
+        return rc;
     raster_ctx c;
     memset(&c, 0, sizeof c);
     c.v = v;
     c.idx = idx;
     c.n_tris = n_tris;
-    c.width = opt->width;
-    c.height = opt->height;
-    c.k = opt->supersample ? opt->supersample : 1;
-    c.tile = opt->tile ? opt->tile : 16;
-    if ((int64_t)c.tile * c.k > RASTER_MAX_TILE_SAMPLES)
-        return RC_ERR_RANGE;
-    c.near = opt->near > 0 ? opt->near : 1e-3;
-    /* The finest grid whose guard band still reaches 3 (below): step * k * max(W, H) <= 2^28. */
-    int64_t across = (int64_t)c.k * (c.width > c.height ? c.width : c.height);
-    c.step = RASTER_STEP_MAX;
-    while (c.step > RASTER_STEP_MIN && c.step * across > (int64_t)RASTER_FIX_LIMIT / 2)
-        c.step /= 2;
-    c.half = c.step / 2;
-    double fix_per_px = (double)c.k * (double)c.step;
-    c.gx = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c.width) - 1.0;
-    c.gy = 2.0 * RASTER_FIX_LIMIT / (fix_per_px * c.height) - 1.0;
-    /* The guard band must sit well outside the image (3 = at least one image width on
-     * each side); a larger image would not fit the fixed-point range. */
-    if (c.gx < 3.0 || c.gy < 3.0)
-        return RC_ERR_RANGE;
-    c.half_w_fix = 0.5 * c.width * fix_per_px;
-    c.half_h_fix = 0.5 * c.height * fix_per_px;
-    c.tiles_x = (c.width + c.tile - 1) / c.tile;
-    c.tiles_y = (c.height + c.tile - 1) / c.tile;
-    /* tile ranges are cached as uint16 per axis */
-    if (c.tiles_x > UINT16_MAX || c.tiles_y > UINT16_MAX)
-        return RC_ERR_RANGE;
-    if ((int64_t)c.tiles_x * c.tiles_y > INT32_MAX / 2)
-        return RC_ERR_RANGE;
-    c.n_tiles = c.tiles_x * c.tiles_y;
+    if ((rc = raster_setup_grid(&c, opt)) != RC_OK)
+        return rc;
     c.fn = fn;
     c.user = user;
     c.n_threads = raster_thread_count(opt);
 
-    int max_chunks = RASTER_MAX_CHUNK_CELLS / c.n_tiles;
-    c.n_chunks = 16 * c.n_threads;
-    if (c.n_chunks > n_tris / 1024 + 1)
-        c.n_chunks = n_tris / 1024 + 1;
-    if (c.n_chunks > max_chunks)
-        c.n_chunks = max_chunks;
-    if (c.n_chunks < 1)
-        c.n_chunks = 1;
-    c.chunk_len = (n_tris + c.n_chunks - 1) / c.n_chunks;
-    if (c.chunk_len < 1)
-        c.chunk_len = 1;
-
-    rc_status rc = RC_ERR_NOMEM;
-    size_t cells = (size_t)c.n_chunks * c.n_tiles;
-    c.counts = calloc(cells, sizeof *c.counts);
-    c.offsets = malloc(cells * sizeof *c.offsets);
-    c.tile_start = malloc(((size_t)c.n_tiles + 1) * sizeof *c.tile_start);
-    c.tile_samples = calloc((size_t)c.n_threads, sizeof *c.tile_samples);
-    c.tile_depth = calloc((size_t)c.n_threads, sizeof *c.tile_depth);
-    c.tile_uv = calloc((size_t)c.n_threads, sizeof *c.tile_uv);
-    c.rects = malloc(((size_t)n_tris + 1) * sizeof *c.rects);
-    if (!c.rects || !c.counts || !c.offsets || !c.tile_start || !c.tile_samples || !c.tile_depth || !c.tile_uv)
-        goto done;
-    size_t tsn = (size_t)c.tile * c.k;
-    for (int i = 0; i < c.n_threads; i++) {
-        c.tile_samples[i] = malloc(tsn * tsn * sizeof(raster_sample));
-        c.tile_depth[i] = malloc(tsn * tsn * sizeof(double));
-        c.tile_uv[i] = malloc(2 * tsn * sizeof(double));
-        if (!c.tile_samples[i] || !c.tile_depth[i] || !c.tile_uv[i])
-            goto done;
-    }
-
-    raster_run_phase(&c, RASTER_PHASE_COUNT);
-    size_t total = 0;
-    for (int t = 0; t < c.n_tiles; t++) {
-        c.tile_start[t] = total;
-        for (int ch = 0; ch < c.n_chunks; ch++) {
-            size_t cell = (size_t)ch * c.n_tiles + t;
-            c.offsets[cell] = total;
-            total += c.counts[cell];
+    rc = RC_ERR_NOMEM;
+    if (raster_alloc_bins(&c, n_tris) == RC_OK) {
+        raster_run_phase(&c, RASTER_PHASE_COUNT);
+        if (raster_place_bins(&c)) {
+            raster_run_phase(&c, RASTER_PHASE_FILL);
+            raster_run_phase(&c, RASTER_PHASE_TILES);
+            rc = RC_OK;
         }
     }
-    c.tile_start[c.n_tiles] = total;
-    c.bins = malloc((total ? total : 1) * sizeof *c.bins);
-    if (!c.bins)
-        goto done;
-    raster_run_phase(&c, RASTER_PHASE_FILL);
-    raster_run_phase(&c, RASTER_PHASE_TILES);
-    rc = RC_OK;
-done:
     raster_free(&c);
     return rc;
 }
