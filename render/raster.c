@@ -271,20 +271,10 @@ static int64_t raster_edge(raster_fix a, raster_fix b, int64_t px, int64_t py)
     return ((int64_t)b.x - a.x) * (py - a.y) - ((int64_t)b.y - a.y) * (px - a.x);
 }
 
-static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_fix p0, raster_fix p1, raster_fix p2,
-                          int orient, uint32_t t, raster_attr *at)
+/* The sample rows and columns a sub-triangle's box covers, clipped to the target; 0 when none. */
+static int raster_subtri_box(const raster_ctx *c, const raster_target *tg, const raster_fix *const q[3], int64_t box[4])
 {
-    int64_t area = raster_edge(p0, p1, p2.x, p2.y);
-    /* A sub-triangle that snapping turned over (or flattened) is a sliver: drop it. */
-    if (area == 0 || (area > 0) != (orient > 0))
-        return;
-    if (area < 0) {
-        raster_fix tmp = p1;
-        p1 = p2;
-        p2 = tmp;
-    }
-    int32_t x0 = p0.x, x1 = p0.x, y0 = p0.y, y1 = p0.y;
-    const raster_fix *q[3] = {&p0, &p1, &p2};
+    int32_t x0 = q[0]->x, x1 = q[0]->x, y0 = q[0]->y, y1 = q[0]->y;
     for (int i = 1; i < 3; i++) {
         if (q[i]->x < x0)
             x0 = q[i]->x;
@@ -307,8 +297,83 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
         sx1 = tg->sx1;
     if (sy1 > tg->sy1)
         sy1 = tg->sy1;
-    if (sx0 > sx1 || sy0 > sy1)
+    box[0] = sx0;
+    box[1] = sy0;
+    box[2] = sx1;
+    box[3] = sy1;
+    return sx0 <= sx1 && sy0 <= sy1;
+}
+
+/* One row's covered samples, an interval [*lo, *hi] from sx0 (each edge function is linear
+ * along the row): found exactly from the three edge values at sx0, e + step x >= 0, instead
+ * of testing every sample of the bounding box. */
+static void raster_row_span(const int64_t e_row[3], const int64_t step_x[3], int64_t *lo, int64_t *hi)
+{
+    for (int i = 0; i < 3 && *lo <= *hi; i++) {
+        const int64_t e = e_row[i], st = step_x[i];
+        if (st > 0 && e < 0) {
+            int64_t m = raster_ceil_div(-e, st);
+            *lo = m > *lo ? m : *lo;
+        } else if (st < 0) {
+            int64_t m = e < 0 ? -1 : raster_floor_div(e, -st);
+            *hi = m < *hi ? m : *hi;
+        } else if (st == 0 && e < 0) {
+            *hi = -1;
+        }
+    }
+}
+
+/* The depth test and barycentrics of one row's covered samples [from, to] (target columns). */
+static void raster_row_fill(const raster_target *tg, const raster_attr *at, uint32_t t, int64_t sy, int64_t from,
+                            int64_t to)
+{
+    const dvec3 sum = at->sum, f1 = at->f1, f2 = at->f2;
+    raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
+    double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
+    double v = tg->v[sy - tg->sy0];
+    double iw_row = sum.y * v + sum.z, f1_row = f1.y * v + f1.z, f2_row = f2.y * v + f2.z;
+    for (int64_t sx = from; sx <= to; sx++) {
+        double u = tg->u[sx];
+        double iw = sum.x * u + iw_row;
+        /* Strictly greater: on an exact tie the earlier (lower) index stays. */
+        if (iw > drow[sx]) {
+            double r = 1.0 / iw;
+            double b1 = (f1.x * u + f1_row) * r;
+            double b2 = (f2.x * u + f2_row) * r;
+            /* Snapping may admit samples up to one fixed unit outside the true
+             * triangle; keep their weights on the triangle. */
+            b1 = b1 < 0.0 ? 0.0 : b1 > 1.0 ? 1.0 : b1;
+            b2 = b2 < 0.0 ? 0.0 : b2 > 1.0 ? 1.0 : b2;
+            if (b1 + b2 > 1.0) {
+                double s = 1.0 / (b1 + b2);
+                b1 *= s;
+                b2 *= s;
+            }
+            drow[sx] = iw;
+            srow[sx].tri = (int32_t)t;
+            srow[sx].b1 = (float)b1;
+            srow[sx].b2 = (float)b2;
+        }
+    }
+}
+
+static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_fix p0, raster_fix p1, raster_fix p2,
+                          int orient, uint32_t t, raster_attr *at)
+{
+    int64_t area = raster_edge(p0, p1, p2.x, p2.y);
+    /* A sub-triangle that snapping turned over (or flattened) is a sliver: drop it. */
+    if (area == 0 || (area > 0) != (orient > 0))
         return;
+    if (area < 0) {
+        raster_fix tmp = p1;
+        p1 = p2;
+        p2 = tmp;
+    }
+    const raster_fix *q[3] = {&p0, &p1, &p2};
+    int64_t box[4];
+    if (!raster_subtri_box(c, tg, q, box))
+        return;
+    const int64_t sx0 = box[0], sy0 = box[1], sx1 = box[2], sy1 = box[3];
 
     /* Edge i is opposite vertex i; inside is e >= 0. Top-left rule (y down, this
      * orientation): a top edge runs in +x with dy = 0, a left edge has dy < 0. Other
@@ -327,55 +392,14 @@ static void raster_subtri(const raster_ctx *c, const raster_target *tg, raster_f
         raster_attr_setup(c, t, at);
     if (!at->ok)
         return;
-    const dvec3 sum = at->sum, f1 = at->f1, f2 = at->f2;
     for (int64_t sy = sy0; sy <= sy1; sy++) {
-        /* The row's covered samples are one interval (each edge function is linear along the
-         * row): found exactly from the three edge values at sx0, e + step x >= 0, instead of
-         * testing every sample of the bounding box. */
         int64_t lo = 0, hi = sx1 - sx0;
-        for (int i = 0; i < 3 && lo <= hi; i++) {
-            const int64_t e = e_row[i], st = step_x[i];
-            if (st > 0 && e < 0) {
-                int64_t m = raster_ceil_div(-e, st);
-                lo = m > lo ? m : lo;
-            } else if (st < 0) {
-                int64_t m = e < 0 ? -1 : raster_floor_div(e, -st);
-                hi = m < hi ? m : hi;
-            } else if (st == 0 && e < 0) {
-                hi = -1;
-            }
-        }
+        raster_row_span(e_row, step_x, &lo, &hi);
         for (int i = 0; i < 3; i++)
             e_row[i] += step_y[i];
         if (lo > hi)
             continue;
-        raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
-        double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
-        double v = tg->v[sy - tg->sy0];
-        double iw_row = sum.y * v + sum.z, f1_row = f1.y * v + f1.z, f2_row = f2.y * v + f2.z;
-        for (int64_t sx = sx0 - tg->sx0 + lo; sx <= sx0 - tg->sx0 + hi; sx++) {
-            double u = tg->u[sx];
-            double iw = sum.x * u + iw_row;
-            /* Strictly greater: on an exact tie the earlier (lower) index stays. */
-            if (iw > drow[sx]) {
-                double r = 1.0 / iw;
-                double b1 = (f1.x * u + f1_row) * r;
-                double b2 = (f2.x * u + f2_row) * r;
-                /* Snapping may admit samples up to one fixed unit outside the true
-                 * triangle; keep their weights on the triangle. */
-                b1 = b1 < 0.0 ? 0.0 : b1 > 1.0 ? 1.0 : b1;
-                b2 = b2 < 0.0 ? 0.0 : b2 > 1.0 ? 1.0 : b2;
-                if (b1 + b2 > 1.0) {
-                    double s = 1.0 / (b1 + b2);
-                    b1 *= s;
-                    b2 *= s;
-                }
-                drow[sx] = iw;
-                srow[sx].tri = (int32_t)t;
-                srow[sx].b1 = (float)b1;
-                srow[sx].b2 = (float)b2;
-            }
-        }
+        raster_row_fill(tg, at, t, sy, sx0 - tg->sx0 + lo, sx0 - tg->sx0 + hi);
     }
 }
 
