@@ -9,7 +9,7 @@ build=${1:-build}
 work=$build/add-renderer
 rm -rf "$work"
 mkdir -p "$work/orig"
-cp -r core model scene render harness cli tools ops scenes tests Makefile "$work/orig"/
+cp -r core model scene render harness cli tools ops examples scenes tests Makefile "$work/orig"/
 # The tree to change, with the build's objects, so its build compiles only the new renderer.
 . tests/scratch_tree.sh
 scratch_tree "$work/tree" "$build" || { echo "add-renderer: copying the tree failed" >&2; exit 1; }

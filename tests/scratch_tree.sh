@@ -9,7 +9,7 @@
 scratch_tree() {
     local dest=$1 build=${2:-build}
     mkdir -p "$dest" || return 1
-    cp -rp core model scene render harness cli tools ops scenes tests Makefile "$dest"/ || return 1
+    cp -rp core model scene render harness cli tools ops examples scenes tests Makefile "$dest"/ || return 1
     if [ -d "$build/model" ] && [ -d "$build/harness" ]; then
         mkdir -p "$dest/build"
         local l
