@@ -1317,7 +1317,7 @@ static rc_status sf_material_combos(sf_ctx *c, const char *path, const sf_kv *f,
                                     const sf_mat_given *g)
 {
     char child[SF_PATHLEN], sub[SF_PATHLEN];
-    /* Seed 000: Dissolve "can be only applied to non-normal mapped surface that has a texture" (it
+    /* Source 000: Dissolve "can be only applied to non-normal mapped surface that has a texture" (it
      * reads the texture coordinates); a D3D9Client shader effect. */
     if (g->dissolve != NULL && m->d9.dissolve_scale > 0.0f && m->d9.dissolve_strength > 0.0f &&
         (m->model != MODEL_D3D9CLIENT || m->texture[MAT_TEX_DIFFUSE][0] == '\0')) {
@@ -1327,7 +1327,7 @@ static rc_status sf_material_combos(sf_ctx *c, const char *path, const sf_kv *f,
                        m->model != MODEL_D3D9CLIENT
                            ? "dissolve applies to model d3d9client only (a D3D9Client shader effect); allowed: "
                              "model: d3d9client, or no dissolve"
-                           : "dissolve needs a textured surface (seed 000: it applies only to a surface that has "
+                           : "dissolve needs a textured surface (source 000: it applies only to a surface that has "
                              "a texture, whose coordinates it reads); allowed: texture: {diffuse: file}, or no "
                              "dissolve");
     }

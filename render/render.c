@@ -290,7 +290,7 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
     }
     /* D3DRS_NORMALIZENORMALS off, per pixel: the unit normal at the sample scaled to the
      * length D3D's vertex stage would give a vertex with that normal (1/|S R^T n|). The D3D
-     * lanes take any length: N.L and N.H are clamped to [0, 1] as the seed says. A loop of its
+     * lanes take any length: N.L and N.H are clamped to [0, 1] as the source says. A loop of its
      * own: the test inside the loop above kept GCC from vectorising it (twice the time). */
     if (len != NULL) {
         for (int i = 0; i < n; i++) {
@@ -1169,7 +1169,7 @@ static int render_objects_make(const render_options *opt, render_objects *ob, re
     return any_per_vertex;
 }
 
-/* Step 3, Gouraud: D3D evaluates the lighting once per vertex (seed 003); a vertex shared by
+/* Step 3, Gouraud: D3D evaluates the lighting once per vertex (source 003); a vertex shared by
  * objects does not exist, as mesh_build never merges objects. */
 static void render_gouraud(render_job *j, const render_camera *cam, shade_terms *vt)
 {
