@@ -158,6 +158,16 @@ static inline void shade_eval_n(const shade_context *c, const shade_plan *p, con
         shade_texture_apply_n(p, in, out);
 }
 
+/* The scalar kernels (shade.c), one per specialised path, that shade_plan_make
+ * (shade_plan.c) installs as p->fn (p->fn_uv for Dissolve). */
+void shade_d3d_diffuse(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+void shade_d3d_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+void shade_d3d9client(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+void shade_d3d9client_dissolve(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, float tu, float tv,
+                               shade_terms *out);
+void shade_ct_lights(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
+void shade_user(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
 /* The batch kernels (shade_batch.c), one per specialised path, that shade_plan_make installs;
  * shade_batch_scalar is shade_eval lane by lane (models without a kernel, unsafe lanes). */
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
