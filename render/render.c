@@ -385,13 +385,15 @@ static void render_scatter3(float (*restrict plane)[RENDER_PLANE], const float *
     }
 }
 
-static void render_flush_object(const render_job *j, render_scratch *w, int obj)
+/* An object's queued samples (qu->n > 0) padded to the kernels' batch length, interpolated from
+ * mesh m (whose triangles the queue indexes), shaded into w->res (per-vertex colours where
+ * vertex_colours) and summed into w->beauty; the two stages' times into w->stage. The opaque
+ * and the blended flush differ only in what they do with the result. */
+static void render_shade_queue(const render_job *j, render_scratch *w, int obj, const mesh *m, int vertex_colours)
 {
     render_queue *qu = &w->queue[obj];
     shade_batch_out *r = &w->res;
     const int n = qu->n;
-    if (n == 0)
-        return;
     w->in.n = render_padded(n);
     for (int i = n; i < w->in.n; i++) {
         qu->tri[i] = qu->tri[n - 1];
@@ -399,10 +401,10 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
         qu->b2[i] = qu->b2[n - 1];
     }
     double t0 = render_clock(w);
-    render_interpolate(j->m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, j->two_sided[obj],
+    render_interpolate(m, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured, j->two_sided[obj],
                        &w->verts, &w->in);
     double t1 = render_clock(w);
-    if (j->vertex_colours[obj])
+    if (vertex_colours)
         render_shade_vertex_colours(j, obj, qu, &w->in, r);
     else
         shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
@@ -410,6 +412,16 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
     w->stage[RENDER_STAGE_SHADE] += t2 - t1;
     render_batch_beauty(r, w->in.n, &w->beauty);
+}
+
+static void render_flush_object(const render_job *j, render_scratch *w, int obj)
+{
+    render_queue *qu = &w->queue[obj];
+    shade_batch_out *r = &w->res;
+    const int n = qu->n;
+    if (n == 0)
+        return;
+    render_shade_queue(j, w, obj, j->m, j->vertex_colours[obj]);
     render_scatter3(&w->plane[RENDER_P_BEAUTY], w->beauty.x, w->beauty.y, w->beauty.z, qu->slot, n);
     float *restrict alpha = w->plane[RENDER_P_ALPHA];
     for (int i = 0; i < n; i++)
@@ -625,21 +637,7 @@ static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
     const int n = qu->n;
     if (n == 0)
         return;
-    w->in.n = render_padded(n);
-    for (int i = n; i < w->in.n; i++) {
-        qu->tri[i] = qu->tri[n - 1];
-        qu->b1[i] = qu->b1[n - 1];
-        qu->b2[i] = qu->b2[n - 1];
-    }
-    double t0 = render_clock(w);
-    render_interpolate(j->m_all, j->cam->eye, qu, w->in.n, j->normal_length[obj], j->plans[obj].textured,
-                       j->two_sided[obj], &w->verts, &w->in);
-    double t1 = render_clock(w);
-    shade_eval_n(&j->sc, &j->plans[obj], &w->in, r);
-    double t2 = render_clock(w);
-    w->stage[RENDER_STAGE_INTERPOLATE] += t1 - t0;
-    w->stage[RENDER_STAGE_SHADE] += t2 - t1;
-    render_batch_beauty(r, w->in.n, &w->beauty);
+    render_shade_queue(j, w, obj, j->m_all, 0);
     const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
     for (int i = 0; i < n; i++) {
         const int q = qu->slot[i];
