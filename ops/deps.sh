@@ -6,7 +6,7 @@ set -euo pipefail
 pkgs=(build-essential pkg-config libopenexr-dev libyaml-dev libcmocka-dev libcjson-dev
       openimageio-tools gnuplot-nox chromium
       libosmesa6-dev libmpfr-dev clang libclang-rt-14-dev python3 python3-pytest python3-jinja2
-      procps)
+      procps time)
 # Textures (scene/texture.c: PNG and JPEG) and the real-content scenes' assets (scenes/real_*.yaml
 # read /usr/share/assimp/models/...; tests/test_mesh.c loads three of them: docs/meshes.md).
 pkgs+=(libpng-dev libjpeg-dev assimp-testmodels)
