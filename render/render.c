@@ -385,6 +385,31 @@ static void render_scatter3(float (*restrict plane)[RENDER_PLANE], const float *
     }
 }
 
+/* The angle channels of sample i in slot q, the sample nearest its pixel's centre: N.V, N.L and
+ * N.H of the first light, for the opaque and the blended flush alike. */
+static void render_centre_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
+{
+    vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
+    if (j->normal_length[obj] != NULL)
+        nn = v3_norm(nn); /* the angle channels are cosines */
+    const int px = q - w->centre_lo;
+    const vec3 v = shade_lane_get(&w->in.v, i);
+    w->centre_nv[px] = v3_dot(nn, v);
+    w->centre_nl[px] = 0.0f;
+    w->centre_nh[px] = 0.0f;
+    if (j->s->n_lights > 0) {
+        vec3 to_l, e_perp;
+        float atten;
+        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
+        w->centre_nl[px] = v3_dot(nn, to_l);
+        /* L + V vanishes only with the light exactly behind the surface point as seen from
+         * the eye: no half vector, and no lobe to bin, so N.H stays 0 (no bin). */
+        const vec3 hv = v3_add(to_l, v);
+        if (v3_dot(hv, hv) > 1e-12f)
+            w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
+    }
+}
+
 /* An object's queued samples (qu->n > 0) padded to the kernels' batch length, interpolated from
  * mesh m (whose triangles the queue indexes), shaded into w->res (per-vertex colours where
  * vertex_colours) and summed into w->beauty; the two stages' times into w->stage. The opaque
@@ -430,32 +455,9 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     for (int a = 0; a < 4; a++)
         if (j->term_layers & (1u << a))
             render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
-    for (int i = 0; i < n; i++) {
-        /* The angle channels: N.V, N.L and N.H (first light) of the sample nearest the pixel
-         * centre. */
-        const int q = qu->slot[i];
-        if (q < w->centre_lo || q >= w->centre_hi)
-            continue;
-        vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
-        if (j->normal_length[obj] != NULL)
-            nn = v3_norm(nn); /* the angle channels are cosines */
-        int px = q - w->centre_lo;
-        const vec3 v = shade_lane_get(&w->in.v, i);
-        w->centre_nv[px] = v3_dot(nn, v);
-        w->centre_nl[px] = 0.0f;
-        w->centre_nh[px] = 0.0f;
-        if (j->s->n_lights > 0) {
-            vec3 to_l, e_perp;
-            float atten;
-            shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-            w->centre_nl[px] = v3_dot(nn, to_l);
-            /* L + V vanishes only with the light exactly behind the surface point as seen from
-             * the eye: no half vector, and no lobe to bin, so N.H stays 0 (no bin). */
-            const vec3 hv = v3_add(to_l, v);
-            if (v3_dot(hv, hv) > 1e-12f)
-                w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
-        }
-    }
+    for (int i = 0; i < n; i++)
+        if (qu->slot[i] >= w->centre_lo && qu->slot[i] < w->centre_hi)
+            render_centre_angles(j, w, obj, i, qu->slot[i]);
     qu->n = 0;
 }
 
@@ -595,29 +597,6 @@ static float render_sample_depth(const mesh *m, const raster_vertex *clip, int32
     return clip[t[0]].w * (1.0f - b1 - b2) + clip[t[1]].w * b1 + clip[t[2]].w * b2;
 }
 
-/* The angle channels at centre slot q from lane i of the batch just shaded, as
- * render_flush_object forms them for an opaque sample. */
-static void render_blend_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
-{
-    vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
-    if (j->normal_length[obj] != NULL)
-        nn = v3_norm(nn);
-    const int px = q - w->centre_lo;
-    const vec3 v = shade_lane_get(&w->in.v, i);
-    w->centre_nv[px] = v3_dot(nn, v);
-    w->centre_nl[px] = 0.0f;
-    w->centre_nh[px] = 0.0f;
-    if (j->s->n_lights > 0) {
-        vec3 to_l, e_perp;
-        float atten;
-        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-        w->centre_nl[px] = v3_dot(nn, to_l);
-        const vec3 hv = v3_add(to_l, v);
-        if (v3_dot(hv, hv) > 1e-12f) /* as render_flush_object: no half vector, no N.H bin */
-            w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
-    }
-}
-
 /* x a + y (1 - a) into slot q of three planes. */
 static void render_blend3(float (*plane)[RENDER_PLANE], int q, float x, float y, float z, float a)
 {
@@ -648,7 +627,7 @@ static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
             if (j->term_layers & (1u << t))
                 render_blend3(&w->plane[RENDER_P_TERMS + 3 * t], q, term[t]->x[i], term[t]->y[i], term[t]->z[i], a);
         if (q >= w->centre_lo && q < w->centre_hi)
-            render_blend_angles(j, w, obj, i, q);
+            render_centre_angles(j, w, obj, i, q);
     }
     qu->n = 0;
 }
