@@ -159,3 +159,47 @@ def test_watch_leaves_cache_hits_out_of_the_estimate(tmp_path):
     assert abs(p.eta() - 10.0) < 1e-9
     progress.record_done(p, 'a/cycles-twin', 'ok', '', False)
     assert p.eta() == 0.0 and '4/4 done' in p.line()
+
+
+# Each rendezvous item writes its first line, marks that it has started and then waits (at most
+# about 20 s, a bound no item reaches unless it runs alone) for the other's mark: the two can
+# only both succeed when they run at the same time. Item a also waits for b's end, so b ends
+# first and the log must still hold a's lines before b's, each item's lines together.
+RENDEZVOUS = (
+    '[ -d "$2" ] || exit 8; echo "$0 first"; : > "$2/$0.started"; n=0; '
+    'until [ -e "$2/$1.started" ]; do n=$((n + 1)); '
+    '[ $n -gt 2000 ] && { echo "$0: $1 never started"; exit 9; }; sleep 0.01; done; '
+    'echo "$0 second"; [ "$0" = b ] && { : > "$2/b.ended"; exit 0; }; n=0; '
+    'until [ -e "$2/b.ended" ]; do n=$((n + 1)); [ $n -gt 2000 ] && exit 9; sleep 0.01; done'
+)
+
+
+def test_each_runs_jobs_at_once_and_keeps_each_items_output_together_in_item_order(tmp_path):
+    log, out = tmp_path / 'fit.txt', io.StringIO()
+    cmd = ['/bin/sh', '-c', RENDEZVOUS + '; [ "$0" != c ] || { echo "c: no reference"; exit 3; }', '{1}', '{2}', '{3}']
+    items = [f'a\tb\t{tmp_path}', f'b\ta\t{tmp_path}', f'c\tc\t{tmp_path}']
+    # c waits for its own mark, which it made: it passes the rendezvous and fails after it.
+    rc = progress.each(cmd, items, 'fits', 10.0, log=str(log), poll=0.01, stream=out, jobs=2)
+    assert rc == 3
+    assert log.read_text().splitlines() == [
+        'a first',
+        'a second',
+        'b first',
+        'b second',
+        'c first',
+        'c second',
+        'c: no reference',
+    ]
+    lines = out.getvalue().splitlines()
+    assert f'fits: FAILED c c {tmp_path}: exit 3: c: no reference' in lines
+    assert lines[-1].startswith('fits: 3/3 done, 1 failed')
+
+
+def test_each_names_a_command_that_cannot_start_and_goes_on(tmp_path):
+    log, out = tmp_path / 'log.txt', io.StringIO()
+    rc = progress.each(
+        [str(tmp_path / 'no-such-program'), '{}'], ['x', 'y'], 'fits', 10.0, log=str(log), poll=0.01, stream=out, jobs=2
+    )
+    assert rc == 127
+    failed = [x for x in out.getvalue().splitlines() if 'FAILED' in x]
+    assert len(failed) == 2 and failed[0].startswith('fits: FAILED x: exit 127: cannot start')

@@ -10,11 +10,13 @@ Usage (Python 3 standard library only):
       Counts the job records (RUN/<scene>/<renderer>-<role>.json) as they appear until N are
       there or the watched process (--pid) ends; names each record whose status is not ok or
       skipped when it appears.
-  python3 tools/progress.py each --label fits [--log FILE] [--expect S] -- CMD... ::: ITEM...
-      Runs CMD once per ITEM, one after the other, with {} in CMD replaced by the item and {1},
-      {2}, ... by its tab-separated fields; their output goes to FILE (appended), else to this
-      stderr. A failed item is named when it fails, with its exit status and its last line of
-      output. Exit status: the highest of the items' (0 when all succeeded).
+  python3 tools/progress.py each --label fits [--jobs N] [--log FILE] [--expect S] -- CMD... ::: ITEM...
+      Runs CMD once per ITEM, N at a time (default 1), with {} in CMD replaced by the item and
+      {1}, {2}, ... by its tab-separated fields. Each item's output (stdout and stderr) is held
+      until it ends and then appended whole to FILE, else to this stderr, in item order: the log
+      reads the same whatever order the items end in. A failed item is named when it fails, with
+      its exit status and its last line of output. Exit status: the highest of the items' (0
+      when all succeeded).
   python3 tools/progress.py follow FILE --label sweep [--pid PID] [--every 10]
       Shows the LABEL progress lines another process writes to FILE (a Slurm job's output) until
       PID ends: FAILED lines as they appear, the latest done/total line at least every EVERY s.
@@ -36,9 +38,12 @@ import argparse
 import glob
 import json
 import os
+import queue
 import re
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 
 
@@ -209,52 +214,72 @@ def substitute(cmd, item):
     return [re.sub(r'\{(\d*)\}', one, word) for word in cmd]
 
 
-def last_line(path, start):
-    """The last non-empty line PATH got after byte START (what a failed command said last)."""
-    try:
-        with open(path, 'rb') as f:
-            f.seek(start)
-            lines = [x for x in f.read().decode('utf-8', 'replace').splitlines() if x.strip()]
-    except OSError:
-        return ''
+def last_line(text):
+    """The last non-empty line of TEXT (bytes: what a failed command said last)."""
+    lines = [x for x in text.decode('utf-8', 'replace').splitlines() if x.strip()]
     return lines[-1].strip() if lines else ''
 
 
-def run_one(argv, log, p, poll):
-    """Runs ARGV to its end (output appended to LOG, else to stderr), ticking P meanwhile.
-    Returns (exit status, its last line of output)."""
-    start = os.path.getsize(log) if log and os.path.exists(log) else 0
-    out = open(log, 'ab') if log else None
+def start_one(argv, done, index):
+    """Starts ARGV with its output (stdout and stderr) in a private anonymous file, and a thread
+    that puts (INDEX, exit status, that file) on the queue DONE when it ends. A command that
+    cannot start is put there at once, with status 127 and the reason as its output."""
+    out = tempfile.TemporaryFile()
     try:
-        proc = subprocess.Popen(argv, stdout=out or sys.stderr, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT)
     except OSError as e:
-        if out:
-            out.close()
-        return 127, f'cannot start {argv[0]}: {e.strerror}'
-    try:
-        while True:
-            try:
-                rc = proc.wait(timeout=poll)
-                break
-            except subprocess.TimeoutExpired:
-                p.tick()
-    finally:
-        if out:
-            out.close()
-    # A signal's death (negative) is told as the shell tells it: 128 + the signal number.
-    rc = 128 - rc if rc < 0 else rc
-    return rc, last_line(log, start) if log else ''
+        out.write(f'cannot start {argv[0]}: {e.strerror}\n'.encode())
+        done.put((index, 127, out))
+        return
+
+    def waiter():
+        rc = proc.wait()
+        # A signal's death (negative) is told as the shell tells it: 128 + the signal number.
+        done.put((index, 128 - rc if rc < 0 else rc, out))
+
+    threading.Thread(target=waiter, daemon=True).start()
 
 
-def each(cmd, items, label, every, log=None, expected=None, poll=1.0, stream=None):
-    """Runs CMD once per item in order, with progress; a failed item is named when it ends."""
+def each(cmd, items, label, every, log=None, expected=None, poll=1.0, stream=None, jobs=1):
+    """Runs CMD once per item, JOBS at a time, with progress; a failed item is named when it ends.
+    Each item's output is held in its own file and appended whole to LOG (else this stderr) in
+    item order, so the log reads the same whatever order the items end in."""
     p = Progress(label, len(items), stream=stream, every=every, expected=expected)
-    worst = 0
-    for item in items:
-        rc, said = run_one(substitute(cmd, item), log, p, poll)
-        worst = max(worst, rc)
-        why = f'exit {rc}' + (f': {said}' if said else '')
-        p.done(failed=f"{item.replace(chr(9), ' ')}: {why}" if rc else None)
+    done = queue.Queue()
+    outputs = [None] * len(items)
+    started = flushed = running = worst = 0
+    sink = open(log, 'ab') if log else None
+    try:
+        while flushed < len(items):
+            while running < max(1, jobs) and started < len(items):
+                start_one(substitute(cmd, items[started]), done, started)
+                started, running = started + 1, running + 1
+            try:
+                i, rc, out = done.get(timeout=poll)
+            except queue.Empty:
+                p.tick()
+                continue
+            running -= 1
+            out.seek(0)
+            outputs[i] = out.read()
+            out.close()
+            worst = max(worst, rc)
+            said = last_line(outputs[i]) if rc else ''
+            why = f'exit {rc}' + (f': {said}' if said else '')
+            p.done(failed=f"{items[i].replace(chr(9), ' ')}: {why}" if rc else None)
+            # Whole items, in item order: those before an unfinished one wait for it.
+            while flushed < len(items) and outputs[flushed] is not None:
+                if sink:
+                    sink.write(outputs[flushed])
+                    sink.flush()
+                else:
+                    sys.stderr.flush()
+                    os.write(sys.stderr.fileno(), outputs[flushed])
+                outputs[flushed] = b''
+                flushed += 1
+    finally:
+        if sink:
+            sink.close()
     p.close()
     return worst
 
@@ -305,6 +330,7 @@ def main(argv=None):
     e.add_argument('--every', type=float, default=10.0)
     e.add_argument('--log', help="append the commands' output to this file")
     e.add_argument('--expect', type=float, help='seconds the stage is expected to take')
+    e.add_argument('--jobs', type=int, default=1, help='items run at a time (default 1)')
     f = sub.add_parser('follow', help="show another process's progress lines from its log")
     f.add_argument('file')
     f.add_argument('--label', required=True)
@@ -314,15 +340,15 @@ def main(argv=None):
     if argv and argv[0] == 'each' and '--' in argv:
         argv, rest = argv[: argv.index('--')], argv[argv.index('--') + 1 :]
     a = ap.parse_args(argv)
-    if a.every <= 0 or (a.cmd == 'watch' and a.total < 0):
-        print('progress.py: --total must be >= 0 and --every > 0', file=sys.stderr)
+    if a.every <= 0 or (a.cmd == 'watch' and a.total < 0) or (a.cmd == 'each' and a.jobs < 1):
+        print('progress.py: --total must be >= 0, --every > 0 and --jobs >= 1', file=sys.stderr)
         return 2
     if a.cmd == 'each':
         if ':::' not in rest or rest.index(':::') == 0:
             print('progress.py each: give -- CMD... ::: ITEM... (see the docstring)', file=sys.stderr)
             return 2
         cut = rest.index(':::')
-        return each(rest[:cut], rest[cut + 1 :], a.label, a.every, a.log, a.expect)
+        return each(rest[:cut], rest[cut + 1 :], a.label, a.every, a.log, a.expect, jobs=a.jobs)
     if a.cmd == 'follow':
         return follow(a.file, a.label, a.every, lambda: not alive(a.pid))
     watch(a.run, a.total, a.label, a.every, (lambda: not alive(a.pid)) if a.pid else None)
