@@ -416,14 +416,16 @@ cat "$run/compare.txt"
 # (RUN/<scene>/fit.json) and within wide ones (fit-wide.json). A fit of unchanged inputs comes
 # back from CACHE/fits (ops/fit_cache.sh).
 : > "$run/fit.txt"
-# One fit per scene and bounds, so that progress counts scenes and a failed fit is named at once.
+# One fit per scene and bounds, so that progress counts scenes and a failed fit is named at once;
+# JOBS at a time (each fit's output kept whole in fit.txt, in this order). A scene's seed and wide
+# fits read its validate records without writing them (cli/cli_fit.c), so they may run together.
 fits=()
 for bounds in seed wide; do
     for s in "${scenes[@]}"; do fits+=("$bounds"$'\t'"$s"); done
 done
 t2=$(date +%s)
 # shellcheck disable=SC2046
-progress each --label fits --log "$run/fit.txt" $(expected fits) -- \
+progress each --label fits --jobs "$jobs" --log "$run/fit.txt" $(expected fits) -- \
     bash ops/fit_cache.sh "$cache" "$bin" '{2}' "$run" '{1}' $small ::: "${fits[@]}"
 st=$?
 [ $st -ne 0 ] && { echo "reflcheck nightly: a fit failed (exit $st); see $run/fit.txt" >&2; rc=1; }
