@@ -21,6 +21,7 @@
 #include "cli.h"
 #include "compare.h"
 #include "exr.h"
+#include "fileio.h"
 #include "fit.h"
 #include "frame.h"
 #include "jobs.h"
@@ -95,6 +96,26 @@ static void cli_fit_error(cJSON *o, const char *why)
     cJSON_AddStringToObject(o, "reason", why);
 }
 
+/* The job whose image the fit reads, as "reference_job": its record (the run's own when the
+ * run made it: reused), and from that record its cache key, whether the cache handed the image
+ * to that job, its CPU seconds, when it finished and its Slurm job and node (null outside
+ * Slurm), so the fit names the render it used even when that render came from the cache. */
+static void cli_fit_job_json(cJSON *o, const job_record *rec)
+{
+    cJSON *r = cJSON_AddObjectToObject(o, "reference_job");
+    cJSON_AddStringToObject(r, "record", rec->record);
+    cJSON_AddBoolToObject(r, "reused", rec->reused);
+    char *text = fileio_read_all(rec->record, NULL);
+    cJSON *job = text != NULL ? cJSON_Parse(text) : NULL;
+    free(text);
+    static const char *const keys[] = {"key", "cached", "cpu_s", "finished_unix", "slurm"};
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
+        cJSON *v = cJSON_GetObjectItem(job, keys[i]);
+        cJSON_AddItemToObject(r, keys[i], v != NULL ? cJSON_Duplicate(v, 1) : cJSON_CreateNull());
+    }
+    cJSON_Delete(job);
+}
+
 /* The reference image of comparison id: its validate job through the cache, read and passed
  * through compare's value gate. Returns 1 with *img filled (the caller frees it), or 0 with the
  * exit status this comparison earns in *exit_status and the reason in o. */
@@ -107,7 +128,8 @@ static int cli_fit_reference(const char *path, const scene *s, int reference, co
                   .variant = opt->variant,
                   .out_dir = opt->out_dir,
                   .cache_dir = opt->cache_dir,
-                  .threads = opt->fo.threads};
+                  .threads = opt->fo.threads,
+                  .reuse_record = 1};
     char err[1024];
     rc_status st = job_run(&j, rec, err, sizeof err);
     if (st != RC_OK) {
@@ -115,6 +137,7 @@ static int cli_fit_reference(const char *path, const scene *s, int reference, co
         cli_fit_error(o, err);
         return *exit_status = job_exit_status(st, rec), 0;
     }
+    cli_fit_job_json(o, rec);
     if (rec->status != RUNNER_OK) {
         int skipped = rec->status == RUNNER_MISSING;
         cJSON_AddStringToObject(o, "status", skipped ? "skipped" : "error");

@@ -924,6 +924,32 @@ static rc_status job_finish(job_ctx *c, job_record *rec, const char *dest_exr, c
     return job_write_record(c, rec, dest_json, key, err, errlen);
 }
 
+/* The record OUT already holds for this job (job_spec.reuse_record): taken when it is ok, of
+ * this cache key and its image is there. Returns 1 with rec filled from it, else 0. */
+static int job_reuse(const char *json, const char *exr, const char *keyhex, job_record *rec)
+{
+    char *text = fileio_read_all(json, NULL);
+    cJSON *o = text != NULL ? cJSON_Parse(text) : NULL;
+    free(text);
+    const char *status = cJSON_GetStringValue(cJSON_GetObjectItem(o, "status")),
+               *key = cJSON_GetStringValue(cJSON_GetObjectItem(o, "key")),
+               *log = cJSON_GetStringValue(cJSON_GetObjectItem(o, "log"));
+    int ok = status != NULL && strcmp(status, "ok") == 0 && key != NULL && strcmp(key, keyhex) == 0 &&
+             access(exr, R_OK) == 0;
+    if (ok) {
+        rec->status = RUNNER_OK;
+        rec->reused = 1;
+        rec->cached = cJSON_IsTrue(cJSON_GetObjectItem(o, "cached"));
+        rec->wall_s = cJSON_GetNumberValue(cJSON_GetObjectItem(o, "wall_s"));
+        rec->cpu_s = cJSON_GetNumberValue(cJSON_GetObjectItem(o, "cpu_s"));
+        snprintf(rec->exr, sizeof rec->exr, "%s", exr);
+        snprintf(rec->record, sizeof rec->record, "%s", json);
+        snprintf(rec->log, sizeof rec->log, "%s", log != NULL ? log : "");
+    }
+    cJSON_Delete(o);
+    return ok;
+}
+
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
 {
     memset(rec, 0, sizeof *rec);
@@ -963,6 +989,13 @@ rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen)
     job_output_path(j->out_dir, stem, j->renderer, j->role, "log", dest_log, sizeof dest_log);
     if (j->tag)
         snprintf(dest_dir, sizeof dest_dir, "%s/%s/%s", j->out_dir, s->name, j->tag);
+    if (j->reuse_record && !j->record_only && job_reuse(dest_json, dest_exr, keyhex, rec)) {
+        free(env_pixels);
+        texture_set_free(&c.tex);
+        mesh_free(&m);
+        free(s);
+        return RC_OK;
+    }
     if (job_mkdirs(dest_dir) != 0) {
         snprintf(err, errlen, "%s: cannot create the output folder: %s; check --out and its space", dest_dir,
                  strerror(errno));

@@ -77,6 +77,10 @@ typedef struct {
     int record_only;
     runner_status record_status;
     const char *record_message, *record_log;
+    /* 1: when OUT already holds this job's record, ok, of the same cache key, with its image,
+     * hand that record back (rec.reused = 1) and write nothing: a reader of a run's images (the
+     * fit) keeps the record of the job that made them, its Slurm id and times included. */
+    int reuse_record;
 } job_spec;
 
 typedef struct {
@@ -85,6 +89,7 @@ typedef struct {
     char exr[1024], record[1024], log[1024];
     double wall_s, cpu_s;
     int cached;
+    int reused;    /* the record already in OUT, handed back (job_spec.reuse_record) */
     int bad_input; /* job_run failed on an input the user gave: exit status 2 */
 } job_record;
 

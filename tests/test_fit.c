@@ -520,6 +520,84 @@ static int find_exr(const char *dir, char *out, size_t len)
     return ok && out[0];
 }
 
+/* The fit's reference_job of OUT/reuse/fit.json's first fit. */
+static cJSON *reference_job(const char *out, cJSON **doc)
+{
+    char rec[400];
+    snprintf(rec, sizeof rec, "%s/reuse/fit.json", out);
+    *doc = read_json(rec);
+    cJSON *f0 = cJSON_GetArrayItem(cJSON_GetObjectItem(*doc, "fits"), 0);
+    cJSON *job = cJSON_GetObjectItem(f0, "reference_job");
+    assert_non_null(job);
+    return job;
+}
+
+/* Issue 26: the fit reads a run's validate image, which the job cache hands back. It used to run
+ * the job again as a cache hit and rewrite the run's record (cached, slurm null): the Slurm job
+ * that rendered the reference was lost. Now the run's record stays as it was, byte for byte,
+ * and the fit's record names it with its Slurm job and node. Control: a fit with no run record
+ * runs the job itself (a cache hit, no Slurm id). */
+static void test_cli_fit_keeps_the_reference_job(void **state)
+{
+    (void)state;
+    char scene_path[300], cache[300], run[300], err[4096];
+    snprintf(scene_path, sizeof scene_path, "%s/reuse.yaml", tmp_dir);
+    snprintf(cache, sizeof cache, "%s/reusecache", tmp_dir);
+    snprintf(run, sizeof run, "%s/reuserun", tmp_dir);
+    FILE *f = fopen(scene_path, "w");
+    assert_non_null(f);
+    fputs("name: reuse\nimage: {width: 24, height: 16, supersample: 1}\n"
+          "camera: {eye: [0, 0.3, 3.2], target: [0, 0, 0], hfov: 45}\n"
+          "environment: {constant: [0.8, 0.9, 1.0]}\n"
+          "materials:\n  glass: {albedo: [0, 0, 0], ior: 1.5, roughness: 0, model: d3d9client, d3d9client: {p: 3}}\n"
+          "objects:\n  - {shape: sphere, radius: 1, tessellation: 16, material: glass}\n"
+          "comparisons:\n  - {reference: exact, role: validate}\n",
+          f);
+    fclose(f);
+    const char *no_slurm = "env -u SLURM_JOB_ID -u SLURM_ARRAY_JOB_ID -u SLURM_ARRAY_TASK_ID -u SLURM_STEP_ID "
+                           "-u SLURMD_NODENAME";
+    assert_int_equal(sh_exec(err, sizeof err,
+                             "%s SLURM_JOB_ID=4242 SLURM_ARRAY_JOB_ID=4240 SLURM_ARRAY_TASK_ID=2 SLURMD_NODENAME=n2 "
+                             "%s run %s --renderer exact --role validate --cache %s --out %s",
+                             no_slurm, cli_bin(), scene_path, cache, run),
+                     0);
+    char record[400];
+    snprintf(record, sizeof record, "%s/reuse/exact-validate.json", run);
+    size_t n0, n1;
+    char *before = fileio_read_all(record, &n0);
+    assert_non_null(before);
+    assert_int_equal(sh_exec(err, sizeof err, "%s %s fit %s --cache %s --out %s --max-evals 4", no_slurm, cli_bin(),
+                             scene_path, cache, run),
+                     0);
+    char *after = fileio_read_all(record, &n1);
+    assert_non_null(after);
+    assert_true(n0 == n1 && memcmp(before, after, n0) == 0);
+    cJSON *run_rec = cJSON_Parse(before);
+    free(before);
+    free(after);
+    cJSON *doc, *job = reference_job(run, &doc);
+    assert_string_equal(cJSON_GetObjectItem(job, "record")->valuestring, record);
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(job, "reused")));
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(job, "cached")));
+    assert_string_equal(cJSON_GetObjectItem(job, "key")->valuestring, cJSON_GetObjectItem(run_rec, "key")->valuestring);
+    cJSON *sl = cJSON_GetObjectItem(job, "slurm");
+    assert_string_equal(cJSON_GetObjectItem(sl, "job_id")->valuestring, "4240_2");
+    assert_string_equal(cJSON_GetObjectItem(sl, "node")->valuestring, "n2");
+    cJSON_Delete(doc);
+    cJSON_Delete(run_rec);
+
+    /* Control: no run record in the fit's folder, so the fit runs the job (the cache's image). */
+    snprintf(run, sizeof run, "%s/reusefresh", tmp_dir);
+    assert_int_equal(sh_exec(err, sizeof err, "%s %s fit %s --cache %s --out %s --max-evals 4", no_slurm, cli_bin(),
+                             scene_path, cache, run),
+                     0);
+    job = reference_job(run, &doc);
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(job, "reused")));
+    assert_true(cJSON_IsTrue(cJSON_GetObjectItem(job, "cached")));
+    assert_true(cJSON_IsNull(cJSON_GetObjectItem(job, "slurm")));
+    cJSON_Delete(doc);
+}
+
 /* Issue 20 item 8: a reference holding one NaN pixel fails compare's value gate, so fit must
  * refuse it by the same rule (compare_value_gate) rather than fit to the finite pixels and
  * report ok. The reference comes through the job cache, where one R value is made NaN. */
@@ -684,6 +762,7 @@ int main(void)
         cmocka_unit_test(test_cli_errors),
         cmocka_unit_test(test_cli_real_fit),
         cmocka_unit_test(test_cli_nonfinite_reference),
+        cmocka_unit_test(test_cli_fit_keeps_the_reference_job),
         cmocka_unit_test(test_cli_global_fit),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -490,6 +490,73 @@ static int files_equal(const char *a, const char *b)
     return eq;
 }
 
+/* A raster twin job of the tiny scene into OUT/reuse over CACHE, with reuse_record and slurm_job
+ * as given; returns its record. */
+static job_record reuse_run(const char *yaml, const char *cache, int reuse, const char *slurm)
+{
+    char out[256], err[1024];
+    snprintf(out, sizeof out, "%s/reuse", out_dir);
+    job_spec j = {.scene_path = yaml,
+                  .renderer = registry_find("raster"),
+                  .role = ROLE_TWIN,
+                  .out_dir = out,
+                  .cache_dir = cache,
+                  .threads = 1,
+                  .slurm_job = slurm,
+                  .reuse_record = reuse};
+    job_record rec;
+    assert_int_equal(job_run(&j, &rec, err, sizeof err), RC_OK);
+    assert_int_equal(rec.status, RUNNER_OK);
+    return rec;
+}
+
+/* reuse_record hands back OUT's record of the same key untouched (the Slurm id of the job that
+ * made it kept); without it a cache hit rewrites the record; a record of another key or not ok
+ * is not reused. */
+static void test_reuse_record(void **state)
+{
+    (void)state;
+    const char *yaml = tiny_scene("tiny");
+    char cache[256], record[256], saved[256], text[64];
+    snprintf(cache, sizeof cache, "%s/reuse-cache", work);
+    snprintf(saved, sizeof saved, "%s/reuse-saved.json", work);
+    job_record r = reuse_run(yaml, cache, 0, "4240_2");
+    snprintf(record, sizeof record, "%s", r.record);
+    assert_int_equal(fileio_copy(record, saved), 0);
+    r = reuse_run(yaml, cache, 1, "");
+    assert_true(r.reused);
+    assert_false(r.cached);
+    assert_string_equal(r.record, record);
+    assert_true(files_equal(record, saved));
+    /* Control: the same job without reuse_record is a cache hit that rewrites the record. */
+    r = reuse_run(yaml, cache, 0, "");
+    assert_false(r.reused);
+    assert_true(r.cached);
+    assert_false(files_equal(record, saved));
+    /* Another key: the record names key 0, so the job runs (a cache hit) and writes its own. */
+    char *t = fileio_read_all(saved, NULL);
+    assert_non_null(t);
+    char *k = strstr(t, "\"key\":");
+    assert_non_null(k);
+    k = strchr(k + 6, '"');
+    memset(k + 1, '0', 16);
+    write_text(record, t);
+    free(t);
+    r = reuse_run(yaml, cache, 1, "");
+    assert_false(r.reused);
+    record_field(out_dir, "reuse/tiny", "raster", "cached", text, sizeof text);
+    assert_string_equal(text, "true");
+    /* Not ok: a failed job's record is no image to read. */
+    t = fileio_read_all(saved, NULL);
+    char *st = strstr(t, "\"status\":");
+    assert_non_null(st);
+    st = strchr(st + 9, '"');
+    memcpy(st + 1, "no", 2);
+    write_text(record, t);
+    free(t);
+    assert_false(reuse_run(yaml, cache, 1, "").reused);
+}
+
 static int count_lines(const char *path)
 {
     char *t = fileio_read_all(path, NULL);
@@ -640,6 +707,7 @@ int main(void)
         cmocka_unit_test(test_cache_folder_error_is_recorded),
         cmocka_unit_test(test_full_disk_is_an_error),
         cmocka_unit_test(test_cache_key_covers_referenced_files),
+        cmocka_unit_test(test_reuse_record),
         cmocka_unit_test(test_two_runs_share_a_cache),
         cmocka_unit_test(test_killed_run_sigkill),
         cmocka_unit_test(test_killed_run_sigterm),
