@@ -4,8 +4,8 @@
 #
 # Usage: bash ops/fit_cache.sh CACHE BIN SCENE.yaml RUN BOUNDS [--small]
 #   runs BIN fit SCENE --out RUN --cache CACHE --bounds BOUNDS [--small], or copies its record
-#   (RUN/<scene>/fit.json, fit-wide.json with BOUNDS wide) and its output line from
-#   CACHE/fits/<key>/. Exit status: fit's (a cache hit: 0).
+#   (RUN/<scene>/fit.json, fit-wide.json with BOUNDS wide; its references pointed at RUN's
+#   records) and its output line from CACHE/fits/<key>/. Exit status: fit's (a cache hit: 0).
 # The key (SHA-256) covers what the fit reads: the scene file's bytes, the bounds and size, the
 # reflcheck program (path, size, modification time: a rebuilt one fits again) and the cache
 # keys of the scene's render records in RUN/<scene>/ (the references the fit compares with;
@@ -32,9 +32,34 @@ key=$({
     echo "$keys"
 } | sha256sum | cut -c1-32)
 entry=$cache/fits/$key
-if [ -f "$entry/ok" ] && cp "$entry/$record" "$dir/$record.tmp.$$" 2> /dev/null; then
+# A kept record names the run that fitted first: its references (reference_job, reference_exr)
+# become this run's records of the same cache keys, so the record names the renders (and their
+# Slurm jobs) this run holds.
+relink='
+import json, os, sys
+src, dst, folder = sys.argv[1:]
+with open(src, encoding="utf-8") as f:
+    doc = json.load(f)
+for fit in doc.get("fits", []):
+    old = fit.get("reference_job")
+    if not isinstance(old, dict) or not old.get("record"):
+        continue
+    path = os.path.join(folder, os.path.basename(old["record"]))
+    with open(path, encoding="utf-8") as f:
+        job = json.load(f)
+    if job.get("key") != old.get("key"):
+        sys.exit(path + ": not the job the kept fit read")
+    fit["reference_job"] = dict(record=path, reused=True, **{k: job.get(k) for k in ("key", "cached", "cpu_s", "finished_unix", "slurm")})
+    if "reference_exr" in fit:
+        fit["reference_exr"] = job.get("exr")
+with open(dst, "w", encoding="utf-8") as f:
+    json.dump(doc, f, indent="\t")
+    f.write("\n")
+'
+if [ -f "$entry/ok" ] && /usr/bin/python3 -c "$relink" "$entry/$record" "$dir/$record.tmp.$$" "$dir" 2> /dev/null; then
     mv "$dir/$record.tmp.$$" "$dir/$record" && cat "$entry/out.txt" && exit 0
 fi
+rm -f "$dir/$record.tmp.$$"
 mkdir -p "$cache/fits" || exec "${fit[@]}"
 tmp=$(mktemp -d "$cache/fits/tmp-$key-XXXXXX") || exec "${fit[@]}"
 trap 'rm -rf "$tmp"' EXIT

@@ -31,9 +31,29 @@ if cmp -s "$work/runs/first/fit.txt" "$work/runs/second/fit.txt" && [ "$(entries
 else
     bad "second run fitted again (fit.txt differs or new cache entries)"
 fi
+# The kept record equals the first run's but for its references, which name the second run's
+# records (the renders this run holds) of the same cache keys.
+same_fit='
+import json, os, sys
+first, second, folder = sys.argv[1:]
+a, b = (json.load(open(p, encoding="utf-8")) for p in (first, second))
+refs = []
+for fit in b["fits"]:
+    job = fit.pop("reference_job", None) or {}
+    refs.append((job, fit.pop("reference_exr", None)))
+for fit in a["fits"]:
+    fit.pop("reference_job", None), fit.pop("reference_exr", None)
+assert a == b, "the fit differs"
+for job, exr in refs:
+    rec = json.load(open(job["record"], encoding="utf-8"))
+    assert os.path.dirname(job["record"]) == folder, job["record"]
+    assert job["key"] == rec["key"] and exr == rec["exr"], job
+'
 for f in fit.json fit-wide.json; do
-    cmp -s "$work/runs/first/d3d_scaled/$f" "$work/runs/second/d3d_scaled/$f" &&
-        ok "$f equal to the first run's" || bad "$f differs from the first run's"
+    /usr/bin/python3 -c "$same_fit" "$work/runs/first/d3d_scaled/$f" "$work/runs/second/d3d_scaled/$f" \
+        "$work/runs/second/d3d_scaled" &&
+        ok "$f equal to the first run's, its references the second run's records" ||
+        bad "$f differs from the first run's, or its references are not the second run's records"
 done
 grep -q "stability: unchanged program" "$work/second.err" && ! grep -q "stability: unchanged" "$work/first.err" &&
     cmp -s "$work/runs/first/stability.json" "$work/runs/second/stability.json" &&
