@@ -8,14 +8,24 @@
 # of the reflcheck program (plan, each job's run, compare, fit, stability, eval) with its wall
 # and CPU seconds, the renderer it started included, through OUT/reflcheck, a wrapper the
 # nightly is given as its BIN. Then tools/cost_table.py OUT/runs/scenes-* writes the table
-# (docs/cost.md).
+# (docs/cost.md). Beside them, Blender's start-up CPU seconds (the median of three
+# `blender -b --factory-startup` that do nothing), which the nightly's Cycles jobs do not pay
+# (a worker pool renders them) but each Cycles job under Slurm does: cost.txt's
+# blender_start_cpu_s, for the table's Slurm estimate.
 #
 # Usage: bash ops/cost_growth.sh BUILD [OUT] [COUNT...]    (from the project root)
 #   bash ops/cost_growth.sh build build/cost            # 1, 10, 24 and 100 scenes
 #   bash ops/cost_growth.sh build build/cost 1 10       # only those counts (at most the
 #                                                         # canonical scenes' number, or 100)
 #   /usr/bin/python3 tools/cost_table.py build/cost/runs/scenes-* > docs/cost.md
+#   bash ops/cost_growth.sh build build/cost blender-start   # only measure Blender's start-up
+#                                                         # again, into the runs' cost.txt
 # OUT defaults to BUILD/cost; everything is written there (git ignores build folders).
+# The runs take an hour or more; to go on editing the tree meanwhile, run them from a copy of a
+# commit and name it to the table (the nightly, in the copy, cannot):
+#   d=build-cost/tree; rm -rf "$d"; mkdir -p "$d"; git archive HEAD | tar -x -C "$d"
+#   cp -a build "$d/build"; (cd "$d" && bash ops/cost_growth.sh build "$PWD/../../build/cost")
+#   /usr/bin/python3 tools/cost_table.py --copy-of "$(git rev-parse --short HEAD)" build/cost/runs/scenes-*
 # JOBS (default 2) render jobs at a time. Exit status: 0 when every nightly ran (a nightly's
 # own failed comparison does not count: the cost is what is measured), 1 otherwise, 2 bad usage.
 set -uo pipefail
@@ -29,6 +39,24 @@ counts=("$@")
 jobs=${JOBS:-2}
 [ -x "$build/reflcheck" ] || { echo "cost_growth: $build/reflcheck is not built; run make all" >&2; exit 2; }
 mkdir -p "$out/runs"
+# Blender's start-up, CPU seconds (user + sys), median of three; "-" without Blender.
+blender_start() {
+    command -v blender > /dev/null || { echo -; return; }
+    for i in 1 2 3; do
+        /usr/bin/time -f '%U %S' -o "$out/blender-start.$i" blender -b --factory-startup --python-expr pass \
+            > /dev/null 2>&1 || { echo -; return; }
+    done
+    tail -qn 1 "$out"/blender-start.[123] | awk '{ print $1 + $2 }' | sort -g | sed -n 2p
+}
+bstart=$(blender_start)
+echo "cost_growth: Blender's start-up: $bstart CPU-s" >&2
+if [ "${counts[*]}" = blender-start ]; then
+    for c in "$out"/runs/scenes-*/cost.txt; do
+        [ -f "$c" ] || continue
+        sed -i '/^blender_start_cpu_s /d' "$c" && echo "blender_start_cpu_s $bstart" >> "$c"
+    done
+    exit 0
+fi
 # The wrapper: one line per call, appended (O_APPEND: whole short lines from parallel jobs).
 real_bin=$(cd "$(dirname "$build/reflcheck")" && pwd)/reflcheck
 cat > "$out/reflcheck" << SH
@@ -68,8 +96,8 @@ for n in "${counts[@]}"; do
     mv "$out/calls-$n.tsv" "$run/calls.tsv"
     # GNU time puts "Command exited with non-zero status N" before its line when the status is not 0.
     read -r wall user sys < <(tail -n 1 "$out/time-$n")
-    printf 'scenes %s\njobs_at_a_time %s\nexit %s\nwall_s %s\nuser_s %s\nsys_s %s\nload_before %s\nload_after %s\ncpus %s\n' \
-        "$n" "$jobs" "$st" "$wall" "$user" "$sys" "$load0" "$load1" "$(nproc)" > "$run/cost.txt"
+    printf 'scenes %s\njobs_at_a_time %s\nexit %s\nwall_s %s\nuser_s %s\nsys_s %s\nload_before %s\nload_after %s\ncpus %s\nblender_start_cpu_s %s\n' \
+        "$n" "$jobs" "$st" "$wall" "$user" "$sys" "$load0" "$load1" "$(nproc)" "$bstart" > "$run/cost.txt"
     echo "cost_growth: $n scenes: exit $st, $wall s wall, $user + $sys CPU-s (load $load1)" >&2
 done
 exit $rc

@@ -2,10 +2,13 @@
 """cost_table.py - docs/cost.md from the runs of ops/cost_growth.sh: how the nightly's cost
 grows with the number of scenes, and what a Slurm cluster of N nodes would take.
 
-Usage: /usr/bin/python3 tools/cost_table.py [--cpus C] RUN... > docs/cost.md
+Usage: /usr/bin/python3 tools/cost_table.py [--cpus C] [--copy-of COMMIT] RUN... > docs/cost.md
   RUN: a run folder of ops/cost_growth.sh (RUN/cost.txt, RUN/calls.tsv, RUN/stages.tsv, the
   job records RUN/<scene>/<renderer>-<role>.json and the plan RUN/jobs.mk). --cpus: CPUs per
-  node of the estimate (default 2, this machine's).
+  node of the estimate (default 2, this machine's). --copy-of: the runs were made in a copy of
+  the tree at COMMIT (`git archive`, so that edits to the working tree during a long run do not
+  reach it), which the nightly cannot name (outside git, or inside another checkout whose HEAD
+  it would give).
 
 Everything printed comes from those files: the nightly's wall and CPU time (cost.txt); each
 job's CPU seconds, whole (its `reflcheck run` call in calls.tsv, the renderer it started
@@ -44,12 +47,14 @@ def read_summary(run):
 
 
 def read_stages(run):
+    """{stage: (wall s, CPU s or None)} from stages.tsv (name, wall, and the CPU seconds of the
+    processes the stage waited for where the nightly wrote them)."""
     stages = {}
     try:
         with open(os.path.join(run, 'stages.tsv'), encoding='utf-8') as f:
             for line in f:
-                k, v = line.split('\t')
-                stages[k] = float(v)
+                k, wall, *cpu = line.rstrip('\n').split('\t')
+                stages[k] = (float(wall), float(cpu[0]) if cpu else None)
     except OSError:
         pass
     return stages
@@ -85,21 +90,41 @@ def run_cpu(calls):
     return out
 
 
+def pooled(run):
+    """Whether the run's Cycles jobs rendered in the nightly's Blender workers (worker_pool.py,
+    which leaves RUN/worker-N.log): then a job's `reflcheck run` call holds none of its render."""
+    return bool(glob.glob(os.path.join(glob.escape(run), 'worker-*.log')))
+
+
+def blender_passes(rec):
+    """Blender passes of a Cycles job: a pilot and the main pass when image.samples auto asked
+    for more than the pilot's samples (cycles.c), else one."""
+    noise = rec.get('noise') or {}
+    pilot = noise.get('pilot_samples') or 0
+    return 2 if pilot and rec.get('samples', 0) > pilot else 1
+
+
 def read_jobs(run, calls):
-    """[(record path, renderer, status, whole job's CPU s, renderer's CPU s)] in plan order."""
+    """[(record path, renderer, status, whole job's CPU s, renderer's CPU s, Blender passes that a
+    worker saved)] in plan order. A job the worker pool rendered is its call and its record's
+    cpu_s (the worker's CPU for it, harness/renderers/cycles/worker.py)."""
     jobs = []
     whole = run_cpu(calls)
+    pool = pooled(run)
     for path in plan_order(run):
         try:
             with open(path, encoding='utf-8') as f:
                 rec = json.load(f)
         except (OSError, ValueError):
-            jobs.append((path, '?', 'missing', 0.0, 0.0))
+            jobs.append((path, '?', 'missing', 0.0, 0.0, 0))
             continue
         key = (rec['scene_path'], rec['renderer'], rec['role'])
         if key not in whole:
             raise ValueError(f'{path}: no `reflcheck run` call for it in calls.tsv')
-        jobs.append((path, rec['renderer'], rec['status'], whole[key], float(rec['cpu_s'])))
+        cpu = float(rec['cpu_s'])
+        in_worker = pool and rec['renderer'] == 'cycles' and rec['status'] == 'ok'
+        saved = blender_passes(rec) if in_worker else 0
+        jobs.append((path, rec['renderer'], rec['status'], whole[key] + (cpu if in_worker else 0.0), cpu, saved))
     return jobs
 
 
@@ -126,17 +151,21 @@ def complete(run):
 
 
 def head_time(runs):
-    """(CPU s, how it was found) of what runs on the submitting machine for the largest run: plan,
-    fits, stability, the report, make and the shell. For a run stopped on the way they come from
-    the largest complete run: its CPU per fit call (two calls a scene), its stability (once) and
-    the rest per scene."""
+    """(fit CPU times in the nightly's order, serial CPU s, how they were found) for the largest
+    run: what runs on the submitting machine besides compare. The fits run JOBS at a time there;
+    the rest (plan, stability, the report, make and the shell) one after another. For a run stopped
+    on the way they come from the largest complete run: its CPU per fit call (two calls a scene),
+    its stability (once) and the rest per scene."""
     n, _, cost, _, jobs = runs[-1]
     if complete(runs[-1]):
         total = float(cost['user_s']) + float(cost['sys_s'])
         compare = sum(c[0] for c in cost['calls'].get('compare', []))
+        fits = [c[0] for c in cost['calls'].get('fit', [])]
         return (
-            total - sum(j[3] for j in jobs) - compare,
-            'plan, fits, stability, the report, make and the shell, measured',
+            fits,
+            total - sum(j[3] for j in jobs) - compare - sum(fits),
+            f'{len(fits)} fits measured, {fmt(sum(fits))} CPU-s; plan, stability, the report, make and the '
+            'shell measured',
         )
     done = [r for r in runs if complete(r)][-1]
     d_total = float(done[2]['user_s']) + float(done[2]['sys_s'])
@@ -144,10 +173,12 @@ def head_time(runs):
     d_rest = d_total - sum(d_parts.values())
     per_fit = d_parts.get('fit', 0.0) / max(1, len(done[2]['calls'].get('fit', [])))
     stability = d_parts.get('stability', 0.0)
-    return per_fit * 2 * n + stability + d_rest / done[0] * n, (
+    return (
+        [per_fit] * (2 * n),
+        stability + d_rest / done[0] * n,
         f'the {n}-scene run was stopped in its fits, so from the {done[0]}-scene run: {2 * n} fits at '
         f'{fmt(per_fit, 2)} CPU-s each, stability {fmt(stability)}, and the report, make and the shell at '
-        f'{fmt(d_rest / done[0], 2)} per scene'
+        f'{fmt(d_rest / done[0], 2)} per scene',
     )
 
 
@@ -161,10 +192,14 @@ def exit_text(cost, n):
 
 def main(argv):
     args = argv[1:]
-    cpus = 2
+    cpus, copy_of = 2, None
     if '--cpus' in args:
         i = args.index('--cpus')
         cpus = int(args[i + 1])
+        del args[i : i + 2]
+    if '--copy-of' in args:
+        i = args.index('--copy-of')
+        copy_of = args[i + 1]
         del args[i : i + 2]
     if not args:
         print(__doc__, file=sys.stderr)
@@ -177,6 +212,9 @@ def main(argv):
             cost['calls'] = calls
             commit = read_summary(run).get('commit', '?')
             # The nightly names a tree outside git (a copied checkout) "nogit".
+            # A copy inside a checkout names that checkout's HEAD, which may have moved on.
+            if copy_of:
+                commit = f'{copy_of} (a copy)'
             cost['commit'] = 'a copy outside git' if commit == 'nogit' else commit
             runs.append((int(cost['scenes']), run, cost, read_stages(run), read_jobs(run, calls)))
         except (OSError, KeyError, ValueError) as e:
@@ -252,45 +290,83 @@ def main(argv):
     p(
         f'The last column is the {runs[-1][0]}-scene run\'s. A job\'s time beyond its renderer\'s is '
         '`reflcheck run`\'s own: the scene, the cache key (which reads the renderer\'s version), the '
-        'image and the record. The renderers that run inside `reflcheck run` (raster, exact, exact_point) '
-        'record the render\'s wall time as `cpu_s`, which the load inflates past the whole job\'s CPU time.'
+        'image and the record. A Cycles job rendered in the nightly\'s Blender worker pool is its call plus '
+        'its record\'s `cpu_s` (the worker\'s CPU for it): the call itself holds none of the render. The '
+        'renderers that run inside `reflcheck run` (raster, exact, exact_point) record the render\'s wall '
+        'time as `cpu_s`, which the load inflates past the whole job\'s CPU time.'
     )
     p()
-    p('## Stages, wall seconds (stages.tsv; inflated by the load)')
+    p('## Stages: wall seconds (inflated by the load); CPU seconds (stages.tsv)')
     p()
     names = [s for s in ('renders', 'sweep', 'fits', 'stability', 'report') if any(s in r[3] for r in runs)]
     p('| scenes | ' + ' | '.join(names) + ' |')
     p('| ---: | ' + ' | '.join('---:' for _ in names) + ' |')
+
+    def stage_cell(stage):
+        wall, cpu = stage
+        return fmt(wall, 0) + ('' if cpu is None else f'; {fmt(cpu)}')
+
     for n, _, _, stages, _ in runs:
-        p(f'| {n} | ' + ' | '.join(fmt(stages[s], 0) if s in stages else '-' for s in names) + ' |')
+        p(f'| {n} | ' + ' | '.join(stage_cell(stages[s]) if s in stages else '-' for s in names) + ' |')
+    p()
+    p(
+        'A stage\'s CPU seconds are those of the processes the nightly waited for in it (`times`); the '
+        'renders\' hold the plan and the render jobs, the Blender workers included; the fits\' hold '
+        'compare, which runs just before them. The fits run JOBS at a time (`progress.py each --jobs`), so '
+        'their wall time can be below their CPU time.'
+    )
     p()
     n, run, cost, stages, jobs = runs[-1]
-    durations = [j[3] for j in jobs]
+    start = cost.get('blender_start_cpu_s', '-')
+    start = float(start) if start not in ('', '-') else None
+    # Under Slurm no worker pool runs: each Cycles pass a worker rendered starts Blender there.
+    durations = [j[3] + (j[5] * start if start else 0.0) for j in jobs]
+    passes = sum(j[5] for j in jobs)
     compare = sum(c[0] for c in cost['calls'].get('compare', []))
-    head, how = head_time(runs)
+    fits, head, how = head_time(runs)
+    host = int(cost['jobs_at_a_time'])
+    fits_span = estimate(fits, host)
     p(f'## {n} scenes on a Slurm cluster of N nodes (estimate from the measured jobs)')
     p()
     p(
         'Model: under `SCHEDULER=slurm` every render job is a one-CPU array task, and Slurm starts pending '
         'tasks in submission order (the plan\'s) on whichever CPU frees first; so the renders take the '
         f'makespan of a list schedule of the {len(durations)} measured job CPU times (whole `reflcheck run` '
-        f'calls, in plan order) on N x {cpus} CPUs. Compare waits for every render (afterany) and runs as one '
-        f'one-CPU job: {fmt(compare)} CPU-s measured. Everything else ({fmt(head)} CPU-s: {how}) runs on the '
-        'submitting machine after compare, the fits one after another, and is added as serial time. Left '
-        'out: Slurm\'s launch cost per task (about 0.4 s more than a fork, docs/slurm.md), a shared '
-        'filesystem\'s latency, and the sweep (skipped in these runs; under Slurm one job on one node).'
+        f'calls, in plan order) on N x {cpus} CPUs. '
+        + (
+            f'The nightly rendered its Cycles jobs in a worker pool, which Slurm\'s tasks do not have, so each '
+            f'of their {passes} Blender passes gets Blender\'s start-up, {fmt(start, 2)} CPU-s measured '
+            f'(`blender_start_cpu_s`), added. '
+            if passes and start
+            else (
+                f'The nightly rendered its Cycles jobs in a worker pool; Blender\'s start-up, which each of '
+                f'their {passes} passes would pay as a Slurm task, was not measured and is left out. '
+                if passes
+                else ''
+            )
+        )
+        + f'Compare waits for every render (afterany) and runs as one '
+        f'one-CPU job: {fmt(compare)} CPU-s measured. Then the submitting machine ({how}): the fits '
+        f'{host} at a time as the nightly runs them (JOBS={host}), a list schedule of their CPU times in '
+        f'the nightly\'s order on {host} CPUs ({fmt(fits_span)} s), and the rest one after another '
+        f'({fmt(head)} CPU-s). So: total = renders\' makespan on N x {cpus} CPUs + compare + fits\' '
+        f'makespan on {host} + the rest. CPU seconds stand for seconds: on an idle node a job takes about '
+        'its CPU time (the render jobs are one thread each). Left out: Slurm\'s launch cost per task '
+        '(about 0.4 s more than a fork, docs/slurm.md), a shared filesystem\'s latency, and the sweep '
+        '(skipped in these runs; under Slurm one job on one node).'
     )
     p()
     p(
-        '| nodes | CPUs | renders (makespan) s | + compare s | + the rest (serial) s | total s '
+        '| nodes | CPUs | renders (makespan) s | + compare s | + fits s | + the rest (serial) s | total s '
         '| renders\' speed-up over 1 node |'
     )
-    p('| ---: | ---: | ---: | ---: | ---: | ---: | ---: |')
+    p('| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |')
     base = estimate(durations, cpus)
     for nodes in NODES:
         m = estimate(durations, nodes * cpus)
         p(
-            f'| {nodes} | {nodes * cpus} | {fmt(m)} | {fmt(compare)} | {fmt(head)} | {fmt(m + compare + head)} '
+            f'| {nodes} | {nodes * cpus} | {fmt(m)} | {fmt(compare)} | {fmt(fits_span)} | {fmt(head)} '
+            f'| {fmt(m + compare + fits_span + head)} '
             f'| {fmt(base / m, 2)}x |'
         )
     longest = max(jobs, key=lambda j: j[3])
@@ -299,7 +375,7 @@ def main(argv):
         f'No schedule ends the renders before the longest job ({fmt(longest[3], 2)} CPU-s, '
         f'`{os.path.relpath(longest[0], run)}`) nor before their CPU total shared by the CPUs '
         f'({fmt(sum(durations))} CPU-s); past about {max(1, round(sum(durations) / max(longest[3], 1e-9) / cpus))} '
-        'nodes the longest job and the serial rest set the time.'
+        'nodes the longest job, compare, the fits and the rest set the time.'
     )
     bad = [(r[0], os.path.relpath(j[0], r[1]), j[2]) for r in runs for j in r[4] if j[2] != 'ok']
     if bad:
