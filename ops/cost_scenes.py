@@ -8,7 +8,7 @@ sorted) taken in turn, each copy renamed and its camera's horizontal field of vi
 0.1 % per round (1.001 on the first copy of a scene, 1.002 on the second, ...), so that every
 variant is its own scene (its own cache key, a slightly different image) at the cost of the
 scene it copies. OUT gets links to the scene folder's assets/ and envs/, which the scenes name
-by relative path. OUT must not be the scenes/ folder (the variants are scratch, not versioned).
+by relative path; a path that climbs out of the scene folder (../) is made absolute. OUT must not be the scenes/ folder (the variants are scratch, not versioned).
 Prints the variants' paths, one per line.
 """
 
@@ -19,7 +19,13 @@ import sys
 
 
 def variant(text, name, round_no, path):
-    """The scene text renamed to `name`, its hfov widened by 0.1 % per round."""
+    """The scene text renamed to `name`, its hfov widened by 0.1 % per round, and each `path:`
+    that climbs out of the scene folder ("../", e.g. a user model's shared object in the build)
+    made absolute, since the variant lives elsewhere."""
+    here = os.path.dirname(os.path.abspath(path))
+    text = re.sub(
+        r'(\bpath:\s*)(\.\./[^\s,}]+)', lambda m: m.group(1) + os.path.normpath(os.path.join(here, m.group(2))), text
+    )
     out, n_name = re.subn(r'^name:\s*\S+\s*$', f'name: {name}', text, count=1, flags=re.M)
     out, n_fov = re.subn(
         r'(hfov:\s*)([0-9.eE+-]+)',
