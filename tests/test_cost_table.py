@@ -78,6 +78,12 @@ def test_pooled_cycles_job_counts_its_worker_and_pays_blender_start_under_slurm(
     lines = table(make_run(tmp_path, pooled=True))
     # Cycles: call 0.2 + worker 1.0 = 1.2 CPU-s; the renderer's alone 1.0.
     assert row(lines, '| cycles |') == '| cycles | 1; 1.2; 1.0 | 1.20 (1.00) |'
+    # The nightly: 22 CPU-s; jobs 0.5 + 1.2 + 2 + 2 = 5.7; compare 0.3, fits 10, stability 1; the
+    # rest 22 - 5.7 - plan 0.1 - 0.3 - 10 - 1 = 4.9 (the worker's 1.0 counted once, in the jobs).
+    assert (
+        row(lines, '| 2 | 4 | 30.0')
+        == '| 2 | 4 | 30.0 | 22.0 | 5.7 | 0.3 | 10.0 | 1.0 | 4.9 | 11.00 | 1, 1 | 2 | abc1234 | 0 |'
+    )
     # Slurm durations: 0.5, 1.2 + 2 passes x 0.5 = 2.2, 2.0, 2.0. On 2 CPUs: 0.5 | 2.2; the first
     # povray to the CPU free at 0.5 (2.5), the second to the one free at 2.2 (4.2). On 4: 2.2.
     # Fits 1, 2, 3, 4 two at a time: 1 | 2, 3 after 1 (4), 4 after 2 (6): 6.0.

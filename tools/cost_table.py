@@ -251,7 +251,8 @@ def main(argv):
         cpu = float(cost['user_s']) + float(cost['sys_s'])
         part = {k: sum(c[0] for c in v) for k, v in cost['calls'].items()}
         jcpu = sum(j[3] for j in jobs)
-        rest = cpu - sum(part.values())
+        # The pooled Cycles renders are in jcpu, not in the `run` calls: the rest is what neither holds.
+        rest = cpu - jcpu - sum(v for k, v in part.items() if k != 'run')
         p(
             f'| {n} | {len(jobs)} | {fmt(float(cost["wall_s"]))} | {fmt(cpu)} | {fmt(jcpu)} '
             f'| {fmt(part.get("compare", 0))} | {fmt(part.get("fit", 0))} | {fmt(part.get("stability", 0))} '
@@ -262,9 +263,9 @@ def main(argv):
     p()
     p(
         'The nightly\'s CPU time is the nightly and every process it waited for. Render jobs: their '
-        '`reflcheck run` calls, the renderer each started included; compare, fits (seed and wide bounds, one '
-        'call per scene each) and stability: their calls; the rest: the report (Python), progress, make, '
-        'the shell and the Figure 1 plot. Exit 1 is a comparison that failed or a job not ok (listed below): '
+        '`reflcheck run` calls, the renderer each started included, and a pooled Cycles job\'s worker CPU; compare, fits (seed and wide bounds, one '
+        'call per scene each) and stability: their calls; the rest: the plan, the Blender workers\' start-up, '
+        'the report (Python), progress, make, the shell and the Figure 1 plots. Exit 1 is a comparison that failed or a job not ok (listed below): '
         'its time is counted as measured.'
     )
     p()
