@@ -332,12 +332,13 @@ def main(argv):
     p(
         'Model: under `SCHEDULER=slurm` every render job is a one-CPU array task, and Slurm starts pending '
         'tasks in submission order (the plan\'s) on whichever CPU frees first; so the renders take the '
-        f'makespan of a list schedule of the {len(durations)} measured job CPU times (whole `reflcheck run` '
-        f'calls, in plan order) on N x {cpus} CPUs. '
+        f'makespan of a list schedule of the {len(durations)} measured job CPU times (whole jobs as in the '
+        f'table above, in plan order) on N x {cpus} CPUs. '
         + (
             f'The nightly rendered its Cycles jobs in a worker pool, which Slurm\'s tasks do not have, so each '
             f'of their {passes} Blender passes gets Blender\'s start-up, {fmt(start, 2)} CPU-s measured '
-            f'(`blender_start_cpu_s`), added. '
+            f'(`blender_start_cpu_s`), added (the rest below still holds the local workers\' own start-up, '
+            'a second or two too much). '
             if passes and start
             else (
                 f'The nightly rendered its Cycles jobs in a worker pool; Blender\'s start-up, which each of '
@@ -370,12 +371,13 @@ def main(argv):
             f'| {fmt(m + compare + fits_span + head)} '
             f'| {fmt(base / m, 2)}x |'
         )
-    longest = max(jobs, key=lambda j: j[3])
+    at = max(range(len(jobs)), key=lambda i: durations[i])
+    longest = (jobs[at][0], durations[at])
     p()
     p(
-        f'No schedule ends the renders before the longest job ({fmt(longest[3], 2)} CPU-s, '
+        f'No schedule ends the renders before the longest job ({fmt(longest[1], 2)} CPU-s, '
         f'`{os.path.relpath(longest[0], run)}`) nor before their CPU total shared by the CPUs '
-        f'({fmt(sum(durations))} CPU-s); past about {max(1, round(sum(durations) / max(longest[3], 1e-9) / cpus))} '
+        f'({fmt(sum(durations))} CPU-s); past about {max(1, round(sum(durations) / max(longest[1], 1e-9) / cpus))} '
         'nodes the longest job, compare, the fits and the rest set the time.'
     )
     bad = [(r[0], os.path.relpath(j[0], r[1]), j[2]) for r in runs for j in r[4] if j[2] != 'ok']
