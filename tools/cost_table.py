@@ -128,6 +128,26 @@ def read_jobs(run, calls):
     return jobs
 
 
+def failed_comparisons(run):
+    """'scene id metric value > fail' for each comparison of the run whose status is fail or
+    error (RUN/<scene>/compare.json)."""
+    out = []
+    for path in sorted(glob.glob(os.path.join(glob.escape(run), '*', 'compare.json'))):
+        try:
+            with open(path, encoding='utf-8') as f:
+                doc = json.load(f)
+        except (OSError, ValueError):
+            continue
+        scene = os.path.basename(os.path.dirname(path))
+        for c in doc.get('comparisons', []):
+            if c.get('status') not in ('fail', 'error'):
+                continue
+            gates = [t for t in c.get('thresholds', []) if t.get('verdict') == 'fail']
+            said = ', '.join(f'{t["metric"]} {t["value"]:.3g} > {t["fail"]:.3g}' for t in gates) or c['status']
+            out.append(f'`{scene}` {c.get("id", "?")} {said}')
+    return out
+
+
 def estimate(durations, cpus):
     """Makespan of a list schedule: each job, in order, to the CPU that frees first (what
     Slurm's FIFO scheduler does with one-CPU array tasks on idle nodes)."""
@@ -380,6 +400,14 @@ def main(argv):
         f'({fmt(sum(durations))} CPU-s); past about {max(1, round(sum(durations) / max(longest[1], 1e-9) / cpus))} '
         'nodes the longest job, compare, the fits and the rest set the time.'
     )
+    failed = [(r[0], f) for r in runs for f in failed_comparisons(r[1])]
+    if failed:
+        p()
+        p(
+            'Comparisons that failed (so the exit 1; their time is counted as measured): '
+            + '; '.join(f'{n} scenes: {f}' for n, f in failed)
+            + '.'
+        )
     bad = [(r[0], os.path.relpath(j[0], r[1]), j[2]) for r in runs for j in r[4] if j[2] != 'ok']
     if bad:
         p()
