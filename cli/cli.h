@@ -61,6 +61,8 @@ extern const char cli_env_text[];
 int cli_exit_status(int rc);
 /* Loads and validates SCENE, then tessellates it into m (if m is not NULL). Prints the error. */
 int cli_load_scene(const char *path, scene *s, mesh *m);
+/* The second half of cli_load_scene: tessellates the loaded scene s (from path) into m. */
+int cli_build_mesh(const char *path, scene *s, mesh *m);
 /* Parses a whole positive integer option value; prints an error naming the option. */
 int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out);
 int cli_parse_double(const char *opt, const char *text, double lo, double hi, double *out);

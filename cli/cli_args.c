@@ -20,26 +20,36 @@ int cli_exit_status(int rc)
     return (rc == RC_ERR_PARSE || rc == RC_ERR_RANGE) ? CLI_BAD_INPUT : CLI_FAILED;
 }
 
+/* The error of a failed load or build, one line; the exit status it means. */
+static int cli_load_failed(rc_status st, const char *err)
+{
+    fprintf(stderr, "reflcheck: %s\n", err);
+    if (st == RC_ERR_IO)
+        return CLI_BAD_INPUT;
+    return cli_exit_status(st);
+}
+
+int cli_build_mesh(const char *path, scene *s, mesh *m)
+{
+    char err[1024], why[900];
+    rc_status st = mesh_build(s, m, why, sizeof why);
+    /* The mesh error names the mesh file and line; say which scene asked for it too. */
+    if (st != RC_OK) {
+        snprintf(err, sizeof err, "%s: objects: %s", path, why);
+        return cli_load_failed(st, err);
+    }
+    if (mesh_repair_note(s, m, why, sizeof why))
+        fprintf(stderr, "reflcheck: note: %s: %s\n", path, why);
+    return CLI_OK;
+}
+
 int cli_load_scene(const char *path, scene *s, mesh *m)
 {
     char err[1024];
     rc_status st = scene_file_load(path, s, err, sizeof err);
-    if (st == RC_OK && m != NULL) {
-        char why[900];
-        st = mesh_build(s, m, why, sizeof why);
-        /* The mesh error names the mesh file and line; say which scene asked for it too. */
-        if (st != RC_OK)
-            snprintf(err, sizeof err, "%s: objects: %s", path, why);
-        else if (mesh_repair_note(s, m, why, sizeof why))
-            fprintf(stderr, "reflcheck: note: %s: %s\n", path, why);
-    }
-    if (st != RC_OK) {
-        fprintf(stderr, "reflcheck: %s\n", err);
-        if (st == RC_ERR_IO)
-            return CLI_BAD_INPUT;
-        return cli_exit_status(st);
-    }
-    return CLI_OK;
+    if (st != RC_OK)
+        return cli_load_failed(st, err);
+    return m != NULL ? cli_build_mesh(path, s, m) : CLI_OK;
 }
 
 int cli_parse_int(const char *opt, const char *text, int lo, int hi, int *out)

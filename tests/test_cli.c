@@ -5,6 +5,7 @@
  * have; numbers with junk or out of range are refused by the option's name. Each refusal is
  * exit status 2 and one line; nothing is written. Issue 23: every command's --help, the command
  * list and --version. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -318,6 +319,72 @@ static void test_check_json_scene_facts(void **state)
     cJSON_Delete(doc);
 }
 
+/* Issue 26: `render --stats FILE` says where the command's time went, phase by phase, for a user
+ * and for `make bench`'s CLI ratios. Checked without trusting the figures' values: every phase
+ * is there with non-negative wall, CPU and page-fault figures, their sum is the total given, and
+ * render_scene's own clock (render_ms) lies inside the render phase (it starts after the call and
+ * stops before the return). The size is the one asked for. */
+static void test_render_stats(void **state)
+{
+    (void)state;
+    char err[2048], path[600], text[8192];
+    assert_int_equal(cli_exec(err, sizeof err,
+                              "render scenes/d3d9_glass.yaml -o %s/s.exr --width 20 --height 14 -q --stats %s/s.json",
+                              tmpdir, tmpdir),
+                     0);
+    snprintf(path, sizeof path, "%s/s.json", tmpdir);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = '\0';
+    cJSON *doc = cJSON_Parse(text);
+    assert_non_null(doc);
+    assert_int_equal(cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "width")), 20);
+    assert_int_equal(cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "height")), 14);
+    assert_true(cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "triangles")) > 0);
+    static const char *const phase[] = {"scene", "mesh", "inputs", "render", "write", "free"};
+    const cJSON *ph = cJSON_GetObjectItem(doc, "phases");
+    double sum = 0.0;
+    for (int i = 0; i < 6; i++) {
+        const cJSON *p = cJSON_GetObjectItem(ph, phase[i]);
+        if (p == NULL)
+            fail_msg("--stats has no phase %s: %s", phase[i], text);
+        double w = cJSON_GetNumberValue(cJSON_GetObjectItem(p, "wall_ms"));
+        assert_true(w >= 0.0);
+        assert_true(cJSON_GetNumberValue(cJSON_GetObjectItem(p, "cpu_ms")) >= 0.0);
+        assert_true(cJSON_GetNumberValue(cJSON_GetObjectItem(p, "minor_faults")) >= 0.0);
+        sum += w;
+    }
+    /* Each figure is printed to 6 significant digits: the sum of six roundings. */
+    double total = cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "phases_wall_ms"));
+    assert_true(fabs(sum - total) <= 1e-5 * 6.0 * total + 1e-9);
+    double frame = cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "render_ms"));
+    double call = cJSON_GetNumberValue(cJSON_GetObjectItem(cJSON_GetObjectItem(ph, "render"), "wall_ms"));
+    if (!(frame > 0.0 && frame <= call * (1.0 + 1e-5)))
+        fail_msg("render_ms %g is not inside the render phase's %g ms", frame, call);
+    cJSON_Delete(doc);
+}
+
+/* --stats may not overwrite the image or a scene input, and an unwritable --stats path fails
+ * after the image was written, naming the option. */
+static void test_render_stats_refusals(void **state)
+{
+    (void)state;
+    char err[2048];
+    int rc = cli_exec(err, sizeof err, "render scenes/d3d9_glass.yaml -o %s/r.exr --stats %s/r.exr -W 8 -H 6", tmpdir,
+                      tmpdir);
+    expect_refused(err, rc, "--stats");
+    rc = cli_exec(err, sizeof err, "render scenes/d3d9_glass.yaml -o %s/r.exr --stats scenes/d3d9_glass.yaml -W 8 -H 6",
+                  tmpdir);
+    expect_refused(err, rc, "give another --stats path");
+    rc = cli_exec(err, sizeof err, "render scenes/d3d9_glass.yaml -o %s/r.exr --stats %s/no/such/dir/s.json -W 8 -H 6",
+                  tmpdir, tmpdir);
+    if (rc != 1 || strstr(err, "--stats") == NULL)
+        fail_msg("exit %d, want 1 and --stats named: %s", rc, err);
+    one_line(err);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -332,6 +399,8 @@ int main(void)
         cmocka_unit_test(test_top_help),
         cmocka_unit_test(test_version),
         cmocka_unit_test(test_check_json_scene_facts),
+        cmocka_unit_test(test_render_stats),
+        cmocka_unit_test(test_render_stats_refusals),
     };
     return cmocka_run_group_tests(tests, tmpdir_setup, tmpdir_teardown);
 }
