@@ -1,8 +1,12 @@
 /* bench_raster - `make bench`: reflcheck's rasterizer on the benchmark scene, llvmpipe beside it,
  * the specialisation speed-up, and the machine's limit (tests/bench/README.md).
  *
- * Usage: bench_raster [--scene FILE] [--llvmpipe BIN] [--refs DIR] [--json FILE] [--tmp DIR] [--quick]
+ * Usage: bench_raster [--scene FILE] [--llvmpipe BIN] [--cli BIN] [--cli-beauty] [--refs DIR] [--json FILE]
+ *                     [--tmp DIR] [--quick]
  *   --llvmpipe  the bench_llvmpipe binary (omitted: no peer columns)
+ *   --cli       the reflcheck binary: the llvmpipe rows once more through `reflcheck render`, one
+ *               process a frame (omitted: no CLI rows)
+ *   --cli-beauty  the CLI rows with --aovs none too (the bench frame's layers; about 8 s more)
  *   --refs      where `reflcheck run tests/bench/bench_scene.yaml --role twin --out DIR` put the
  *               POV-Ray and Cycles results (DIR/bench_reflect/{povray,cycles}-twin.{json,exr})
  *   --quick     a small smoke set (CI), not the measurement
@@ -24,6 +28,8 @@
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <cJSON.h>
 
 #include "bench_image.h"
 #include "bench_scene.h"
@@ -741,6 +747,242 @@ static void bench_json_num_or_null(FILE *f, const char *key, double v, const cha
         fprintf(f, "\"%s\": null%s", key, sep);
 }
 
+/* ---- the command line as a user runs it (README "The command line") ---- */
+
+/* The target through `reflcheck render` (issue 26): llvmpipe's frame time over the frame as the
+ * command renders it, fresh process, fresh framebuffers, no warm-up. */
+#define BENCH_CLI_TARGET 2.5
+#define BENCH_CLI_REPS   3
+#define BENCH_CLI_PHASES 6
+static const char *const bench_cli_phase[BENCH_CLI_PHASES] = {"scene", "mesh", "inputs", "render", "write", "free"};
+
+/* One process, or (bench_cli_median) the median of each figure over the processes. */
+typedef struct {
+    int ok, tris;
+    char err[240];
+    double frame_ms;   /* (a): the render phase, render_scene from call to return */
+    double process_ms; /* (b): fork to the end of wait4 */
+    double cpu_ms;     /* (b)'s user + system time, every thread (wait4) */
+    double peak_mib;   /* the process's peak resident memory */
+    double phase_ms[BENCH_CLI_PHASES], phase_cpu_ms[BENCH_CLI_PHASES], phase_faults[BENCH_CLI_PHASES];
+    double start_exit_ms; /* (b) minus the phases: exec, loading the libraries, exit */
+} bench_cli_run;
+
+typedef struct {
+    int tris, aovs_none; /* the row, and --aovs none (the bench frame's layers) or the default (all) */
+    bench_cli_run med, min;
+    double lp_ms; /* llvmpipe's best at this row, 2 threads */
+} bench_cli_row;
+
+static const char *g_cli;
+static int g_cli_beauty; /* --cli-beauty: the --aovs none rows too */
+static bench_cli_row g_cli_rows[8];
+static int g_n_cli;
+
+/* Reads the --stats document the command wrote into r. */
+static void bench_cli_stats(const char *path, bench_cli_run *r)
+{
+    char text[8192];
+    FILE *f = fopen(path, "r");
+    size_t n = f ? fread(text, 1, sizeof text - 1, f) : 0;
+    if (f)
+        fclose(f);
+    text[n] = '\0';
+    cJSON *doc = cJSON_Parse(text);
+    const cJSON *ph = cJSON_GetObjectItem(doc, "phases");
+    r->ok = ph != NULL;
+    double sum = 0.0;
+    for (int i = 0; r->ok && i < BENCH_CLI_PHASES; i++) {
+        const cJSON *p = cJSON_GetObjectItem(ph, bench_cli_phase[i]);
+        r->phase_ms[i] = cJSON_GetNumberValue(cJSON_GetObjectItem(p, "wall_ms"));
+        r->phase_cpu_ms[i] = cJSON_GetNumberValue(cJSON_GetObjectItem(p, "cpu_ms"));
+        r->phase_faults[i] = cJSON_GetNumberValue(cJSON_GetObjectItem(p, "minor_faults"));
+        r->ok = isfinite(r->phase_ms[i]);
+        sum += r->phase_ms[i];
+    }
+    r->tris = (int)cJSON_GetNumberValue(cJSON_GetObjectItem(doc, "triangles"));
+    r->frame_ms = r->phase_ms[3];
+    r->start_exit_ms = r->process_ms - sum;
+    if (!r->ok)
+        snprintf(r->err, sizeof r->err, "%s: no phases in reflcheck render --stats", path);
+    cJSON_Delete(doc);
+}
+
+/* One `reflcheck render` process on the scene file at scene_path, timed from fork to exit. */
+static void bench_cli_once(const char *scene_path, int size, int aovs_none, bench_cli_run *r)
+{
+    char exr[1100], stats[1100], log[1100], sz[16];
+    snprintf(exr, sizeof exr, "%s/cli.exr", g_tmp);
+    snprintf(stats, sizeof stats, "%s/cli-stats.json", g_tmp);
+    snprintf(log, sizeof log, "%s/cli-stderr.txt", g_tmp);
+    snprintf(sz, sizeof sz, "%d", size);
+    memset(r, 0, sizeof *r);
+    remove(stats);
+    fflush(stdout);
+    double t0 = bench_now();
+    pid_t pid = fork();
+    if (pid == 0) {
+        FILE *o = freopen("/dev/null", "w", stdout), *e = freopen(log, "w", stderr);
+        (void)o, (void)e;
+        /* execv wants char *const[]; copies avoid casting const away. */
+        char *argv[] = {strdup(g_cli), "render", strdup(scene_path), "-o", exr,       "-W",  sz,       "-H",  sz,
+                        "-k",          "4",      "--threads",        "2",  "--stats", stats, "--aovs", "all", NULL};
+        if (aovs_none)
+            argv[16] = "none";
+        execv(g_cli, argv);
+        _exit(127);
+    }
+    int status = -1;
+    struct rusage ru;
+    memset(&ru, 0, sizeof ru);
+    if (pid > 0)
+        wait4(pid, &status, 0, &ru);
+    r->process_ms = 1e3 * (bench_now() - t0);
+    r->cpu_ms = 1e3 * ((double)(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                       1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec));
+    r->peak_mib = (double)ru.ru_maxrss * 1024.0 / BENCH_MIB;
+    if (pid < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        snprintf(r->err, sizeof r->err, "%s render failed (status %d); see %s", g_cli, status, log);
+        return;
+    }
+    bench_cli_stats(stats, r);
+    remove(exr);
+}
+
+/* Each figure's median (and minimum) over the runs, figure by figure. */
+static void bench_cli_median(bench_cli_run *runs, int n, bench_cli_run *med, bench_cli_run *min)
+{
+    double v[BENCH_CLI_REPS];
+    *med = runs[0];
+    *min = runs[0];
+    double *fm = &med->frame_ms, *fn = &min->frame_ms;
+    /* frame_ms .. start_exit_ms are consecutive doubles (bench_cli_run's layout). */
+    size_t nf = (size_t)(&runs[0].start_exit_ms - &runs[0].frame_ms) + 1;
+    for (size_t k = 0; k < nf; k++) {
+        for (int i = 0; i < n; i++)
+            v[i] = (&runs[i].frame_ms)[k];
+        fm[k] = bench_median(v, n);
+        fn[k] = v[0];
+    }
+}
+
+/* The CLI rows: at each triangle count llvmpipe ran at ref_size, BENCH_CLI_REPS processes with
+ * every AOV (the command's default) and, with --cli-beauty, with --aovs none, interleaved. */
+static int bench_cli_run_all(int ref_size)
+{
+    int failures = 0;
+    double t0 = bench_now();
+    if (g_cli == NULL) {
+        printf("\nCommand line: not run (no --cli; make bench passes build/reflcheck)\n");
+        return 0;
+    }
+    printf("\nCommand line: `reflcheck render SCENE -o OUT.exr -W %d -H %d -k 4 --threads 2 --stats S.json%s`, a "
+           "fresh process each, median of %d [min]\n",
+           ref_size, ref_size, g_cli_beauty ? " [--aovs none]" : "", BENCH_CLI_REPS);
+    printf("  (a) frame = render_scene from call to return inside the command; (b) process = fork to exit; CPU = (b)'s "
+           "user + system\n");
+    printf("%-8s %-5s %10s %9s %11s %9s %9s  %s\n", "tris", "aovs", "(a) ms", "[min]", "(b) ms", "[min]", "(b) CPU",
+           "(b) split, ms: scene mesh inputs render write free start+exit");
+    for (int i = 0; i < g_n_rows; i++) {
+        const bench_row *row = &g_rows[i];
+        if (!row->has_peer || row->c.size != ref_size || row->c.k != 4 || g_n_cli + 2 > 8)
+            continue;
+        char scene_path[1100], err[512];
+        snprintf(scene_path, sizeof scene_path, "%s/cli-%d.yaml", g_tmp, row->c.tris);
+        if (bench_scene_variant(g_scene, row->c.tris, scene_path, err, sizeof err) != RC_OK) {
+            printf("  %s\n", err);
+            failures++;
+            continue;
+        }
+        bench_cli_run runs[2][BENCH_CLI_REPS];
+        for (int rep = 0; rep < BENCH_CLI_REPS; rep++)
+            for (int none = 0; none <= g_cli_beauty; none++)
+                bench_cli_once(scene_path, ref_size, none, &runs[none][rep]);
+        remove(scene_path);
+        for (int none = 0; none <= g_cli_beauty; none++) {
+            bench_cli_row *c = &g_cli_rows[g_n_cli++];
+            c->tris = row->c.tris;
+            c->aovs_none = none;
+            c->lp_ms = fmin(row->lp[1][0].ms_median, row->lp[1][1].ms_median);
+            int ok = 1;
+            for (int rep = 0; rep < BENCH_CLI_REPS; rep++)
+                if (!runs[none][rep].ok) {
+                    ok = 0;
+                    c->med = runs[none][rep];
+                }
+            if (!ok) {
+                printf("%-8d %-5s failed: %s\n", row->c.tris, none ? "none" : "all", c->med.err);
+                failures++;
+                continue;
+            }
+            bench_cli_median(runs[none], BENCH_CLI_REPS, &c->med, &c->min);
+            c->med.ok = 1;
+            const bench_cli_run *m = &c->med;
+            printf("%-8d %-5s %10.1f %9.1f %11.1f %9.1f %9.1f  %.1f %.1f %.1f %.1f %.1f %.1f %.1f%s\n", m->tris,
+                   none ? "none" : "all", m->frame_ms, c->min.frame_ms, m->process_ms, c->min.process_ms, m->cpu_ms,
+                   m->phase_ms[0], m->phase_ms[1], m->phase_ms[2], m->phase_ms[3], m->phase_ms[4], m->phase_ms[5],
+                   m->start_exit_ms, m->tris == row->r[1].n_tris ? "" : "  (NOT the bench frame's triangle count)");
+        }
+    }
+    printf("  (the command-line rows took %.1f s of the bench)\n", bench_now() - t0);
+    return failures;
+}
+
+/* The Targets lines: (a) against llvmpipe (the target) and (b) beside it (not gated). */
+static int bench_cli_targets(void)
+{
+    int met = g_n_cli > 0;
+    for (int i = 0; i < g_n_cli; i++) {
+        const bench_cli_row *c = &g_cli_rows[i];
+        if (c->aovs_none || !c->med.ok) {
+            met &= c->aovs_none;
+            continue;
+        }
+        double ra = c->lp_ms / c->med.frame_ms, rb = c->lp_ms / c->med.process_ms;
+        met &= ra >= BENCH_CLI_TARGET;
+        printf("  CLI speed at %d tris: frame (a) %.1f ms, llvmpipe %.1f ms: %.2fx -> %s (target %.1fx); whole process "
+               "(b) %.1f ms: %.2fx (not gated)\n",
+               c->med.tris, c->med.frame_ms, c->lp_ms, ra, ra >= BENCH_CLI_TARGET ? "MET" : "MISSED", BENCH_CLI_TARGET,
+               c->med.process_ms, rb);
+    }
+    if (g_n_cli == 0)
+        printf("  CLI speed: not measured -> MISSED\n");
+    return met;
+}
+
+static void bench_cli_json(FILE *f, int ref_size, int met)
+{
+    fprintf(f, "  \"cli\": {\"binary\": \"%s\", \"size\": %d, \"k\": 4, \"threads\": 2, \"reps\": %d, ",
+            g_cli ? g_cli : "", ref_size, BENCH_CLI_REPS);
+    fprintf(f, "\"target\": %g, \"target_met\": %s, \"runs\": [", BENCH_CLI_TARGET, met ? "true" : "false");
+    for (int i = 0; i < g_n_cli; i++) {
+        const bench_cli_row *c = &g_cli_rows[i];
+        const bench_cli_run *m = &c->med;
+        fprintf(f, "%s\n    {\"tris\": %d, \"aovs\": \"%s\", \"ok\": %s, ", i ? "," : "", m->tris,
+                c->aovs_none ? "none" : "all", m->ok ? "true" : "false");
+        bench_json_num_or_null(f, "frame_ms_median", m->ok ? m->frame_ms : NAN, ", ");
+        bench_json_num_or_null(f, "frame_ms_min", m->ok ? c->min.frame_ms : NAN, ", ");
+        bench_json_num_or_null(f, "process_ms_median", m->ok ? m->process_ms : NAN, ", ");
+        bench_json_num_or_null(f, "process_ms_min", m->ok ? c->min.process_ms : NAN, ", ");
+        bench_json_num_or_null(f, "process_cpu_ms_median", m->ok ? m->cpu_ms : NAN, ", ");
+        bench_json_num_or_null(f, "peak_mib", m->ok ? m->peak_mib : NAN, ", ");
+        bench_json_num_or_null(f, "start_exit_ms", m->ok ? m->start_exit_ms : NAN, ", ");
+        bench_json_num_or_null(f, "llvmpipe_ms", c->lp_ms, ", ");
+        bench_json_num_or_null(f, "ratio_frame", m->ok ? c->lp_ms / m->frame_ms : NAN, ", ");
+        bench_json_num_or_null(f, "ratio_process", m->ok ? c->lp_ms / m->process_ms : NAN, ", ");
+        fprintf(f, "\"phases\": {");
+        for (int p = 0; p < BENCH_CLI_PHASES; p++) {
+            fprintf(f, "\"%s\": {", bench_cli_phase[p]);
+            bench_json_num_or_null(f, "wall_ms", m->ok ? m->phase_ms[p] : NAN, ", ");
+            bench_json_num_or_null(f, "cpu_ms", m->ok ? m->phase_cpu_ms[p] : NAN, ", ");
+            bench_json_num_or_null(f, "minor_faults", m->ok ? m->phase_faults[p] : NAN, "");
+            fprintf(f, "}%s", p + 1 < BENCH_CLI_PHASES ? ", " : "");
+        }
+        fprintf(f, "}}");
+    }
+    fprintf(f, "]},\n");
+}
+
 int main(int argc, char **argv)
 {
     const char *lp_bin = NULL, *refs = NULL, *json_path = "reports/bench/bench.json";
@@ -760,10 +1002,14 @@ int main(int argc, char **argv)
             json_path = v, i++;
         else if (v && !strcmp(a, "--tmp"))
             g_tmp = v, i++;
+        else if (v && !strcmp(a, "--cli"))
+            g_cli = v, i++;
+        else if (!strcmp(a, "--cli-beauty"))
+            g_cli_beauty = 1;
         else {
             fprintf(stderr,
                     "bench_raster: unknown option '%s'; usage: bench_raster [--scene FILE] [--llvmpipe BIN] "
-                    "[--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
+                    "[--cli BIN] [--cli-beauty] [--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
                     a);
             return 2;
         }
@@ -857,6 +1103,8 @@ int main(int argc, char **argv)
         }
         fflush(stdout);
     }
+
+    failures += bench_cli_run_all(ref_size);
 
     /* Specialisation: the diffuse-only scene through the specialised and the general path. */
     bench_cfg spec_cfg = {ref_size, 4, ref_tris, 1, quick ? 2 : 7};
@@ -1007,6 +1255,7 @@ int main(int argc, char **argv)
         speed_met = 0;
         printf("  speed: no llvmpipe run at this size -> MISSED\n");
     }
+    int cli_met = bench_cli_targets();
     printf(
         "  machine limit: ~%.0f flop per surface sample, %.0f per background sample -> %.2f GFLOP/s = %.2f%% of peak\n",
         BENCH_FLOP_SURFACE, BENCH_FLOP_BACKGROUND, achieved, 100.0 * frac);
@@ -1120,7 +1369,10 @@ int main(int argc, char **argv)
     bench_json_num_or_null(f, "fraction_of_peak", frac, ", ");
     fprintf(f, "\"identical_1_2_all\": %s, ", all_identical ? "true" : "false");
     bench_json_num_or_null(f, "worst_memory_over_framebuffers_mib", mem_over, ", ");
-    fprintf(f, "\"memory_within_64mib\": %s},\n", mem_ok ? "true" : "false");
+    fprintf(f, "\"memory_within_64mib\": %s, ", mem_ok ? "true" : "false");
+    fprintf(f, "\"cli_speed_target\": %g, \"cli_speed_target_met\": %s},\n", BENCH_CLI_TARGET,
+            cli_met ? "true" : "false");
+    bench_cli_json(f, ref_size, cli_met);
     fprintf(f, "  ");
     bench_json_num_or_null(f, "loadavg_start", load_start, ", ");
     bench_json_num_or_null(f, "loadavg_end", load_end, ",\n");
