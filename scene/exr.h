@@ -3,7 +3,9 @@
  * Usage:
  *   exr_channel ch[] = {{"R", r}, {"G", g}, {"B", b}, {"diffuse.R", dr}, ...};
  *   exr_attr at[] = {{"reflcheck.scene_hash", "9f..."}, {"reflcheck.render_ms", "12.5"}};
- *   exr_write("out.exr", w, h, ch, n, at, 2, err, sizeof err);   32-bit float, ZIP
+ *   exr_write("out.exr", w, h, ch, n, at, 2, err, sizeof err);   32-bit float, ZIP, every core
+ *   exr_write_options o = {.threads = 1, .zip_level = 6};         one thread, zlib level 6
+ *   exr_write_opt("out.exr", w, h, ch, n, at, 2, &o, err, sizeof err);
  *   exr_image img; exr_read("in.exr", &img, err, sizeof err);    every channel as float
  *   const float *r = exr_image_channel(&img, "R");               NULL if absent
  *   exr_image_free(&img);
@@ -45,8 +47,17 @@ typedef struct {
     char (*attr_values)[256];
 } exr_image;
 
+/* How exr_write_opt writes; zero = exr_write's defaults. The bytes of the file do not depend on
+ * threads. */
+typedef struct {
+    int threads;   /* compression threads; 0 = one per online core */
+    int zip_level; /* zlib level 1..9 of the ZIP chunks; 0 = 1, the fastest (exr.c's EXR_ZIP_LEVEL) */
+} exr_write_options;
+
 rc_status exr_write(const char *path, int width, int height, const exr_channel *ch, int n_channels,
                     const exr_attr *attrs, int n_attrs, char *err, size_t errlen);
+rc_status exr_write_opt(const char *path, int width, int height, const exr_channel *ch, int n_channels,
+                        const exr_attr *attrs, int n_attrs, const exr_write_options *opt, char *err, size_t errlen);
 rc_status exr_read(const char *path, exr_image *img, char *err, size_t errlen);
 const float *exr_image_channel(const exr_image *img, const char *name);
 const char *exr_image_attr(const exr_image *img, const char *name);

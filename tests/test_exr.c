@@ -172,6 +172,69 @@ static void test_written_file_read_by_oiio(void **state)
     assert_non_null(strstr(out, "Pixel (3, 2): 1.125000000 0.062500000 "));
 }
 
+/* Issue 26: chunks are compressed on several threads and written in order. A 7 x 53 image is
+ * four ZIP chunks (16 + 16 + 16 + 5 lines): written on 1, 3 and all cores the files are byte for
+ * byte the same, and read back (ours and OpenImageIO) every value is the one written, the last,
+ * short chunk included. zip_level 6 (zlib's default; ours is 1) writes other bytes and the same
+ * values. */
+enum { MW = 7, MH = 53, MN = MW * MH };
+
+static void test_threaded_chunks(void **state)
+{
+    (void)state;
+    static float r[MN], g[MN], b[MN];
+    for (int i = 0; i < MN; i++) {
+        r[i] = 0.25f * (float)(i % 97) - 3.0f;
+        g[i] = 1.0f / (float)(i + 1);
+        b[i] = (float)(i / MW) * 1000.0f + (float)(i % MW);
+    }
+    const exr_channel ch[] = {{"R", r}, {"G", g}, {"B", b}};
+    const exr_attr at[] = {{"reflcheck.scene", "chunks"}};
+    static const int threads[] = {1, 3, 0};
+    static char out[1 << 16]; /* the dump: one line a pixel */
+    char path[3][256], lvl[256], err[512];
+    unsigned char *bytes[3];
+    long n[3];
+    for (int k = 0; k < 3; k++) {
+        char name[32];
+        snprintf(name, sizeof name, "mt%d.exr", k);
+        exr_write_options o = {.threads = threads[k]};
+        if (exr_write_opt(tmp_path(path[k], sizeof path[k], name), MW, MH, ch, 3, at, 1, &o, err, sizeof err) != RC_OK)
+            fail_msg("exr_write_opt threads %d: %s", threads[k], err);
+        bytes[k] = slurp(path[k], &n[k]);
+        assert_non_null(bytes[k]);
+    }
+    for (int k = 1; k < 3; k++)
+        if (n[k] != n[0] || memcmp(bytes[k], bytes[0], (size_t)n[0]) != 0)
+            fail_msg("threads %d wrote other bytes than threads 1 (%ld vs %ld bytes)", threads[k], n[k], n[0]);
+    exr_write_options slow = {.threads = 2, .zip_level = 6};
+    if (exr_write_opt(tmp_path(lvl, sizeof lvl, "lvl6.exr"), MW, MH, ch, 3, at, 1, &slow, err, sizeof err) != RC_OK)
+        fail_msg("exr_write_opt zip_level 6: %s", err);
+    const char *check[] = {path[2], lvl};
+    for (int k = 0; k < 2; k++) {
+        exr_image img;
+        assert_int_equal(exr_read(check[k], &img, err, sizeof err), RC_OK);
+        assert_int_equal(img.width, MW);
+        assert_int_equal(img.height, MH);
+        expect_plane(&img, "R", r, 0.0f);
+        expect_plane(&img, "G", g, 0.0f);
+        expect_plane(&img, "B", b, 0.0f);
+        exr_image_free(&img);
+        /* Pixel (6, 52), index 370, in the short last chunk: R = 0.25 * (370 mod 97 = 79) - 3 =
+         * 16.75, G = 1/371, B = 52 * 1000 + 6. */
+        assert_int_equal(capture(out, sizeof out, "oiiotool --dumpdata '%s'", check[k]), 0);
+        if (strstr(out, "Pixel (6, 52): 16.750000000 0.002695418 52006.000000000") == NULL)
+            fail_msg("OpenImageIO reads another pixel (6, 52) from %s", check[k]);
+    }
+    long nl;
+    unsigned char *bl = slurp(lvl, &nl);
+    assert_non_null(bl);
+    assert_true(nl != n[0] || memcmp(bl, bytes[0], (size_t)nl) != 0);
+    free(bl);
+    for (int k = 0; k < 3; k++)
+        free(bytes[k]);
+}
+
 /* Files written by another writer: half and uint channels, tiles, other compressions, a data
  * window not at the origin, DWAA through the oiiotool fallback. */
 static void test_foreign_variants(void **state)
@@ -694,6 +757,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_roundtrip),
         cmocka_unit_test(test_written_file_read_by_oiio),
+        cmocka_unit_test(test_threaded_chunks),
         cmocka_unit_test(test_foreign_variants),
         cmocka_unit_test(test_errors),
         cmocka_unit_test(test_header_lies),
