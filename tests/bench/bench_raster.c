@@ -1,12 +1,11 @@
 /* bench_raster - `make bench`: reflcheck's rasterizer on the benchmark scene, llvmpipe beside it,
  * the specialisation speed-up, and the machine's limit (tests/bench/README.md).
  *
- * Usage: bench_raster [--scene FILE] [--llvmpipe BIN] [--cli BIN] [--cli-beauty] [--refs DIR] [--json FILE]
+ * Usage: bench_raster [--scene FILE] [--llvmpipe BIN] [--cli BIN] [--refs DIR] [--json FILE]
  *                     [--tmp DIR] [--quick]
  *   --llvmpipe  the bench_llvmpipe binary (omitted: no peer columns)
  *   --cli       the reflcheck binary: the llvmpipe rows once more through `reflcheck render`, one
  *               process a frame (omitted: no CLI rows)
- *   --cli-beauty  the CLI rows with --aovs none too (the bench frame's layers; about 8 s more)
  *   --refs      where `reflcheck run tests/bench/bench_scene.yaml --role twin --out DIR` put the
  *               POV-Ray and Cycles results (DIR/bench_reflect/{povray,cycles}-twin.{json,exr})
  *   --quick     a small smoke set (CI), not the measurement
@@ -775,7 +774,6 @@ typedef struct {
 } bench_cli_row;
 
 static const char *g_cli;
-static int g_cli_beauty; /* --cli-beauty: the --aovs none rows too */
 static bench_cli_row g_cli_rows[8];
 static int g_n_cli;
 
@@ -867,7 +865,8 @@ static void bench_cli_median(bench_cli_run *runs, int n, bench_cli_run *med, ben
 }
 
 /* The CLI rows: at each triangle count llvmpipe ran at ref_size, BENCH_CLI_REPS processes with
- * every AOV (the command's default) and, with --cli-beauty, with --aovs none, interleaved. */
+ * --aovs none (the bench frame's layers, the gated row) and every AOV (the command's default),
+ * interleaved. */
 static int bench_cli_run_all(int ref_size)
 {
     int failures = 0;
@@ -876,9 +875,9 @@ static int bench_cli_run_all(int ref_size)
         printf("\nCommand line: not run (no --cli; make bench passes build/reflcheck)\n");
         return 0;
     }
-    printf("\nCommand line: `reflcheck render SCENE -o OUT.exr -W %d -H %d -k 4 --threads 2 --stats S.json%s`, a "
-           "fresh process each, median of %d [min]\n",
-           ref_size, ref_size, g_cli_beauty ? " [--aovs none]" : "", BENCH_CLI_REPS);
+    printf("\nCommand line: `reflcheck render SCENE -o OUT.exr -W %d -H %d -k 4 --threads 2 --stats S.json "
+           "--aovs none|all`, a fresh process each, median of %d [min]\n",
+           ref_size, ref_size, BENCH_CLI_REPS);
     printf("  (a) frame = render_scene from call to return inside the command; (b) process = fork to exit; CPU = (b)'s "
            "user + system\n");
     printf("%-8s %-5s %10s %9s %11s %9s %9s  %s\n", "tris", "aovs", "(a) ms", "[min]", "(b) ms", "[min]", "(b) CPU",
@@ -896,10 +895,10 @@ static int bench_cli_run_all(int ref_size)
         }
         bench_cli_run runs[2][BENCH_CLI_REPS];
         for (int rep = 0; rep < BENCH_CLI_REPS; rep++)
-            for (int none = 0; none <= g_cli_beauty; none++)
+            for (int none = 0; none <= 1; none++)
                 bench_cli_once(scene_path, ref_size, none, &runs[none][rep]);
         remove(scene_path);
-        for (int none = 0; none <= g_cli_beauty; none++) {
+        for (int none = 1; none >= 0; none--) {
             bench_cli_row *c = &g_cli_rows[g_n_cli++];
             c->tris = row->c.tris;
             c->aovs_none = none;
@@ -928,26 +927,34 @@ static int bench_cli_run_all(int ref_size)
     return failures;
 }
 
-/* The Targets lines: (a) against llvmpipe (the target) and (b) beside it (not gated). */
+/* The Targets lines: (a) of the --aovs none row against llvmpipe (the target: the same layers as
+ * llvmpipe's frame), (b) and the every-AOV row beside it (not gated: more work than llvmpipe's). */
 static int bench_cli_targets(void)
 {
-    int met = g_n_cli > 0;
+    int met = 0;
     for (int i = 0; i < g_n_cli; i++) {
         const bench_cli_row *c = &g_cli_rows[i];
-        if (c->aovs_none || !c->med.ok) {
-            met &= c->aovs_none;
+        if (!c->med.ok) {
+            met = c->aovs_none ? -1 : met;
             continue;
         }
         double ra = c->lp_ms / c->med.frame_ms, rb = c->lp_ms / c->med.process_ms;
-        met &= ra >= BENCH_CLI_TARGET;
-        printf("  CLI speed at %d tris: frame (a) %.1f ms, llvmpipe %.1f ms: %.2fx -> %s (target %.1fx); whole process "
-               "(b) %.1f ms: %.2fx (not gated)\n",
+        if (!c->aovs_none) {
+            printf("  CLI, every AOV (the command's default, 25 layers) at %d tris: frame (a) %.1f ms: %.2fx; "
+                   "whole process (b) %.1f ms: %.2fx (not gated)\n",
+                   c->med.tris, c->med.frame_ms, ra, c->med.process_ms, rb);
+            continue;
+        }
+        if (met >= 0)
+            met = ra >= BENCH_CLI_TARGET ? 1 : -1;
+        printf("  CLI speed at %d tris (--aovs none): frame (a) %.1f ms, llvmpipe %.1f ms: %.2fx -> %s (target "
+               "%.1fx); whole process (b) %.1f ms: %.2fx (not gated)\n",
                c->med.tris, c->med.frame_ms, c->lp_ms, ra, ra >= BENCH_CLI_TARGET ? "MET" : "MISSED", BENCH_CLI_TARGET,
                c->med.process_ms, rb);
     }
-    if (g_n_cli == 0)
+    if (met == 0)
         printf("  CLI speed: not measured -> MISSED\n");
-    return met;
+    return met > 0;
 }
 
 static void bench_cli_json(FILE *f, int ref_size, int met)
@@ -1004,12 +1011,10 @@ int main(int argc, char **argv)
             g_tmp = v, i++;
         else if (v && !strcmp(a, "--cli"))
             g_cli = v, i++;
-        else if (!strcmp(a, "--cli-beauty"))
-            g_cli_beauty = 1;
         else {
             fprintf(stderr,
                     "bench_raster: unknown option '%s'; usage: bench_raster [--scene FILE] [--llvmpipe BIN] "
-                    "[--cli BIN] [--cli-beauty] [--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
+                    "[--cli BIN] [--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
                     a);
             return 2;
         }

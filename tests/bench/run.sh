@@ -3,7 +3,6 @@
 # scene (tests/bench/README.md). Usage: tests/bench/run.sh BUILD_DIR
 #   BENCH_QUICK=1    the small smoke set instead of the measurement
 #   BENCH_REFS=0     skip the POV-Ray/Cycles reference renders (their columns read "pending")
-#   BENCH_CLI_BEAUTY=1  the command-line rows with --aovs none too (the bench frame's layers)
 # Writes reports/bench/bench.json (generated, not versioned) and prints the tables.
 set -euo pipefail
 build=${1:-build}
@@ -43,7 +42,6 @@ quick=()
 cli_arg=()
 if [ -x "$build/reflcheck" ]; then
     cli_arg=(--cli "$build/reflcheck")
-    [ "${BENCH_CLI_BEAUTY:-0}" != 0 ] && cli_arg+=(--cli-beauty)
 else
     echo "tests/bench/run.sh: $build/reflcheck not built; the CLI rows are not run ('make bench' builds it)" >&2
 fi
