@@ -501,20 +501,49 @@ static rc_status sf_file(sf_ctx *c, yaml_node_t *n, const char *path, const char
 
 /* --- sections ------------------------------------------------------------------------------ */
 
-/* image.samples: a whole number, or `auto` (stored as 0): Cycles then takes the samples the
- * noise target of the scene's gates asks for (cycles_samples.h); the small variant follows it
- * unless image.small.samples gives a number. */
-static rc_status sf_samples(sf_ctx *c, yaml_node_t *n, const char *path, int *out)
+static rc_status sf_threshold_text(sf_ctx *c, yaml_node_t *v, const char *path, char *out, size_t outlen);
+
+/* image.samples: a whole number; `auto` (stored as 0): Cycles then takes the samples the noise
+ * target of the scene's gates asks for (cycles_samples.h); or {auto: true, bias: b, why: text},
+ * auto with the smallest per-pixel error its z-test gates must catch stated (a fraction of the
+ * surface's mean radiance, (0, 1]). The small variant follows auto unless image.small.samples
+ * gives a number. */
+static rc_status sf_samples(sf_ctx *c, yaml_node_t *n, const char *path, scene *s)
 {
-    const char *s = sf_text(n);
-    if (s != NULL && strcmp(s, "auto") == 0 && !sf_quoted(n)) {
-        *out = 0;
+    static const char *const keys[] = {"auto", "bias", "why"};
+    const char *t = sf_text(n);
+    s->samples_line = (int)n->start_mark.line + 1;
+    if (t != NULL && strcmp(t, "auto") == 0 && !sf_quoted(n)) {
+        s->samples = 0;
         return RC_OK;
     }
-    rc_status rc = sf_int(c, n, path, 1, 1 << 20, out);
+    if (n->type == YAML_MAPPING_NODE) {
+        char sub[SF_PATHLEN], why[200];
+        sf_kv f[3];
+        int on = 0;
+        rc_status rc;
+        if ((rc = sf_map(c, n, path, keys, 3, f)) || (rc = sf_need(c, n, path, &f[0], "auto")) ||
+            (rc = sf_need(c, n, path, &f[1], "bias")) || (rc = sf_need(c, n, path, &f[2], "why")))
+            return rc;
+        sf_child(sub, path, "auto");
+        if ((rc = sf_bool(c, f[0].v, sub, &on)))
+            return rc;
+        if (!on)
+            return sf_fail(c, RC_ERR_RANGE, f[0].v, sub, "false; allowed: true, or give image.samples a number");
+        sf_child(sub, path, "bias");
+        if ((rc = sf_number(c, f[1].v, sub, 0.0, 1.0, SF_LO_OPEN, "a fraction of the surface's mean radiance in (0, 1]",
+                            &s->samples_bias)))
+            return rc;
+        sf_child(sub, path, "why");
+        if ((rc = sf_threshold_text(c, f[2].v, sub, why, sizeof why)))
+            return rc;
+        s->samples = 0;
+        return RC_OK;
+    }
+    rc_status rc = sf_int(c, n, path, 1, 1 << 20, &s->samples);
     if (rc != RC_OK)
         snprintf(c->err + strlen(c->err), c->errlen - strlen(c->err), "%s",
-                 strlen(c->err) + 64 < c->errlen ? ", or auto (from the gates' noise)" : "");
+                 strlen(c->err) + 96 < c->errlen ? ", or auto, or {auto: true, bias: b, why: text}" : "");
     return rc;
 }
 
@@ -532,7 +561,7 @@ static rc_status sf_image(sf_ctx *c, yaml_node_t *n, scene *s)
         return rc;
     if (f[2].v && (rc = sf_int(c, f[2].v, "image.supersample", 1, 16, &s->supersample)))
         return rc;
-    if (f[3].v && (rc = sf_samples(c, f[3].v, "image.samples", &s->samples)))
+    if (f[3].v && (rc = sf_samples(c, f[3].v, "image.samples", s)))
         return rc;
     if (f[5].v && (rc = sf_float(c, f[5].v, "image.timeout", 1.0, 1e6, 0, "seconds from 1 to 1e6", &s->timeout)))
         return rc;

@@ -262,7 +262,12 @@ typedef struct {
     char name[SCENE_NAME_MAX];
     char path[SCENE_PATH_MAX]; /* the scene file, for messages */
     int width, height, supersample;
-    int samples; /* Cycles samples per pixel, default 64 */
+    int samples; /* Cycles samples per pixel, default 64; 0 = auto (image.samples: auto) */
+    /* image.samples {auto: true, bias: b}: the smallest error per pixel, as a fraction of the
+     * surface's mean radiance, that the z-test gates judging a Cycles render must catch; 0 =
+     * not stated. samples_line: the key's line in the file (1-based), for messages. */
+    double samples_bias;
+    int samples_line;
     /* The small variant `make test` renders (all renderers): 0 = derived from the full size
      * (width at most 96, aspect kept, supersample at most 2, samples at most 32). */
     struct {

@@ -691,6 +691,35 @@ static void test_samples_auto(void **state)
     free(s);
 }
 
+/* image.samples {auto: true, bias: b, why: text}: auto with the z-tests' bias stated, stored as
+ * samples 0 and samples_bias b; the key's line is kept for the refusal's message. bias outside
+ * (0, 1], auto false, or no why are refused. */
+static void test_samples_auto_bias(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    char err[600] = "";
+    assert_non_null(s);
+    const char *ok = "image: {width: 8, height: 4,\n  samples: {auto: true, bias: 0.25, why: \"a quarter\"}}\n" CAMERA;
+    assert_int_equal(parse_text(ok, strlen(ok), s, err, sizeof err), RC_OK);
+    assert_int_equal(s->samples, 0);
+    assert_true(s->samples_bias == 0.25);
+    assert_int_equal(s->samples_line, 2);
+    const char *plain = "image: {width: 8, height: 4, samples: auto}\n" CAMERA;
+    assert_int_equal(parse_text(plain, strlen(plain), s, err, sizeof err), RC_OK);
+    assert_true(s->samples_bias == 0.0);
+    assert_int_equal(s->samples_line, 1);
+    free(s);
+    const char *zero = "image: {width: 8, height: 4, samples: {auto: true, bias: 0, why: \"x\"}}\n" CAMERA;
+    expect_fail(zero, strlen(zero), RC_ERR_RANGE);
+    const char *big = "image: {width: 8, height: 4, samples: {auto: true, bias: 1.5, why: \"x\"}}\n" CAMERA;
+    expect_fail(big, strlen(big), RC_ERR_RANGE);
+    const char *off = "image: {width: 8, height: 4, samples: {auto: false, bias: 0.1, why: \"x\"}}\n" CAMERA;
+    expect_fail(off, strlen(off), RC_ERR_RANGE);
+    const char *nowhy = "image: {width: 8, height: 4, samples: {auto: true, bias: 0.1}}\n" CAMERA;
+    expect_fail(nowhy, strlen(nowhy), RC_ERR_PARSE);
+}
+
 static void test_hostile_inputs(void **state)
 {
     (void)state;
@@ -956,6 +985,7 @@ int main(void)
         cmocka_unit_test(test_good_full),
         cmocka_unit_test(test_good_minimal_defaults),
         cmocka_unit_test(test_samples_auto),
+        cmocka_unit_test(test_samples_auto_bias),
         cmocka_unit_test(test_default_name_made_safe),
         cmocka_unit_test(test_scene_names),
         cmocka_unit_test(test_scale_bounds),
