@@ -50,6 +50,7 @@ void job_apply_variant(scene *s, job_variant v)
     s->height = h > 0 ? h : 1;
     s->supersample = s->small.supersample > 0 ? s->small.supersample : (s->supersample < 2 ? s->supersample : 2);
     s->samples = s->small.samples > 0 ? s->small.samples : (s->samples < 32 ? s->samples : 32);
+    s->small.active = 1;
 }
 
 void job_output_path(const char *out_dir, const char *scene_name, int renderer, comparison_role role, const char *ext,

@@ -272,6 +272,7 @@ typedef struct {
      * (width at most 96, aspect kept, supersample at most 2, samples at most 32). */
     struct {
         int width, height, supersample, samples;
+        int active; /* 1: this copy is the small variant (harness/jobs.c), its gates the small ones */
     } small;
     float timeout; /* seconds one reference render may take, 0 = 600 */
     struct {

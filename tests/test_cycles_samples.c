@@ -30,19 +30,23 @@ static void add_gate(comparison *c, const char *metric, double fail)
     t->fail = fail;
 }
 
-/* Comparisons: model/cycles twin (z-test), model/cycles validate nrmse 0.9 and glossy.nrmse
- * 0.3, povray/cycles agree rel_rms 0.06 and ssim (not an RMS metric), model/povray twin
- * rel_rms 0.0003 (not Cycles: ignored). */
+/* Comparisons: model/cycles twin (z-test alone), model/cycles validate nrmse 0.9 and
+ * glossy.nrmse 0.3 (full size: 0.15) and a z-test, povray/cycles agree rel_rms 0.06 and ssim
+ * (not an RMS metric), model/povray twin rel_rms 0.0003 (not Cycles: ignored). */
 static void fixture(scene *s, int cyc, int model, int pov)
 {
     scene_init(s);
     snprintf(s->path, sizeof s->path, "fixture.yaml");
+    s->samples_line = 4;
     comparison *c = s->comparisons;
     c[0] = (comparison){.test = model, .reference = cyc, .role = ROLE_TWIN};
     add_gate(&c[0], "z_fail_share", 0.002);
     c[1] = (comparison){.test = model, .reference = cyc, .role = ROLE_VALIDATE};
     add_gate(&c[1], "nrmse", 0.9);
     add_gate(&c[1], "glossy.nrmse", 0.3);
+    c[1].thresholds[1].at[1].set = c[1].thresholds[1].at[1].fail_set = 1;
+    c[1].thresholds[1].at[1].fail = 0.15;
+    add_gate(&c[1], "z_fail_share", 0.01);
     c[2] = (comparison){.test = pov, .reference = cyc, .role = ROLE_AGREE};
     add_gate(&c[2], "rel_rms", 0.06);
     add_gate(&c[2], "ssim", 0.99);
@@ -59,40 +63,80 @@ static void test_need_of_roles(void **state)
     scene s;
     fixture(&s, cyc, model, pov);
     cycles_noise_need need;
-    /* validate serves validate and agree: min(0.9, 0.3, 0.06) / 3 = 0.02, from the agree's rel_rms */
-    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
-    assert_false(need.ztest);
+    /* validate serves validate and agree: RMS min(0.9, 0.3, 0.06) / 3 = 0.02, from the agree's
+     * rel_rms; its z-test takes b from its own comparison's smallest RMS fail, 0.3 (small) */
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
+    assert_false(need.refuse);
     close_rel(need.target, 0.02, 1e-12);
     assert_non_null(strstr(need.gate, "comparisons[2] povray/agree rel_rms fail 0.06"));
-    /* twin serves the twin alone: its z-test */
-    cycles_noise_need_of(&s, cyc, ROLE_TWIN, &need);
-    assert_true(need.ztest);
-    assert_non_null(strstr(need.gate, "comparisons[0] raster/twin z_fail_share"));
-    /* without the agree, the validate's glossy.nrmse 0.3 / 3 = 0.1 sets it */
+    close_rel(need.bias, 0.3, 1e-12);
+    assert_non_null(strstr(need.zgate, "comparisons[1] raster/validate z_fail_share bias 0.3 (its RMS fail)"));
+    /* full size: glossy.nrmse's own full block, 0.15, is the z-test's b */
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 1, &need);
+    close_rel(need.bias, 0.15, 1e-12);
+    /* twin serves the twin alone: a z-test with no RMS gate and no stated bias is refused,
+     * naming the scene line and the fix */
+    cycles_noise_need_of(&s, cyc, ROLE_TWIN, 0, &need);
+    assert_true(need.refuse);
+    assert_non_null(strstr(need.why, "fixture.yaml:4: image.samples auto: comparisons[0] raster/twin z_fail_share is "
+                                     "a z-test with no bias size; write image.samples: {auto: true, bias: B"));
+    /* stated: the scene's bias is its b, and no RMS target */
+    s.samples_bias = 0.05;
+    cycles_noise_need_of(&s, cyc, ROLE_TWIN, 0, &need);
+    assert_false(need.refuse);
+    close_rel(need.bias, 0.05, 1e-12);
+    assert_true(need.target == 0.0);
+    assert_non_null(strstr(need.zgate, "(image.samples bias)"));
+    /* a bias gate in standard errors cannot be decided, stated bias or not */
+    add_gate(&s.comparisons[0], "bias.z_trim1_max", 5.0);
+    cycles_noise_need_of(&s, cyc, ROLE_TWIN, 0, &need);
+    assert_true(need.refuse);
+    assert_non_null(strstr(need.why, "comparisons[0] raster/twin bias.z_trim1_max counts standard errors"));
+    /* without the agree, the validate's glossy.nrmse 0.3 / 3 = 0.1 sets the RMS target */
     s.n_comparisons = 2;
-    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
     close_rel(need.target, 0.1, 1e-12);
-    /* a render no comparison gates by an RMS metric asks nothing */
+    /* a render no comparison gates by an RMS metric or a z-test asks nothing */
     s.comparisons[1].n_thresholds = 0;
-    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, &need);
-    assert_true(need.target == 0.0 && !need.ztest);
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
+    assert_true(need.target == 0.0 && need.bias == 0.0 && !need.refuse);
+}
+
+/* Quantiles from Python's statistics.NormalDist().inv_cdf, a second implementation: z_beta =
+ * Phi^-1(0.9) = 1.2815516; m = 1: Phi^-1(1 - 0.005) = 2.5758293, span 3.8573809; m = 3000:
+ * Phi^-1(1 - 0.01 / 6000) = 4.6491329, span 5.9306845. */
+static void test_ztest_span(void **state)
+{
+    (void)state;
+    close_rel(cycles_ztest_span(1), 3.8573808690935, 1e-9);
+    close_rel(cycles_ztest_span(0), 3.8573808690935, 1e-9); /* fewer than one value counts as one */
+    close_rel(cycles_ztest_span(3000), 5.9306844995521, 1e-9);
+    /* b 0.1 over 3000 values: 0.1 / 5.9306845 = 0.0168615; an RMS target 0.02 is looser, 0.01
+     * tighter */
+    cycles_noise_need need = {.bias = 0.1, .target = 0.02};
+    close_rel(cycles_noise_target(&need, 3000), 0.016861460090745, 1e-9);
+    need.target = 0.01;
+    close_rel(cycles_noise_target(&need, 3000), 0.01, 1e-12);
+    need.target = 0.0;
+    close_rel(cycles_noise_target(&need, 3000), 0.016861460090745, 1e-9);
+    need.bias = 0.0;
+    assert_true(cycles_noise_target(&need, 3000) == 0.0);
 }
 
 static void test_samples_for(void **state)
 {
     (void)state;
-    cycles_noise_need need = {.target = 0.02};
-    /* pilot 16 spp at noise 0.05: 16 (0.05 / 0.02)^2 = 100 */
-    assert_int_equal(cycles_samples_for(0.05, 16, &need), 100);
+    /* pilot 16 spp at noise 0.05, target 0.02: 16 (0.05 / 0.02)^2 = 100 */
+    assert_int_equal(cycles_samples_for(0.05, 16, 0.02), 100);
     /* 0.0501: 16 * 6.275025 = 100.4 -> 101 (rounded up: the target is a bound) */
-    assert_int_equal(cycles_samples_for(0.0501, 16, &need), 101);
+    assert_int_equal(cycles_samples_for(0.0501, 16, 0.02), 101);
+    /* a z-test's target, b 0.1 over 3000 values: 16 (0.2 / 0.0168615)^2 = 2251.07 -> 2252 */
+    assert_int_equal(cycles_samples_for(0.2, 16, 0.016861460090745), 2252);
     /* already quiet enough, or nothing asked: the pilot is the render */
-    assert_int_equal(cycles_samples_for(0.019, 16, &need), 16);
-    need.target = 0.0;
-    assert_int_equal(cycles_samples_for(5.0, 16, &need), 16);
+    assert_int_equal(cycles_samples_for(0.019, 16, 0.02), 16);
+    assert_int_equal(cycles_samples_for(5.0, 16, 0.0), 16);
     /* capped: 16 (1 / 0.02)^2 = 40000 > CYCLES_MAX_SPP */
-    need.target = 0.02;
-    assert_int_equal(cycles_samples_for(1.0, 16, &need), CYCLES_MAX_SPP);
+    assert_int_equal(cycles_samples_for(1.0, 16, 0.02), CYCLES_MAX_SPP);
 }
 
 static void test_exr_noise(void **state)
@@ -123,9 +167,10 @@ static void test_exr_noise(void **state)
     assert_non_null(mkdtemp(dir));
     snprintf(path, sizeof path, "%s/noise.exr", dir);
     assert_int_equal(exr_write(path, W, H, ch, 8, NULL, 0, err, sizeof err), RC_OK);
-    double noise = 0.0;
+    cycles_noise noise = {0};
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_OK);
-    close_rel(noise, sqrt(0.0175) / 2.0, 1e-6);
+    close_rel(noise.nrmse, sqrt(0.0175) / 2.0, 1e-6);
+    assert_int_equal(noise.n_values, 12); /* four interior pixels, three channels */
     /* one seed: no var.* channels -> refused, naming the fix */
     assert_int_equal(exr_write(path, W, H, ch, 3, NULL, 0, err, sizeof err), RC_OK);
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_ERR_RANGE);
@@ -138,6 +183,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_need_of_roles),
+        cmocka_unit_test(test_ztest_span),
         cmocka_unit_test(test_samples_for),
         cmocka_unit_test(test_exr_noise),
     };

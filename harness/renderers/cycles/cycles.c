@@ -1346,17 +1346,25 @@ static int cycles_pass(const renderer_job *j, const cycles_options *o, const cha
     return 0;
 }
 
-/* The log's last line says the samples, the noise reached and the gate's target; the job record
- * reads it (jobs.c). pilot 0: the samples were a number. */
+/* The log's last line says the samples, the noise reached and the gates' target; the job record
+ * reads it (jobs.c). pilot 0: the samples were a number. The gate names the RMS gate and the
+ * z-test gate the target came from. */
 static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int pilot, double pilot_noise,
-                                double reached, const cycles_noise_need *need)
+                                const cycles_noise *reached, const cycles_noise_need *need)
 {
     FILE *f = fopen(j->log, "a");
     if (f == NULL)
         return;
-    fprintf(f, "reflcheck-samples: samples %d noise %.6g target %.6g pilot %d pilot_noise %.6g gate %s\n",
-            o->samples > 0 ? o->samples : j->s->samples, reached, need->target, pilot, pilot_noise,
-            need->gate[0] != '\0' ? need->gate : "none");
+    double target = cycles_noise_target(need, reached->n_values);
+    char z[64] = "";
+    if (need->bias > 0.0)
+        snprintf(z, sizeof z, " z-span %.4g over %ld values", cycles_ztest_span(reached->n_values), reached->n_values);
+    fprintf(f, "reflcheck-samples: samples %d noise %.6g target %.6g pilot %d pilot_noise %.6g gate %s%s%s%s\n",
+            o->samples > 0 ? o->samples : j->s->samples, reached->nrmse, target, pilot, pilot_noise,
+            need->gate[0] != '\0'    ? need->gate
+            : need->zgate[0] != '\0' ? ""
+                                     : "none",
+            need->gate[0] != '\0' && need->zgate[0] != '\0' ? "; " : "", need->zgate, z);
     fclose(f);
 }
 
@@ -1364,11 +1372,8 @@ static void cycles_samples_line(const renderer_job *j, const cycles_options *o, 
 static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const char *job, renderer_result *r,
                                 const cycles_noise_need *need)
 {
-    if (need->ztest) {
-        renderer_fail(r, RUNNER_ERROR,
-                      "%s: image.samples auto: %s is a z-test gate, whose sample count is part of the gate; give "
-                      "image.samples a number",
-                      j->s->path, need->gate);
+    if (need->refuse) {
+        renderer_fail(r, RUNNER_ERROR, "%s", need->why);
         return;
     }
     o->samples = CYCLES_PILOT_SPP;
@@ -1377,13 +1382,13 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
     if (cycles_pass(j, o, job, r) != 0)
         return;
     char err[512];
-    double pilot = 0.0, reached = 0.0;
+    cycles_noise pilot, reached;
     if (cycles_exr_noise(j->exr, &pilot, err, sizeof err) != RC_OK) {
         renderer_fail(r, RUNNER_FAILED, "image.samples auto: %s", err);
         return;
     }
     reached = pilot;
-    int n = cycles_samples_for(pilot, CYCLES_PILOT_SPP, need);
+    int n = cycles_samples_for(pilot.nrmse, CYCLES_PILOT_SPP, cycles_noise_target(need, pilot.n_values));
     if (n > CYCLES_PILOT_SPP) {
         o->samples = n;
         if (cycles_pass(j, o, job, r) != 0)
@@ -1393,7 +1398,7 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
             return;
         }
     }
-    cycles_samples_line(j, o, CYCLES_PILOT_SPP, pilot, reached, need);
+    cycles_samples_line(j, o, CYCLES_PILOT_SPP, pilot.nrmse, &reached, need);
 }
 
 void cycles_render_job(const renderer_job *j, renderer_result *r)
@@ -1426,13 +1431,13 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
     r->wall_s = r->cpu_s = 0.0;
     /* image.samples auto (0) and no --samples: the samples follow from the gates' noise. */
     cycles_noise_need need;
-    cycles_noise_need_of(j->s, registry_find("cycles"), o.role, &need);
+    cycles_noise_need_of(j->s, registry_find("cycles"), o.role, !j->s->small.active, &need);
     if (o.samples == 0 && j->s->samples == 0) {
         cycles_auto_samples(j, &o, job, r, &need);
         return;
     }
-    double reached = NAN;
+    cycles_noise reached;
     char err2[512];
     if (cycles_pass(j, &o, job, r) == 0 && cycles_exr_noise(j->exr, &reached, err2, sizeof err2) == RC_OK)
-        cycles_samples_line(j, &o, 0, 0.0, reached, &need);
+        cycles_samples_line(j, &o, 0, 0.0, &reached, &need);
 }

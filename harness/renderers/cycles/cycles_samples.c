@@ -8,6 +8,7 @@
 
 #include "exr.h"
 #include "metrics.h"
+#include "scene_file.h"
 #include "status.h"
 #include "../registry.h"
 
@@ -24,7 +25,11 @@ static int cycles_rms_metric(const char *metric)
     return strcmp(m, "nrmse") == 0 || strcmp(m, "nrmse_trim1") == 0 || strcmp(m, "rel_rms") == 0;
 }
 
-static int cycles_ztest_metric(const char *metric) { return strncmp(cycles_metric_base(metric), "z_", 2) == 0; }
+/* A per-pixel z-test of any region ("z_fail_share", "crease.z_fail_share"). */
+static int cycles_ztest_metric(const char *metric) { return strcmp(cycles_metric_base(metric), "z_fail_share") == 0; }
+
+/* A bias in standard errors ("bias.z_max", "bias.z_trim1_max"). */
+static int cycles_bias_metric(const char *metric) { return strncmp(metric, "bias.z_", 7) == 0; }
 
 /* A twin render serves the twin comparisons; the validate render serves validate and agree. */
 static int cycles_serves(const comparison *c, int row, comparison_role role)
@@ -34,43 +39,109 @@ static int cycles_serves(const comparison *c, int row, comparison_role role)
     return role == ROLE_TWIN ? c->role == ROLE_TWIN : c->role != ROLE_TWIN;
 }
 
-void cycles_noise_need_of(const scene *s, int row, comparison_role role, cycles_noise_need *out)
+/* "comparisons[2] povray/agree": the comparison as the scene lists it, from this render's side. */
+static void cycles_cmp_name(const comparison *c, int i, int row, char *out, size_t len)
 {
     static const char *const roles[] = {"twin", "validate", "agree"};
+    const char *other = registry_name(c->reference == row ? c->test : c->reference);
+    snprintf(out, len, "comparisons[%d] %s/%s", i, other ? other : "?", roles[c->role]);
+}
+
+/* The comparison's smallest RMS-gate fail at the size, 0 = none. */
+static double cycles_rms_fail(const comparison *c, int full)
+{
+    double best = 0.0;
+    for (int k = 0; k < c->n_thresholds; k++) {
+        threshold_gate g;
+        threshold_gate_at(&c->thresholds[k], full, &g);
+        if (cycles_rms_metric(c->thresholds[k].metric) && g.fail > 0.0 && (best == 0.0 || g.fail < best))
+            best = g.fail;
+    }
+    return best;
+}
+
+/* One z-test gate: its b from the comparison's RMS gate, else the scene's stated bias; the
+ * smallest b over the gates wins. Neither: refused, naming the scene line and the fix. */
+static void cycles_need_ztest(const scene *s, const comparison *c, const char *name, const char *metric, int full,
+                              cycles_noise_need *out)
+{
+    double rms = cycles_rms_fail(c, full), b = rms > 0.0 ? rms : s->samples_bias;
+    if (!(b > 0.0)) {
+        if (!out->refuse)
+            snprintf(out->why, sizeof out->why,
+                     "%s:%d: image.samples auto: %s %s is a z-test with no bias size; write image.samples: "
+                     "{auto: true, bias: B, why: \"...\"} or a number",
+                     s->path, s->samples_line, name, metric);
+        out->refuse = 1;
+        return;
+    }
+    if (out->bias == 0.0 || b < out->bias) {
+        out->bias = b;
+        snprintf(out->zgate, sizeof out->zgate, "%s %s bias %g (%s)", name, metric, b,
+                 rms > 0.0 ? "its RMS fail" : "image.samples bias");
+    }
+}
+
+void cycles_noise_need_of(const scene *s, int row, comparison_role role, int full, cycles_noise_need *out)
+{
     memset(out, 0, sizeof *out);
     for (int i = 0; i < s->n_comparisons; i++) {
         const comparison *c = &s->comparisons[i];
         if (!cycles_serves(c, row, role))
             continue;
+        char name[64];
+        cycles_cmp_name(c, i, row, name, sizeof name);
         for (int k = 0; k < c->n_thresholds; k++) {
             const threshold *t = &c->thresholds[k];
-            const char *other = registry_name(c->reference == row ? c->test : c->reference);
-            if (cycles_ztest_metric(t->metric) && !out->ztest) {
-                out->ztest = 1;
-                snprintf(out->gate, sizeof out->gate, "comparisons[%d] %s/%s %s", i, other ? other : "?",
-                         roles[c->role], t->metric);
-            }
-            double target = t->fail / CYCLES_NOISE_MARGIN;
-            if (out->ztest || !cycles_rms_metric(t->metric) || !(target > 0.0))
-                continue;
-            if (out->target == 0.0 || target < out->target) {
-                out->target = target;
-                snprintf(out->gate, sizeof out->gate, "comparisons[%d] %s/%s %s fail %g", i, other ? other : "?",
-                         roles[c->role], t->metric, t->fail);
+            threshold_gate g;
+            threshold_gate_at(t, full, &g);
+            if (cycles_bias_metric(t->metric)) {
+                if (!out->refuse)
+                    snprintf(out->why, sizeof out->why,
+                             "%s:%d: image.samples auto: %s %s counts standard errors, which grow as "
+                             "sqrt(samples) for a real bias, so its level holds at one count; give image.samples "
+                             "a number",
+                             s->path, s->samples_line, name, t->metric);
+                out->refuse = 1;
+            } else if (cycles_ztest_metric(t->metric)) {
+                cycles_need_ztest(s, c, name, t->metric, full, out);
+            } else if (cycles_rms_metric(t->metric) && g.fail > 0.0) {
+                double target = g.fail / CYCLES_NOISE_MARGIN;
+                if (out->target == 0.0 || target < out->target) {
+                    out->target = target;
+                    snprintf(out->gate, sizeof out->gate, "%s %s fail %g", name, t->metric, g.fail);
+                }
             }
         }
     }
 }
 
-int cycles_samples_for(double noise, int n_pilot, const cycles_noise_need *need)
+double cycles_ztest_span(long n_values)
 {
-    if (!(need->target > 0.0) || !(noise > need->target))
+    double m = n_values > 1 ? (double)n_values : 1.0;
+    return -metrics_norm_quantile(0.5 * CYCLES_ZTEST_ALPHA / m) - metrics_norm_quantile(CYCLES_ZTEST_BETA);
+}
+
+double cycles_noise_target(const cycles_noise_need *need, long n_values)
+{
+    double t = need->target;
+    if (need->bias > 0.0) {
+        double z = need->bias / cycles_ztest_span(n_values);
+        if (t == 0.0 || z < t)
+            t = z;
+    }
+    return t;
+}
+
+int cycles_samples_for(double noise, int n_pilot, double target)
+{
+    if (!(target > 0.0) || !(noise > target))
         return n_pilot;
-    double n = ceil(n_pilot * (noise / need->target) * (noise / need->target));
+    double n = ceil(n_pilot * (noise / target) * (noise / target));
     return n > CYCLES_MAX_SPP ? CYCLES_MAX_SPP : (int)n;
 }
 
-rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_t errlen)
+rc_status cycles_exr_noise(const char *exr_path, cycles_noise *out, char *err, size_t errlen)
 {
     exr_image img;
     rc_status st = exr_read(exr_path, &img, err, errlen);
@@ -110,6 +181,7 @@ rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_
                        !ok ? "no var.R/G/B channels" : "no interior pixel of non-zero mean");
         return RC_ERR_RANGE;
     }
-    *noise = sqrt(sv / (double)n) / (sx / (double)n);
+    out->nrmse = sqrt(sv / (double)n) / (sx / (double)n);
+    out->n_values = n;
     return RC_OK;
 }

@@ -2,22 +2,31 @@
  *
  * Usage (cycles_render_job does this when the scene says `image.samples: auto`):
  *   cycles_noise_need need;
- *   cycles_noise_need_of(&scn, registry_find("cycles"), ROLE_VALIDATE, &need);
- *   need.ztest: a z-test gate judges the render -> refused (its sample count is the gate's)
+ *   cycles_noise_need_of(&scn, registry_find("cycles"), ROLE_VALIDATE, 1, &need);   1: full size
+ *   need.refuse: the rule cannot decide (need.why says which gate and the fix) -> refused
  *   render CYCLES_PILOT_SPP samples, then cycles_exr_noise("out.exr", &noise, err, sizeof err);
- *   int n = cycles_samples_for(noise, CYCLES_PILOT_SPP, &need);   n > pilot: render n samples
+ *   double target = cycles_noise_target(&need, noise.n_values);
+ *   int n = cycles_samples_for(noise.nrmse, CYCLES_PILOT_SPP, target);   n > pilot: render n
  *
- * The rule. An RMS-error gate (nrmse, nrmse_trim1, rel_rms, of any region) of a comparison
- * whose reference or test is this render: the reference's own noise adds to the figure in
- * quadrature, so a noise of fail / CYCLES_NOISE_MARGIN moves a figure at the gate by at most
- * sqrt(1 + 1/9) - 1 = 5.4 %. The target is the smallest such fail / 3 over the render's gates;
- * the samples follow from a pilot's noise by the Monte Carlo rate (noise ~ samples^-1/2; PMJ's
- * stratification only makes it fall faster, so the count errs high). A job with no RMS gate
- * (test_nonfinite, coverage, crease shares: no noise scale) renders the pilot alone.
- * A z-test gate (z_fail_share, bias.z_*) sets no noise scale: its false alarms stay at alpha
- * whatever the noise, its power (the smallest error it flags, z_crit times the noise) is what
- * the samples buy, so its sample count is part of the gate: a scene keeps image.samples a
- * number there.
+ * The rule (docs/samples.md derives it), over the gates of the comparisons whose
+ * reference or test is this render, at the size rendered (threshold_gate_at):
+ * - An RMS-error gate (nrmse, nrmse_trim1, rel_rms, of any region): the reference's own noise
+ *   adds to the figure in quadrature, so a noise of fail / CYCLES_NOISE_MARGIN moves a figure
+ *   at the gate by at most sqrt(1 + 1/9) - 1 = 5.4 %. Target: fail / 3.
+ * - A per-pixel z-test gate (z_fail_share, of any region): its false alarms stay at alpha
+ *   whatever the noise; its power is what the samples buy. A pixel off by b (a fraction of the
+ *   surface's mean radiance) at the surface's RMS noise sigma is flagged with probability
+ *   1 - beta when b / sigma >= z_crit + z_beta, z_crit = Phi^-1(1 - alpha / 2m) the first Holm
+ *   step over the m tested values (Bonferroni; Holm's later steps only flag more), z_beta =
+ *   Phi^-1(1 - beta). Target: b / (z_crit + z_beta). b is the comparison's own smallest RMS
+ *   fail (an error that fails it spread evenly must also show per pixel), else the scene's
+ *   image.samples {auto: true, bias: b}; neither: refused.
+ * - A bias gate in standard errors (bias.z_max, bias.z_trim1_max): a real residual bias's
+ *   figure grows as sqrt(samples), so its fail level was set at its sample count: refused.
+ * The target is the smallest over the gates; the samples follow from a pilot's noise by the
+ * Monte Carlo rate (noise ~ samples^-1/2; PMJ's stratification only makes it fall faster, so
+ * the count errs high). A job with no such gate (test_nonfinite, coverage, crease shares: no
+ * noise scale) renders the pilot alone.
  * Noise (cycles_exr_noise): sqrt(mean of var.R/G/B) / mean of R/G/B over the interior pixels
  * (metrics_classify on the image's coverage and object: the surface region, without edges,
  * whose variance is their coverage's, or object boundaries), the noise NRMSE of the seeds'
@@ -36,27 +45,50 @@
 #define CYCLES_PILOT_SPP    16
 /* fail / 3: the noise moves a figure at the gate by at most 5.4 % (above). */
 #define CYCLES_NOISE_MARGIN 3.0
+/* The z-test's family-wise false-alarm rate: compare.c's (Holm, alpha 0.01). */
+#define CYCLES_ZTEST_ALPHA  0.01
+/* The z-test's miss rate at the stated bias: 1 in 10 nightlies, the usual design power of 90 %;
+ * a bias at b is seen in 99.9 % of three nightlies running. */
+#define CYCLES_ZTEST_BETA   0.10
 /* The most samples the rule asks (Cycles' own limit is far above; a gate asking more than this
  * at a scene's size is a gate to look at, and the record says the target was not reached). */
 #define CYCLES_MAX_SPP      4096
 
 typedef struct {
-    double target;  /* the noise NRMSE the render must reach; 0 = no RMS gate asks */
-    char gate[128]; /* which gate sets target (or the z-test gate), for the record */
-    int ztest;      /* nonzero: a z-test gate judges this render */
+    double target;   /* the noise NRMSE the RMS gates ask; 0 = no RMS gate asks */
+    char gate[128];  /* which gate sets target, for the record */
+    double bias;     /* the smallest z-test's bias b; 0 = no z-test gate */
+    char zgate[160]; /* which z-test gate, and where its b comes from */
+    int refuse;      /* nonzero: auto cannot decide this render; why says which gate and the fix */
+    char why[256];
 } cycles_noise_need;
 
+/* The noise of a collected Cycles image. */
+typedef struct {
+    double nrmse;  /* the noise NRMSE of the seeds' mean (above) */
+    long n_values; /* interior pixels times 3: the values a surface z-test tests */
+} cycles_noise;
+
 /* The need of the render of `role` (twin: the twin comparisons; validate and agree: the
- * others) of the renderer-table row `row`, from the scene's comparisons naming that row. */
-void cycles_noise_need_of(const scene *s, int row, comparison_role role, cycles_noise_need *out);
+ * others) of the renderer-table row `row`, from the scene's comparisons naming that row, at the
+ * small (full 0) or full size's gates. */
+void cycles_noise_need_of(const scene *s, int row, comparison_role role, int full, cycles_noise_need *out);
+
+/* z_crit + z_beta: the standard errors between no bias and the bias a z-test over n_values
+ * values catches with probability 1 - CYCLES_ZTEST_BETA (n_values < 1 counts as 1). */
+double cycles_ztest_span(long n_values);
+
+/* The noise NRMSE the render must reach: min(need->target, need->bias / cycles_ztest_span),
+ * over what need holds; 0 = nothing asks. */
+double cycles_noise_target(const cycles_noise_need *need, long n_values);
 
 /* Samples per seed for a render whose pilot of n_pilot samples measured `noise`: n_pilot when
- * nothing asks for less noise or the pilot reaches it, else n_pilot (noise / target)^2 rounded
+ * nothing asks (target 0) or the pilot reaches target, else n_pilot (noise / target)^2 rounded
  * up, at most CYCLES_MAX_SPP. */
-int cycles_samples_for(double noise, int n_pilot, const cycles_noise_need *need);
+int cycles_samples_for(double noise, int n_pilot, double target);
 
-/* The noise NRMSE of a collected Cycles image (above); RC_ERR_RANGE when it has no var.*
- * channels (one seed) or no interior pixel of non-zero mean. */
-rc_status cycles_exr_noise(const char *exr_path, double *noise, char *err, size_t errlen);
+/* The noise of a collected Cycles image (above); RC_ERR_RANGE when it has no var.* channels (one
+ * seed) or no interior pixel of non-zero mean. */
+rc_status cycles_exr_noise(const char *exr_path, cycles_noise *out, char *err, size_t errlen);
 
 #endif
