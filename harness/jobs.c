@@ -361,8 +361,10 @@ static int job_slurm_id(const job_spec *j, char *buf, size_t len)
 
 /* A stochastic render's samples and the noise it reached, from its log's last
  * "reflcheck-samples:" line (harness/renderers/cycles/cycles_samples.h): "samples" becomes the
- * count rendered (image.samples auto picks it) and "noise" says the noise NRMSE reached, the
- * target its gates set (0: none) and the gate. Returns the samples, or `samples` without a line. */
+ * count rendered (image.samples auto picks it) and "noise" says the noise NRMSE reached and the
+ * target its RMS gates set (0: none), the per-value noise quantile reached (pixel_q) and the
+ * target its z-tests set (z_target, 0: none), and the gates. Lines from before the z-test rule
+ * have no pixel_q. Returns the samples, or `samples` without a line. */
 static int job_samples_from_log(const char *log, int samples, cJSON *o)
 {
     FILE *f = log[0] != '\0' ? fopen(log, "r") : NULL;
@@ -373,22 +375,37 @@ static int job_samples_from_log(const char *log, int samples, cJSON *o)
         if (strncmp(line, "reflcheck-samples: ", 19) == 0)
             snprintf(last, sizeof last, "%s", line);
     fclose(f);
-    int n = 0, pilot = 0, at = 0;
-    double noise = 0.0, target = 0.0, pilot_noise = 0.0;
-    if (sscanf(last, "reflcheck-samples: samples %d noise %lf target %lf pilot %d pilot_noise %lf gate %n", &n, &noise,
-               &target, &pilot, &pilot_noise, &at) < 5 ||
-        at == 0 || n < 1)
+    int n = 0, pilot = 0, at = 0, with_z = 1;
+    double noise = 0.0, target = 0.0, pilot_noise = 0.0, pilot_q = 0.0, pixel_q = 0.0, z_target = 0.0;
+    if (sscanf(last,
+               "reflcheck-samples: samples %d noise %lf target %lf pilot %d pilot_noise %lf pilot_pixel_q %lf "
+               "pixel_q %lf ztarget %lf gate %n",
+               &n, &noise, &target, &pilot, &pilot_noise, &pilot_q, &pixel_q, &z_target, &at) < 8 ||
+        at == 0) {
+        with_z = 0;
+        at = 0;
+        if (sscanf(last, "reflcheck-samples: samples %d noise %lf target %lf pilot %d pilot_noise %lf gate %n", &n,
+                   &noise, &target, &pilot, &pilot_noise, &at) < 5)
+            at = 0;
+    }
+    if (at == 0 || n < 1)
         return samples;
     last[strcspn(last, "\n")] = '\0';
     cJSON *x = cJSON_AddObjectToObject(o, "noise");
     cJSON_AddNumberToObject(x, "nrmse", noise);
     cJSON_AddNumberToObject(x, "target", target);
-    cJSON_AddBoolToObject(x, "reached", target <= 0.0 || noise <= target);
+    if (with_z) {
+        cJSON_AddNumberToObject(x, "pixel_q", pixel_q);
+        cJSON_AddNumberToObject(x, "z_target", z_target);
+    }
+    cJSON_AddBoolToObject(x, "reached", (target <= 0.0 || noise <= target) && (z_target <= 0.0 || pixel_q <= z_target));
     cJSON_AddStringToObject(x, "gate", last + at);
     cJSON_AddStringToObject(x, "samples_from", pilot > 0 ? "auto" : "image.samples");
     if (pilot > 0) {
         cJSON_AddNumberToObject(x, "pilot_samples", pilot);
         cJSON_AddNumberToObject(x, "pilot_nrmse", pilot_noise);
+        if (with_z)
+            cJSON_AddNumberToObject(x, "pilot_pixel_q", pilot_q);
     }
     return n;
 }

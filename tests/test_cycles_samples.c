@@ -87,11 +87,22 @@ static void test_need_of_roles(void **state)
     close_rel(need.bias, 0.05, 1e-12);
     assert_true(need.target == 0.0);
     assert_non_null(strstr(need.zgate, "(image.samples bias)"));
+    /* and the stated bias wins over a comparison's RMS fail: the validate's z-test takes 0.05 */
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
+    close_rel(need.bias, 0.05, 1e-12);
+    assert_non_null(strstr(need.zgate, "comparisons[1] raster/validate z_fail_share bias 0.05 (image.samples bias)"));
     /* a bias gate in standard errors cannot be decided, stated bias or not */
     add_gate(&s.comparisons[0], "bias.z_trim1_max", 5.0);
     cycles_noise_need_of(&s, cyc, ROLE_TWIN, 0, &need);
     assert_true(need.refuse);
     assert_non_null(strstr(need.why, "comparisons[0] raster/twin bias.z_trim1_max counts standard errors"));
+    /* an nrmse_trim1 gate asks its own target, of the trimmed noise: 0.03 / 3 = 0.01, naming it;
+     * the whole noise's target stays the rel_rms's 0.02 */
+    add_gate(&s.comparisons[2], "nrmse_trim1", 0.03);
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
+    close_rel(need.target_trim1, 0.01, 1e-12);
+    close_rel(need.target, 0.02, 1e-12);
+    assert_non_null(strstr(need.gate_trim1, "comparisons[2] povray/agree nrmse_trim1 fail 0.03"));
     /* without the agree, the validate's glossy.nrmse 0.3 / 3 = 0.1 sets the RMS target */
     s.n_comparisons = 2;
     cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
@@ -111,16 +122,11 @@ static void test_ztest_span(void **state)
     close_rel(cycles_ztest_span(1), 3.8573808690935, 1e-9);
     close_rel(cycles_ztest_span(0), 3.8573808690935, 1e-9); /* fewer than one value counts as one */
     close_rel(cycles_ztest_span(3000), 5.9306844995521, 1e-9);
-    /* b 0.1 over 3000 values: 0.1 / 5.9306845 = 0.0168615; an RMS target 0.02 is looser, 0.01
-     * tighter */
+    /* b 0.1 over 3000 values: 0.1 / 5.9306845 = 0.0168615; no z-test: 0 */
     cycles_noise_need need = {.bias = 0.1, .target = 0.02};
-    close_rel(cycles_noise_target(&need, 3000), 0.016861460090745, 1e-9);
-    need.target = 0.01;
-    close_rel(cycles_noise_target(&need, 3000), 0.01, 1e-12);
-    need.target = 0.0;
-    close_rel(cycles_noise_target(&need, 3000), 0.016861460090745, 1e-9);
+    close_rel(cycles_ztest_target(&need, 3000), 0.016861460090745, 1e-9);
     need.bias = 0.0;
-    assert_true(cycles_noise_target(&need, 3000) == 0.0);
+    assert_true(cycles_ztest_target(&need, 3000) == 0.0);
 }
 
 static void test_samples_for(void **state)
@@ -139,6 +145,27 @@ static void test_samples_for(void **state)
     assert_int_equal(cycles_samples_for(1.0, 16, 0.02), CYCLES_MAX_SPP);
 }
 
+/* Each noise against its own target, the larger count wins. Pilot: nrmse 0.05, pixel_q 0.2 over
+ * 3000 values; RMS target 0.02 -> 100 (above); z-test b 0.1 -> 2252 (above). */
+static void test_samples_need(void **state)
+{
+    (void)state;
+    cycles_noise pilot = {.nrmse = 0.05, .pixel_q = 0.2, .n_values = 3000};
+    cycles_noise_need need = {.target = 0.02, .bias = 0.1};
+    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 2252);
+    need.bias = 0.0; /* no z-test: the RMS gate's 100 */
+    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 100);
+    need.bias = 0.1; /* a quiet pixel_q 0.01 <= 0.0168615: the RMS gate's 100 again */
+    pilot.pixel_q = 0.01;
+    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 100);
+    need.target_trim1 = 0.004; /* trim1 0.02 against 0.004: 16 * 25 = 400 */
+    pilot.trim1 = 0.02;
+    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 400);
+    need.target_trim1 = 0.0;
+    need.target = 0.0; /* and nothing else asks: the pilot */
+    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 16);
+}
+
 static void test_exr_noise(void **state)
 {
     (void)state;
@@ -147,7 +174,9 @@ static void test_exr_noise(void **state)
      * object (rows 2-3 an object boundary). Interior: x 0..1, y 0..1, four pixels; every other
      * pixel holds 500 with variance 50, which would show. Interior R, G, B = 1, 2, 3, var 0.01,
      * but (1, 1): 2, 2, 2, var 0.04 -> values 3 * 6 + 6 = 24 over 12, mean 2; variances
-     * 9 * 0.01 + 3 * 0.04 = 0.21, mean 0.0175; noise = sqrt(0.0175) / 2 = 0.0661438 */
+     * 9 * 0.01 + 3 * 0.04 = 0.21, mean 0.0175; noise = sqrt(0.0175) / 2 = 0.0661438. Standard
+     * errors: nine 0.1, three 0.2; the 0.9 quantile is the value of rank ceil(10.8) = 11, 0.2,
+     * so pixel_q = 0.2 / 2 = 0.1 */
     enum { W = 6, H = 4, N = W * H };
     float r[N], g[N], b[N], v[N], cov[N], obj[N];
     for (int p = 0; p < N; p++) {
@@ -170,6 +199,10 @@ static void test_exr_noise(void **state)
     cycles_noise noise = {0};
     assert_int_equal(cycles_exr_noise(path, &noise, err, sizeof err), RC_OK);
     close_rel(noise.nrmse, sqrt(0.0175) / 2.0, 1e-6);
+    close_rel(noise.pixel_q, 0.1, 1e-6);
+    /* trim1 drops ceil(0.01 * 4) = 1 pixel, the one of largest variance (1, 1): three pixels of
+     * values 1, 2, 3 (mean 2) and variances 0.01: sqrt(0.09 / 9) / 2 = 0.05 */
+    close_rel(noise.trim1, 0.05, 1e-6);
     assert_int_equal(noise.n_values, 12); /* four interior pixels, three channels */
     /* one seed: no var.* channels -> refused, naming the fix */
     assert_int_equal(exr_write(path, W, H, ch, 3, NULL, 0, err, sizeof err), RC_OK);
@@ -182,10 +215,8 @@ static void test_exr_noise(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_need_of_roles),
-        cmocka_unit_test(test_ztest_span),
-        cmocka_unit_test(test_samples_for),
-        cmocka_unit_test(test_exr_noise),
+        cmocka_unit_test(test_need_of_roles), cmocka_unit_test(test_ztest_span), cmocka_unit_test(test_samples_for),
+        cmocka_unit_test(test_samples_need),  cmocka_unit_test(test_exr_noise),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

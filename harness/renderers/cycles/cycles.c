@@ -1346,25 +1346,35 @@ static int cycles_pass(const renderer_job *j, const cycles_options *o, const cha
     return 0;
 }
 
-/* The log's last line says the samples, the noise reached and the gates' target; the job record
- * reads it (jobs.c). pilot 0: the samples were a number. The gate names the RMS gate and the
- * z-test gate the target came from. */
-static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int pilot, double pilot_noise,
-                                const cycles_noise *reached, const cycles_noise_need *need)
+/* The log's last line says the samples, the noise reached against the RMS gates' target (nrmse,
+ * or trim1 where an nrmse_trim1 gate asks relatively less of it), the per-value noise against
+ * the z-test's, and the gates they came from; the job record reads it (jobs.c). pilot 0: the
+ * samples were a number. */
+static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int pilot,
+                                const cycles_noise *pilot_noise, const cycles_noise *reached,
+                                const cycles_noise_need *need)
 {
     FILE *f = fopen(j->log, "a");
     if (f == NULL)
         return;
-    double target = cycles_noise_target(need, reached->n_values);
+    /* The binding RMS kind: the larger noise / target. */
+    int trim = need->target_trim1 > 0.0 &&
+               (need->target == 0.0 || reached->trim1 / need->target_trim1 > reached->nrmse / need->target);
+    const char *rms = trim ? need->gate_trim1 : need->gate;
     char z[64] = "";
     if (need->bias > 0.0)
-        snprintf(z, sizeof z, " z-span %.4g over %ld values", cycles_ztest_span(reached->n_values), reached->n_values);
-    fprintf(f, "reflcheck-samples: samples %d noise %.6g target %.6g pilot %d pilot_noise %.6g gate %s%s%s%s\n",
-            o->samples > 0 ? o->samples : j->s->samples, reached->nrmse, target, pilot, pilot_noise,
-            need->gate[0] != '\0'    ? need->gate
+        snprintf(z, sizeof z, " z_crit+z_beta %.4g over %ld values", cycles_ztest_span(reached->n_values),
+                 reached->n_values);
+    fprintf(f,
+            "reflcheck-samples: samples %d noise %.6g target %.6g pilot %d pilot_noise %.6g pilot_pixel_q %.6g "
+            "pixel_q %.6g ztarget %.6g gate %s%s%s%s\n",
+            o->samples > 0 ? o->samples : j->s->samples, trim ? reached->trim1 : reached->nrmse,
+            trim ? need->target_trim1 : need->target, pilot, trim ? pilot_noise->trim1 : pilot_noise->nrmse,
+            pilot_noise->pixel_q, reached->pixel_q, cycles_ztest_target(need, reached->n_values),
+            rms[0] != '\0'           ? rms
             : need->zgate[0] != '\0' ? ""
-                                     : "none",
-            need->gate[0] != '\0' && need->zgate[0] != '\0' ? "; " : "", need->zgate, z);
+                                      : "none",
+            rms[0] != '\0' && need->zgate[0] != '\0' ? "; " : "", need->zgate, z);
     fclose(f);
 }
 
@@ -1388,7 +1398,7 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
         return;
     }
     reached = pilot;
-    int n = cycles_samples_for(pilot.nrmse, CYCLES_PILOT_SPP, cycles_noise_target(need, pilot.n_values));
+    int n = cycles_samples_need(&pilot, CYCLES_PILOT_SPP, need);
     if (n > CYCLES_PILOT_SPP) {
         o->samples = n;
         if (cycles_pass(j, o, job, r) != 0)
@@ -1398,7 +1408,7 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
             return;
         }
     }
-    cycles_samples_line(j, o, CYCLES_PILOT_SPP, pilot.nrmse, &reached, need);
+    cycles_samples_line(j, o, CYCLES_PILOT_SPP, &pilot, &reached, need);
 }
 
 void cycles_render_job(const renderer_job *j, renderer_result *r)
@@ -1439,5 +1449,5 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
     cycles_noise reached;
     char err2[512];
     if (cycles_pass(j, &o, job, r) == 0 && cycles_exr_noise(j->exr, &reached, err2, sizeof err2) == RC_OK)
-        cycles_samples_line(j, &o, 0, 0.0, &reached, &need);
+        cycles_samples_line(j, &o, 0, &(cycles_noise){0}, &reached, &need);
 }
