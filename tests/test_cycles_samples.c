@@ -145,25 +145,33 @@ static void test_samples_for(void **state)
     assert_int_equal(cycles_samples_for(1.0, 16, 0.02), CYCLES_MAX_SPP);
 }
 
-/* Each noise against its own target, the larger count wins. Pilot: nrmse 0.05, pixel_q 0.2 over
- * 3000 values; RMS target 0.02 -> 100 (above); z-test b 0.1 -> 2252 (above). */
+/* Each noise against its own target, the largest count wins, rounded up to a power of two per
+ * position. Pilot 16 spp: nrmse 0.05, pixel_q 0.2 over 3000 values; RMS target 0.02 -> 100
+ * (above) -> 128; z-test b 0.1 -> 2252 (above) -> 4096. */
 static void test_samples_need(void **state)
 {
     (void)state;
     cycles_noise pilot = {.nrmse = 0.05, .pixel_q = 0.2, .n_values = 3000};
     cycles_noise_need need = {.target = 0.02, .bias = 0.1};
-    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 2252);
-    need.bias = 0.0; /* no z-test: the RMS gate's 100 */
-    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 100);
-    need.bias = 0.1; /* a quiet pixel_q 0.01 <= 0.0168615: the RMS gate's 100 again */
+    assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 4096);
+    need.bias = 0.0; /* no z-test: the RMS gate's 100 -> 128 */
+    assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 128);
+    /* a twin's 3 x 3 positions: 100 / 9 = 11.1 per position -> 16 -> 144 */
+    assert_int_equal(cycles_samples_need(&pilot, 18, 9, &need), 144);
+    need.bias = 0.1; /* a quiet pixel_q 0.01 <= 0.0168615: the RMS gate's 128 again */
     pilot.pixel_q = 0.01;
-    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 100);
-    need.target_trim1 = 0.004; /* trim1 0.02 against 0.004: 16 * 25 = 400 */
+    assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 128);
+    need.target_trim1 = 0.004; /* trim1 0.02 against 0.004: 16 * 25 = 400 -> 512 */
     pilot.trim1 = 0.02;
-    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 400);
+    assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 512);
     need.target_trim1 = 0.0;
     need.target = 0.0; /* and nothing else asks: the pilot */
-    assert_int_equal(cycles_samples_need(&pilot, 16, &need), 16);
+    assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 16);
+    /* the pilot: two per position, at least 16 */
+    assert_int_equal(cycles_pilot_samples(1), 16);
+    assert_int_equal(cycles_pilot_samples(4), 16);
+    assert_int_equal(cycles_pilot_samples(16), 32);
+    assert_int_equal(cycles_pilot_samples(9), 18);
 }
 
 static void test_exr_noise(void **state)

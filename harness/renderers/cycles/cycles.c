@@ -1373,7 +1373,7 @@ static void cycles_samples_line(const renderer_job *j, const cycles_options *o, 
             pilot_noise->pixel_q, reached->pixel_q, cycles_ztest_target(need, reached->n_values),
             rms[0] != '\0'           ? rms
             : need->zgate[0] != '\0' ? ""
-                                      : "none",
+                                     : "none",
             rms[0] != '\0' && need->zgate[0] != '\0' ? "; " : "", need->zgate, z);
     fclose(f);
 }
@@ -1386,7 +1386,9 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
         renderer_fail(r, RUNNER_ERROR, "%s", need->why);
         return;
     }
-    o->samples = CYCLES_PILOT_SPP;
+    int positions = o->supersample > 1 ? o->supersample * o->supersample : 1;
+    int n_pilot = cycles_pilot_samples(positions);
+    o->samples = n_pilot;
     if (o->n_seeds < 2)
         o->n_seeds = 2; /* the noise is the seeds' spread */
     if (cycles_pass(j, o, job, r) != 0)
@@ -1398,8 +1400,8 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
         return;
     }
     reached = pilot;
-    int n = cycles_samples_need(&pilot, CYCLES_PILOT_SPP, need);
-    if (n > CYCLES_PILOT_SPP) {
+    int n = cycles_samples_need(&pilot, n_pilot, positions, need);
+    if (n > n_pilot) {
         o->samples = n;
         if (cycles_pass(j, o, job, r) != 0)
             return;
@@ -1408,7 +1410,7 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
             return;
         }
     }
-    cycles_samples_line(j, o, CYCLES_PILOT_SPP, &pilot, &reached, need);
+    cycles_samples_line(j, o, n_pilot, &pilot, &reached, need);
 }
 
 void cycles_render_job(const renderer_job *j, renderer_result *r)

@@ -143,13 +143,30 @@ int cycles_samples_for(double noise, int n_pilot, double target)
     return n > CYCLES_MAX_SPP ? CYCLES_MAX_SPP : (int)n;
 }
 
-int cycles_samples_need(const cycles_noise *pilot, int n_pilot, const cycles_noise_need *need)
+int cycles_pilot_samples(int positions)
+{
+    int p = 2 * (positions > 1 ? positions : 1);
+    return p > CYCLES_PILOT_SPP ? p : CYCLES_PILOT_SPP;
+}
+
+/* The count as Cycles renders it best: per position, a power of two (PMJ's strata are whole
+ * there); at most CYCLES_MAX_SPP unless one per position is already more. */
+static int cycles_samples_round(int n, int positions)
+{
+    int k = positions > 1 ? positions : 1, per = 1;
+    while (per < (n + k - 1) / k && per * k < CYCLES_MAX_SPP)
+        per *= 2;
+    return per * k;
+}
+
+int cycles_samples_need(const cycles_noise *pilot, int n_pilot, int positions, const cycles_noise_need *need)
 {
     int a = cycles_samples_for(pilot->nrmse, n_pilot, need->target);
     int t = cycles_samples_for(pilot->trim1, n_pilot, need->target_trim1);
     int b = cycles_samples_for(pilot->pixel_q, n_pilot, cycles_ztest_target(need, pilot->n_values));
     a = a > t ? a : t;
-    return a > b ? a : b;
+    a = a > b ? a : b;
+    return a > n_pilot ? cycles_samples_round(a, positions) : n_pilot;
 }
 
 static int cycles_double_asc(const void *a, const void *b)

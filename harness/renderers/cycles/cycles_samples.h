@@ -100,9 +100,18 @@ double cycles_ztest_target(const cycles_noise_need *need, long n_values);
  * up, at most CYCLES_MAX_SPP. */
 int cycles_samples_for(double noise, int n_pilot, double target);
 
-/* The largest of cycles_samples_for's counts for the pilot's nrmse against need->target, its
- * trim1 against need->target_trim1 and its pixel_q against cycles_ztest_target. */
-int cycles_samples_need(const cycles_noise *pilot, int n_pilot, const cycles_noise_need *need);
+/* The samples of a pilot that measures what more samples do: two per sample position (positions:
+ * k^2 for a twin's k x k model positions, 1 for a pixel integral), at least CYCLES_PILOT_SPP.
+ * One sample per position has no strata: its noise falls far faster than the Monte Carlo rate
+ * from there (real_spider's twin, k = 4: pixel_q 0.12 at 16 spp, 9e-4 at 32). */
+int cycles_pilot_samples(int positions);
+
+/* The count to render after a pilot of n_pilot: the largest of cycles_samples_for's counts for
+ * its nrmse against need->target, its trim1 against need->target_trim1 and its pixel_q against
+ * cycles_ztest_target; n_pilot when none is larger, else rounded up to a power of two per
+ * position (Cycles' PMJ samples are stratified whole there, and not between: real_house's
+ * validate has nrmse 0.0022 at 32 spp and 0.0073 at 85), at most CYCLES_MAX_SPP. */
+int cycles_samples_need(const cycles_noise *pilot, int n_pilot, int positions, const cycles_noise_need *need);
 
 /* The noise of a collected Cycles image (above); RC_ERR_RANGE when it has no var.* channels (one
  * seed) or no interior pixel of non-zero mean. */
