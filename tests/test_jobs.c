@@ -139,6 +139,32 @@ static void test_record_samples_and_noise(void **state)
     cJSON_Delete(o);
 }
 
+/* The z-test rule's line (pixel_q, ztarget, the pilot's pixel_q): the record gives them, and
+ * "reached" needs both noises at their targets: nrmse 0.01 <= 0.02 but pixel_q 0.03 > 0.025. */
+static void test_record_ztest_noise(void **state)
+{
+    (void)state;
+    fake("blender", "echo 'reflcheck-samples: samples 64 noise 0.01 target 0.02 pilot 32 pilot_noise 0.02 "
+                    "pilot_pixel_q 0.05 pixel_q 0.03 ztarget 0.025 gate comparisons[0] raster/twin z_fail_share bias "
+                    "0.1 (image.samples bias)'; exit 1");
+    job_record r = run_job(registry_find("cycles"), 30);
+    char *text = fileio_read_all(r.record, NULL);
+    assert_non_null(text);
+    cJSON *o = cJSON_Parse(text);
+    free(text);
+    assert_non_null(o);
+    assert_int_equal(cJSON_GetObjectItem(o, "samples")->valueint, 64);
+    cJSON *n = cJSON_GetObjectItem(o, "noise");
+    assert_non_null(n);
+    assert_true(cJSON_GetObjectItem(n, "pixel_q")->valuedouble == 0.03);
+    assert_true(cJSON_GetObjectItem(n, "z_target")->valuedouble == 0.025);
+    assert_true(cJSON_GetObjectItem(n, "pilot_pixel_q")->valuedouble == 0.05);
+    assert_true(cJSON_IsFalse(cJSON_GetObjectItem(n, "reached")));
+    assert_string_equal(cJSON_GetObjectItem(n, "gate")->valuestring,
+                        "comparisons[0] raster/twin z_fail_share bias 0.1 (image.samples bias)");
+    cJSON_Delete(o);
+}
+
 /* With a cache, a renderer's version line is asked once per install (CACHE/versions): a fake
  * POV-Ray counts its --version calls; two jobs ask once, a reinstalled one (new size) again. */
 static void test_version_asked_once_per_install(void **state)
@@ -696,6 +722,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_renderer_fails),
         cmocka_unit_test(test_record_samples_and_noise),
+        cmocka_unit_test(test_record_ztest_noise),
         cmocka_unit_test(test_version_asked_once_per_install),
         cmocka_unit_test(test_renderer_crashes),
         cmocka_unit_test(test_renderer_hangs),
