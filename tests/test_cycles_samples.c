@@ -107,6 +107,11 @@ static void test_need_of_roles(void **state)
     s.n_comparisons = 2;
     cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
     close_rel(need.target, 0.1, 1e-12);
+    /* a background gate asks nothing of the surface's noise */
+    s.comparisons[1].n_thresholds = 0;
+    add_gate(&s.comparisons[1], "background.rel_rms", 0.0012);
+    cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
+    assert_true(need.target == 0.0 && need.target_trim1 == 0.0);
     /* a render no comparison gates by an RMS metric or a z-test asks nothing */
     s.comparisons[1].n_thresholds = 0;
     cycles_noise_need_of(&s, cyc, ROLE_VALIDATE, 0, &need);
