@@ -172,6 +172,10 @@ static void test_samples_need(void **state)
     need.target_trim1 = 0.0;
     need.target = 0.0; /* and nothing else asks: the pilot */
     assert_int_equal(cycles_samples_need(&pilot, 16, 1, &need), 16);
+    /* steps of at most 4 x: 16 -> 64 when 4096 is asked, 64 -> 128 when 128 is */
+    assert_int_equal(cycles_samples_step(16, 4096), 64);
+    assert_int_equal(cycles_samples_step(64, 128), 128);
+    assert_int_equal(cycles_samples_step(18, 144), 72);
     /* the pilot: two per position, at least 16 */
     assert_int_equal(cycles_pilot_samples(1), 16);
     assert_int_equal(cycles_pilot_samples(4), 16);

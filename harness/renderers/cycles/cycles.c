@@ -1400,9 +1400,11 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
         return;
     }
     reached = pilot;
-    int n = cycles_samples_need(&pilot, n_pilot, positions, need);
-    if (n > n_pilot) {
-        o->samples = n;
+    /* Steps of at most CYCLES_STEP x, each predicted from the last render's noise (a nearer
+     * count predicts better: PMJ's noise falls faster than the rate assumed). */
+    for (int n = cycles_samples_need(&pilot, n_pilot, positions, need); n > o->samples;
+         n = cycles_samples_need(&reached, o->samples, positions, need)) {
+        o->samples = cycles_samples_step(o->samples, n);
         if (cycles_pass(j, o, job, r) != 0)
             return;
         if (cycles_exr_noise(j->exr, &reached, err, sizeof err) != RC_OK) {

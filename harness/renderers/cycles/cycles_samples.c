@@ -165,6 +165,11 @@ static int cycles_samples_round(int n, int positions)
     return per * k;
 }
 
+int cycles_samples_step(int current, int wanted)
+{
+    return wanted < CYCLES_STEP * current ? wanted : CYCLES_STEP * current;
+}
+
 int cycles_samples_need(const cycles_noise *pilot, int n_pilot, int positions, const cycles_noise_need *need)
 {
     int a = cycles_samples_for(pilot->nrmse, n_pilot, need->target);

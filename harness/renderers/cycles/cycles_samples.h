@@ -4,8 +4,9 @@
  *   cycles_noise_need need;
  *   cycles_noise_need_of(&scn, registry_find("cycles"), ROLE_VALIDATE, 1, &need);   1: full size
  *   need.refuse: the rule cannot decide (need.why says which gate and the fix) -> refused
- *   render CYCLES_PILOT_SPP samples, then cycles_exr_noise("out.exr", &noise, err, sizeof err);
- *   int n = cycles_samples_need(&noise, CYCLES_PILOT_SPP, &need);   n > pilot: render n
+ *   render p = cycles_pilot_samples(k^2) samples, cycles_exr_noise("out.exr", &noise, err, sizeof err);
+ *   int n = cycles_samples_need(&noise, p, k^2, &need);   while n > the last count: render
+ *   cycles_samples_step(last, n), measure its noise, n = cycles_samples_need(that noise, ...)
  *
  * The rule (docs/samples.md derives it), over the gates of the comparisons whose
  * reference or test is this render, at the size rendered (threshold_gate_at):
@@ -60,6 +61,11 @@
 /* The share of the surface values a z-test's power holds for: the noisiest tenth (highlights,
  * fireflies) may have less. */
 #define CYCLES_ZTEST_COVER  0.9
+/* The largest step from one render to the next: measured, the Monte Carlo rate from a 16-spp
+ * pilot over-asks up to 16 x (grazing_plane's validate, full size: 512 spp asked, the noise at
+ * 512 4.6 x under its target), as PMJ's noise falls faster than it; renders of at most 4 x
+ * each, each predicted from the last, cost at most 4/3 of the last one besides the pilot. */
+#define CYCLES_STEP         4
 /* The most samples the rule asks (Cycles' own limit is far above; a gate asking more than this
  * at a scene's size is a gate to look at, and the record says the target was not reached). */
 #define CYCLES_MAX_SPP      4096
@@ -112,6 +118,10 @@ int cycles_pilot_samples(int positions);
  * position (Cycles' PMJ samples are stratified whole there, and not between: real_house's
  * validate has nrmse 0.0022 at 32 spp and 0.0073 at 85), at most CYCLES_MAX_SPP. */
 int cycles_samples_need(const cycles_noise *pilot, int n_pilot, int positions, const cycles_noise_need *need);
+
+/* The next render after one of `current` samples when `wanted` (cycles_samples_need) asks more:
+ * wanted, or CYCLES_STEP x current if that is less (a power of two per position stays one). */
+int cycles_samples_step(int current, int wanted);
 
 /* The noise of a collected Cycles image (above); RC_ERR_RANGE when it has no var.* channels (one
  * seed) or no interior pixel of non-zero mean. */
