@@ -87,8 +87,9 @@ raster_vertex render_camera_clip(const render_camera *c, vec3 p)
  * bits, and the loads of the next batch's terms stall behind them (4K aliasing): a third of the
  * frame's time when measured. */
 #define RENDER_PLANE      (RENDER_SPAN + 16)
-/* Pixels the resolve sums at once: its running sums (up to 19 per pixel) stay in the L1 cache. */
-#define RENDER_RESOLVE_PX 64
+/* Pixels the resolve sums at once, one SIMD vector: a fixed trip count, so each plane's sums are
+ * whole vectors with no remainder loop; its running sums (up to 19 per pixel) stay in L1. */
+#define RENDER_RESOLVE_PX 16
 
 /* n rounded up to whole SIMD vectors: a batch padded so, with copies of a real lane, never
  * runs a lane loop's scalar remainder, and the copies' results are not read. */
@@ -680,14 +681,17 @@ static void render_span_blend(const render_job *j, const raster_tile *tile, rend
 /* The running sums of the resolve, per pixel: beauty, its square, alpha, then the terms. */
 enum { RENDER_S_BEAUTY = 0, RENDER_S_SQ = 3, RENDER_S_ALPHA = 6, RENDER_S_TERMS = 7, RENDER_SUMS = 19 };
 
-/* Sums of n pixels from p0 over their k*k samples, in sample order (as the pixel's own loop
- * would add them), one vector per plane. */
+/* Sums of the RENDER_RESOLVE_PX pixels from p0 over their k*k samples, in sample order (as the
+ * pixel's own loop would add them), one vector per plane. Always the whole width: when fewer
+ * pixels are left in the row, the lanes past them sum the next row's slots or the planes'
+ * slack (RENDER_PLANE: slot (k*k - 1) span_px + p0 + 15 < RENDER_SPAN + 16), which the store
+ * does not read. */
 SMATH_CLONES
 static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], unsigned term_layers, int span_px,
-                                int per_px, int p0, int n, float (*restrict sum)[RENDER_RESOLVE_PX])
+                                int per_px, int p0, float (*restrict sum)[RENDER_RESOLVE_PX])
 {
     for (int a = 0; a < RENDER_SUMS; a++)
-        for (int i = 0; i < n; i++)
+        for (int i = 0; i < RENDER_RESOLVE_PX; i++)
             sum[a][i] = 0.0f;
     for (int q = 0; q < per_px; q++) {
         const size_t base = (size_t)q * (size_t)span_px + (size_t)p0;
@@ -695,7 +699,7 @@ static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], uns
             const float *restrict b = plane[RENDER_P_BEAUTY + ch] + base;
             float *restrict bs = sum[RENDER_S_BEAUTY + ch], *restrict bq = sum[RENDER_S_SQ + ch];
 #pragma omp simd
-            for (int i = 0; i < n; i++) {
+            for (int i = 0; i < RENDER_RESOLVE_PX; i++) {
                 bs[i] += b[i];
                 bq[i] += b[i] * b[i];
             }
@@ -704,7 +708,7 @@ static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], uns
             const float *restrict a = plane[RENDER_P_ALPHA] + base;
             float *restrict as = sum[RENDER_S_ALPHA];
 #pragma omp simd
-            for (int i = 0; i < n; i++)
+            for (int i = 0; i < RENDER_RESOLVE_PX; i++)
                 as[i] += a[i];
         }
         /* Only the terms the image has: a beauty-only frame (the common case) skips the loop. */
@@ -714,17 +718,26 @@ static void render_resolve_sums(const float (*restrict plane)[RENDER_PLANE], uns
             const float *restrict src = plane[RENDER_P_TERMS + t] + base;
             float *restrict dst = sum[RENDER_S_TERMS + t];
 #pragma omp simd
-            for (int i = 0; i < n; i++)
+            for (int i = 0; i < RENDER_RESOLVE_PX; i++)
                 dst[i] += src[i];
         }
     }
 }
 
+/* max(x, 0) with the bits of glibc's fmaxf(x, 0.0f) for every quiet input (checked over all
+ * 2^32 floats: NaN gives +0, -0 stays -0; signalling NaNs differ, and arithmetic never makes
+ * one). Written as a select, the loop vectorises; fmaxf itself was a scalar libm call per pixel
+ * (its NaN rule is not the SIMD max instruction's). */
+static inline float render_clamp0(float x) { return x >= 0.0f ? x : 0.0f; }
+
 /* n pixels from p0, a run within one image row starting at pixel index i0: the layers from the
  * sums. */
-SMATH_CLONES
-static void render_resolve_store(render_image *restrict o, const render_scratch *restrict w,
-                                 const float (*restrict sum)[RENDER_RESOLVE_PX], int k, int p0, int n, size_t i0)
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+render_resolve_put(render_image *restrict o, const render_scratch *restrict w,
+                   const float (*restrict sum)[RENDER_RESOLVE_PX], int k, int p0, int n, size_t i0)
 {
     const float inv = 1.0f / (float)(k * k), nk = (float)(k * k);
     /* Unbiased sample variance over nk = k*k samples, divided by nk; 0 for k = 1. */
@@ -752,9 +765,9 @@ static void render_resolve_store(render_image *restrict o, const render_scratch 
         nl[i] = cnl[i];
         nh[i] = cnh[i];
         /* Cancellation can leave a tiny negative: clamp, since a variance is >= 0. */
-        vr[i] = fmaxf((sum[RENDER_S_SQ][i] - bs_r * bs_r * inv_n) * inv_nn, 0.0f);
-        vg[i] = fmaxf((sum[RENDER_S_SQ + 1][i] - bs_g * bs_g * inv_n) * inv_nn, 0.0f);
-        vb[i] = fmaxf((sum[RENDER_S_SQ + 2][i] - bs_b * bs_b * inv_n) * inv_nn, 0.0f);
+        vr[i] = render_clamp0((sum[RENDER_S_SQ][i] - bs_r * bs_r * inv_n) * inv_nn);
+        vg[i] = render_clamp0((sum[RENDER_S_SQ + 1][i] - bs_g * bs_g * inv_n) * inv_nn);
+        vb[i] = render_clamp0((sum[RENDER_S_SQ + 2][i] - bs_b * bs_b * inv_n) * inv_nn);
     }
     for (int t = 0; t < 12; t++) {
         float *restrict dst = o->chan[RENDER_DIFFUSE_R + t];
@@ -766,6 +779,19 @@ static void render_resolve_store(render_image *restrict o, const render_scratch 
         for (int i = 0; i < n; i++)
             dst[i] = src[i] * inv;
     }
+}
+
+/* A whole vector of pixels (the common case) with the constant width, so its loops have no
+ * remainder; a row's last, shorter run with its own n (the lanes past it belong to other pixels,
+ * perhaps another worker's). */
+SMATH_CLONES
+static void render_resolve_store(render_image *restrict o, const render_scratch *restrict w,
+                                 const float (*restrict sum)[RENDER_RESOLVE_PX], int k, int p0, int n, size_t i0)
+{
+    if (n == RENDER_RESOLVE_PX)
+        render_resolve_put(o, w, sum, k, p0, RENDER_RESOLVE_PX, i0);
+    else
+        render_resolve_put(o, w, sum, k, p0, n, i0);
 }
 
 /* The span's pixels from the planes: beauty, layers, coverage, object, angles, variance. Each
@@ -780,7 +806,7 @@ static long long render_resolve(const render_job *j, render_scratch *w, int k, i
         for (int x0 = 0; x0 < span_w; x0 += RENDER_RESOLVE_PX) {
             const int p0 = row * span_w + x0;
             const int n = span_w - x0 < RENDER_RESOLVE_PX ? span_w - x0 : RENDER_RESOLVE_PX;
-            render_resolve_sums((const float(*)[RENDER_PLANE])w->plane, j->term_layers, span_px, k * k, p0, n, sum);
+            render_resolve_sums((const float(*)[RENDER_PLANE])w->plane, j->term_layers, span_px, k * k, p0, sum);
             const size_t i0 = (size_t)(py0 + row) * (size_t)o->width + (size_t)(px0 + x0);
             render_resolve_store(o, w, (const float(*)[RENDER_RESOLVE_PX])sum, k, p0, n, i0);
             for (int i = 0; i < n; i++)
