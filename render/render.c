@@ -500,6 +500,137 @@ static void render_flush_background(const render_job *j, render_scratch *w)
 static void render_span_blend(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
                               int px0, int px1);
 
+/* Where a span's queueing stands: the pixel's place and the object of the last triangle seen. */
+typedef struct {
+    int k, stride, span_px;
+    float offs[16]; /* a sample's offset in its pixel, ((float)s + 0.5f) / (float)k */
+    int last_tri, obj, per_vertex;
+    render_queue *qu;
+} render_queue_state;
+
+/* The object and queue of triangle tri, looked up only when the triangle changes. */
+static void render_queue_switch(const render_job *j, render_scratch *w, render_queue_state *qs, int32_t tri)
+{
+    if (tri == qs->last_tri)
+        return;
+    qs->last_tri = tri;
+    qs->obj = j->m->tri_object[tri];
+    qs->per_vertex = j->per_vertex[qs->obj];
+    qs->qu = &w->queue[qs->obj];
+}
+
+/* One pixel's samples, each to its object's queue or the background's, flushing a queue when it
+ * is full; returns the covered count. The general case (edges, per-vertex objects). */
+static int render_queue_samples(const render_job *j, render_scratch *w, render_queue_state *qs,
+                                const raster_sample *pix, int pi, int px, int py)
+{
+    const int k = qs->k;
+    int covered = 0;
+    for (int t = 0; t < k; t++) {
+        const raster_sample *row = pix + (size_t)t * (size_t)qs->stride;
+        for (int s = 0; s < k; s++) {
+            const raster_sample *rs = &row[s];
+            const int q = (t * k + s) * qs->span_px + pi;
+            const int32_t tri = rs->tri;
+            if (tri < 0) {
+                const int b = w->bg_n;
+                w->bg_sx[b] = (float)px + qs->offs[s];
+                w->bg_sy[b] = (float)py + qs->offs[t];
+                w->bg_slot[b] = (uint16_t)q;
+                w->bg_n = b + 1;
+                if (b + 1 == SHADE_BATCH)
+                    render_flush_background(j, w);
+                continue;
+            }
+            covered++;
+            render_queue_switch(j, w, qs, tri);
+            if (qs->per_vertex) {
+                shade_terms st;
+                render_blend_vertex(j, rs, &st);
+                render_put_terms(j, w, q, &st);
+                continue;
+            }
+            render_queue *qu = qs->qu;
+            const int n = qu->n;
+            qu->tri[n] = tri;
+            qu->b1[n] = rs->b1;
+            qu->b2[n] = rs->b2;
+            qu->slot[n] = (uint16_t)q;
+            qu->n = n + 1;
+            if (n + 1 == SHADE_BATCH)
+                render_flush_object(j, w, qs->obj);
+        }
+    }
+    return covered;
+}
+
+/* A pixel whose k x k samples are all of triangle tri, with room for them all in its queue:
+ * queued as render_queue_samples would queue them (same order, and the queue fills up at the
+ * same sample), the count kept in a register instead of reloaded per sample. */
+static void render_queue_whole(render_queue *restrict qu, const render_queue_state *qs, const raster_sample *pix,
+                               int pi, int32_t tri)
+{
+    const int k = qs->k;
+    int n = qu->n;
+    for (int t = 0; t < k; t++) {
+        const raster_sample *row = pix + (size_t)t * (size_t)qs->stride;
+        int q = t * k * qs->span_px + pi;
+        for (int s = 0; s < k; s++, n++, q += qs->span_px) {
+            qu->tri[n] = tri;
+            qu->b1[n] = row[s].b1;
+            qu->b2[n] = row[s].b2;
+            qu->slot[n] = (uint16_t)q;
+        }
+    }
+    qu->n = n;
+}
+
+/* A pixel no triangle covers, with room for its samples in the background queue. */
+static void render_queue_background(render_scratch *restrict w, const render_queue_state *qs, int pi, int px, int py)
+{
+    const int k = qs->k;
+    int b = w->bg_n;
+    for (int t = 0; t < k; t++) {
+        const float sy = (float)py + qs->offs[t];
+        int q = t * k * qs->span_px + pi;
+        for (int s = 0; s < k; s++, b++, q += qs->span_px) {
+            w->bg_sx[b] = (float)px + qs->offs[s];
+            w->bg_sy[b] = sy;
+            w->bg_slot[b] = (uint16_t)q;
+        }
+    }
+    w->bg_n = b;
+}
+
+/* One pixel's samples queued; returns the covered count. Most pixels lie wholly inside one
+ * triangle or wholly in the background, and take the short paths. */
+static int render_queue_pixel(const render_job *j, render_scratch *w, render_queue_state *qs, const raster_sample *pix,
+                              int pi, int px, int py)
+{
+    const int k = qs->k, kk = k * k;
+    const int32_t t0 = pix[0].tri;
+    int uniform = 1;
+    for (int t = 0; t < k; t++)
+        for (int s = 0; s < k; s++)
+            uniform &= pix[(size_t)t * (size_t)qs->stride + (size_t)s].tri == t0;
+    if (uniform && t0 < 0 && w->bg_n + kk <= SHADE_BATCH) {
+        render_queue_background(w, qs, pi, px, py);
+        if (w->bg_n == SHADE_BATCH)
+            render_flush_background(j, w);
+        return 0;
+    }
+    if (uniform && t0 >= 0) {
+        render_queue_switch(j, w, qs, t0);
+        if (!qs->per_vertex && qs->qu->n + kk <= SHADE_BATCH) {
+            render_queue_whole(qs->qu, qs, pix, pi, t0);
+            if (qs->qu->n == SHADE_BATCH)
+                render_flush_object(j, w, qs->obj);
+            return kk;
+        }
+    }
+    return render_queue_samples(j, w, qs, pix, pi, px, py);
+}
+
 /* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
  * samples queued per object and shaded a batch at a time, background rays likewise. */
 static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
@@ -518,64 +649,22 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     w->centre_lo = (c * k + c) * span_px;
     w->centre_hi = w->centre_lo + span_px;
     const int32_t *tri_object = j->m->tri_object;
-    /* A sample's offset in its pixel, ((float)s + 0.5f) / (float)k as the loop would form it:
-     * once per span instead of a division per background sample (same bits). */
-    float offs[16];
+    render_queue_state qs = {.k = k, .stride = stride, .span_px = span_px, .last_tri = -1, .qu = &w->queue[0]};
+    /* The offsets once per span instead of a division per background sample (same bits). */
     for (int s = 0; s < k; s++)
-        offs[s] = ((float)s + 0.5f) / (float)k;
-    int last_tri = -1, obj = 0, per_vertex = 0;
-    render_queue *qu = &w->queue[0];
-    for (int pi = 0; pi < span_px; pi++) {
-        const int py = py0 + pi / span_w, px = px0 + pi % span_w;
-        const raster_sample *pix = tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (px - tile->x0) * k;
-        int covered = 0;
-        w->centre_nv[pi] = 0.0f;
-        w->centre_nl[pi] = 0.0f;
-        w->centre_nh[pi] = 0.0f;
-        for (int t = 0; t < k; t++) {
-            const raster_sample *row = pix + (size_t)t * (size_t)stride;
-            for (int s = 0; s < k; s++) {
-                const raster_sample *rs = &row[s];
-                const int q = (t * k + s) * span_px + pi;
-                const int32_t tri = rs->tri;
-                if (tri < 0) {
-                    const int b = w->bg_n;
-                    w->bg_sx[b] = (float)px + offs[s];
-                    w->bg_sy[b] = (float)py + offs[t];
-                    w->bg_slot[b] = (uint16_t)q;
-                    w->bg_n = b + 1;
-                    if (b + 1 == SHADE_BATCH)
-                        render_flush_background(j, w);
-                    continue;
-                }
-                covered++;
-                if (tri != last_tri) {
-                    last_tri = tri;
-                    obj = tri_object[tri];
-                    per_vertex = j->per_vertex[obj];
-                    qu = &w->queue[obj];
-                }
-                if (per_vertex) {
-                    shade_terms st;
-                    render_blend_vertex(j, rs, &st);
-                    render_put_terms(j, w, q, &st);
-                    continue;
-                }
-                const int n = qu->n;
-                qu->tri[n] = tri;
-                qu->b1[n] = rs->b1;
-                qu->b2[n] = rs->b2;
-                qu->slot[n] = (uint16_t)q;
-                qu->n = n + 1;
-                if (n + 1 == SHADE_BATCH)
-                    render_flush_object(j, w, obj);
-            }
+        qs.offs[s] = ((float)s + 0.5f) / (float)k;
+    for (int py = py0, pi = 0; py < py1; py++)
+        for (int px = px0; px < px1; px++, pi++) {
+            const raster_sample *pix =
+                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (size_t)((px - tile->x0) * k);
+            w->centre_nv[pi] = 0.0f;
+            w->centre_nl[pi] = 0.0f;
+            w->centre_nh[pi] = 0.0f;
+            w->covered[pi] = render_queue_pixel(j, w, &qs, pix, pi, px, py);
+            /* The object at the sample nearest the pixel centre, -1 for the background. */
+            const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
+            w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
         }
-        /* The object at the sample nearest the pixel centre, -1 for the background. */
-        const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
-        w->covered[pi] = covered;
-        w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
-    }
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
     render_flush_background(j, w);
