@@ -445,12 +445,15 @@ static void raster_tile_run(raster_ctx *c, int tile, int thread)
         v[j] = 1.0 - (tg.sy0 + j + 0.5) * 2.0 / ((double)k * c->height);
     tg.u = u;
     tg.v = v;
-    size_t ns = (size_t)tw * k * th * k;
-    for (size_t i = 0; i < ns; i++) {
-        tg.s[i].tri = -1;
-        tg.s[i].b1 = tg.s[i].b2 = 0.0f;
-        tg.depth[i] = 0.0;
-    }
+    /* Every sample empty: the first row element by element, the others copied from it (memcpy
+     * moves whole vectors; the structure's three fields kept the element loop scalar), and
+     * the depth, whose 0.0 is all zero bytes, cleared. */
+    const size_t row = (size_t)tw * k, ns = row * (size_t)(th * k);
+    for (size_t i = 0; i < row; i++)
+        tg.s[i] = (raster_sample){-1, 0.0f, 0.0f};
+    for (size_t r = 1; r < (size_t)(th * k); r++)
+        memcpy(tg.s + r * row, tg.s, row * sizeof *tg.s);
+    memset(tg.depth, 0, ns * sizeof *tg.depth);
     size_t e_end = c->tile_start[tile + 1];
     for (size_t e = c->tile_start[tile]; e < e_end; e++) {
         uint32_t t = c->bins[e];
