@@ -117,6 +117,10 @@ typedef struct {
     int32_t tri[SHADE_BATCH];
     float b1[SHADE_BATCH], b2[SHADE_BATCH];
     uint16_t slot[SHADE_BATCH];
+    /* The entries holding a pixel's centre sample (the angle channels come from them), in queue
+     * order: the flush visits these only instead of testing every entry's slot. */
+    int n_centre;
+    uint8_t centre[SHADE_BATCH];
 } render_queue;
 
 typedef struct {
@@ -456,10 +460,10 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     for (int a = 0; a < 4; a++)
         if (j->term_layers & (1u << a))
             render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
-    for (int i = 0; i < n; i++)
-        if (qu->slot[i] >= w->centre_lo && qu->slot[i] < w->centre_hi)
-            render_centre_angles(j, w, obj, i, qu->slot[i]);
+    for (int e = 0; e < qu->n_centre; e++)
+        render_centre_angles(j, w, obj, qu->centre[e], qu->slot[qu->centre[e]]);
     qu->n = 0;
+    qu->n_centre = 0;
 }
 
 /* The camera rays of n background samples (render_camera_dir, lane by lane). */
@@ -502,8 +506,8 @@ static void render_span_blend(const render_job *j, const raster_tile *tile, rend
 
 /* Where a span's queueing stands: the pixel's place and the object of the last triangle seen. */
 typedef struct {
-    int k, stride, span_px;
-    float offs[16]; /* a sample's offset in its pixel, ((float)s + 0.5f) / (float)k */
+    int k, c, stride, span_px; /* c: the centre sample's row and column in its pixel */
+    float offs[16];            /* a sample's offset in its pixel, ((float)s + 0.5f) / (float)k */
     int last_tri, obj, per_vertex;
     render_queue *qu;
 } render_queue_state;
@@ -552,6 +556,8 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
             }
             render_queue *qu = qs->qu;
             const int n = qu->n;
+            if (t == qs->c && s == qs->c)
+                qu->centre[qu->n_centre++] = (uint8_t)n;
             qu->tri[n] = tri;
             qu->b1[n] = rs->b1;
             qu->b2[n] = rs->b2;
@@ -572,6 +578,7 @@ static void render_queue_whole(render_queue *restrict qu, const render_queue_sta
 {
     const int k = qs->k;
     int n = qu->n;
+    qu->centre[qu->n_centre++] = (uint8_t)(n + qs->c * k + qs->c);
     for (int t = 0; t < k; t++) {
         const raster_sample *row = pix + (size_t)t * (size_t)qs->stride;
         int q = t * k * qs->span_px + pi;
@@ -649,7 +656,7 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     w->centre_lo = (c * k + c) * span_px;
     w->centre_hi = w->centre_lo + span_px;
     const int32_t *tri_object = j->m->tri_object;
-    render_queue_state qs = {.k = k, .stride = stride, .span_px = span_px, .last_tri = -1, .qu = &w->queue[0]};
+    render_queue_state qs = {.k = k, .c = c, .stride = stride, .span_px = span_px, .last_tri = -1, .qu = &w->queue[0]};
     /* The offsets once per span instead of a division per background sample (same bits). */
     for (int s = 0; s < k; s++)
         qs.offs[s] = ((float)s + 0.5f) / (float)k;
@@ -720,6 +727,7 @@ static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
             render_centre_angles(j, w, obj, i, q);
     }
     qu->n = 0;
+    qu->n_centre = 0;
 }
 
 /* The blended objects over the span's shaded opaque samples, back to front: a sample of a layer
