@@ -264,14 +264,29 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         }
         /* Whole vectors of RENDER_LANES from i, each a fixed-length loop (one unaligned store
          * per vector, no loop peeling: most runs are a few samples long, at 10^6 triangles a
-         * single one); what lies past e is overwritten by the next run. */
-        for (int c = 0; c < 18; c++) {
-            float *restrict dst = vl->v[c];
-            const float x = val[c];
-            for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
+         * single one); what lies past e is overwritten by the next run. A run of at most one
+         * vector (nearly all: a pixel's samples, or fewer) takes the 18 stores unrolled: the
+         * general loop's per-quantity bookkeeping was most of a short run's cost. */
+        if (e - i <= RENDER_LANES) {
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 18
+#endif
+            for (int c = 0; c < 18; c++) {
+                float *restrict dst = vl->v[c] + i;
+                const float x = val[c];
 #pragma omp simd
                 for (int l = 0; l < RENDER_LANES; l++)
-                    dst[l0 + l] = x;
+                    dst[l] = x;
+            }
+        } else {
+            for (int c = 0; c < 18; c++) {
+                float *restrict dst = vl->v[c];
+                const float x = val[c];
+                for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
+#pragma omp simd
+                    for (int l = 0; l < RENDER_LANES; l++)
+                        dst[l0 + l] = x;
+                }
             }
         }
         i = e;
