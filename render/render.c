@@ -405,6 +405,22 @@ static void render_scatter3(float (*restrict plane)[RENDER_PLANE], const float *
     }
 }
 
+/* The beauty and alpha of lanes [0, n) into their slots: one pass, each slot read once, where
+ * two passes (render_scatter3, then alpha) read every slot twice. */
+static void render_scatter_beauty(float (*restrict plane)[RENDER_PLANE], const shade_vec3_n *restrict b,
+                                  const float *restrict alpha, const uint16_t *restrict slot, int n)
+{
+    float *restrict px = plane[RENDER_P_BEAUTY], *restrict py = plane[RENDER_P_BEAUTY + 1],
+                    *restrict pz = plane[RENDER_P_BEAUTY + 2], *restrict pa = plane[RENDER_P_ALPHA];
+    for (int i = 0; i < n; i++) {
+        const int q = slot[i];
+        px[q] = b->x[i];
+        py[q] = b->y[i];
+        pz[q] = b->z[i];
+        pa[q] = alpha[i];
+    }
+}
+
 /* The angle channels of sample i in slot q, the sample nearest its pixel's centre: N.V, N.L and
  * N.H of the first light, for the opaque and the blended flush alike. */
 static void render_centre_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
@@ -467,10 +483,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     if (n == 0)
         return;
     render_shade_queue(j, w, obj, j->m, j->vertex_colours[obj]);
-    render_scatter3(&w->plane[RENDER_P_BEAUTY], w->beauty.x, w->beauty.y, w->beauty.z, qu->slot, n);
-    float *restrict alpha = w->plane[RENDER_P_ALPHA];
-    for (int i = 0; i < n; i++)
-        alpha[qu->slot[i]] = r->alpha[i];
+    render_scatter_beauty(w->plane, &w->beauty, r->alpha, qu->slot, n);
     const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
     for (int a = 0; a < 4; a++)
         if (j->term_layers & (1u << a))
