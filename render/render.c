@@ -254,13 +254,13 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         int e = i + 1;
         while (e < n && qu->tri[e] == t)
             e++;
-        float val[18];
+        /* Quantity c (positions then normals of vertices 0, 1, 2) is src[c / 3][c % 3]: read
+         * straight into the broadcasts, without a copy through the stack. */
+        const float *src[6];
         for (int c = 0; c < 3; c++) {
             const size_t vi = 3 * (size_t)idx[3 * (size_t)t + (size_t)c];
-            for (int d = 0; d < 3; d++) {
-                val[3 * c + d] = pos[vi + (size_t)d];
-                val[9 + 3 * c + d] = nrm[vi + (size_t)d];
-            }
+            src[c] = pos + vi;
+            src[3 + c] = nrm + vi;
         }
         /* Whole vectors of RENDER_LANES from i, each a fixed-length loop (one unaligned store
          * per vector, no loop peeling: most runs are a few samples long, at 10^6 triangles a
@@ -273,7 +273,7 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
 #endif
             for (int c = 0; c < 18; c++) {
                 float *restrict dst = vl->v[c] + i;
-                const float x = val[c];
+                const float x = src[c / 3][c % 3];
 #pragma omp simd
                 for (int l = 0; l < RENDER_LANES; l++)
                     dst[l] = x;
@@ -281,7 +281,7 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         } else {
             for (int c = 0; c < 18; c++) {
                 float *restrict dst = vl->v[c];
-                const float x = val[c];
+                const float x = src[c / 3][c % 3];
                 for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
 #pragma omp simd
                     for (int l = 0; l < RENDER_LANES; l++)
