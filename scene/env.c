@@ -159,9 +159,142 @@ vec3 env_lookup(const env_map *e, vec3 dir)
     return v3_mul(v3_lerp(top, bottom, ay), e->scale);
 }
 
-/* The same lookup as env_lookup with one lane per direction: asin(y) of the unit direction is
- * taken as atan2(y, sqrt(x^2 + z^2)), which needs no normalisation, and every index is kept
- * inside the image by selects, so no lane can read out of bounds whatever its input. */
+/* env_lookup_n works through its lanes in chunks of this many: the first pass of a chunk
+ * (directions to texel offsets, vectorised) leaves its results in arrays this long on the
+ * stack, and the second (texel reads and the bilinear sums) reads them back. */
+#define ENV_CHUNK 64
+
+/* What the first pass leaves for one lane: the float offsets of its four texels in rgb, its
+ * bilinear weights, whether all four texels can be read as 16 bytes (below), and whether the
+ * direction was zero. */
+typedef struct {
+    int o00[ENV_CHUNK], o01[ENV_CHUNK], o10[ENV_CHUNK], o11[ENV_CHUNK];
+    float ax[ENV_CHUNK], ay[ENV_CHUNK], bx[ENV_CHUNK], by[ENV_CHUNK];
+    int wide[ENV_CHUNK], zero[ENV_CHUNK];
+} env_taps;
+
+/* Four floats operated on together: four lanes' values of one channel, or one texel's R, G, B
+ * and a fourth float that no result reads. */
+typedef float env_v4 __attribute__((vector_size(16)));
+
+SMATH_INLINE env_v4 env_load4(const float *p)
+{
+    env_v4 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* A vector of a's and b's elements, i0..i3 numbering a's 0..3 and b's 4..7 (one shuffle
+ * instruction or two; building the vector element by element made GCC 12 split the loads). */
+#if defined(__clang__)
+#define ENV_SHUFFLE(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+typedef int env_i4 __attribute__((vector_size(16)));
+#define ENV_SHUFFLE(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (env_i4){i0, i1, i2, i3})
+#endif
+
+/* One texel of four lanes (16-byte loads at offsets o[0..3]: R, G, B and the float after)
+ * transposed into four-lane R, G and B vectors. */
+SMATH_INLINE void env_texel_x4(const float *restrict rgb, const int *o, env_v4 *r, env_v4 *g, env_v4 *b)
+{
+    env_v4 t0 = env_load4(rgb + o[0]), t1 = env_load4(rgb + o[1]), t2 = env_load4(rgb + o[2]),
+           t3 = env_load4(rgb + o[3]);
+    env_v4 rg01 = ENV_SHUFFLE(t0, t1, 0, 4, 1, 5), rg23 = ENV_SHUFFLE(t2, t3, 0, 4, 1, 5);
+    env_v4 b01 = ENV_SHUFFLE(t0, t1, 2, 6, 3, 7), b23 = ENV_SHUFFLE(t2, t3, 2, 6, 3, 7);
+    *r = ENV_SHUFFLE(rg01, rg23, 0, 1, 4, 5);
+    *g = ENV_SHUFFLE(rg01, rg23, 2, 3, 6, 7);
+    *b = ENV_SHUFFLE(b01, b23, 0, 1, 4, 5);
+}
+
+/* by (bx t00 + ax t01) + ay (bx t10 + ax t11): the bilinear sum, written once for the scalar
+ * and the four-lane forms so that both make the same roundings in the same order. */
+#define ENV_BILERP(t00, t01, t10, t11, ax, ay, bx, by)                                                                 \
+    ((by) * ((bx) * (t00) + (ax) * (t01)) + (ay) * ((bx) * (t10) + (ax) * (t11)))
+
+/* The second pass for lane i alone: its three channels from scalar loads (unscaled). */
+SMATH_INLINE void env_bilinear_lane(const float *restrict rgb, const env_taps *restrict t, int i, float *restrict r,
+                                    float *restrict g, float *restrict b)
+{
+    const float *p00 = rgb + t->o00[i], *p01 = rgb + t->o01[i], *p10 = rgb + t->o10[i], *p11 = rgb + t->o11[i];
+    const float ax = t->ax[i], ay = t->ay[i], bx = t->bx[i], by = t->by[i];
+    r[i] = ENV_BILERP(p00[0], p01[0], p10[0], p11[0], ax, ay, bx, by);
+    g[i] = ENV_BILERP(p00[1], p01[1], p10[1], p11[1], ax, ay, bx, by);
+    b[i] = ENV_BILERP(p00[2], p01[2], p10[2], p11[2], ax, ay, bx, by);
+}
+
+/* The second pass: the bilinear sums (unscaled) four lanes at a time, each texel one 16-byte
+ * load and the four lanes' texels transposed into R, G, B vectors, so the sums run across
+ * lanes as in a lane loop, in the same operations per channel as env_bilinear_lane. A group
+ * with a lane whose texels include the image's last one (a 16-byte load would read past the
+ * end) and the lanes after the last whole group go lane by lane. */
+SMATH_INLINE void env_bilinear(const float *restrict rgb, const env_taps *restrict t, int n, float *restrict r,
+                               float *restrict g, float *restrict b)
+{
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+        if (!(t->wide[i] & t->wide[i + 1] & t->wide[i + 2] & t->wide[i + 3])) {
+            for (int j = i; j < i + 4; j++)
+                env_bilinear_lane(rgb, t, j, r, g, b);
+            continue;
+        }
+        env_v4 r00, g00, b00, r01, g01, b01, r10, g10, b10, r11, g11, b11;
+        env_texel_x4(rgb, t->o00 + i, &r00, &g00, &b00);
+        env_texel_x4(rgb, t->o01 + i, &r01, &g01, &b01);
+        env_texel_x4(rgb, t->o10 + i, &r10, &g10, &b10);
+        env_texel_x4(rgb, t->o11 + i, &r11, &g11, &b11);
+        const env_v4 ax = env_load4(t->ax + i), ay = env_load4(t->ay + i), bx = env_load4(t->bx + i),
+                     by = env_load4(t->by + i);
+        env_v4 cr = ENV_BILERP(r00, r01, r10, r11, ax, ay, bx, by);
+        env_v4 cg = ENV_BILERP(g00, g01, g10, g11, ax, ay, bx, by);
+        env_v4 cb = ENV_BILERP(b00, b01, b10, b11, ax, ay, bx, by);
+        memcpy(r + i, &cr, sizeof cr);
+        memcpy(g + i, &cg, sizeof cg);
+        memcpy(b + i, &cb, sizeof cb);
+    }
+    for (; i < n; i++)
+        env_bilinear_lane(rgb, t, i, r, g, b);
+}
+
+/* The first pass for an equirectangular image: asin(y) of the unit direction is taken as
+ * atan2(y, sqrt(x^2 + z^2)), which needs no normalisation, and every index is kept inside the
+ * image by selects, so no lane can read out of bounds whatever its input. */
+SMATH_INLINE void env_image_taps(int w, int h, int n_floats, int n, const float *restrict dx, const float *restrict dy,
+                                 const float *restrict dz, env_taps *restrict t)
+{
+    const float fw = (float)w, fh = (float)h;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        float x = dx[i], y = dy[i], z = dz[i];
+        t->zero[i] = (x == 0.0f) & (y == 0.0f) & (z == 0.0f);
+        float u = 0.5f + smath_atan2(z, x) * (0.5f / FORMULA_PI_F);
+        float v = 0.5f + smath_atan2(y, sqrtf(x * x + z * z)) * (1.0f / FORMULA_PI_F);
+        float fx = u * fw - 0.5f, fy = (1.0f - v) * fh - 0.5f;
+        /* fx, fy >= -0.5: truncating fx + 1 is floor(fx) + 1 without a libm floorf. */
+        int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;
+        float ax = fx - (float)x0, ay = fy - (float)y0;
+        t->ax[i] = ax;
+        t->ay[i] = ay;
+        t->bx[i] = 1.0f - ax;
+        t->by[i] = 1.0f - ay;
+        x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
+        x0 = ((x0 >= 0) & (x0 < w)) ? x0 : 0;
+        int x1 = x0 + 1 >= w ? 0 : x0 + 1;
+        int y1 = y0 + 1;
+        y0 = y0 < 0 ? 0 : (y0 >= h ? h - 1 : y0);
+        y1 = y1 < 0 ? 0 : (y1 >= h ? h - 1 : y1);
+        t->o00[i] = 3 * (y0 * w + x0);
+        t->o01[i] = 3 * (y0 * w + x1);
+        t->o10[i] = 3 * (y1 * w + x0);
+        t->o11[i] = 3 * (y1 * w + x1);
+        /* Rows y0 <= y1: o10 and o11 are the largest offsets. */
+        t->wide[i] = (t->o10[i] + 4 <= n_floats) & (t->o11[i] + 4 <= n_floats);
+    }
+}
+
+/* The same lookup as env_lookup with one lane per direction, in two passes per chunk: the
+ * texel offsets and weights vectorised across lanes (no loads), then the texel reads lane by
+ * lane, R, G, B together. A lane loop reading the texels itself needs twelve gathers a lane,
+ * which GCC emulates with scalar loads and inserts; that was most of this function's time. */
 SMATH_CLONES
 void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float *restrict dy, const float *restrict dz,
                   float *restrict r, float *restrict g, float *restrict b)
@@ -178,7 +311,6 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
         return;
     }
     const int w = e->width, h = e->height;
-    const float fw = (float)w, fh = (float)h;
     const float *restrict rgb = e->rgb;
     const vec3 scale = e->scale;
     if (e->kind == ENV_CUBE) {
@@ -194,33 +326,22 @@ void env_lookup_n(const env_map *e, int n, const float *restrict dx, const float
         }
         return;
     }
+    const int n_floats = 3 * w * h;
+    env_taps t;
+    for (int i0 = 0; i0 < n; i0 += ENV_CHUNK) {
+        const int m = n - i0 < ENV_CHUNK ? n - i0 : ENV_CHUNK;
+        float *restrict cr = r + i0, *restrict cg = g + i0, *restrict cb = b + i0;
+        env_image_taps(w, h, n_floats, m, dx + i0, dy + i0, dz + i0, &t);
+        env_bilinear(rgb, &t, m, cr, cg, cb);
+        /* The scale (or 0 for a zero direction) as its own product after the sum, as in
+         * env_lookup: the zero select is on the factor, so it cannot hide the texel reads. */
 #pragma omp simd
-    for (int i = 0; i < n; i++) {
-        float x = dx[i], y = dy[i], z = dz[i];
-        int zero = (x == 0.0f) & (y == 0.0f) & (z == 0.0f);
-        float u = 0.5f + smath_atan2(z, x) * (0.5f / FORMULA_PI_F);
-        float v = 0.5f + smath_atan2(y, sqrtf(x * x + z * z)) * (1.0f / FORMULA_PI_F);
-        float fx = u * fw - 0.5f, fy = (1.0f - v) * fh - 0.5f;
-        /* fx, fy >= -0.5: truncating fx + 1 is floor(fx) + 1 without a libm floorf. */
-        int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;
-        float ax = fx - (float)x0, ay = fy - (float)y0;
-        x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
-        x0 = ((x0 >= 0) & (x0 < w)) ? x0 : 0;
-        int x1 = x0 + 1 >= w ? 0 : x0 + 1;
-        int y1 = y0 + 1;
-        y0 = y0 < 0 ? 0 : (y0 >= h ? h - 1 : y0);
-        y1 = y1 < 0 ? 0 : (y1 >= h ? h - 1 : y1);
-        int o00 = 3 * (y0 * w + x0), o01 = 3 * (y0 * w + x1), o10 = 3 * (y1 * w + x0), o11 = 3 * (y1 * w + x1);
-        float bx = 1.0f - ax, by = 1.0f - ay;
-        float cr = by * (bx * rgb[o00] + ax * rgb[o01]) + ay * (bx * rgb[o10] + ax * rgb[o11]);
-        float cg = by * (bx * rgb[o00 + 1] + ax * rgb[o01 + 1]) + ay * (bx * rgb[o10 + 1] + ax * rgb[o11 + 1]);
-        float cb = by * (bx * rgb[o00 + 2] + ax * rgb[o01 + 2]) + ay * (bx * rgb[o10 + 2] + ax * rgb[o11 + 2]);
-        /* The zero-direction select is on the factor, not the result: a select on the result
-         * lets the compiler move the texel loads under it, and masked gathers do not vectorise. */
-        vec3 k = zero ? v3s(0.0f) : scale;
-        r[i] = cr * k.x;
-        g[i] = cg * k.y;
-        b[i] = cb * k.z;
+        for (int i = 0; i < m; i++) {
+            vec3 k = t.zero[i] ? v3s(0.0f) : scale;
+            cr[i] *= k.x;
+            cg[i] *= k.y;
+            cb[i] *= k.z;
+        }
     }
 }
 

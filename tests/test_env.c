@@ -16,6 +16,8 @@
 #include "cli_exec.h"
 #include "env.h"
 #include "exr.h"
+#include "formula.h"
+#include "smath.h"
 
 enum { W = 8, H = 4 };
 static float img[W * H * 3];
@@ -263,6 +265,80 @@ static void test_check_loads_environment(void **state)
     env_scene_remove(dir);
 }
 
+/* env_lookup_n's lane formula written out per lane, as the kernel stated it in one lane loop
+ * (two smath_atan2, truncating floor, wrap in u, clamp in v, bilinear sum times the scale): the
+ * reference its chunked two-pass form (four lanes' texels read as 16-byte loads and
+ * transposed) must equal bit for bit. */
+static void lane_reference(const env_map *e, float x, float y, float z, float out[3])
+{
+    const int w = e->width, h = e->height;
+    int zero = (x == 0.0f) & (y == 0.0f) & (z == 0.0f);
+    float u = 0.5f + smath_atan2(z, x) * (0.5f / FORMULA_PI_F);
+    float v = 0.5f + smath_atan2(y, sqrtf(x * x + z * z)) * (1.0f / FORMULA_PI_F);
+    float fx = u * (float)w - 0.5f, fy = (1.0f - v) * (float)h - 0.5f;
+    int x0 = (int)(fx + 1.0f) - 1, y0 = (int)(fy + 1.0f) - 1;
+    float ax = fx - (float)x0, ay = fy - (float)y0;
+    x0 = x0 < 0 ? x0 + w : (x0 >= w ? x0 - w : x0);
+    x0 = (x0 >= 0 && x0 < w) ? x0 : 0;
+    int x1 = x0 + 1 >= w ? 0 : x0 + 1, y1 = y0 + 1;
+    y0 = y0 < 0 ? 0 : (y0 >= h ? h - 1 : y0);
+    y1 = y1 < 0 ? 0 : (y1 >= h ? h - 1 : y1);
+    const float *p00 = e->rgb + 3 * (y0 * w + x0), *p01 = e->rgb + 3 * (y0 * w + x1);
+    const float *p10 = e->rgb + 3 * (y1 * w + x0), *p11 = e->rgb + 3 * (y1 * w + x1);
+    const float k[3] = {e->scale.x, e->scale.y, e->scale.z};
+    float bx = 1.0f - ax, by = 1.0f - ay;
+    for (int c = 0; c < 3; c++) {
+        float s = by * (bx * p00[c] + ax * p01[c]) + ay * (bx * p10[c] + ax * p11[c]);
+        out[c] = s * (zero ? 0.0f : k[c]);
+    }
+}
+
+/* 67 lanes (a full chunk of 64 and three left over) on the 8 x 4 image, its texels exactly
+ * the 96 floats of a heap block (so a read past the end is visible to valgrind or ASan), with
+ * a lane in the first and one in the second chunk whose texels include the image's last one
+ * (bottom row, right column: no 16-byte load there), a zero direction, the poles and random
+ * directions; every channel must equal lane_reference's bits. */
+static void test_lookup_n_bits(void **state)
+{
+    (void)state;
+    enum { N = 67 };
+    env_map e = make_env();
+    float *tight = malloc(sizeof img);
+    assert_non_null(tight);
+    memcpy(tight, img, sizeof img);
+    e.rgb = tight;
+    e.scale = v3(0.5f, 2.0f, 3.0f);
+    float dx[N], dy[N], dz[N], r[N], g[N], b[N];
+    unsigned seed = 12345u;
+    for (int i = 0; i < N; i++) {
+        float d[3];
+        for (int c = 0; c < 3; c++) {
+            seed = seed * 1664525u + 1013904223u;
+            d[c] = (float)(seed >> 8) / 8388608.0f - 1.0f;
+        }
+        dx[i] = d[0], dy[i] = d[1], dz[i] = d[2];
+    }
+    /* Down and just short of u = 1: x0 = W - 1 (x1 wraps to 0), y0 = y1 = H - 1. */
+    dx[5] = -1.0f, dy[5] = -8.0f, dz[5] = 0.01f;
+    dx[65] = -1.0f, dy[65] = -8.0f, dz[65] = 0.02f;
+    dx[6] = dy[6] = dz[6] = 0.0f;
+    dx[7] = 0.0f, dy[7] = 1.0f, dz[7] = 0.0f;
+    dx[8] = 0.0f, dy[8] = -1.0f, dz[8] = 0.0f;
+    float tx, ty;
+    env_direction_to_texel(&e, v3(dx[5], dy[5], dz[5]), &tx, &ty);
+    assert_true(tx > (float)W - 0.5f && ty > (float)H - 0.5f);
+    env_lookup_n(&e, N, dx, dy, dz, r, g, b);
+    for (int i = 0; i < N; i++) {
+        float want[3], got[3] = {r[i], g[i], b[i]};
+        lane_reference(&e, dx[i], dy[i], dz[i], want);
+        if (memcmp(want, got, sizeof want) != 0)
+            fail_msg("lane %d (%g, %g, %g): got (%a, %a, %a), want (%a, %a, %a)", i, (double)dx[i], (double)dy[i],
+                     (double)dz[i], (double)got[0], (double)got[1], (double)got[2], (double)want[0], (double)want[1],
+                     (double)want[2]);
+    }
+    free(tight);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -273,6 +349,7 @@ int main(void)
         cmocka_unit_test(test_check_texels),
         cmocka_unit_test(test_render_refuses_bad_texels),
         cmocka_unit_test(test_check_loads_environment),
+        cmocka_unit_test(test_lookup_n_bits),
     };
     return cmocka_run_group_tests_name("env", tests, NULL, NULL);
 }
