@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 try:
     from report import pages
-    from report.browser import check_pages, screenshot
+    from report.browser import Browser
     from report.figures import figures_md
     from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
@@ -115,18 +115,21 @@ def make_report(args):
         point_latest(args.run, args.latest, problems)
     if args.screenshot:
         try:
-            screenshot(os.path.join(args.run, 'index.html'), os.path.join(args.run, 'screenshot.png'))
-            if R['scenes']:
-                screenshot(
-                    os.path.join(args.run, R['scenes'][0]['page']),
-                    os.path.join(args.run, 'screenshot-scene.png'),
-                    '1400,1400',
-                )
-            # The report as a person opens it: every page in headless Chromium, every table row
-            # and image loaded (report.js's markers); a page that fails is named, not ignored.
-            opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
-            n_pages = len(opened)
-            bad = check_pages(args.run, opened)
+            # One Chromium for the screenshots and the check (browser.py: a start costs more
+            # than a page).
+            with Browser() as b:
+                b.screenshot(os.path.join(args.run, 'index.html'), os.path.join(args.run, 'screenshot.png'))
+                if R['scenes']:
+                    b.screenshot(
+                        os.path.join(args.run, R['scenes'][0]['page']),
+                        os.path.join(args.run, 'screenshot-scene.png'),
+                        (1400, 1400),
+                    )
+                # The report as a person opens it: every page in headless Chromium, every table
+                # row and image loaded (report.js's markers); a page that fails is named.
+                opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
+                n_pages = len(opened)
+                bad = b.check_pages(args.run, opened)
             for page_name, why in bad:
                 print(f'report: {page_name}: {why}', file=sys.stderr)
             print(
