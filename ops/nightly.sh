@@ -463,7 +463,7 @@ t2=$(date +%s)
 # shellcheck disable=SC2046
 progress each --label report --log "$run/report.txt" $(expected report) -- /usr/bin/python3 tools/report.py \
     --run "$run" --history "$history" --commit "$commit" ${reference_history:+--reference-history "$reference_history"} \
-    --latest "$latest" $screenshot ::: index.html ||
+    --latest "$latest" --cache "$cache/report" $screenshot ::: index.html ||
     { echo "reflcheck nightly: the report failed; see $run/report.txt" >&2; rc=1; }
 stage_done report "$t2"
 # A report that failed before it appended the run's line (a full disk): the run is still recorded.

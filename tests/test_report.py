@@ -125,6 +125,35 @@ def test_plots_are_svg(built):
     assert 'no angle bins in compare.json' in read(os.path.join(built['run'], 'scene-beta.html'))
 
 
+def plots_line(stdout):
+    """(drawn, from the cache) of report.py's 'report: plots: ...' line."""
+    m = re.search(r'report: plots: (\d+) drawn by gnuplot .*?, (\d+) from ', stdout)
+    assert m, stdout
+    return int(m.group(1)), int(m.group(2))
+
+
+@pytest.mark.skipif(not HAVE_GNUPLOT, reason='gnuplot not installed')
+def test_plot_cache_draws_only_what_changed(tmp_path):
+    cache = str(tmp_path / 'cache')
+    first = make_run(str(tmp_path / 'a'), RUN1)
+    r = run_report('--run', first, '--cache', cache)
+    drawn, kept = plots_line(r.stdout)
+    assert r.returncode == 0 and drawn == 3 and kept == 0, r.stdout  # 2 angle plots, 1 timing
+    # The same inputs in another run folder: every plot comes back, byte for byte.
+    same = make_run(str(tmp_path / 'b'), RUN1)
+    r = run_report('--run', same, '--cache', cache)
+    assert plots_line(r.stdout) == (0, drawn), r.stdout
+    for f in os.listdir(os.path.join(first, 'plots')):
+        assert read(os.path.join(first, 'plots', f)) == read(os.path.join(same, 'plots', f)), f
+    # Other figures (every error doubled): the plots of those figures are drawn again.
+    changed = make_run(str(tmp_path / 'c'), RUN1, rel_scale=2.0)
+    r = run_report('--run', changed, '--cache', cache)
+    redrawn, _ = plots_line(r.stdout)
+    assert redrawn >= 2, r.stdout
+    f = 'angle-alpha-ndotv.svg'
+    assert read(os.path.join(changed, 'plots', f)) != read(os.path.join(first, 'plots', f))
+
+
 def test_latest_points_at_run(built):
     latest = os.path.join(built['root'], 'latest')
     assert os.path.islink(latest)
@@ -644,9 +673,7 @@ def test_no_hand_escaping_in_the_package():
             assert 'html.escape' not in text and 'esc(' not in text, f
             assert '|safe' not in text and 'autoescape false' not in text, f
     assert 'import report' not in ''.join(
-        read(os.path.join(TOOLS, 'report', f))
-        for f in os.listdir(os.path.join(TOOLS, 'report'))
-        if f.endswith('.py')
+        read(os.path.join(TOOLS, 'report', f)) for f in os.listdir(os.path.join(TOOLS, 'report')) if f.endswith('.py')
     )
 
 

@@ -5,6 +5,7 @@ Usage (Python 3 with Debian's python3-jinja2; plots need the `gnuplot` program, 
   python3 tools/report.py --run reports/runs/<id> [--history reports/local/history.jsonl]
                             [--reference-history reports/history.jsonl]
                             [--commit SHA] [--latest reports/latest] [--screenshot]
+                            [--cache reports/cache/report]
   python3 tools/report.py --run reports/runs/<id> --history FILE --failed REASON
   python3 tools/report.py --propose-thresholds --run reports/runs/<id>
 
@@ -20,7 +21,9 @@ plots/*.svg, summary.json, summary.csv, junit.xml,
 figures.md (the README's tables of this run),
 and appends one line to the history file (one write() plus fsync, never truncating). The trend
 plots show --reference-history's runs (read only, labelled ref-) and then --history's.
---failed REASON writes no page: it records a run that ended before it could be reported.
+--cache DIR keeps each plot under the hash of its inputs (script, parameters, data) and copies
+an unchanged one back instead of starting gnuplot; the one Chromium of --screenshot opens
+every page. --failed REASON writes no page: it records a run that ended before it could be reported.
 A missing or corrupt input file is listed on the page and on stderr with its name; it is never
 a crash. Exit status: 0 report written (whatever the verdicts), 1 an output could not be
 written, 2 bad usage (run folder missing).
@@ -44,7 +47,8 @@ try:
     from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
-    from report.plots import plot_angles, plot_figure1, plot_timing, plot_trends
+    from report.plots import CACHE as PLOT_CACHE
+    from report.plots import plot_angles, plot_figure1, plot_timing, plot_trends, set_cache
     from report.proposal import proposal
     from report.util import ASSETS, VERDICTS, write_atomic
 except ImportError as e:  # the one library outside the standard library: Jinja2, for the pages
@@ -85,11 +89,19 @@ def make_report(args):
     if args.history:
         parts.append(f'{len(local)} run{plural(local)} of this history, {args.history}')
     note = 'trends: ' + ', then '.join(parts) if parts else 'no --history or --reference-history given: no trends'
+    if args.cache:
+        set_cache(os.path.join(args.cache, 'plots'))
     with tempfile.TemporaryDirectory(prefix='reflcheck-report-') as tmp:
         angles = {s['name']: plot_angles(R, s, tmp, problems) for s in R['scenes']}
         figure1 = {s['name']: plot_figure1(R, s, tmp, problems) for s in R['scenes'] if s.get('figure1')}
         trends = plot_trends(R, history, tmp, problems) if history else {}
         timing = plot_timing(R, tmp, problems)
+    if args.cache:
+        # The nightly's second run is checked by this line (tests/nightly_cache.sh).
+        print(
+            f'report: plots: {len(PLOT_CACHE.drawn)} drawn by gnuplot '
+            f'({", ".join(plot_kinds(PLOT_CACHE.drawn)) or "none"}), {len(PLOT_CACHE.kept)} from {args.cache}'
+        )
     for s in R['scenes']:
         write_atomic(
             os.path.join(args.run, s['page']), pages.scene_html(R, s, angles[s['name']], trends.get(s['name']))
@@ -147,6 +159,15 @@ def make_report(args):
         + f'; {len(problems.items)} input problems'
     )
     return 0
+
+
+def plot_kinds(svgs):
+    """['3 trend', '1 angle']: the drawn plots counted by the first word of their name."""
+    n = {}
+    for p in svgs:
+        kind = os.path.basename(p).split('-')[0]
+        n[kind] = n.get(kind, 0) + 1
+    return [f'{v} {k}' for k, v in sorted(n.items())]
 
 
 def plural(items):
@@ -212,6 +233,11 @@ def main(argv=None):
     )
     ap.add_argument('--commit', help='commit of the run (default: from the run id, else "unknown")')
     ap.add_argument('--latest', help='symlink to point at this run, e.g. reports/latest')
+    ap.add_argument(
+        '--cache',
+        help='keep the plots here (CACHE/plots/) and copy back those whose inputs did not change, '
+        'e.g. reports/cache/report',
+    )
     ap.add_argument(
         '--screenshot',
         action='store_true',
