@@ -3,6 +3,7 @@
 #  - a Cycles job rendered by a worker gives the image a fresh Blender gives, bit for bit in
 #    every pixel and channel, and the same record but for times and the command;
 #  - two jobs in a row in one worker (the scene reset between them) are both right;
+#  - a pool that gets no job starts no Blender (the workers start at the first job);
 #  - a job that exceeds its time limit in a worker records "timeout", the worker ends itself,
 #    the pool starts another, and the next job is ok again.
 # Usage: bash tests/slurm_worker.sh BUILD
@@ -43,6 +44,10 @@ def same_pixels(a, b):
     return r.returncode == 0
 
 
+# No job, no Blender: the workers start when the first job connects.
+with WorkerPool(1, log_dir=work) as idle:
+    pass
+check(idle.starts == 0, f'a pool that got no job started no Blender ({idle.starts} started)')
 fresh, t_fresh = run('fresh')
 check(fresh['status'] == 'ok', f"a fresh Blender renders the job: {fresh['status']} {fresh['message']}")
 with WorkerPool(1, log_dir=work) as pool:

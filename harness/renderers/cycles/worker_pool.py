@@ -9,12 +9,15 @@ renderers/cycles/cycles_worker.c) instead of starting Blender; everything else a
 (cache, key, collection of the seeds, record, log) is the same code as without a pool. The
 workers (worker.py) share one listening socket, so a job goes to whichever is idle. A worker
 that dies (a client timed out or was killed mid-render, Blender crashed) is started again.
+The workers start when the first job connects, so a run whose jobs the cache answers starts
+no Blender.
 Leaving the `with` block stops every worker; they also die with this process (SIGKILL via
 PR_SET_PDEATHSIG), so no Blender outlives the sweep.
 """
 
 import ctypes
 import os
+import select
 import shutil
 import signal
 import socket
@@ -77,6 +80,13 @@ class WorkerPool:
         return p
 
     def _watch(self):
+        # The workers start when the first job knocks (a connection waits on the socket): a run
+        # whose jobs all come from the cache starts no Blender (1 s of CPU each).
+        while not self.procs and not self.stopping.is_set():
+            if select.select([self.sock], [], [], 0.2)[0]:
+                with self.lock:
+                    if not self.stopping.is_set():
+                        self.procs = [self._start_one() for _ in range(self.n)]
         while not self.stopping.wait(0.2):
             with self.lock:
                 for i, p in enumerate(self.procs):
@@ -90,8 +100,6 @@ class WorkerPool:
         self.sock.bind(self.path)
         # Every job of the sweep may wait in the backlog at once; the kernel caps it anyway.
         self.sock.listen(4096)
-        with self.lock:
-            self.procs = [self._start_one() for _ in range(self.n)]
         self.monitor = threading.Thread(target=self._watch, daemon=True)
         self.monitor.start()
         return self
