@@ -237,11 +237,13 @@ TEST_FUZZ_TIME ?= 15
 # The nightly through a one-node Slurm cluster it starts and stops itself: the same verdicts,
 # metrics and images as with make, every job a Slurm job; failed and cancelled jobs recorded.
 # Then on two nodes, and with one of them killed mid-run: jobs on both, the lost one requeued,
-# the same verdicts as on one node. Then a Blender worker's images against a fresh Blender's.
+# the same verdicts as on one node. Then a Blender worker's images against a fresh Blender's,
+# for Cycles and for EEVEE (under the pool's own Xvfb).
 test-slurm: $(CLI)
 	@bash tests/slurm_nightly.sh $(BUILD)
 	@bash tests/slurm_nodes.sh $(BUILD)
 	@bash tests/slurm_worker.sh $(BUILD)
+	@bash tests/eevee_worker.sh $(BUILD)
 
 # The report generator, the report opened in headless Chromium, the gates table (tools/gates.py:
 # every gate beside its figure, none loose without a stated reason) and the cost table

@@ -24,6 +24,10 @@
 # names this run the project's reference run on purpose: its line goes to reports/history.jsonl.
 # A Slurm run that fails to submit records a line with status "failed" and the reason.
 #
+# Cache: CACHE keeps what a second run with nothing changed takes back instead of doing it
+# again: the renders (the job cache), the sweep's renders, the fits, the stability table and the
+# report's plots (CACHE/report); Blender workers start only for a job the cache cannot answer.
+#
 # Exit status: 0 when every job ran (or was skipped: renderer not installed, or it cannot
 # represent the scene) and no comparison failed; 1 when a job or step failed or a comparison
 # failed or errored (the run is still reported and recorded, with its status); 2 bad input.
@@ -326,11 +330,15 @@ if [ "$scheduler" = make ]; then
     # a failed job at once.
     n=$(grep -c '^all: ' "$run/jobs.mk")
     say "renders: $n jobs, $jobs at a time (their output: $run/renders.txt)"
-    # Cycles jobs hand their render to one of $jobs Blender workers (worker_pool.py), so Blender
-    # starts once per worker, not once per job; the workers stop with make.
+    # Cycles and EEVEE jobs hand their render to one of $jobs Blender workers each
+    # (worker_pool.py; EEVEE's under one Xvfb, llvmpipe drawing with the jobs' threads), so
+    # Blender starts once per worker, not once per job, and only at the first job the cache
+    # does not answer; the workers stop with make.
     pool=()
-    grep -q -e "--renderer cycles " "$run/jobs.mk" && command -v blender > /dev/null &&
-        pool=(/usr/bin/python3 harness/renderers/cycles/worker_pool.py --workers "$jobs" --log-dir "$run" --)
+    eevee_threads=$(sed -n 's/.*--renderer eevee .*--threads \([0-9]*\).*/\1/p' "$run/jobs.mk" | head -n1)
+    grep -q -e "--renderer cycles " -e "--renderer eevee " "$run/jobs.mk" && command -v blender > /dev/null &&
+        pool=(/usr/bin/python3 harness/renderers/cycles/worker_pool.py --workers "$jobs" --log-dir "$run"
+            ${eevee_threads:+--eevee-threads "$eevee_threads"} --)
     "${pool[@]}" make -k -j"$jobs" -f "$run/jobs.mk" all > "$run/renders.txt" 2>&1 &
     mk=$!
     progress watch "$run" --total "$n" --pid "$mk" --label renders

@@ -50,7 +50,10 @@ def watch(conn, done):
         os.kill(os.getpid(), signal.SIGKILL)
 
 
-def serve_one(conn):
+def serve_one(conn, render=None, script='cycles_render.py'):
+    """One job on conn: render(job, out, threads) (default cycles_render.render_job; EEVEE's
+    worker passes its own and its script's name for the log's error line)."""
+    render = render or cycles_render.render_job
     f = conn.makefile('rb')
     line = f.readline(1 << 16)
     try:
@@ -74,13 +77,13 @@ def serve_one(conn):
         os.dup2(fd, 2)
         os.close(fd)
         try:
-            cycles_render.render_job(job, out, threads)
+            render(job, out, threads)
         except cycles_render.JobError as e:
-            print("cycles_render.py: error: %s" % e, file=sys.stderr)
+            print("%s: error: %s" % (script, e), file=sys.stderr)
             status = 1
         except Exception:
             traceback.print_exc()
-            print("cycles_render.py: error: unexpected failure (traceback above)", file=sys.stderr)
+            print("%s: error: unexpected failure (traceback above)" % script, file=sys.stderr)
             status = 1
     except OSError as e:
         status = 1
@@ -97,7 +100,7 @@ def serve_one(conn):
     conn.sendall((json.dumps(reply) + '\n').encode())
 
 
-def main():
+def main(render=None, script='cycles_render.py'):
     argv = sys.argv[sys.argv.index('--') + 1 :] if '--' in sys.argv else []
     if len(argv) != 1:
         print('worker.py: usage: blender -b --factory-startup -P worker.py -- FD', file=sys.stderr)
@@ -106,7 +109,7 @@ def main():
     while True:
         conn, _ = listener.accept()
         try:
-            serve_one(conn)
+            serve_one(conn, render, script)
         except OSError:
             pass  # the client went away after its job: nothing to tell it
         finally:

@@ -12,16 +12,20 @@
 #include <cJSON.h>
 
 #include "../cycles/cycles.h"
+#include "../cycles/cycles_worker.h"
 #include "d3d9client.h"
 #include "exr.h"
 #include "fileio.h"
 #include "runner.h"
 
-#define EEVEE_INSTALL "apt-get install xvfb xauth"
+#define EEVEE_INSTALL            "apt-get install xvfb xauth"
+/* worker_pool.py's EEVEE workers: their socket, and the llvmpipe threads they draw with. */
+#define EEVEE_WORKER_ENV         "REFLCHECK_EEVEE_WORKER"
+#define EEVEE_WORKER_THREADS_ENV "REFLCHECK_EEVEE_WORKER_THREADS"
 /* TAA samples at most: EEVEE's error is its approximation's, flat in the sample count
  * (d3d_blinn_phong: 0.0827 at 1, 0.0824 at 16), while a full-size frame of 128 samples took
  * 400 s on llvmpipe, near the 600 s job limit. */
-#define EEVEE_TAA_MAX 32
+#define EEVEE_TAA_MAX            32
 
 /* Twin: EEVEE computes what our model computes only for Lambert under lamps. 1 and a message
  * naming what it cannot twin, else 0. */
@@ -263,6 +267,7 @@ static int eevee_write_job(const renderer_job *j, const eevee_options *o, const 
 /* The command line and the strings it points into. */
 typedef struct {
     const char *argv[24];
+    int job_arg; /* argv[job_arg] is the job file */
     char display[32], threads[48], script[PATH_MAX];
 } eevee_argv;
 
@@ -302,10 +307,25 @@ static int eevee_command(const renderer_job *j, const eevee_options *o, const ch
     }
     a->argv[n++] = o->script ? o->script : a->script;
     a->argv[n++] = "--";
+    a->job_arg = n;
     a->argv[n++] = job;
     a->argv[n++] = j->exr;
     a->argv[n] = NULL;
     return 1;
+}
+
+/* The socket of a running EEVEE worker (worker_pool.py --eevee-threads) to hand the job to, or
+ * NULL: none runs, the job names its own Blender or script, or it asks for other threads than
+ * the workers' llvmpipe draws with (their LP_NUM_THREADS is fixed when they start). */
+static const char *eevee_worker(const renderer_job *j, const eevee_options *o)
+{
+    const char *sock = getenv(EEVEE_WORKER_ENV);
+    const char *threads = getenv(EEVEE_WORKER_THREADS_ENV);
+    if (sock == NULL || sock[0] == '\0' || threads == NULL || o->blender != NULL || o->script != NULL)
+        return NULL;
+    char *end;
+    long n = strtol(threads, &end, 10);
+    return *end == '\0' && n > 0 && n == j->threads ? sock : NULL;
 }
 
 /* Runs the command and collects Blender's image into j->exr; r holds the outcome. 1 when
@@ -315,7 +335,13 @@ static int eevee_run(const renderer_job *j, const eevee_options *o, const eevee_
     char err[1024];
     renderer_command_string(a->argv, r->command, sizeof r->command);
     runner_result rr;
-    runner_exec(a->argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    const char *worker = eevee_worker(j, o);
+    if (cycles_worker_run(worker, a->argv[a->job_arg], j->exr, j->threads, j->timeout, j->log, &rr)) {
+        char via[2100];
+        snprintf(via, sizeof via, "(blender worker %s) %s", worker, r->command);
+        snprintf(r->command, sizeof r->command, "%s", via);
+    } else
+        runner_exec(a->argv, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
     r->wall_s = rr.wall_s;
     r->cpu_s = rr.cpu_s;
     if (rr.status != RUNNER_OK) {

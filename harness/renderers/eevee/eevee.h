@@ -7,6 +7,9 @@
  *                     .exr = "out.exr", .log = "out.log", .options = &o};
  *   renderer_result r = {0};
  *   eevee_render_job(&j, &r);           job.json, xvfb-run blender, collect: what production runs
+ * Under worker_pool.py --eevee-threads T (REFLCHECK_EEVEE_WORKER set), a job of T threads hands
+ * its Blender step to a running Blender under the pool's Xvfb instead (eevee_worker.py): the
+ * same image, bit for bit (tests/eevee_worker.sh), without Blender's and Xvfb's start-up.
  *
  * The scene translation is Cycles' (cycles_write_job and cycles_render.py): EEVEE renders the
  * same Blender scene as Cycles and only the engine differs (eevee_render.py sets it up).

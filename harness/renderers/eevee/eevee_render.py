@@ -139,12 +139,11 @@ def gl_renderer():
         return ""
 
 
-def main():
+def render_job(job_path, out_path, threads=0):
+    """One job, from the factory settings on: what a fresh Blender running this script does
+    (eevee_worker.py calls it job after job). threads is the worker protocol's; llvmpipe's own
+    threads are fixed when the worker starts (LP_NUM_THREADS)."""
     t0 = time.monotonic()
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-    if len(argv) != 2:
-        raise cr.JobError("usage: blender -b --factory-startup -P eevee_render.py -- JOB.json OUT.exr")
-    job_path, out_path = argv
     try:
         with open(job_path) as fh:
             job = json.load(fh)
@@ -183,6 +182,13 @@ def main():
     with open(stem + ".timing.json", "w") as fh:
         json.dump(timing, fh)
     print("reflcheck-eevee: build %.3f s, render %.3f s, %s" % (t_build, render_s, timing["opengl"]))
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+    if len(argv) != 2:
+        raise cr.JobError("usage: blender -b --factory-startup -P eevee_render.py -- JOB.json OUT.exr")
+    render_job(*argv)
 
 
 if __name__ == "__main__":
