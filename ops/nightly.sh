@@ -25,8 +25,9 @@
 # A Slurm run that fails to submit records a line with status "failed" and the reason.
 #
 # Cache: CACHE keeps what a second run with nothing changed takes back instead of doing it
-# again: the renders (the job cache), the sweep's renders, the fits, the stability table and the
-# report's plots (CACHE/report); Blender workers start only for a job the cache cannot answer.
+# again: the renders (the job cache), the sweep's renders, the measurements (CACHE/compare), the
+# fits, the stability table and the report's plots (CACHE/report); Blender workers start only
+# for a job the cache cannot answer.
 #
 # Exit status: 0 when every job ran (or was skipped: renderer not installed, or it cannot
 # represent the scene) and no comparison failed; 1 when a job or step failed or a comparison
@@ -356,7 +357,9 @@ if [ "$scheduler" = make ]; then
             { echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2; rc=1; }
         stage_done sweep "$t1"
     fi
-    step "$bin" compare "${scenes[@]}" --run "$run" > "$run/compare.txt"
+    # compare through CACHE/compare: a scene of unchanged renders and scene file is not
+    # measured again (ops/compare_cache.sh).
+    step bash ops/compare_cache.sh "$cache" "$bin" "$run" "${scenes[@]}" > "$run/compare.txt"
     st=$?
 else
     mkdir -p "$run/slurm"

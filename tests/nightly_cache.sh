@@ -2,7 +2,7 @@
 # A second nightly run over the same cache does none of the work again: the fits come back from
 # CACHE/fits (ops/fit_cache.sh) and the stability table from CACHE/stability, equal to the
 # first run's; a changed scene file fits again; stages.tsv holds each stage's CPU seconds; the
-# second run renders, fits, tabulates and plots nothing anew (job records, cache entries and
+# second run renders, measures, fits, tabulates and plots nothing anew (job records, cache entries and
 # report.py's plot line say so), and a run with the cache bypassed is seen to do each of them.
 # Scene: d3d_scaled (raster against POV-Ray and the
 # exact renderer: validate references to fit, no Blender), small, no sweep.
@@ -70,29 +70,32 @@ awk -F'\t' '$1 == "fits" && NF == 3 && $3 > 0.5 { f = 1 } END { exit !f }' "$wor
     ok "stages.tsv: the fits' CPU seconds, first run and (less than 1 s) second" ||
     bad "stages.tsv lacks the fits' CPU seconds or the second run's fits took CPU: $(tr '\n\t' '; ' < "$work/runs/second/stages.tsv")"
 # What a run did anew rather than take from its cache, one line each (none: all reused), by
-# markers, not time: a job record not "cached": true; a fit entry CACHE/fits gained (argument
-# 3: the count before the run); a stability table not taken from CACHE/stability; a plot
-# report.py drew other than the trend (which gains the run's own history line).
-reran() { # RUN_ID CACHE FITS_BEFORE
+# markers, not time: a job record not "cached": true; a fit or compare entry CACHE/fits or
+# CACHE/compare gained (arguments 3 and 4: the counts before the run); a stability table not
+# taken from CACHE/stability; a plot report.py drew other than the trend (which gains the
+# run's own history line).
+reran() { # RUN_ID CACHE FITS_BEFORE COMPARES_BEFORE
     local r=$work/runs/$1 f
     for f in "$r"/*/*.json; do
         grep -q '"cached":' "$f" && ! grep -qE '"cached":[[:space:]]*true' "$f" && echo "render ${f#"$r"/}"
     done
-    local fits
+    local fits compares
     fits=$(find "$2/fits" -mindepth 2 -maxdepth 2 -name ok 2> /dev/null | wc -l)
     [ "$fits" != "$3" ] && echo "fits: $(($fits - $3)) new cache entries"
+    compares=$(find "$2/compare" -mindepth 2 -maxdepth 2 -name ok 2> /dev/null | wc -l)
+    [ "$compares" != "$4" ] && echo "compare: $(($compares - $4)) new cache entries"
     grep -q "stability: unchanged program" "$work/$1.err" || echo "stability table computed"
     grep -q '^report: plots: ' "$r/report.txt" || echo "report: no plot cache line"
     sed -n 's/^report: plots: [0-9]* drawn by gnuplot (\(.*\)), .*/\1/p' "$r/report.txt" | tr ',' '\n' |
         grep -vE '^ *([0-9]+ trend|none)$' | sed 's/^ */report plots drawn: /'
 }
-again=$(reran second "$work/cache" 2)
-[ -z "$again" ] && ok "second run: no render, fit, stability table or plot (but the trend) done again" ||
+again=$(reran second "$work/cache" 2 1)
+[ -z "$again" ] && ok "second run: no render, compare, fit, stability table or plot (but the trend) done again" ||
     bad "second run did again: $(echo "$again" | head -n5 | paste -sd';')"
 # The control: the same run with every cache bypassed (a new, empty one) shows each kind of work.
 nightly bypass "$scene" --cache "$work/cache-bypass" || bad "bypass run: exit $?"
-again=$(reran bypass "$work/cache-bypass" 0)
-for what in "^render " "^fits: " "^stability table" "^report plots drawn: "; do
+again=$(reran bypass "$work/cache-bypass" 0 0)
+for what in "^render " "^fits: " "^compare: " "^stability table" "^report plots drawn: "; do
     echo "$again" | grep -q "$what" && ok "bypassed cache: seen ($what)" || bad "bypassed cache: not seen ($what): $again"
 done
 # The scene changed (one comment line more): its fits run again.

@@ -44,6 +44,15 @@ grep -q 'rel_rms = .* > fail threshold 1e-12 at [a-z]* size (test threshold); sc
     "$work/tight.log" && ok "tight: the failure names comparisons[0].thresholds.rel_rms" ||
     bad "tight: the failure does not name its key: $(grep FAIL "$work/tight.log")"
 
+# The same run again: its comparison comes back from the compare cache (ops/compare_cache.sh)
+# and fails all the same, naming its key.
+RUN_ID=tight-again SCENES="$work/tight.yaml" bash ops/nightly.sh > "$work/tight-again.log" 2>&1
+expect tight-again 1 fail $?
+grep -q 'scene key comparisons\[0\]\.thresholds\.rel_rms$' "$work/tight-again.log" &&
+    cmp -s "$RUNS/tight/tight/compare.json" "$RUNS/tight-again/tight/compare.json" &&
+    ok "tight again: the cached comparison fails the same, names its key, same compare.json" ||
+    bad "tight again: the cached comparison differs or does not name its key; see $work/tight-again.log"
+
 # A POV-Ray that names its version and then crashes on every render.
 cat > "$work/bin/povray" <<'SH'
 #!/bin/sh

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# compare_cache.sh - `reflcheck compare` through a cache, so that a nightly run over an unchanged
+# tree hands back each scene's measurements instead of measuring every image pair again.
+#
+# Usage: bash ops/compare_cache.sh CACHE BIN RUN SCENE.yaml...
+#   prints what `BIN compare SCENE... --run RUN` prints (one summary line a scene, in the
+#   scenes' order; "FAIL ..." lines on stderr) and leaves RUN/<scene>/compare.json and view.js;
+#   the scenes whose inputs are unchanged come from CACHE/compare/<key>/, the others are
+#   compared in one call and kept. Exit status: compare's (0 every comparison passed, warned
+#   or was skipped; 1 one failed or errored, or compare failed; 2 bad input).
+# The key (SHA-256) covers what compare reads: the scene file's bytes (its comparisons and
+# gates), the reflcheck program (path, size, modification time: a rebuilt one compares again)
+# and the cache key and status of every render record in RUN/<scene>/ (each key covers the
+# scene's meshes and images, the renderer and the code behind it; the status, a job that failed
+# this time). A scene whose records are not there, or whose compare wrote no summary line, is
+# not kept. compare.json keeps the render times of the run that measured it: a cached render's
+# record carries the same times, rounded to the microsecond.
+set -uo pipefail
+[ $# -ge 4 ] || { echo "compare_cache.sh: usage: CACHE BIN RUN SCENE.yaml..." >&2; exit 2; }
+cache=$1 bin=$2 run=$3
+shift 3
+binstat=$(stat -Lc '%s %Y' "$bin" 2> /dev/null) || exec "$bin" compare "$@" --run "$run"
+binpath=$(readlink -f "$bin")
+# key SCENE: the scene's cache key, with its folder in dir[SCENE]; empty when it has none.
+declare -A dir key
+for s in "$@"; do
+    d=$(grep -lF "\"scene_path\":	\"$s\"" "$run"/*/*.json 2> /dev/null | head -n1)
+    d=${d%/*}
+    keys=$([ -n "$d" ] && grep -hoE '"(key|status)":[[:space:]]*"[^"]*"' "$d"/*.json 2> /dev/null | sort)
+    [ -z "$d" ] || [ -z "$keys" ] || [ ! -r "$s" ] && continue
+    dir[$s]=$d
+    key[$s]=$({
+        echo "reflcheck-compare-cache 1 $binpath $binstat"
+        sha256sum < "$s"
+        echo "$keys"
+    } | sha256sum | cut -c1-32)
+done
+# The misses, compared in one call (it reads every scene first: a bad one refuses them all).
+todo=()
+for s in "$@"; do
+    k=${key[$s]:-}
+    [ -n "$k" ] && [ -f "$cache/compare/$k/ok" ] || todo+=("$s")
+done
+out=$(mktemp) && errs=$(mktemp) || exit 1
+trap 'rm -f "$out" "$errs"' EXIT
+st=0
+if [ ${#todo[@]} -gt 0 ]; then
+    "$bin" compare "${todo[@]}" --run "$run" > "$out" 2> "$errs"
+    st=$?
+    cat "$errs" >&2
+    [ $st = 2 ] && { cat "$out"; exit 2; }
+fi
+# summary LINE: 1 when it counts a failed or errored comparison.
+failing() { [[ $1 =~ fail\ ([0-9]+)\ +skipped\ [0-9]+\ +error\ ([0-9]+) ]] && [ $((BASH_REMATCH[1] + BASH_REMATCH[2])) -gt 0 ]; }
+for s in "$@"; do
+    k=${key[$s]:-}
+    entry=$cache/compare/$k
+    if [ -n "$k" ] && [ -f "$entry/ok" ] && cp "$entry/compare.json" "${dir[$s]}/compare.json.tmp.$$" 2> /dev/null &&
+        cp "$entry/view.js" "${dir[$s]}/view.js.tmp.$$" 2> /dev/null; then
+        mv "${dir[$s]}/compare.json.tmp.$$" "${dir[$s]}/compare.json"
+        mv "${dir[$s]}/view.js.tmp.$$" "${dir[$s]}/view.js"
+        line=$(cat "$entry/line")
+        echo "$line"
+        [ -s "$entry/fail" ] && cat "$entry/fail" >&2
+        failing "$line" && [ $st = 0 ] && st=1
+        continue
+    fi
+    rm -f "${dir[$s]:-/nonexistent}/compare.json.tmp.$$" "${dir[$s]:-/nonexistent}/view.js.tmp.$$"
+    line=
+    while IFS= read -r l; do # the scene's line: its path, spaces, "pass N ..."
+        if [[ $l == "$s "* ]] && [[ ${l#"$s"} =~ ^\ +pass\  ]]; then
+            line=$l
+            break
+        fi
+    done < "$out"
+    [ -n "$line" ] && echo "$line"
+    # A scene measured now and whole (its line printed, both files there) is kept for the next
+    # run, published by rename; a concurrent run that published first keeps its entry.
+    if [ -n "$k" ] && [ -n "$line" ] && [ -f "${dir[$s]}/compare.json" ] && [ -f "${dir[$s]}/view.js" ] &&
+        mkdir -p "$cache/compare" && tmp=$(mktemp -d "$cache/compare/tmp-$k-XXXXXX"); then
+        # compare's "FAIL <scene name>: ..." line on stderr, replayed with the entry.
+        if cp "${dir[$s]}/compare.json" "${dir[$s]}/view.js" "$tmp/" && echo "$line" > "$tmp/line" &&
+            { grep -F -- "FAIL ${dir[$s]##*/}: " "$errs" > "$tmp/fail" || true; } && : > "$tmp/ok"; then
+            mv -T "$tmp" "$entry" 2> /dev/null || rm -rf "$tmp"
+        else
+            rm -rf "$tmp"
+        fi
+    fi
+done
+exit $st
