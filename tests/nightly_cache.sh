@@ -81,9 +81,9 @@ reran() { # RUN_ID CACHE FITS_BEFORE COMPARES_BEFORE
     done
     local fits compares
     fits=$(find "$2/fits" -mindepth 2 -maxdepth 2 -name ok 2> /dev/null | wc -l)
-    [ "$fits" != "$3" ] && echo "fits: $(($fits - $3)) new cache entries"
+    [ "$fits" != "$3" ] && echo "fits: $((fits - $3)) new cache entries"
     compares=$(find "$2/compare" -mindepth 2 -maxdepth 2 -name ok 2> /dev/null | wc -l)
-    [ "$compares" != "$4" ] && echo "compare: $(($compares - $4)) new cache entries"
+    [ "$compares" != "$4" ] && echo "compare: $((compares - $4)) new cache entries"
     grep -q "stability: unchanged program" "$work/$1.err" || echo "stability table computed"
     grep -q '^report: plots: ' "$r/report.txt" || echo "report: no plot cache line"
     sed -n 's/^report: plots: [0-9]* drawn by gnuplot (\(.*\)), .*/\1/p' "$r/report.txt" | tr ',' '\n' |
