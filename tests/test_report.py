@@ -509,16 +509,19 @@ def test_screenshot_option(tmp_path):
 
 @pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
 def test_one_browser_checks_each_page_on_its_own_dom(tmp_path):
-    """The report's check opens every page in one Chromium: a broken page is named whichever
-    page came before it, and a good page after a broken one is not blamed for it."""
+    """The report's check opens every page in one Chromium, one or two tabs at a time: a broken
+    page is named whichever page came before it or loads beside it, and a good page after a
+    broken one is not blamed for it."""
     run = make_run(str(tmp_path), RUN1)
     assert run_report('--run', run).returncode == 0
     os.remove(os.path.join(run, 'alpha', 'view.js'))  # the scene page's images cannot draw
+    pages = ['index.html', 'scene-alpha.html', 'scene-beta.html', 'index.html']
     with browser.Browser() as b:
-        bad = b.check_pages(run, ['index.html', 'scene-alpha.html', 'index.html'])
+        for tabs in (1, 2):
+            bad = b.check_pages(run, pages, tabs)
+            assert [p for p, _ in bad] == ['scene-alpha.html'], (tabs, bad)
+            assert 'failed 6' in bad[0][1], (tabs, bad)
         b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'shot.png'), (640, 480))
-    assert [p for p, _ in bad] == ['scene-alpha.html'], bad
-    assert 'failed 6' in bad[0][1], bad
     with open(os.path.join(run, 'shot.png'), 'rb') as f:
         head = f.read(24)
     assert struct.unpack('>II', head[16:24]) == (640, 480)

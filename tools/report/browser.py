@@ -29,6 +29,9 @@ ATTR = load_ids()['attr']  # report.js's load markers on <body>
 # How long a loaded page's report.js may take to settle its markers (data-ready): the old
 # one-shot check gave the page 5 s of virtual time; a page without report.js ends there.
 SETTLE_S = 5.0
+# Pages the check loads at a time, each in a tab: a page's load is mostly one renderer process,
+# so two keep both cores of the nightly's machine busy.
+TABS = 2
 # Between two looks at a loading page: short beside a page's 0.1-0.3 s load, long enough that
 # the looks themselves cost nothing.
 POLL_S = 0.05
@@ -108,8 +111,7 @@ class Browser:
         finally:
             os.close(cmd_r)
             os.close(reply_w)
-        target = self.call('Target.createTarget', {'url': 'about:blank'})['targetId']
-        self.session = self.call('Target.attachToTarget', {'targetId': target, 'flatten': True})['sessionId']
+        self.session = self.new_tab()
         return self
 
     def __exit__(self, *exc):
@@ -140,12 +142,21 @@ class Browser:
         msg, self.buf = self.buf.split(b'\0', 1)
         return json.loads(msg)
 
-    def call(self, method, params=None, session=False, timeout=None):
-        """One DevTools command; its result (events that arrive meanwhile are dropped)."""
+    def new_tab(self):
+        """A tab of its own window (a window, so that Chromium does not throttle it as a
+        background tab); its session id."""
+        target = self.call('Target.createTarget', {'url': 'about:blank', 'newWindow': True})['targetId']
+        session = self.call('Target.attachToTarget', {'targetId': target, 'flatten': True})['sessionId']
+        self.call('Emulation.setFocusEmulationEnabled', {'enabled': True}, session)
+        return session
+
+    def call(self, method, params=None, session=None, timeout=None):
+        """One DevTools command, to a tab's session if given; its result (events that arrive
+        meanwhile are dropped)."""
         self.next_id += 1
         msg = {'id': self.next_id, 'method': method, 'params': params or {}}
         if session:
-            msg['sessionId'] = self.session
+            msg['sessionId'] = session
         try:
             os.write(self.cmd_w, json.dumps(msg).encode() + b'\0')
         except BrokenPipeError:
@@ -158,39 +169,49 @@ class Browser:
                     raise RuntimeError(f'chromium: {method}: {reply["error"].get("message")}')
                 return reply.get('result', {})
 
-    def evaluate(self, expression):
-        r = self.call('Runtime.evaluate', {'expression': expression, 'returnByValue': True}, session=True)
+    def evaluate(self, expression, session=None):
+        r = self.call('Runtime.evaluate', {'expression': expression, 'returnByValue': True}, session or self.session)
         return r.get('result', {}).get('value')
 
-    def open(self, page_path, size=(1400, 1000)):
-        """Loads the page at a window of size (width, height) and waits until report.js has
-        settled its markers (or SETTLE_S after the load, for a page whose markers never come)."""
+    def navigate(self, page_path, size=(1400, 1000), session=None):
+        """Starts loading the page in the tab at a window of size (width, height); settled()
+        says when it is done."""
+        session = session or self.session
         width, height = size
         self.call(
             'Emulation.setDeviceMetricsOverride',
             {'width': width, 'height': height, 'deviceScaleFactor': 1, 'mobile': False},
-            session=True,
+            session,
         )
         # The old document answers until the new one commits: it is marked, and not waited for.
-        self.evaluate('window.reflcheckLeft = true')
-        self.call('Page.navigate', {'url': 'file://' + os.path.abspath(page_path)}, session=True)
-        start = time.monotonic()
-        loaded = None
+        self.evaluate('window.reflcheckLeft = true', session)
+        self.call('Page.navigate', {'url': 'file://' + os.path.abspath(page_path)}, session)
+        return {'path': page_path, 'session': session, 'start': time.monotonic(), 'loaded': None}
+
+    def settled(self, tab):
+        """True once report.js has settled the page's markers, or SETTLE_S after the load for a
+        page whose markers never come; RuntimeError past the time limit."""
         ready = (
             "window.reflcheckLeft ? 'left' : "
             f"document.readyState + ' ' + (document.body && document.body.getAttribute('{ATTR['ready']}'))"
         )
-        while time.monotonic() - start < self.timeout:
-            state = str(self.evaluate(ready))
-            now = time.monotonic()
-            if state == 'complete 1':
-                return
-            if state.startswith('complete'):
-                loaded = loaded or now
-                if now - loaded > SETTLE_S:
-                    return
+        state = str(self.evaluate(ready, tab['session']))
+        now = time.monotonic()
+        if state == 'complete 1':
+            return True
+        if state.startswith('complete'):
+            tab['loaded'] = tab['loaded'] or now
+            if now - tab['loaded'] > SETTLE_S:
+                return True
+        if now - tab['start'] > self.timeout:
+            raise RuntimeError(f'{tab["path"]}: not loaded within {self.timeout:.0f} s')
+        return False
+
+    def open(self, page_path, size=(1400, 1000)):
+        """Loads the page in the first tab and waits until it has settled."""
+        tab = self.navigate(page_path, size)
+        while not self.settled(tab):
             time.sleep(POLL_S)
-        raise RuntimeError(f'{page_path}: not loaded within {self.timeout:.0f} s')
 
     def dom(self, page_path):
         self.open(page_path)
@@ -198,7 +219,7 @@ class Browser:
 
     def screenshot(self, page_path, png, size=(1400, 1000)):
         self.open(page_path, size)
-        data = self.call('Page.captureScreenshot', {'format': 'png'}, session=True).get('data')
+        data = self.call('Page.captureScreenshot', {'format': 'png'}, self.session).get('data')
         if not data:
             raise RuntimeError(f'chromium wrote no screenshot of {page_path}')
         tmp = f'{png}.tmp{os.getpid()}.png'
@@ -206,15 +227,26 @@ class Browser:
             f.write(base64.b64decode(data))
         os.replace(tmp, png)
 
-    def check_pages(self, run, pages):
+    def check_pages(self, run, pages, tabs=TABS):
         """[(page, why)] for every page whose DOM does not show all of its images loaded
-        (data-loaded="n/n", data-failed="0") or, for the index, no table rows."""
-        bad = []
-        for name in pages:
-            why = page_problem(name, self.dom(os.path.join(run, name)))
-            if why:
-                bad.append((name, why))
-        return bad
+        (data-loaded="n/n", data-failed="0") or, for the index, no table rows; tabs pages load
+        at a time, each in a tab of its own."""
+        todo = list(pages)
+        idle = [self.session] + [self.new_tab() for _ in range(min(tabs, len(todo)) - 1)]
+        busy, why = [], {}
+        while todo or busy:
+            while todo and idle:
+                name = todo.pop(0)
+                busy.append((name, self.navigate(os.path.join(run, name), session=idle.pop())))
+            for name, tab in [b for b in busy if self.settled(b[1])]:
+                why[name] = page_problem(
+                    name, self.evaluate('document.documentElement.outerHTML', tab['session']) or ''
+                )
+                busy.remove((name, tab))
+                idle.append(tab['session'])
+            if busy:
+                time.sleep(POLL_S)
+        return [(name, why[name]) for name in pages if why[name]]
 
 
 def page_problem(name, dom):
