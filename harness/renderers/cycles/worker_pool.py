@@ -1,9 +1,12 @@
-"""worker_pool.py - N Blender processes that render Cycles jobs without starting Blender per job.
+"""worker_pool.py - N Blender processes that render Cycles (or EEVEE) jobs without starting
+Blender per job.
 
-Usage (Python 3 standard library; tools/sweep.py uses it):
+Usage (Python 3 standard library; tools/sweep.py and the nightly's make use it):
     with WorkerPool(n=2) as pool:
         env = dict(os.environ, **pool.env())        REFLCHECK_CYCLES_WORKER=<socket>
         subprocess.run([bin, 'run', scene, '--renderer', 'cycles', ...], env=env)
+    with WorkerPool(n=2, renderer='eevee', threads=1) as pool:   EEVEE: under the pool's own
+        env = dict(os.environ, **pool.env())        Xvfb; REFLCHECK_EEVEE_WORKER(_THREADS)
 `reflcheck run` hands its Blender step to an idle worker through the socket (harness/
 renderers/cycles/cycles_worker.c) instead of starting Blender; everything else about the job
 (cache, key, collection of the seeds, record, log) is the same code as without a pool. The
@@ -12,7 +15,7 @@ that dies (a client timed out or was killed mid-render, Blender crashed) is star
 The workers start when the first job connects, so a run whose jobs the cache answers starts
 no Blender.
 Leaving the `with` block stops every worker; they also die with this process (SIGKILL via
-PR_SET_PDEATHSIG), so no Blender outlives the sweep.
+PR_SET_PDEATHSIG), and so does an EEVEE pool's Xvfb: no Blender or Xvfb outlives the run.
 """
 
 import contextlib
