@@ -21,7 +21,12 @@ record=fit.json
 # The scene's folder in RUN: the one whose records name this scene file.
 dir=$(grep -lF "\"scene_path\":	\"$scene\"" "$run"/*/*.json 2> /dev/null | head -n1)
 dir=${dir%/*}
-keys=$([ -n "$dir" ] && grep -hoE '"key":[[:space:]]*"[0-9a-f]+"' "$dir"/*.json 2> /dev/null | sort -u)
+# The render records' keys only: the fits' own records (fit.json, fit-wide.json) name the same
+# keys but are written by this stage, two fits at a time, so whether the other bound's is
+# already there (and how its JSON is spaced) must not change the key.
+keys=$([ -n "$dir" ] && for f in "$dir"/*.json; do
+    case ${f##*/} in fit.json | fit-wide.json) ;; *) grep -hoE '"key":[[:space:]]*"[0-9a-f]+"' "$f" ;; esac
+done 2> /dev/null | sort -u)
 binstat=$(stat -Lc '%s %Y' "$bin" 2> /dev/null)
 if [ -z "$dir" ] || [ -z "$keys" ] || [ -z "$binstat" ] || [ ! -r "$scene" ]; then
     exec "${fit[@]}"

@@ -34,6 +34,11 @@ if cmp -s "$work/runs/first/fit.txt" "$work/runs/second/fit.txt" && [ "$(entries
 else
     bad "second run fitted again (fit.txt differs or new cache entries)"
 fi
+# One job at a time: the seed fit comes back (its fit.json rewritten into this run) before the
+# wide fit takes its key, which must not read that file: no new entry.
+nightly serial "$scene" --jobs 1 || bad "serial run: exit $?"
+[ "$(entries)" = 2 ] && ok "one fit at a time: both fits from the cache" ||
+    bad "one fit at a time: $(($(entries) - 2)) fits ran again (the key read the other fit's record)"
 # The kept record equals the first run's but for its references, which name the second run's
 # records (the renders this run holds) of the same cache keys.
 same_fit='
