@@ -1,12 +1,10 @@
 /* raster.c - tiled, multi-threaded rasterizer with exact integer coverage (see raster.h).
  *
- * Pipeline: the vertices are projected once, in parallel chunks (a mesh shares each vertex
- * among about six triangles, and each triangle is set up in two passes). Triangles are then
- * binned to tiles in two passes (count, then fill) over contiguous chunks of triangle
- * indices, so every tile's list is in index order whatever the chunking. Workers then take
- * tiles from an atomic counter and redo the per-triangle setup (clip, snap; the projection
- * from the vertices' cache when no clipping is needed) for each binned triangle: this keeps
- * the memory at the bins, 17 bytes per vertex and one tile buffer per worker.
+ * Pipeline: triangles are binned to tiles in two passes (count, then fill) over
+ * contiguous chunks of triangle indices, so every tile's list is in index order
+ * whatever the chunking. Workers then take tiles from an atomic counter and redo the
+ * per-triangle setup (clip, project, snap) for each binned triangle: this keeps the
+ * memory at the bins plus one tile buffer per worker.
  *
  * Fixed point: screen coordinates are stored in units of 1/(S k) pixel, so sample
  * (sx, sy) of the (W k) x (H k) sample grid sits at the integers (S sx + S/2,
@@ -55,12 +53,7 @@ typedef struct {
 typedef struct {
     const raster_vertex *v;
     const uint32_t *idx;
-    int n_tris, n_verts;
-    /* Per vertex, projected once (RASTER_PHASE_PROJECT): its fixed-point position before
-     * rounding, valid where proj_in (finite and inside every clip plane), which a triangle of
-     * three such vertices takes instead of projecting them again in each pass. */
-    double *proj_x, *proj_y;
-    unsigned char *proj_in;
+    int n_tris;
     int width, height, k, tile;
     int tiles_x, tiles_y, n_tiles;
     double near, gx, gy;
@@ -82,10 +75,7 @@ typedef struct {
     double **tile_uv;             /* [thread], u per sample column then v per row */
 } raster_ctx;
 
-enum { RASTER_PHASE_PROJECT, RASTER_PHASE_COUNT, RASTER_PHASE_FILL, RASTER_PHASE_TILES };
-
-/* Vertices per work item of the projection phase. */
-#define RASTER_PROJECT_CHUNK 4096
+enum { RASTER_PHASE_COUNT, RASTER_PHASE_FILL, RASTER_PHASE_TILES };
 
 static int64_t raster_floor_div(int64_t a, int64_t b)
 {
@@ -154,83 +144,20 @@ static bool raster_load_tri(const raster_ctx *c, uint32_t t, dvec3 p[3])
     return true;
 }
 
-/* Whether clip-space point p lies inside all five planes: the same comparisons as
- * raster_plane_dist(...) >= 0. */
-static bool raster_inside(const raster_ctx *c, dvec3 p)
-{
-    double gw = c->gx * p.z, hw = c->gy * p.z;
-    return p.z >= c->near && p.x <= gw && -p.x <= gw && p.y <= hw && -p.y <= hw;
-}
-
-/* A polygon point's fixed-point position before rounding. Clipping leaves every point inside
- * the guard band up to rounding; the clamp only absorbs that rounding so the integer bound
- * always holds. */
-static void raster_project(const raster_ctx *c, dvec3 p, double *fx, double *fy)
-{
-    const double lim = RASTER_FIX_LIMIT;
-    double x = (p.x / p.z + 1.0) * c->half_w_fix;
-    double y = (1.0 - p.y / p.z) * c->half_h_fix;
-    *fx = x < -lim ? -lim : x > lim ? lim : x;
-    *fy = y < -lim ? -lim : y > lim ? lim : y;
-}
-
-/* Vertices [v0, v1) projected into the cache (RASTER_PHASE_PROJECT). */
-static void raster_project_range(const raster_ctx *c, int v0, int v1)
-{
-    for (int i = v0; i < v1; i++) {
-        const raster_vertex *rv = &c->v[i];
-        const dvec3 p = dv3(rv->x, rv->y, rv->w);
-        const bool in = isfinite(rv->x) && isfinite(rv->y) && isfinite(rv->w) && raster_inside(c, p);
-        c->proj_in[i] = in;
-        if (in)
-            raster_project(c, p, &c->proj_x[i], &c->proj_y[i]);
-    }
-}
-
-/* The polygon's orientation from its unsnapped positions; 0 when it has no area. */
-static int raster_orient(const double *fx, const double *fy, int n)
-{
-    double area = 0;
-    for (int i = 1; i + 1 < n; i++)
-        area += (fx[i] - fx[0]) * (fy[i + 1] - fy[0]) - (fy[i] - fy[0]) * (fx[i + 1] - fx[0]);
-    if (!(area != 0))
-        return 0;
-    return area > 0 ? 1 : -1;
-}
-
-/* Triangle t from the projection cache when its three vertices are inside (the common case):
- * what the general path below computes for it, from the same per-vertex arithmetic. 0 when a
- * vertex is not. */
-static int raster_polygon_cached(const raster_ctx *c, uint32_t t, raster_fix *fix, int *orient)
-{
-    const uint32_t *ix = &c->idx[3 * (size_t)t];
-    if (!(c->proj_in[ix[0]] & c->proj_in[ix[1]] & c->proj_in[ix[2]]))
-        return 0;
-    double fx[3], fy[3];
-    for (int i = 0; i < 3; i++) {
-        fx[i] = c->proj_x[ix[i]];
-        fy[i] = c->proj_y[ix[i]];
-        fix[i].x = (int32_t)raster_round(fx[i]);
-        fix[i].y = (int32_t)raster_round(fy[i]);
-    }
-    *orient = raster_orient(fx, fy, 3);
-    return *orient != 0 ? 3 : -1;
-}
-
 /* Clip triangle t, project and snap it. Returns the polygon's vertex count (0 when
  * nothing is left) and its orientation from the unsnapped positions in *orient. */
 static int raster_polygon(const raster_ctx *c, uint32_t t, raster_fix *fix, int *orient)
 {
-    const int cached = raster_polygon_cached(c, t, fix, orient);
-    if (cached != 0)
-        return cached > 0 ? cached : 0;
     dvec3 a[RASTER_MAX_POLY], b[RASTER_MAX_POLY];
     if (!raster_load_tri(c, t, a))
         return 0;
     int n = 3;
     bool inside = true;
-    for (int i = 0; i < 3; i++)
-        inside = inside && raster_inside(c, a[i]);
+    for (int i = 0; i < 3; i++) {
+        /* the same comparisons as raster_plane_dist(...) >= 0 for the five planes */
+        double gw = c->gx * a[i].z, hw = c->gy * a[i].z;
+        inside = inside && a[i].z >= c->near && a[i].x <= gw && -a[i].x <= gw && a[i].y <= hw && -a[i].y <= hw;
+    }
     dvec3 *poly = a;
     if (!inside) {
         dvec3 *src = a, *dst = b;
@@ -245,13 +172,24 @@ static int raster_polygon(const raster_ctx *c, uint32_t t, raster_fix *fix, int 
             return 0;
     }
     double fx[RASTER_MAX_POLY], fy[RASTER_MAX_POLY];
+    const double lim = RASTER_FIX_LIMIT;
     for (int i = 0; i < n; i++) {
-        raster_project(c, poly[i], &fx[i], &fy[i]);
+        /* Clipping leaves every point inside the guard band up to rounding; the clamp
+         * only absorbs that rounding so the integer bound always holds. */
+        double x = (poly[i].x / poly[i].z + 1.0) * c->half_w_fix;
+        double y = (1.0 - poly[i].y / poly[i].z) * c->half_h_fix;
+        fx[i] = x < -lim ? -lim : x > lim ? lim : x;
+        fy[i] = y < -lim ? -lim : y > lim ? lim : y;
         fix[i].x = (int32_t)raster_round(fx[i]);
         fix[i].y = (int32_t)raster_round(fy[i]);
     }
-    *orient = raster_orient(fx, fy, n);
-    return *orient != 0 ? n : 0;
+    double area = 0;
+    for (int i = 1; i + 1 < n; i++)
+        area += (fx[i] - fx[0]) * (fy[i + 1] - fy[0]) - (fy[i] - fy[0]) * (fx[i + 1] - fx[0]);
+    if (!(area != 0))
+        return 0;
+    *orient = area > 0 ? 1 : -1;
+    return n;
 }
 
 /* Range of tiles touched by triangle t's bounding box; false when it misses the image. */
@@ -546,19 +484,11 @@ static void *raster_worker(void *arg)
 {
     raster_worker_arg *w = arg;
     raster_ctx *c = w->c;
-    int items = c->phase == RASTER_PHASE_TILES     ? c->n_tiles
-                : c->phase == RASTER_PHASE_PROJECT ? (c->n_verts + RASTER_PROJECT_CHUNK - 1) / RASTER_PROJECT_CHUNK
-                                                   : c->n_chunks;
+    int items = c->phase == RASTER_PHASE_TILES ? c->n_tiles : c->n_chunks;
     for (;;) {
         int it = atomic_fetch_add(&c->next, 1);
         if (it >= items)
             break;
-        if (c->phase == RASTER_PHASE_PROJECT) {
-            int v0 = it * RASTER_PROJECT_CHUNK;
-            raster_project_range(c, v0,
-                                 c->n_verts - v0 < RASTER_PROJECT_CHUNK ? c->n_verts : v0 + RASTER_PROJECT_CHUNK);
-            continue;
-        }
         if (c->phase == RASTER_PHASE_TILES) {
             raster_tile_run(c, it, w->id);
             continue;
@@ -627,9 +557,6 @@ static void raster_free(raster_ctx *c)
     free(c->tile_start);
     free(c->bins);
     free(c->rects);
-    free(c->proj_x);
-    free(c->proj_y);
-    free(c->proj_in);
     for (int i = 0; i < c->n_threads; i++) {
         if (c->tile_samples)
             free(c->tile_samples[i]);
@@ -724,12 +651,7 @@ static rc_status raster_alloc_bins(raster_ctx *c, int n_tris)
     c->tile_depth = calloc((size_t)c->n_threads, sizeof *c->tile_depth);
     c->tile_uv = calloc((size_t)c->n_threads, sizeof *c->tile_uv);
     c->rects = malloc(((size_t)n_tris + 1) * sizeof *c->rects);
-    size_t nv = (size_t)(c->n_verts > 0 ? c->n_verts : 1);
-    c->proj_x = malloc(nv * sizeof *c->proj_x);
-    c->proj_y = malloc(nv * sizeof *c->proj_y);
-    c->proj_in = malloc(nv);
-    if (!c->proj_x || !c->proj_y || !c->proj_in || !c->rects || !c->counts || !c->offsets || !c->tile_start ||
-        !c->tile_samples || !c->tile_depth || !c->tile_uv)
+    if (!c->rects || !c->counts || !c->offsets || !c->tile_start || !c->tile_samples || !c->tile_depth || !c->tile_uv)
         return RC_ERR_NOMEM;
     size_t tsn = (size_t)c->tile * c->k;
     for (int i = 0; i < c->n_threads; i++) {
@@ -771,7 +693,6 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
     c.v = v;
     c.idx = idx;
     c.n_tris = n_tris;
-    c.n_verts = n_verts;
     if ((rc = raster_setup_grid(&c, opt)) != RC_OK)
         return rc;
     c.fn = fn;
@@ -780,7 +701,6 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
 
     rc = RC_ERR_NOMEM;
     if (raster_alloc_bins(&c, n_tris) == RC_OK) {
-        raster_run_phase(&c, RASTER_PHASE_PROJECT);
         raster_run_phase(&c, RASTER_PHASE_COUNT);
         if (raster_place_bins(&c)) {
             raster_run_phase(&c, RASTER_PHASE_FILL);

@@ -1174,12 +1174,11 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
             total += (double)opt->textures->map[i][t].width * opt->textures->map[i][t].height * 4.0 * sizeof(float);
     if (env != NULL && (env->kind == ENV_IMAGE || env->kind == ENV_CUBE))
         total += (env->kind == ENV_CUBE ? 6.0 : 1.0) * env->width * env->height * 3.0 * sizeof(float);
-    /* Projected vertices (and Gouraud terms at most one per vertex, and the rasterizer's
-     * fixed-point projection of each: two doubles and a flag); the rasterizer's tile
+    /* Projected vertices (and Gouraud terms at most one per vertex); the rasterizer's tile
      * range per triangle and its bins, counting each triangle in one tile (small triangles,
      * the common case; a large one adds 4 bytes per further tile); its chunk bookkeeping is
      * bounded by raster.c's RASTER_MAX_CHUNK_CELLS (1 << 22 cells of 12 bytes). */
-    total += nv * (sizeof(raster_vertex) + sizeof(shade_terms) + 2.0 * sizeof(double) + 1.0);
+    total += nv * (sizeof(raster_vertex) + sizeof(shade_terms));
     total += nt * (4.0 * sizeof(uint16_t) + sizeof(uint32_t));
     double tiles = ceil(w / 16.0) * ceil(h / 16.0);
     total += fmin(tiles * 16.0 * raster_thread_count(&ro), (double)(1 << 22)) * 12.0 + tiles * sizeof(size_t);
