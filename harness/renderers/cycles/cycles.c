@@ -1097,6 +1097,19 @@ const cycles_layer cycles_layout[CYCLES_LAYOUT_N] = {
     {"object", 0},
 };
 
+const char *cycles_layer_name(int k, char *buf, size_t len)
+{
+    const char *aov = cycles_layout[k].aov;
+    char c = cycles_layout[k].c;
+    if (aov[0] == '\0')
+        snprintf(buf, len, "%c", c);
+    else if (c == 0)
+        snprintf(buf, len, "%s", aov);
+    else
+        snprintf(buf, len, "%s.%c", aov, c);
+    return buf;
+}
+
 /* A number, or the sum of a list of numbers, under key in the timing JSON the script writes
  * (one entry per seed); NAN if absent. */
 static double cycles_timing_value(const cJSON *doc, const char *key)
@@ -1197,14 +1210,7 @@ static rc_status cycles_collect_write(const char *out_exr_path, const float *src
     char names[CYCLES_LAYOUT_N][32], vnames[CYCLES_LAYOUT_N][40];
     exr_channel ch[2 * CYCLES_LAYOUT_N];
     for (int k = 0; k < CYCLES_LAYOUT_N; k++) {
-        const char *aov = cycles_layout[k].aov;
-        char c = cycles_layout[k].c;
-        if (aov[0] == '\0')
-            snprintf(names[k], sizeof names[k], "%c", c);
-        else if (c == 0)
-            snprintf(names[k], sizeof names[k], "%s", aov);
-        else
-            snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
+        cycles_layer_name(k, names[k], sizeof names[k]);
         snprintf(vnames[k], sizeof vnames[k], "var.%s", names[k]);
         float *mean = data + (size_t)k * npix;
         float *var = n > 1 ? data + (size_t)(CYCLES_LAYOUT_N + k) * npix : NULL;

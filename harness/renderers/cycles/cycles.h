@@ -113,6 +113,9 @@ typedef struct {
 } cycles_layer;
 #define CYCLES_LAYOUT_N 21
 extern const cycles_layer cycles_layout[CYCLES_LAYOUT_N];
+/* reflcheck's name for layer k of cycles_layout in the EXR it writes: ("", 'R') -> "R",
+ * ("diffuse", 'G') -> "diffuse.G", ("coverage", 0) -> "coverage". Returns buf. */
+const char *cycles_layer_name(int k, char *buf, size_t len);
 
 /* The physics its validate job renders (renderer.h, renderer_physics_fn; see validate above). */
 rc_status cycles_physics(const scene *s, physics *rendered, char *err, size_t errlen);

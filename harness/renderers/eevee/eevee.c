@@ -152,12 +152,7 @@ rc_status eevee_collect(const char *out_exr_path, int keep_raw, char *err, size_
             status_message(err, errlen, "%s: channel %s missing; the file is not from eevee_render.py", raw, rname);
             rc = RC_ERR_PARSE;
         }
-        if (aov[0] == '\0')
-            snprintf(names[k], sizeof names[k], "%c", c);
-        else if (c == 0)
-            snprintf(names[k], sizeof names[k], "%s", aov);
-        else
-            snprintf(names[k], sizeof names[k], "%s.%c", aov, c);
+        cycles_layer_name(k, names[k], sizeof names[k]);
         ch[k].name = names[k];
     }
     if (rc == RC_OK) {
