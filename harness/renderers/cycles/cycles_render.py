@@ -36,6 +36,10 @@ class JobError(Exception):
     pass
 
 
+# The float vertex normals' attribute (setup_objects, exact_normals).
+EXACT_NORMAL = "reflcheck_normal"
+
+
 def to_blender(v):
     return Vector((v[0], -v[2], v[1]))
 
@@ -582,6 +586,11 @@ def setup_objects(job, materials):
         me.use_auto_smooth = True
         me.auto_smooth_angle = math.pi
         me.normals_split_custom_set_from_vertices(normals)
+        # The same normals unquantised: Blender stores custom split normals as two 16-bit
+        # angles (and one within 1e-4 of its own vertex normal as that normal), 1.6e-4 rad off
+        # in the median; exact_normals feeds the closures this float copy (docs/conventions.md).
+        at = me.attributes.new(EXACT_NORMAL, 'FLOAT_VECTOR', 'POINT')
+        at.data.foreach_set("vector", [c for q in normals for c in q])
         uvs = o.get("uvs")
         if uvs is not None:
             if len(uvs) != 2 * len(verts):
@@ -623,6 +632,36 @@ def setup_objects(job, materials):
 
 
 # ---------------------------------------------------------------- passes and output
+
+
+def exact_normals(mat):
+    """Points every closure's Normal and every Geometry 'Normal' of mat at the float copy of
+    the vertex normals (setup_objects), interpolated over the triangle as Cycles interpolates
+    its own (triangle_smooth_normal) and turned to the viewer's side as Cycles turns sd->N on
+    a back face: normalize(n) (1 - 2 Backfacing)."""
+    nt = mat.node_tree
+    a = nt.nodes.new('ShaderNodeAttribute')
+    a.attribute_type = 'GEOMETRY'
+    a.attribute_name = EXACT_NORMAL
+    unit = nt.nodes.new('ShaderNodeVectorMath')
+    unit.operation = 'NORMALIZE'
+    nt.links.new(a.outputs['Vector'], unit.inputs[0])
+    side = nt.nodes.new('ShaderNodeMath')
+    side.operation = 'MULTIPLY_ADD'
+    nt.links.new(nt.nodes.new('ShaderNodeNewGeometry').outputs['Backfacing'], side.inputs[0])
+    side.inputs[1].default_value = -2.0
+    side.inputs[2].default_value = 1.0
+    n = nt.nodes.new('ShaderNodeVectorMath')
+    n.operation = 'SCALE'
+    nt.links.new(unit.outputs['Vector'], n.inputs[0])
+    nt.links.new(side.outputs['Value'], n.inputs['Scale'])
+    for node in list(nt.nodes):
+        normal = node.inputs.get('Normal') if node.bl_idname.startswith('ShaderNodeBsdf') else None
+        if normal is not None and not normal.is_linked:
+            nt.links.new(n.outputs['Vector'], normal)
+    for link in list(nt.links):
+        if link.from_node.bl_idname == 'ShaderNodeNewGeometry' and link.from_socket.name == 'Normal':
+            nt.links.new(n.outputs['Vector'], link.to_socket)
 
 
 def compositor(sc, vl):
@@ -756,6 +795,8 @@ def render_job(job_path, out_path, threads=None):
         # per blended surface along a camera ray (render.h draws each blended object once).
         bpy.context.scene.cycles.transparent_max_bounces = 64
     setup_objects(job, mats)
+    for m in mats:
+        exact_normals(m)
     stem = out_path[:-4] if out_path.lower().endswith(".exr") else out_path
     tmp_base = "%s.tmp%d_" % (stem, os.getpid())
     fo = setup_compositor(job, tmp_base)
