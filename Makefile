@@ -255,11 +255,13 @@ test-report: $(CLI)
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds; first
 # the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds),
 # and where the error sits on two known-answer scenes against exact (angle bins, seconds), and
-# image.samples auto's refusals and its count from a pilot in Cycles (seconds).
+# image.samples auto's refusals and its count from a pilot in Cycles (seconds), and Cycles
+# shading with our float normals, not Blender's 16-bit copy (mirror_sphere's twin, seconds).
 test-scenes: $(CLI)
 	@bash tests/crease_renderers.sh $(BUILD)
 	@bash tests/angle_bins.sh $(BUILD)
 	@bash tests/cycles_auto.sh $(BUILD)
+	@bash tests/cycles_normals.sh $(BUILD)
 	@bash tests/run_scenes.sh $(BUILD)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.
