@@ -725,10 +725,59 @@ static void test_run_failure(void **state)
     o.povray = script;
     r = pov_entry(&s, &m, &o, "fail2", exr, sizeof exr);
     assert_int_equal(r.status, RUNNER_FAILED);
-    assert_non_null(strstr(r.message, "povray failed (exit status 1, scene pass)"));
+    assert_non_null(strstr(r.message, "povray failed (exit status 1, scene and coverage passes)"));
     assert_non_null(strstr(r.message, "Parse Error: No matching }"));
     assert_int_equal(access(exr, F_OK), -1);
     unlink(script);
+    mesh_release(&m);
+}
+
+/* Both passes in one POV-Ray process (povray.h): a stand-in that logs each start and runs the
+ * real povray is started once, and the image still has the scene and its coverage. */
+static void test_one_process(void **state)
+{
+    (void)state;
+    scene s;
+    base_scene(&s, 8, 6, v3(0, 1, 3), v3(0, 0, 0), 40.0);
+    mesh m = {0};
+    add_plane(&m, v3(0, 0, 0), v3(0, 1, 0), 1.0f, 0);
+    char exr[512], script[600], starts[600], err[512] = "";
+    snprintf(script, sizeof script, "%s/countpov.sh", tmpdir);
+    snprintf(starts, sizeof starts, "%s/countpov.starts", tmpdir);
+    unlink(starts);
+    FILE *fp = fopen(script, "w");
+    assert_non_null(fp);
+    fprintf(fp, "#!/bin/sh\necho \"$*\" >> '%s'\nexec povray \"$@\"\n", starts);
+    fclose(fp);
+    chmod(script, 0755);
+    povray_options o = {.povray = script, .threads = 1};
+    renderer_result r = pov_entry(&s, &m, &o, "one", exr, sizeof exr);
+    assert_int_equal(r.status, RUNNER_OK);
+    char line[1024];
+    int n = 0;
+    fp = fopen(starts, "r");
+    assert_non_null(fp);
+    while (fgets(line, sizeof line, fp) != NULL)
+        n++;
+    fclose(fp);
+    assert_int_equal(n, 1);
+    assert_non_null(strstr(line, "+KFI1 +KFF2"));
+    exr_image e;
+    if (exr_read(exr, &e, err, sizeof err) != RC_OK)
+        fail_msg("exr_read(%s): %s", exr, err);
+    /* The camera looks down at the plane's centre: the middle pixel is covered (1, object 0),
+     * the top row sees the sky above the 1 m plane's far edge (0, object -1). */
+    const float *cov = exr_image_channel(&e, "coverage"), *obj = exr_image_channel(&e, "object");
+    assert_non_null(cov);
+    assert_non_null(obj);
+    size_t mid = (size_t)(s.height / 2) * (size_t)s.width + (size_t)(s.width / 2);
+    assert_float_equal(cov[mid], 1.0, 1e-3); /* half-float EXR: 2^-11 relative */
+    assert_float_equal(obj[mid], 0.0, 0.0);
+    assert_float_equal(cov[0], 0.0, 1e-3);
+    assert_float_equal(obj[0], -1.0, 0.0);
+    exr_image_free(&e);
+    unlink(script);
+    unlink(starts);
     mesh_release(&m);
 }
 
@@ -797,6 +846,14 @@ static void test_command_line(void **state)
     const char *odd[] = {"blender", "-P", "/a b/it's.py", NULL};
     renderer_command_string(odd, line, sizeof line);
     assert_string_equal(line, "blender -P '/a b/it'\\''s.py'");
+    /* Two frames, an animation: the two options last; a tenth frame's name would need two digits. */
+    o.frames = 2;
+    assert_int_equal(povray_command(&o, "a.pov", "out.exr", 32, 24, 1, &cmd, err, sizeof err), RC_OK);
+    assert_string_equal(cmd.argv[cmd.argc - 2], "+KFI1");
+    assert_string_equal(cmd.argv[cmd.argc - 1], "+KFF2");
+    o.frames = 10;
+    assert_int_equal(povray_command(&o, "a.pov", "out.exr", 32, 24, 1, &cmd, err, sizeof err), RC_ERR_RANGE);
+    o.frames = 0;
     assert_int_equal(povray_command(&o, "a.pov", "out.png", 32, 24, 1, &cmd, err, sizeof err), RC_ERR_RANGE);
     assert_int_equal(povray_command(&o, "a.pov", "out.exr", 0, 24, 1, &cmd, err, sizeof err), RC_ERR_RANGE);
 }
@@ -951,6 +1008,7 @@ int main(void)
         cmocka_unit_test(test_camera_projection),
         cmocka_unit_test(test_env_image),
         cmocka_unit_test(test_run_failure),
+        cmocka_unit_test(test_one_process),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

@@ -1090,6 +1090,11 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
     if (!o)
         o = &zero;
     int k = supersample > 0 ? supersample : 1;
+    if (o->frames < 0 || o->frames > 9) {
+        /* One digit: POV-Ray pads the frame number in the file name to the last frame's digits. */
+        status_message(err, errlen, "povray_command: frames %d is out of range (0 to 9)", o->frames);
+        return RC_ERR_RANGE;
+    }
     if (width_px <= 0 || height_px <= 0 || supersample < 0 || o->threads < 0 || width_px > 65536 / k ||
         height_px > 65536 / k) {
         status_message(err, errlen,
@@ -1134,6 +1139,12 @@ rc_status povray_command(const povray_options *o, const char *sdl_path, const ch
         args[argc++] = fixed[i];
     if (o->threads > 0) {
         snprintf(tmp[argc], sizeof tmp[argc], "+WT%d", o->threads);
+        args[argc] = tmp[argc];
+        argc++;
+    }
+    if (o->frames > 1) {
+        args[argc++] = "+KFI1";
+        snprintf(tmp[argc], sizeof tmp[argc], "+KFF%d", o->frames);
         args[argc] = tmp[argc];
         argc++;
     }
@@ -1203,45 +1214,14 @@ static void povray_block_variance(const float *src, int kw, int k, int w, int h,
         }
 }
 
-/* One POV-Ray pass at k times the size, box-filtered into planes (w*h each, caller frees),
+/* Reads one pass's image (k times the size) box-filtered into planes (w*h each, caller frees)
  * and, if var is not NULL, the block variances. Returns 0, or -1 with the result's status and
  * message set. */
-static int povray_pass(const renderer_job *j, renderer_result *r, const povray_options *o, const char *tag,
-                       float *planes[3], float *var[3])
+static int povray_read_pass(const renderer_job *j, renderer_result *r, const povray_options *o, int k, const char *raw,
+                            float *planes[3], float *var[3])
 {
     const scene *s = j->s;
-    char sdl[1100], raw[1100], sdl_name[64], raw_name[64], err[1024];
-    /* POV-Ray runs in the work folder and gets names only (renderer.h, "Paths"). */
-    snprintf(sdl_name, sizeof sdl_name, "%s.pov", tag);
-    snprintf(raw_name, sizeof raw_name, "%s-raw.exr", tag);
-    snprintf(sdl, sizeof sdl, "%s/%s", j->dir, sdl_name);
-    snprintf(raw, sizeof raw, "%s/%s", j->dir, raw_name);
-    int k = o->supersample > 0 ? o->supersample : (s->supersample > 0 ? s->supersample : 1);
-    rc_status st = povray_write_scene(s, j->m, o, sdl, err, sizeof err);
-    povray_argv cmd;
-    if (st == RC_OK)
-        st = povray_command(o, sdl_name, raw_name, s->width, s->height, k, &cmd, err, sizeof err);
-    if (st != RC_OK) {
-        if (st == RC_ERR_RANGE)
-            renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
-        else
-            renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
-        return -1;
-    }
-    if (!o->coverage)
-        povray_command_string(&cmd, r->command, sizeof r->command);
-    runner_result rr;
-    unlink(raw);
-    runner_where where = {.dir = j->dir};
-    runner_exec_in((const char *const *)cmd.argv, &where, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
-    r->wall_s += rr.wall_s;
-    r->cpu_s += rr.cpu_s;
-    if (rr.status != RUNNER_OK) {
-        char what[64];
-        snprintf(what, sizeof what, ", %s pass", tag);
-        renderer_fail_run(r, &rr, "povray", "povray", what, j->log, "rror", j->shown_log);
-        return -1;
-    }
+    char err[1024];
     exr_image img;
     if (exr_read(raw, &img, err, sizeof err) != RC_OK) {
         renderer_fail(r, RUNNER_FAILED, "povray wrote an unreadable image: %s", err);
@@ -1274,6 +1254,85 @@ static int povray_pass(const renderer_job *j, renderer_result *r, const povray_o
         return -1;
     }
     return 0;
+}
+
+/* Writes scene.pov (o), coverage.pov (geo) and passes.pov, which includes the first in frame 1
+ * and the second in frame 2. Returns 0, or -1 with the result's status and message set. */
+static int povray_write_passes(const renderer_job *j, renderer_result *r, const povray_options *o,
+                               const povray_options *geo)
+{
+    char path[1100], err[1024];
+    const povray_options *opt[2] = {o, geo};
+    const char *tag[2] = {"scene", "coverage"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(path, sizeof path, "%s/%s.pov", j->dir, tag[i]);
+        rc_status st = povray_write_scene(j->s, j->m, opt[i], path, err, sizeof err);
+        if (st == RC_ERR_RANGE) {
+            renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
+            return -1;
+        }
+        if (st != RC_OK) {
+            renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
+            return -1;
+        }
+    }
+    snprintf(path, sizeof path, "%s/passes.pov", j->dir);
+    FILE *fp = fopen(path, "w");
+    int bad = fp == NULL;
+    if (fp != NULL) {
+        /* #version first, as in every main file: without it POV-Ray 3.7 assumes 3.62's rules. */
+        fputs("// reflcheck: frame 1 the scene, frame 2 the geometry pass (povray.h)\n#version 3.7;\n"
+              "#if (frame_number = 1)\n#include \"scene.pov\"\n#else\n#include \"coverage.pov\"\n#end\n",
+              fp);
+        bad = ferror(fp) | (fclose(fp) != 0);
+    }
+    if (bad) {
+        renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s: write failed (disk full?)", path);
+        return -1;
+    }
+    return 0;
+}
+
+/* Both passes in one POV-Ray process (povray_render_job's comment says why): the scene, box-
+ * filtered into rgb with its block variances in var, and the geometry pass into cov. Returns 0,
+ * or -1 with the result's status and message set. */
+static int povray_passes(const renderer_job *j, renderer_result *r, const povray_options *o, const povray_options *geo,
+                         float *rgb[3], float *var[3], float *cov[3])
+{
+    const scene *s = j->s;
+    char raw[2][1100], err[1024];
+    int k = o->supersample > 0 ? o->supersample : (s->supersample > 0 ? s->supersample : 1);
+    if (povray_write_passes(j, r, o, geo) != 0)
+        return -1;
+    povray_options anim = *o;
+    anim.frames = 2;
+    povray_argv cmd;
+    /* POV-Ray runs in the work folder and gets names only (renderer.h, "Paths"); it writes
+     * frame f to pass-raw<f>.exr. */
+    rc_status st = povray_command(&anim, "passes.pov", "pass-raw.exr", s->width, s->height, k, &cmd, err, sizeof err);
+    if (st != RC_OK) {
+        renderer_fail(
+            r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "%s%s",
+            st == RC_ERR_RANGE ? "povray cannot represent this scene: " : "cannot write the POV-Ray job: ", err);
+        return -1;
+    }
+    povray_command_string(&cmd, r->command, sizeof r->command);
+    for (int f = 0; f < 2; f++) {
+        snprintf(raw[f], sizeof raw[f], "%s/pass-raw%d.exr", j->dir, f + 1);
+        unlink(raw[f]);
+    }
+    runner_result rr;
+    runner_where where = {.dir = j->dir};
+    runner_exec_in((const char *const *)cmd.argv, &where, j->timeout > 0 ? j->timeout : 600.0, j->log, &rr);
+    r->wall_s += rr.wall_s;
+    r->cpu_s += rr.cpu_s;
+    if (rr.status != RUNNER_OK) {
+        renderer_fail_run(r, &rr, "povray", "povray", ", scene and coverage passes", j->log, "rror", j->shown_log);
+        return -1;
+    }
+    if (povray_read_pass(j, r, o, k, raw[0], rgb, var) != 0)
+        return -1;
+    return povray_read_pass(j, r, geo, k, raw[1], cov, NULL);
 }
 
 /* A twin POV-Ray cannot write in full may still be written without the Blinn-Phong
@@ -1346,7 +1405,7 @@ void povray_render_job(const renderer_job *j, renderer_result *r)
     povray_options geo = o;
     geo.coverage = 1;
     float *rgb[3] = {NULL, NULL, NULL}, *cov[3] = {NULL, NULL, NULL}, *var[3] = {NULL, NULL, NULL};
-    if (povray_pass(j, r, &o, "scene", rgb, var) == 0 && povray_pass(j, r, &geo, "coverage", cov, NULL) == 0) {
+    if (povray_passes(j, r, &o, &geo, rgb, var, cov) == 0) {
         /* Coverage pass: R is the covered share, G/R the object index + 1 (box-filtered). */
         size_t np = (size_t)j->s->width * (size_t)j->s->height;
         for (size_t p = 0; p < np; p++)
