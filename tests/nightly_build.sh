@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # What `make report` does before its first render: it builds only what the nightly runs (the
 # program, its DDS plugin, the cache-key lists, the example shading model user_ggx loads), not
-# the unit-test programs, their fixtures or the manual page; and ops/deps.sh asks dpkg once for
-# the whole package list and installs exactly the missing ones (dpkg-query and apt-get are
-# stand-ins on PATH that log their calls, so nothing is installed).
+# the unit-test programs, their fixtures or the manual page, and compiles the longest file first;
+# ops/deps.sh asks dpkg once for the whole package list and installs exactly the missing ones
+# (dpkg-query and apt-get are stand-ins on PATH that log their calls, so nothing is installed).
 # Usage: bash tests/nightly_build.sh BUILD
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -26,6 +26,10 @@ for want in reflcheck-oiio.so key_sources.py examples/ggx/ggx.so ops/nightly.sh;
     grep -qF "$want" "$work/report.n" && ok "make report makes or runs $want" ||
         bad "make report does not make or run $want ($work/report.n)"
 done
+# The longest compile (render/shade_batch.c, most of the build's CPU) starts first.
+first=$(grep -o -m1 -- "-c [^ ]*\.c" "$work/report.n")
+[ "$first" = "-c render/shade_batch.c" ] && ok "make report compiles render/shade_batch.c first" ||
+    bad "make report's first compile is '$first', not render/shade_batch.c"
 n=$(grep -c -e "tests/test_" -e "tests/user_models/" -e "gen_man" "$work/report.n")
 [ "$n" = 0 ] && ok "make report builds no unit test, fixture or manual page" ||
     bad "make report runs $n commands for unit tests, fixtures or the manual page ($work/report.n)"
