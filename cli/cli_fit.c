@@ -210,15 +210,16 @@ static void cli_fit_record(cJSON *o, const scene *s, const char *id, const char 
     cJSON_AddItemToObject(o, "best", cli_fit_error_json(&r->best));
     cli_fit_params_json(o, s, p, n, vals, sizeof vals);
     cJSON_AddNumberToObject(o, "evaluations", r->evaluations);
+    cJSON_AddNumberToObject(o, "renders", r->renders);
     cJSON_AddItemToObject(o, "global", cli_fit_global_json(r, s, p, n, opt));
     cJSON_AddNumberToObject(o, "seconds", r->seconds);
     cJSON_AddStringToObject(o, "stop", r->stop);
     cJSON_AddNumberToObject(o, "width", r->width);
     cJSON_AddNumberToObject(o, "height", r->height);
     cJSON_AddNumberToObject(o, "supersample", r->supersample);
-    printf("%-20s %-28s nrmse %.4g -> %.4g, median %.4g -> %.4g (%d renders, %.1f s)%s\n", s->name, id,
-           r->authored.nrmse, r->best.nrmse, r->authored.median_rel, r->best.median_rel, r->evaluations, r->seconds,
-           vals);
+    printf("%-20s %-28s nrmse %.4g -> %.4g, median %.4g -> %.4g (%d evaluations, %d renders, %.1f s)%s\n", s->name, id,
+           r->authored.nrmse, r->best.nrmse, r->authored.median_rel, r->best.median_rel, r->evaluations, r->renders,
+           r->seconds, vals);
 }
 
 /* One validate comparison: its reference through the job cache, then the fit. Returns the exit

@@ -17,14 +17,12 @@ typedef struct {
     int log_scale; /* powers and roughness act multiplicatively */
 } fit_range;
 
-/* Seed ranges: source 000 (docs/models.md, D3D9Client eq. 3), "A typical range for the power parameter is 2.5 to 3.5 ...
- * the offset R_0 ... 0.05 to 0.25", the multiplier set to 1 - offset. Direct3D colours are
- * fractions of the light, and a Blinn power beyond 256 is a glint at our sizes (a lobe about 7
- * degrees wide). Beckmann m below 0.01 is a lobe narrower than a pixel here; 1 is the roughest
- * surface source 004 describes.
- * Wide ranges, to see where the best value lies when a seed range holds it at a bound: p up to
- * 10 (Schlick's own exponent is 5), any r0, Vs up to 2 (an over-bright highlight), P up to 1e4
- * and m down to 0.001 (the stiff scenes' values). */
+/* Seed ranges: source 000 (docs/models.md, D3D9Client eq. 3), "A typical range for the power parameter is 2.5 to 3.5
+ * ... the offset R_0 ... 0.05 to 0.25", the multiplier set to 1 - offset. Direct3D colours are fractions of the light,
+ * and a Blinn power beyond 256 is a glint at our sizes (a lobe about 7 degrees wide). Beckmann m below 0.01 is a lobe
+ * narrower than a pixel here; 1 is the roughest surface source 004 describes. Wide ranges, to see where the best value
+ * lies when a seed range holds it at a bound: p up to 10 (Schlick's own exponent is 5), any r0, Vs up to 2 (an
+ * over-bright highlight), P up to 1e4 and m down to 0.001 (the stiff scenes' values). */
 static const fit_range fit_ranges[2][5] = {
     [FIT_BOUNDS_SEED] = {[FIT_D9_P] = {2.5, 3.5, 0},
                          [FIT_D9_R0] = {0.05, 0.25, 0},
@@ -217,6 +215,18 @@ typedef struct {
     rc_status failed;
     char *err;
     size_t errlen;
+    /* The frame's layers, kept between evaluations (render_options.reuse_image): img takes each
+     * render, best_img holds the render of best_x once an evaluation has beaten the authored point
+     * (a pointer swap, no copy), so the best point's robust figures need no render again. */
+    render_image img, best_img;
+    int best_rendered;
+    int fresh; /* fit_options.fresh: every evaluation renders into fresh layers */
+    /* Every point fit_value rendered (scaled x, bit for bit) and its objective: NLopt starts each
+     * BOBYQA run by evaluating its start, which the screen (or an earlier run) often rendered. */
+    double (*seen_x)[FIT_MAX_PARAMS];
+    double *seen_f;
+    int n_seen, max_seen;
+    int renders; /* render_scene calls, the authored and the best point's included */
 } fit_ctx;
 
 /* NRMSE of a render against the reference over the mask (every evaluation); with robust set,
@@ -263,23 +273,47 @@ static rc_status fit_measure(const fit_ctx *c, const render_image *img, int robu
     return st;
 }
 
-/* The objective at scaled x, rendered and measured; HUGE_VAL (with c->failed set) when the
- * render fails or nothing is measured. Touches no counter: the uncertainty probes use it too. */
-static double fit_value(fit_ctx *c, const double *x)
+/* The objective at x if fit_value rendered that very point before (every bit of x the same:
+ * the render is deterministic, so the value is too); 0 when it did not. */
+static int fit_seen(const fit_ctx *c, const double *x, double *f)
 {
+    for (int i = 0; i < c->n_seen; i++)
+        if (memcmp(c->seen_x[i], x, (size_t)c->n * sizeof *x) == 0) {
+            *f = c->seen_f[i];
+            return 1;
+        }
+    return 0;
+}
+
+/* The objective at scaled x, rendered into c->img and measured (or the value of the same point
+ * rendered before; *rendered says which); HUGE_VAL (with c->failed set) when the render fails or
+ * nothing is measured. Touches no counter of evaluations: the uncertainty probes use it too. */
+static double fit_value(fit_ctx *c, const double *x, int *rendered)
+{
+    double f;
+    *rendered = 0;
+    if (!c->fresh && fit_seen(c, x, &f))
+        return f;
     for (int i = 0; i < c->n; i++)
         c->values[i] = fit_unscale(&c->p[i], x[i]);
     fit_apply(c->s, c->p, c->n, c->values);
-    render_image img = {0};
-    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &img, c->err, c->errlen);
+    if (c->fresh)
+        render_image_free(&c->img);
+    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &c->img, c->err, c->errlen);
+    c->renders++;
     if (st != RC_OK) {
         c->failed = st;
         return HUGE_VAL;
     }
+    *rendered = 1;
     fit_error e;
-    fit_measure(c, &img, 0, &e);
-    render_image_free(&img);
-    return isfinite(e.nrmse) ? e.nrmse : HUGE_VAL;
+    fit_measure(c, &c->img, 0, &e);
+    f = isfinite(e.nrmse) ? e.nrmse : HUGE_VAL;
+    if (!c->fresh && c->n_seen < c->max_seen) {
+        memcpy(c->seen_x[c->n_seen], x, (size_t)c->n * sizeof *x);
+        c->seen_f[c->n_seen++] = f;
+    }
+    return f;
 }
 
 static double fit_objective(unsigned n, const double *x, double *grad, void *data)
@@ -289,13 +323,22 @@ static double fit_objective(unsigned n, const double *x, double *grad, void *dat
     /* Each local run's maxeval keeps within the budget; this guards the screen's loop. */
     if (c->evaluations >= c->budget || c->failed != RC_OK)
         return HUGE_VAL;
-    double f = fit_value(c, x);
+    int rendered;
+    double f = fit_value(c, x, &rendered);
     if (c->failed != RC_OK)
         return HUGE_VAL;
     c->evaluations++;
     if (f < c->best_f) {
         c->best_f = f;
         memcpy(c->best_x, x, n * sizeof *x);
+        /* A value seen before is never below the best (best_f only falls), so a new best was
+         * rendered just now: its layers become best_img's, its old ones the next frame's. */
+        c->best_rendered = rendered && !c->fresh;
+        if (c->best_rendered) {
+            render_image t = c->best_img;
+            c->best_img = c->img;
+            c->img = t;
+        }
     }
     if (c->run != NULL && f < c->run_f) {
         c->run_f = f;
@@ -341,13 +384,20 @@ static double fit_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* Renders the scene at values and measures it, the robust figures included. */
-static rc_status fit_render_measure(fit_ctx *c, const double *values, render_image *img, fit_error *e)
+/* The best point's figures, the robust ones included, from its render kept by fit_objective,
+ * or rendered at values when the best is still the authored point (whose values may differ
+ * from those of its scaled x in the last bit) or the fit renders afresh. */
+static rc_status fit_best_measure(fit_ctx *c, const double *values, fit_error *e)
 {
+    if (c->best_rendered)
+        return fit_measure(c, &c->best_img, 1, e);
     fit_apply(c->s, c->p, c->n, values);
-    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, img, c->err, c->errlen);
+    if (c->fresh)
+        render_image_free(&c->img);
+    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &c->img, c->err, c->errlen);
+    c->renders++;
     if (st == RC_OK)
-        st = fit_measure(c, img, 1, e);
+        st = fit_measure(c, &c->img, 1, e);
     return st;
 }
 
@@ -544,7 +594,8 @@ static rc_status fit_uncertainty(fit_ctx *c, fit_param *pa, const double *xb, do
         for (int k = 0; k < 2; k++) {
             memcpy(x, xb, (size_t)c->n * sizeof *x);
             x[i] = xb[i] + d[k];
-            f[k] = fit_value(c, x);
+            int rendered;
+            f[k] = fit_value(c, x, &rendered);
             if (c->failed != RC_OK)
                 return c->failed;
             out->uncertainty_evaluations++;
@@ -587,27 +638,32 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     }
     double t0 = fit_now();
     size_t np = (size_t)s->width * (size_t)s->height;
-    fit_ctx c = {.m = m,
-                 .env = env,
-                 .ref = ref,
-                 .p = p,
-                 .n = n,
-                 .ro = {.threads = opt.threads, .aovs = RENDER_AOV_NONE, .textures = opt.textures},
-                 .best_f = HUGE_VAL,
-                 .err = err,
-                 .errlen = errlen};
+    fit_ctx c = {
+        .m = m,
+        .env = env,
+        .ref = ref,
+        .p = p,
+        .n = n,
+        .ro = {.threads = opt.threads, .aovs = RENDER_AOV_NONE, .textures = opt.textures, .reuse_image = !opt.fresh},
+        .best_f = HUGE_VAL,
+        .fresh = opt.fresh,
+        .err = err,
+        .errlen = errlen};
     c.s = malloc(sizeof *c.s);
     c.mask = malloc(np);
     unsigned char *cls = malloc(np);
+    /* every evaluation and probe at most: the budget, 2 probes a parameter */
+    c.max_seen = max_evals + 2 * n;
+    c.seen_x = malloc((size_t)c.max_seen * sizeof *c.seen_x);
+    c.seen_f = malloc((size_t)c.max_seen * sizeof *c.seen_f);
     double x[FIT_MAX_PARAMS], vals[FIT_MAX_PARAMS], best_x[FIT_MAX_PARAMS];
     c.values = vals;
     c.best_x = best_x;
     rc_status st = RC_OK;
-    if (c.s == NULL || c.mask == NULL || cls == NULL) {
+    if (c.s == NULL || c.mask == NULL || cls == NULL || c.seen_x == NULL || c.seen_f == NULL) {
         status_message(err, errlen, "%s: fit: out of memory for a %dx%d frame", s->path, s->width, s->height);
         st = RC_ERR_NOMEM;
     }
-    render_image img = {0};
     if (st == RC_OK) {
         *c.s = *s;
         for (int i = 0; i < n; i++) {
@@ -617,16 +673,17 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         /* The geometry does not depend on the parameters: the authored render's coverage and
          * object layers give the surface mask for every evaluation. */
         fit_apply(c.s, p, n, vals);
-        st = render_scene(c.s, m, env, &c.ro, &img, err, errlen);
+        st = render_scene(c.s, m, env, &c.ro, &c.img, err, errlen);
+        c.renders = 1;
     }
     if (st == RC_OK) {
-        metrics_classify(s->width, s->height, img.chan[RENDER_COVERAGE], img.chan[RENDER_OBJECT], cls);
+        const render_image *img = &c.img;
+        metrics_classify(s->width, s->height, img->chan[RENDER_COVERAGE], img->chan[RENDER_OBJECT], cls);
         if (opt.crease_rules)
-            st = fit_crease(c.s, m, img.supersample, opt.threads, cls, err, errlen);
+            st = fit_crease(c.s, m, img->supersample, opt.threads, cls, err, errlen);
         long n_surface = metrics_mask_from_class(s->width, s->height, cls, METRICS_PX_INTERIOR, NULL, 0.0f, c.mask);
         if (st == RC_OK)
-            st = fit_measure(&c, &img, 1, &out->authored);
-        render_image_free(&img);
+            st = fit_measure(&c, img, 1, &out->authored);
         c.evaluations = 1;
         c.best_f = out->authored.nrmse;
         if (st == RC_OK && (n_surface == 0 || out->authored.n_pixels == 0 || !isfinite(out->authored.nrmse))) {
@@ -645,16 +702,20 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
             p[i].at_bound = best_x[i] < FIT_AT_BOUND || best_x[i] > 1.0 - FIT_AT_BOUND;
             vals[i] = p[i].value;
         }
-        st = fit_render_measure(&c, vals, &img, &out->best);
-        render_image_free(&img);
+        st = fit_best_measure(&c, vals, &out->best);
     }
     if (st == RC_OK)
         st = fit_uncertainty(&c, p, best_x, out->best.nrmse, out);
     out->evaluations = c.evaluations;
+    out->renders = c.renders;
     out->seconds = fit_now() - t0;
     out->width = s->width;
     out->height = s->height;
     out->supersample = s->supersample;
+    render_image_free(&c.img);
+    render_image_free(&c.best_img);
+    free(c.seen_x);
+    free(c.seen_f);
     free(c.s);
     free(c.mask);
     free(cls);

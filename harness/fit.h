@@ -110,6 +110,9 @@ typedef struct {
     const texture_set *textures; /* the materials' textures (harness/frame.h), NULL = none */
     int crease_rules;            /* 1: the reference shades creases by its own rules (renderer_row):
                                     the crease pixels leave the mask, as compare leaves them out */
+    int fresh;                   /* 1: every evaluation renders, into fresh layers (no point's value
+                                    taken from an earlier render of it, no layers kept): the same
+                                    result with more renders, to check the default against */
 } fit_options;
 
 typedef struct {
@@ -130,8 +133,10 @@ typedef struct {
 
 typedef struct {
     fit_error authored, best;
-    int evaluations; /* renders the optimiser asked for, the authored one included (the best point's
-                        final render for its median is not counted) */
+    int evaluations; /* objective values the optimiser asked for, the authored one included (the
+                        best point's figures and the curvature probes are not counted) */
+    int renders;     /* frames rendered in all: evaluations less those of a point rendered before,
+                        plus the best point's when it was not kept, plus the probes (fit.h top) */
     double seconds;  /* wall time of the fit, renders included */
     int width, height, supersample;
     const char *stop;  /* why the optimiser stopped, in words: the budget, else the best run's stop */

@@ -28,7 +28,7 @@ nightly first "$scene" && ok "first run exit 0" || bad "first run exit $? ($work
 n1=$(entries)
 [ "$n1" = 2 ] && ok "two fits (seed and wide bounds) kept in the cache" || bad "$n1 fits kept, not 2"
 nightly second "$scene" && ok "second run exit 0" || bad "second run exit $? ($work/second.err)"
-# A fit that ran again would print its own timing ("(N renders, T s)"): the same text is the kept one.
+# A fit that ran again would print its own timing ("(N evaluations, M renders, T s)"): the same text is the kept one.
 if cmp -s "$work/runs/first/fit.txt" "$work/runs/second/fit.txt" && [ "$(entries)" = 2 ]; then
     ok "second run: the fits came back from the cache"
 else

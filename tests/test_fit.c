@@ -321,6 +321,77 @@ static void test_measures_by_hand_and_budget(void **state)
     world_free(&w);
 }
 
+/* Two fits' results the same to the bit: figures, parameters, counts, stops and every local run. */
+static void same_fit(const fit_result *a, const fit_result *b, const fit_param *pa, const fit_param *pb, int n)
+{
+    assert_memory_equal(&a->authored, &b->authored, sizeof a->authored);
+    assert_memory_equal(&a->best, &b->best, sizeof a->best);
+    assert_int_equal(a->evaluations, b->evaluations);
+    assert_int_equal(a->screen_points, b->screen_points);
+    assert_int_equal(a->n_starts, b->n_starts);
+    assert_int_equal(a->best_start, b->best_start);
+    assert_int_equal(a->uncertainty_evaluations, b->uncertainty_evaluations);
+    assert_string_equal(a->stop, b->stop);
+    for (int s = 0; s < a->n_starts; s++) {
+        assert_memory_equal(a->starts[s].start, b->starts[s].start, (size_t)n * sizeof(double));
+        assert_memory_equal(a->starts[s].end, b->starts[s].end, (size_t)n * sizeof(double));
+        assert_memory_equal(&a->starts[s].nrmse, &b->starts[s].nrmse, sizeof(double));
+        assert_int_equal(a->starts[s].evaluations, b->starts[s].evaluations);
+        assert_string_equal(a->starts[s].stop, b->starts[s].stop);
+    }
+    for (int i = 0; i < n; i++) {
+        assert_memory_equal(&pa[i].value, &pb[i].value, sizeof(double));
+        assert_memory_equal(&pa[i].uncertainty, &pb[i].uncertainty, sizeof(double));
+        assert_memory_equal(&pa[i].spread_lo, &pb[i].spread_lo, sizeof(double));
+        assert_memory_equal(&pa[i].spread_hi, &pb[i].spread_hi, sizeof(double));
+        assert_int_equal(pa[i].at_bound, pb[i].at_bound);
+    }
+}
+
+/* The default fit keeps its frame's layers between evaluations, takes a point's value from its
+ * earlier render and the best point's figures from its kept render; fresh renders every one into
+ * new layers, as the fit did before. Both must give the same result to the bit, the default with
+ * fewer renders: each BOBYQA run starts by evaluating its start, which the screen or the authored
+ * render has already measured. The reference is no render of the model (a left-to-right ramp of
+ * 0.8 to 1.2 times one, p = 2.9, r0 = 0.16 at 2 x 2 samples), so the fit ends at no exact zero
+ * and its runs start apart. */
+static void test_reused_layers_same_result(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, glass_text);
+    w.s->supersample = 2;
+    fit_param p[FIT_MAX_PARAMS], q[FIT_MAX_PARAMS];
+    int n = fit_default_params(w.s, FIT_BOUNDS_WIDE, p, FIT_MAX_PARAMS);
+    assert_int_equal(n, 2);
+    memcpy(q, p, sizeof p);
+    double truth[2] = {2.9, 0.16};
+    render_image ref;
+    render_with(&w, p, n, truth, &ref);
+    for (int y = 0; y < ref.height; y++)
+        for (int x = 0; x < ref.width; x++)
+            for (int ch = 0; ch < 3; ch++)
+                ref.chan[RENDER_R + ch][y * ref.width + x] *= 0.8f + 0.4f * (float)x / (float)(ref.width - 1);
+    metrics_image rm = planes(&ref);
+    fit_result r, rf;
+    char err[1024];
+    fit_options o = {.threads = 2}, of = {.threads = 2, .fresh = 1};
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, p, n, &o, &r, err, sizeof err), RC_OK);
+    assert_int_equal(fit_run(w.s, &w.m, &w.env, &rm, q, n, &of, &rf, err, sizeof err), RC_OK);
+    same_fit(&r, &rf, p, q, n);
+    assert_true(r.n_starts >= 2);
+    assert_true(r.best.nrmse > 0.0 && r.best.nrmse < r.authored.nrmse);
+    /* fresh: every evaluation, the best point once more and 2 probes a parameter */
+    assert_int_equal(rf.renders, rf.evaluations + 1 + 2 * n);
+    /* At least the best point's figures and the second run's start from renders made: that start
+     * (4.375, 0.222) lies more than a first step (0.1 scaled) from every bound, where BOBYQA
+     * evaluates its start as given (a start nearer a bound it moves first). */
+    assert_true(r.starts[1].start[0] > 1.0 + 0.1 * 9.0 && r.starts[1].start[0] < 10.0 - 0.1 * 9.0);
+    assert_true(r.renders <= rf.renders - 2);
+    render_image_free(&ref);
+    world_free(&w);
+}
+
 /* Bounds hold the authored value (r0 = 0.04 for n = 1.5 lies below the source's 0.05); a scene
  * that authors its own m fits r0 alone; a wrongly sized reference and no parameter refuse. */
 static void test_bounds_and_refusals(void **state)
@@ -758,6 +829,7 @@ int main(void)
         cmocka_unit_test(test_recovers_blinn_phong),
         cmocka_unit_test(test_recovers_ct_m_per_material),
         cmocka_unit_test(test_measures_by_hand_and_budget),
+        cmocka_unit_test(test_reused_layers_same_result),
         cmocka_unit_test(test_bounds_and_refusals),
         cmocka_unit_test(test_cli_errors),
         cmocka_unit_test(test_cli_real_fit),
