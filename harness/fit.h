@@ -10,7 +10,11 @@
  *
  * The scene is rendered by our rasterizer (render/render.h) at the reference's size with the
  * scene's supersampling, exactly as the validate job renders it; each evaluation changes the
- * parameters of a private copy of the scene and renders again. The objective is the least-squares
+ * parameters of a private copy of the scene and renders again, into the same layers
+ * (render_options.reuse_image). A point rendered before (every bit of its scaled x the same: each
+ * BOBYQA run starts by evaluating its start, mostly a screened point) takes its value from that
+ * render, and the best point's render is kept for its robust figures; the result is the same to
+ * the bit as rendering every evaluation afresh (o.fresh = 1). The objective is the least-squares
  * error over surface pixels: interior pixels of the model's own coverage and object layers
  * (harness/metrics.h, metrics_classify), the region compare.json calls "surface", over R, G, B.
  * It is reported as NRMSE (RMSE over the mean reference, as compare.c computes it), so
