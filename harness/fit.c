@@ -617,6 +617,17 @@ static rc_status fit_uncertainty(fit_ctx *c, fit_param *pa, const double *xb, do
     return RC_OK;
 }
 
+/* What fit_run allocated in c: the scene copy, mask, kept layers and the points rendered. */
+static void fit_ctx_free(fit_ctx *c)
+{
+    render_image_free(&c->img);
+    render_image_free(&c->best_img);
+    free(c->seen_x);
+    free(c->seen_f);
+    free(c->s);
+    free(c->mask);
+}
+
 rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metrics_image *ref, fit_param *p, int n,
                   const fit_options *o, fit_result *out, char *err, size_t errlen)
 {
@@ -712,12 +723,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     out->width = s->width;
     out->height = s->height;
     out->supersample = s->supersample;
-    render_image_free(&c.img);
-    render_image_free(&c.best_img);
-    free(c.seen_x);
-    free(c.seen_f);
-    free(c.s);
-    free(c.mask);
+    fit_ctx_free(&c);
     free(cls);
     return st;
 }
