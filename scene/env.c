@@ -83,6 +83,15 @@ vec3 env_cube_direction(int face, float s, float t)
     return v3_norm(d);
 }
 
+/* by (bx t00 + ax t01) + ay (bx t10 + ax t11): the bilinear sum of four texel values, weights
+ * ax, ay and their complements bx, by. Every lookup's sums (the cube's, the image's lane by
+ * lane and four lanes at a time) call this one function, so all make the same roundings in the
+ * same order. */
+SMATH_INLINE float env_bilerp(float t00, float t01, float t10, float t11, float ax, float ay, float bx, float by)
+{
+    return by * (bx * t00 + ax * t01) + ay * (bx * t10 + ax * t11);
+}
+
 /* One cube lookup (unscaled): the face and (s, t) of env_cube_face_st, then bilinear between
  * the four nearest texel centres of that face, indices clamped to it. Both lookups call it. */
 static inline void env_cube_sample(const float *restrict rgb, int n, float x, float y, float z, float *r, float *g,
@@ -103,9 +112,9 @@ static inline void env_cube_sample(const float *restrict rgb, int n, float x, fl
     int o00 = 3 * ((base + y0) * n + x0), o01 = 3 * ((base + y0) * n + x1);
     int o10 = 3 * ((base + y1) * n + x0), o11 = 3 * ((base + y1) * n + x1);
     float bx = 1.0f - ax, by = 1.0f - ay;
-    *r = by * (bx * rgb[o00] + ax * rgb[o01]) + ay * (bx * rgb[o10] + ax * rgb[o11]);
-    *g = by * (bx * rgb[o00 + 1] + ax * rgb[o01 + 1]) + ay * (bx * rgb[o10 + 1] + ax * rgb[o11 + 1]);
-    *b = by * (bx * rgb[o00 + 2] + ax * rgb[o01 + 2]) + ay * (bx * rgb[o10 + 2] + ax * rgb[o11 + 2]);
+    *r = env_bilerp(rgb[o00], rgb[o01], rgb[o10], rgb[o11], ax, ay, bx, by);
+    *g = env_bilerp(rgb[o00 + 1], rgb[o01 + 1], rgb[o10 + 1], rgb[o11 + 1], ax, ay, bx, by);
+    *b = env_bilerp(rgb[o00 + 2], rgb[o01 + 2], rgb[o10 + 2], rgb[o11 + 2], ax, ay, bx, by);
 }
 
 void env_cube_to_equirect(const env_map *cube, int width, int height, float *rgb)
@@ -206,20 +215,15 @@ SMATH_INLINE void env_texel_x4(const float *restrict rgb, const int *o, env_v4 *
     *b = ENV_SHUFFLE(b01, b23, 0, 1, 4, 5);
 }
 
-/* by (bx t00 + ax t01) + ay (bx t10 + ax t11): the bilinear sum, written once for the scalar
- * and the four-lane forms so that both make the same roundings in the same order. */
-#define ENV_BILERP(t00, t01, t10, t11, ax, ay, bx, by)                                                                 \
-    ((by) * ((bx) * (t00) + (ax) * (t01)) + (ay) * ((bx) * (t10) + (ax) * (t11)))
-
 /* The second pass for lane i alone: its three channels from scalar loads (unscaled). */
 SMATH_INLINE void env_bilinear_lane(const float *restrict rgb, const env_taps *restrict t, int i, float *restrict r,
                                     float *restrict g, float *restrict b)
 {
     const float *p00 = rgb + t->o00[i], *p01 = rgb + t->o01[i], *p10 = rgb + t->o10[i], *p11 = rgb + t->o11[i];
     const float ax = t->ax[i], ay = t->ay[i], bx = t->bx[i], by = t->by[i];
-    r[i] = ENV_BILERP(p00[0], p01[0], p10[0], p11[0], ax, ay, bx, by);
-    g[i] = ENV_BILERP(p00[1], p01[1], p10[1], p11[1], ax, ay, bx, by);
-    b[i] = ENV_BILERP(p00[2], p01[2], p10[2], p11[2], ax, ay, bx, by);
+    r[i] = env_bilerp(p00[0], p01[0], p10[0], p11[0], ax, ay, bx, by);
+    g[i] = env_bilerp(p00[1], p01[1], p10[1], p11[1], ax, ay, bx, by);
+    b[i] = env_bilerp(p00[2], p01[2], p10[2], p11[2], ax, ay, bx, by);
 }
 
 /* The second pass: the bilinear sums (unscaled) four lanes at a time, each texel one 16-byte
@@ -242,14 +246,15 @@ SMATH_INLINE void env_bilinear(const float *restrict rgb, const env_taps *restri
         env_texel_x4(rgb, t->o01 + i, &r01, &g01, &b01);
         env_texel_x4(rgb, t->o10 + i, &r10, &g10, &b10);
         env_texel_x4(rgb, t->o11 + i, &r11, &g11, &b11);
-        const env_v4 ax = env_load4(t->ax + i), ay = env_load4(t->ay + i), bx = env_load4(t->bx + i),
-                     by = env_load4(t->by + i);
-        env_v4 cr = ENV_BILERP(r00, r01, r10, r11, ax, ay, bx, by);
-        env_v4 cg = ENV_BILERP(g00, g01, g10, g11, ax, ay, bx, by);
-        env_v4 cb = ENV_BILERP(b00, b01, b10, b11, ax, ay, bx, by);
-        memcpy(r + i, &cr, sizeof cr);
-        memcpy(g + i, &cg, sizeof cg);
-        memcpy(b + i, &cb, sizeof cb);
+        const float *restrict ax = t->ax + i, *restrict ay = t->ay + i, *restrict bx = t->bx + i,
+                              *restrict by = t->by + i;
+        /* Four lanes of a fixed count: one vector per operation. */
+#pragma omp simd
+        for (int l = 0; l < 4; l++) {
+            r[i + l] = env_bilerp(r00[l], r01[l], r10[l], r11[l], ax[l], ay[l], bx[l], by[l]);
+            g[i + l] = env_bilerp(g00[l], g01[l], g10[l], g11[l], ax[l], ay[l], bx[l], by[l]);
+            b[i + l] = env_bilerp(b00[l], b01[l], b10[l], b11[l], ax[l], ay[l], bx[l], by[l]);
+        }
     }
     for (; i < n; i++)
         env_bilinear_lane(rgb, t, i, r, g, b);
