@@ -123,6 +123,16 @@ typedef struct {
     uint8_t centre[SHADE_BATCH];
 } render_queue;
 
+/* Opaque centre samples waiting for their angle channels: the inputs copied out of the batches
+ * as they are shaded (a batch holds about four), so that render_centre_lanes takes the angles of
+ * RENDER_CENTRE_BUF pixels as one lane loop instead of one scalar call per pixel. */
+#define RENDER_CENTRE_BUF 64
+typedef struct {
+    int n;
+    float x[3][RENDER_CENTRE_BUF], nrm[3][RENDER_CENTRE_BUF], v[3][RENDER_CENTRE_BUF];
+    int px[RENDER_CENTRE_BUF]; /* the pixel in the span */
+} render_centre_buf;
+
 typedef struct {
     /* Per slot, one plane per quantity. Slots are sample-major, slot = (t k + s) span_px + pixel,
      * so the resolve adds sample (s, t) of a run of pixels as one vector. Background samples
@@ -144,6 +154,7 @@ typedef struct {
     int object[RENDER_SPAN];                              /* per pixel: object at the centre sample, -1 for none */
     float centre_nv[RENDER_SPAN], centre_nl[RENDER_SPAN]; /* per pixel: N.V, N.L (first light) there */
     float centre_nh[RENDER_SPAN];                         /* per pixel: N.H (first light) there */
+    render_centre_buf centre;                             /* opaque centre samples awaiting their angles */
     int profile;                                          /* 1: add stage times below (render_profile) */
     double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
 } render_scratch;
@@ -421,28 +432,126 @@ static void render_scatter_beauty(float (*restrict plane)[RENDER_PLANE], const s
     }
 }
 
-/* The angle channels of sample i in slot q, the sample nearest its pixel's centre: N.V, N.L and
- * N.H of the first light, for the opaque and the blended flush alike. */
-static void render_centre_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
+/* The angle channels at a pixel's centre sample (x, unit normal nn, v): N.V, N.L and N.H of the
+ * first light. The scalar form, for the blended flush and the lanes render_centre_lanes hands
+ * back. */
+static void render_angles_scalar(const scene *s, vec3 x, vec3 nn, vec3 v, float *nv, float *nl, float *nh)
 {
-    vec3 x = shade_lane_get(&w->in.x, i), nn = shade_lane_get(&w->in.nrm, i);
-    if (j->normal_length[obj] != NULL)
-        nn = v3_norm(nn); /* the angle channels are cosines */
-    const int px = q - w->centre_lo;
-    const vec3 v = shade_lane_get(&w->in.v, i);
-    w->centre_nv[px] = v3_dot(nn, v);
-    w->centre_nl[px] = 0.0f;
-    w->centre_nh[px] = 0.0f;
-    if (j->s->n_lights > 0) {
+    *nv = v3_dot(nn, v);
+    *nl = 0.0f;
+    *nh = 0.0f;
+    if (s->n_lights > 0) {
         vec3 to_l, e_perp;
         float atten;
-        shade_light_incident(&j->s->lights[0], x, &to_l, &e_perp, &atten);
-        w->centre_nl[px] = v3_dot(nn, to_l);
+        shade_light_incident(&s->lights[0], x, &to_l, &e_perp, &atten);
+        *nl = v3_dot(nn, to_l);
         /* L + V vanishes only with the light exactly behind the surface point as seen from
          * the eye: no half vector, and no lobe to bin, so N.H stays 0 (no bin). */
         const vec3 hv = v3_add(to_l, v);
         if (v3_dot(hv, hv) > 1e-12f)
-            w->centre_nh[px] = v3_dot(nn, v3_norm(hv));
+            *nh = v3_dot(nn, v3_norm(hv));
+    }
+}
+
+/* The unit normal of batch lane i as the angle channels want it (they are cosines). */
+static vec3 render_centre_normal(const render_job *j, const render_scratch *w, int obj, int i)
+{
+    vec3 nn = shade_lane_get(&w->in.nrm, i);
+    return j->normal_length[obj] != NULL ? v3_norm(nn) : nn;
+}
+
+/* The angle channels of sample i in slot q, the sample nearest its pixel's centre (the blended
+ * flush). */
+static void render_centre_angles(const render_job *j, render_scratch *w, int obj, int i, int q)
+{
+    const int px = q - w->centre_lo;
+    render_angles_scalar(j->s, shade_lane_get(&w->in.x, i), render_centre_normal(j, w, obj, i),
+                         shade_lane_get(&w->in.v, i), &w->centre_nv[px], &w->centre_nl[px], &w->centre_nh[px]);
+}
+
+/* render_angles_scalar over the buffer's lanes, the first light's kind a constant (0: none,
+ * 1: sun, 2: point or spot; to_sun the sun's unit direction), with the same operations: the
+ * point light's direction d / sqrt(d^2) as shade_light_incident takes it inside its float band,
+ * H = (L + V) / |L + V| as v3_norm. A lane outside that band (shade_light_incident switches to
+ * double there) is marked in far for the scalar form. */
+SMATH_INLINE void render_centre_kernel(const light *l, vec3 to_sun, const render_centre_buf *restrict cb,
+                                       float *restrict nv, float *restrict nl, float *restrict nh, int *restrict far,
+                                       const int kind)
+{
+    const vec3 pos = l != NULL ? l->position : v3s(0.0f);
+    const int n = cb->n;
+#pragma omp simd
+    for (int i = 0; i < n; i++) {
+        const vec3 x = v3(cb->x[0][i], cb->x[1][i], cb->x[2][i]), nn = v3(cb->nrm[0][i], cb->nrm[1][i], cb->nrm[2][i]),
+                   v = v3(cb->v[0][i], cb->v[1][i], cb->v[2][i]);
+        nv[i] = v3_dot(nn, v);
+        vec3 to_l = to_sun;
+        int bad = 0;
+        if (kind == 2) {
+            const vec3 d = v3_sub(pos, x);
+            const float d2 = v3_dot(d, d);
+            const int safe = (d2 > 1e-30f) & (d2 < 1e30f);
+            bad = !safe;
+            to_l = v3_scale(d, 1.0f / sqrtf(safe ? d2 : 1.0f));
+        }
+        far[i] = bad;
+        const vec3 hv = v3_add(to_l, v);
+        const float hh = v3_dot(hv, hv);
+        const int half = hh > 1e-12f;
+        const float nh_l = v3_dot(nn, v3_scale(hv, 1.0f / sqrtf(half ? hh : 1.0f)));
+        nl[i] = kind ? v3_dot(nn, to_l) : 0.0f;
+        nh[i] = kind && half ? nh_l : 0.0f;
+    }
+}
+
+SMATH_CLONES
+static void render_centre_lanes(const scene *s, const render_centre_buf *restrict cb, float *restrict nv,
+                                float *restrict nl, float *restrict nh, int *restrict far)
+{
+    const light *l = s->n_lights > 0 ? &s->lights[0] : NULL;
+    if (l == NULL)
+        render_centre_kernel(l, v3s(0.0f), cb, nv, nl, nh, far, 0);
+    else if (l->kind == LIGHT_SUN)
+        render_centre_kernel(l, v3_neg(v3_norm(l->direction)), cb, nv, nl, nh, far, 1);
+    else
+        render_centre_kernel(l, v3s(0.0f), cb, nv, nl, nh, far, 2);
+}
+
+/* The buffered centre samples' angle channels into the span's pixels; the buffer emptied. */
+static void render_centre_flush(const render_job *j, render_scratch *w)
+{
+    render_centre_buf *cb = &w->centre;
+    float nv[RENDER_CENTRE_BUF], nl[RENDER_CENTRE_BUF], nh[RENDER_CENTRE_BUF];
+    int far[RENDER_CENTRE_BUF];
+    render_centre_lanes(j->s, cb, nv, nl, nh, far);
+    for (int i = 0; i < cb->n; i++) {
+        const int px = cb->px[i];
+        if (far[i])
+            render_angles_scalar(j->s, v3(cb->x[0][i], cb->x[1][i], cb->x[2][i]),
+                                 v3(cb->nrm[0][i], cb->nrm[1][i], cb->nrm[2][i]),
+                                 v3(cb->v[0][i], cb->v[1][i], cb->v[2][i]), &nv[i], &nl[i], &nh[i]);
+        w->centre_nv[px] = nv[i];
+        w->centre_nl[px] = nl[i];
+        w->centre_nh[px] = nh[i];
+    }
+    cb->n = 0;
+}
+
+/* The opaque queue's centre samples into the buffer (their angles taken when it is full or the
+ * span's opaque objects are done). */
+static void render_centre_push(const render_job *j, render_scratch *w, int obj, const render_queue *qu)
+{
+    render_centre_buf *cb = &w->centre;
+    for (int e = 0; e < qu->n_centre; e++) {
+        if (cb->n == RENDER_CENTRE_BUF)
+            render_centre_flush(j, w);
+        const int i = qu->centre[e], b = cb->n++;
+        const vec3 x = shade_lane_get(&w->in.x, i), nn = render_centre_normal(j, w, obj, i),
+                   v = shade_lane_get(&w->in.v, i);
+        cb->x[0][b] = x.x, cb->x[1][b] = x.y, cb->x[2][b] = x.z;
+        cb->nrm[0][b] = nn.x, cb->nrm[1][b] = nn.y, cb->nrm[2][b] = nn.z;
+        cb->v[0][b] = v.x, cb->v[1][b] = v.y, cb->v[2][b] = v.z;
+        cb->px[b] = qu->slot[i] - w->centre_lo;
     }
 }
 
@@ -488,8 +597,7 @@ static void render_flush_object(const render_job *j, render_scratch *w, int obj)
     for (int a = 0; a < 4; a++)
         if (j->term_layers & (1u << a))
             render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
-    for (int e = 0; e < qu->n_centre; e++)
-        render_centre_angles(j, w, obj, qu->centre[e], qu->slot[qu->centre[e]]);
+    render_centre_push(j, w, obj, qu);
     qu->n = 0;
     qu->n_centre = 0;
 }
@@ -703,6 +811,8 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
     render_flush_background(j, w);
+    /* Before the blended layers: where one covers a centre sample its angles replace these. */
+    render_centre_flush(j, w);
     if (j->n_blend > 0)
         render_span_blend(j, tile, w, py0, py1, px0, px1);
 }

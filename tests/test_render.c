@@ -271,12 +271,84 @@ static void test_resolve_invariance(void **state)
     free(s);
 }
 
+/* The angle channels against the geometry, worked out here in double: a floor (normal +Y, the
+ * plane y = 0) seen from above, one light, and at every pixel the floor covers wholly, the
+ * centre sample's point from the camera ray through it (sample (k/2, k/2), at
+ * ((k/2 + 0.5)/k) of the pixel) meeting the plane; N.V, N.L, N.H are the y components of the
+ * unit V, L and H there. Three lights: a point light, a sun, and a point light so far off
+ * that its squared distance leaves float's range (the double path of shade_light_incident).
+ * The tolerance covers the float interpolation of the hit point over a 4 m quad (about 1e-6
+ * relative) and the cosines' float roundings, a hundred times over; a channel taken from the
+ * wrong light, vector or lane is off by far more. */
+static void angles_case(const char *light_yaml, dvec3 light_pos, dvec3 sun_dir, int sun)
+{
+    char text[1024], err[1024];
+    snprintf(text, sizeof text,
+             "image: {width: 40, height: 30, supersample: 3}\n"
+             "camera: {eye: [0.3, 2.5, 2.2], target: [0, 0, -0.2], hfov: 50}\n"
+             "environment: {constant: [0.2, 0.3, 0.5]}\n"
+             "lights:\n  - %s\n"
+             "materials:\n  floor: {albedo: [0.6, 0.5, 0.4], model: d3d, d3d: {specular: [0.5, 0.5, 0.5], power: 20}}\n"
+             "objects:\n  - {shape: quad, center: [0, 0, 0], size: [4, 4], material: floor}\n",
+             light_yaml);
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    assert_int_equal(scene_file_parse(text, strlen(text), "angles.yaml", s, err, sizeof err), RC_OK);
+    mesh m;
+    memset(&m, 0, sizeof m);
+    assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_OK);
+    env_map env;
+    float *px = NULL;
+    assert_int_equal(frame_env_load(s, &env, &px, err, sizeof err), RC_OK);
+    const int w = 40, h = 30, k = 3;
+    render_options o = {.threads = 2, .supersample = k, .width = w, .height = h};
+    render_image img;
+    assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
+    render_camera cam;
+    render_camera_make(s, w, h, &cam);
+    const float off = ((float)(k / 2) + 0.5f) / (float)k;
+    int checked = 0;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            const size_t p = (size_t)j * w + (size_t)i;
+            if (img.chan[RENDER_COVERAGE][p] != 1.0f)
+                continue;
+            const vec3 r = render_camera_ray(&cam, (float)i + off, (float)j + off);
+            const dvec3 eye = dv3_from(cam.eye), dir = dv3_from(r);
+            const dvec3 x = dv3_add(eye, dv3_scale(dir, -eye.y / dir.y));
+            const dvec3 v = dv3_norm(dv3_sub(eye, x));
+            const dvec3 l = sun ? dv3_norm(dv3_scale(sun_dir, -1.0)) : dv3_norm(dv3_sub(light_pos, x));
+            const dvec3 hv = dv3_norm(dv3_add(l, v));
+            assert_true(fabs(img.chan[RENDER_NDOTV][p] - v.y) < 1e-4);
+            assert_true(fabs(img.chan[RENDER_NDOTL][p] - l.y) < 1e-4);
+            assert_true(fabs(img.chan[RENDER_NDOTH][p] - hv.y) < 1e-4);
+            checked++;
+        }
+    /* Most of the frame is floor. */
+    assert_true(checked > w * h / 2);
+    render_image_free(&img);
+    free(px);
+    mesh_free(&m);
+    free(s);
+}
+
+static void test_angle_channels(void **state)
+{
+    (void)state;
+    angles_case("{type: point, position: [1, 3, 2], intensity: [30, 30, 30]}", dv3(1, 3, 2), dv3(0, 0, 0), 0);
+    angles_case("{type: sun, direction: [-0.4, -1, -0.3], irradiance: [1, 1, 1]}", dv3(0, 0, 0), dv3(-0.4, -1, -0.3),
+                1);
+    angles_case("{type: point, position: [1e16, 3e16, 2e16], intensity: [30, 30, 30]}", dv3(1e16, 3e16, 2e16),
+                dv3(0, 0, 0), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_profile_changes_nothing),
         cmocka_unit_test(test_resolve_box_average),
         cmocka_unit_test(test_resolve_invariance),
+        cmocka_unit_test(test_angle_channels),
         cmocka_unit_test(test_reuse_image),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
