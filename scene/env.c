@@ -193,26 +193,36 @@ SMATH_INLINE env_v4 env_load4(const float *p)
     return v;
 }
 
-/* A vector of a's and b's elements, i0..i3 numbering a's 0..3 and b's 4..7 (one shuffle
- * instruction or two; building the vector element by element made GCC 12 split the loads). */
-#if defined(__clang__)
-#define ENV_SHUFFLE(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
-#else
-typedef int env_i4 __attribute__((vector_size(16)));
-#define ENV_SHUFFLE(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (env_i4){i0, i1, i2, i3})
-#endif
+/* Eight floats: eight lanes' values of one channel, or two texels' R, G, B (and the float after
+ * each) side by side. */
+typedef float env_v8 __attribute__((vector_size(32)));
 
-/* One texel of four lanes (16-byte loads at offsets o[0..3]: R, G, B and the float after)
- * transposed into four-lane R, G and B vectors. */
-SMATH_INLINE void env_texel_x4(const float *restrict rgb, const int *o, env_v4 *r, env_v4 *g, env_v4 *b)
+/* Vector element selection (GCC 12 and clang): indices number a's elements, then b's. */
+#define ENV_SHUFFLE __builtin_shufflevector
+
+/* Two texels (16-byte loads at p and q) as one vector, p's in the low half; out through a
+ * pointer (a returned 32-byte vector changes the ABI between the clones, which GCC warns of). */
+SMATH_INLINE void env_load4x2(const float *p, const float *q, env_v8 *out)
 {
-    env_v4 t0 = env_load4(rgb + o[0]), t1 = env_load4(rgb + o[1]), t2 = env_load4(rgb + o[2]),
-           t3 = env_load4(rgb + o[3]);
-    env_v4 rg01 = ENV_SHUFFLE(t0, t1, 0, 4, 1, 5), rg23 = ENV_SHUFFLE(t2, t3, 0, 4, 1, 5);
-    env_v4 b01 = ENV_SHUFFLE(t0, t1, 2, 6, 3, 7), b23 = ENV_SHUFFLE(t2, t3, 2, 6, 3, 7);
-    *r = ENV_SHUFFLE(rg01, rg23, 0, 1, 4, 5);
-    *g = ENV_SHUFFLE(rg01, rg23, 2, 3, 6, 7);
-    *b = ENV_SHUFFLE(b01, b23, 0, 1, 4, 5);
+    *out = ENV_SHUFFLE(env_load4(p), env_load4(q), 0, 1, 2, 3, 4, 5, 6, 7);
+}
+
+/* One texel of eight lanes (16-byte loads at offsets o[0..7]) transposed into eight-lane R, G
+ * and B vectors: lanes 0-3 in the low half and 4-7 in the high one, each half transposed on its
+ * own, so every shuffle stays within 16-byte halves (one instruction each with AVX). */
+SMATH_INLINE void env_texel_x8(const float *restrict rgb, const int *o, env_v8 *r, env_v8 *g, env_v8 *b)
+{
+    env_v8 t0, t1, t2, t3;
+    env_load4x2(rgb + o[0], rgb + o[4], &t0);
+    env_load4x2(rgb + o[1], rgb + o[5], &t1);
+    env_load4x2(rgb + o[2], rgb + o[6], &t2);
+    env_load4x2(rgb + o[3], rgb + o[7], &t3);
+    /* R, G of lanes 0, 1 (then 4, 5) interleaved; B and the unread fourth floats likewise. */
+    env_v8 rg01 = ENV_SHUFFLE(t0, t1, 0, 8, 1, 9, 4, 12, 5, 13), rg23 = ENV_SHUFFLE(t2, t3, 0, 8, 1, 9, 4, 12, 5, 13);
+    env_v8 b01 = ENV_SHUFFLE(t0, t1, 2, 10, 3, 11, 6, 14, 7, 15), b23 = ENV_SHUFFLE(t2, t3, 2, 10, 3, 11, 6, 14, 7, 15);
+    *r = ENV_SHUFFLE(rg01, rg23, 0, 1, 8, 9, 4, 5, 12, 13);
+    *g = ENV_SHUFFLE(rg01, rg23, 2, 3, 10, 11, 6, 7, 14, 15);
+    *b = ENV_SHUFFLE(b01, b23, 0, 1, 8, 9, 4, 5, 12, 13);
 }
 
 /* The second pass for lane i alone: its three channels from scalar loads (unscaled). */
@@ -226,8 +236,8 @@ SMATH_INLINE void env_bilinear_lane(const float *restrict rgb, const env_taps *r
     b[i] = env_bilerp(p00[2], p01[2], p10[2], p11[2], ax, ay, bx, by);
 }
 
-/* The second pass: the bilinear sums (unscaled) four lanes at a time, each texel one 16-byte
- * load and the four lanes' texels transposed into R, G, B vectors, so the sums run across
+/* The second pass: the bilinear sums (unscaled) eight lanes at a time, each texel one 16-byte
+ * load and the eight lanes' texels transposed into R, G, B vectors, so the sums run across
  * lanes as in a lane loop, in the same operations per channel as env_bilinear_lane. A group
  * with a lane whose texels include the image's last one (a 16-byte load would read past the
  * end) and the lanes after the last whole group go lane by lane. */
@@ -235,22 +245,25 @@ SMATH_INLINE void env_bilinear(const float *restrict rgb, const env_taps *restri
                                float *restrict g, float *restrict b)
 {
     int i = 0;
-    for (; i + 4 <= n; i += 4) {
-        if (!(t->wide[i] & t->wide[i + 1] & t->wide[i + 2] & t->wide[i + 3])) {
-            for (int j = i; j < i + 4; j++)
+    for (; i + 8 <= n; i += 8) {
+        int wide = 1;
+        for (int l = 0; l < 8; l++)
+            wide &= t->wide[i + l];
+        if (!wide) {
+            for (int j = i; j < i + 8; j++)
                 env_bilinear_lane(rgb, t, j, r, g, b);
             continue;
         }
-        env_v4 r00, g00, b00, r01, g01, b01, r10, g10, b10, r11, g11, b11;
-        env_texel_x4(rgb, t->o00 + i, &r00, &g00, &b00);
-        env_texel_x4(rgb, t->o01 + i, &r01, &g01, &b01);
-        env_texel_x4(rgb, t->o10 + i, &r10, &g10, &b10);
-        env_texel_x4(rgb, t->o11 + i, &r11, &g11, &b11);
+        env_v8 r00, g00, b00, r01, g01, b01, r10, g10, b10, r11, g11, b11;
+        env_texel_x8(rgb, t->o00 + i, &r00, &g00, &b00);
+        env_texel_x8(rgb, t->o01 + i, &r01, &g01, &b01);
+        env_texel_x8(rgb, t->o10 + i, &r10, &g10, &b10);
+        env_texel_x8(rgb, t->o11 + i, &r11, &g11, &b11);
         const float *restrict ax = t->ax + i, *restrict ay = t->ay + i, *restrict bx = t->bx + i,
                               *restrict by = t->by + i;
-        /* Four lanes of a fixed count: one vector per operation. */
+        /* Eight lanes of a fixed count: one vector per operation. */
 #pragma omp simd
-        for (int l = 0; l < 4; l++) {
+        for (int l = 0; l < 8; l++) {
             r[i + l] = env_bilerp(r00[l], r01[l], r10[l], r11[l], ax[l], ay[l], bx[l], by[l]);
             g[i + l] = env_bilerp(g00[l], g01[l], g10[l], g11[l], ax[l], ay[l], bx[l], by[l]);
             b[i + l] = env_bilerp(b00[l], b01[l], b10[l], b11[l], ax[l], ay[l], bx[l], by[l]);
