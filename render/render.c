@@ -275,29 +275,20 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
         }
         /* Whole vectors of RENDER_LANES from i, each a fixed-length loop (one unaligned store
          * per vector, no loop peeling: most runs are a few samples long, at 10^6 triangles a
-         * single one); what lies past e is overwritten by the next run. A run of at most one
-         * vector (nearly all: a pixel's samples, or fewer) takes the 18 stores unrolled: the
-         * general loop's per-quantity bookkeeping was most of a short run's cost. */
-        if (e - i <= RENDER_LANES) {
+         * single one); what lies past e is overwritten by the next run. The 18 quantities are
+         * unrolled inside the loop over vectors: a run of at most one vector (nearly all: a
+         * pixel's samples, or fewer) makes one pass, and a longer one pays the loop's
+         * bookkeeping once per vector rather than once per vector and quantity. */
+        for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC unroll 18
 #endif
             for (int c = 0; c < 18; c++) {
-                float *restrict dst = vl->v[c] + i;
+                float *restrict dst = vl->v[c] + l0;
                 const float x = src[c / 3][c % 3];
 #pragma omp simd
                 for (int l = 0; l < RENDER_LANES; l++)
                     dst[l] = x;
-            }
-        } else {
-            for (int c = 0; c < 18; c++) {
-                float *restrict dst = vl->v[c];
-                const float x = src[c / 3][c % 3];
-                for (int l0 = i; l0 < e; l0 += RENDER_LANES) {
-#pragma omp simd
-                    for (int l = 0; l < RENDER_LANES; l++)
-                        dst[l0 + l] = x;
-                }
             }
         }
         i = e;
