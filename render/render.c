@@ -639,6 +639,15 @@ typedef struct {
     render_queue *qu;
 } render_queue_state;
 
+/* The per-pixel queueing is inlined into render_span_queue, whose k is a constant for the usual
+ * 4 x 4 samples: the loops over a pixel's samples then unroll (their bookkeeping was a third of
+ * the queueing's instructions). */
+#if defined(__GNUC__)
+#define RENDER_QUEUE_INLINE static inline __attribute__((always_inline))
+#else
+#define RENDER_QUEUE_INLINE static inline
+#endif
+
 /* The object and queue of triangle tri, looked up only when the triangle changes. */
 static void render_queue_switch(const render_job *j, render_scratch *w, render_queue_state *qs, int32_t tri)
 {
@@ -700,10 +709,9 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
 /* A pixel whose k x k samples are all of triangle tri, with room for them all in its queue:
  * queued as render_queue_samples would queue them (same order, and the queue fills up at the
  * same sample), the count kept in a register instead of reloaded per sample. */
-static void render_queue_whole(render_queue *restrict qu, const render_queue_state *qs, const raster_sample *pix,
-                               int pi, int32_t tri)
+RENDER_QUEUE_INLINE void render_queue_whole(render_queue *restrict qu, const render_queue_state *qs,
+                                            const raster_sample *pix, int pi, int32_t tri, const int k)
 {
-    const int k = qs->k;
     int n = qu->n;
     qu->centre[qu->n_centre++] = (uint8_t)(n + qs->c * k + qs->c);
     for (int t = 0; t < k; t++) {
@@ -720,9 +728,9 @@ static void render_queue_whole(render_queue *restrict qu, const render_queue_sta
 }
 
 /* A pixel no triangle covers, with room for its samples in the background queue. */
-static void render_queue_background(render_scratch *restrict w, const render_queue_state *qs, int pi, int px, int py)
+RENDER_QUEUE_INLINE void render_queue_background(render_scratch *restrict w, const render_queue_state *qs, int pi,
+                                                 int px, int py, const int k)
 {
-    const int k = qs->k;
     int b = w->bg_n;
     for (int t = 0; t < k; t++) {
         const float sy = (float)py + qs->offs[t];
@@ -738,17 +746,17 @@ static void render_queue_background(render_scratch *restrict w, const render_que
 
 /* One pixel's samples queued; returns the covered count. Most pixels lie wholly inside one
  * triangle or wholly in the background, and take the short paths. */
-static int render_queue_pixel(const render_job *j, render_scratch *w, render_queue_state *qs, const raster_sample *pix,
-                              int pi, int px, int py)
+RENDER_QUEUE_INLINE int render_queue_pixel(const render_job *j, render_scratch *w, render_queue_state *qs,
+                                           const raster_sample *pix, int pi, int px, int py, const int k)
 {
-    const int k = qs->k, kk = k * k;
+    const int kk = k * k;
     const int32_t t0 = pix[0].tri;
     int uniform = 1;
     for (int t = 0; t < k; t++)
         for (int s = 0; s < k; s++)
             uniform &= pix[(size_t)t * (size_t)qs->stride + (size_t)s].tri == t0;
     if (uniform && t0 < 0 && w->bg_n + kk <= SHADE_BATCH) {
-        render_queue_background(w, qs, pi, px, py);
+        render_queue_background(w, qs, pi, px, py, k);
         if (w->bg_n == SHADE_BATCH)
             render_flush_background(j, w);
         return 0;
@@ -756,13 +764,34 @@ static int render_queue_pixel(const render_job *j, render_scratch *w, render_que
     if (uniform && t0 >= 0) {
         render_queue_switch(j, w, qs, t0);
         if (!qs->per_vertex && qs->qu->n + kk <= SHADE_BATCH) {
-            render_queue_whole(qs->qu, qs, pix, pi, t0);
+            render_queue_whole(qs->qu, qs, pix, pi, t0, k);
             if (qs->qu->n == SHADE_BATCH)
                 render_flush_object(j, w, qs->obj);
             return kk;
         }
     }
     return render_queue_samples(j, w, qs, pix, pi, px, py);
+}
+
+/* Every pixel of the span queued (render_queue_pixel), its angle channels zeroed until its
+ * centre sample is shaded and its centre object noted; k = tile->k, a constant where inlined. */
+RENDER_QUEUE_INLINE void render_span_queue(const render_job *j, const raster_tile *tile, render_scratch *w,
+                                           render_queue_state *qs, int py0, int py1, int px0, int px1, const int k)
+{
+    const int stride = qs->stride, c = k / 2;
+    const int32_t *tri_object = j->m->tri_object;
+    for (int py = py0, pi = 0; py < py1; py++)
+        for (int px = px0; px < px1; px++, pi++) {
+            const raster_sample *pix =
+                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (size_t)((px - tile->x0) * k);
+            w->centre_nv[pi] = 0.0f;
+            w->centre_nl[pi] = 0.0f;
+            w->centre_nh[pi] = 0.0f;
+            w->covered[pi] = render_queue_pixel(j, w, qs, pix, pi, px, py, k);
+            /* The object at the sample nearest the pixel centre, -1 for the background. */
+            const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
+            w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
+        }
 }
 
 /* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
@@ -782,23 +811,14 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     w->span_px = span_px;
     w->centre_lo = (c * k + c) * span_px;
     w->centre_hi = w->centre_lo + span_px;
-    const int32_t *tri_object = j->m->tri_object;
     render_queue_state qs = {.k = k, .c = c, .stride = stride, .span_px = span_px, .last_tri = -1, .qu = &w->queue[0]};
     /* The offsets once per span instead of a division per background sample (same bits). */
     for (int s = 0; s < k; s++)
         qs.offs[s] = ((float)s + 0.5f) / (float)k;
-    for (int py = py0, pi = 0; py < py1; py++)
-        for (int px = px0; px < px1; px++, pi++) {
-            const raster_sample *pix =
-                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (size_t)((px - tile->x0) * k);
-            w->centre_nv[pi] = 0.0f;
-            w->centre_nl[pi] = 0.0f;
-            w->centre_nh[pi] = 0.0f;
-            w->covered[pi] = render_queue_pixel(j, w, &qs, pix, pi, px, py);
-            /* The object at the sample nearest the pixel centre, -1 for the background. */
-            const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
-            w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
-        }
+    if (k == 4)
+        render_span_queue(j, tile, w, &qs, py0, py1, px0, px1, 4);
+    else
+        render_span_queue(j, tile, w, &qs, py0, py1, px0, px1, k);
     for (int o = 0; o < j->s->n_objects; o++)
         render_flush_object(j, w, o);
     render_flush_background(j, w);
