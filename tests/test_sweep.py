@@ -448,7 +448,12 @@ def test_stage_one_and_two_plans():
     one, top = sweep.stage_one(jobs, ref)
     cyc = {j['key']: j for j in one if j['renderer'] == 'cycles'}
     assert top == 1024 and sorted(cyc) == ['cycles16', 'cycles256', 'cycles64', 'reference']
-    assert cyc['reference']['opts'] == ['--samples', '1024', '--seeds', '2'] and cyc['reference']['samples'] == 1024
+    # The pixel integral (--supersample 1) like the points: a twin's default k x k positions
+    # would differ from the points by a bias, an error floor.
+    integral = ['--supersample', '1']
+    assert cyc['reference']['opts'] == ['--samples', '1024', '--seeds', '2'] + integral
+    assert cyc['reference']['samples'] == 1024
+    assert all(j['opts'][4:6] == integral for j in cyc.values())
     assert [j for j in one if j['renderer'] != 'cycles'] == [j for j in jobs if j['renderer'] != 'cycles']
     two, ref2 = sweep.stage_two(one, top, ref, seed_opt=True)
     cyc2 = {j['key']: j for j in two if j['renderer'] == 'cycles'}
@@ -456,11 +461,11 @@ def test_stage_one_and_two_plans():
     assert (
         cyc2['cycles1024']['tag'] == cyc['reference']['tag'] and cyc2['cycles1024']['opts'] == cyc['reference']['opts']
     )
-    assert cyc2['reference']['opts'] == ['--samples', '4096', '--seeds', '2', '--seed', '4']
+    assert cyc2['reference']['opts'] == ['--samples', '4096', '--seeds', '2'] + integral + ['--seed', '4']
     assert cyc2['reference']['tag'] == 'cycles-spp4096-s4'
     # Without --seed (nested): the deep reference is seeds 0..1 as before.
     two_n, _ = sweep.stage_two(sweep.stage_one(*sweep.plan(quick=False, seed_opt=False))[0], 1024, 4096, False)
-    assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '4096', '--seeds', '2']
+    assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '4096', '--seeds', '2'] + integral
 
 
 def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05)):

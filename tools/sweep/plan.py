@@ -147,13 +147,15 @@ def stage_one(jobs, ref_spp):
 
 
 def top_job(top, key, label):
-    """The top Cycles level at seeds 0..1: stage one's reference, stage two's top point."""
+    """The top Cycles level at seeds 0..1: stage one's reference, stage two's top point. The
+    pixel integral like every other Cycles level: a twin's default (the model's k x k positions)
+    differs from the integral by a bias, which against the points reads as an error floor."""
     return dict(
         key=key,
         renderer='cycles',
         tag=f'cycles-spp{top}',
         label=label,
-        opts=['--samples', str(top), '--seeds', str(SEEDS)],
+        opts=['--samples', str(top), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL,
         series='cycles spp',
         samples=top,
     )
@@ -176,7 +178,7 @@ def stage_two(jobs1, top, ref_spp, seed_opt):
         renderer='cycles',
         tag=f'cycles-spp{ref_spp}' + (f'-s{DEEP_SEED}' if seed_opt else ''),
         label=f'{ref_spp} spp (reference)',
-        opts=['--samples', str(ref_spp), '--seeds', str(SEEDS)] + extra,
+        opts=['--samples', str(ref_spp), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL + extra,
         series='cycles spp',
         samples=ref_spp,
     )
