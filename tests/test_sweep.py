@@ -468,22 +468,36 @@ def test_stage_one_and_two_plans():
     assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '4096', '--seeds', '2'] + integral
 
 
-def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05)):
-    """A stage-one analysis dict as deeper_reasons reads it."""
+def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05), n_pixels=4000, as_is=None):
+    """A stage-one analysis dict as stage_decision reads it: Cycles points at 16, 64, 256 spp
+    measured against a reference of noise noise_ref (independent seeds: nrmse^2 = e^2 + r^2),
+    over n_pixels surface pixels with no outliers (worst 1 % hold 1 %); a raster k point of error
+    raster; the raster as-is error as_is (default raster), also on the Pareto frontier."""
     cyc = [
-        {'samples': n, 'error': e, 'is_reference': False, 'time_s': 1.0 + n / 100}
+        {
+            'samples': n,
+            'error': e,
+            'nrmse': math.hypot(e, noise_ref),
+            'n_pixels': n_pixels,
+            'worst1_share': 0.01,
+            'is_reference': False,
+            'time_s': 1.0 + n / 100,
+        }
         for n, e in zip((16, 64, 256), cycles_errors)
     ]
     local = sweep.local_slopes([p['samples'] for p in cyc], [p['error'] for p in cyc])
     fit = sweep.fit_loglog([p['samples'] for p in cyc], [p['error'] for p in cyc])
     fit['local'] = local
+    as_is = raster if as_is is None else as_is
     return {
-        'reference': {'noise_nrmse': noise_ref},
+        'reference': {'noise_nrmse': noise_ref, 'nested': False},
         'series': [
             {'label': 'cycles spp', 'renderer': 'cycles', 'fit_spp': fit, 'points': cyc},
             {'label': 'raster k', 'renderer': 'raster', 'points': [{'error': raster, 'is_reference': False}]},
         ],
-        'crossover': {'spp': 64.0, 'extrapolated': None},
+        'as_is': {'error': as_is},
+        'pareto': [{'label': 'as-is', 'renderer': 'raster', 'error': as_is, 'time_s': 0.01}],
+        'crossover': {'spp': 64.0, 'extrapolated': None, 'raster_error': as_is},
         'crossover_best_raster': None,
     }
 
@@ -492,17 +506,71 @@ def test_deeper_reasons_rule():
     # Errors 0.2, 0.1, 0.05 at 16, 64, 256: slope ln(1/2)/ln 4 = -0.5 throughout; crossover
     # inside; reference noise 0.01 < 0.1 / 3: stage one decides everything.
     assert sweep.deeper_reasons(_staged()) == []
-    # Crossover beyond 256 spp.
-    t = _staged()
-    t['crossover_best_raster'] = {'spp': 900.0, 'extrapolated': 'above'}
-    assert any('crossover best raster at 900 spp' in w for w in sweep.deeper_reasons(t))
-    # 64 -> 256: 0.1 -> 0.08, slope ln(0.8)/ln 4 = -0.161 > -0.4: a floor may begin.
+    # 64 -> 256: 0.1 -> 0.08, slope ln(0.8)/ln 4 = -0.161; over 4000 pixels a point's sigma is
+    # about sqrt(2/4000)/2 = 0.011, the slope's 0.011 sqrt(2)/ln 4 = 0.012: a floor.
     assert any('slower than -0.5' in w for w in sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.1, 0.08))))
     # Faster than -0.5 (0.2 -> 0.05 -> 0.0125: -1.0) is stratification, decided in stage one.
     assert sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.05, 0.0125))) == []
-    # Reference noise 0.04 > raster 0.1 / 3 = 0.0333 (0.03 is under it).
+    # Reference noise 0.04 > raster as-is 0.1 / 3 = 0.0333 (0.03 is under it).
     assert any('reference noise 0.04' in w for w in sweep.deeper_reasons(_staged(noise_ref=0.04)))
     assert sweep.deeper_reasons(_staged(noise_ref=0.03)) == []
+
+
+def test_point_sigma_by_hand():
+    # Nested (no subtraction), 200 pixels, no outliers: sqrt((3 - 1) / 200) / 2 = 0.05.
+    p = {'nrmse': 0.1, 'error': 0.1, 'n_pixels': 200, 'worst1_share': 0.01}
+    assert sweep.point_sigma(p, None, True) == pytest.approx(0.05, rel=1e-12)
+    # The worst 1 % hold half the sum: E[x^2]/E[x]^2 >= 100 * 0.25 = 25: sqrt(24 / 200) / 2.
+    p2 = dict(p, worst1_share=0.5)
+    assert sweep.point_sigma(p2, None, True) == pytest.approx(math.sqrt(24 / 200) / 2, rel=1e-12)
+    # Independent: m = 0.05, r = 0.03, e = 0.04, n = 200: var(e^2) = (0.0025 * 0.1)^2 +
+    # (0.0009 * 0.1)^2 = 6.25e-8 + 8.1e-9 = 7.06e-8; sigma = sqrt(7.06e-8) / (2 * 0.0016).
+    p3 = {'nrmse': 0.05, 'error': 0.04, 'n_pixels': 200, 'worst1_share': 0.01}
+    assert sweep.point_sigma(p3, 0.03, False) == pytest.approx(math.sqrt(7.06e-8) / 0.0032, rel=1e-9)
+
+
+def test_stage_decision_slope_within_its_uncertainty():
+    # 64 -> 256: 0.1 -> 0.06, slope ln(0.6)/ln 4 = -0.368, slower than -0.5 by 0.13 (the old rule
+    # went deep on anything past 0.1). Over 100 pixels each point's sigma is about
+    # sqrt(2/100)/2 = 0.071, the slope's 0.071 sqrt(2)/ln 4 = 0.072: -0.368 - 2 * 0.072 = -0.51,
+    # so -0.5 is within 2 sigma: reported, not rendered. Over 4000 pixels (sigma 0.011) the same
+    # slope is a departure: deep.
+    small = sweep.stage_decision(_staged(cycles_errors=(0.2, 0.1, 0.06), n_pixels=100), 1024)
+    assert small['deep'] == []
+    assert any('-0.5 within 2 sigma' in w for w in small['not_deep'])
+    big = sweep.stage_decision(_staged(cycles_errors=(0.2, 0.1, 0.06), n_pixels=4000), 1024)
+    assert any('slower than -0.5' in w for w in big['deep'])
+
+
+def test_stage_decision_crossover_within_reach():
+    # Errors 0.16, 0.04, 0.01 at 16, 64, 256: slope -1 (sigma about 0.01). Raster as-is 0.004:
+    # 256 * (0.004 / 0.01)^(1 / -1) = 640 spp, under the 1024-spp level stage two adds: deep.
+    t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.004, noise_ref=0.0001)
+    t['crossover'] = {'spp': 640.0, 'extrapolated': 'above', 'raster_error': 0.004}
+    d = sweep.stage_decision(t, 1024)
+    assert any('within the 1024-spp level' in w for w in d['deep'])
+    # Raster as-is 0.001: 2560 spp, range about 256 * 10^(1 / 1.02) = 2440 and up, wholly above
+    # 1024: no deeper level places it; reported with its range, not rendered.
+    t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.001, noise_ref=0.0001)
+    t['crossover'] = {'spp': 2560.0, 'extrapolated': 'above', 'raster_error': 0.001}
+    d = sweep.stage_decision(t, 1024)
+    assert d['deep'] == []
+    assert any('not decidable within 1024 spp' in w for w in d['not_deep'])
+    low, high = sweep.crossover_range(0.001, -1.0, 0.0, (256, 0.01))
+    assert low == pytest.approx(2560.0) and high == pytest.approx(2560.0)
+    # A flat top slope (within 2 sigma of 0) never reaches it: the range is open above.
+    assert sweep.crossover_range(0.001, -0.05, 0.05, (256, 0.01))[1] == math.inf
+
+
+def test_stage_decision_reference_noise_on_decision_figures_only():
+    # Reference noise 0.01 against a raster k point of 0.02 that is no decision (the as-is is
+    # 0.1, the only Pareto point): the old rule went deep (0.01 > 0.02 / 3); now stage one.
+    t = _staged(noise_ref=0.01, raster=0.02, as_is=0.1)
+    assert sweep.stage_decision(t, 1024)['deep'] == []
+    # The same noise against an as-is error of 0.02: its correction moves it by
+    # 0.02 / sqrt(0.02^2 - 0.01^2)... more than 5.4 %: deep.
+    t = _staged(noise_ref=0.01, raster=0.1, as_is=0.02)
+    assert any('raster as-is error 0.02' in w for w in sweep.stage_decision(t, 1024)['deep'])
 
 
 # ------------------------------------------------------------------------------ second run

@@ -92,6 +92,10 @@ def point_of(job, rec, d, noise, err, clock='wall_s'):
         'rel_rms': s.get('rel_rms'),
         'psnr': s.get('psnr'),
         'ssim': s.get('ssim'),
+        # Surface pixels measured and the worst 1 %'s share of the squared error: a point's
+        # uncertainty (plan.point_sigma).
+        'n_pixels': s.get('n_pixels'),
+        'worst1_share': s.get('worst1_share'),
         'error': err,
         'noise_nrmse': noise,
         'is_reference': job['key'] == 'reference',

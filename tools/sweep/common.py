@@ -34,6 +34,16 @@ SLOPE_TOL = 0.1
 # moves the error by at most 5.4 % (sqrt(1 + 1/9)), inside the scatter of two seeds.
 NOISE_MARGIN = 3.0
 BUDGETS_S = (1.0, 10.0, 100.0)
+# Stage two's rule (plan.stage_decision) asks whether a figure is off by more than 2 standard
+# errors: with two seeds a point's uncertainty is itself a rough estimate, and 2 sigma keeps a
+# one-in-20 fluke from sending a scene deep while a real floor (many sigma) still does.
+CONFIDENCE = 2.0
+# A point's ln-error uncertainty without a pixel count (a diff that lacks it): 0.1, the scatter
+# SLOPE_TOL above allows for.
+SIGMA_NO_PIXELS = 0.1
+# E[x^2] / E[x]^2 of a squared zero-mean Gaussian (x = z^2: E z^4 / (E z^2)^2 = 3): the least
+# spread a pixel's squared error has; plan.point_sigma widens it where outliers dominate.
+GAUSS_RATIO = 3.0
 
 
 def write_json(path, obj):

@@ -11,7 +11,7 @@ import time
 
 from .analysis import analyse, make_zero, one_line, scene_diffs
 from .common import ROOT, clean_nan, write_json
-from .plan import DEEP_SEED, deeper_reasons, expected_cost, plan, stage_one, stage_two
+from .plan import DEEP_SEED, expected_cost, plan, stage_decision, stage_one, stage_two
 from .runner import Runner
 from .scenes import SceneError, names_renderer, renderer_table, scene_name, sweep_role, use_bin
 
@@ -156,7 +156,7 @@ def usage_error(args):
     return None
 
 
-def write_scenes(args, scenes, plans, recs, deeper, final, summary):
+def write_scenes(args, scenes, plans, recs, deeper, undecided, final, summary):
     """RUN/timing/<scene>.json for every scene analysed (final), with its own cost, and one line
     each; a scene without one is named on stderr. Returns the exit status (1: one is missing)."""
     rc = 0
@@ -175,11 +175,23 @@ def write_scenes(args, scenes, plans, recs, deeper, final, summary):
             'threads_per_job': args.threads,
             'stage': 2 if sp in deeper or args.levels == 'all' else 1,
             'deep_reference_why': deeper.get(sp, []),
+            # What stage one left open without a deeper level being able to decide it.
+            'not_deep': undecided.get(sp, []),
         }
         write_json(os.path.join(args.run, 'timing', f'{name}.json'), clean_nan(t))
         summary['scenes'][name] = t['sweep']
         print(one_line(t))
+        print(f"  {stage_line(t['sweep'], args.levels)}")
     return rc
+
+
+def stage_line(sw, levels):
+    """Why the scene went to stage two or stayed at stage one (plan.stage_decision)."""
+    if levels == 'all':
+        return 'stage two: --levels all'
+    if sw['stage'] == 2:
+        return 'stage two (deep reference): ' + '; '.join(sw['deep_reference_why'])
+    return 'stage one only: ' + ('; '.join(sw['not_deep']) if sw['not_deep'] else 'stage one decides every figure')
 
 
 def main(argv=None):
@@ -230,7 +242,7 @@ def main(argv=None):
         full[sp] = (jobs, ref_spp)
         plans[sp] = (name, jobs, ref_spp) if args.levels == 'all' else (name, *stage_one(jobs, ref_spp))
     work = [(sp, name, j) for sp, (name, jobs, _) in plans.items() for j in jobs]
-    recs, deeper = {}, {}
+    recs, deeper, undecided = {}, {}, {}
     # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
     # start-up is paid once per worker, not once per job, and job times no longer include it.
     use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
@@ -246,7 +258,9 @@ def main(argv=None):
             first = analyse_all(runner, args, scenes, plans, recs, nested, {})
             for sp in scenes:
                 name, jobs, top = plans[sp]
-                why = deeper_reasons(first[sp]) if isinstance(first[sp], dict) else []
+                decision = stage_decision(first[sp], top) if isinstance(first[sp], dict) else {}
+                why = decision.get('deep')
+                undecided[sp] = decision.get('not_deep', [])
                 if not why:
                     continue
                 deeper[sp] = why
@@ -273,10 +287,11 @@ def main(argv=None):
         'nested_reference': nested,
         'levels': args.levels,
         'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
+        'not_deep': {scene_name(sp): why for sp, why in undecided.items() if why and sp not in deeper},
     }
     seeds = {sp: DEEP_SEED for sp in deeper if runner.seed_opt}
     final = analyse_all(runner, args, scenes, plans, recs, nested, seeds)
-    rc = write_scenes(args, scenes, plans, recs, deeper, final, summary)
+    rc = write_scenes(args, scenes, plans, recs, deeper, undecided, final, summary)
     summary['wall_s'] = time.monotonic() - t_start
     write_json(os.path.join(args.run, 'sweep.json'), clean_nan(summary))
     print(

@@ -1,7 +1,10 @@
 """plan.py - which jobs a scene gets: the levels of every renderer's knobs, the two stages and why
 a scene goes to stage two (deeper_reasons), and each job's expected cost for scheduling."""
 
+import math
+
 from .common import (
+    CONFIDENCE,
     CYCLES_SPP,
     EEVEE_TAA,
     NOISE_MARGIN,
@@ -17,6 +20,8 @@ from .common import (
     RASTER_TESS,
     REF_SPP,
     SEEDS,
+    GAUSS_RATIO,
+    SIGMA_NO_PIXELS,
     SLOPE_TOL,
 )
 
@@ -185,45 +190,121 @@ def stage_two(jobs1, top, ref_spp, seed_opt):
     return [ref] + out, ref_spp
 
 
-def deeper_reasons(t):
-    """Why a scene swept against its stage-one reference needs the top level as a point and the
-    deep reference (the rule: a render is spent where it decides a slope, a crossover or an
-    error). Empty when stage one decides all three:
-      crossover   Cycles reaches the raster's error (as-is or best) beyond the levels measured:
-                  only higher levels place it;
-      slope       between the top two levels the error falls slower than spp^-0.5 by more than
-                  SLOPE_TOL: a floor (reference noise, bias) may begin, and only higher levels show
-                  it (faster than -0.5 is PMJ's stratification, which stage one measures);
-      reference   the reference's noise is above a third of the smallest non-Cycles error it
-                  measures: the quadrature subtraction would move that error by more than 5.4 %
-                  (sqrt(1 + 1/9)), so the error needs a quieter reference. (Cycles' own points
-                  are corrected exactly for the reference's noise, nested or independent.)"""
-    why = []
+def point_sigma(p, noise_ref=None, nested=False):
+    """A Cycles point's standard error in ln(error). Its error is a mean square over n surface
+    pixels: m^2 (measured against the reference) less r^2 (the reference's noise, from its two
+    seeds' variance) where the two are independent. A mean of n terms has a relative standard
+    error sqrt((E[x^2]/E[x]^2 - 1) / n); E[x^2]/E[x]^2 is 3 for a squared Gaussian, and at least
+    100 w^2 when the worst 1 % of the pixels hold a share w of the sum (Cauchy-Schwarz over those
+    pixels), so a few bright outliers widen it. r^2 is a two-seed variance, one degree of freedom
+    a pixel: relative error sqrt(2 / n). Half the relative error of e^2 is that of e."""
+    m, n, w = p.get('nrmse'), p.get('n_pixels') or 0, p.get('worst1_share') or 0.0
+    e = p.get('error')
+    if not m or not e or n <= 0:
+        return SIGMA_NO_PIXELS
+    rel_m2 = math.sqrt((max(GAUSS_RATIO, 100.0 * w * w) - 1.0) / n)
+    if nested or not noise_ref:
+        return rel_m2 / 2.0
+    var_e2 = (m * m * rel_m2) ** 2 + (noise_ref * noise_ref * math.sqrt(2.0 / n)) ** 2
+    return math.sqrt(var_e2) / (2.0 * e * e)
+
+
+def top_slope(t):
+    """The spp slope between stage one's top two points and its standard error: (slope, sigma,
+    (n_top, error_top)), or None without two points."""
+    cyc = next((s for s in t['series'] if s['label'] == 'cycles spp'), None)
+    pts = sorted(
+        (p for p in (cyc or {}).get('points', []) if not p['is_reference'] and p.get('error') and p.get('samples')),
+        key=lambda p: p['samples'],
+    )
+    if len(pts) < 2 or pts[-1]['samples'] == pts[-2]['samples']:
+        return None
+    a, b = pts[-2], pts[-1]
+    ref = t.get('reference') or {}
+    noise, nested = ref.get('noise_nrmse'), ref.get('nested', False)
+    span = math.log(b['samples'] / a['samples'])
+    slope = math.log(b['error'] / a['error']) / span
+    sigma = math.hypot(point_sigma(a, noise, nested), point_sigma(b, noise, nested)) / span
+    return slope, sigma, (b['samples'], b['error'])
+
+
+def crossover_range(target, slope, sigma, top_point):
+    """The spp at which Cycles reaches target, extrapolated from the top point on the top slope
+    at slope -/+ CONFIDENCE sigma: (low, high); high is inf where the slope may be flat."""
+    n, e = top_point
+    if not target or target <= 0 or e <= target:
+        return n, n
+    steep, shallow = slope - CONFIDENCE * sigma, slope + CONFIDENCE * sigma
+    low = n * (target / e) ** (1.0 / steep) if steep < 0 else math.inf
+    high = n * (target / e) ** (1.0 / shallow) if shallow < 0 else math.inf
+    return low, high
+
+
+def decision_errors(t):
+    """The non-Cycles errors the sweep reports as decisions: the raster as-is, the raster's best
+    (the two crossovers' targets) and every non-Cycles point on the Pareto frontier."""
+    errs = {}
+    if (t.get('as_is') or {}).get('error'):
+        errs['raster as-is'] = t['as_is']['error']
+    for c in (t.get('crossover'), t.get('crossover_best_raster')):
+        if c and c.get('raster_error'):
+            errs.setdefault(f"raster {c.get('raster_label', 'as-is')}", c['raster_error'])
+    for p in t.get('pareto') or []:
+        if p['renderer'] != 'cycles' and p.get('error'):
+            errs.setdefault(f"{p['renderer']} {p['label']}", p['error'])
+    return errs
+
+
+def stage_decision(t, top):
+    """Whether stage one's figures need stage two (the top level as a point, the deep
+    reference): {'deep': [why, ...], 'not_deep': [what stage one leaves open, ...]}.
+    The rule: a deeper level is rendered only where it can change a reported figure:
+      crossover   Cycles reaches a raster error (as-is or best) above stage one's points, and
+                  the crossover's CONFIDENCE-sigma range (the top slope's own uncertainty from
+                  the two seeds) reaches down to the top level, which stage two adds as a point;
+                  a crossover whose range lies wholly above it stays extrapolated whatever
+                  stage two renders, and is reported so (not_deep), with its range;
+      slope       the top slope is slower than the Monte Carlo rate -0.5 by more than
+                  CONFIDENCE sigma (a floor may begin; the 1024 point shows it); within it, the
+                  departure is the seeds' scatter (not_deep); faster is stratification;
+      reference   the reference's noise is above a third (NOISE_MARGIN) of an error the sweep
+                  reports as a decision (raster as-is, raster best, a non-Cycles Pareto point):
+                  its quadrature correction moves that error by more than 5.4 %
+                  (sqrt(1 + 1/9)), more than the two seeds resolve;
+      no slope    stage one has no two Cycles points (a failed level)."""
+    deep, open_ = [], []
+    ts = top_slope(t)
+    if ts is None:
+        return {'deep': ['no spp slope from stage one'], 'not_deep': []}
+    slope, sigma, top_point = ts
     for k in ('crossover', 'crossover_best_raster'):
         c = t.get(k)
-        if c and c.get('extrapolated') == 'above':
-            why.append(f"{k.replace('_', ' ')} at {c['spp']:.0f} spp, above the levels measured")
-            break
-    cyc = next((s for s in t['series'] if s['label'] == 'cycles spp'), None)
-    fs = cyc and cyc.get('fit_spp')
-    if fs is None:
-        why.append('no spp slope from stage one')
-    else:
-        top = (fs.get('local') or [{}])[-1].get('slope', fs['slope'])
-        if top > -0.5 + SLOPE_TOL:
-            why.append(f'spp slope {top:.2f} between the top two levels, slower than -0.5: a floor may begin there')
+        if not (c and c.get('extrapolated') == 'above'):
+            continue
+        low, high = crossover_range(c.get('raster_error'), slope, sigma, top_point)
+        what = f"{k.replace('_', ' ')} at {c['spp']:.3g} spp ({CONFIDENCE:g}-sigma range {low:.3g}..{high:.3g})"
+        if low <= top:
+            deep.append(f'{what}: within the {top}-spp level stage two adds')
+        else:
+            open_.append(f'{what}: above the measured range; not decidable within {top} spp')
+    if slope - CONFIDENCE * sigma > -0.5:
+        deep.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top, slower than -0.5: a floor may begin there')
+    elif slope > -0.5 + SLOPE_TOL:
+        open_.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top: -0.5 within {CONFIDENCE:g} sigma')
     noise = (t.get('reference') or {}).get('noise_nrmse')
-    errs = [
-        p['error']
-        for s in t['series']
-        for p in s['points']
-        if s['renderer'] != 'cycles' and not p['is_reference'] and p.get('error')
-    ]
-    if noise and errs and noise > min(errs) / NOISE_MARGIN:
-        why.append(f'reference noise {noise:.3g} above a third of the smallest error {min(errs):.3g}')
+    errs = decision_errors(t)
+    if noise and errs:
+        name, low_err = min(errs.items(), key=lambda kv: kv[1])
+        if noise > low_err / NOISE_MARGIN:
+            deep.append(f'reference noise {noise:.3g} above a third of the {name} error {low_err:.3g}')
     elif noise and not errs:
-        why.append('no error measured against the stage-one reference')
-    return why
+        deep.append('no error measured against the stage-one reference')
+    return {'deep': deep, 'not_deep': open_}
+
+
+def deeper_reasons(t, top=1024):
+    """Why a scene needs stage two (stage_decision's 'deep'): empty when stage one decides."""
+    return stage_decision(t, top)['deep']
 
 
 def expected_cost(job):
