@@ -440,32 +440,46 @@ def test_partial_twin_says_so(tmp_path):
 # ------------------------------------------------------------------------------ staged levels
 
 
-def test_stage_one_and_two_plans():
-    """Stage one: the levels below the top against the top level (seeds 0..1) as the reference;
-    stage two: that render becomes the top point (same tag, options: one cache key) and the deep
-    reference comes in, at seeds 4..5 with --seed (disjoint from the points' 2..3 and the top's)."""
+def test_stage_plans():
+    """Stage one: 16 and 64 spp against 256 (seeds 0..1) as the reference; each later stage turns
+    the reference into the top point (same tag, options: one cache key) and renders the next
+    level as the reference, at seeds 4..5, then 6..7 with --seed (disjoint from the points' 2..3
+    and from every earlier reference)."""
+    integral = ['--supersample', '1']
     jobs, ref = sweep.plan(quick=False, seed_opt=True)
+    steps = sweep.ladder(jobs, ref)
+    assert steps == [16, 64, 256, 1024, 4096]
     one, top = sweep.stage_one(jobs, ref)
     cyc = {j['key']: j for j in one if j['renderer'] == 'cycles'}
-    assert top == 1024 and sorted(cyc) == ['cycles16', 'cycles256', 'cycles64', 'reference']
+    assert top == 256 and sorted(cyc) == ['cycles16', 'cycles64', 'reference']
     # The pixel integral (--supersample 1) like the points: a twin's default k x k positions
     # would differ from the points by a bias, an error floor.
-    integral = ['--supersample', '1']
-    assert cyc['reference']['opts'] == ['--samples', '1024', '--seeds', '2'] + integral
-    assert cyc['reference']['samples'] == 1024
+    assert cyc['reference']['opts'] == ['--samples', '256', '--seeds', '2'] + integral
     assert all(j['opts'][4:6] == integral for j in cyc.values())
     assert [j for j in one if j['renderer'] != 'cycles'] == [j for j in jobs if j['renderer'] != 'cycles']
-    two, ref2 = sweep.stage_two(one, top, ref, seed_opt=True)
+    two, top2 = sweep.stage_next(one, top, steps, True, 2)
     cyc2 = {j['key']: j for j in two if j['renderer'] == 'cycles'}
-    assert ref2 == 4096 and sorted(cyc2) == ['cycles1024', 'cycles16', 'cycles256', 'cycles64', 'reference']
-    assert (
-        cyc2['cycles1024']['tag'] == cyc['reference']['tag'] and cyc2['cycles1024']['opts'] == cyc['reference']['opts']
-    )
-    assert cyc2['reference']['opts'] == ['--samples', '4096', '--seeds', '2'] + integral + ['--seed', '4']
-    assert cyc2['reference']['tag'] == 'cycles-spp4096-s4'
-    # Without --seed (nested): the deep reference is seeds 0..1 as before.
-    two_n, _ = sweep.stage_two(sweep.stage_one(*sweep.plan(quick=False, seed_opt=False))[0], 1024, 4096, False)
-    assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '4096', '--seeds', '2'] + integral
+    assert top2 == 1024 and sorted(cyc2) == ['cycles16', 'cycles256', 'cycles64', 'reference']
+    assert cyc2['cycles256']['tag'] == cyc['reference']['tag'] and cyc2['cycles256']['opts'] == cyc['reference']['opts']
+    assert cyc2['reference']['opts'] == ['--samples', '1024', '--seeds', '2'] + integral + ['--seed', '4']
+    three, top3 = sweep.stage_next(two, top2, steps, True, 3)
+    cyc3 = {j['key']: j for j in three if j['renderer'] == 'cycles'}
+    assert top3 == 4096 and cyc3['cycles1024']['tag'] == 'cycles-spp1024-s4'
+    assert cyc3['reference']['tag'] == 'cycles-spp4096-s6'
+    assert cyc3['reference']['opts'] == ['--samples', '4096', '--seeds', '2'] + integral + ['--seed', '6']
+    # No level above 4096: unchanged.
+    assert sweep.stage_next(three, top3, steps, True, 4) == (three, 4096)
+    # The two-stage sweep (stage one at 1024, stage two at 4096 seeds 4..5) is still expressible.
+    one_b, top_b = sweep.stage_one(jobs, ref, first=1024)
+    two_b, ref_b = sweep.stage_two(one_b, top_b, ref, seed_opt=True)
+    assert top_b == 1024 and ref_b == 4096
+    assert next(j for j in two_b if j['key'] == 'reference')['tag'] == 'cycles-spp4096-s4'
+    # Without --seed (nested): every reference is seeds 0..1.
+    two_n, _ = sweep.stage_next(*sweep.stage_one(*sweep.plan(quick=False, seed_opt=False)), steps, False, 2)
+    assert next(j for j in two_n if j['key'] == 'reference')['opts'] == ['--samples', '1024', '--seeds', '2'] + integral
+    # --quick: 16, 64 against 256, then 1024.
+    q, qref = sweep.plan(quick=True, seed_opt=True)
+    assert sweep.ladder(q, qref) == [16, 64, 256, 1024] and sweep.stage_one(q, qref)[1] == 256
 
 
 def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05), n_pixels=4000, as_is=None):
@@ -495,7 +509,7 @@ def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05), n_pixels
             {'label': 'cycles spp', 'renderer': 'cycles', 'fit_spp': fit, 'points': cyc},
             {'label': 'raster k', 'renderer': 'raster', 'points': [{'error': raster, 'is_reference': False}]},
         ],
-        'as_is': {'error': as_is},
+        'as_is': {'error': as_is, 'n_pixels': n_pixels},
         'pareto': [{'label': 'as-is', 'renderer': 'raster', 'error': as_is, 'time_s': 0.01}],
         'crossover': {'spp': 64.0, 'extrapolated': None, 'raster_error': as_is},
         'crossover_best_raster': None,
@@ -511,9 +525,10 @@ def test_deeper_reasons_rule():
     assert any('slower than -0.5' in w for w in sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.1, 0.08))))
     # Faster than -0.5 (0.2 -> 0.05 -> 0.0125: -1.0) is stratification, decided in stage one.
     assert sweep.deeper_reasons(_staged(cycles_errors=(0.2, 0.05, 0.0125))) == []
-    # Reference noise 0.04 > raster as-is 0.1 / 3 = 0.0333 (0.03 is under it).
-    assert any('reference noise 0.04' in w for w in sweep.deeper_reasons(_staged(noise_ref=0.04)))
-    assert sweep.deeper_reasons(_staged(noise_ref=0.03)) == []
+    # Raster as-is 0.02, reference noise 0.05 over 4000 pixels: q = 2.5, sigma = 2.5 sqrt(7.25 /
+    # 4000) = 0.106 > 0.1: deep. Noise 0.04: q = 2, 2 sqrt(5 / 4000) = 0.071: decided.
+    assert any('reference noise 0.05' in w for w in sweep.deeper_reasons(_staged(noise_ref=0.05, raster=0.02)))
+    assert sweep.deeper_reasons(_staged(noise_ref=0.04, raster=0.02)) == []
 
 
 def test_point_sigma_by_hand():
@@ -548,7 +563,7 @@ def test_stage_decision_crossover_within_reach():
     t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.004, noise_ref=0.0001)
     t['crossover'] = {'spp': 640.0, 'extrapolated': 'above', 'raster_error': 0.004}
     d = sweep.stage_decision(t, 1024)
-    assert any('within the 1024-spp level' in w for w in d['deep'])
+    assert any('within the 1024-spp level the next stage' in w for w in d['deep'])
     # Raster as-is 0.001: 2560 spp, range about 256 * 10^(1 / 1.02) = 2440 and up, wholly above
     # 1024: no deeper level places it; reported with its range, not rendered.
     t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.001, noise_ref=0.0001)
@@ -562,15 +577,41 @@ def test_stage_decision_crossover_within_reach():
     assert sweep.crossover_range(0.001, -0.05, 0.05, (256, 0.01))[1] == math.inf
 
 
+def test_error_sigma_by_hand():
+    # e = 0.01, r = 0.02, n = 500: q = 2, 2 sqrt(5 / 500) = 0.2.
+    assert sweep.error_sigma(0.01, 0.02, 500) == pytest.approx(0.2, rel=1e-12)
+    assert sweep.error_sigma(0.01, 0.0, 500) == 0.0
+
+
+def test_error_sigma_matches_simulation():
+    # A deterministic error d (+-e per pixel) against a reference of Gaussian noise r whose
+    # variance is estimated from two seeds: the scatter of ln sqrt(m^2 - r_hat^2) over 400
+    # seeded trials is error_sigma's within 15 %.
+    rng = random.Random(7)
+    n, e, r = 400, 0.01, 0.015
+    logs = []
+    for _ in range(400):
+        m2 = v2 = 0.0
+        for i in range(n):
+            a, b = rng.gauss(0, r * math.sqrt(2)), rng.gauss(0, r * math.sqrt(2))
+            eps = (a + b) / 2  # the two seeds' mean: noise r
+            d = e if i % 2 else -e
+            m2 += (d + eps) ** 2
+            v2 += (a - b) ** 2 / 4  # its two-seed variance estimate: E = r^2
+        logs.append(0.5 * math.log((m2 - v2) / n))
+    mean = sum(logs) / len(logs)
+    sd = math.sqrt(sum((x - mean) ** 2 for x in logs) / (len(logs) - 1))
+    assert sd == pytest.approx(sweep.error_sigma(e, r, n), rel=0.15)
+
+
 def test_stage_decision_reference_noise_on_decision_figures_only():
-    # Reference noise 0.01 against a raster k point of 0.02 that is no decision (the as-is is
-    # 0.1, the only Pareto point): the old rule went deep (0.01 > 0.02 / 3); now stage one.
-    t = _staged(noise_ref=0.01, raster=0.02, as_is=0.1)
+    # Reference noise 0.05 against a raster k point of 0.02 that is no decision (the as-is is
+    # 0.1, the only Pareto point): the old rule went deep (0.05 > 0.02 / 3); now stage one.
+    t = _staged(noise_ref=0.05, raster=0.02, as_is=0.1)
     assert sweep.stage_decision(t, 1024)['deep'] == []
-    # The same noise against an as-is error of 0.02: its correction moves it by
-    # 0.02 / sqrt(0.02^2 - 0.01^2)... more than 5.4 %: deep.
-    t = _staged(noise_ref=0.01, raster=0.1, as_is=0.02)
-    assert any('raster as-is error 0.02' in w for w in sweep.stage_decision(t, 1024)['deep'])
+    # The same noise against an as-is error of 0.02: uncertain by 10.6 % (see above): deep.
+    t = _staged(noise_ref=0.05, raster=0.1, as_is=0.02)
+    assert any('raster as-is error 0.02 uncertain' in w for w in sweep.stage_decision(t, 1024)['deep'])
 
 
 # ------------------------------------------------------------------------------ second run

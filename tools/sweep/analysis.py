@@ -290,9 +290,9 @@ def analyse(
             )
             if ref_seed == 0
             else (
-                f'sweep points use seeds 2..3 and the top level seeds 0..1, disjoint from the '
-                f'reference\'s {ref_seed}..{ref_seed + SEEDS - 1}; error takes the reference noise out '
-                'in quadrature'
+                f'sweep points use seeds 2..3, and the levels that were references in earlier '
+                f'stages seeds 0..1, 4..5, ..., all disjoint from the reference\'s '
+                f'{ref_seed}..{ref_seed + SEEDS - 1}; error takes the reference noise out in quadrature'
             ),
         },
         'series': out_series,

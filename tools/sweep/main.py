@@ -11,7 +11,7 @@ import time
 
 from .analysis import analyse, make_zero, one_line, scene_diffs
 from .common import ROOT, clean_nan, write_json
-from .plan import DEEP_SEED, expected_cost, plan, stage_decision, stage_one, stage_two
+from .plan import expected_cost, ladder, plan, stage_decision, stage_next, stage_one, stage_seed
 from .runner import Runner
 from .scenes import SceneError, names_renderer, renderer_table, scene_name, sweep_role, use_bin
 
@@ -156,10 +156,11 @@ def usage_error(args):
     return None
 
 
-def write_scenes(args, scenes, plans, recs, deeper, undecided, final, summary):
+def write_scenes(args, scenes, plans, recs, state, final, summary):
     """RUN/timing/<scene>.json for every scene analysed (final), with its own cost, and one line
     each; a scene without one is named on stderr. Returns the exit status (1: one is missing)."""
     rc = 0
+    deeper, undecided, stages = state['deeper'], state['undecided'], state['stage']
     for sp in scenes:
         name, jobs, ref_spp = plans[sp]
         r = {j['key']: recs[(sp, j['key'])] for j in jobs}
@@ -173,7 +174,7 @@ def write_scenes(args, scenes, plans, recs, deeper, undecided, final, summary):
             'cached': sum(1 for v in r.values() if v.get('cached')),
             'job_time_sum_s': sum(v.get('sweep_elapsed_s') or 0 for v in r.values()),
             'threads_per_job': args.threads,
-            'stage': 2 if sp in deeper or args.levels == 'all' else 1,
+            'stage': 'all' if args.levels == 'all' else stages[sp],
             'deep_reference_why': deeper.get(sp, []),
             # What stage one left open without a deeper level being able to decide it.
             'not_deep': undecided.get(sp, []),
@@ -189,9 +190,50 @@ def stage_line(sw, levels):
     """Why the scene went to stage two or stayed at stage one (plan.stage_decision)."""
     if levels == 'all':
         return 'stage two: --levels all'
-    if sw['stage'] == 2:
-        return 'stage two (deep reference): ' + '; '.join(sw['deep_reference_why'])
-    return 'stage one only: ' + ('; '.join(sw['not_deep']) if sw['not_deep'] else 'stage one decides every figure')
+    why = '; '.join(sw['deep_reference_why'])
+    left = '; '.join(sw['not_deep']) if sw['not_deep'] else f"stage {sw['stage']} decides every figure"
+    return f"stage {sw['stage']}" + (f' (deeper because {why})' if why else '') + f': {left}'
+
+
+def deeper_stages(runner, args, scenes, plans, full, recs, nested, state):
+    """Stage two, three, ...: while stage_decision finds, on a scene, a figure the next level can
+    change, its reference becomes a point and the next level of its ladder the reference. Every
+    scene's reasons (state['deeper'], prefixed with the level they were found at) and what is
+    left open (state['undecided']) are kept for its timing JSON. Returns the jobs added."""
+    added, pending = [], list(scenes)
+    while pending:
+        decided = analyse_all(runner, args, pending, plans, recs, nested, state['seeds'])
+        more, nxt = [], []
+        for sp in pending:
+            name, jobs, top = plans[sp]
+            decision = stage_decision(decided[sp], top) if isinstance(decided[sp], dict) else {}
+            why = decision.get('deep') or []
+            state['undecided'][sp] = decision.get('not_deep', [])
+            steps = ladder(*full[sp])
+            if why and top >= steps[-1]:
+                state['undecided'][sp] += [f'{w} (no level above {top} spp)' for w in why]
+                continue
+            if not why:
+                continue
+            state['deeper'].setdefault(sp, []).extend(f'at {top} spp: {w}' for w in why)
+            state['stage'][sp] += 1
+            recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
+            jobs2, new_top = stage_next(jobs, top, steps, runner.seed_opt, state['stage'][sp])
+            if runner.seed_opt:
+                state['seeds'][sp] = stage_seed(state['stage'][sp])
+            plans[sp] = (name, jobs2, new_top)
+            more += [(sp, name, j) for j in jobs2 if j['key'] == 'reference']
+            nxt.append(sp)
+        run_work(
+            runner,
+            args.jobs,
+            more,
+            recs,
+            f'sweep, references {", ".join(sorted({str(plans[sp][2]) for sp in nxt}))} spp',
+        )
+        added += more
+        pending = nxt
+    return added
 
 
 def main(argv=None):
@@ -242,7 +284,9 @@ def main(argv=None):
         full[sp] = (jobs, ref_spp)
         plans[sp] = (name, jobs, ref_spp) if args.levels == 'all' else (name, *stage_one(jobs, ref_spp))
     work = [(sp, name, j) for sp, (name, jobs, _) in plans.items() for j in jobs]
-    recs, deeper, undecided = {}, {}, {}
+    recs = {}
+    state = {'deeper': {}, 'undecided': {}, 'stage': {sp: 1 for sp in scenes}, 'seeds': {}}
+    deeper, undecided = state['deeper'], state['undecided']
     # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
     # start-up is paid once per worker, not once per job, and job times no longer include it.
     use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
@@ -252,24 +296,7 @@ def main(argv=None):
             runner.env = dict(os.environ, **pool.env())
         run_work(runner, args.jobs, work, recs, 'sweep')
         if args.levels == 'staged':
-            # Stage two: the top level and the deep reference, only where stage one left a
-            # slope, a crossover or an error undecided (deeper_reasons).
-            more = []
-            first = analyse_all(runner, args, scenes, plans, recs, nested, {})
-            for sp in scenes:
-                name, jobs, top = plans[sp]
-                decision = stage_decision(first[sp], top) if isinstance(first[sp], dict) else {}
-                why = decision.get('deep')
-                undecided[sp] = decision.get('not_deep', [])
-                if not why:
-                    continue
-                deeper[sp] = why
-                recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
-                jobs2, ref_spp = stage_two(jobs, top, full[sp][1], runner.seed_opt)
-                plans[sp] = (name, jobs2, ref_spp)
-                more += [(sp, name, j) for j in jobs2 if j['key'] == 'reference']
-            run_work(runner, args.jobs, more, recs, 'sweep, deep references')
-            work += more
+            work += deeper_stages(runner, args, scenes, plans, full, recs, nested, state)
     t_render = time.monotonic() - t_start
 
     summary = {
@@ -289,9 +316,8 @@ def main(argv=None):
         'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
         'not_deep': {scene_name(sp): why for sp, why in undecided.items() if why and sp not in deeper},
     }
-    seeds = {sp: DEEP_SEED for sp in deeper if runner.seed_opt}
-    final = analyse_all(runner, args, scenes, plans, recs, nested, seeds)
-    rc = write_scenes(args, scenes, plans, recs, deeper, undecided, final, summary)
+    final = analyse_all(runner, args, scenes, plans, recs, nested, state['seeds'])
+    rc = write_scenes(args, scenes, plans, recs, state, final, summary)
     summary['wall_s'] = time.monotonic() - t_start
     write_json(os.path.join(args.run, 'sweep.json'), clean_nan(summary))
     print(

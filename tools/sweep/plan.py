@@ -6,8 +6,8 @@ import math
 from .common import (
     CONFIDENCE,
     CYCLES_SPP,
+    FIRST_REF_SPP,
     EEVEE_TAA,
-    NOISE_MARGIN,
     POV_K,
     QUICK_EEVEE,
     QUICK_K,
@@ -20,6 +20,7 @@ from .common import (
     RASTER_TESS,
     REF_SPP,
     SEEDS,
+    SIGMA_DECIDED,
     GAUSS_RATIO,
     SIGMA_NO_PIXELS,
     SLOPE_TOL,
@@ -133,22 +134,26 @@ def plan(quick, seed_opt):
     return jobs, ref
 
 
-def stage_one(jobs, ref_spp):
-    """The first stage of a scene's Cycles levels: the top level (seeds 0..1) stands in for the
-    reference, the levels below it are points. Returns (jobs, reference spp). The top level is
-    the same render as stage two's top point (same samples and seeds: one cache key), so a scene
-    that goes on to stage two renders nothing twice."""
-    levels = sorted(j['samples'] for j in jobs if j['renderer'] == 'cycles' and j['key'] != 'reference')
-    if len(levels) < 2:
+def ladder(jobs, ref_spp):
+    """The Cycles levels of a plan, the reference's last: 16, 64, 256, 1024, 4096 (quick: 16, 64,
+    256, 1024)."""
+    return sorted({j['samples'] for j in jobs if j['renderer'] == 'cycles' and j['key'] != 'reference'} | {ref_spp})
+
+
+def stage_one(jobs, ref_spp, first=FIRST_REF_SPP):
+    """The first stage of a scene's Cycles levels: level `first` (seeds 0..1) stands in for the
+    reference, the levels below it are points, the levels above it wait for a later stage
+    (stage_next). Returns (jobs, reference spp). A reference becomes the next stage's top point
+    as the same render (same samples, seeds and tag: one cache key), so a scene that goes on
+    renders nothing twice."""
+    steps = ladder(jobs, ref_spp)
+    if first not in steps or steps.index(first) < 2:
+        first = steps[-2] if len(steps) >= 3 else ref_spp
+    out = [j for j in jobs if j['key'] != 'reference' and not (j['renderer'] == 'cycles' and j['samples'] >= first)]
+    if len(out) == len(jobs) - 1:
         return jobs, ref_spp
-    top = levels[-1]
-    out = []
-    for j in jobs:
-        if j['key'] in ('reference', f'cycles{top}'):
-            continue
-        out.append(j)
-    out.insert(0, top_job(top, 'reference', f'{top} spp (reference)'))
-    return out, top
+    out.insert(0, top_job(first, 'reference', f'{first} spp (reference)'))
+    return out, first
 
 
 def top_job(top, key, label):
@@ -166,28 +171,42 @@ def top_job(top, key, label):
     )
 
 
-# Stage two's reference seeds (with `run --seed`): past the points' 2..3 and the top level's
-# 0..1, so that it is independent of every point it measures.
-DEEP_SEED = 2 * SEEDS
+def stage_seed(stage):
+    """The first seed of stage `stage`'s reference (with `run --seed`): stage one's is 0 and
+    its points use SEEDS (2..3); stage s > 1 uses 2 s (4..5, then 6..7), past every seed a point
+    of it holds (the earlier references, now points), so that it is independent of them all."""
+    return 0 if stage == 1 else SEEDS * stage
 
 
-def stage_two(jobs1, top, ref_spp, seed_opt):
-    """Stage one's jobs with the deep reference added: the stage-one reference becomes the top
-    point, the reference is ref_spp at seeds DEEP_SEED.. (with --seed; else 0.., nested as
-    before). Returns (jobs, ref_spp)."""
-    out = [dict(j) for j in jobs1 if j['key'] != 'reference']
-    out.append(top_job(top, f'cycles{top}', f'{top} spp'))
-    extra = ['--seed', str(DEEP_SEED)] if seed_opt else []
+def stage_next(jobs, top, steps, seed_opt, stage):
+    """The jobs of stage `stage` (2, 3, ...) from the previous stage's: its reference (at top)
+    becomes a point, the reference is the next of the levels `steps` (the plan's ladder) above
+    top, at seeds stage_seed(stage).. with --seed (else 0.., nested as before). Returns (jobs,
+    new top spp); (jobs, top) unchanged where no level is above top."""
+    new_top = min((n for n in steps if n > top), default=None)
+    if new_top is None:
+        return jobs, top
+    old = next(j for j in jobs if j['key'] == 'reference')
+    out = [dict(j) for j in jobs if j['key'] != 'reference']
+    out.append(dict(old, key=f'cycles{top}', label=f'{top} spp'))
+    seed = stage_seed(stage)
+    extra = ['--seed', str(seed)] if seed_opt else []
     ref = dict(
         key='reference',
         renderer='cycles',
-        tag=f'cycles-spp{ref_spp}' + (f'-s{DEEP_SEED}' if seed_opt else ''),
-        label=f'{ref_spp} spp (reference)',
-        opts=['--samples', str(ref_spp), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL + extra,
+        tag=f'cycles-spp{new_top}' + (f'-s{seed}' if seed_opt else ''),
+        label=f'{new_top} spp (reference)',
+        opts=['--samples', str(new_top), '--seeds', str(SEEDS)] + CYCLES_INTEGRAL + extra,
         series='cycles spp',
-        samples=ref_spp,
+        samples=new_top,
     )
-    return [ref] + out, ref_spp
+    return [ref] + out, new_top
+
+
+def stage_two(jobs1, top, ref_spp, seed_opt):
+    """Stage two straight to ref_spp (the two-stage sweep before FIRST_REF_SPP): stage_next
+    with ref_spp as the only level above top. Returns (jobs, ref_spp)."""
+    return stage_next(jobs1, top, [ref_spp], seed_opt, 2)
 
 
 def point_sigma(p, noise_ref=None, nested=False):
@@ -207,6 +226,21 @@ def point_sigma(p, noise_ref=None, nested=False):
         return rel_m2 / 2.0
     var_e2 = (m * m * rel_m2) ** 2 + (noise_ref * noise_ref * math.sqrt(2.0 / n)) ** 2
     return math.sqrt(var_e2) / (2.0 * e * e)
+
+
+def error_sigma(e, r, n):
+    """Standard error in ln of a deterministic render's error e measured against a reference of
+    noise r over n surface pixels: m^2 = mean (d + eps)^2 = e^2 + 2 mean(d eps) + mean eps^2, less
+    r^2 from the reference's two seeds. The cross term scatters by 2 e r / sqrt(n), the noise
+    term and its two-seed estimate by r^2 sqrt(2 / n) each: var(e^2) = 4 r^2 (e^2 + r^2) / n, and
+    half of e^2's relative error is e's: (r / e) sqrt((1 + r^2 / e^2) / n). SIGMA_NO_PIXELS
+    without a pixel count."""
+    if not e or e <= 0 or not r:
+        return 0.0
+    if n <= 0:
+        return SIGMA_NO_PIXELS
+    q = r / e
+    return q * math.sqrt((1.0 + q * q) / n)
 
 
 def top_slope(t):
@@ -267,10 +301,10 @@ def stage_decision(t, top):
       slope       the top slope is slower than the Monte Carlo rate -0.5 by more than
                   CONFIDENCE sigma (a floor may begin; the 1024 point shows it); within it, the
                   departure is the seeds' scatter (not_deep); faster is stratification;
-      reference   the reference's noise is above a third (NOISE_MARGIN) of an error the sweep
-                  reports as a decision (raster as-is, raster best, a non-Cycles Pareto point):
-                  its quadrature correction moves that error by more than 5.4 %
-                  (sqrt(1 + 1/9)), more than the two seeds resolve;
+      reference   the reference's noise leaves an error the sweep reports as a decision (raster
+                  as-is, raster best, a non-Cycles Pareto point) uncertain by more than
+                  SIGMA_DECIDED (error_sigma: the quadrature correction is unbiased, its scatter
+                  is what a quieter reference removes);
       no slope    stage one has no two Cycles points (a failed level)."""
     deep, open_ = [], []
     ts = top_slope(t)
@@ -282,9 +316,13 @@ def stage_decision(t, top):
         if not (c and c.get('extrapolated') == 'above'):
             continue
         low, high = crossover_range(c.get('raster_error'), slope, sigma, top_point)
-        what = f"{k.replace('_', ' ')} at {c['spp']:.3g} spp ({CONFIDENCE:g}-sigma range {low:.3g}..{high:.3g})"
+        mid = crossover_range(c.get('raster_error'), slope, 0.0, top_point)[0]
+        what = (
+            f"{k.replace('_', ' ')} at {c['spp']:.3g} spp (fit; from the top slope {mid:.3g}, "
+            f"{CONFIDENCE:g}-sigma range {low:.3g}..{high:.3g})"
+        )
         if low <= top:
-            deep.append(f'{what}: within the {top}-spp level stage two adds')
+            deep.append(f'{what}: within the {top}-spp level the next stage adds as a point')
         else:
             open_.append(f'{what}: above the measured range; not decidable within {top} spp')
     if slope - CONFIDENCE * sigma > -0.5:
@@ -293,10 +331,15 @@ def stage_decision(t, top):
         open_.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top: -0.5 within {CONFIDENCE:g} sigma')
     noise = (t.get('reference') or {}).get('noise_nrmse')
     errs = decision_errors(t)
+    n = (t.get('as_is') or {}).get('n_pixels') or 0
     if noise and errs:
         name, low_err = min(errs.items(), key=lambda kv: kv[1])
-        if noise > low_err / NOISE_MARGIN:
-            deep.append(f'reference noise {noise:.3g} above a third of the {name} error {low_err:.3g}')
+        sig = error_sigma(low_err, noise, n)
+        if sig > SIGMA_DECIDED:
+            deep.append(
+                f'reference noise {noise:.3g} leaves the {name} error {low_err:.3g} uncertain by '
+                f'{100 * sig:.0f} % (over {100 * SIGMA_DECIDED:.0f} %)'
+            )
     elif noise and not errs:
         deep.append('no error measured against the stage-one reference')
     return {'deep': deep, 'not_deep': open_}
