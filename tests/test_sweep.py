@@ -563,7 +563,7 @@ def test_stage_decision_crossover_within_reach():
     t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.004, noise_ref=0.0001)
     t['crossover'] = {'spp': 640.0, 'extrapolated': 'above', 'raster_error': 0.004}
     d = sweep.stage_decision(t, 1024)
-    assert any('within the 1024-spp level the next stage' in w for w in d['deep'])
+    assert any('within the 1024-spp level a deeper stage' in w for w in d['deep'])
     # Raster as-is 0.001: 2560 spp, range about 256 * 10^(1 / 1.02) = 2440 and up, wholly above
     # 1024: no deeper level places it; reported with its range, not rendered.
     t = _staged(cycles_errors=(0.16, 0.04, 0.01), raster=0.1, as_is=0.001, noise_ref=0.0001)
@@ -612,6 +612,70 @@ def test_stage_decision_reference_noise_on_decision_figures_only():
     # The same noise against an as-is error of 0.02: uncertain by 10.6 % (see above): deep.
     t = _staged(noise_ref=0.05, raster=0.1, as_is=0.02)
     assert any('raster as-is error 0.02 uncertain' in w for w in sweep.stage_decision(t, 1024)['deep'])
+
+
+def test_deeper_stages_go_one_level_at_a_time(monkeypatch):
+    """main.deeper_stages with the analysis and the renders stood in for: scene a has a
+    crossover within reach at 256 spp and none at 1024 (two stages), scene b a slope 2 sigma off
+    at every level (to the top of the ladder, then reported open), scene c nothing (stage one)."""
+    main_mod = sys.modules['sweep.main']
+    rendered = []
+
+    def fake_analyse(runner, args, scenes, plans, recs, nested, ref_seeds):
+        out = {}
+        for sp in scenes:
+            top = plans[sp][2]
+            if sp == 'a':
+                # 16, 64 against 256; then 16, 64, 256 against 1024: the crossover at 640 spp
+                # is above the points both times, within the ladder's reach (1024) both times.
+                errors = (0.16, 0.04) if top == 256 else (0.16, 0.04, 0.01)
+                t = _staged(cycles_errors=errors, as_is=0.004, noise_ref=0.0001)
+                above = top < 4096
+                t['crossover'] = {'spp': 640.0, 'extrapolated': 'above' if above else None, 'raster_error': 0.004}
+            elif sp == 'b':
+                t = _staged(cycles_errors=(0.2, 0.1, 0.08))
+            else:
+                t = _staged()
+            out[sp] = t
+        return out
+
+    def fake_run(runner, n, work, recs, label):
+        for sp, _name, j in work:
+            rendered.append((sp, j['tag']))
+            recs[(sp, j['key'])] = {'status': 'ok'}
+
+    monkeypatch.setattr(main_mod, 'analyse_all', fake_analyse)
+    monkeypatch.setattr(main_mod, 'run_work', fake_run)
+    jobs, ref = sweep.plan(quick=False, seed_opt=True)
+    plans, full, recs = {}, {}, {}
+    for sp in 'abc':
+        full[sp] = (jobs, ref)
+        one, top = sweep.stage_one(jobs, ref)
+        plans[sp] = (sp, one, top)
+        recs[(sp, 'reference')] = {'status': 'ok', 'tag': 'cycles-spp256'}
+    state = {'deeper': {}, 'undecided': {}, 'stage': dict.fromkeys('abc', 1), 'seeds': {}}
+
+    class _R:
+        seed_opt = True
+
+    class _A:
+        jobs = 1
+
+    main_mod.deeper_stages(_R(), _A(), list('abc'), plans, full, recs, False, state)
+    assert state['stage'] == {'a': 3, 'b': 3, 'c': 1}
+    assert state['seeds'] == {'a': 6, 'b': 6}
+    assert sorted(rendered) == [
+        ('a', 'cycles-spp1024-s4'),
+        ('a', 'cycles-spp4096-s6'),
+        ('b', 'cycles-spp1024-s4'),
+        ('b', 'cycles-spp4096-s6'),
+    ]
+    # Stage one's reference is a's 256 point now, the same record.
+    assert recs[('a', 'cycles256')] == {'status': 'ok', 'tag': 'cycles-spp256'}
+    assert [w.split(':')[0] for w in state['deeper']['a']] == ['at 256 spp', 'at 1024 spp']
+    assert all('within the 1024-spp level' in w for w in state['deeper']['a'])
+    assert any('no level above 4096 spp' in w for w in state['undecided']['b'])
+    assert 'c' not in state['deeper'] and state['undecided']['c'] == []
 
 
 # ------------------------------------------------------------------------------ second run

@@ -12,12 +12,15 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   reference  Cycles at REF spp (4096; --quick 1024), 2 seeds: the best reference the scene has,
              as the pixel integral (--supersample 1) in every role.
   cycles     Cycles at 16, 64, 256, 1024 spp (--quick 16, 64, 256), 2 seeds each.
-  Levels (--levels staged, the default): stage one renders the levels below the top against the
-  top level (1024 spp, seeds 0..1) as the reference; stage two adds the deep reference (REF spp,
-  seeds 4..5 with `run --seed`), the top level becoming a point, only on the scenes where stage
-  one leaves a crossover beyond its levels, a slope slower than -0.5 at its top, or a reference
-  noise above a third of the smallest non-Cycles error (deeper_reasons). --levels all: every
-  level and the deep reference everywhere. sweep.json lists each deep scene and why.
+  Levels (--levels staged, the default; docs/sweep.md states the rule): stage one renders 16
+  and 64 spp against 256 spp (seeds 0..1) as the reference; while plan.stage_decision finds a
+  figure the next level can change (a crossover whose 2-sigma range reaches the reference's
+  level, a top slope slower than -0.5 beyond 2 sigma, a decision error the reference's noise
+  leaves more than 10 % uncertain), the reference becomes a point and the next level (1024,
+  then REF spp) the reference, at fresh seeds (4..5, 6..7 with `run --seed`). --levels all:
+  every level and the REF-spp reference everywhere. Each scene's timing JSON (sweep.stage,
+  deep_reference_why, not_deep), sweep.json and a line in the output say why it went deeper or
+  what it left open.
   Second runs: a raster job's repeats (CACHE/repeats/<key>.json) and the diffs of cached renders
   (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),

@@ -126,9 +126,9 @@ def parser():
         '--levels',
         choices=('staged', 'all'),
         default='staged',
-        help="staged (default): every level below the top against the top level, then the top "
-        "level and the deep reference only where a slope, crossover or error needs them "
-        "(deeper_reasons); all: every level and the deep reference on every scene (as before)",
+        help="staged (default): 16 and 64 spp against 256, then 1024 and 4096 as references one "
+        "level at a time, only where a deeper level can change a figure (plan.stage_decision, "
+        "docs/sweep.md); all: every level and the 4096-spp reference on every scene",
     )
     ap.add_argument(
         '--no-worker',
@@ -206,10 +206,12 @@ def deeper_stages(runner, args, scenes, plans, full, recs, nested, state):
         more, nxt = [], []
         for sp in pending:
             name, jobs, top = plans[sp]
-            decision = stage_decision(decided[sp], top) if isinstance(decided[sp], dict) else {}
+            steps = ladder(*full[sp])
+            # The highest level a deeper stage can make a point: the ladder's last but one.
+            reach = steps[-2] if len(steps) > 1 else top
+            decision = stage_decision(decided[sp], top, reach) if isinstance(decided[sp], dict) else {}
             why = decision.get('deep') or []
             state['undecided'][sp] = decision.get('not_deep', [])
-            steps = ladder(*full[sp])
             if why and top >= steps[-1]:
                 state['undecided'][sp] += [f'{w} (no level above {top} spp)' for w in why]
                 continue

@@ -289,15 +289,16 @@ def decision_errors(t):
     return errs
 
 
-def stage_decision(t, top):
+def stage_decision(t, top, reach=None):
     """Whether stage one's figures need stage two (the top level as a point, the deep
     reference): {'deep': [why, ...], 'not_deep': [what stage one leaves open, ...]}.
     The rule: a deeper level is rendered only where it can change a reported figure:
       crossover   Cycles reaches a raster error (as-is or best) above stage one's points, and
                   the crossover's CONFIDENCE-sigma range (the top slope's own uncertainty from
-                  the two seeds) reaches down to the top level, which stage two adds as a point;
-                  a crossover whose range lies wholly above it stays extrapolated whatever
-                  stage two renders, and is reported so (not_deep), with its range;
+                  the two seeds) reaches down to `reach`, the highest level the ladder can make
+                  a point (1024 of 16..4096; default top); a crossover whose range lies wholly
+                  above it stays extrapolated whatever is rendered, and is reported so
+                  (not_deep), with its range;
       slope       the top slope is slower than the Monte Carlo rate -0.5 by more than
                   CONFIDENCE sigma (a floor may begin; the 1024 point shows it); within it, the
                   departure is the seeds' scatter (not_deep); faster is stratification;
@@ -307,6 +308,7 @@ def stage_decision(t, top):
                   is what a quieter reference removes);
       no slope    stage one has no two Cycles points (a failed level)."""
     deep, open_ = [], []
+    reach = top if reach is None else reach
     ts = top_slope(t)
     if ts is None:
         return {'deep': ['no spp slope from stage one'], 'not_deep': []}
@@ -321,10 +323,10 @@ def stage_decision(t, top):
             f"{k.replace('_', ' ')} at {c['spp']:.3g} spp (fit; from the top slope {mid:.3g}, "
             f"{CONFIDENCE:g}-sigma range {low:.3g}..{high:.3g})"
         )
-        if low <= top:
-            deep.append(f'{what}: within the {top}-spp level the next stage adds as a point')
+        if low <= reach:
+            deep.append(f'{what}: within the {reach}-spp level a deeper stage adds as a point')
         else:
-            open_.append(f'{what}: above the measured range; not decidable within {top} spp')
+            open_.append(f'{what}: above the measured range; not decidable within {reach} spp')
     if slope - CONFIDENCE * sigma > -0.5:
         deep.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top, slower than -0.5: a floor may begin there')
     elif slope > -0.5 + SLOPE_TOL:
@@ -345,9 +347,9 @@ def stage_decision(t, top):
     return {'deep': deep, 'not_deep': open_}
 
 
-def deeper_reasons(t, top=1024):
-    """Why a scene needs stage two (stage_decision's 'deep'): empty when stage one decides."""
-    return stage_decision(t, top)['deep']
+def deeper_reasons(t, top=1024, reach=None):
+    """Why a scene needs a deeper stage (stage_decision's 'deep'): empty when this one decides."""
+    return stage_decision(t, top, reach)['deep']
 
 
 def expected_cost(job):
