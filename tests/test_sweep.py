@@ -608,10 +608,19 @@ def test_stage_decision_reference_noise_on_decision_figures_only():
     # Reference noise 0.05 against a raster k point of 0.02 that is no decision (the as-is is
     # 0.1, the only Pareto point): the old rule went deep (0.05 > 0.02 / 3); now stage one.
     t = _staged(noise_ref=0.05, raster=0.02, as_is=0.1)
-    assert sweep.stage_decision(t, 1024)['deep'] == []
-    # The same noise against an as-is error of 0.02: uncertain by 10.6 % (see above): deep.
+    assert sweep.stage_decision(t, 1024, last=4096)['deep'] == []
+    # The same noise against an as-is error of 0.02: uncertain by 10.6 % (see above); at 4096
+    # the noise is 0.05 / 2 (slope -0.5): q = 1.25, 1.25 sqrt(2.5625 / 4000) = 3.2 %: deep.
     t = _staged(noise_ref=0.05, raster=0.1, as_is=0.02)
-    assert any('raster as-is error 0.02 uncertain' in w for w in sweep.stage_decision(t, 1024)['deep'])
+    d = sweep.stage_decision(t, 1024, last=4096)
+    assert any('raster as-is error 0.02 uncertain' in w and '3 % predicted' in w for w in d['deep'])
+    # At the top of the ladder there is nothing to render: reported.
+    d = sweep.stage_decision(t, 4096, last=4096)
+    assert d['deep'] == [] and any('no level above 4096' in w for w in d['not_deep'])
+    # Noise 0.2 against 0.02: q = 10 now, 5 at 4096: 5 sqrt(26 / 4000) = 40 %: no level of the
+    # ladder decides it, so none is rendered for it.
+    d = sweep.stage_decision(_staged(noise_ref=0.2, raster=0.1, as_is=0.02), 1024, last=4096)
+    assert d['deep'] == [] and any('40 % predicted at 4096 spp' in w for w in d['not_deep'])
 
 
 def test_deeper_stages_go_one_level_at_a_time(monkeypatch):

@@ -14,13 +14,13 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   cycles     Cycles at 16, 64, 256, 1024 spp (--quick 16, 64, 256), 2 seeds each.
   Levels (--levels staged, the default; docs/sweep.md states the rule): stage one renders 16
   and 64 spp against 256 spp (seeds 0..1) as the reference; while plan.stage_decision finds a
-  figure the next level can change (a crossover whose 2-sigma range reaches the reference's
-  level, a top slope slower than -0.5 beyond 2 sigma, a decision error the reference's noise
-  leaves more than 10 % uncertain), the reference becomes a point and the next level (1024,
-  then REF spp) the reference, at fresh seeds (4..5, 6..7 with `run --seed`). --levels all:
-  every level and the REF-spp reference everywhere. Each scene's timing JSON (sweep.stage,
-  deep_reference_why, not_deep), sweep.json and a line in the output say why it went deeper or
-  what it left open.
+  figure a deeper level can change (a crossover whose 2-sigma range reaches 1024 spp, the
+  highest level the ladder makes a point; a top slope slower than -0.5 beyond 2 sigma; a
+  decision error the reference's noise leaves more than 10 % uncertain), the reference becomes
+  a point and the next level (1024, then REF spp) the reference, at fresh seeds (4..5, 6..7
+  with `run --seed`). --levels all: every level and the REF-spp reference everywhere. Each
+  scene's timing JSON (sweep.stage, deep_reference_why, not_deep), sweep.json and a line in the
+  output say why it went deeper or what it left open.
   Second runs: a raster job's repeats (CACHE/repeats/<key>.json) and the diffs of cached renders
   (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),

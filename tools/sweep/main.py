@@ -209,7 +209,7 @@ def deeper_stages(runner, args, scenes, plans, full, recs, nested, state):
             steps = ladder(*full[sp])
             # The highest level a deeper stage can make a point: the ladder's last but one.
             reach = steps[-2] if len(steps) > 1 else top
-            decision = stage_decision(decided[sp], top, reach) if isinstance(decided[sp], dict) else {}
+            decision = stage_decision(decided[sp], top, reach, steps[-1]) if isinstance(decided[sp], dict) else {}
             why = decision.get('deep') or []
             state['undecided'][sp] = decision.get('not_deep', [])
             if why and top >= steps[-1]:

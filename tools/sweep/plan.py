@@ -289,7 +289,7 @@ def decision_errors(t):
     return errs
 
 
-def stage_decision(t, top, reach=None):
+def stage_decision(t, top, reach=None, last=None):
     """Whether stage one's figures need stage two (the top level as a point, the deep
     reference): {'deep': [why, ...], 'not_deep': [what stage one leaves open, ...]}.
     The rule: a deeper level is rendered only where it can change a reported figure:
@@ -305,10 +305,12 @@ def stage_decision(t, top, reach=None):
       reference   the reference's noise leaves an error the sweep reports as a decision (raster
                   as-is, raster best, a non-Cycles Pareto point) uncertain by more than
                   SIGMA_DECIDED (error_sigma: the quadrature correction is unbiased, its scatter
-                  is what a quieter reference removes);
+                  is what a quieter reference removes), and the ladder's last level `last`
+                  (4096; default top) would decide it (reference_reason);
       no slope    stage one has no two Cycles points (a failed level)."""
     deep, open_ = [], []
     reach = top if reach is None else reach
+    last = top if last is None else last
     ts = top_slope(t)
     if ts is None:
         return {'deep': ['no spp slope from stage one'], 'not_deep': []}
@@ -331,25 +333,40 @@ def stage_decision(t, top, reach=None):
         deep.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top, slower than -0.5: a floor may begin there')
     elif slope > -0.5 + SLOPE_TOL:
         open_.append(f'spp slope {slope:.2f} +/- {sigma:.2f} at the top: -0.5 within {CONFIDENCE:g} sigma')
-    noise = (t.get('reference') or {}).get('noise_nrmse')
-    errs = decision_errors(t)
-    n = (t.get('as_is') or {}).get('n_pixels') or 0
-    if noise and errs:
-        name, low_err = min(errs.items(), key=lambda kv: kv[1])
-        sig = error_sigma(low_err, noise, n)
-        if sig > SIGMA_DECIDED:
-            deep.append(
-                f'reference noise {noise:.3g} leaves the {name} error {low_err:.3g} uncertain by '
-                f'{100 * sig:.0f} % (over {100 * SIGMA_DECIDED:.0f} %)'
-            )
-    elif noise and not errs:
-        deep.append('no error measured against the stage-one reference')
+    d, o = reference_reason(t, top, last, slope)
+    deep += d
+    open_ += o
     return {'deep': deep, 'not_deep': open_}
 
 
-def deeper_reasons(t, top=1024, reach=None):
+def reference_reason(t, top, last, slope):
+    """The reference part of stage_decision: (deep, not_deep). The smallest decision error's
+    uncertainty now (error_sigma with the reference's noise r) and at the ladder's last level,
+    where the noise is predicted as r (last / top)^s, s the Cycles top slope or the Monte Carlo
+    rate -0.5, whichever falls faster (a floor in the points is no floor in a two-seed variance)."""
+    noise = (t.get('reference') or {}).get('noise_nrmse')
+    errs = decision_errors(t)
+    n = (t.get('as_is') or {}).get('n_pixels') or 0
+    if noise and not errs:
+        return ['no error measured against the stage-one reference'], []
+    if not noise:
+        return [], []
+    name, low_err = min(errs.items(), key=lambda kv: kv[1])
+    sig = error_sigma(low_err, noise, n)
+    if sig <= SIGMA_DECIDED:
+        return [], []
+    what = f'reference noise {noise:.3g} leaves the {name} error {low_err:.3g} uncertain by {100 * sig:.0f} %'
+    if last <= top:
+        return [], [f'{what} (no level above {top} spp)']
+    then = error_sigma(low_err, noise * (last / top) ** min(slope, -0.5), n)
+    if then > SIGMA_DECIDED:
+        return [], [f'{what}; {100 * then:.0f} % predicted at {last} spp: not decidable within the ladder']
+    return [f'{what} (over {100 * SIGMA_DECIDED:.0f} %; {100 * then:.0f} % predicted at {last} spp)'], []
+
+
+def deeper_reasons(t, top=1024, reach=None, last=REF_SPP):
     """Why a scene needs a deeper stage (stage_decision's 'deep'): empty when this one decides."""
-    return stage_decision(t, top, reach)['deep']
+    return stage_decision(t, top, reach, last)['deep']
 
 
 def expected_cost(job):
