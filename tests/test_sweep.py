@@ -687,6 +687,31 @@ def test_deeper_stages_go_one_level_at_a_time(monkeypatch):
     assert 'c' not in state['deeper'] and state['undecided']['c'] == []
 
 
+def _timing(tmp_path, run, errors, as_is):
+    """RUN/timing/s.json for agree.py: Cycles points at 16, 64, 256 of the given errors (over
+    4000 pixels), raster as-is error as_is on the Pareto frontier, no crossover."""
+    t = _staged(cycles_errors=errors, as_is=as_is, noise_ref=0.001)
+    for p in t['series'][0]['points']:
+        p['label'] = f"{p['samples']} spp"
+    t.update(scene='s', crossover=None, crossover_best_raster=None)
+    d = tmp_path / run / 'timing'
+    d.mkdir(parents=True)
+    (d / 's.json').write_text(json.dumps(t))
+    return str(tmp_path / run)
+
+
+def test_agree_table(tmp_path):
+    agree = sys.modules.get('sweep.agree') or importlib.import_module('sweep.agree')
+    a = _timing(tmp_path, 'a', (0.2, 0.1, 0.05), 0.1)
+    # Slope -0.5 in both (0 sigma); as-is 0.1 against 0.1: agrees.
+    b = _timing(tmp_path, 'b', (0.2, 0.1, 0.05), 0.1)
+    assert agree.table(a, b).splitlines()[-1] == '1 of 1 scenes agree within 2 sigma.'
+    # 64 -> 256 falling to 0.025 instead: slope -0.75 against -0.5, each known to ~0.01: differs.
+    c = _timing(tmp_path, 'c', (0.2, 0.1, 0.025), 0.1)
+    text = agree.table(a, c)
+    assert 'differs: slope' in text and text.splitlines()[-1] == '0 of 1 scenes agree within 2 sigma.'
+
+
 # ------------------------------------------------------------------------------ second run
 
 

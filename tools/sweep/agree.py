@@ -114,10 +114,12 @@ def compare_crossover(ca, cb, fa, fb):
 
 def pareto_text(ta, tb):
     """(text, agrees): the Pareto labels only one run has; Cycles levels a run did not render
-    (the other's 1024 point, its stage two) are named but do not count as a disagreement."""
+    as points (the other's 1024 point, its stage two) are named but do not count as a
+    disagreement, and references are left out."""
 
     def labels(t):
-        return {f"{p['renderer']} {p['label']}" for p in t.get('pareto') or []}
+        # A reference's point is its own noise, a different render in each run: not compared.
+        return {f"{p['renderer']} {p['label']}" for p in t.get('pareto') or [] if '(reference)' not in p['label']}
 
     la, lb = labels(ta), labels(tb)
     levels_a = {f"cycles {p['label']}" for p in cycles_points(ta)}
