@@ -507,7 +507,11 @@ def _staged(noise_ref=0.01, raster=0.1, cycles_errors=(0.2, 0.1, 0.05), n_pixels
         'reference': {'noise_nrmse': noise_ref, 'nested': False},
         'series': [
             {'label': 'cycles spp', 'renderer': 'cycles', 'fit_spp': fit, 'points': cyc},
-            {'label': 'raster k', 'renderer': 'raster', 'points': [{'error': raster, 'is_reference': False}]},
+            {
+                'label': 'raster k',
+                'renderer': 'raster',
+                'points': [{'label': 'k=8', 'error': raster, 'is_reference': False}],
+            },
         ],
         'as_is': {'error': as_is, 'n_pixels': n_pixels},
         'pareto': [{'label': 'as-is', 'renderer': 'raster', 'error': as_is, 'time_s': 0.01}],

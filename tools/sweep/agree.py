@@ -20,7 +20,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from sweep.plan import point_sigma  # noqa: E402  (needs the path above)
+from sweep.plan import error_sigma, point_sigma  # noqa: E402  (needs the path above)
 
 # Two figures agree within 2 combined standard errors: about 1 in 20 pairs of equal figures
 # would be called different by chance, which the table's explanations column then names.
@@ -133,6 +133,42 @@ def pareto_text(ta, tb):
     return f"A only: {', '.join(only_a) or '-'}; B only: {', '.join(only_b) or '-'}", not real
 
 
+def other_errors(ta, tb):
+    """(text, agrees): the largest difference, in combined standard errors (plan.error_sigma),
+    between the errors of the non-Cycles points both runs measured: a Pareto point that moved
+    with an agreeing error moved along the time axis."""
+
+    def points(t):
+        return {
+            f"{s['renderer']} {p['label']}": p
+            for s in t['series']
+            if s['renderer'] != 'cycles'
+            for p in s['points']
+            if p.get('error')
+        }
+
+    pa, pb = points(ta), points(tb)
+    worst = None
+    for k in sorted(set(pa) & set(pb)):
+        sa = error_sigma(pa[k]['error'], (ta.get('reference') or {}).get('noise_nrmse'), pixels(ta, pa[k]))
+        sb = error_sigma(pb[k]['error'], (tb.get('reference') or {}).get('noise_nrmse'), pixels(tb, pb[k]))
+        z = abs(math.log(pa[k]['error'] / pb[k]['error'])) / max(math.hypot(sa, sb), 1e-12)
+        if worst is None or z > worst[0]:
+            worst = (z, k)
+    if worst is None:
+        return '-', True
+    return f'{len(set(pa) & set(pb))}; worst {worst[1]} {worst[0]:.1f} sigma', worst[0] <= AGREE_SIGMAS
+
+
+def pixels(t, p):
+    """A point's surface pixels, else the as-is point's or a Cycles point's (the same mask)."""
+    return (
+        p.get('n_pixels')
+        or (t.get('as_is') or {}).get('n_pixels')
+        or next((q.get('n_pixels') for q in cycles_points(t) if q.get('n_pixels')), 0)
+    )
+
+
 def row(name, ta, tb):
     pa, pb = cycles_points(ta), cycles_points(tb)
     fa, fb = slope_fit(ta, pb), slope_fit(tb, pa)
@@ -159,6 +195,9 @@ def row(name, ta, tb):
     else:
         cells.append(f'{fmt(ea)} / {fmt(eb)}')
         ok.append(('as-is', ea == eb))
+    text, good = other_errors(ta, tb)
+    cells.append(text)
+    ok.append(('non-Cycles errors', good))
     bad = [k for k, g in ok if not g]
     cells.append('agrees' if not bad else 'differs: ' + ', '.join(bad))
     return cells, bad
@@ -175,6 +214,7 @@ def table(run_a, run_b, names=('A', 'B')):
         'crossover best raster (spp)',
         'Pareto',
         'as-is error',
+        'non-Cycles errors in both',
         'verdict',
     ]
     lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
