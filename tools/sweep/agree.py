@@ -3,7 +3,7 @@
 Pareto frontier and the raster as-is error of RUN_A and RUN_B (their timing/<scene>.json), each
 with its difference in standard errors, as a Markdown table (docs/sweep.md holds one).
 
-Usage: /usr/bin/python3 tools/sweep/agree.py RUN_A RUN_B [--names A B] > table.md
+Usage: /usr/bin/python3 tools/sweep/agree.py RUN_A RUN_B [--names A B] [--common] > table.md
 
 Standard errors come from plan.point_sigma (each point's two seeds and pixel count); a run
 written before n_pixels was kept borrows them from the other run's point of the same label (the
@@ -68,18 +68,8 @@ def slope_fit(t, other_pts):
     return {'slope': b, 'sigma': sb, 'mx': mx, 'my': my, 'sigma_mean': s_mean}
 
 
-def as_is_sigma(t):
-    """The as-is error's standard error in ln, from the reference's two-seed noise (the raster
-    is deterministic: only the subtracted r^2 is uncertain, to sqrt(2 / n))."""
-    a = t.get('as_is') or {}
-    r = (t.get('reference') or {}).get('noise_nrmse')
-    e, n = a.get('error'), a.get('n_pixels')
-    if not e or not r:
-        return 0.0
-    n = n or next((p.get('n_pixels') for p in cycles_points(t) if p.get('n_pixels')), None)
-    if not n:
-        return 0.1
-    return r * r * math.sqrt(2.0 / n) / (2.0 * e * e)
+def noise_of(t):
+    return (t.get('reference') or {}).get('noise_nrmse')
 
 
 def crossover_sigma(c, fit):
@@ -150,8 +140,10 @@ def other_errors(ta, tb):
     pa, pb = points(ta), points(tb)
     worst = None
     for k in sorted(set(pa) & set(pb)):
-        sa = error_sigma(pa[k]['error'], (ta.get('reference') or {}).get('noise_nrmse'), pixels(ta, pa[k]))
-        sb = error_sigma(pb[k]['error'], (tb.get('reference') or {}).get('noise_nrmse'), pixels(tb, pb[k]))
+        # The same scene at the same size: a run without pixel counts borrows the other's.
+        n = pixels(ta, pa[k]) or pixels(tb, pb[k])
+        sa = error_sigma(pa[k]['error'], noise_of(ta), pixels(ta, pa[k]) or n)
+        sb = error_sigma(pb[k]['error'], noise_of(tb), pixels(tb, pb[k]) or n)
         z = abs(math.log(pa[k]['error'] / pb[k]['error'])) / max(math.hypot(sa, sb), 1e-12)
         if worst is None or z > worst[0]:
             worst = (z, k)
@@ -189,7 +181,11 @@ def row(name, ta, tb):
     ok.append(('pareto', good))
     ea, eb = (ta.get('as_is') or {}).get('error'), (tb.get('as_is') or {}).get('error')
     if ea and eb:
-        z = abs(math.log(ea / eb)) / max(math.hypot(as_is_sigma(ta), as_is_sigma(tb)), 1e-12)
+        aa, ab = ta['as_is'], tb['as_is']
+        n = pixels(ta, aa) or pixels(tb, ab)
+        sa = error_sigma(ea, noise_of(ta), pixels(ta, aa) or n)
+        sb = error_sigma(eb, noise_of(tb), pixels(tb, ab) or n)
+        z = abs(math.log(ea / eb)) / max(math.hypot(sa, sb), 1e-12)
         cells.append(f'{ea:.3g} / {eb:.3g} ({z:.1f} sigma)')
         ok.append(('as-is', z <= AGREE_SIGMAS))
     else:
@@ -203,8 +199,11 @@ def row(name, ta, tb):
     return cells, bad
 
 
-def table(run_a, run_b, names=('A', 'B')):
+def table(run_a, run_b, names=('A', 'B'), common=False):
     a, b = load(run_a), load(run_b)
+    if common:
+        a = {k: v for k, v in a.items() if k in b}
+        b = {k: v for k, v in b.items() if k in a}
     head = [
         'scene',
         'role',
@@ -239,12 +238,13 @@ def main(argv=None):
     ap.add_argument('run_a')
     ap.add_argument('run_b')
     ap.add_argument('--names', nargs=2, default=('A', 'B'))
+    ap.add_argument('--common', action='store_true', help='only the scenes both runs swept')
     args = ap.parse_args(argv)
     for run in (args.run_a, args.run_b):
         if not glob.glob(os.path.join(run, 'timing', '*.json')):
             print(f'agree.py: {run}: no timing/*.json; name a run folder the sweep wrote', file=sys.stderr)
             return 2
-    print(table(args.run_a, args.run_b, tuple(args.names)))
+    print(table(args.run_a, args.run_b, tuple(args.names), args.common))
     return 0
 
 
