@@ -9,6 +9,10 @@
  *   --refs      where `reflcheck run tests/bench/bench_scene.yaml --role twin --out DIR` put the
  *               POV-Ray and Cycles results (DIR/bench_reflect/{povray,cycles}-twin.{json,exr})
  *   --quick     a small smoke set (CI), not the measurement
+ *        bench_raster --frame [--scene FILE] [--tris N] [--threads T] [--reps R] [--out FILE]
+ *   --frame     one configuration only (1024^2, 4 x 4 samples, in this process): min-of-R frame
+ *               wall and CPU ms and the last frame's stage table, to measure one change; --out
+ *               writes the frame's planes raw (bench_image_write) for a cmp against another build
  * Every configuration runs in a forked child, so its peak memory (wait4 ru_maxrss) is its own.
  * Prints the tables on stdout and writes the JSON; exits 0 when every run worked (targets that
  * are missed are reported, not failures), 1 when a run failed.
@@ -26,6 +30,7 @@
 #include <sys/time.h>
 #include <sys/types.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cJSON.h>
@@ -990,10 +995,78 @@ static void bench_cli_json(FILE *f, int ref_size, int met)
     fprintf(f, "]},\n");
 }
 
+/* The process's CPU seconds: with wall time beside it, a figure less inflated by other load. */
+static double bench_cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* --frame: the reference frame R times into kept framebuffers, as bench_raster_child renders it,
+ * with no fork and no sweep, so one change can be measured alone. The first frame is untimed
+ * (page faults); the last one is profiled. */
+static int bench_frame_mode(int tris, int threads, int reps, const char *out_path)
+{
+    scene s;
+    env_map env;
+    float *env_px = NULL;
+    mesh m;
+    char err[240];
+    if (bench_frame_load(g_scene, BENCH_SCENE_REFLECT, tris, &s, &env, &env_px, &m, err, sizeof err) != RC_OK) {
+        fprintf(stderr, "bench_raster --frame: %s\n", err);
+        return 1;
+    }
+    render_options o = {
+        .threads = threads, .aovs = RENDER_AOV_NONE, .width = 1024, .height = 1024, .supersample = 4, .reuse_image = 1};
+    render_image img;
+    memset(&img, 0, sizeof img);
+    render_profile prof;
+    memset(&prof, 0, sizeof prof);
+    double best_ms = 1e30, best_cpu = 1e30;
+    int rc = 0;
+    for (int i = 0; i <= reps && !rc; i++) {
+        o.profile = i == reps ? &prof : NULL;
+        double t0 = bench_now(), c0 = bench_cpu_now();
+        rc = render_scene(&s, &m, &env, &o, &img, err, sizeof err) != RC_OK;
+        double ms = 1e3 * (bench_now() - t0), cpu = 1e3 * (bench_cpu_now() - c0);
+        if (i > 0 && ms < best_ms)
+            best_ms = ms;
+        if (i > 0 && cpu < best_cpu)
+            best_cpu = cpu;
+    }
+    if (rc)
+        fprintf(stderr, "bench_raster --frame: %s\n", err);
+    else {
+        printf("tris %d threads %d reps %d: min %.1f ms wall, min %.1f ms CPU\n", m.n_tris, threads, reps, best_ms,
+               best_cpu);
+        double total = 0;
+        for (int k = 0; k < RENDER_STAGE_COUNT; k++)
+            total += prof.seconds[k];
+        for (int k = 0; k < RENDER_STAGE_COUNT; k++)
+            printf("  %-12s %8.1f thread-ms\n", render_stage_names[k], 1e3 * prof.seconds[k]);
+        printf("  %-12s %8.1f thread-ms (last frame, profiled)\n", "total", 1e3 * total);
+        int n_fb = 0;
+        const float *planes[RENDER_CHANNELS];
+        for (int c = 0; c < RENDER_CHANNELS; c++)
+            if (img.chan[c])
+                planes[n_fb++] = img.chan[c];
+        if (out_path && bench_image_write(out_path, img.width, img.height, n_fb, planes) != 0) {
+            fprintf(stderr, "bench_raster --frame: cannot write %s; check the folder exists\n", out_path);
+            rc = 1;
+        }
+    }
+    render_image_free(&img);
+    mesh_free(&m);
+    free(env_px);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     const char *lp_bin = NULL, *refs = NULL, *json_path = "reports/bench/bench.json";
-    int quick = 0;
+    const char *frame_out = NULL;
+    int quick = 0, frame = 0, frame_tris = 10000, frame_threads = 2, frame_reps = 5;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -1011,13 +1084,31 @@ int main(int argc, char **argv)
             g_tmp = v, i++;
         else if (v && !strcmp(a, "--cli"))
             g_cli = v, i++;
+        else if (!strcmp(a, "--frame"))
+            frame = 1;
+        else if (v && !strcmp(a, "--tris"))
+            frame_tris = atoi(v), i++;
+        else if (v && !strcmp(a, "--threads"))
+            frame_threads = atoi(v), i++;
+        else if (v && !strcmp(a, "--reps"))
+            frame_reps = atoi(v), i++;
+        else if (v && !strcmp(a, "--out"))
+            frame_out = v, i++;
         else {
             fprintf(stderr,
                     "bench_raster: unknown option '%s'; usage: bench_raster [--scene FILE] [--llvmpipe BIN] "
-                    "[--cli BIN] [--refs DIR] [--json FILE] [--tmp DIR] [--quick]\n",
+                    "[--cli BIN] [--refs DIR] [--json FILE] [--tmp DIR] [--quick] | --frame [--tris N] [--threads T] "
+                    "[--reps R] [--out FILE]\n",
                     a);
             return 2;
         }
+    }
+    if (frame) {
+        if (frame_tris < 1 || frame_threads < 1 || frame_reps < 1) {
+            fprintf(stderr, "bench_raster --frame: --tris, --threads and --reps take a positive integer\n");
+            return 2;
+        }
+        return bench_frame_mode(frame_tris, frame_threads, frame_reps, frame_out);
     }
     double t_start = bench_now();
     bench_machine mc;
