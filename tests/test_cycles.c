@@ -1146,6 +1146,19 @@ static void test_job_contents_and_refusals(void **state)
     char buf[64];
     assert_string_equal(cycles_channel_name("", 'R', buf, sizeof buf), "R");
     assert_string_equal(cycles_channel_name("coverage", 0, buf, sizeof buf), "coverage.V");
+    /* reflcheck's own names: a one-channel layer is its pass alone, without Blender's ".V". */
+    int named = 0;
+    for (int k = 0; k < CYCLES_LAYOUT_N; k++) {
+        const cycles_layer *l = &cycles_layout[k];
+        cycles_layer_name(k, buf, sizeof buf);
+        if (l->aov[0] == '\0' && l->c == 'R')
+            named += strcmp(buf, "R") == 0;
+        else if (strcmp(l->aov, "diffuse") == 0 && l->c == 'G')
+            named += strcmp(buf, "diffuse.G") == 0;
+        else if (strcmp(l->aov, "coverage") == 0)
+            named += strcmp(buf, "coverage") == 0;
+    }
+    assert_int_equal(named, 3);
     assert_int_equal(cycles_raw_path("d/x.exr", 1, buf, sizeof buf), RC_OK);
     assert_string_equal(buf, "d/x.cyc1.exr");
 }

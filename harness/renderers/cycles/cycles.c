@@ -1101,13 +1101,12 @@ const char *cycles_layer_name(int k, char *buf, size_t len)
 {
     const char *aov = cycles_layout[k].aov;
     char c = cycles_layout[k].c;
-    if (aov[0] == '\0')
-        snprintf(buf, len, "%c", c);
-    else if (c == 0)
+    /* Blender's name but for a one-channel layer, which is its pass alone (no ".V"). */
+    if (aov[0] != '\0' && c == 0) {
         snprintf(buf, len, "%s", aov);
-    else
-        snprintf(buf, len, "%s.%c", aov, c);
-    return buf;
+        return buf;
+    }
+    return cycles_channel_name(aov, c, buf, len);
 }
 
 /* A number, or the sum of a list of numbers, under key in the timing JSON the script writes
