@@ -112,6 +112,17 @@ static void test_renderer_fails(void **state)
     assert_non_null(strstr(r.message, ".log"));
 }
 
+/* A job record parsed (the caller deletes it); fails the test when it is missing or not JSON. */
+static cJSON *record_json(const char *path)
+{
+    char *text = fileio_read_all(path, NULL);
+    assert_non_null(text);
+    cJSON *o = cJSON_Parse(text);
+    free(text);
+    assert_non_null(o);
+    return o;
+}
+
 /* A stochastic render's record takes the samples and the noise from its log's last
  * reflcheck-samples line (cycles_samples.h): here a fake Blender prints two, then fails. */
 static void test_record_samples_and_noise(void **state)
@@ -122,11 +133,7 @@ static void test_record_samples_and_noise(void **state)
                     "comparisons[1] raster/validate nrmse fail 0.06'; exit 1");
     job_record r = run_job(registry_find("cycles"), 30);
     assert_int_equal(r.status, RUNNER_FAILED);
-    char *text = fileio_read_all(r.record, NULL);
-    assert_non_null(text);
-    cJSON *o = cJSON_Parse(text);
-    free(text);
-    assert_non_null(o);
+    cJSON *o = record_json(r.record);
     assert_int_equal(cJSON_GetObjectItem(o, "samples")->valueint, 77);
     cJSON *n = cJSON_GetObjectItem(o, "noise");
     assert_non_null(n);
@@ -148,11 +155,7 @@ static void test_record_ztest_noise(void **state)
                     "pilot_pixel_q 0.05 pixel_q 0.03 ztarget 0.025 gate comparisons[0] raster/twin z_fail_share bias "
                     "0.1 (image.samples bias)'; exit 1");
     job_record r = run_job(registry_find("cycles"), 30);
-    char *text = fileio_read_all(r.record, NULL);
-    assert_non_null(text);
-    cJSON *o = cJSON_Parse(text);
-    free(text);
-    assert_non_null(o);
+    cJSON *o = record_json(r.record);
     assert_int_equal(cJSON_GetObjectItem(o, "samples")->valueint, 64);
     cJSON *n = cJSON_GetObjectItem(o, "noise");
     assert_non_null(n);
@@ -412,15 +415,12 @@ static void test_record_mesh_repairs(void **state)
     assert_non_null(strstr(err, "note:"));
     assert_non_null(strstr(err, "1 zero-area triangle left out"));
     snprintf(rec, sizeof rec, "%s/repaired/raster-validate.json", out_dir);
-    char *json = fileio_read_all(rec, NULL);
-    assert_non_null(json);
-    cJSON *doc = cJSON_Parse(json);
+    cJSON *doc = record_json(rec);
     const cJSON *mo = cJSON_GetObjectItemCaseSensitive(doc, "mesh");
     assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "triangles")->valueint, 1);
     assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "degenerate_dropped")->valueint, 1);
     assert_int_equal(cJSON_GetObjectItemCaseSensitive(mo, "normals_recomputed")->valueint, 0);
     cJSON_Delete(doc);
-    free(json);
 }
 
 static void test_run_bad_input_is_2(void **state)
