@@ -700,6 +700,16 @@ static void test_env_image(void **state)
     unlink(envp);
 }
 
+/* An executable shell script at path running body (a stand-in for povray). */
+static void write_script(const char *path, const char *body)
+{
+    FILE *fp = fopen(path, "w");
+    assert_non_null(fp);
+    fprintf(fp, "#!/bin/sh\n%s", body);
+    assert_int_equal(fclose(fp), 0);
+    assert_int_equal(chmod(path, 0755), 0);
+}
+
 /* A POV-Ray that cannot run is a failed job with a message, not a crash or a stale image;
  * a POV-Ray that reports an error has its error line passed on. Both through the entry. */
 static void test_run_failure(void **state)
@@ -717,11 +727,7 @@ static void test_run_failure(void **state)
     assert_int_equal(access(exr, F_OK), -1);
     /* A stand-in povray that prints an error as POV-Ray does and exits 1. */
     snprintf(script, sizeof script, "%s/fakepov.sh", tmpdir);
-    FILE *fp = fopen(script, "w");
-    assert_non_null(fp);
-    fputs("#!/bin/sh\necho 'Parse Error: No matching } in sphere'\nexit 1\n", fp);
-    fclose(fp);
-    chmod(script, 0755);
+    write_script(script, "echo 'Parse Error: No matching } in sphere'\nexit 1\n");
     o.povray = script;
     r = pov_entry(&s, &m, &o, "fail2", exr, sizeof exr);
     assert_int_equal(r.status, RUNNER_FAILED);
@@ -745,17 +751,15 @@ static void test_one_process(void **state)
     snprintf(script, sizeof script, "%s/countpov.sh", tmpdir);
     snprintf(starts, sizeof starts, "%s/countpov.starts", tmpdir);
     unlink(starts);
-    FILE *fp = fopen(script, "w");
-    assert_non_null(fp);
-    fprintf(fp, "#!/bin/sh\necho \"$*\" >> '%s'\nexec povray \"$@\"\n", starts);
-    fclose(fp);
-    chmod(script, 0755);
+    char body[700];
+    snprintf(body, sizeof body, "echo \"$*\" >> '%s'\nexec povray \"$@\"\n", starts);
+    write_script(script, body);
     povray_options o = {.povray = script, .threads = 1};
     renderer_result r = pov_entry(&s, &m, &o, "one", exr, sizeof exr);
     assert_int_equal(r.status, RUNNER_OK);
     char line[1024];
     int n = 0;
-    fp = fopen(starts, "r");
+    FILE *fp = fopen(starts, "r");
     assert_non_null(fp);
     while (fgets(line, sizeof line, fp) != NULL)
         n++;
