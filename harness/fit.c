@@ -285,6 +285,17 @@ static int fit_seen(const fit_ctx *c, const double *x, double *f)
     return 0;
 }
 
+/* The scene at parameter values rendered into c->img: over its layers, or fresh ones with
+ * fit_options.fresh; every call counted in c->renders. */
+static rc_status fit_render(fit_ctx *c, const double *values)
+{
+    fit_apply(c->s, c->p, c->n, values);
+    if (c->fresh)
+        render_image_free(&c->img);
+    c->renders++;
+    return render_scene(c->s, c->m, c->env, &c->ro, &c->img, c->err, c->errlen);
+}
+
 /* The objective at scaled x, rendered into c->img and measured (or the value of the same point
  * rendered before; *rendered says which); HUGE_VAL (with c->failed set) when the render fails or
  * nothing is measured. Touches no counter of evaluations: the uncertainty probes use it too. */
@@ -296,11 +307,7 @@ static double fit_value(fit_ctx *c, const double *x, int *rendered)
         return f;
     for (int i = 0; i < c->n; i++)
         c->values[i] = fit_unscale(&c->p[i], x[i]);
-    fit_apply(c->s, c->p, c->n, c->values);
-    if (c->fresh)
-        render_image_free(&c->img);
-    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &c->img, c->err, c->errlen);
-    c->renders++;
+    rc_status st = fit_render(c, c->values);
     if (st != RC_OK) {
         c->failed = st;
         return HUGE_VAL;
@@ -391,11 +398,7 @@ static rc_status fit_best_measure(fit_ctx *c, const double *values, fit_error *e
 {
     if (c->best_rendered)
         return fit_measure(c, &c->best_img, 1, e);
-    fit_apply(c->s, c->p, c->n, values);
-    if (c->fresh)
-        render_image_free(&c->img);
-    rc_status st = render_scene(c->s, c->m, c->env, &c->ro, &c->img, c->err, c->errlen);
-    c->renders++;
+    rc_status st = fit_render(c, values);
     if (st == RC_OK)
         st = fit_measure(c, &c->img, 1, e);
     return st;
@@ -683,9 +686,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         }
         /* The geometry does not depend on the parameters: the authored render's coverage and
          * object layers give the surface mask for every evaluation. */
-        fit_apply(c.s, p, n, vals);
-        st = render_scene(c.s, m, env, &c.ro, &c.img, err, errlen);
-        c.renders = 1;
+        st = fit_render(&c, vals);
     }
     if (st == RC_OK) {
         const render_image *img = &c.img;
