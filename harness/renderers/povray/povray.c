@@ -1256,6 +1256,17 @@ static int povray_read_pass(const renderer_job *j, renderer_result *r, const pov
     return 0;
 }
 
+/* A job that could not be written: a scene POV-Ray cannot represent (RC_ERR_RANGE) is missing
+ * from this renderer, anything else an error. Returns -1. */
+static int povray_job_fail(renderer_result *r, rc_status st, const char *err)
+{
+    if (st == RC_ERR_RANGE)
+        renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
+    else
+        renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
+    return -1;
+}
+
 /* Writes scene.pov (o), coverage.pov (geo) and passes.pov, which includes the first in frame 1
  * and the second in frame 2. Returns 0, or -1 with the result's status and message set. */
 static int povray_write_passes(const renderer_job *j, renderer_result *r, const povray_options *o,
@@ -1267,14 +1278,8 @@ static int povray_write_passes(const renderer_job *j, renderer_result *r, const 
     for (int i = 0; i < 2; i++) {
         snprintf(path, sizeof path, "%s/%s.pov", j->dir, tag[i]);
         rc_status st = povray_write_scene(j->s, j->m, opt[i], path, err, sizeof err);
-        if (st == RC_ERR_RANGE) {
-            renderer_fail(r, RUNNER_MISSING, "povray cannot represent this scene: %s", err);
-            return -1;
-        }
-        if (st != RC_OK) {
-            renderer_fail(r, RUNNER_ERROR, "cannot write the POV-Ray job: %s", err);
-            return -1;
-        }
+        if (st != RC_OK)
+            return povray_job_fail(r, st, err);
     }
     snprintf(path, sizeof path, "%s/passes.pov", j->dir);
     FILE *fp = fopen(path, "w");
@@ -1310,12 +1315,8 @@ static int povray_passes(const renderer_job *j, renderer_result *r, const povray
     /* POV-Ray runs in the work folder and gets names only (renderer.h, "Paths"); it writes
      * frame f to pass-raw<f>.exr. */
     rc_status st = povray_command(&anim, "passes.pov", "pass-raw.exr", s->width, s->height, k, &cmd, err, sizeof err);
-    if (st != RC_OK) {
-        renderer_fail(
-            r, st == RC_ERR_RANGE ? RUNNER_MISSING : RUNNER_ERROR, "%s%s",
-            st == RC_ERR_RANGE ? "povray cannot represent this scene: " : "cannot write the POV-Ray job: ", err);
-        return -1;
-    }
+    if (st != RC_OK)
+        return povray_job_fail(r, st, err);
     povray_command_string(&cmd, r->command, sizeof r->command);
     for (int f = 0; f < 2; f++) {
         snprintf(raw[f], sizeof raw[f], "%s/pass-raw%d.exr", j->dir, f + 1);
