@@ -276,10 +276,13 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
     return sb_any(bad, n);
 }
 
-/* shade.c's shade_d3d_impl (docs/models.md §1) over a batch; returns non-zero when a lane was
- * outside the float-safe band. specular and ambient are constants in each caller. */
-SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batch_in *restrict in,
-                     shade_batch_out *restrict out, const int specular, const int ambient)
+/* shade.c's shade_d3d_impl (docs/models.md §1) over a batch, up to the diffuse and specular
+ * terms (clamped where D3D clamps them); returns non-zero when a lane was outside the
+ * float-safe band. specular and ambient are constants in each caller. The emission, reflection
+ * and alpha are left to the caller (sb_d3d_rest, or the D3D9Client's last pass, which writes
+ * them with its own reflection and alpha). */
+SB_INLINE int sb_d3d_lit(const shade_context *c, const material *m, const shade_batch_in *restrict in,
+                         shade_batch_out *restrict out, const int specular, const int ambient)
 {
     const d3d_params *d = &m->d3d;
     const scene *s = c->s;
@@ -297,16 +300,26 @@ SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batc
         SB_WITH_KIND(l, bad |= sb_d3d_light(c, d, l, in, out, K, specular, ambient));
     }
     /* D3D saturates Dv (which holds the emissive colour) and Sv to [0, 1] separately. */
-    vec3 emission = d->emissive;
     if (d->clamp) {
-        emission = sb_min(emission, v3s(1.0f));
-        const vec3 room = v3_sub(v3s(1.0f), emission);
+        const vec3 room = v3_sub(v3s(1.0f), sb_min(d->emissive, v3s(1.0f)));
 #pragma omp simd
         for (int i = 0; i < n; i++) {
             shade_lane_set(&out->diffuse, i, sb_min(shade_lane_get(&out->diffuse, i), room));
             shade_lane_set(&out->specular, i, sb_min(shade_lane_get(&out->specular, i), v3s(1.0f)));
         }
     }
+    return bad;
+}
+
+/* The emission sb_d3d_lit's terms go with: the emissive colour, saturated with them. */
+static vec3 sb_d3d_emission(const d3d_params *d) { return d->clamp ? sb_min(d->emissive, v3s(1.0f)) : d->emissive; }
+
+/* shade.c's shade_d3d_impl over a batch: sb_d3d_lit, then no reflection and alpha 1. */
+SB_INLINE int sb_d3d(const shade_context *c, const material *m, const shade_batch_in *restrict in,
+                     shade_batch_out *restrict out, const int specular, const int ambient)
+{
+    const int bad = sb_d3d_lit(c, m, in, out, specular, ambient), n = in->n;
+    const vec3 emission = sb_d3d_emission(&m->d3d);
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         shade_lane_set(&out->reflection, i, v3s(0.0f));
@@ -340,51 +353,76 @@ SB_INLINE float sb_fresnel(const d3d9client_params *d9, float p, const int whole
     return formula_sat_v(formula_d3d9_fresnel_v(d9->r0, d9->m, xe));
 }
 
-/* Equation (8)'s factor 1 - F(N.L_sun) per lane, the main light's direction from geometry
- * alone (scene_main_light: it counts even where the light gives nothing). */
-SB_INLINE int sb_d9_sun(const d3d9client_params *d9, const light *sun, const shade_batch_in *restrict in,
-                        float *restrict f, const int kind, const int whole)
+/* What the D3D9Client's last pass reads, fixed per batch. */
+typedef struct {
+    float fp;                             /* the Fresnel power, formula_d3d9_power(p) */
+    vec3 lambda, s;                       /* the metallic and the Fresnel colour */
+    float w;                              /* (6)'s diffuse weight 1 - |lambda|, saturated */
+    float w_max, w_r, w_g, w_b, w_euclid; /* the colour norm's weights in float */
+    float d_alpha;
+    vec3 emission;
+} sb_d9_consts;
+
+static sb_d9_consts sb_d9_consts_of(const material *m)
 {
-    const sb_light b = sb_light_make(sun);
-    const float fp = fresnel_d3d9_power(d9->p);
+    const d3d9client_params *d9 = &m->d9;
+    /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
+     * not vectorise). */
+    const d3d9client_norm_weights nw = d3d9client_norm_weights_of(d9->norm);
+    sb_d9_consts k = {
+        .fp = fresnel_d3d9_power(d9->p),
+        .lambda = d9->reflect,
+        .s = d9->fresnel_colour,
+        .w = formula_sat_v(formula_d3d9_diffuse_weight_f(d3d9client_colour_norm(d9->reflect, d9->norm))),
+        .w_max = (float)nw.w_max,
+        .w_r = (float)nw.w_r,
+        .w_g = (float)nw.w_g,
+        .w_b = (float)nw.w_b,
+        .w_euclid = (float)nw.w_euclid,
+        .d_alpha = d9->alpha,
+        .emission = sb_d3d_emission(&m->d3d),
+    };
+    return k;
+}
+
+/* Equations (3)-(8) on the D3D terms already in out, in one lane loop: (8)'s factor
+ * 1 - F(N.L_sun) (the main light's direction from geometry alone, scene_main_light: it counts
+ * even where the light gives nothing; 1 without a main light, has_sun 0), R at N.V, R_tot, the
+ * weighted diffuse, the alpha, and the emission. One pass instead of a sun-factor pass, a
+ * combine pass and sb_d3d's fill, whose reflection and alpha this pass overwrote: the same
+ * operations per lane. Returns non-zero when the main light's d^2 left the float-safe band. */
+SB_INLINE int sb_d9_last(const d3d9client_params *d9, const sb_d9_consts *k, const light *sun,
+                         const shade_batch_in *restrict in, const shade_vec3_n *restrict phi,
+                         shade_batch_out *restrict out, const int has_sun, const int kind, const int whole)
+{
+    const sb_light b = has_sun ? sb_light_make(sun) : (sb_light){0};
+    const float fp = k->fp, w = k->w, d_alpha = k->d_alpha;
+    const float w_max = k->w_max, w_r = k->w_r, w_g = k->w_g, w_b = k->w_b, w_euclid = k->w_euclid;
+    const vec3 lambda = k->lambda, s = k->s, emission = k->emission;
     const int n = in->n;
     int bad[SHADE_BATCH];
 #pragma omp simd
     for (int i = 0; i < n; i++) {
-        sb_incidence inc = sb_incident(sun, &b, shade_lane_get(&in->x, i), kind);
-        bad[i] = inc.bad;
-        f[i] = formula_d3d9_sun_factor_v(sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), inc.to_l)));
-    }
-    return sb_any(bad, n);
-}
-
-/* Equations (3)-(7) on the D3D terms already in out; sun_f holds (8)'s factor per lane. */
-SB_INLINE void sb_d9_combine(const d3d9client_params *d9, const shade_batch_in *restrict in,
-                             const shade_vec3_n *restrict phi, const float *restrict sun_f,
-                             shade_batch_out *restrict out, const int whole)
-{
-    const float fp = fresnel_d3d9_power(d9->p);
-    const vec3 lambda = d9->reflect, s = d9->fresnel_colour;
-    const float w = formula_sat_v(formula_d3d9_diffuse_weight_f(d3d9client_colour_norm(d9->reflect, d9->norm)));
-    /* The norm's weights in float, fixed before the loop (a switch on the norm inside it would
-     * not vectorise). */
-    const d3d9client_norm_weights nw = d3d9client_norm_weights_of(d9->norm);
-    const float w_max = (float)nw.w_max, w_r = (float)nw.w_r, w_g = (float)nw.w_g, w_b = (float)nw.w_b;
-    const float w_euclid = (float)nw.w_euclid;
-    const float d_alpha = d9->alpha;
-    const int n = in->n;
-#pragma omp simd
-    for (int i = 0; i < n; i++) {
-        float R = sb_fresnel(d9, fp, whole, v3_dot(shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i)));
+        const vec3 nn = shade_lane_get(&in->nrm, i);
+        float sun_f = 1.0f;
+        bad[i] = 0;
+        if (has_sun) {
+            sb_incidence inc = sb_incident(sun, &b, shade_lane_get(&in->x, i), kind);
+            bad[i] = inc.bad;
+            sun_f = formula_d3d9_sun_factor_v(sb_fresnel(d9, fp, whole, v3_dot(nn, inc.to_l)));
+        }
+        float R = sb_fresnel(d9, fp, whole, v3_dot(nn, shade_lane_get(&in->v, i)));
         vec3 ph = shade_lane_get(phi, i);
         vec3 r_tot = v3(formula_sat_v(formula_d3d9_r_tot_v(lambda.x, s.x, R, ph.x)),
                         formula_sat_v(formula_d3d9_r_tot_v(lambda.y, s.y, R, ph.y)),
                         formula_sat_v(formula_d3d9_r_tot_v(lambda.z, s.z, R, ph.z)));
-        shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f[i]));
+        shade_lane_set(&out->diffuse, i, v3_scale(shade_lane_get(&out->diffuse, i), w * sun_f));
         shade_lane_set(&out->reflection, i, r_tot);
+        shade_lane_set(&out->emission, i, emission);
         float rn = formula_colour_norm_v(r_tot.x, r_tot.y, r_tot.z, w_max, w_r, w_g, w_b, w_euclid);
         out->alpha[i] = formula_d3d9_alpha_v(d_alpha, rn);
     }
+    return sb_any(bad, n);
 }
 
 /* shade.c's shade_d3d9client (docs/models.md §2, eqs. 3-8) over a batch; dissolve a constant. */
@@ -392,8 +430,7 @@ SB_INLINE void sb_d3d9client(const shade_context *c, const shade_plan *p, const 
                              shade_batch_out *out, const int dissolve)
 {
     const d3d9client_params *d9 = &p->mat->d9;
-    const int n = in->n;
-    if (sb_d3d(c, p->mat, in, out, 1, 1)) {
+    if (sb_d3d_lit(c, p->mat, in, out, 1, 1)) {
         shade_batch_scalar(c, p, in, out);
         return;
     }
@@ -403,28 +440,20 @@ SB_INLINE void sb_d3d9client(const shade_context *c, const shade_plan *p, const 
     else
         sb_env_reflected(c, in, &phi);
 
-    const float fp = fresnel_d3d9_power(d9->p);
-    const int whole = fp == floorf(fp) && fp <= 8.0f;
+    const sb_d9_consts k = sb_d9_consts_of(p->mat);
+    const int whole = k.fp == floorf(k.fp) && k.fp <= 8.0f;
     const light *sun = d9->sun_angle ? scene_main_light(c->s) : NULL;
-    float sun_f[SHADE_BATCH];
     int bad = 0;
-    if (sun == NULL) {
-#pragma omp simd
-        for (int i = 0; i < n; i++)
-            sun_f[i] = 1.0f;
-    } else if (whole) {
-        SB_WITH_KIND(sun, bad = sb_d9_sun(d9, sun, in, sun_f, K, 1));
-    } else {
-        SB_WITH_KIND(sun, bad = sb_d9_sun(d9, sun, in, sun_f, K, 0));
-    }
-    if (bad) {
-        shade_batch_scalar(c, p, in, out);
-        return;
-    }
-    if (whole)
-        sb_d9_combine(d9, in, &phi, sun_f, out, 1);
+    if (sun == NULL && whole)
+        bad = sb_d9_last(d9, &k, NULL, in, &phi, out, 0, SB_SUN, 1);
+    else if (sun == NULL)
+        bad = sb_d9_last(d9, &k, NULL, in, &phi, out, 0, SB_SUN, 0);
+    else if (whole)
+        SB_WITH_KIND(sun, bad = sb_d9_last(d9, &k, sun, in, &phi, out, 1, K, 1));
     else
-        sb_d9_combine(d9, in, &phi, sun_f, out, 0);
+        SB_WITH_KIND(sun, bad = sb_d9_last(d9, &k, sun, in, &phi, out, 1, K, 0));
+    if (bad)
+        shade_batch_scalar(c, p, in, out);
 }
 
 SMATH_CLONES
