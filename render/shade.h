@@ -14,8 +14,9 @@
  * shade_eval_n is the shading loop's form: the same models over a structure-of-arrays batch,
  * one SIMD lane per sample (shade_batch.c), with smath's pow and atan2 in place of libm's and
  * float where the scalar path sums in double. Lanes agree with shade_eval to 1.3e-5 relative
- * for Blinn powers up to 40 (1.2e-3 at a power of 1e4, which multiplies the 2-ulp N.H
- * difference of the scalar path's renormalised half vector), and near a soft spot edge to
+ * for Blinn powers up to 40 (1.2e-3 over tests/test_shade_batch.c's 1024 lanes at a power of 1e4,
+ * 2.4e-3 over 4096: the power multiplies the 2-ulp N.H difference of the scalar path's
+ * renormalised half vector), and near a soft spot edge to
  * 5e-7 of the term's largest value (tests/test_shade_batch.c). Lanes outside the
  * kernels' safe range (a point light within 1e-15 m or beyond 1e15 m) and materials without a
  * kernel (see shade_batch_ct_supported) go through shade_eval lane by lane.
@@ -42,9 +43,12 @@ typedef struct {
 
 enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 4, SHADE_TERM_EMISSION = 8 };
 
-/* Samples per batch: enough lanes to amortise the per-light set-up, few enough that a batch's
- * inputs and outputs (22 floats a lane) stay in the L1 cache. */
-#define SHADE_BATCH 64
+/* Samples per batch: enough lanes to amortise each flush's fixed cost (the per-light set-up,
+ * every lane loop's entry and exit, the render queue's interpolation and scatter calls), few
+ * enough that a batch's inputs and outputs (22 floats a lane, 22.5 KiB) stay in a 32 KiB L1
+ * cache. Measured on the bench frame (10^4 triangles, one thread, CPU ms): 64 lanes 385-389,
+ * 128 370-373, 256 357-362, 512 364-370 (docs/render_time.md). */
+#define SHADE_BATCH 256
 typedef struct {
     float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH];
 } shade_vec3_n;
