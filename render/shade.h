@@ -47,8 +47,11 @@ enum { SHADE_TERM_DIFFUSE = 1, SHADE_TERM_SPECULAR = 2, SHADE_TERM_REFLECTION = 
  * every lane loop's entry and exit, the render queue's interpolation and scatter calls), few
  * enough that a batch's inputs and outputs (22 floats a lane, 22.5 KiB) stay in a 32 KiB L1
  * cache. Measured on the bench frame (10^4 triangles, one thread, CPU ms): 64 lanes 385-389,
- * 128 370-373, 256 357-362, 512 364-370 (docs/render_time.md). */
+ * 128 370-373, 256 357-362, 512 364-370 (docs/render_time.md). At most 256: render.c's queue
+ * keeps a lane's index in a uint8_t (render_queue.centre). */
 #define SHADE_BATCH 256
+_Static_assert(SHADE_BATCH <= 256 && SHADE_BATCH % 16 == 0,
+               "SHADE_BATCH: at most 256 (render.c's uint8_t lane index), a multiple of 16 (AVX-512 floats)");
 typedef struct {
     float x[SHADE_BATCH], y[SHADE_BATCH], z[SHADE_BATCH];
 } shade_vec3_n;
