@@ -1,7 +1,8 @@
 /* test_eevee.c - the EEVEE renderer through its table entry, as production runs it, with the
  * real blender under xvfb-run: Lambert under a sun against the closed form albedo E cos / pi
  * (worked out here, not by the model library), the refusals of its twin role, and the skip
- * when no display can be had. One render, 32 x 24 pixels, 4 TAA samples.
+ * when no display can be had, the passes EEVEE is asked to draw. Three renders, 32 x 24 pixels,
+ * 4 TAA samples.
  */
 #define _XOPEN_SOURCE 700
 
@@ -232,12 +233,96 @@ static void test_no_display_and_failure(void **state)
     mesh_free(&m);
 }
 
+/* The whole of a small text file (the job's timing record), or fail. */
+static void read_text(const char *path, char *buf, size_t len)
+{
+    FILE *f = fopen(path, "r");
+    if (f == NULL)
+        fail_msg("%s: cannot open", path);
+    size_t n = fread(buf, 1, len - 1, f);
+    buf[n] = '\0';
+    fclose(f);
+}
+
+/* The largest |emission| over every pixel, and over the covered ones the worst relative error
+ * against want[c]. */
+static void emission_layer(const char *exr, const double want[3], double *largest, double *worst)
+{
+    exr_image img;
+    char err[512];
+    if (exr_read(exr, &img, err, sizeof err) != RC_OK)
+        fail_msg("%s", err);
+    const char *names[3] = {"emission.R", "emission.G", "emission.B"};
+    const float *cov = exr_image_channel(&img, "coverage");
+    assert_non_null(cov);
+    *largest = 0.0;
+    *worst = 0.0;
+    for (int c = 0; c < 3; c++) {
+        const float *e = exr_image_channel(&img, names[c]);
+        assert_non_null(e);
+        for (int p = 0; p < img.width * img.height; p++) {
+            *largest = fmax(*largest, fabs(e[p]));
+            if (cov[p] >= 1.0f && want[c] > 0.0)
+                *worst = fmax(*worst, fabs(e[p] - want[c]) / want[c]);
+        }
+    }
+    exr_image_free(&img);
+}
+
+/* 4. The passes EEVEE is asked to draw (each material pass is one more draw of every material
+ *    per TAA sample): no shader AOV, which no material writes, and Emission only where a
+ *    material emits. The emission layer is then 0 exactly, and an emitter's layer its colour. */
+static void test_passes_asked(void **state)
+{
+    (void)state;
+    scene s;
+    mesh m;
+    char exr[400], timing[400], text[4096];
+    renderer_result r;
+    eevee_options keep = {.keep_raw = 1};
+    const double none[3] = {0.0, 0.0, 0.0};
+    double largest, worst;
+
+    floor_scene(&s, &m);
+    run_job(&s, &m, ROLE_TWIN, &keep, "dark", exr, sizeof exr, &r);
+    if (r.status != RUNNER_OK)
+        fail_msg("eevee: %s", r.message);
+    snprintf(timing, sizeof timing, "%.*s.timing.json", (int)(strlen(exr) - 4), exr);
+    read_text(timing, text, sizeof text);
+    assert_non_null(strstr(text, "\"passes\""));
+    assert_non_null(strstr(text, "\"use_pass_diffuse_direct\""));
+    assert_non_null(strstr(text, "\"use_pass_glossy_color\""));
+    assert_null(strstr(text, "\"use_pass_emit\""));
+    assert_null(strstr(text, "\"aov:"));
+    emission_layer(exr, none, &largest, &worst);
+    assert_true(largest == 0.0);
+    mesh_free(&m);
+
+    floor_scene(&s, &m);
+    /* Powers of two: exact in EEVEE's half-float passes. */
+    s.materials[0].d3d.emissive = v3(0.25f, 0.125f, 0.0625f);
+    run_job(&s, &m, ROLE_TWIN, &keep, "glow", exr, sizeof exr, &r);
+    if (r.status != RUNNER_OK)
+        fail_msg("eevee: %s", r.message);
+    snprintf(timing, sizeof timing, "%.*s.timing.json", (int)(strlen(exr) - 4), exr);
+    read_text(timing, text, sizeof text);
+    assert_non_null(strstr(text, "\"use_pass_emit\""));
+    assert_null(strstr(text, "\"aov:"));
+    const double glow[3] = {0.25, 0.125, 0.0625};
+    emission_layer(exr, glow, &largest, &worst);
+    printf("# eevee emitter: emission layer worst relative error %.2e\n", worst);
+    /* One half-float step (9.8e-4) of room: the colour is exact in half float. */
+    assert_true(worst < 1e-3);
+    mesh_free(&m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_twin_refusals),
         cmocka_unit_test(test_no_display_and_failure),
         cmocka_unit_test(test_sun_lambert),
+        cmocka_unit_test(test_passes_asked),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

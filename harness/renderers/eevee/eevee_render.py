@@ -18,12 +18,13 @@ It writes OUT.eevee.exr (32-bit float multilayer, ZIP) with the channels
     R G B A              Combined + Environment; A = alpha (coverage)
     diffuse.RGBA         Diffuse Light * Diffuse Colour
     specular.RGBA        Specular Light * Specular Colour when the job routes glossy there
-    reflection.RGBA      the same when routed to "reflection", plus the shader AOV "refl"
-    emission.RGBA        Emission
+    reflection.RGBA      the same when routed to "reflection"
+    emission.RGBA        Emission (zero, and no pass drawn, when no material emits)
     background.RGBA      Environment (the world seen by camera rays)
     coverage.V           Alpha
-and OUT.timing.json (build and render seconds, the settings). harness/renderers/eevee/eevee.c
-renames the channels. Any failure prints "eevee_render.py: error: ..." and exits with 1.
+and OUT.timing.json (build and render seconds, the passes asked, the settings).
+harness/renderers/eevee/eevee.c renames the channels. Any failure prints "eevee_render.py: error: ..."
+and exits with 1.
 """
 
 import json
@@ -106,27 +107,48 @@ def setup_eevee_materials():
                     n.target = 'ALL'
 
 
+def job_emits(job):
+    """Whether a material of the job emits: cycles_render.build_material adds an Emission
+    closure only for a material's "emission" key."""
+    return any(m.get("emission") is not None for m in cr.need(job, "materials", "job"))
+
+
 def setup_compositor(job, base_path):
+    """The passes and the layers. EEVEE draws every material once more per TAA sample for each
+    material pass asked (Emission, Diffuse and Specular Light and Colour, each shader AOV:
+    EEVEE_material_output_accumulate in eevee_materials.c), 0.06 CPU-s a pass per sample at
+    256 x 192 on one llvmpipe thread: a pass is asked only where a layer needs it. No material
+    writes a shader AOV (cycles_render.py builds none), so none is asked."""
     sc = bpy.context.scene
     vl = sc.view_layers[0]
+    emits = job_emits(job)
     vl.use_pass_combined = True
     vl.use_pass_z = False
     vl.use_pass_diffuse_direct = True
     vl.use_pass_diffuse_color = True
     vl.use_pass_glossy_direct = True
     vl.use_pass_glossy_color = True
-    vl.use_pass_emit = True
+    vl.use_pass_emit = emits
     vl.use_pass_environment = True
-    aov = vl.aovs.add()
-    aov.name = "refl"
-    aov.type = 'COLOR'
     nt, o, mix = cr.compositor(sc, vl)
     diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol'])
     glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol'])
     specular, reflection = cr.route_glossy(job, mix, glossy)
-    reflection = mix('ADD', o['refl'], reflection)
-    terms = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", o['Emit'])]
+    # Without an emitting material the Emission pass is 0 at every pixel; the layer is that
+    # zero as a pass times black, the way route_glossy blacks the unrouted layer (a
+    # constant-only input would have no size in the compositor). The diffuse colour is an
+    # albedo, finite, so the product is 0 exactly.
+    emission = o['Emit'] if emits else mix('MULTIPLY', o['DiffCol'], (0.0, 0.0, 0.0, 1.0))
+    terms = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", emission)]
     return cr.write_layers(nt, o, mix, base_path, terms, [])
+
+
+def asked_passes():
+    """The passes the view layer asks of EEVEE (its use_pass_* flags, then "aov:NAME" for each
+    shader AOV), for the timing file: each material pass is one more draw per TAA sample."""
+    vl = bpy.context.scene.view_layers[0]
+    flags = sorted(p.identifier for p in vl.bl_rna.properties if p.identifier.startswith("use_pass_"))
+    return [f for f in flags if getattr(vl, f)] + ["aov:" + a.name for a in vl.aovs]
 
 
 def gl_renderer():
@@ -177,6 +199,7 @@ def render_job(job_path, out_path, threads=0):
         "build_s": t_build,
         "render_s": render_s,
         "samples": job["samples"],
+        "passes": asked_passes(),
         "settings": EEVEE_SETTINGS,
     }
     with open(stem + ".timing.json", "w") as fh:
