@@ -244,21 +244,21 @@ static void read_text(const char *path, char *buf, size_t len)
     fclose(f);
 }
 
-/* The largest |emission| over every pixel, and over the covered ones the worst relative error
- * against want[c]. */
-static void emission_layer(const char *exr, const double want[3], double *largest, double *worst)
+/* Over every pixel, the largest |value| of the layer's RGB; over the covered pixels, the worst
+ * relative error against want[c] (channels where want[c] > 0). */
+static void layer_figures(const char *exr, const char *layer, const double want[3], double *largest, double *worst)
 {
     exr_image img;
-    char err[512];
+    char err[512], name[64];
     if (exr_read(exr, &img, err, sizeof err) != RC_OK)
         fail_msg("%s", err);
-    const char *names[3] = {"emission.R", "emission.G", "emission.B"};
     const float *cov = exr_image_channel(&img, "coverage");
     assert_non_null(cov);
     *largest = 0.0;
     *worst = 0.0;
     for (int c = 0; c < 3; c++) {
-        const float *e = exr_image_channel(&img, names[c]);
+        snprintf(name, sizeof name, "%s.%c", layer, "RGB"[c]);
+        const float *e = exr_image_channel(&img, name);
         assert_non_null(e);
         for (int p = 0; p < img.width * img.height; p++) {
             *largest = fmax(*largest, fabs(e[p]));
@@ -269,49 +269,76 @@ static void emission_layer(const char *exr, const double want[3], double *larges
     exr_image_free(&img);
 }
 
+/* Renders the job keeping the raw files; its timing record's text into text. */
+static void run_kept(const scene *s, const mesh *m, comparison_role role, const char *tag, char *exr, size_t len,
+                     char *text, size_t textlen)
+{
+    eevee_options keep = {.keep_raw = 1};
+    renderer_result r;
+    char timing[450];
+    run_job(s, m, role, &keep, tag, exr, len, &r);
+    if (r.status != RUNNER_OK)
+        fail_msg("eevee %s: %s", tag, r.message);
+    snprintf(timing, sizeof timing, "%.*s.timing.json", (int)(strlen(exr) - 4), exr);
+    read_text(timing, text, textlen);
+    assert_non_null(strstr(text, "\"passes\""));
+    /* No material writes a shader AOV: none is asked. */
+    assert_null(strstr(text, "\"aov:"));
+}
+
 /* 4. The passes EEVEE is asked to draw (each material pass is one more draw of every material
- *    per TAA sample): no shader AOV, which no material writes, and Emission only where a
- *    material emits. The emission layer is then 0 exactly, and an emitter's layer its colour. */
+ *    per TAA sample): none for a term no material has, whose layer is then 0 exactly; an
+ *    emitter's emission layer is its colour. */
 static void test_passes_asked(void **state)
 {
     (void)state;
     scene s;
     mesh m;
-    char exr[400], timing[400], text[4096];
-    renderer_result r;
-    eevee_options keep = {.keep_raw = 1};
+    char exr[400], text[4096];
     const double none[3] = {0.0, 0.0, 0.0};
     double largest, worst;
 
+    /* Lambert only: the diffuse passes, no specular nor emission ones. */
     floor_scene(&s, &m);
-    run_job(&s, &m, ROLE_TWIN, &keep, "dark", exr, sizeof exr, &r);
-    if (r.status != RUNNER_OK)
-        fail_msg("eevee: %s", r.message);
-    snprintf(timing, sizeof timing, "%.*s.timing.json", (int)(strlen(exr) - 4), exr);
-    read_text(timing, text, sizeof text);
-    assert_non_null(strstr(text, "\"passes\""));
+    run_kept(&s, &m, ROLE_TWIN, "lambert", exr, sizeof exr, text, sizeof text);
     assert_non_null(strstr(text, "\"use_pass_diffuse_direct\""));
-    assert_non_null(strstr(text, "\"use_pass_glossy_color\""));
+    assert_non_null(strstr(text, "\"use_pass_diffuse_color\""));
+    assert_null(strstr(text, "\"use_pass_glossy_direct\""));
+    assert_null(strstr(text, "\"use_pass_glossy_color\""));
     assert_null(strstr(text, "\"use_pass_emit\""));
-    assert_null(strstr(text, "\"aov:"));
-    emission_layer(exr, none, &largest, &worst);
+    layer_figures(exr, "specular", none, &largest, &worst);
+    assert_true(largest == 0.0);
+    layer_figures(exr, "emission", none, &largest, &worst);
     assert_true(largest == 0.0);
     mesh_free(&m);
 
+    /* Aluminium (a Cook-Torrance lobe, validate): the specular passes, no diffuse ones. */
     floor_scene(&s, &m);
-    /* Powers of two: exact in EEVEE's half-float passes. */
+    s.materials[0].model = MODEL_COOK_TORRANCE;
+    s.materials[0].ct.ks = v3s(1.0f);
+    s.materials[0].conductor = 1; /* a bare conductor: no Lambert under its lobe */
+    s.materials[0].eta = v3(1.66f, 0.88f, 0.52f);
+    s.materials[0].k = v3(9.22f, 6.27f, 4.84f);
+    s.physics.fresnel_specular = PHYS_FRESNEL_NV;
+    run_kept(&s, &m, ROLE_VALIDATE, "metal", exr, sizeof exr, text, sizeof text);
+    assert_non_null(strstr(text, "\"use_pass_glossy_direct\""));
+    assert_null(strstr(text, "\"use_pass_diffuse_direct\""));
+    assert_null(strstr(text, "\"use_pass_diffuse_color\""));
+    layer_figures(exr, "diffuse", none, &largest, &worst);
+    assert_true(largest == 0.0);
+    layer_figures(exr, "specular", none, &largest, &worst);
+    assert_true(largest > 0.0);
+    mesh_free(&m);
+
+    /* An emitter: the emission pass, its colour in powers of two (exact in half float). */
+    floor_scene(&s, &m);
     s.materials[0].d3d.emissive = v3(0.25f, 0.125f, 0.0625f);
-    run_job(&s, &m, ROLE_TWIN, &keep, "glow", exr, sizeof exr, &r);
-    if (r.status != RUNNER_OK)
-        fail_msg("eevee: %s", r.message);
-    snprintf(timing, sizeof timing, "%.*s.timing.json", (int)(strlen(exr) - 4), exr);
-    read_text(timing, text, sizeof text);
+    run_kept(&s, &m, ROLE_TWIN, "glow", exr, sizeof exr, text, sizeof text);
     assert_non_null(strstr(text, "\"use_pass_emit\""));
-    assert_null(strstr(text, "\"aov:"));
     const double glow[3] = {0.25, 0.125, 0.0625};
-    emission_layer(exr, glow, &largest, &worst);
+    layer_figures(exr, "emission", glow, &largest, &worst);
     printf("# eevee emitter: emission layer worst relative error %.2e\n", worst);
-    /* One half-float step (9.8e-4) of room: the colour is exact in half float. */
+    /* One half-float step (9.8e-4) of room: the colour is exact in EEVEE's passes. */
     assert_true(worst < 1e-3);
     mesh_free(&m);
 }

@@ -19,9 +19,10 @@ It writes OUT.eevee.exr (32-bit float multilayer, ZIP) with the channels
     diffuse.RGBA         Diffuse Light * Diffuse Colour
     specular.RGBA        Specular Light * Specular Colour when the job routes glossy there
     reflection.RGBA      the same when routed to "reflection"
-    emission.RGBA        Emission (zero, and no pass drawn, when no material emits)
+    emission.RGBA        Emission
     background.RGBA      Environment (the world seen by camera rays)
     coverage.V           Alpha
+(a term's layer that no material can light is 0, and its passes are not drawn: job_terms),
 and OUT.timing.json (build and render seconds, the passes asked, the settings).
 harness/renderers/eevee/eevee.c renames the channels. Any failure prints "eevee_render.py: error: ..."
 and exits with 1.
@@ -107,10 +108,24 @@ def setup_eevee_materials():
                     n.target = 'ALL'
 
 
-def job_emits(job):
-    """Whether a material of the job emits: cycles_render.build_material adds an Emission
-    closure only for a material's "emission" key."""
-    return any(m.get("emission") is not None for m in cr.need(job, "materials", "job"))
+# The closure keys of a job's material (cycles_render.build_material) and the passes EEVEE fills
+# from them: a Diffuse BSDF the diffuse light and colour, a Glossy BSDF (a lobe or a mirror) the
+# specular ones, an Emission the emission. Glass and a blend (a Transparent BSDF mixed in) are
+# not sorted out: a job with one asks every pass, as does a material with no closure (drawn as
+# a black Diffuse BSDF).
+CLOSURE_PASSES = {"diffuse": "diffuse", "glossy": "glossy", "mirror": "glossy", "emission": "emission"}
+UNSORTED_CLOSURES = ("glass", "blend")
+
+
+def job_terms(job):
+    """The terms ("diffuse", "glossy", "emission") some material of the job can put light in."""
+    terms = set()
+    for m in cr.need(job, "materials", "job"):
+        keys = [k for k in m if m[k] is not None]
+        if any(k in UNSORTED_CLOSURES for k in keys) or not any(k in CLOSURE_PASSES for k in keys):
+            return {"diffuse", "glossy", "emission"}
+        terms.update(CLOSURE_PASSES[k] for k in keys if k in CLOSURE_PASSES)
+    return terms
 
 
 def setup_compositor(job, base_path):
@@ -118,29 +133,28 @@ def setup_compositor(job, base_path):
     material pass asked (Emission, Diffuse and Specular Light and Colour, each shader AOV:
     EEVEE_material_output_accumulate in eevee_materials.c), 0.06 CPU-s a pass per sample at
     256 x 192 on one llvmpipe thread: a pass is asked only where a layer needs it. No material
-    writes a shader AOV (cycles_render.py builds none), so none is asked."""
+    writes a shader AOV (cycles_render.py builds none), so none is asked; a term no material
+    has is 0 at every pixel in its passes, and its layer is written as that 0."""
     sc = bpy.context.scene
     vl = sc.view_layers[0]
-    emits = job_emits(job)
+    terms = job_terms(job)
     vl.use_pass_combined = True
     vl.use_pass_z = False
-    vl.use_pass_diffuse_direct = True
-    vl.use_pass_diffuse_color = True
-    vl.use_pass_glossy_direct = True
-    vl.use_pass_glossy_color = True
-    vl.use_pass_emit = emits
+    vl.use_pass_diffuse_direct = vl.use_pass_diffuse_color = "diffuse" in terms
+    vl.use_pass_glossy_direct = vl.use_pass_glossy_color = "glossy" in terms
+    vl.use_pass_emit = "emission" in terms
     vl.use_pass_environment = True
     nt, o, mix = cr.compositor(sc, vl)
-    diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol'])
-    glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol'])
+    # A zero layer is a pass times black, the way route_glossy blacks the unrouted layer (a
+    # constant-only input has no size in the compositor); Alpha, in [0, 1], makes it 0 exactly
+    # where a light pass could hold a half-float overflow (inf times 0 is NaN).
+    zero = mix('MULTIPLY', o['Alpha'], (0.0, 0.0, 0.0, 1.0))
+    diffuse = mix('MULTIPLY', o['DiffDir'], o['DiffCol']) if "diffuse" in terms else zero
+    glossy = mix('MULTIPLY', o['GlossDir'], o['GlossCol']) if "glossy" in terms else zero
     specular, reflection = cr.route_glossy(job, mix, glossy)
-    # Without an emitting material the Emission pass is 0 at every pixel; the layer is that
-    # zero as a pass times black, the way route_glossy blacks the unrouted layer (a
-    # constant-only input would have no size in the compositor). The diffuse colour is an
-    # albedo, finite, so the product is 0 exactly.
-    emission = o['Emit'] if emits else mix('MULTIPLY', o['DiffCol'], (0.0, 0.0, 0.0, 1.0))
-    terms = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", emission)]
-    return cr.write_layers(nt, o, mix, base_path, terms, [])
+    emission = o['Emit'] if "emission" in terms else zero
+    layers = [("diffuse", diffuse), ("specular", specular), ("reflection", reflection), ("emission", emission)]
+    return cr.write_layers(nt, o, mix, base_path, layers, [])
 
 
 def asked_passes():
