@@ -13,6 +13,7 @@ import random
 import shutil
 import subprocess
 import sys
+import threading
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -22,6 +23,7 @@ sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 spec = importlib.util.spec_from_file_location('reflcheck_sweep', os.path.join(ROOT, 'tools', 'sweep.py'))
 sweep = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(sweep)
+sweep_schedule = importlib.import_module('sweep.schedule')
 REPORT = os.path.join(ROOT, 'tools', 'report.py')
 L2 = math.log(2.0)
 
@@ -627,68 +629,142 @@ def test_stage_decision_reference_noise_on_decision_figures_only():
     assert d['deep'] == [] and any('40 % predicted at 4096 spp' in w for w in d['not_deep'])
 
 
-def test_deeper_stages_go_one_level_at_a_time(monkeypatch):
-    """main.deeper_stages with the analysis and the renders stood in for: scene a has a
-    crossover within reach at 256 spp and none at 1024 (two stages), scene b a slope 2 sigma off
-    at every level (to the top of the ladder, then reported open), scene c nothing (stage one)."""
+def _fake_stage_analysis(sp, top):
+    """A scene's analysis at reference `top` for the pipeline tests: scene a has a crossover
+    within reach at 256 spp and none at 1024 (two stages), scene b a slope 2 sigma off at every
+    level (to the top of the ladder, then reported open), any other scene nothing (stage one)."""
+    if sp == 'a':
+        # 16, 64 against 256; then 16, 64, 256 against 1024: the crossover at 640 spp is above
+        # the points both times, within the ladder's reach (1024) both times.
+        errors = (0.16, 0.04) if top == 256 else (0.16, 0.04, 0.01)
+        t = _staged(cycles_errors=errors, as_is=0.004, noise_ref=0.0001)
+        above = top < 4096
+        t['crossover'] = {'spp': 640.0, 'extrapolated': 'above' if above else None, 'raster_error': 0.004}
+        return t
+    if sp == 'b':
+        return _staged(cycles_errors=(0.2, 0.1, 0.08))
+    return _staged()
+
+
+def _pipeline(monkeypatch, scenes, roles, levels='staged', jobs=1, renderers=('cycles', 'raster', 'povray', 'eevee')):
+    """main.Pipeline over `scenes` (the jobs of `renderers`) with the renders and the analysis
+    stood in for: returns the pipeline, the state, the records and the log of (event, scene,
+    tag) in the order run."""
     main_mod = sys.modules['sweep.main']
-    rendered = []
+    log, lock = [], threading.Lock()
 
-    def fake_analyse(runner, args, scenes, plans, recs, nested, ref_seeds):
-        out = {}
-        for sp in scenes:
-            top = plans[sp][2]
-            if sp == 'a':
-                # 16, 64 against 256; then 16, 64, 256 against 1024: the crossover at 640 spp
-                # is above the points both times, within the ladder's reach (1024) both times.
-                errors = (0.16, 0.04) if top == 256 else (0.16, 0.04, 0.01)
-                t = _staged(cycles_errors=errors, as_is=0.004, noise_ref=0.0001)
-                above = top < 4096
-                t['crossover'] = {'spp': 640.0, 'extrapolated': 'above' if above else None, 'raster_error': 0.004}
-            elif sp == 'b':
-                t = _staged(cycles_errors=(0.2, 0.1, 0.08))
-            else:
-                t = _staged()
-            out[sp] = t
-        return out
+    def fake_run(runner, sp, job):
+        with lock:
+            log.append(('run', sp, job['tag']))
+        return {'status': 'ok', 'tag': job['tag']}
 
-    def fake_run(runner, n, work, recs, label):
-        for sp, _name, j in work:
-            rendered.append((sp, j['tag']))
-            recs[(sp, j['key'])] = {'status': 'ok'}
+    def fake_scene(runner, args, name, jobs_, r, ref_spp, nested, ref_seed=0):
+        with lock:
+            log.append(('analyse', name, f'cycles-spp{ref_spp}'))
+        assert all(r[j['key']]['status'] == 'ok' for j in jobs_)  # every job of the stage landed
+        return _fake_stage_analysis(name, ref_spp)
 
-    monkeypatch.setattr(main_mod, 'analyse_all', fake_analyse)
-    monkeypatch.setattr(main_mod, 'run_work', fake_run)
-    jobs, ref = sweep.plan(quick=False, seed_opt=True)
-    plans, full, recs = {}, {}, {}
-    for sp in 'abc':
-        full[sp] = (jobs, ref)
-        one, top = sweep.stage_one(jobs, ref)
-        plans[sp] = (sp, one, top)
-        recs[(sp, 'reference')] = {'status': 'ok', 'tag': 'cycles-spp256'}
-    state = {'deeper': {}, 'undecided': {}, 'stage': dict.fromkeys('abc', 1), 'seeds': {}}
+    monkeypatch.setattr(main_mod, 'run_one', fake_run)
+    monkeypatch.setattr(main_mod, 'sweep_scene', fake_scene)
+    monkeypatch.setattr(main_mod, 'scene_name', lambda sp: sp)
+    jobs_all, ref = sweep.plan(quick=False, seed_opt=True)
+    jobs_all = [j for j in jobs_all if j['renderer'] in renderers]
+    plans, full = {}, {}
+    for sp in scenes:
+        full[sp] = (jobs_all, ref)
+        plans[sp] = (sp, jobs_all, ref) if levels == 'all' else (sp, *sweep.stage_one(jobs_all, ref))
+    state = {'deeper': {}, 'undecided': {}, 'stage': dict.fromkeys(scenes, 1), 'seeds': {}}
+    recs = {}
 
     class _R:
         seed_opt = True
 
     class _A:
-        jobs = 1
+        scheduler = 'local'
 
-    main_mod.deeper_stages(_R(), _A(), list('abc'), plans, full, recs, False, state)
+    _A.jobs, _A.levels = jobs, levels
+    pipe = main_mod.Pipeline(_R(), _A(), plans, full, recs, state, False)
+    final = pipe.run(list(scenes), roles)
+    return pipe, final, state, recs, log
+
+
+def test_deeper_stages_go_one_level_at_a_time(monkeypatch):
+    """main.Pipeline: a goes to 4096 spp by the crossover (two stages), b by the slope (to the
+    top of the ladder, then reported open), c stays at stage one; each deeper reference is
+    rendered after its scene's analysis and each analysis after every job of its stage."""
+    roles = dict.fromkeys('abc', 'twin')
+    pipe, final, state, recs, log = _pipeline(monkeypatch, 'abc', roles)
     assert state['stage'] == {'a': 3, 'b': 3, 'c': 1}
     assert state['seeds'] == {'a': 6, 'b': 6}
-    assert sorted(rendered) == [
+    assert sorted((sp, j['tag']) for sp, _n, j in pipe.added) == [
         ('a', 'cycles-spp1024-s4'),
         ('a', 'cycles-spp4096-s6'),
         ('b', 'cycles-spp1024-s4'),
         ('b', 'cycles-spp4096-s6'),
     ]
+    for sp in 'ab':
+        i1024, i4096 = log.index(('run', sp, 'cycles-spp1024-s4')), log.index(('run', sp, 'cycles-spp4096-s6'))
+        assert log.index(('analyse', sp, 'cycles-spp256')) < i1024 < log.index(('analyse', sp, 'cycles-spp1024'))
+        assert log.index(('analyse', sp, 'cycles-spp1024')) < i4096 < log.index(('analyse', sp, 'cycles-spp4096'))
+    # One analysis a stage, the last one the scene's figures (no second analysis at the end).
+    assert [e for e in log if e[0] == 'analyse' and e[1] == 'c'] == [('analyse', 'c', 'cycles-spp256')]
+    assert final['a']['crossover']['extrapolated'] is None and set(final) == set('abc')
     # Stage one's reference is a's 256 point now, the same record.
     assert recs[('a', 'cycles256')] == {'status': 'ok', 'tag': 'cycles-spp256'}
     assert [w.split(':')[0] for w in state['deeper']['a']] == ['at 256 spp', 'at 1024 spp']
     assert all('within the 1024-spp level' in w for w in state['deeper']['a'])
     assert any('no level above 4096 spp' in w for w in state['undecided']['b'])
     assert 'c' not in state['deeper'] and state['undecided']['c'] == []
+
+
+def test_pipeline_queues_a_deeper_stage_before_other_scenes_stage_one(monkeypatch):
+    """With one slot, twin a's 1024-spp reference runs right after a's stage-one analysis,
+    before validate scene c's stage one (scene_order puts twins first), and every job of c
+    still runs; --levels all analyses each scene once and goes no deeper. Without POV-Ray,
+    whose jobs take slots of their own and would race the one slot."""
+    roles = {'c': 'validate', 'a': 'twin'}
+    no_pov = ('cycles', 'raster', 'eevee')
+    pipe, final, state, recs, log = _pipeline(monkeypatch, ['c', 'a'], roles, renderers=no_pov)
+    runs = [e for e in log if e[0] == 'run']
+    assert runs.index(('run', 'a', 'cycles-spp1024-s4')) < min(i for i, e in enumerate(runs) if e[1] == 'c')
+    n_c = sum(1 for e in runs if e[1] == 'c')
+    assert n_c == sum(1 for j in sweep.stage_one(*sweep.plan(quick=False, seed_opt=True))[0] if j['renderer'] in no_pov)
+    pipe, final, state, recs, log = _pipeline(monkeypatch, ['c', 'a'], roles, levels='all', jobs=2)
+    assert pipe.added == [] and state['stage'] == {'c': 1, 'a': 1}
+    assert sorted(e for e in log if e[0] == 'analyse') == [
+        ('analyse', 'a', 'cycles-spp4096'),
+        ('analyse', 'c', 'cycles-spp4096'),
+    ]
+
+
+def test_task_queue_order_and_follow_ups():
+    """schedule.TaskQueue: one slot takes the lowest priority first (then the first put); a
+    task's follow-up counts as work (wait_idle only after it); a task's exception reaches
+    close(); POV-Ray jobs take the 'wait' slots (local scheduler only)."""
+    q = sweep_schedule.TaskQueue({'cpu': 1})
+    order, gate = [], threading.Event()
+    q.put('cpu', (0,), gate.wait)  # holds the slot while the rest is queued
+    q.put('cpu', (2, 1), lambda: order.append('late'))
+    q.put('cpu', (2, 0), lambda: order.append('early'))
+    q.put('cpu', (1,), lambda: (order.append('first'), q.put('cpu', (0,), lambda: order.append('follow-up'))))
+    gate.set()
+    assert q.wait_idle(30.0)
+    q.close()
+    assert order == ['first', 'follow-up', 'early', 'late']
+    q = sweep_schedule.TaskQueue({'cpu': 2})
+    q.put('cpu', (0,), lambda: 1 / 0)
+    assert q.wait_idle(30.0)
+    with pytest.raises(ZeroDivisionError):
+        q.close()
+    main_mod = sys.modules['sweep.main']
+
+    class _A:
+        scheduler = 'local'
+
+    assert main_mod.job_slot({'renderer': 'povray'}, _A()) == 'wait'
+    assert main_mod.job_slot({'renderer': 'cycles'}, _A()) == 'cpu'
+    _A.scheduler = 'slurm'
+    assert main_mod.job_slot({'renderer': 'povray'}, _A()) == 'cpu'
 
 
 def _timing(tmp_path, run, errors, as_is):

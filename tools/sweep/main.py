@@ -2,17 +2,18 @@
 or Slurm), stage two where stage one leaves a question, and the files written."""
 
 import argparse
-import concurrent.futures as cf
 import contextlib
 import os
 import subprocess
 import sys
+import threading
 import time
 
 from .analysis import analyse, make_zero, one_line, scene_diffs
 from .common import ROOT, clean_nan, write_json
 from .plan import expected_cost, ladder, plan, stage_decision, stage_next, stage_one, stage_seed
 from .runner import Runner
+from .schedule import TaskQueue
 from .scenes import SceneError, names_renderer, renderer_table, scene_name, sweep_role, use_bin
 
 sys.path.insert(0, os.path.join(ROOT, 'harness', 'renderers', 'cycles'))
@@ -22,52 +23,125 @@ sys.path.insert(0, os.path.join(ROOT, 'tools'))
 from progress import Progress  # noqa: E402  (needs the path above)
 
 
-def collect(futs, recs, progress, cost):
-    """Gathers the jobs' records as they finish, showing progress at least every 10 s and
-    naming a failed job when it fails (tools/progress.py)."""
-    pending = set(futs)
-    while pending:
-        finished, pending = cf.wait(pending, timeout=progress.every, return_when=cf.FIRST_COMPLETED)
-        progress.tick()
-        for f in finished:
-            sp, key = futs[f]
-            try:
-                rec = f.result()
-            except (OSError, subprocess.TimeoutExpired) as e:
-                rec = {'status': 'error', 'message': str(e)}
-            recs[(sp, key)] = rec
-            bad = rec.get('status') not in ('ok', 'skipped')
-            why = str(rec.get('message') or '').splitlines()[:1]
-            failed = f'{scene_name(sp)}/{key}: {rec.get("status")}: {"".join(why)}' if bad else None
-            progress.done(cost[(sp, key)], failed)
-    progress.close()
+def scene_order(scenes, roles):
+    """Scenes in the order their stage-one jobs are queued: twins first, so that the scenes
+    likely to go deeper (a twin's Cycles error is sampling alone: in the nightly of 2026-11-27
+    all 13 twins went to 1024 or 4096 spp, 3 of the 13 validate scenes did) finish stage one
+    early and their deeper references overlap the other scenes' stage one instead of trailing
+    it. Only the order: every scene gets the same jobs."""
+    return sorted(scenes, key=lambda sp: (roles.get(sp) != 'twin', scenes.index(sp)))
 
 
-def run_work(runner, n, work, recs, label):
-    """Renders the (scene path, name, job) list, n at a time, longest first (LPT), into recs."""
-    work = sorted(work, key=lambda w: -expected_cost(w[2]))
-    if not work:
-        return
-    with cf.ThreadPoolExecutor(max_workers=n) as ex:
-        futs = {
-            ex.submit(runner.run, sp, name, j['renderer'], j['tag'], j['opts'], j.get('repeats', 1)): (sp, j['key'])
-            for sp, name, j in work
-        }
-        cost = {(sp, j['key']): expected_cost(j) for sp, name, j in work}
-        collect(futs, recs, Progress(label, len(work), sum(cost.values())), cost)
+def job_slot(job, args):
+    """The kind of slot a job takes (schedule.TaskQueue): POV-Ray waits, it does not compute."""
+    return 'wait' if job['renderer'] == 'povray' and args.scheduler == 'local' else 'cpu'
 
 
-def analyse_all(runner, args, scenes, plans, recs, nested, ref_seeds):
-    """sweep_scene for every scene, --jobs at a time (the diffs are processes of their own, so
-    threads overlap them): scene path -> timing dict or the reason there is none."""
+def run_one(runner, sp, job):
+    """One job's record; a job that could not start or timed out is an error record."""
+    try:
+        return runner.run(sp, scene_name(sp), job['renderer'], job['tag'], job['opts'], job.get('repeats', 1))
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return {'status': 'error', 'message': str(e)}
 
-    def one(sp):
-        name, jobs, ref_spp = plans[sp]
-        r = {j['key']: recs[(sp, j['key'])] for j in jobs}
-        return sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seeds.get(sp, 0))
 
-    with cf.ThreadPoolExecutor(max_workers=args.jobs) as ex:
-        return dict(zip(scenes, ex.map(one, scenes)))
+class Pipeline:
+    """Every scene's stages in one queue: a scene is analysed the moment its last job lands,
+    and a deeper stage's reference is queued at once (first in line), so no slot waits for
+    other scenes' stages. Priorities: analyses, then deeper references (longest first), then
+    stage-one jobs scene by scene (scene_order), longest first within a scene."""
+
+    def __init__(self, runner, args, plans, full, recs, state, nested):
+        self.runner, self.args, self.plans, self.full = runner, args, plans, full
+        self.recs, self.state, self.nested = recs, state, nested
+        self.lock = threading.Lock()
+        self.left = {}  # scene path -> jobs not yet landed
+        self.final = {}  # scene path -> its last analysis (timing dict or why there is none)
+        self.added = []  # the deeper stages' jobs
+        self.rank = {}
+        self.queue = self.progress = None
+
+    def run(self, scenes, roles):
+        work = [(sp, j) for sp in scene_order(scenes, roles) for j in self.plans[sp][1]]
+        self.rank = {sp: i for i, sp in enumerate(scene_order(scenes, roles))}
+        self.progress = Progress('sweep', len(work), sum(expected_cost(j) for _, j in work))
+        slots = {'cpu': self.args.jobs, 'wait': self.args.jobs if self.args.scheduler == 'local' else 0}
+        self.queue = TaskQueue(slots)
+        for sp in scenes:
+            self.left[sp] = len(self.plans[sp][1])
+        try:
+            for sp, j in work:
+                self.put_job(sp, j, (2, self.rank[sp], -expected_cost(j)))
+            while not self.queue.wait_idle(self.progress.every):
+                with self.lock:
+                    self.progress.tick()
+        finally:
+            self.queue.close()
+        self.progress.close()
+        return self.final
+
+    def put_job(self, sp, job, priority):
+        self.queue.put(job_slot(job, self.args), priority, lambda: self.land(sp, job, run_one(self.runner, sp, job)))
+
+    def land(self, sp, job, rec):
+        bad = rec.get('status') not in ('ok', 'skipped')
+        why = ''.join(str(rec.get('message') or '').splitlines()[:1])
+        with self.lock:
+            self.recs[(sp, job['key'])] = rec
+            failed = f'{scene_name(sp)}/{job["key"]}: {rec.get("status")}: {why}' if bad else None
+            self.progress.done(expected_cost(job), failed)
+            self.left[sp] -= 1
+            last = self.left[sp] == 0
+        if last:
+            self.queue.put('cpu', (0, self.rank[sp]), lambda: self.analyse(sp))
+
+    def analyse(self, sp):
+        name, jobs, top = self.plans[sp]
+        with self.lock:
+            r = {j['key']: self.recs[(sp, j['key'])] for j in jobs}
+        t = sweep_scene(self.runner, self.args, name, jobs, r, top, self.nested, self.state['seeds'].get(sp, 0))
+        ref = None
+        if self.args.levels == 'staged':
+            ref = next_stage(self.runner, sp, self.plans, self.full, self.recs, self.state, t, self.lock)
+        if ref is None:
+            # This analysis is the scene's last: its plan and records stay as they are.
+            self.final[sp] = t
+            return
+        with self.lock:
+            self.added.append((sp, name, ref))
+            self.left[sp] = 1
+            self.progress.total += 1
+            self.progress.total_weight += expected_cost(ref)
+        self.put_job(sp, ref, (1, -expected_cost(ref), self.rank[sp]))
+
+
+def next_stage(runner, sp, plans, full, recs, state, t, lock):
+    """The stage after a scene's analysis t (plan.stage_decision): its next reference job, or
+    None where this stage decides (or the ladder ends). Keeps the reasons (state['deeper'],
+    prefixed with the level they were found at), what is left open (state['undecided']), the
+    stage and the reference's first seed, and renames the reference's record to the point it
+    becomes."""
+    name, jobs, top = plans[sp]
+    steps = ladder(*full[sp])
+    # The highest level a deeper stage can make a point: the ladder's last but one.
+    reach = steps[-2] if len(steps) > 1 else top
+    decision = stage_decision(t, top, reach, steps[-1]) if isinstance(t, dict) else {}
+    why = decision.get('deep') or []
+    with lock:
+        state['undecided'][sp] = decision.get('not_deep', [])
+        if why and top >= steps[-1]:
+            state['undecided'][sp] += [f'{w} (no level above {top} spp)' for w in why]
+            return None
+        if not why:
+            return None
+        state['deeper'].setdefault(sp, []).extend(f'at {top} spp: {w}' for w in why)
+        state['stage'][sp] += 1
+        recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
+        jobs2, new_top = stage_next(jobs, top, steps, runner.seed_opt, state['stage'][sp])
+        if runner.seed_opt:
+            state['seeds'][sp] = stage_seed(state['stage'][sp])
+        plans[sp] = (name, jobs2, new_top)
+    return next(j for j in jobs2 if j['key'] == 'reference')
 
 
 def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
@@ -195,49 +269,6 @@ def stage_line(sw, levels):
     return f"stage {sw['stage']}" + (f' (deeper because {why})' if why else '') + f': {left}'
 
 
-def deeper_stages(runner, args, scenes, plans, full, recs, nested, state):
-    """Stage two, three, ...: while stage_decision finds, on a scene, a figure the next level can
-    change, its reference becomes a point and the next level of its ladder the reference. Every
-    scene's reasons (state['deeper'], prefixed with the level they were found at) and what is
-    left open (state['undecided']) are kept for its timing JSON. Returns the jobs added."""
-    added, pending = [], list(scenes)
-    while pending:
-        decided = analyse_all(runner, args, pending, plans, recs, nested, state['seeds'])
-        more, nxt = [], []
-        for sp in pending:
-            name, jobs, top = plans[sp]
-            steps = ladder(*full[sp])
-            # The highest level a deeper stage can make a point: the ladder's last but one.
-            reach = steps[-2] if len(steps) > 1 else top
-            decision = stage_decision(decided[sp], top, reach, steps[-1]) if isinstance(decided[sp], dict) else {}
-            why = decision.get('deep') or []
-            state['undecided'][sp] = decision.get('not_deep', [])
-            if why and top >= steps[-1]:
-                state['undecided'][sp] += [f'{w} (no level above {top} spp)' for w in why]
-                continue
-            if not why:
-                continue
-            state['deeper'].setdefault(sp, []).extend(f'at {top} spp: {w}' for w in why)
-            state['stage'][sp] += 1
-            recs[(sp, f'cycles{top}')] = recs.pop((sp, 'reference'))
-            jobs2, new_top = stage_next(jobs, top, steps, runner.seed_opt, state['stage'][sp])
-            if runner.seed_opt:
-                state['seeds'][sp] = stage_seed(state['stage'][sp])
-            plans[sp] = (name, jobs2, new_top)
-            more += [(sp, name, j) for j in jobs2 if j['key'] == 'reference']
-            nxt.append(sp)
-        run_work(
-            runner,
-            args.jobs,
-            more,
-            recs,
-            f'sweep, references {", ".join(sorted({str(plans[sp][2]) for sp in nxt}))} spp',
-        )
-        added += more
-        pending = nxt
-    return added
-
-
 def main(argv=None):
     args = parser().parse_args(argv)
     bad = usage_error(args)
@@ -285,26 +316,31 @@ def main(argv=None):
         jobs = [j for j in jobs if j['renderer'] != 'eevee' or names_renderer(sp, 'eevee')]
         full[sp] = (jobs, ref_spp)
         plans[sp] = (name, jobs, ref_spp) if args.levels == 'all' else (name, *stage_one(jobs, ref_spp))
-    work = [(sp, name, j) for sp, (name, jobs, _) in plans.items() for j in jobs]
+    n_stage_one = sum(len(jobs) for _, jobs, _ in plans.values())
     recs = {}
     state = {'deeper': {}, 'undecided': {}, 'stage': {sp: 1 for sp in scenes}, 'seeds': {}}
     deeper, undecided = state['deeper'], state['undecided']
     # One Blender per parallel job renders every Cycles job in turn (worker_pool.py): Blender's
     # start-up is paid once per worker, not once per job, and job times no longer include it.
-    use_pool = not args.no_worker and 'cycles' in table and any(w[2]['renderer'] == 'cycles' for w in work)
+    use_pool = (
+        not args.no_worker
+        and 'cycles' in table
+        and any(j['renderer'] == 'cycles' for _, jobs, _ in plans.values() for j in jobs)
+    )
     pool = WorkerPool(args.jobs, log_dir=args.run) if use_pool else contextlib.nullcontext()
+    pipe = Pipeline(runner, args, plans, full, recs, state, nested)
     with pool:
         if use_pool:
             runner.env = dict(os.environ, **pool.env())
-        run_work(runner, args.jobs, work, recs, 'sweep')
-        if args.levels == 'staged':
-            work += deeper_stages(runner, args, scenes, plans, full, recs, nested, state)
+        final = pipe.run(scenes, roles)
     t_render = time.monotonic() - t_start
 
     summary = {
         'scenes': {},
+        # Renders and analyses overlap now (a scene is analysed as its jobs land): the time
+        # until the last of them.
         'render_wall_s': t_render,
-        'jobs': len(work),
+        'jobs': n_stage_one + len(pipe.added),
         'cached': sum(1 for r in recs.values() if r.get('cached')),
         'job_time_sum_s': sum(r.get('sweep_elapsed_s') or 0 for r in recs.values()),
         'threads_per_job': args.threads,
@@ -318,7 +354,6 @@ def main(argv=None):
         'deep_reference': {scene_name(sp): why for sp, why in deeper.items()},
         'not_deep': {scene_name(sp): why for sp, why in undecided.items() if why and sp not in deeper},
     }
-    final = analyse_all(runner, args, scenes, plans, recs, nested, state['seeds'])
     rc = write_scenes(args, scenes, plans, recs, state, final, summary)
     summary['wall_s'] = time.monotonic() - t_start
     write_json(os.path.join(args.run, 'sweep.json'), clean_nan(summary))
