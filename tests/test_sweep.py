@@ -878,3 +878,25 @@ def test_missing_run_folder_is_one_line(tmp_path):
     )
     assert p.returncode == 2 and p.stderr.count('\n') == 1, p.stderr
     assert f'--run {missing}: no such folder' in p.stderr and not missing.exists()
+
+
+def test_zero_image_made_once_a_scene(monkeypatch):
+    """sweep_scene makes a scene's zero image (oiiotool) at its first analysis only: each later
+    stage's analysis takes the same image (its size is the as-is render's, which no stage
+    changes); another scene gets its own."""
+    main_mod = sys.modules['sweep.main']
+    made, used = [], []
+    monkeypatch.setattr(main_mod, 'make_zero', lambda like, path: made.append(path) or path)
+    monkeypatch.setattr(main_mod, 'scene_diffs', lambda runner, jobs, r, zero: used.append(zero) or ({}, {}, []))
+    monkeypatch.setattr(main_mod, 'analyse', lambda *a: {})
+
+    class _A:
+        clock = 'wall'
+
+    runner = sweep.Runner.__new__(sweep.Runner)
+    runner.renders, runner.roles, runner.zeros = '/r', {}, {}
+    r = {'reference': {'status': 'ok'}, 'as_is': {'status': 'ok', 'exr': '/r/s/as_is.exr'}}
+    for name in ('s', 's', 's', 't'):
+        main_mod.sweep_scene(runner, _A(), name, [], r, 256, False)
+    assert made == ['/r/s/zero.exr', '/r/t/zero.exr']
+    assert used == ['/r/s/zero.exr'] * 3 + ['/r/t/zero.exr']

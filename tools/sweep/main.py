@@ -150,7 +150,10 @@ def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
     if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
         bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
         return f'the {bad} render failed: {r[bad].get("message")}; see its log under {runner.renders}/{name}'
-    zero = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
+    # The zero image has the as-is render's size, which no stage changes: made once a scene.
+    zero = runner.zeros.get(name)
+    if zero is None:
+        zero = runner.zeros[name] = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
     diffs, noises, left = scene_diffs(runner, jobs, r, zero)
     rec0 = r['as_is']
     return analyse(

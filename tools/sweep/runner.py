@@ -29,6 +29,7 @@ class Runner:
         self.renders = os.path.join(args.run, 'timing', 'renders')
         self.seed_opt = self.cli_has_seed()
         self.roles = {}  # scene name -> 'validate' or 'twin' (sweep_role)
+        self.zeros = {}  # scene name -> its all-zero image (analysis.make_zero), made once a run
 
     def cli_has_seed(self):
         """`reflcheck run --seed N` (first Cycles seed): lets sweep points avoid the reference's
