@@ -21,6 +21,10 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   with `run --seed`). --levels all: every level and the REF-spp reference everywhere. Each
   scene's timing JSON (sweep.stage, deep_reference_why, not_deep), sweep.json and a line in the
   output say why it went deeper or what it left open.
+  Order (tools/sweep/schedule.py, main.Pipeline): one queue for every stage; a scene is
+  analysed the moment its last job lands and its next reference goes first in line, so deeper
+  stages overlap other scenes' stage one (twins queued first); POV-Ray jobs, which wait on
+  POV-Ray's own timers rather than compute, take --jobs slots of their own beside the CPU slots.
   Second runs: a raster job's repeats (CACHE/repeats/<key>.json) and the diffs of cached renders
   (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),

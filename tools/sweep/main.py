@@ -1,5 +1,6 @@
 """main.py - the command line: scenes chosen, jobs planned and run (a Blender worker pool, local
-or Slurm), stage two where stage one leaves a question, and the files written."""
+or Slurm) in one queue where a scene goes a stage deeper as soon as its analysis asks for it
+(Pipeline), and the files written."""
 
 import argparse
 import contextlib
@@ -183,7 +184,12 @@ def parser():
     ap.add_argument('--scenes', nargs='*', help='scene files (default: every scene listing cycles validate)')
     ap.add_argument('--quick', action='store_true', help='fewer levels, reference at 1024 spp')
     ap.add_argument('--full-size', action='store_true', help="the scenes' full size instead of the small variant")
-    ap.add_argument('--jobs', type=int, default=2, help='jobs at a time (default 2)')
+    ap.add_argument(
+        '--jobs',
+        type=int,
+        default=2,
+        help='CPU jobs at a time (default 2; POV-Ray jobs, which wait, take as many slots again)',
+    )
     ap.add_argument('--threads', type=int, default=1, help='threads per job (default 1, for comparable times)')
     ap.add_argument('--bin', default=os.path.join('build', 'reflcheck'))
     ap.add_argument(
