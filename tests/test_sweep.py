@@ -751,6 +751,21 @@ def test_task_queue_order_and_follow_ups():
     assert q.wait_idle(30.0)
     q.close()
     assert order == ['first', 'follow-up', 'early', 'late']
+    # Closed while a task runs (an interrupt): what is still queued is dropped, not run.
+    q = sweep_schedule.TaskQueue({'cpu': 1})
+    started, gate, ran = threading.Event(), threading.Event(), []
+    q.put('cpu', (0,), lambda: (started.set(), gate.wait()))
+    q.put('cpu', (1,), lambda: ran.append('queued'))
+    assert started.wait(30.0)
+
+    def open_gate_once_closed():
+        with q.cond:
+            q.cond.wait_for(lambda: q.closed)
+        gate.set()
+
+    threading.Thread(target=open_gate_once_closed).start()
+    q.close()
+    assert ran == [] and q.wait_idle(0.0)
     q = sweep_schedule.TaskQueue({'cpu': 2})
     q.put('cpu', (0,), lambda: 1 / 0)
     assert q.wait_idle(30.0)

@@ -5,7 +5,8 @@ Usage:
   q = TaskQueue({'cpu': 2, 'wait': 2})      # kind -> slots (threads) serving that kind
   q.put('cpu', (2, 0, -7.1), fn)            # lowest priority tuple first, then first put
   while not q.wait_idle(10.0): tick()        # True once nothing is queued or running
-  q.close()                                  # stops the slots; re-raises a task's exception
+  q.close()                                  # stops the slots (drops what is queued); re-raises
+                                             # a task's exception
 
 Why two kinds: a POV-Ray job spends about 1 s waiting on POV-Ray's own timers (its front end
 sleeps between polls; `strace -c`: 1.8 s of clock_nanosleep, 0.03 CPU-s) and none computing, so
@@ -67,8 +68,13 @@ class TaskQueue:
             return self.cond.wait_for(lambda: not self.queued and not self.busy, timeout)
 
     def close(self):
+        """Stops the slots once their running tasks end; tasks still queued are dropped (after
+        wait_idle there are none; on an interrupt the sweep must not go on rendering)."""
         with self.cond:
             self.closed = True
+            for heap in self.heaps.values():
+                self.queued -= len(heap)
+                heap.clear()
             self.cond.notify_all()
         for t in self.threads:
             t.join()
