@@ -13,6 +13,7 @@
 #include "d3d.h"
 #include "fileio.h"
 #include "raster.h"
+#include "render_keep.h"
 #include "shade.h"
 #include "smath.h"
 
@@ -157,6 +158,7 @@ typedef struct {
     render_centre_buf centre;                             /* opaque centre samples awaiting their angles */
     int profile;                                          /* 1: add stage times below (render_profile) */
     double stage[RENDER_STAGE_COUNT]; /* seconds; [RENDER_STAGE_RASTER] holds the tiles' whole time */
+    render_keep_tile *rec;            /* recording a kept frame: the current tile's record; else NULL */
 } render_scratch;
 
 /* One blended object's samples over the whole frame (width k by height k, row-major, top row
@@ -188,6 +190,8 @@ typedef struct {
     render_image *out;
     long long *shaded;       /* per worker */
     render_scratch *scratch; /* per worker */
+    render_keep *keep;       /* the frame being kept (render_options.keep), or replayed; else NULL */
+    int tile, tiles_x;       /* the rasterizer's tile edge and tiles per row: a tile's place in keep */
 } render_job;
 
 static double render_now(void)
@@ -575,19 +579,47 @@ static void render_shade_queue(const render_job *j, render_scratch *w, int obj, 
     render_batch_beauty(r, w->in.n, &w->beauty);
 }
 
+/* A shaded batch's n inputs and slots into the kept tile (render_keep.h: tag BATCH or BLEND). */
+static void render_keep_batch(render_keep_tile *t, int tag, int obj, const uint16_t *slot, const shade_batch_in *in,
+                              int n, int textured)
+{
+    const int h[4] = {tag, obj, n, textured};
+    const size_t bytes = (size_t)n * sizeof(float);
+    render_keep_put(t, h, sizeof h);
+    render_keep_put(t, slot, (size_t)n * sizeof *slot);
+    const shade_vec3_n *v[3] = {&in->x, &in->nrm, &in->v};
+    for (int a = 0; a < 3; a++) {
+        render_keep_put(t, v[a]->x, bytes);
+        render_keep_put(t, v[a]->y, bytes);
+        render_keep_put(t, v[a]->z, bytes);
+    }
+    if (textured) {
+        render_keep_put(t, in->tu, bytes);
+        render_keep_put(t, in->tv, bytes);
+    }
+}
+
+/* The shaded batch's n lanes (w->res, w->beauty) into their slots. */
+static void render_scatter_batch(const render_job *j, render_scratch *w, const uint16_t *slot, int n)
+{
+    const shade_batch_out *r = &w->res;
+    render_scatter_beauty(w->plane, &w->beauty, r->alpha, slot, n);
+    const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
+    for (int a = 0; a < 4; a++)
+        if (j->term_layers & (1u << a))
+            render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, slot, n);
+}
+
 static void render_flush_object(const render_job *j, render_scratch *w, int obj)
 {
     render_queue *qu = &w->queue[obj];
-    shade_batch_out *r = &w->res;
     const int n = qu->n;
     if (n == 0)
         return;
     render_shade_queue(j, w, obj, j->m, j->vertex_colours[obj]);
-    render_scatter_beauty(w->plane, &w->beauty, r->alpha, qu->slot, n);
-    const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
-    for (int a = 0; a < 4; a++)
-        if (j->term_layers & (1u << a))
-            render_scatter3(&w->plane[RENDER_P_TERMS + 3 * a], term[a]->x, term[a]->y, term[a]->z, qu->slot, n);
+    if (w->rec != NULL)
+        render_keep_batch(w->rec, RENDER_KEEP_BATCH, obj, qu->slot, &w->in, n, j->plans[obj].textured);
+    render_scatter_batch(j, w, qu->slot, n);
     render_centre_push(j, w, obj, qu);
     qu->n = 0;
     qu->n_centre = 0;
@@ -624,6 +656,15 @@ static void render_flush_background(const render_job *j, render_scratch *w)
     render_background_rays(j->cam, w->bg_sx, w->bg_sy, padded, &w->bg_dir);
     env_lookup_n(j->sc.env, padded, w->bg_dir.x, w->bg_dir.y, w->bg_dir.z, w->bg_rad.x, w->bg_rad.y, w->bg_rad.z);
     w->stage[RENDER_STAGE_BACKGROUND] += render_clock(w) - t0;
+    if (w->rec != NULL) {
+        const int h[2] = {RENDER_KEEP_BG, n};
+        const size_t bytes = (size_t)n * sizeof(float);
+        render_keep_put(w->rec, h, sizeof h);
+        render_keep_put(w->rec, w->bg_slot, (size_t)n * sizeof *w->bg_slot);
+        render_keep_put(w->rec, w->bg_rad.x, bytes);
+        render_keep_put(w->rec, w->bg_rad.y, bytes);
+        render_keep_put(w->rec, w->bg_rad.z, bytes);
+    }
     render_scatter3(&w->plane[RENDER_P_BEAUTY], w->bg_rad.x, w->bg_rad.y, w->bg_rad.z, w->bg_slot, n);
     w->bg_n = 0;
 }
@@ -794,15 +835,12 @@ RENDER_QUEUE_INLINE void render_span_queue(const render_job *j, const raster_til
         }
 }
 
-/* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
- * samples queued per object and shaded a batch at a time, background rays likewise. */
-static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
-                              int px0, int px1)
+/* A span of span_px pixels begun: alpha and the terms cleared (they stay 0 for background
+ * samples; the beauty is written for all), the centre samples' slots set. */
+static void render_span_begin(const render_job *j, render_scratch *w, int k, int span_px)
 {
-    const int k = tile->k, stride = tile->w * k, c = k / 2;
-    const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
+    const int c = k / 2;
     const size_t n_slots = (size_t)span_px * (size_t)(k * k);
-    /* Alpha and the terms stay 0 for background samples; the beauty is written for all. */
     memset(w->plane[RENDER_P_ALPHA], 0, n_slots * sizeof(float));
     for (int a = 0; a < 4; a++)
         if (j->term_layers & (1u << a))
@@ -811,6 +849,16 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     w->span_px = span_px;
     w->centre_lo = (c * k + c) * span_px;
     w->centre_hi = w->centre_lo + span_px;
+}
+
+/* Shades every sample of pixels [px0, px1) x [py0, py1) into the scratch planes: per-pixel
+ * samples queued per object and shaded a batch at a time, background rays likewise. */
+static void render_span_shade(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
+                              int px0, int px1)
+{
+    const int k = tile->k, stride = tile->w * k, c = k / 2;
+    const int span_w = px1 - px0, span_px = (py1 - py0) * span_w;
+    render_span_begin(j, w, k, span_px);
     render_queue_state qs = {.k = k, .c = c, .stride = stride, .span_px = span_px, .last_tri = -1, .qu = &w->queue[0]};
     /* The offsets once per span instead of a division per background sample (same bits). */
     for (int s = 0; s < k; s++)
@@ -855,17 +903,14 @@ static void render_blend3(float (*plane)[RENDER_PLANE], int q, float x, float y,
 /* A blended object's queued samples: shaded as render_flush_object shades them, then blended
  * over what the slots hold (D3D's SRCALPHA/INVSRCALPHA, the same factors on alpha, as with
  * D3DRS_SEPARATEALPHABLENDENABLE false). */
-static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
+/* The shaded batch's n lanes of blended object obj over what their slots hold, and its centre
+ * samples' angle channels. */
+static void render_blend_batch(const render_job *j, render_scratch *w, int obj, const uint16_t *slot, int n)
 {
-    render_queue *qu = &w->queue[obj];
-    shade_batch_out *r = &w->res;
-    const int n = qu->n;
-    if (n == 0)
-        return;
-    render_shade_queue(j, w, obj, j->m_all, 0);
+    const shade_batch_out *r = &w->res;
     const shade_vec3_n *term[4] = {&r->diffuse, &r->specular, &r->reflection, &r->emission};
     for (int i = 0; i < n; i++) {
-        const int q = qu->slot[i];
+        const int q = slot[i];
         const float a = render_blend_alpha(r->alpha[i]);
         render_blend3(&w->plane[RENDER_P_BEAUTY], q, w->beauty.x[i], w->beauty.y[i], w->beauty.z[i], a);
         w->plane[RENDER_P_ALPHA][q] = a * a + w->plane[RENDER_P_ALPHA][q] * (1.0f - a);
@@ -875,6 +920,18 @@ static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
         if (q >= w->centre_lo && q < w->centre_hi)
             render_centre_angles(j, w, obj, i, q);
     }
+}
+
+static void render_flush_blend(const render_job *j, render_scratch *w, int obj)
+{
+    render_queue *qu = &w->queue[obj];
+    const int n = qu->n;
+    if (n == 0)
+        return;
+    render_shade_queue(j, w, obj, j->m_all, 0);
+    if (w->rec != NULL)
+        render_keep_batch(w->rec, RENDER_KEEP_BLEND, obj, qu->slot, &w->in, n, j->plans[obj].textured);
+    render_blend_batch(j, w, obj, qu->slot, n);
     qu->n = 0;
     qu->n_centre = 0;
 }
@@ -1061,21 +1118,50 @@ static long long render_resolve(const render_job *j, render_scratch *w, int k, i
     return shaded;
 }
 
+/* A tile's spans: pixel rectangles of at most RENDER_SPAN samples, whole rows of the tile when
+ * one fits, else parts of one row. */
+static void render_tile_spans(int tw, int k, int *cols, int *rows)
+{
+    const int per_px = k * k;
+    *cols = tw * per_px <= RENDER_SPAN ? tw : RENDER_SPAN / per_px;
+    *rows = *cols == tw ? RENDER_SPAN / (tw * per_px) : 1;
+}
+
+/* The span's per-pixel figures the resolve reads besides the planes, into the kept tile. */
+static void render_keep_span_end(render_keep_tile *t, const render_scratch *w)
+{
+    const int h[2] = {RENDER_KEEP_END, w->span_px};
+    const size_t n = (size_t)w->span_px;
+    render_keep_put(t, h, sizeof h);
+    render_keep_put(t, w->covered, n * sizeof *w->covered);
+    render_keep_put(t, w->object, n * sizeof *w->object);
+    render_keep_put(t, w->centre_nv, n * sizeof *w->centre_nv);
+    render_keep_put(t, w->centre_nl, n * sizeof *w->centre_nl);
+    render_keep_put(t, w->centre_nh, n * sizeof *w->centre_nh);
+}
+
 static void render_tile(void *user, const raster_tile *tile)
 {
     const render_job *j = user;
     render_scratch *w = &j->scratch[tile->thread];
-    const int k = tile->k, per_px = k * k;
-    const int cols = tile->w * per_px <= RENDER_SPAN ? tile->w : RENDER_SPAN / per_px;
-    const int rows = cols == tile->w ? RENDER_SPAN / (tile->w * per_px) : 1;
+    const int k = tile->k;
+    int cols, rows;
+    render_tile_spans(tile->w, k, &cols, &rows);
     long long shaded = 0;
     const double t_tile = render_clock(w);
+    w->rec = j->keep != NULL ? &j->keep->tiles[tile->y0 / j->tile * j->tiles_x + tile->x0 / j->tile] : NULL;
 
     for (int py0 = tile->y0; py0 < tile->y0 + tile->h; py0 += rows) {
         int py1 = py0 + rows < tile->y0 + tile->h ? py0 + rows : tile->y0 + tile->h;
         for (int px0 = tile->x0; px0 < tile->x0 + tile->w; px0 += cols) {
             int px1 = px0 + cols < tile->x0 + tile->w ? px0 + cols : tile->x0 + tile->w;
+            if (w->rec != NULL) {
+                const int h[5] = {RENDER_KEEP_SPAN, py0, py1, px0, px1};
+                render_keep_put(w->rec, h, sizeof h);
+            }
             render_span_shade(j, tile, w, py0, py1, px0, px1);
+            if (w->rec != NULL)
+                render_keep_span_end(w->rec, w);
             const double t_resolve = render_clock(w);
             shaded += render_resolve(j, w, k, py0, px0, px1 - px0);
             w->stage[RENDER_STAGE_RESOLVE] += render_clock(w) - t_resolve;
@@ -1083,6 +1169,76 @@ static void render_tile(void *user, const raster_tile *tile)
     }
     w->stage[RENDER_STAGE_RASTER] += render_clock(w) - t_tile;
     j->shaded[tile->thread] += shaded;
+}
+
+/* A kept batch (tag BATCH or BLEND) read back into the scratch, shaded through the object's plan
+ * as the materials are now, and put into the planes as the frame that kept it put it. */
+static void render_replay_batch(const render_job *j, render_scratch *w, render_keep_reader *r, int tag)
+{
+    int h[3];
+    render_keep_get(r, h, sizeof h);
+    const int obj = h[0], n = h[1], textured = h[2];
+    uint16_t *slot = w->queue[obj].slot;
+    shade_batch_in *in = &w->in;
+    float *lane[11] = {in->x.x, in->x.y, in->x.z, in->nrm.x, in->nrm.y, in->nrm.z,
+                       in->v.x, in->v.y, in->v.z, in->tu,    in->tv};
+    const int n_lanes = textured ? 11 : 9;
+    render_keep_get(r, slot, (size_t)n * sizeof *slot);
+    for (int a = 0; a < n_lanes; a++)
+        render_keep_get(r, lane[a], (size_t)n * sizeof(float));
+    /* Padded as render_shade_queue pads: with copies of the last lane, whose results are not read. */
+    in->n = render_padded(n);
+    for (int a = 0; a < n_lanes; a++)
+        for (int i = n; i < in->n; i++)
+            lane[a][i] = lane[a][n - 1];
+    const double t0 = render_clock(w);
+    shade_eval_n(&j->sc, &j->plans[obj], in, &w->res);
+    w->stage[RENDER_STAGE_SHADE] += render_clock(w) - t0;
+    render_batch_beauty(&w->res, in->n, &w->beauty);
+    if (tag == RENDER_KEEP_BATCH)
+        render_scatter_batch(j, w, slot, n);
+    else
+        render_blend_batch(j, w, obj, slot, n);
+}
+
+/* One kept tile shaded again on worker: its spans' batches in the kept order, then each span's
+ * resolve, as render_tile did it. */
+static void render_replay_tile(void *user, int tile, int worker)
+{
+    const render_job *j = user;
+    render_scratch *w = &j->scratch[worker];
+    render_keep_reader r = {&j->keep->tiles[tile], 0};
+    const int k = j->out->supersample;
+    long long shaded = 0;
+    const double t_tile = render_clock(w);
+    int tag, span[4] = {0}, h = 0;
+    while (render_keep_get(&r, &tag, sizeof tag)) {
+        if (tag == RENDER_KEEP_SPAN) {
+            render_keep_get(&r, span, sizeof span);
+            render_span_begin(j, w, k, (span[1] - span[0]) * (span[3] - span[2]));
+        } else if (tag == RENDER_KEEP_BG) {
+            render_keep_get(&r, &h, sizeof h);
+            render_keep_get(&r, w->bg_slot, (size_t)h * sizeof *w->bg_slot);
+            render_keep_get(&r, w->bg_rad.x, (size_t)h * sizeof(float));
+            render_keep_get(&r, w->bg_rad.y, (size_t)h * sizeof(float));
+            render_keep_get(&r, w->bg_rad.z, (size_t)h * sizeof(float));
+            render_scatter3(&w->plane[RENDER_P_BEAUTY], w->bg_rad.x, w->bg_rad.y, w->bg_rad.z, w->bg_slot, h);
+        } else if (tag == RENDER_KEEP_BATCH || tag == RENDER_KEEP_BLEND) {
+            render_replay_batch(j, w, &r, tag);
+        } else {
+            render_keep_get(&r, &h, sizeof h);
+            render_keep_get(&r, w->covered, (size_t)h * sizeof *w->covered);
+            render_keep_get(&r, w->object, (size_t)h * sizeof *w->object);
+            render_keep_get(&r, w->centre_nv, (size_t)h * sizeof *w->centre_nv);
+            render_keep_get(&r, w->centre_nl, (size_t)h * sizeof *w->centre_nl);
+            render_keep_get(&r, w->centre_nh, (size_t)h * sizeof *w->centre_nh);
+            const double t_resolve = render_clock(w);
+            shaded += render_resolve(j, w, k, span[0], span[2], span[3] - span[2]);
+            w->stage[RENDER_STAGE_RESOLVE] += render_clock(w) - t_resolve;
+        }
+    }
+    w->stage[RENDER_STAGE_RASTER] += render_clock(w) - t_tile;
+    j->shaded[worker] += shaded;
 }
 
 /* Whether each object is blended: the caller's flags, else (the scene's own models) its
@@ -1270,6 +1426,43 @@ static unsigned render_aov_bits(const render_options *o)
     return o->aovs == 0 ? RENDER_AOV_ALL : (o->aovs & RENDER_AOV_ALL);
 }
 
+/* What a kept frame's bound depends on (render_keep_tile_bound). */
+typedef struct {
+    int width, height, k, tile, tiles_x, n_objects, n_blend, textured;
+} render_keep_shape;
+
+/* The bound of tile t of the frame (user: a render_keep_shape). */
+static double render_keep_bound_of(void *user, int t)
+{
+    const render_keep_shape *sh = user;
+    const int x = t % sh->tiles_x * sh->tile, y = t / sh->tiles_x * sh->tile;
+    const int tw = sh->width - x < sh->tile ? sh->width - x : sh->tile;
+    const int th = sh->height - y < sh->tile ? sh->height - y : sh->tile;
+    int cols, rows;
+    render_tile_spans(tw, sh->k, &cols, &rows);
+    const int spans = ((th + rows - 1) / rows) * ((tw + cols - 1) / cols);
+    return render_keep_tile_bound(tw, th, sh->k, spans, sh->n_objects, sh->n_blend, sh->textured);
+}
+
+static int render_keep_tiles(const render_keep_shape *sh)
+{
+    return sh->tiles_x * ((sh->height + sh->tile - 1) / sh->tile);
+}
+
+/* A frame's keep shape: its size, the rasterizer's tile (raster.h: 0 = 16) and objects. */
+static void render_keep_shape_make(const scene *s, int width, int height, int k, const render_options *opt, int n_blend,
+                                   render_keep_shape *sh)
+{
+    sh->width = width;
+    sh->height = height;
+    sh->k = k;
+    sh->tile = opt->tile > 0 ? opt->tile : 16;
+    sh->tiles_x = (width + sh->tile - 1) / sh->tile;
+    sh->n_objects = s->n_objects;
+    sh->n_blend = n_blend;
+    sh->textured = opt->textures != NULL;
+}
+
 void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, const render_options *opt, double *bytes,
                             int *layers)
 {
@@ -1309,6 +1502,13 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
     if (n_blend > 0)
         total += n_blend * w * k * h * k * sizeof(raster_sample) +
                  nt * (2.0 * 3.0 * sizeof(uint32_t) + sizeof(int) + sizeof(int32_t));
+    /* A kept frame: its bound (render_keep.h), held between frames. */
+    if (opt->keep != NULL) {
+        render_keep_shape sh;
+        render_keep_shape_make(s, (int)w, (int)h, (int)k, opt, n_blend, &sh);
+        for (int t = 0, n = render_keep_tiles(&sh); t < n; t++)
+            total += render_keep_bound_of(&sh, t);
+    }
     *bytes = total;
     if (layers != NULL)
         *layers = n_layers;
@@ -1507,12 +1707,158 @@ static rc_status render_draw(render_job *j, const render_options *opt, raster_ve
     return st;
 }
 
+/* The frame's options without the keep when the keep's bound would take it over the memory limit
+ * (the frame is then rendered in full and nothing kept; the old keep is dropped, which would not
+ * be shaded again); else opt itself. */
+static const render_options *render_keep_admit(const scene *s, const mesh *m, const env_map *env,
+                                               const render_options *opt, render_options *local)
+{
+    size_t limit = 0;
+    char why[256];
+    double need = 0.0;
+    if (opt->keep == NULL || fileio_memory_limit(&limit, why, sizeof why) != RC_OK)
+        return opt;
+    render_memory_estimate(s, m, env, opt, &need, NULL);
+    if (need <= (double)limit)
+        return opt;
+    render_keep_clear(opt->keep);
+    opt->keep->stats.full++;
+    opt->keep->stats.why = "the frame with the keep's bound is over the memory limit";
+    *local = *opt;
+    local->keep = NULL;
+    return local;
+}
+
+/* The key of the frame J is about to render (render_keep.h): all its shading inputs depend on
+ * besides the materials' parameters. */
+static void render_keep_key_make(const render_job *j, const render_objects *ob, const render_options *opt,
+                                 const unsigned char *blend, render_keep_key *key)
+{
+    const scene *s = j->s;
+    const mesh *m = j->m_all;
+    render_keep_key_clear(key);
+    key->m = m;
+    key->pos = m->pos;
+    key->nrm = m->nrm;
+    key->n_verts = m->n_verts;
+    key->n_tris = m->n_tris;
+    key->env = j->sc.env;
+    key->tex = opt->textures;
+    key->width = j->out->width;
+    key->height = j->out->height;
+    key->k = j->out->supersample;
+    key->tile = j->tile;
+    key->term_layers = j->term_layers;
+    key->eye = s->camera.eye;
+    key->target = s->camera.target;
+    key->up = s->camera.up;
+    key->hfov = s->camera.hfov;
+    key->n_lights = s->n_lights;
+    memcpy(key->lights, s->lights, (size_t)s->n_lights * sizeof *s->lights);
+    key->n_objects = s->n_objects;
+    for (int i = 0; i < s->n_objects; i++) {
+        key->two_sided[i] = ob->two_sided[i];
+        key->textured[i] = (unsigned char)j->plans[i].textured;
+        key->blend[i] = blend[i];
+        key->has_length[i] = ob->normal_length[i] != NULL;
+        if (ob->normal_length[i] != NULL)
+            key->length[i] = *ob->normal_length[i];
+    }
+}
+
+/* What the frame does with opt->keep: nothing (none given, or an object it cannot shade again:
+ * Gouraud, whose interpolated terms are the material's, or D3D vertex colours, whose plans are
+ * made per sample), shade again from it (same key), or keep the frame (j->keep set, the keep
+ * begun: RC_OK; RC_ERR_NOMEM leaves the frame unkept). */
+enum { RENDER_KEEP_OFF, RENDER_KEEP_RECORD, RENDER_KEEP_REPLAY };
+static int render_keep_mode(render_job *j, const render_objects *ob, const render_options *opt)
+{
+    render_keep *k = opt->keep;
+    if (k == NULL)
+        return RENDER_KEEP_OFF;
+    const scene *s = j->s;
+    for (int i = 0; i < s->n_objects; i++)
+        if (ob->per_vertex[i] || ob->vertex_colours[i]) {
+            k->stats.full++;
+            k->stats.why = "an object is shaded per vertex (D3D Gouraud) or with D3D vertex colours";
+            return RENDER_KEEP_OFF;
+        }
+    unsigned char blend[SCENE_MAX_OBJECTS];
+    const int n_blend = render_blend_flags(s, opt, blend);
+    render_keep_shape sh;
+    render_keep_shape_make(s, j->out->width, j->out->height, j->out->supersample, opt, n_blend, &sh);
+    j->tile = sh.tile;
+    j->tiles_x = sh.tiles_x;
+    render_keep_key key;
+    render_keep_key_make(j, ob, opt, blend, &key);
+    j->keep = k;
+    if (render_keep_matches(k, &key))
+        return RENDER_KEEP_REPLAY;
+    if (render_keep_begin(k, &key, render_keep_tiles(&sh), render_keep_bound_of, &sh) == RC_OK)
+        return RENDER_KEEP_RECORD;
+    j->keep = NULL;
+    k->stats.full++;
+    k->stats.why = "out of memory for the keep";
+    return RENDER_KEEP_OFF;
+}
+
+/* The kept frame's recording finished (st: the draw's status): counted kept, or not and why. */
+static void render_keep_done(render_keep *k, rc_status st)
+{
+    if (st == RC_OK && render_keep_end(k)) {
+        k->stats.recorded++;
+        return;
+    }
+    render_keep_clear(k);
+    k->stats.full++;
+    k->stats.why = st == RC_OK ? "a tile's record outgrew its bound" : "the frame failed";
+}
+
+/* A frame's wall time into the image and the profile. */
+static void render_scene_done(const render_options *opt, render_image *out, double t0)
+{
+    out->seconds = render_now() - t0;
+    if (opt->profile != NULL)
+        opt->profile->wall = out->seconds;
+}
+
+/* A kept frame shaded again (render_keep_mode said so): the kept tiles on the frame's workers,
+ * no rasterizing. */
+static rc_status render_replay(render_job *j, const render_options *opt, int n_threads, char *err, size_t errlen)
+{
+    long long *shaded = calloc((size_t)n_threads, sizeof *shaded);
+    render_scratch *scratch = calloc((size_t)n_threads, sizeof *scratch);
+    rc_status st = shaded != NULL && scratch != NULL ? RC_OK : RC_ERR_NOMEM;
+    j->shaded = shaded;
+    j->scratch = scratch;
+    for (int i = 0; st == RC_OK && i < n_threads; i++)
+        scratch[i].profile = opt->profile != NULL;
+    const double t_draw = render_now();
+    if (st == RC_OK)
+        st = render_keep_run(n_threads, j->keep->n_tiles, render_replay_tile, j);
+    for (int i = 0; st == RC_OK && i < n_threads; i++)
+        j->out->shaded_samples += shaded[i];
+    if (opt->profile != NULL && st == RC_OK)
+        render_profile_put(opt->profile, scratch, n_threads, render_now() - t_draw);
+    free(shaded);
+    free(scratch);
+    if (st != RC_OK) {
+        render_image_free(j->out);
+        snprintf(err, errlen, "%s: out of memory shading a kept frame again", j->s->path);
+        return st;
+    }
+    j->keep->stats.replayed++;
+    return RC_OK;
+}
+
 rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const render_options *opt, render_image *out,
                        char *err, size_t errlen)
 {
     static const render_options defaults = {0};
     if (opt == NULL)
         opt = &defaults;
+    render_options local;
+    opt = render_keep_admit(s, m, env, opt, &local);
     double t0 = render_now();
     render_image prev = {0};
     if (opt->reuse_image)
@@ -1536,6 +1882,7 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     }
     render_objects ob = {0};
     int any_per_vertex = render_objects_make(opt, &ob, &j);
+    const int keep_mode = render_keep_mode(&j, &ob, opt);
 
     raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
     shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
@@ -1545,6 +1892,13 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                          .threads = opt->threads,
                          .tile = opt->tile};
     const int n_threads = raster_thread_count(&ro);
+    if (keep_mode == RENDER_KEEP_REPLAY) {
+        free(rv);
+        free(vt);
+        if ((st = render_replay(&j, opt, n_threads, err, errlen)) == RC_OK)
+            render_scene_done(opt, out, t0);
+        return st;
+    }
     long long *shaded = calloc((size_t)n_threads, sizeof *shaded);
     render_scratch *scratch = calloc((size_t)n_threads, sizeof *scratch);
     if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL || scratch == NULL) {
@@ -1568,6 +1922,8 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
 
     double t_draw = 0.0;
     st = render_draw(&j, opt, rv, &ro, &t_draw);
+    if (keep_mode == RENDER_KEEP_RECORD)
+        render_keep_done(j.keep, st);
     for (int i = 0; i < n_threads; i++)
         out->shaded_samples += shaded[i];
     if (opt->profile != NULL && st == RC_OK)
@@ -1581,8 +1937,6 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
         snprintf(err, errlen, "%s: the rasterizer refused the frame (status %d)", s->path, (int)st);
         return st;
     }
-    out->seconds = render_now() - t0;
-    if (opt->profile != NULL)
-        opt->profile->wall = out->seconds;
+    render_scene_done(opt, out, t0);
     return RC_OK;
 }

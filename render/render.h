@@ -36,6 +36,28 @@
  * allocating, beyond the limit of core/fileio.h's fileio_memory_limit (half the physical
  * memory, or REFLCHECK_MEMORY_LIMIT, e.g. 8G); the message gives the estimate and the fix.
  *   double bytes; int layers; render_memory_estimate(&scn, &msh, &env, &o, &bytes, &layers);
+ * Re-shading a kept frame (a fit's evaluations change material parameters only):
+ *   render_keep *k; render_keep_make(&k); o.keep = k;
+ *   render_scene(...);                    rendered in full, and what shading needs kept in k
+ *   scn.materials[i].d9.p = 3.1; render_scene(...) again: shaded again from k, not rasterized
+ *   render_keep_stats ks; render_keep_stats_get(k, &ks);  ks.replayed, ks.why ...
+ *   render_keep_free(k);
+ * The first frame keeps, per sample and in the order the frame shaded them, each batch's
+ * interpolated inputs (x, n, v, texture coordinates) and slots, the background's radiance, and
+ * per pixel the coverage count, object and angle channels. A later frame whose key is the same
+ * (the mesh's and environment's addresses and sizes, the textures, the size, supersampling,
+ * tile, term layers, camera, lights, and per object its sidedness, textured flag, blend flag and
+ * D3D normal length) only makes the plans from the materials as they are now, shades the kept
+ * batches through them (shade_eval_n), blends the blended objects' batches with their alpha as
+ * shaded now, and resolves: every layer bit-identical to a full render_scene of the same
+ * parameters, for any thread count. The caller changes materials only (the mesh and the
+ * environment are compared by address, not by content). Rendered in full, and not kept
+ * (ks.full, ks.why), are frames with an object shaded per vertex (D3D Gouraud: its interpolated
+ * terms are the material's) or with D3D vertex colours (each sample's plan is made from them),
+ * and frames whose estimate with the keep's bound is over the memory limit; a frame of another
+ * key is rendered in full and kept in place of the old one. Blended objects, textures, caller
+ * plans (render_options.plans) and users' models are re-shaded. The keep's bound (every sample's
+ * inputs, 38 bytes, 46 textured; again per blended layer) is in render_memory_estimate.
  */
 #ifndef REFLCHECK_RENDER_H
 #define REFLCHECK_RENDER_H
@@ -109,6 +131,19 @@ typedef struct {
 
 extern const char *const render_stage_names[RENDER_STAGE_COUNT];
 
+/* A kept frame (render_options.keep): render_keep_make, render_keep_free. */
+typedef struct render_keep render_keep;
+typedef struct {
+    int recorded;    /* frames rendered in full and kept */
+    int replayed;    /* frames shaded again from the kept one */
+    int full;        /* frames rendered in full and not kept */
+    const char *why; /* why the last such frame was not kept; "" when none was */
+    double bytes;    /* what the kept frame holds */
+} render_keep_stats;
+rc_status render_keep_make(render_keep **out);
+void render_keep_free(render_keep *k);
+void render_keep_stats_get(const render_keep *k, render_keep_stats *st);
+
 typedef struct {
     int threads;                 /* 0 = all cores */
     int tile;                    /* 0 = rasterizer default */
@@ -132,6 +167,8 @@ typedef struct {
                                     keeps its framebuffers between frames (first-touch page faults of
                                     fresh layers cost more than the resolve's arithmetic); the others
                                     are freed. 0 = out is overwritten unread. Same output */
+    render_keep *keep;           /* NULL = off; else the frame kept there, or shaded again from it when
+                                    only materials changed (usage block). Same output */
 } render_options;
 
 typedef struct {

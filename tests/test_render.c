@@ -342,6 +342,188 @@ static void test_angle_channels(void **state)
                 dv3(0, 0, 0), 0);
 }
 
+/* A kept frame: a textured Cook-Torrance floor, a D3D9Client ball and a blended D3D9Client
+ * pane (eq. 7: its alpha max(d_a, |R_tot|) follows r0) over the ball and the sky, under a point
+ * light; 37 x 23 pixels at 3 x 3 samples, so that tiles are partial and the frame is not
+ * symmetric. */
+static const char keep_text[] =
+    "image: {width: 37, height: 23, supersample: 3}\n"
+    "camera: {eye: [0.3, 1.1, 4], target: [0, 0.4, 0], hfov: 55}\n"
+    "environment: {constant: [0.2, 0.3, 0.5]}\n"
+    "lights:\n  - {type: point, position: [1, 3, 2], intensity: [30, 25, 20]}\n"
+    "materials:\n"
+    "  floor: {albedo: [0.6, 0.5, 0.4], roughness: 0.3, model: cook_torrance}\n"
+    "  ball: {albedo: [0.3, 0.4, 0.7], model: d3d9client, d3d9client: {p: 3, r0: 0.04, reflect: [0.6, 0.6, "
+    "0.62]}}\n"
+    "  pane: {albedo: [0, 0, 0], ior: 1.5, roughness: 0, thin: true, model: d3d9client, d3d9client: {p: 3, "
+    "alpha: 0, blend: true}}\n"
+    "objects:\n"
+    "  - {shape: quad, center: [0, 0, 0], size: [3, 3], material: floor}\n"
+    "  - {shape: sphere, center: [0.2, 0.5, 0], radius: 0.5, material: ball}\n"
+    "  - {shape: quad, center: [-0.3, 0.9, 1.0], size: [1.0, 1.5], rotate: [70, 20, 0], material: pane}\n";
+
+/* A 3 x 2 texture of distinct texels: each floor sample's texel shows in its colour. */
+static float keep_texels[3 * 2 * 4] = {0.9f, 0.2f, 0.1f, 1, 0.1f, 0.8f, 0.3f, 1, 0.2f, 0.3f, 0.9f, 1,
+                                       0.7f, 0.7f, 0.2f, 1, 0.4f, 0.1f, 0.6f, 1, 1.0f, 1.0f, 1.0f, 1};
+
+static void keep_scene(scene *s, mesh *m, env_map *env, float **px, texture_set *ts)
+{
+    char err[1024];
+    assert_int_equal(scene_file_parse(keep_text, sizeof keep_text - 1, "keep.yaml", s, err, sizeof err), RC_OK);
+    assert_string_equal(s->materials[0].name, "floor");
+    assert_true(s->materials[2].d9.blend);
+    snprintf(s->materials[0].texture[MAT_TEX_DIFFUSE], SCENE_PATH_MAX, "texels");
+    memset(ts, 0, sizeof *ts);
+    ts->map[0][MAT_TEX_DIFFUSE] = (texture){3, 2, keep_texels};
+    memset(m, 0, sizeof *m);
+    assert_int_equal(mesh_build(s, m, err, sizeof err), RC_OK);
+    assert_int_equal(frame_env_load(s, env, px, err, sizeof err), RC_OK);
+}
+
+/* New values for every parameter a fit moves here (floor m, ball p and r0, pane r0). */
+static void keep_change(scene *s, int step)
+{
+    s->materials[0].ct.m = 0.3f + 0.11f * (float)step;
+    s->materials[1].d9.p = 3.0f + 0.4f * (float)step;
+    s->materials[1].d9.r0 = 0.04f + 0.05f * (float)step;
+    s->materials[2].d9.r0 = 0.04f + 0.2f * (float)step;
+}
+
+/* render_options.keep: a frame shaded again from the kept one after its materials' parameters
+ * changed equals, on every layer and bit for bit, the frame rendered afresh at those parameters,
+ * on 1 and 2 threads and across them; and it was shaded again (stats), not rendered in full. The
+ * new parameters change the image (else equality would show nothing). */
+static void test_keep_reshades(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    char err[1024];
+    mesh m;
+    env_map env;
+    float *px = NULL;
+    texture_set ts;
+    keep_scene(s, &m, &env, &px, &ts);
+    render_image first, again[2], full[2];
+    memset(again, 0, sizeof again);
+    for (int t = 0; t < 2; t++) {
+        render_keep *k = NULL;
+        assert_int_equal(render_keep_make(&k), RC_OK);
+        render_options ko = {.threads = t + 1, .textures = &ts, .keep = k, .reuse_image = 1};
+        render_options fo = {.threads = t + 1, .textures = &ts};
+        keep_change(s, 0);
+        memset(&first, 0, sizeof first);
+        assert_int_equal(render_scene(s, &m, &env, &ko, &first, err, sizeof err), RC_OK);
+        for (int step = 1; step <= 2; step++) {
+            keep_change(s, step);
+            assert_int_equal(render_scene(s, &m, &env, &ko, &again[t], err, sizeof err), RC_OK);
+            assert_int_equal(render_scene(s, &m, &env, &fo, &full[t], err, sizeof err), RC_OK);
+            images_equal(&full[t], &again[t]);
+            assert_int_equal(again[t].shaded_samples, full[t].shaded_samples);
+            if (step < 2)
+                render_image_free(&full[t]);
+        }
+        /* The change shows in the beauty, the alpha (the pane's) and the terms. */
+        const size_t n = (size_t)first.width * (size_t)first.height * sizeof(float);
+        assert_true(memcmp(first.chan[RENDER_R], again[t].chan[RENDER_R], n) != 0);
+        assert_true(memcmp(first.chan[RENDER_A], again[t].chan[RENDER_A], n) != 0);
+        assert_true(memcmp(first.chan[RENDER_SPECULAR_G], again[t].chan[RENDER_SPECULAR_G], n) != 0);
+        render_keep_stats ks;
+        render_keep_stats_get(k, &ks);
+        assert_int_equal(ks.recorded, 1);
+        assert_int_equal(ks.replayed, 2);
+        assert_int_equal(ks.full, 0);
+        assert_true(ks.bytes > 0.0);
+        /* Within its bound (render_memory_estimate counts it): the estimate with the keep exceeds
+         * the one without by at least what it holds. */
+        double with_keep = 0.0, without = 0.0;
+        render_memory_estimate(s, &m, &env, &ko, &with_keep, NULL);
+        render_memory_estimate(s, &m, &env, &fo, &without, NULL);
+        assert_true(with_keep - without >= ks.bytes);
+        render_image_free(&first);
+        render_keep_free(k);
+    }
+    images_equal(&again[0], &again[1]);
+    for (int t = 0; t < 2; t++) {
+        render_image_free(&again[t]);
+        render_image_free(&full[t]);
+    }
+    free(px);
+    mesh_free(&m);
+    free(s);
+}
+
+/* What the keep does not shade again is rendered in full, the same as without it: a Gouraud
+ * object (stats.full, a reason); another size is kept anew (recorded twice, never replayed
+ * across sizes); a memory limit below the keep's bound renders in full and keeps nothing. */
+static void test_keep_falls_back(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    char err[1024];
+    mesh m;
+    env_map env;
+    float *px = NULL;
+    resolve_scene(s, &m, &env, &px);
+    render_keep *k = NULL;
+    assert_int_equal(render_keep_make(&k), RC_OK);
+    render_options ko = {.threads = 2, .keep = k}, fo = {.threads = 2};
+    render_image a, b;
+    assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    s->materials[1].d3d.power = 12.0f;
+    assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    assert_int_equal(render_scene(s, &m, &env, &fo, &b, err, sizeof err), RC_OK);
+    images_equal(&a, &b);
+    render_keep_stats ks;
+    render_keep_stats_get(k, &ks);
+    assert_int_equal(ks.full, 2);
+    assert_int_equal(ks.recorded + ks.replayed, 0);
+    assert_non_null(strstr(ks.why, "per vertex"));
+    render_image_free(&a);
+    render_image_free(&b);
+
+    /* Per sample again: kept; another size is rendered in full and kept in its place. */
+    s->materials[0].d3d.per_vertex = 0;
+    assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    render_image_free(&a);
+    ko.width = fo.width = 40;
+    s->materials[1].d3d.power = 20.0f;
+    assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    assert_int_equal(render_scene(s, &m, &env, &fo, &b, err, sizeof err), RC_OK);
+    images_equal(&a, &b);
+    render_keep_stats_get(k, &ks);
+    assert_int_equal(ks.recorded, 2);
+    assert_int_equal(ks.replayed, 0);
+    render_image_free(&a);
+    render_image_free(&b);
+
+    /* A memory limit between the frame's need and its need with the keep. */
+    double with_keep = 0.0, without = 0.0;
+    render_memory_estimate(s, &m, &env, &ko, &with_keep, NULL);
+    render_memory_estimate(s, &m, &env, &fo, &without, NULL);
+    assert_true(with_keep > without);
+    char limit[64];
+    snprintf(limit, sizeof limit, "%.0f", 0.5 * (with_keep + without));
+    setenv("REFLCHECK_MEMORY_LIMIT", limit, 1);
+    s->materials[1].d3d.power = 25.0f;
+    assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    unsetenv("REFLCHECK_MEMORY_LIMIT");
+    assert_int_equal(render_scene(s, &m, &env, &fo, &b, err, sizeof err), RC_OK);
+    images_equal(&a, &b);
+    render_keep_stats_get(k, &ks);
+    assert_int_equal(ks.replayed, 0);
+    assert_int_equal(ks.full, 3);
+    assert_true(ks.bytes == 0.0);
+    assert_non_null(strstr(ks.why, "memory limit"));
+    render_image_free(&a);
+    render_image_free(&b);
+    render_keep_free(k);
+    free(px);
+    mesh_free(&m);
+    free(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -350,6 +532,8 @@ int main(void)
         cmocka_unit_test(test_resolve_invariance),
         cmocka_unit_test(test_angle_channels),
         cmocka_unit_test(test_reuse_image),
+        cmocka_unit_test(test_keep_reshades),
+        cmocka_unit_test(test_keep_falls_back),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
