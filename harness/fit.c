@@ -221,6 +221,9 @@ typedef struct {
     render_image img, best_img;
     int best_rendered;
     int fresh; /* fit_options.fresh: every evaluation renders into fresh layers */
+    /* The authored render kept (render_options.keep): an evaluation changes material parameters
+     * only, so later renders shade the kept frame again instead of rasterizing it; NULL fresh. */
+    render_keep *keep;
     /* Every point fit_value rendered (scaled x, bit for bit) and its objective: NLopt starts each
      * BOBYQA run by evaluating its start, which the screen (or an earlier run) often rendered. */
     double (*seen_x)[FIT_MAX_PARAMS];
@@ -285,7 +288,8 @@ static int fit_seen(const fit_ctx *c, const double *x, double *f)
     return 0;
 }
 
-/* The scene at parameter values rendered into c->img: over its layers, or fresh ones with
+/* The scene at parameter values rendered into c->img: over its layers, shaded again from the kept
+ * first render (render_options.keep: same bits), or fresh ones rasterized anew with
  * fit_options.fresh; every call counted in c->renders. */
 static rc_status fit_render(fit_ctx *c, const double *values)
 {
@@ -623,6 +627,7 @@ static rc_status fit_uncertainty(fit_ctx *c, fit_param *pa, const double *xb, do
 /* What fit_run allocated in c: the scene copy, mask, kept layers and the points rendered. */
 static void fit_ctx_free(fit_ctx *c)
 {
+    render_keep_free(c->keep);
     render_image_free(&c->img);
     render_image_free(&c->best_img);
     free(c->seen_x);
@@ -674,7 +679,10 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     c.values = vals;
     c.best_x = best_x;
     rc_status st = RC_OK;
-    if (c.s == NULL || c.mask == NULL || cls == NULL || c.seen_x == NULL || c.seen_f == NULL) {
+    if (!opt.fresh && render_keep_make(&c.keep) == RC_OK)
+        c.ro.keep = c.keep;
+    if (c.s == NULL || c.mask == NULL || cls == NULL || c.seen_x == NULL || c.seen_f == NULL ||
+        (!opt.fresh && c.keep == NULL)) {
         status_message(err, errlen, "%s: fit: out of memory for a %dx%d frame", s->path, s->width, s->height);
         st = RC_ERR_NOMEM;
     }
@@ -720,6 +728,11 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         st = fit_uncertainty(&c, p, best_x, out->best.nrmse, out);
     out->evaluations = c.evaluations;
     out->renders = c.renders;
+    if (c.keep != NULL) {
+        render_keep_stats ks;
+        render_keep_stats_get(c.keep, &ks);
+        out->reshaded = ks.replayed;
+    }
     out->seconds = fit_now() - t0;
     out->width = s->width;
     out->height = s->height;

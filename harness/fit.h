@@ -11,8 +11,10 @@
  * The scene is rendered by our rasterizer (render/render.h) at the reference's size with the
  * scene's supersampling, exactly as the validate job renders it; each evaluation changes the
  * parameters of a private copy of the scene and renders again, into the same layers
- * (render_options.reuse_image). A point rendered before (every bit of its scaled x the same: each
- * BOBYQA run starts by evaluating its start, mostly a screened point) takes its value from that
+ * (render_options.reuse_image), shading the authored render's kept frame again instead of
+ * rasterizing it (render_options.keep: only materials change). A point rendered before (every
+ * bit of its scaled x the same: each BOBYQA run starts by evaluating its start, mostly a
+ * screened point) takes its value from that
  * render, and the best point's render is kept for its robust figures; the result is the same to
  * the bit as rendering every evaluation afresh (o.fresh = 1). The objective is the least-squares
  * error over surface pixels: interior pixels of the model's own coverage and object layers
@@ -141,6 +143,8 @@ typedef struct {
                         best point's figures and the curvature probes are not counted) */
     int renders;     /* frames rendered in all: evaluations less those of a point rendered before,
                         plus the best point's when it was not kept, plus the probes (fit.h top) */
+    int reshaded;    /* of those, frames shaded again from the authored render's kept frame
+                        (render/render.h, render_options.keep) instead of rasterized; 0 with fresh */
     double seconds;  /* wall time of the fit, renders included */
     int width, height, supersample;
     const char *stop;  /* why the optimiser stopped, in words: the budget, else the best run's stop */

@@ -350,7 +350,8 @@ static void same_fit(const fit_result *a, const fit_result *b, const fit_param *
 
 /* The default fit keeps its frame's layers between evaluations, takes a point's value from its
  * earlier render and the best point's figures from its kept render; fresh renders every one into
- * new layers, as the fit did before. Both must give the same result to the bit, the default with
+ * new layers, as the fit did before; the default shades the authored render's kept frame again
+ * (render_options.keep), fresh rasterizes every frame. Both must give the same result to the bit, the default with
  * fewer renders: each BOBYQA run starts by evaluating its start, which the screen or the authored
  * render has already measured. The reference is no render of the model (a left-to-right ramp of
  * 0.8 to 1.2 times one, p = 2.9, r0 = 0.16 at 2 x 2 samples), so the fit ends at no exact zero
@@ -388,6 +389,9 @@ static void test_reused_layers_same_result(void **state)
      * evaluates its start as given (a start nearer a bound it moves first). */
     assert_true(r.starts[1].start[0] > 1.0 + 0.1 * 9.0 && r.starts[1].start[0] < 10.0 - 0.1 * 9.0);
     assert_true(r.renders <= rf.renders - 2);
+    /* Every render after the authored one shades its kept frame again; fresh rasterizes all. */
+    assert_int_equal(r.reshaded, r.renders - 1);
+    assert_int_equal(rf.reshaded, 0);
     render_image_free(&ref);
     world_free(&w);
 }
