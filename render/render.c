@@ -1140,6 +1140,21 @@ static void render_keep_span_end(render_keep_tile *t, const render_scratch *w)
     render_keep_put(t, w->centre_nh, n * sizeof *w->centre_nh);
 }
 
+/* The kept tile of a raster tile: the keep's tile at its place when the rasterizer's tile is
+ * exactly that one (raster.h's default edge, or render_options.tile); else NULL and the keep
+ * marked stray, since two workers must never write one record. */
+static render_keep_tile *render_keep_tile_of(const render_job *j, const raster_tile *tile)
+{
+    const int e = j->tile, x0 = tile->x0, y0 = tile->y0;
+    const int tw = j->out->width - x0 < e ? j->out->width - x0 : e;
+    const int th = j->out->height - y0 < e ? j->out->height - y0 : e;
+    if (x0 % e != 0 || y0 % e != 0 || tile->w != tw || tile->h != th) {
+        atomic_store(&j->keep->stray, 1);
+        return NULL;
+    }
+    return &j->keep->tiles[y0 / e * j->tiles_x + x0 / e];
+}
+
 static void render_tile(void *user, const raster_tile *tile)
 {
     const render_job *j = user;
@@ -1149,7 +1164,7 @@ static void render_tile(void *user, const raster_tile *tile)
     render_tile_spans(tile->w, k, &cols, &rows);
     long long shaded = 0;
     const double t_tile = render_clock(w);
-    w->rec = j->keep != NULL ? &j->keep->tiles[tile->y0 / j->tile * j->tiles_x + tile->x0 / j->tile] : NULL;
+    w->rec = j->keep != NULL ? render_keep_tile_of(j, tile) : NULL;
 
     for (int py0 = tile->y0; py0 < tile->y0 + tile->h; py0 += rows) {
         int py1 = py0 + rows < tile->y0 + tile->h ? py0 + rows : tile->y0 + tile->h;
@@ -1811,7 +1826,7 @@ static void render_keep_done(render_keep *k, rc_status st)
     }
     render_keep_clear(k);
     k->stats.full++;
-    k->stats.why = st == RC_OK ? "a tile's record outgrew its bound" : "the frame failed";
+    k->stats.why = st == RC_OK ? "a tile's record outgrew its bound, or a tile was not the keep's" : "the frame failed";
 }
 
 /* A frame's wall time into the image and the profile. */

@@ -85,6 +85,7 @@ rc_status render_keep_begin(render_keep *k, const render_keep_key *key, int n_ti
         }
     }
     k->key = *key;
+    atomic_store(&k->stray, 0);
     return RC_OK;
 }
 
@@ -92,6 +93,7 @@ int render_keep_end(render_keep *k)
 {
     int whole = 1;
     double bytes = 0.0;
+    whole &= !atomic_load(&k->stray);
     for (int t = 0; t < k->n_tiles; t++) {
         render_keep_tile *tl = &k->tiles[t];
         whole &= !tl->failed;

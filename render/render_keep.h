@@ -15,6 +15,7 @@
 #ifndef REFLCHECK_RENDER_KEEP_H
 #define REFLCHECK_RENDER_KEEP_H
 
+#include <stdatomic.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -54,6 +55,9 @@ struct render_keep {
     int n_tiles;
     render_keep_tile *tiles;
     render_keep_stats stats;
+    /* Set by a worker given a tile other than the keep's tile at its place (the rasterizer cut the
+     * frame otherwise than render.c assumed): that tile is not kept, nor is the frame. */
+    atomic_int stray;
 };
 
 /* What a tile's buffer holds, in the order the frame made it: per span a SPAN record, then its

@@ -391,8 +391,8 @@ static void keep_change(scene *s, int step)
 
 /* render_options.keep: a frame shaded again from the kept one after its materials' parameters
  * changed equals, on every layer and bit for bit, the frame rendered afresh at those parameters,
- * on 1 and 2 threads and across them; and it was shaded again (stats), not rendered in full. The
- * new parameters change the image (else equality would show nothing). */
+ * on 1 thread and on 2 with another tile size, and across them; and it was shaded again (stats), not rendered in full.
+ * The new parameters change the image (else equality would show nothing). */
 static void test_keep_reshades(void **state)
 {
     (void)state;
@@ -409,8 +409,10 @@ static void test_keep_reshades(void **state)
     for (int t = 0; t < 2; t++) {
         render_keep *k = NULL;
         assert_int_equal(render_keep_make(&k), RC_OK);
-        render_options ko = {.threads = t + 1, .textures = &ts, .keep = k, .reuse_image = 1};
-        render_options fo = {.threads = t + 1, .textures = &ts};
+        /* 2 threads with 8-pixel tiles: the keep follows the rasterizer's tiles. */
+        const int tile = t == 1 ? 8 : 0;
+        render_options ko = {.threads = t + 1, .tile = tile, .textures = &ts, .keep = k, .reuse_image = 1};
+        render_options fo = {.threads = t + 1, .tile = tile, .textures = &ts};
         keep_change(s, 0);
         memset(&first, 0, sizeof first);
         assert_int_equal(render_scene(s, &m, &env, &ko, &first, err, sizeof err), RC_OK);
