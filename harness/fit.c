@@ -624,6 +624,15 @@ static rc_status fit_uncertainty(fit_ctx *c, fit_param *pa, const double *xb, do
     return RC_OK;
 }
 
+/* Renders the keep shaded again (fit_result.reshaded); 0 without one (fit_options.fresh). */
+static int fit_reshaded(const render_keep *k)
+{
+    render_keep_stats ks = {0};
+    if (k != NULL)
+        render_keep_stats_get(k, &ks);
+    return ks.replayed;
+}
+
 /* What fit_run allocated in c: the scene copy, mask, kept layers and the points rendered. */
 static void fit_ctx_free(fit_ctx *c)
 {
@@ -679,10 +688,9 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     c.values = vals;
     c.best_x = best_x;
     rc_status st = RC_OK;
-    if (!opt.fresh && render_keep_make(&c.keep) == RC_OK)
-        c.ro.keep = c.keep;
+    c.ro.keep = !opt.fresh && render_keep_make(&c.keep) == RC_OK ? c.keep : NULL;
     if (c.s == NULL || c.mask == NULL || cls == NULL || c.seen_x == NULL || c.seen_f == NULL ||
-        (!opt.fresh && c.keep == NULL)) {
+        (!opt.fresh && c.ro.keep == NULL)) {
         status_message(err, errlen, "%s: fit: out of memory for a %dx%d frame", s->path, s->width, s->height);
         st = RC_ERR_NOMEM;
     }
@@ -728,11 +736,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
         st = fit_uncertainty(&c, p, best_x, out->best.nrmse, out);
     out->evaluations = c.evaluations;
     out->renders = c.renders;
-    if (c.keep != NULL) {
-        render_keep_stats ks;
-        render_keep_stats_get(c.keep, &ks);
-        out->reshaded = ks.replayed;
-    }
+    out->reshaded = fit_reshaded(c.keep);
     out->seconds = fit_now() - t0;
     out->width = s->width;
     out->height = s->height;
