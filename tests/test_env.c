@@ -339,6 +339,74 @@ static void test_lookup_n_bits(void **state)
     free(tight);
 }
 
+/* A cube map through env_lookup_n (the taps vectorised across lanes, then env_bilinear's
+ * 16-byte loads) against env_lookup (env_cube_sample: scalar loads), bit for bit: 67 lanes (a
+ * chunk of 64 and three more) on six 3 x 3 faces whose texels all differ per channel, exactly
+ * the 162 floats of a heap block (a read past the end shows under valgrind or ASan), with the
+ * last face's bottom-right texel in a lane of each chunk (no 16-byte load there), a zero
+ * direction, a NaN, the six axes, face ties and random directions at scale (0.5, 2, 3). */
+static void test_lookup_n_cube_bits(void **state)
+{
+    (void)state;
+    enum { N = 67, F = 3, FLOATS = 6 * F * F * 3 };
+    float *rgb = malloc(FLOATS * sizeof *rgb);
+    assert_non_null(rgb);
+    for (int i = 0; i < FLOATS; i++)
+        rgb[i] = (float)(i / 3) + 1000.0f * (float)(i % 3);
+    env_map e = {.kind = ENV_CUBE, .width = F, .height = F, .rgb = rgb, .scale = v3(0.5f, 2.0f, 3.0f)};
+    float dx[N], dy[N], dz[N], r[N], g[N], b[N];
+    unsigned seed = 777u;
+    for (int i = 0; i < N; i++) {
+        float d[3];
+        for (int c = 0; c < 3; c++) {
+            seed = seed * 1664525u + 1013904223u;
+            d[c] = (float)(seed >> 8) / 8388608.0f - 1.0f;
+        }
+        dx[i] = d[0], dy[i] = d[1], dz[i] = d[2];
+    }
+    /* -Z's bottom-right texel (canonical +z major, s = -x/|z| near 1, t = -y/|z| near 1): the
+     * image's last one; a lane in each chunk. */
+    const float last[3] = {-0.9f, -0.9f, 1.0f};
+    for (int c = 0; c < 3; c++) {
+        float *d = c == 0 ? dx : (c == 1 ? dy : dz);
+        d[3] = last[c];
+        d[66] = last[c];
+    }
+    const float fixed[][3] = {{0, 0, 0}, {NAN, 0, 1}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},  {0, -1, 0},
+                              {0, 0, 1}, {0, 0, -1},  {1, 1, 0}, {0, 1, 1},  {1, 0, -1}, {1, 1, 1}};
+    for (int k = 0; k < (int)(sizeof fixed / sizeof fixed[0]); k++)
+        dx[10 + k] = fixed[k][0], dy[10 + k] = fixed[k][1], dz[10 + k] = fixed[k][2];
+    float s, t;
+    assert_int_equal(env_cube_coords(v3(last[0], last[1], last[2]), &s, &t), 5);
+    assert_true(s > 1.0f - 0.5f / F && t > 1.0f - 0.5f / F);
+    env_lookup_n(&e, N, dx, dy, dz, r, g, b);
+    for (int i = 0; i < N; i++) {
+        vec3 l = env_lookup(&e, v3(dx[i], dy[i], dz[i]));
+        float want[3] = {l.x, l.y, l.z}, got[3] = {r[i], g[i], b[i]};
+        if (memcmp(want, got, sizeof want) != 0)
+            fail_msg("cube lane %d (%g, %g, %g): got (%a, %a, %a), want (%a, %a, %a)", i, (double)dx[i], (double)dy[i],
+                     (double)dz[i], (double)got[0], (double)got[1], (double)got[2], (double)want[0], (double)want[1],
+                     (double)want[2]);
+    }
+    free(rgb);
+}
+
+/* The constant environment's lane loop: the constant, and 0 for a zero direction. */
+static void test_lookup_n_constant(void **state)
+{
+    (void)state;
+    enum { N = 19 };
+    env_map e = {.kind = ENV_CONSTANT, .constant = v3(0.25f, 2.0f, 7.0f)};
+    float dx[N], dy[N], dz[N], r[N], g[N], b[N];
+    for (int i = 0; i < N; i++)
+        dx[i] = (float)(i % 3), dy[i] = -1.0f * (float)(i % 2), dz[i] = 0.0f;
+    env_lookup_n(&e, N, dx, dy, dz, r, g, b);
+    for (int i = 0; i < N; i++) {
+        int zero = i % 6 == 0;
+        assert_true(r[i] == (zero ? 0.0f : 0.25f) && g[i] == (zero ? 0.0f : 2.0f) && b[i] == (zero ? 0.0f : 7.0f));
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -350,6 +418,8 @@ int main(void)
         cmocka_unit_test(test_render_refuses_bad_texels),
         cmocka_unit_test(test_check_loads_environment),
         cmocka_unit_test(test_lookup_n_bits),
+        cmocka_unit_test(test_lookup_n_cube_bits),
+        cmocka_unit_test(test_lookup_n_constant),
     };
     return cmocka_run_group_tests_name("env", tests, NULL, NULL);
 }
