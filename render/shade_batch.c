@@ -42,6 +42,11 @@ static inline vec3 sb_min(vec3 a, vec3 b)
 {
     return v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
 }
+/* *p read field by field. In a lane loop, a vec3 read whole from a struct (a light's position,
+ * a material's f0) is an aggregate copy, which GCC 12 does not vectorise: it kept every
+ * Cook-Torrance lane loop scalar. Three float reads of the same fields are the same values. */
+SB_INLINE vec3 sb_v3_load(const vec3 *p) { return v3(p->x, p->y, p->z); }
+
 /* Lane flags are gathered in an array and or-ed after the lane loop: an `omp simd reduction`
  * of an int kept GCC 12 from vectorising the float work around it. Here, alone, it vectorises
  * the or (without the pragma GCC 12 -O2 leaves a loop of unknown count scalar). */
@@ -188,10 +193,10 @@ typedef struct {
 
 SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, const int kind)
 {
-    sb_incidence r = {b->to_sun, 1.0f, 0};
+    sb_incidence r = {sb_v3_load(&b->to_sun), 1.0f, 0};
     if (kind == SB_SUN)
         return r;
-    vec3 d = v3_sub(l->position, x);
+    vec3 d = v3_sub(sb_v3_load(&l->position), x);
     float d2 = v3_dot(d, d);
     int safe = (d2 > SB_D2_MIN) & (d2 < SB_D2_MAX);
     r.bad = !safe;
@@ -200,7 +205,7 @@ SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, co
     r.atten = formula_attenuation_v(l->a0, l->a1, l->a2, d2 * inv, d2, l->range);
     if (kind == SB_POINT)
         return r;
-    float rho = -v3_dot(b->axis, r.to_l);
+    float rho = -v3_dot(sb_v3_load(&b->axis), r.to_l);
     r.atten *= kind == SB_SPOT_SMOOTH ? formula_spot_smooth_v(rho, b->cos_in, b->cos_out, b->cone)
                                       : formula_spot_d3d_v(rho, b->cos_in, b->cos_out, b->cone, b->falloff);
     return r;
@@ -520,9 +525,9 @@ SB_INLINE vec3 sb_ct_lobe(const ct_params *ct, float log_d0, float inv_m2, float
     d = n_h > 0.0f ? d : 0.0f;
     float g = smith ? formula_smith_g1_walter_v(n_v, ct->m) * formula_smith_g1_walter_v(n_l, ct->m)
                     : formula_vcavity_g_v(n_h, n_v, n_l, v_h);
-    vec3 f = sb_ct_fresnel(ct->f0, v_h, f_one);
+    vec3 f = sb_ct_fresnel(sb_v3_load(&ct->f0), v_h, f_one);
     float common = front ? formula_ct_lobe_v(d, g, k_norm, n_v) : 0.0f;
-    vec3 r = v3_mul(v3_mul(ct->ks, f), v3s(common));
+    vec3 r = v3_mul(v3_mul(sb_v3_load(&ct->ks), f), v3s(common));
     return sb_min(r, v3s(FORMULA_CT_MAX));
 }
 
@@ -543,7 +548,7 @@ SB_INLINE int sb_ct_light(const material *mat, const light *l, const shade_batch
         vec3 nn = shade_lane_get(&in->nrm, i), v = shade_lane_get(&in->v, i);
         sb_incidence inc = sb_incident(l, &b, shade_lane_get(&in->x, i), kind);
         bad[i] = inc.bad;
-        vec3 e = v3_scale(l->intensity, inc.atten);
+        vec3 e = v3_scale(sb_v3_load(&l->intensity), inc.atten);
         float n_l = v3_dot(nn, inc.to_l);
         float lit = n_l > 0.0f ? 1.0f : 0.0f;
         shade_lane_set(&out->diffuse, i, v3_add(shade_lane_get(&out->diffuse, i), v3_scale(v3_mul(kd, e), n_l * lit)));
@@ -559,12 +564,14 @@ SB_INLINE void sb_ct(const shade_context *c, const shade_plan *p, const shade_ba
 {
     const material *mat = p->mat;
     const int n = in->n, smith = mat->ct.g == G_SMITH_WALTER, f_one = mat->ct.f == F_ONE;
+    /* A local, as in sb_ct_light: read through mat in the loop, the fill was not vectorised. */
+    const vec3 emissive = mat->d3d.emissive;
     int bad = 0;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         shade_lane_set(&out->diffuse, i, v3s(0.0f));
         shade_lane_set(&out->specular, i, v3s(0.0f));
-        shade_lane_set(&out->emission, i, mat->d3d.emissive);
+        shade_lane_set(&out->emission, i, emissive);
         shade_lane_set(&out->reflection, i, v3s(0.0f));
         out->alpha[i] = 1.0f;
     }
