@@ -289,14 +289,21 @@ FORMULA_INLINE FT FN(formula_dissolve_coord)(FT t, FT scale, uint32_t *i0, uint3
  * environment lookup, (t - 1/2) strength, t channel ch of the noise texture read bilinearly,
  * wrapping, at (u scale, v scale) (the texel's j counts up in v). If either parameter is 0 the
  * effect is off (the source): the offset is 0 (scale 0 alone would read one constant texel). */
-FORMULA_INLINE FT FN(formula_dissolve_offset)(FT u, FT v, FT scale, FT strength, uint32_t ch)
+FORMULA_INLINE FT FN(formula_dissolve_offset_on)(FT u, FT v, FT scale, FT strength, uint32_t ch)
 {
     uint32_t i0, i1, j0, j1;
     FT a = FN(formula_dissolve_coord)(u, scale, &i0, &i1);
     FT b = FN(formula_dissolve_coord)(v, scale, &j0, &j1);
     FT t = (1 - b) * ((1 - a) * (FT)formula_dissolve_texel(i0, j0, ch) + a * (FT)formula_dissolve_texel(i1, j0, ch)) +
            b * ((1 - a) * (FT)formula_dissolve_texel(i0, j1, ch) + a * (FT)formula_dissolve_texel(i1, j1, ch));
-    return (scale > 0 && strength > 0) ? (t - FC(0.5)) * strength : 0;
+    return (t - FC(0.5)) * strength;
+}
+/* formula_dissolve_offset_on is the offset where the effect is on (both parameters above 0);
+ * a lane loop tests that once, before it: a select on a loop-invariant condition inside it
+ * kept GCC 12 from vectorising the loop. */
+FORMULA_INLINE FT FN(formula_dissolve_offset)(FT u, FT v, FT scale, FT strength, uint32_t ch)
+{
+    return (scale > 0 && strength > 0) ? FN(formula_dissolve_offset_on)(u, v, scale, strength, ch) : 0;
 }
 
 #undef FT

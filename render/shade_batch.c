@@ -98,22 +98,35 @@ SB_INLINE void sb_env_reflected(const shade_context *c, const shade_batch_in *re
 #pragma GCC diagnostic pop
 #endif
 
-/* phi along the mirror direction plus Dissolve's offset at each lane's (tu, tv): shade.c's
- * shade_d3d9client_impl, formula_dissolve_offset per channel (d3d9client_dissolve_offset). */
-SB_INLINE void sb_env_dissolved(const shade_context *c, const d3d9client_params *d9, const shade_batch_in *restrict in,
-                                shade_vec3_n *restrict phi)
+/* The mirror directions plus Dissolve's offsets, the effect on or (a constant) off: off, the
+ * offset is formula_dissolve_offset's 0, still added (a -0 component becomes +0, as in shade.c). */
+SB_INLINE void sb_dissolved_dirs(const d3d9client_params *d9, const shade_batch_in *restrict in,
+                                 shade_vec3_n *restrict dir, const int on)
 {
-    shade_vec3_n dir;
     const int n = in->n;
     const float sc = d9->dissolve_scale, k = d9->dissolve_strength;
 #pragma omp simd
     for (int i = 0; i < n; i++) {
         const float u = in->tu[i], v = in->tv[i];
-        vec3 off = v3(formula_dissolve_offset_v(u, v, sc, k, 0), formula_dissolve_offset_v(u, v, sc, k, 1),
-                      formula_dissolve_offset_v(u, v, sc, k, 2));
-        shade_lane_set(&dir, i, v3_add(v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)), off));
+        vec3 off = on ? v3(formula_dissolve_offset_on_v(u, v, sc, k, 0), formula_dissolve_offset_on_v(u, v, sc, k, 1),
+                           formula_dissolve_offset_on_v(u, v, sc, k, 2))
+                      : v3s(0.0f);
+        shade_lane_set(dir, i, v3_add(v3_reflect(shade_lane_get(&in->v, i), shade_lane_get(&in->nrm, i)), off));
     }
-    env_lookup_n(c->env, n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
+}
+
+/* phi along the mirror direction plus Dissolve's offset at each lane's (tu, tv): shade.c's
+ * shade_d3d9client_impl, formula_dissolve_offset per channel (d3d9client_dissolve_offset),
+ * its on/off test made once per batch. */
+SB_INLINE void sb_env_dissolved(const shade_context *c, const d3d9client_params *d9, const shade_batch_in *restrict in,
+                                shade_vec3_n *restrict phi)
+{
+    shade_vec3_n dir;
+    if (d9->dissolve_scale > 0.0f && d9->dissolve_strength > 0.0f)
+        sb_dissolved_dirs(d9, in, &dir, 1);
+    else
+        sb_dissolved_dirs(d9, in, &dir, 0);
+    env_lookup_n(c->env, in->n, dir.x, dir.y, dir.z, phi->x, phi->y, phi->z);
 }
 
 /* What a light's lane loop reads, fixed before the loop (d3d_spot's normalised axis and cone
