@@ -727,6 +727,80 @@ static void test_d3d9client(void **state)
     assert_int_equal(failures, 0);
 }
 
+/* The Dissolve kernel against shade_eval_uv lane by lane, at random (tu, tv) in [-2, 2) (the
+ * noise wraps), two lights, the image environment and the tolerances above. The plan picks
+ * this kernel only for a textured material; the texture multiplies the terms after both paths
+ * (shade_texture_apply), so the kernel is installed here by hand on an untextured one. */
+static void test_d3d9client_dissolve(void **state)
+{
+    (void)state;
+    const float strengths[] = {0.3f, 1.5f};
+    check_stat all = {{0}, 0, 0, 0};
+    env_map env = make_env_image();
+    rng_seed(900);
+    for (int si = 0; si < 2; si++) {
+        scene s;
+        base_scene(&s);
+        add_point(&s);
+        add_sun(&s);
+        material *m = &s.materials[0];
+        m->model = MODEL_D3D9CLIENT;
+        m->d3d.diffuse = v3(0.6f, 0.5f, 0.4f);
+        m->d3d.specular = v3(0.3f, 0.3f, 0.3f);
+        m->d3d.power = 20.0f;
+        m->d9.p = 5.0f;
+        m->d9.r0 = 0.04f;
+        m->d9.m = 0.96f;
+        m->d9.reflect = v3(0.6f, 0.4f, 0.2f);
+        m->d9.dissolve_scale = 1.25f;
+        m->d9.dissolve_strength = strengths[si];
+        shade_context c;
+        shade_plan p;
+        shade_context_make(&s, &env, &c);
+        shade_plan_make(&c, m, &p);
+        assert_false(p.textured);
+        p.batch = shade_batch_d3d9client_dissolve;
+        p.fn_uv = shade_d3d9client_dissolve;
+        shade_batch_in *in = &work.in[0];
+        shade_batch_out *o = &work.out[0];
+        make_inputs(&c, m, SHADE_BATCH, in);
+        for (int i = 0; i < SHADE_BATCH; i++) {
+            in->tu[i] = rng_range(-2.0f, 2.0f);
+            in->tv[i] = rng_range(-2.0f, 2.0f);
+        }
+        fill_sentinel(o);
+        shade_eval_n(&c, &p, in, o);
+        double peak = 0.0;
+        for (int i = 0; i < SHADE_BATCH; i++) {
+            shade_eval_uv(&c, &p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i),
+                          in->tu[i], in->tv[i], &work.want[0][i]);
+            float w[3];
+            term_values(&work.want[0][i], T_REFLECTION, w);
+            for (int j = 0; j < 3; j++)
+                peak = fmax(peak, fabs(w[j]));
+        }
+        assert_true(peak > 0.0);
+        for (int i = 0; i < SHADE_BATCH; i++) {
+            all.lanes++;
+            float got[3], want[3];
+            batch_values(o, i, T_REFLECTION, got);
+            term_values(&work.want[0][i], T_REFLECTION, want);
+            for (int j = 0; j < 3; j++) {
+                double err = fabs((double)got[j] - want[j]) / fmax(fabs(want[j]), FLOOR_FRACTION * peak);
+                all.worst[T_REFLECTION] = fmax(all.worst[T_REFLECTION], err);
+                if (!(err <= REL) || !isfinite(got[j])) {
+                    all.failures++;
+                    print_error("dissolve strength %g lane %d (tu %g, tv %g) channel %d: batch %.9g, scalar %.9g\n",
+                                (double)strengths[si], i, (double)in->tu[i], (double)in->tv[i], j, (double)got[j],
+                                (double)want[j]);
+                }
+            }
+        }
+    }
+    stat_print("d3d9client dissolve (reflection)", &all);
+    assert_int_equal(all.failures, 0);
+}
+
 /* ---- Cook-Torrance: the kernels, and shade_eval lane by lane where they do not apply ---- */
 
 /* Every normalisation, G and Fresnel, with and without the reflection term, under the three
@@ -1203,6 +1277,7 @@ int main(void)
         cmocka_unit_test(test_light_kinds),
         cmocka_unit_test(test_multiple_lights),
         cmocka_unit_test(test_d3d9client),
+        cmocka_unit_test(test_d3d9client_dissolve),
         cmocka_unit_test(test_cook_torrance),
         cmocka_unit_test(test_partial_batches),
         cmocka_unit_test(test_batch_length_same_bits),
