@@ -2,12 +2,13 @@
 # compare_cache.sh - `reflcheck compare` through a cache, so that a nightly run over an unchanged
 # tree hands back each scene's measurements instead of measuring every image pair again.
 #
-# Usage: bash ops/compare_cache.sh CACHE BIN RUN SCENE.yaml...
+# Usage: [COMPARE_JOBS=N] bash ops/compare_cache.sh CACHE BIN RUN SCENE.yaml...
 #   prints what `BIN compare SCENE... --run RUN` prints (one summary line a scene, in the
 #   scenes' order; "FAIL ..." lines on stderr) and leaves RUN/<scene>/compare.json and view.js;
 #   the scenes whose inputs are unchanged come from CACHE/compare/<key>/, the others are
-#   compared in one call and kept. Exit status: compare's (0 every comparison passed, warned
-#   or was skipped; 1 one failed or errored, or compare failed; 2 bad input).
+#   compared and kept: in one call, or split over COMPARE_JOBS calls at a time (default 1).
+#   Exit status: compare's (0 every comparison passed, warned or was skipped; 1 one failed or
+#   errored, or compare failed; 2 bad input), the worst of the calls.
 # The key (SHA-256) covers what compare reads: the scene file's bytes (its comparisons and
 # gates), the reflcheck program (path, size, modification time: a rebuilt one compares again)
 # and the cache key and status of every render record in RUN/<scene>/ (each key covers the
@@ -35,18 +36,36 @@ for s in "$@"; do
         echo "$keys"
     } | sha256sum | cut -c1-32)
 done
-# The misses, compared in one call (it reads every scene first: a bad one refuses them all).
+# The misses, compared in one call (it reads every scene first: a bad one refuses them all),
+# or in COMPARE_JOBS calls of every COMPARE_JOBS-th scene, one process each: compare is one
+# thread and a scene's measurement is its own (RUN/<scene>/), so the nightly, whose plan read
+# and checked every scene before rendering, measures its 34 scenes in about half the 14 s.
+# A bad scene then refuses its own call's scenes only.
 todo=()
 for s in "$@"; do
     k=${key[$s]:-}
     [ -n "$k" ] && [ -f "$cache/compare/$k/ok" ] || todo+=("$s")
 done
-out=$(mktemp) && errs=$(mktemp) || exit 1
-trap 'rm -f "$out" "$errs"' EXIT
+out=$(mktemp) && errs=$(mktemp) && parts=$(mktemp -d) || exit 1
+trap 'rm -rf "$out" "$errs" "$parts"' EXIT
 st=0
+calls=${COMPARE_JOBS:-1}
+[[ $calls =~ ^[1-9][0-9]*$ ]] || { echo "compare_cache.sh: COMPARE_JOBS '$calls': give a count >= 1" >&2; exit 2; }
 if [ ${#todo[@]} -gt 0 ]; then
-    "$bin" compare "${todo[@]}" --run "$run" > "$out" 2> "$errs"
-    st=$?
+    pids=()
+    for ((c = 0; c < calls && c < ${#todo[@]}; c++)); do
+        part=()
+        for ((i = c; i < ${#todo[@]}; i += calls)); do part+=("${todo[i]}"); done
+        "$bin" compare "${part[@]}" --run "$run" > "$parts/$c.out" 2> "$parts/$c.err" &
+        pids+=($!)
+    done
+    for c in "${!pids[@]}"; do
+        wait "${pids[c]}"
+        rc=$?
+        [ $rc -gt $st ] && st=$rc
+        cat "$parts/$c.out" >> "$out"
+        cat "$parts/$c.err" >> "$errs"
+    done
     cat "$errs" >&2
     [ $st = 2 ] && { cat "$out"; exit 2; }
 fi

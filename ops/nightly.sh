@@ -359,7 +359,7 @@ if [ "$scheduler" = make ]; then
     fi
     # compare through CACHE/compare: a scene of unchanged renders and scene file is not
     # measured again (ops/compare_cache.sh).
-    step bash ops/compare_cache.sh "$cache" "$bin" "$run" "${scenes[@]}" > "$run/compare.txt"
+    COMPARE_JOBS=$jobs step bash ops/compare_cache.sh "$cache" "$bin" "$run" "${scenes[@]}" > "$run/compare.txt"
     st=$?
 else
     mkdir -p "$run/slurm"
