@@ -473,6 +473,7 @@ static void test_keep_falls_back(void **state)
     render_options ko = {.threads = 2, .keep = k}, fo = {.threads = 2};
     render_image a, b;
     assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
+    render_image_free(&a);
     s->materials[1].d3d.power = 12.0f;
     assert_int_equal(render_scene(s, &m, &env, &ko, &a, err, sizeof err), RC_OK);
     assert_int_equal(render_scene(s, &m, &env, &fo, &b, err, sizeof err), RC_OK);
