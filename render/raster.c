@@ -657,7 +657,7 @@ static rc_status raster_setup_grid(raster_ctx *c, const raster_options *opt)
     c->width = opt->width;
     c->height = opt->height;
     c->k = opt->supersample ? opt->supersample : 1;
-    c->tile = opt->tile ? opt->tile : 16;
+    c->tile = opt->tile ? opt->tile : RASTER_TILE_DEFAULT;
     if ((int64_t)c->tile * c->k > RASTER_MAX_TILE_SAMPLES)
         return RC_ERR_RANGE;
     c->near = opt->near > 0 ? opt->near : 1e-3;

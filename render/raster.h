@@ -25,11 +25,14 @@ typedef struct {
     float x, y, w;
 } raster_vertex;
 
+/* The tile edge in pixels when raster_options.tile is 0. */
+#define RASTER_TILE_DEFAULT 16
+
 typedef struct {
     int width, height; /* image size in pixels */
     int supersample;   /* k (k*k samples per pixel), 0 = 1 */
     int threads;       /* 0 = all cores */
-    int tile;          /* tile edge in pixels, 0 = 16 */
+    int tile;          /* tile edge in pixels, 0 = RASTER_TILE_DEFAULT */
     float near;        /* near plane in w, 0 = 1e-3 */
 } raster_options;
 

@@ -1464,14 +1464,14 @@ static int render_keep_tiles(const render_keep_shape *sh)
     return sh->tiles_x * ((sh->height + sh->tile - 1) / sh->tile);
 }
 
-/* A frame's keep shape: its size, the rasterizer's tile (raster.h: 0 = 16) and objects. */
+/* A frame's keep shape: its size, the rasterizer's tile (raster.h: 0 = RASTER_TILE_DEFAULT) and objects. */
 static void render_keep_shape_make(const scene *s, int width, int height, int k, const render_options *opt, int n_blend,
                                    render_keep_shape *sh)
 {
     sh->width = width;
     sh->height = height;
     sh->k = k;
-    sh->tile = opt->tile > 0 ? opt->tile : 16;
+    sh->tile = opt->tile > 0 ? opt->tile : RASTER_TILE_DEFAULT;
     sh->tiles_x = (width + sh->tile - 1) / sh->tile;
     sh->n_objects = s->n_objects;
     sh->n_blend = n_blend;
@@ -1489,9 +1489,9 @@ void render_memory_estimate(const scene *s, const mesh *m, const env_map *env, c
     int n_layers = render_layer_count(render_aov_bits(opt));
     double total = (double)n_layers * w * h * sizeof(float);
     /* Per worker: the shading scratch and the tile's sample, depth and row buffers
-     * (raster.c: tile edge 16 by default, times k per axis). */
+     * (the tile edge, RASTER_TILE_DEFAULT by default, times k per axis). */
     raster_options ro = {.threads = opt->threads};
-    double tsn = (double)(opt->tile > 0 ? opt->tile : 16) * k;
+    double tsn = (double)(opt->tile > 0 ? opt->tile : RASTER_TILE_DEFAULT) * k;
     double per_thread =
         sizeof(render_scratch) + tsn * tsn * (sizeof(raster_sample) + sizeof(double)) + 2.0 * tsn * sizeof(double);
     total += raster_thread_count(&ro) * per_thread;
