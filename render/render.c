@@ -1899,8 +1899,6 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
     int any_per_vertex = render_objects_make(opt, &ob, &j);
     const int keep_mode = render_keep_mode(&j, &ob, opt);
 
-    raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
-    shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
     raster_options ro = {.width = out->width,
                          .height = out->height,
                          .supersample = out->supersample,
@@ -1908,12 +1906,13 @@ rc_status render_scene(const scene *s, const mesh *m, const env_map *env, const 
                          .tile = opt->tile};
     const int n_threads = raster_thread_count(&ro);
     if (keep_mode == RENDER_KEEP_REPLAY) {
-        free(rv);
-        free(vt);
         if ((st = render_replay(&j, opt, n_threads, err, errlen)) == RC_OK)
             render_scene_done(opt, out, t0);
         return st;
     }
+    /* Only a frame that is rasterized needs its vertices in clip space (and Gouraud terms). */
+    raster_vertex *rv = malloc((size_t)(m->n_verts > 0 ? m->n_verts : 1) * sizeof *rv);
+    shade_terms *vt = any_per_vertex ? malloc((size_t)m->n_verts * sizeof *vt) : NULL;
     long long *shaded = calloc((size_t)n_threads, sizeof *shaded);
     render_scratch *scratch = calloc((size_t)n_threads, sizeof *scratch);
     if (rv == NULL || (any_per_vertex && vt == NULL) || shaded == NULL || scratch == NULL) {
