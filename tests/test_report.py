@@ -28,7 +28,7 @@ sys.path.insert(0, os.path.join(ROOT, 'tests', 'fixtures', 'report'))
 from make_run import make_run  # noqa: E402
 
 sys.path.insert(0, os.path.join(ROOT, 'tools'))
-from report import browser, figures, history, load, proposal, util  # noqa: E402  (the package tools/report/)
+from report import browser, figures, history, load, plots, proposal, util  # noqa: E402  (the package tools/report/)
 
 RUN1 = '20250101-120000-abc1234'
 RUN2 = '20250102-120000-def5678'
@@ -152,6 +152,56 @@ def test_plot_cache_draws_only_what_changed(tmp_path):
     assert redrawn >= 2, r.stdout
     f = 'angle-alpha-ndotv.svg'
     assert read(os.path.join(changed, 'plots', f)) != read(os.path.join(first, 'plots', f))
+
+
+@pytest.mark.skipif(not HAVE_GNUPLOT, reason='gnuplot not installed')
+def test_plots_of_one_gnuplot_are_the_bytes_of_one_gnuplot_each(tmp_path, monkeypatch):
+    """Five plots queued and drawn in one gnuplot (a batch) have the bytes of the same plots drawn
+    one gnuplot each: a plot's settings do not leak into the next (the share plot's linear y axis
+    and its [0:*] range into the log-y plot after it). The third plot's data file is missing: it
+    is named with the message it gets alone, and the two after it are still drawn."""
+    d = tmp_path / 'data'
+    d.mkdir()
+    (d / 'share.dat').write_text('bin a:x b\n0.05 0.7 0.3\n0.15 0.6 ?\n0.55 0.1 0.9\n')
+    (d / 'rel.dat').write_text('bin raster-vs-cycles\n0.05 0.2\n0.35 ?\n0.85 0.013\n')
+    (d / 'trend.dat').write_text('run label c1 c2\n1 ref-abc1234 0.02 ?\n2 def5678 0.025 0.4\n')
+    angle = {'xlab': 'N·V', 'ylab': 'y', 'height': 316, 'ncols': 3}
+    plot_list = [
+        ('angle.gp', dict(angle, datafile=str(d / 'share.dat'), logy=0, ptitle="a's share")),
+        ('angle.gp', dict(angle, datafile=str(d / 'rel.dat'), logy=1, ncols=2, ptitle='rel')),
+        ('angle.gp', dict(angle, datafile=str(d / 'gone.dat'), logy=1, ptitle='gone')),
+        ('trend.gp', {'datafile': str(d / 'trend.dat'), 'ncols': 4, 'ptitle': 'trend'}),
+        ('angle.gp', dict(angle, datafile=str(d / 'share.dat'), logy=1, ptitle='share again')),
+    ]
+    runs = []
+    real_run = plots.subprocess.run
+    monkeypatch.setattr(plots.subprocess, 'run', lambda cmd, **kw: runs.append(cmd) or real_run(cmd, **kw))
+
+    def draw(folder, queued):
+        os.makedirs(folder)
+        problems = util.Problems()
+        if queued:
+            plots.queue_plots()
+        said = [
+            plots.run_gnuplot(sc, pa, os.path.join(folder, f'{i}.svg'), problems)
+            for i, (sc, pa) in enumerate(plot_list)
+        ]
+        failed = plots.draw_queued(problems, 1, batches_per_worker=1) if queued else set()
+        return said, failed, [(os.path.basename(p['file']), p['message']) for p in problems.items]
+
+    said, _, alone_problems = draw(str(tmp_path / 'alone'), False)
+    assert said == [True, True, False, True, True] and len(runs) == 5
+    assert [f for f, _ in alone_problems] == ['2.svg'], alone_problems
+    runs.clear()
+    _, failed, batch_problems = draw(str(tmp_path / 'batch'), True)
+    # one gnuplot for the batch; it stops at the missing file: that plot and the two after it alone
+    assert len(runs) == 1 + 3, runs
+    assert failed == {str(tmp_path / 'batch' / '2.svg')}
+    assert batch_problems == alone_problems
+    for i in (0, 1, 3, 4):
+        alone, batch = (read(str(tmp_path / f / f'{i}.svg')) for f in ('alone', 'batch'))
+        assert alone == batch, i
+    assert sorted(os.listdir(tmp_path / 'batch')) == ['0.svg', '1.svg', '3.svg', '4.svg']  # no temporary left
 
 
 def test_latest_points_at_run(built):

@@ -7,6 +7,8 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
 
 from .util import GNUPLOT_TIMEOUT_S, PLOTS, TREND_RUNS, finite, is_num, safe_name
 
@@ -73,6 +75,21 @@ def _to_cache(svg, path):
         pass
 
 
+# Plots one gnuplot draws in a row (draw_queued): its start, most of a small plot's 10-20 ms of
+# CPU, is paid once a batch; four batches a worker let the one that ends first take the next,
+# so neither waits long for the other at the end.
+BATCHES_PER_WORKER = 4
+QUEUE = None  # the plots run_gnuplot deferred since queue_plots(); None: each drawn at once
+DONE = 'reflcheck-plot-done'  # what a batch prints after each plot it wrote
+
+
+def queue_plots():
+    """From now on run_gnuplot only records the plots the cache does not hold (and answers True);
+    draw_queued() draws them."""
+    global QUEUE
+    QUEUE = []
+
+
 def run_gnuplot(script, params, out_svg, problems):
     exe = shutil.which('gnuplot')
     if not exe:
@@ -89,9 +106,22 @@ def run_gnuplot(script, params, out_svg, problems):
     tmp = f'{out_svg}.tmp{os.getpid()}.svg'
     params = dict(params, outfile=tmp, dir=PLOTS + os.sep)
     expr = '; '.join(f'{k}={gnuplot_q(v) if isinstance(v, str) else v}' for k, v in params.items())
+    job = {'exe': exe, 'script': script, 'expr': expr, 'tmp': tmp, 'svg': out_svg, 'cached': cached}
+    if QUEUE is not None:
+        QUEUE.append(job)
+        return True
+    return _draw_one(job, problems)
+
+
+def _draw_one(job, problems):
+    """The plot in a gnuplot of its own: a failure is named with gnuplot's last message."""
+    script, tmp, out_svg = job['script'], job['tmp'], job['svg']
     try:
         r = subprocess.run(
-            [exe, '-e', expr, os.path.join(PLOTS, script)], capture_output=True, text=True, timeout=GNUPLOT_TIMEOUT_S
+            [job['exe'], '-e', job['expr'], os.path.join(PLOTS, script)],
+            capture_output=True,
+            text=True,
+            timeout=GNUPLOT_TIMEOUT_S,
         )
     except (OSError, subprocess.TimeoutExpired) as e:
         problems.add(out_svg, f'gnuplot failed: {e}')
@@ -102,11 +132,58 @@ def run_gnuplot(script, params, out_svg, problems):
         if os.path.exists(tmp):
             os.unlink(tmp)
         return False
-    os.replace(tmp, out_svg)
-    CACHE.drawn.append(out_svg)
-    if cached:
-        _to_cache(out_svg, cached)
+    _finish(job)
     return True
+
+
+def _finish(job):
+    os.replace(job['tmp'], job['svg'])
+    CACHE.drawn.append(job['svg'])
+    if job['cached']:
+        _to_cache(job['svg'], job['cached'])
+
+
+def _draw_batch(jobs, problems):
+    """The plots in one gnuplot, one after another. `reset session` between two gives each the
+    state of a fresh gnuplot (user variables, ranges, log scales), so each SVG has the bytes it
+    has when drawn alone (tests/test_report.py checks). gnuplot stops at a script's first error:
+    a plot it did not mark done is drawn again alone, which names its failure. The failed SVGs."""
+    lines = []
+    for i, job in enumerate(jobs):
+        lines += ['reset session', job['expr'], f"load {gnuplot_q(os.path.join(PLOTS, job['script']))}"]
+        lines += ['set output', f"print '{DONE} {i}'"]
+    fd, batch = tempfile.mkstemp(prefix='reflcheck-plots-', suffix='.gp')
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            f.write('\n'.join(lines) + '\n')
+        r = subprocess.run(
+            [jobs[0]['exe'], batch], capture_output=True, text=True, timeout=GNUPLOT_TIMEOUT_S * len(jobs)
+        )
+        done = {int(m) for m in re.findall(DONE + r' (\d+)$', r.stderr, re.M)}
+    except (OSError, subprocess.TimeoutExpired):
+        done = set()
+    finally:
+        os.unlink(batch)
+    failed = []
+    for i, job in enumerate(jobs):
+        if i in done and os.path.exists(job['tmp']) and os.path.getsize(job['tmp']) > 0:
+            _finish(job)
+        elif not _draw_one(job, problems):
+            failed.append(job['svg'])
+    return failed
+
+
+def draw_queued(problems, workers, batches_per_worker=BATCHES_PER_WORKER):
+    """Draws the plots queued since queue_plots() in batches, workers gnuplots at a time, and
+    stops queueing; the SVG paths that could not be drawn (each named in problems)."""
+    global QUEUE
+    jobs, QUEUE = QUEUE or [], None
+    if not jobs:
+        return set()
+    size = -(-len(jobs) // (batches_per_worker * workers))
+    with ThreadPoolExecutor(workers) as ex:
+        failed = ex.map(lambda b: _draw_batch(b, problems), [jobs[i : i + size] for i in range(0, len(jobs), size)])
+        return {svg for batch in failed for svg in batch}
 
 
 def write_table(path, header, rows):
