@@ -49,7 +49,15 @@ try:
     from report.load import load_run, verdict_counts
     from report.outputs import junit_xml, summary_csv, summary_object
     from report.plots import CACHE as PLOT_CACHE
-    from report.plots import plot_angles, plot_figure1, plot_timing, plot_trends, set_cache
+    from report.plots import (
+        draw_queued,
+        plot_angles,
+        plot_figure1,
+        plot_timing,
+        plot_trends,
+        queue_plots,
+        set_cache,
+    )
     from report.proposal import proposal
     from report.util import ASSETS, VERDICTS, write_atomic
 except ImportError as e:  # the one library outside the standard library: Jinja2, for the pages
@@ -92,23 +100,62 @@ def make_report(args):
     note = 'trends: ' + ', then '.join(parts) if parts else 'no --history or --reference-history given: no trends'
     if args.cache:
         set_cache(os.path.join(args.cache, 'plots'))
-    # The plots are independent gnuplot runs into files of their own names: one thread a core
-    # keeps every core busy while a gnuplot starts (a first run draws about 190 of them).
-    with tempfile.TemporaryDirectory(prefix='reflcheck-report-') as tmp, ThreadPoolExecutor(os.cpu_count() or 2) as ex:
-        angles = {s['name']: ex.submit(plot_angles, R, s, tmp, problems) for s in R['scenes']}
-        figure1 = {s['name']: ex.submit(plot_figure1, R, s, tmp, problems) for s in R['scenes'] if s.get('figure1')}
-        trends = ex.submit(plot_trends, R, history, tmp, problems) if history else None
-        timing = ex.submit(plot_timing, R, tmp, problems)
-        angles = {k: f.result() for k, f in angles.items()}
-        figure1 = {k: f.result() for k, f in figure1.items()}
-        trends = trends.result() if trends else {}
-        timing = timing.result()
+    with tempfile.TemporaryDirectory(prefix='reflcheck-report-') as tmp, ThreadPoolExecutor(1) as drawer:
+        # Each plot's data is written and its SVG named first; gnuplot then draws those the
+        # cache does not hold in a few batches, one gnuplot a core, while the pages are written
+        # with every plot named. A plot that could not be drawn (rare: its page would name a
+        # missing file) has the pages written again without it, as when plots were drawn first.
+        queue_plots()
+        plots = {
+            'angles': {s['name']: plot_angles(R, s, tmp, problems) for s in R['scenes']},
+            'figure1': {s['name']: plot_figure1(R, s, tmp, problems) for s in R['scenes'] if s.get('figure1')},
+            'trends': plot_trends(R, history, tmp, problems) if history else {},
+            'timing': plot_timing(R, tmp, problems),
+        }
+        drawn = drawer.submit(draw_queued, problems, os.cpu_count() or 2)
+        extra = write_pages(args, R, plots, note)
+        failed = drawn.result()
+    if failed:
+        extra = write_pages(args, R, drop_plots(plots, args.run, failed), note)
     if args.cache:
         # The nightly's second run is checked by this line (tests/nightly_cache.sh).
         print(
             f'report: plots: {len(PLOT_CACHE.drawn)} drawn by gnuplot '
             f'({", ".join(plot_kinds(PLOT_CACHE.drawn)) or "none"}), {len(PLOT_CACHE.kept)} from {args.cache}'
         )
+    if args.latest:
+        point_latest(args.run, args.latest, problems)
+    if args.screenshot and check_in_browser(args.run, R, extra):
+        return 1
+    n = verdict_counts(R)
+    print(
+        f'report: {os.path.join(args.run, "index.html")}: '
+        + ', '.join(f'{n[v]} {v}' for v in VERDICTS)
+        + f'; {len(problems.items)} input problems'
+    )
+    return 0
+
+
+def drop_plots(plots, run, failed):
+    """plots without the SVGs in failed (paths under run)."""
+    gone = {os.path.relpath(f, run) for f in failed}
+    out = {}
+    for kind, per in plots.items():
+        out[kind] = {}
+        for k, v in per.items():
+            if isinstance(v, dict):
+                out[kind][k] = {a: p for a, p in v.items() if p not in gone}
+            elif v not in gone:
+                out[kind][k] = v
+            elif kind == 'figure1':
+                out[kind][k] = None
+    return out
+
+
+def write_pages(args, R, plots, note):
+    """Every page and summary file of the run; the names of the pages beside the index and the
+    scene pages."""
+    angles, trends, figure1 = plots['angles'], plots['trends'], plots['figure1']
     for s in R['scenes']:
         write_atomic(
             os.path.join(args.run, s['page']), pages.scene_html(R, s, angles[s['name']], trends.get(s['name']))
@@ -118,7 +165,7 @@ def make_report(args):
     write_atomic(os.path.join(args.run, 'figures.md'), figures_md(summary))
     write_atomic(os.path.join(args.run, 'summary.csv'), summary_csv(R))
     write_atomic(os.path.join(args.run, 'junit.xml'), junit_xml(R))
-    write_atomic(os.path.join(args.run, 'index.html'), pages.index_html(R, trends, timing, note))
+    write_atomic(os.path.join(args.run, 'index.html'), pages.index_html(R, trends, plots['timing'], note))
     extra = []
     if R['optional']['stability'] is not None:
         write_atomic(os.path.join(args.run, 'stability.html'), pages.stability_html(R))
@@ -130,42 +177,34 @@ def make_report(args):
         if s['name'] in figure1:
             write_atomic(os.path.join(args.run, s['figure1_page']), pages.figure1_scene_html(R, s, figure1[s['name']]))
             extra.append(s['figure1_page'])
-    if args.latest:
-        point_latest(args.run, args.latest, problems)
-    if args.screenshot:
-        try:
-            # One Chromium for the screenshots and the check (browser.py: a start costs more
-            # than a page).
-            with Browser() as b:
-                b.screenshot(os.path.join(args.run, 'index.html'), os.path.join(args.run, 'screenshot.png'))
-                if R['scenes']:
-                    b.screenshot(
-                        os.path.join(args.run, R['scenes'][0]['page']),
-                        os.path.join(args.run, 'screenshot-scene.png'),
-                        (1400, 1400),
-                    )
-                # The report as a person opens it: every page in headless Chromium, every table
-                # row and image loaded (report.js's markers); a page that fails is named.
-                opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
-                n_pages = len(opened)
-                bad = b.check_pages(args.run, opened)
-            for page_name, why in bad:
-                print(f'report: {page_name}: {why}', file=sys.stderr)
-            print(
-                f'report: opened {n_pages - len(bad)} of {n_pages} pages in '
-                f'headless Chromium with every image loaded'
-            )
-            if bad:
-                return 1
-        except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
-            print(f'report: screenshot failed: {e}', file=sys.stderr)
-    n = verdict_counts(R)
+    return extra
+
+
+def check_in_browser(run, R, extra):
+    """The screenshots and the load check of every page in one Chromium (browser.py: a start
+    costs more than a page); True if a page failed the check."""
+    try:
+        with Browser() as b:
+            b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'screenshot.png'))
+            if R['scenes']:
+                b.screenshot(
+                    os.path.join(run, R['scenes'][0]['page']),
+                    os.path.join(run, 'screenshot-scene.png'),
+                    (1400, 1400),
+                )
+            # The report as a person opens it: every page in headless Chromium, every table row
+            # and image loaded (report.js's markers); a page that fails is named.
+            opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
+            bad = b.check_pages(run, opened)
+    except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
+        print(f'report: screenshot failed: {e}', file=sys.stderr)
+        return False
+    for page_name, why in bad:
+        print(f'report: {page_name}: {why}', file=sys.stderr)
     print(
-        f'report: {os.path.join(args.run, "index.html")}: '
-        + ', '.join(f'{n[v]} {v}' for v in VERDICTS)
-        + f'; {len(problems.items)} input problems'
+        f'report: opened {len(opened) - len(bad)} of {len(opened)} pages in headless Chromium with every image loaded'
     )
-    return 0
+    return bool(bad)
 
 
 def plot_kinds(svgs):
