@@ -73,6 +73,30 @@ def copy_assets(run):
 
 
 def make_report(args):
+    # The one Chromium starts first, beside the loading and the plots: its start (1-2 s, mostly
+    # waiting) then costs the report no wall time (browser.py).
+    with ThreadPoolExecutor(1) as starter:
+        browser = starter.submit(open_browser) if args.screenshot else None
+        try:
+            return write_report(args, browser)
+        finally:
+            if browser is not None and browser.exception() is None:
+                browser.result().__exit__(None, None, None)
+
+
+def open_browser():
+    b = Browser()
+    try:
+        b.__enter__()
+    except (OSError, RuntimeError, subprocess.TimeoutExpired):
+        if b.proc is not None:  # started, then did not answer: not left running
+            b.proc.kill()
+            b.proc.wait()
+        raise
+    return b
+
+
+def write_report(args, browser):
     R = load_run(args.run, args.commit)
     problems = R['problems']
     copy_assets(args.run)
@@ -125,7 +149,7 @@ def make_report(args):
         )
     if args.latest:
         point_latest(args.run, args.latest, problems)
-    if args.screenshot and check_in_browser(args.run, R, extra):
+    if browser is not None and check_in_browser(args.run, R, browser, extra):
         return 1
     n = verdict_counts(R)
     print(
@@ -180,22 +204,22 @@ def write_pages(args, R, plots, note):
     return extra
 
 
-def check_in_browser(run, R, extra):
-    """The screenshots and the load check of every page in one Chromium (browser.py: a start
-    costs more than a page); True if a page failed the check."""
+def check_in_browser(run, R, browser, extra):
+    """The screenshots and the load check of every page in the one Chromium; True if a page
+    failed the check."""
     try:
-        with Browser() as b:
-            b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'screenshot.png'))
-            if R['scenes']:
-                b.screenshot(
-                    os.path.join(run, R['scenes'][0]['page']),
-                    os.path.join(run, 'screenshot-scene.png'),
-                    (1400, 1400),
-                )
-            # The report as a person opens it: every page in headless Chromium, every table row
-            # and image loaded (report.js's markers); a page that fails is named.
-            opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
-            bad = b.check_pages(run, opened)
+        b = browser.result()  # the start's error, if it failed, is raised here
+        b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'screenshot.png'))
+        if R['scenes']:
+            b.screenshot(
+                os.path.join(run, R['scenes'][0]['page']),
+                os.path.join(run, 'screenshot-scene.png'),
+                (1400, 1400),
+            )
+        # The report as a person opens it: every page in headless Chromium, every table row
+        # and image loaded (report.js's markers); a page that fails is named.
+        opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
+        bad = b.check_pages(run, opened)
     except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
         print(f'report: screenshot failed: {e}', file=sys.stderr)
         return False
