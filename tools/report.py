@@ -209,17 +209,14 @@ def check_in_browser(run, R, browser, extra):
     failed the check."""
     try:
         b = browser.result()  # the start's error, if it failed, is raised here
-        b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'screenshot.png'))
-        if R['scenes']:
-            b.screenshot(
-                os.path.join(run, R['scenes'][0]['page']),
-                os.path.join(run, 'screenshot-scene.png'),
-                (1400, 1400),
-            )
         # The report as a person opens it: every page in headless Chromium, every table row
-        # and image loaded (report.js's markers); a page that fails is named.
+        # and image loaded (report.js's markers); a page that fails is named. The index and
+        # the first scene page are saved as screenshots from the check's own load of them.
         opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
-        bad = b.check_pages(run, opened)
+        shots = {'index.html': (os.path.join(run, 'screenshot.png'), (1400, 1000))}
+        if R['scenes']:
+            shots[R['scenes'][0]['page']] = (os.path.join(run, 'screenshot-scene.png'), (1400, 1400))
+        bad = b.check_pages(run, opened, shots=shots)
     except (OSError, RuntimeError, subprocess.TimeoutExpired) as e:
         print(f'report: screenshot failed: {e}', file=sys.stderr)
         return False

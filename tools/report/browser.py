@@ -4,6 +4,7 @@ Usage:
     with Browser() as b:                        one Chromium for any number of pages
         b.screenshot('run/index.html', 'run/screenshot.png', (1400, 1000))
         bad = b.check_pages('run', ['index.html', 'scene-a.html'])   [(page, why)]
+        b.check_pages('run', pages, shots={'index.html': ('run/shot.png', (1400, 1000))})
     dom = dump_dom('run/index.html')            one page, one Chromium (the tests' use)
 
 A Chromium start costs about 0.7 s of CPU, more than loading a report page in it (0.1-0.3 s):
@@ -219,7 +220,10 @@ class Browser:
 
     def screenshot(self, page_path, png, size=(1400, 1000)):
         self.open(page_path, size)
-        data = self.call('Page.captureScreenshot', {'format': 'png'}, self.session).get('data')
+        self._capture(page_path, png, self.session)
+
+    def _capture(self, page_path, png, session):
+        data = self.call('Page.captureScreenshot', {'format': 'png'}, session).get('data')
         if not data:
             raise RuntimeError(f'chromium wrote no screenshot of {page_path}')
         tmp = f'{png}.tmp{os.getpid()}.png'
@@ -227,18 +231,24 @@ class Browser:
             f.write(base64.b64decode(data))
         os.replace(tmp, png)
 
-    def check_pages(self, run, pages, tabs=TABS):
+    def check_pages(self, run, pages, tabs=TABS, shots=None):
         """[(page, why)] for every page whose DOM does not show all of its images loaded
         (data-loaded="n/n", data-failed="0") or, for the index, no table rows; tabs pages load
-        at a time, each in a tab of its own."""
+        at a time, each in a tab of its own. shots {page: (png, (width, height))}: those pages
+        load at that window size and are saved as png once settled, from the load the check
+        looks at (one load a page, and the screenshots beside the other tabs' loads)."""
+        shots = shots or {}
         todo = list(pages)
         idle = [self.session] + [self.new_tab() for _ in range(min(tabs, len(todo)) - 1)]
         busy, why = [], {}
         while todo or busy:
             while todo and idle:
                 name = todo.pop(0)
-                busy.append((name, self.navigate(os.path.join(run, name), session=idle.pop())))
+                size = shots[name][1] if name in shots else (1400, 1000)
+                busy.append((name, self.navigate(os.path.join(run, name), size, idle.pop())))
             for name, tab in [b for b in busy if self.settled(b[1])]:
+                if name in shots:
+                    self._capture(tab['path'], shots[name][0], tab['session'])
                 why[name] = page_problem(
                     name, self.evaluate('document.documentElement.outerHTML', tab['session']) or ''
                 )
