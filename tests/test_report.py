@@ -559,18 +559,23 @@ def test_screenshot_option(tmp_path):
 
 @pytest.mark.skipif(not HAVE_CHROMIUM, reason='chromium not installed (apt-get install chromium)')
 def test_one_browser_checks_each_page_on_its_own_dom(tmp_path):
-    """The report's check opens every page in one Chromium, one or two tabs at a time: a broken
+    """The report's check opens every page in one Chromium, one to three tabs at a time: a broken
     page is named whichever page came before it or loads beside it, and a good page after a
-    broken one is not blamed for it."""
+    broken one is not blamed for it. A screenshot the check takes of a page as it loads it, beside
+    the other tabs, has the bytes of one taken of that page alone."""
     run = make_run(str(tmp_path), RUN1)
     assert run_report('--run', run).returncode == 0
     os.remove(os.path.join(run, 'alpha', 'view.js'))  # the scene page's images cannot draw
     pages = ['index.html', 'scene-alpha.html', 'scene-beta.html', 'index.html']
     with browser.Browser() as b:
-        for tabs in (1, 2):
-            bad = b.check_pages(run, pages, tabs)
+        b.screenshot(os.path.join(run, 'scene-beta.html'), os.path.join(run, 'alone.png'), (700, 500))
+        for tabs in (1, 2, 3):
+            shot = os.path.join(run, f'beta-{tabs}.png')
+            bad = b.check_pages(run, pages, tabs, shots={'scene-beta.html': (shot, (700, 500))})
             assert [p for p, _ in bad] == ['scene-alpha.html'], (tabs, bad)
             assert 'failed 6' in bad[0][1], (tabs, bad)
+            with open(shot, 'rb') as f, open(os.path.join(run, 'alone.png'), 'rb') as g:
+                assert f.read() == g.read(), tabs
         b.screenshot(os.path.join(run, 'index.html'), os.path.join(run, 'shot.png'), (640, 480))
     with open(os.path.join(run, 'shot.png'), 'rb') as f:
         head = f.read(24)

@@ -43,7 +43,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 try:
     from report import pages
-    from report.browser import Browser
+    from report.browser import TABS, Browser
     from report.figures import figures_md
     from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
@@ -88,6 +88,7 @@ def open_browser():
     b = Browser()
     try:
         b.__enter__()
+        b.open_tabs(TABS)
     except (OSError, RuntimeError, subprocess.TimeoutExpired):
         if b.proc is not None:  # started, then did not answer: not left running
             b.proc.kill()

@@ -31,8 +31,9 @@ ATTR = load_ids()['attr']  # report.js's load markers on <body>
 # one-shot check gave the page 5 s of virtual time; a page without report.js ends there.
 SETTLE_S = 5.0
 # Pages the check loads at a time, each in a tab: a page's load is mostly one renderer process,
-# so two keep both cores of the nightly's machine busy.
-TABS = 2
+# so two would keep both cores of the nightly's machine busy if a settled page were seen at
+# once; it is seen at the next look (POLL_S), and a third tab loads meanwhile.
+TABS = 3
 # Between two looks at a loading page: short beside a page's 0.1-0.3 s load, long enough that
 # the looks themselves cost nothing.
 POLL_S = 0.05
@@ -113,7 +114,15 @@ class Browser:
             os.close(cmd_r)
             os.close(reply_w)
         self.session = self.new_tab()
+        self.tabs = [self.session]
         return self
+
+    def open_tabs(self, n):
+        """The first n tabs, made where missing (the check's; opened ahead, they are ready when
+        the pages are)."""
+        while len(self.tabs) < n:
+            self.tabs.append(self.new_tab())
+        return self.tabs[:n]
 
     def __exit__(self, *exc):
         if self.proc is not None:
@@ -239,7 +248,7 @@ class Browser:
         looks at (one load a page, and the screenshots beside the other tabs' loads)."""
         shots = shots or {}
         todo = list(pages)
-        idle = [self.session] + [self.new_tab() for _ in range(min(tabs, len(todo)) - 1)]
+        idle = self.open_tabs(max(1, min(tabs, len(todo))))[::-1]
         busy, why = [], {}
         while todo or busy:
             while todo and idle:
