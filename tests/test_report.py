@@ -204,6 +204,38 @@ def test_plots_of_one_gnuplot_are_the_bytes_of_one_gnuplot_each(tmp_path, monkey
     assert sorted(os.listdir(tmp_path / 'batch')) == ['0.svg', '1.svg', '3.svg', '4.svg']  # no temporary left
 
 
+@pytest.mark.skipif(not HAVE_GNUPLOT, reason='gnuplot not installed')
+def test_a_plot_gnuplot_cannot_draw_is_named_and_left_off_the_page(tmp_path):
+    """The pages are written while gnuplot draws, each plot named: a plot that then fails (here a
+    gnuplot on PATH that refuses trend.gp, alone or in a batch) is listed as an input problem and
+    the pages are written again without it, so none names a missing SVG."""
+    fake = tmp_path / 'bin'
+    fake.mkdir()
+    (fake / 'gnuplot').write_text(
+        '#!/bin/sh\nfor a; do case "$a" in *trend.gp) echo "no trends here" >&2; exit 1;; esac; done\n'
+        'for a; do [ -f "$a" ] && grep -q "trend.gp" "$a" && { echo "a batch with a trend" >&2; exit 1; }; done\n'
+        f'exec {shutil.which("gnuplot")} "$@"\n'
+    )
+    (fake / 'gnuplot').chmod(0o755)
+    root = str(tmp_path / 'reports')
+    make_run(root, RUN1)
+    run = make_run(root, RUN2)
+    hist = os.path.join(root, 'history.jsonl')
+    assert run_report('--run', os.path.join(root, RUN1), '--history', hist).returncode == 0
+    env = dict(os.environ, PATH=f'{fake}:{os.environ["PATH"]}')
+    r = subprocess.run(
+        [sys.executable, REPORT, '--run', run, '--history', hist], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert r.returncode == 0, r.stderr
+    assert 'trend-alpha.svg: gnuplot trend.gp failed: no trends here' in r.stderr, r.stderr
+    plots_dir = os.path.join(run, 'plots')
+    assert not os.path.exists(os.path.join(plots_dir, 'trend-alpha.svg'))
+    assert os.path.exists(os.path.join(plots_dir, 'angle-alpha-ndotv.svg'))  # drawn alone after its batch failed
+    pages = read(os.path.join(run, 'index.html')) + read(os.path.join(run, 'scene-alpha.html'))
+    assert 'src="plots/angle-alpha-ndotv.svg"' in pages and 'src="plots/trend-' not in pages
+    assert 'trend-alpha.svg' in read(os.path.join(run, 'index.html'))  # in the input problems' list
+
+
 def test_latest_points_at_run(built):
     latest = os.path.join(built['root'], 'latest')
     assert os.path.islink(latest)
