@@ -22,8 +22,9 @@ figures.md (the README's tables of this run),
 and appends one line to the history file (one write() plus fsync, never truncating). The trend
 plots show --reference-history's runs (read only, labelled ref-) and then --history's.
 --cache DIR keeps each plot under the hash of its inputs (script, parameters, data) and copies
-an unchanged one back instead of starting gnuplot; the one Chromium of --screenshot opens
-every page. --failed REASON writes no page: it records a run that ended before it could be reported.
+an unchanged one back; the others are drawn in batches, one gnuplot a batch, while the pages
+are written. The one Chromium of --screenshot starts as the report begins and opens every page,
+three at a time (reports/README.md, "Where its time goes"). --failed REASON writes no page: it records a run that ended before it could be reported.
 A missing or corrupt input file is listed on the page and on stderr with its name; it is never
 a crash. Exit status: 0 report written (whatever the verdicts), 1 an output could not be
 written, 2 bad usage (run folder missing).
