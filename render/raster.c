@@ -72,7 +72,9 @@ typedef struct {
     int n_threads;
     int phase;
     atomic_int next;
-    raster_sample **tile_samples; /* [thread] */
+    int planes_only;
+    raster_sample **tile_samples; /* [thread], the planes interleaved for the callback */
+    void **tile_planes;           /* [thread], tri then b1 then b2 planes of the tile */
     double **tile_depth;          /* [thread], 1/w of the current winner */
     double **tile_uv;             /* [thread], u per sample column then v per row */
 } raster_ctx;
@@ -273,7 +275,8 @@ static void raster_attr_setup(const raster_ctx *c, uint32_t t, raster_attr *at)
 typedef struct {
     int sx0, sy0, sx1, sy1; /* inclusive sample rectangle of the tile */
     int stride;
-    raster_sample *s;
+    int32_t *tri; /* the winners' planes, stride apart per row */
+    float *b1, *b2;
     double *depth;
     const double *u, *v; /* NDC u per column, v per row */
 } raster_target;
@@ -351,19 +354,19 @@ SMATH_INLINE void raster_sample_weights(const raster_attr *at, double u, double 
     *b2 = c2 < 0.0 ? 0.0 : c2 > 1.0 ? 1.0 : c2;
 }
 
-/* A covered sample stored: snapping may admit samples up to one fixed unit outside the true
- * triangle, so weights summing past 1 are scaled back onto it. */
-static inline void raster_sample_store(raster_sample *sp, double *dp, uint32_t t, double iw, double b1, double b2)
+/* A covered sample stored at place i of the row: snapping may admit samples up to one fixed
+ * unit outside the true triangle, so weights summing past 1 are scaled back onto it. */
+static inline void raster_sample_store(const raster_target *tg, size_t i, uint32_t t, double iw, double b1, double b2)
 {
     if (b1 + b2 > 1.0) {
         double s = 1.0 / (b1 + b2);
         b1 *= s;
         b2 *= s;
     }
-    *dp = iw;
-    sp->tri = (int32_t)t;
-    sp->b1 = (float)b1;
-    sp->b2 = (float)b2;
+    tg->depth[i] = iw;
+    tg->tri[i] = (int32_t)t;
+    tg->b1[i] = (float)b1;
+    tg->b2[i] = (float)b2;
 }
 
 /* The depth test and barycentrics of one row's covered samples [from, to] (target columns).
@@ -371,31 +374,28 @@ static inline void raster_sample_store(raster_sample *sp, double *dp, uint32_t t
 static void raster_row_fill(const raster_target *tg, const raster_attr *at, uint32_t t, int64_t sy, int64_t from,
                             int64_t to)
 {
-    raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
-    double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
+    const size_t row = (size_t)(sy - tg->sy0) * tg->stride;
     const double v = tg->v[sy - tg->sy0];
     const double iw_row = at->sum.y * v + at->sum.z, f1_row = at->f1.y * v + at->f1.z, f2_row = at->f2.y * v + at->f2.z;
     for (int64_t sx = from; sx <= to; sx++) {
         const double u = tg->u[sx], iw = at->sum.x * u + iw_row;
-        if (iw > drow[sx]) {
+        if (iw > tg->depth[row + (size_t)sx]) {
             double b1, b2;
             raster_sample_weights(at, u, iw, f1_row, f2_row, &b1, &b2);
-            raster_sample_store(&srow[sx], &drow[sx], t, iw, b1, b2);
+            raster_sample_store(tg, row + (size_t)sx, t, iw, b1, b2);
         }
     }
 }
 
 /* raster_row_fill for a long row: the depths and clamped weights of RASTER_ROW_CHUNK samples at
  * a time as one lane loop (the division four or eight at a time), then the depth test and the
- * stores sample by sample, as the samples are structures; the rare renormalisation stays there,
- * so a lane loop pays one division a sample, not two. Same operations per stored sample as
- * raster_row_fill. */
+ * stores sample by sample; the rare renormalisation stays there, so a lane loop pays one division
+ * a sample, not two. Same operations per stored sample as raster_row_fill. */
 SMATH_CLONES
 static void raster_row_fill_wide(const raster_target *tg, const raster_attr *at, uint32_t t, int64_t sy, int64_t from,
                                  int64_t to)
 {
-    raster_sample *srow = tg->s + (size_t)(sy - tg->sy0) * tg->stride;
-    double *drow = tg->depth + (size_t)(sy - tg->sy0) * tg->stride;
+    const size_t row = (size_t)(sy - tg->sy0) * tg->stride;
     const double v = tg->v[sy - tg->sy0];
     const double iw_row = at->sum.y * v + at->sum.z, f1_row = at->f1.y * v + at->f1.z, f2_row = at->f2.y * v + at->f2.z;
     const double *restrict u = tg->u;
@@ -407,9 +407,10 @@ static void raster_row_fill_wide(const raster_target *tg, const raster_attr *at,
             iw[i] = at->sum.x * u[c0 + i] + iw_row;
             raster_sample_weights(at, u[c0 + i], iw[i], f1_row, f2_row, &b1[i], &b2[i]);
         }
+        const size_t r0 = row + (size_t)c0;
         for (int i = 0; i < m; i++)
-            if (iw[i] > drow[c0 + i])
-                raster_sample_store(&srow[c0 + i], &drow[c0 + i], t, iw[i], b1[i], b2[i]);
+            if (iw[i] > tg->depth[r0 + (size_t)i])
+                raster_sample_store(tg, r0 + (size_t)i, t, iw[i], b1[i], b2[i]);
     }
 }
 
@@ -495,7 +496,10 @@ static void raster_tile_run(raster_ctx *c, int tile, int thread)
     tg.sx1 = tg.sx0 + tw * k - 1;
     tg.sy1 = tg.sy0 + th * k - 1;
     tg.stride = tw * k;
-    tg.s = c->tile_samples[thread];
+    const size_t row = (size_t)tw * k, ns = row * (size_t)(th * k);
+    tg.tri = c->tile_planes[thread];
+    tg.b1 = (float *)(tg.tri + ns);
+    tg.b2 = tg.b1 + ns;
     tg.depth = c->tile_depth[thread];
     double *u = c->tile_uv[thread], *v = u + tw * k;
     for (int i = 0; i < tw * k; i++)
@@ -504,14 +508,10 @@ static void raster_tile_run(raster_ctx *c, int tile, int thread)
         v[j] = 1.0 - (tg.sy0 + j + 0.5) * 2.0 / ((double)k * c->height);
     tg.u = u;
     tg.v = v;
-    /* Every sample empty: the first row element by element, the others copied from it (memcpy
-     * moves whole vectors; the structure's three fields kept the element loop scalar), and
-     * the depth, whose 0.0 is all zero bytes, cleared. */
-    const size_t row = (size_t)tw * k, ns = row * (size_t)(th * k);
-    for (size_t i = 0; i < row; i++)
-        tg.s[i] = (raster_sample){-1, 0.0f, 0.0f};
-    for (size_t r = 1; r < (size_t)(th * k); r++)
-        memcpy(tg.s + r * row, tg.s, row * sizeof *tg.s);
+    /* Every sample empty: triangle -1 (all one bytes in two's complement), weights and depth
+     * 0.0 (all zero bytes). */
+    memset(tg.tri, 0xff, ns * sizeof *tg.tri);
+    memset(tg.b1, 0, 2 * ns * sizeof *tg.b1);
     memset(tg.depth, 0, ns * sizeof *tg.depth);
     size_t e_end = c->tile_start[tile + 1];
     for (size_t e = c->tile_start[tile]; e < e_end; e++) {
@@ -524,7 +524,13 @@ static void raster_tile_run(raster_ctx *c, int tile, int thread)
         for (int i = 1; i + 1 < n; i++)
             raster_subtri(c, &tg, p[0], p[i], p[i + 1], orient, t, &at);
     }
-    raster_tile rt = {x0, y0, tw, th, k, thread, tg.s};
+    raster_tile rt = {x0, y0, tw, th, k, thread, NULL, tg.tri, tg.b1, tg.b2};
+    if (!c->planes_only) {
+        raster_sample *restrict sp = c->tile_samples[thread];
+        for (size_t i = 0; i < ns; i++)
+            sp[i] = (raster_sample){tg.tri[i], tg.b1[i], tg.b2[i]};
+        rt.samples = sp;
+    }
     c->fn(c->user, &rt);
 }
 
@@ -619,12 +625,15 @@ static void raster_free(raster_ctx *c)
     for (int i = 0; i < c->n_threads; i++) {
         if (c->tile_samples)
             free(c->tile_samples[i]);
+        if (c->tile_planes)
+            free(c->tile_planes[i]);
         if (c->tile_depth)
             free(c->tile_depth[i]);
         if (c->tile_uv)
             free(c->tile_uv[i]);
     }
     free(c->tile_samples);
+    free(c->tile_planes);
     free(c->tile_depth);
     free(c->tile_uv);
 }
@@ -710,17 +719,21 @@ static rc_status raster_alloc_bins(raster_ctx *c, int n_tris)
     c->offsets = malloc(cells * sizeof *c->offsets);
     c->tile_start = malloc(((size_t)c->n_tiles + 1) * sizeof *c->tile_start);
     c->tile_samples = calloc((size_t)c->n_threads, sizeof *c->tile_samples);
+    c->tile_planes = calloc((size_t)c->n_threads, sizeof *c->tile_planes);
     c->tile_depth = calloc((size_t)c->n_threads, sizeof *c->tile_depth);
     c->tile_uv = calloc((size_t)c->n_threads, sizeof *c->tile_uv);
     c->rects = malloc(((size_t)n_tris + 1) * sizeof *c->rects);
-    if (!c->rects || !c->counts || !c->offsets || !c->tile_start || !c->tile_samples || !c->tile_depth || !c->tile_uv)
+    if (!c->rects || !c->counts || !c->offsets || !c->tile_start || !c->tile_samples || !c->tile_planes ||
+        !c->tile_depth || !c->tile_uv)
         return RC_ERR_NOMEM;
     size_t tsn = (size_t)c->tile * c->k;
     for (int i = 0; i < c->n_threads; i++) {
-        c->tile_samples[i] = malloc(tsn * tsn * sizeof(raster_sample));
+        /* The structures only when the callback reads them. */
+        c->tile_samples[i] = c->planes_only ? NULL : malloc(tsn * tsn * sizeof(raster_sample));
+        c->tile_planes[i] = malloc(tsn * tsn * (sizeof(int32_t) + 2 * sizeof(float)));
         c->tile_depth[i] = malloc(tsn * tsn * sizeof(double));
         c->tile_uv[i] = malloc(2 * tsn * sizeof(double));
-        if (!c->tile_samples[i] || !c->tile_depth[i] || !c->tile_uv[i])
+        if ((!c->planes_only && !c->tile_samples[i]) || !c->tile_planes[i] || !c->tile_depth[i] || !c->tile_uv[i])
             return RC_ERR_NOMEM;
     }
     return RC_OK;
@@ -760,6 +773,7 @@ rc_status raster_draw(const raster_vertex *v, int n_verts, const uint32_t *idx, 
     c.fn = fn;
     c.user = user;
     c.n_threads = raster_thread_count(opt);
+    c.planes_only = opt->planes_only != 0;
 
     rc = RC_ERR_NOMEM;
     if (raster_alloc_bins(&c, n_tris) == RC_OK) {

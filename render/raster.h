@@ -11,6 +11,8 @@
  * edge shared by two triangles belongs to exactly one. Both windings are drawn.
  * Depth: the nearest (largest 1/w) wins; on an exact tie the lower triangle index wins.
  * Triangles are clipped against the near plane w = near and a guard band.
+ * Each tile comes both as raster_sample structures and as planes (tri, b1, b2); a caller that
+ * reads the planes only sets planes_only and saves the interleaving pass.
  * The callback gets each finished tile once, from any worker thread; tiles are disjoint,
  * so writing the tile's own pixels needs no locking and the result does not depend on
  * the thread count. Returns RC_OK, RC_ERR_NOMEM, or RC_ERR_RANGE for bad options.
@@ -34,6 +36,7 @@ typedef struct {
     int threads;       /* 0 = all cores */
     int tile;          /* tile edge in pixels, 0 = RASTER_TILE_DEFAULT */
     float near;        /* near plane in w, 0 = 1e-3 */
+    int planes_only;   /* 1: tiles carry the tri, b1, b2 planes only (samples NULL), 0: both */
 } raster_options;
 
 /* One sample: the triangle that covers it (-1 for none) and the perspective-correct
@@ -48,6 +51,9 @@ typedef struct {
     int k;                        /* supersample factor */
     int thread;                   /* worker index, 0..threads-1, for per-thread scratch */
     const raster_sample *samples; /* (h*k) rows of (w*k) samples, row-major, top row first */
+    /* The same samples as three planes of the same layout (a lane loop reads them whole). */
+    const int32_t *tri;
+    const float *b1, *b2;
 } raster_tile;
 
 typedef void (*raster_tile_fn)(void *user, const raster_tile *tile);

@@ -23,11 +23,13 @@ typedef struct {
     int *tile_hits; /* per pixel: how many tiles claimed it */
     int *thread;    /* per pixel: the worker that delivered its tile */
     int w, h;
+    int planes_only; /* drawn with raster_options.planes_only: the tiles must carry no structures */
 } frame;
 
 static void frame_init(frame *f, int w, int h, int k)
 {
     f->w = w;
+    f->planes_only = 0;
     f->h = h;
     f->sw = w * k;
     f->sh = h * k;
@@ -46,13 +48,22 @@ static void frame_free(frame *f)
     free(f->thread);
 }
 
+/* The tile into the frame from its planes; where it also carries the structures (planes_only
+ * 0), each of them must equal its planes' entries. */
 static void frame_tile(void *user, const raster_tile *t)
 {
     frame *f = user;
     int k = t->k;
     for (int j = 0; j < t->h * k; j++)
-        memcpy(&f->s[(size_t)(t->y0 * k + j) * f->sw + t->x0 * k], &t->samples[(size_t)j * t->w * k],
-               (size_t)t->w * k * sizeof(raster_sample));
+        for (int i = 0; i < t->w * k; i++) {
+            const size_t o = (size_t)j * (size_t)(t->w * k) + (size_t)i;
+            raster_sample *d = &f->s[(size_t)(t->y0 * k + j) * f->sw + t->x0 * k + i];
+            *d = (raster_sample){t->tri[o], t->b1[o], t->b2[o]};
+            if (f->planes_only)
+                assert_null(t->samples);
+            else
+                assert_memory_equal(&t->samples[o], d, sizeof *d);
+        }
     /* tiles are disjoint, so this unlocked update only races if the rasterizer is wrong */
     for (int j = 0; j < t->h; j++)
         for (int i = 0; i < t->w; i++) {
@@ -536,6 +547,16 @@ static void test_thread_tile_invariance(void **state)
             assert_memory_equal(f.s, ref.s, (size_t)f.sw * f.sh * sizeof(raster_sample));
             frame_free(&f);
         }
+    /* The planes alone (no structures: frame_tile checks samples is NULL) are the same frame. */
+    frame p;
+    frame_init(&p, w, h, k);
+    o.threads = 2;
+    o.tile = 16;
+    o.planes_only = 1;
+    p.planes_only = 1;
+    draw(v, 3 * NT, idx, NT, o, &p);
+    assert_memory_equal(p.s, ref.s, (size_t)p.sw * p.sh * sizeof(raster_sample));
+    frame_free(&p);
     frame_free(&ref);
 }
 
