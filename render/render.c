@@ -266,7 +266,20 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
     const uint32_t *idx = m->idx;
     for (int i = 0; i < n;) {
         const int32_t t = qu->tri[i];
+        /* The run's end: whole vectors of RENDER_LANES entries compared at once while they all
+         * match (runs are a few pixels' samples, tens of entries), then entry by entry. */
         int e = i + 1;
+        for (;;) {
+            int differ = e + RENDER_LANES > n;
+            if (!differ) {
+#pragma omp simd reduction(| : differ)
+                for (int l = 0; l < RENDER_LANES; l++)
+                    differ |= qu->tri[e + l] != t;
+            }
+            if (differ)
+                break;
+            e += RENDER_LANES;
+        }
         while (e < n && qu->tri[e] == t)
             e++;
         /* Quantity c (positions then normals of vertices 0, 1, 2) is src[c / 3][c % 3]: read
