@@ -685,6 +685,20 @@ static void render_flush_background(const render_job *j, render_scratch *w)
 static void render_span_blend(const render_job *j, const raster_tile *tile, render_scratch *w, int py0, int py1,
                               int px0, int px1);
 
+/* A pixel's first sample in the tile's planes (raster_tile.tri, b1, b2); sample (s, t) of the
+ * pixel is place t stride + s of each. */
+typedef struct {
+    const int32_t *tri;
+    const float *b1, *b2;
+} render_pix;
+
+static render_pix render_pix_at(const raster_tile *tile, int px, int py)
+{
+    const size_t o =
+        (size_t)((py - tile->y0) * tile->k) * (size_t)(tile->w * tile->k) + (size_t)((px - tile->x0) * tile->k);
+    return (render_pix){tile->tri + o, tile->b1 + o, tile->b2 + o};
+}
+
 /* Where a span's queueing stands: the pixel's place and the object of the last triangle seen. */
 typedef struct {
     int k, c, stride, span_px; /* c: the centre sample's row and column in its pixel */
@@ -715,17 +729,17 @@ static void render_queue_switch(const render_job *j, render_scratch *w, render_q
 
 /* One pixel's samples, each to its object's queue or the background's, flushing a queue when it
  * is full; returns the covered count. The general case (edges, per-vertex objects). */
-static int render_queue_samples(const render_job *j, render_scratch *w, render_queue_state *qs,
-                                const raster_sample *pix, int pi, int px, int py)
+static int render_queue_samples(const render_job *j, render_scratch *w, render_queue_state *qs, render_pix pix, int pi,
+                                int px, int py)
 {
     const int k = qs->k;
     int covered = 0;
     for (int t = 0; t < k; t++) {
-        const raster_sample *row = pix + (size_t)t * (size_t)qs->stride;
         for (int s = 0; s < k; s++) {
-            const raster_sample *rs = &row[s];
+            const size_t o = (size_t)t * (size_t)qs->stride + (size_t)s;
+            const raster_sample rs = {pix.tri[o], pix.b1[o], pix.b2[o]};
             const int q = (t * k + s) * qs->span_px + pi;
-            const int32_t tri = rs->tri;
+            const int32_t tri = rs.tri;
             if (tri < 0) {
                 const int b = w->bg_n;
                 w->bg_sx[b] = (float)px + qs->offs[s];
@@ -740,7 +754,7 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
             render_queue_switch(j, w, qs, tri);
             if (qs->per_vertex) {
                 shade_terms st;
-                render_blend_vertex(j, rs, &st);
+                render_blend_vertex(j, &rs, &st);
                 render_put_terms(j, w, q, &st);
                 continue;
             }
@@ -749,8 +763,8 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
             if (t == qs->c && s == qs->c)
                 qu->centre[qu->n_centre++] = (uint8_t)n;
             qu->tri[n] = tri;
-            qu->b1[n] = rs->b1;
-            qu->b2[n] = rs->b2;
+            qu->b1[n] = rs.b1;
+            qu->b2[n] = rs.b2;
             qu->slot[n] = (uint16_t)q;
             qu->n = n + 1;
             if (n + 1 == SHADE_BATCH)
@@ -763,20 +777,21 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
 /* A pixel whose k x k samples are all of triangle tri, with room for them all in its queue:
  * queued as render_queue_samples would queue them (same order, and the queue fills up at the
  * same sample), the count kept in a register instead of reloaded per sample. */
-RENDER_QUEUE_INLINE void render_queue_whole(render_queue *restrict qu, const render_queue_state *qs,
-                                            const raster_sample *pix, int pi, int32_t tri, const int k)
+RENDER_QUEUE_INLINE void render_queue_whole(render_queue *restrict qu, const render_queue_state *qs, render_pix pix,
+                                            int pi, int32_t tri, const int k)
 {
     int n = qu->n;
     qu->centre[qu->n_centre++] = (uint8_t)(n + qs->c * k + qs->c);
     for (int t = 0; t < k; t++) {
-        const raster_sample *row = pix + (size_t)t * (size_t)qs->stride;
-        int q = t * k * qs->span_px + pi;
-        for (int s = 0; s < k; s++, n++, q += qs->span_px) {
-            qu->tri[n] = tri;
-            qu->b1[n] = row[s].b1;
-            qu->b2[n] = row[s].b2;
-            qu->slot[n] = (uint16_t)q;
+        const size_t o = (size_t)t * (size_t)qs->stride;
+        const int q = t * k * qs->span_px + pi;
+        for (int s = 0; s < k; s++) {
+            qu->tri[n + s] = tri;
+            qu->b1[n + s] = pix.b1[o + (size_t)s];
+            qu->b2[n + s] = pix.b2[o + (size_t)s];
+            qu->slot[n + s] = (uint16_t)(q + s * qs->span_px);
         }
+        n += k;
     }
     qu->n = n;
 }
@@ -801,14 +816,14 @@ RENDER_QUEUE_INLINE void render_queue_background(render_scratch *restrict w, con
 /* One pixel's samples queued; returns the covered count. Most pixels lie wholly inside one
  * triangle or wholly in the background, and take the short paths. */
 RENDER_QUEUE_INLINE int render_queue_pixel(const render_job *j, render_scratch *w, render_queue_state *qs,
-                                           const raster_sample *pix, int pi, int px, int py, const int k)
+                                           render_pix pix, int pi, int px, int py, const int k)
 {
     const int kk = k * k;
-    const int32_t t0 = pix[0].tri;
+    const int32_t t0 = pix.tri[0];
     int uniform = 1;
     for (int t = 0; t < k; t++)
         for (int s = 0; s < k; s++)
-            uniform &= pix[(size_t)t * (size_t)qs->stride + (size_t)s].tri == t0;
+            uniform &= pix.tri[(size_t)t * (size_t)qs->stride + (size_t)s] == t0;
     if (uniform && t0 < 0 && w->bg_n + kk <= SHADE_BATCH) {
         render_queue_background(w, qs, pi, px, py, k);
         if (w->bg_n == SHADE_BATCH)
@@ -836,14 +851,13 @@ RENDER_QUEUE_INLINE void render_span_queue(const render_job *j, const raster_til
     const int32_t *tri_object = j->m->tri_object;
     for (int py = py0, pi = 0; py < py1; py++)
         for (int px = px0; px < px1; px++, pi++) {
-            const raster_sample *pix =
-                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (size_t)((px - tile->x0) * k);
+            const render_pix pix = render_pix_at(tile, px, py);
             w->centre_nv[pi] = 0.0f;
             w->centre_nl[pi] = 0.0f;
             w->centre_nh[pi] = 0.0f;
             w->covered[pi] = render_queue_pixel(j, w, qs, pix, pi, px, py, k);
             /* The object at the sample nearest the pixel centre, -1 for the background. */
-            const int32_t centre_tri = pix[(size_t)c * (size_t)stride + (size_t)c].tri;
+            const int32_t centre_tri = pix.tri[(size_t)c * (size_t)stride + (size_t)c];
             w->object[pi] = centre_tri < 0 ? -1 : tri_object[centre_tri];
         }
 }
@@ -964,19 +978,18 @@ static void render_span_blend(const render_job *j, const raster_tile *tile, rend
         render_queue *qu = &w->queue[obj];
         for (int pi = 0; pi < span_px; pi++) {
             const int py = py0 + pi / span_w, px = px0 + pi % span_w;
-            const raster_sample *pix =
-                tile->samples + (size_t)((py - tile->y0) * k) * (size_t)stride + (px - tile->x0) * k;
+            const render_pix pix = render_pix_at(tile, px, py);
             const raster_sample *lay = j->layers[l].samples + (size_t)py * (size_t)k * frame_w + (size_t)px * (size_t)k;
             for (int t = 0; t < k; t++)
                 for (int s = 0; s < k; s++) {
                     const raster_sample *bs = &lay[(size_t)t * frame_w + (size_t)s];
-                    const raster_sample *rs = &pix[(size_t)t * (size_t)stride + (size_t)s];
-                    if (bs->tri < 0 ||
-                        (rs->tri >= 0 && render_sample_depth(j->m_all, j->clip, bs->tri, bs->b1, bs->b2) >
-                                             render_sample_depth(j->m, j->clip, rs->tri, rs->b1, rs->b2)))
+                    const size_t o = (size_t)t * (size_t)stride + (size_t)s;
+                    const int32_t rt = pix.tri[o];
+                    if (bs->tri < 0 || (rt >= 0 && render_sample_depth(j->m_all, j->clip, bs->tri, bs->b1, bs->b2) >
+                                                       render_sample_depth(j->m, j->clip, rt, pix.b1[o], pix.b2[o])))
                         continue;
                     const int q = (t * k + s) * span_px + pi;
-                    if (rs->tri < 0 && !w->blend_hit[q]) {
+                    if (rt < 0 && !w->blend_hit[q]) {
                         w->blend_hit[q] = 1;
                         w->covered[pi]++;
                     }
@@ -1722,9 +1735,12 @@ static rc_status render_draw(render_job *j, const render_options *opt, raster_ve
     j->layers = blend_layers;
     j->n_blend = n_layers;
 
+    /* render_tile reads the tiles' planes only. */
+    raster_options planes = *ro;
+    planes.planes_only = 1;
     *t_draw = render_now();
     if (st == RC_OK)
-        st = raster_draw(rv, m->n_verts, opaque.idx, opaque.n_tris, ro, render_tile, j);
+        st = raster_draw(rv, m->n_verts, opaque.idx, opaque.n_tris, &planes, render_tile, j);
     *t_draw = render_now() - *t_draw;
     if (any_blend)
         render_blend_free(&opaque, blend_layers, n_layers);
