@@ -267,10 +267,12 @@ static void render_interpolate(const mesh *m, vec3 eye, const render_queue *rest
     for (int i = 0; i < n;) {
         const int32_t t = qu->tri[i];
         /* The run's end: whole vectors of RENDER_LANES entries compared at once while they all
-         * match (runs are a few pixels' samples, tens of entries), then entry by entry. */
+         * match (at 10^4 triangles runs are a few pixels' samples, tens of entries), then entry by
+         * entry. A vector whose last entry differs is not compared whole: at 10^6 triangles most
+         * runs are a sample or two, and the vector compare cost more than it skipped. */
         int e = i + 1;
         for (;;) {
-            int differ = e + RENDER_LANES > n;
+            int differ = e + RENDER_LANES > n || qu->tri[e + RENDER_LANES - 1] != t;
             if (!differ) {
 #pragma omp simd reduction(| : differ)
                 for (int l = 0; l < RENDER_LANES; l++)
