@@ -15,7 +15,7 @@ WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-proto
 WARN    += -Wno-format-truncation
 STD     := -std=c11 -D_POSIX_C_SOURCE=200809L
 OPT     := $(if $(DEBUG),-O0 -g3,-O2 -g)
-# The shading kernels' lane loops are `#pragma omp simd` (render/shade_batch.c): the pragma only,
+# The shading kernels' lane loops are `#pragma omp simd` (render/shade_batch_*.c): the pragma only,
 # no OpenMP runtime.
 OPT     += -fopenmp-simd
 # Value-safe (no reassociation, no FMA contraction in ISO C): math functions need not set errno
@@ -274,12 +274,14 @@ test-scenes: $(CLI)
 # example shading model scenes/user_ggx.yaml loads; not the 50 unit-test programs, their fixtures
 # or the manual page, which `make all` adds (a third of a clean build's CPU time).
 SCHEDULER ?= make
-# render/shade_batch.c alone is 38 of the library's 52 CPU-s of compiling (one file, so one core):
-# named first, make -j starts it first and the other files share the second core meanwhile.
-NIGHTLY_FIRST := $(filter $(BUILD)/render/shade_batch.o,$(LIB_OBJ))
-# Its line tables are enough (backtraces, profiles): full debug information of three clones of
-# every lane kernel cost 9.5 of its 34.7 CPU-s, for the same machine code (objdump -d equal).
-$(BUILD)/render/shade_batch.o: CFLAGS += $(if $(DEBUG),,-g1)
+# The SIMD shading kernels are most of the library's compiling (three ISA clones of every lane
+# loop, all inlined), split by model family so that they compile side by side: named first and
+# longest first, make -j starts them first and the other files fill the cores meanwhile.
+SB_KERNEL_OBJ := $(BUILD)/render/shade_batch_ct.o $(BUILD)/render/shade_batch_d3d9.o $(BUILD)/render/shade_batch_d3d.o
+NIGHTLY_FIRST := $(foreach o,$(SB_KERNEL_OBJ),$(filter $(o),$(LIB_OBJ)))
+# Their line tables are enough (backtraces, profiles): full debug information of three clones of
+# every lane kernel cost 9.5 of their 34.7 CPU-s, for the same machine code (objdump -d equal).
+$(SB_KERNEL_OBJ): CFLAGS += $(if $(DEBUG),,-g1)
 NIGHTLY_BUILD := $(CLI) $(OIIO_PLUGIN) $(KEY_SOURCES) $(BUILD)/examples/ggx/ggx.so
 nightly-build: $(NIGHTLY_FIRST) $(NIGHTLY_BUILD)
 report: deps
