@@ -10,7 +10,7 @@
  * its maths library; the suffix names the instance:
  *   _f  float, libm (powf)          the scalar models' float factors (Lambert, Blinn)
  *   _d  double, libm                the scalar models, which form their sums in double
- *   _v  float, smath.h, always      the SIMD lanes (render/shade_batch.c): smath's pow, log and exp
+ *   _v  float, smath.h, always      the SIMD lanes (render/shade_batch_*.c): smath's pow, log and exp
  *       inlined                     vectorise where libm's would stop the loop
  *   _l  long double, libm           harness/stability_ref.c's reference (64-bit significand on x86-64)
  * So the scalar path, the lanes and the high-precision check run the same code: a formula changed

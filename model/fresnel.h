@@ -37,7 +37,7 @@ vec3 fresnel_schlick_rgb(vec3 f0, float cos_theta);
  * saturated to +-FLT_MAX, so huge bad R0 and m cannot overflow to Inf. */
 float fresnel_d3d9(float r0, float m, float p, float cos_theta);
 /* The exponent fresnel_d3d9 applies: p, with p < 0 taken as 0 (a negative power is unbounded at
- * normal incidence). One definition for fresnel_d3d9 and the SIMD kernels (shade_batch.c), so a
+ * normal incidence). One definition for fresnel_d3d9 and the SIMD kernels (shade_batch_d3d9.c), so a
  * change to the rule reaches every render. */
 static inline float fresnel_d3d9_power(float p) { return formula_d3d9_power_f(p); }
 

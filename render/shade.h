@@ -12,7 +12,7 @@
  * computed at all), so the per-sample path has no branches on unused features.
  * Finite input never yields NaN or Inf.
  * shade_eval_n is the shading loop's form: the same models over a structure-of-arrays batch,
- * one SIMD lane per sample (shade_batch.c), with smath's pow and atan2 in place of libm's and
+ * one SIMD lane per sample (shade_batch_*.c), with smath's pow and atan2 in place of libm's and
  * float where the scalar path sums in double. Lanes agree with shade_eval to 1.3e-5 relative
  * for Blinn powers up to 40 (1.2e-3 over tests/test_shade_batch.c's 1024 lanes at a power of 1e4,
  * 2.4e-3 over 4096: the power multiplies the 2-ulp N.H difference of the scalar path's
@@ -175,7 +175,7 @@ void shade_d3d9client_dissolve(const shade_context *c, const shade_plan *p, vec3
 void shade_ct_lights(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
 void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
 void shade_user(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out);
-/* The batch kernels (shade_batch.c), one per specialised path, that shade_plan_make installs;
+/* The batch kernels (shade_batch_*.c), one per specialised path, that shade_plan_make installs;
  * shade_batch_scalar is shade_eval lane by lane (models without a kernel, unsafe lanes). */
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in,

@@ -1,5 +1,5 @@
 /* shade_plan.c - plan selection: which specialised kernel, scalar (shade.c) and batch
- * (shade_batch.c), shades a material, chosen once per material. Apart from both so that the
+ * (shade_batch_*.c), shades a material, chosen once per material. Apart from both so that the
  * kernels never reach back to the code that picks them (shade.h's usage block). */
 #include "shade.h"
 

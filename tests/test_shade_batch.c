@@ -1,4 +1,4 @@
-/* shade_eval_n (render/shade_batch.c) against shade_eval lane by lane, and env_lookup_n against
+/* shade_eval_n (render/shade_batch_*.c) against shade_eval lane by lane, and env_lookup_n against
  * env_lookup.
  *
  * Inputs are random but deterministic (a fixed-seed LCG): x in a box around the target, n a
