@@ -275,12 +275,14 @@ test-scenes: $(CLI)
 # or the manual page, which `make all` adds (a third of a clean build's CPU time).
 SCHEDULER ?= make
 # The SIMD shading kernels are most of the library's compiling (three ISA clones of every lane
-# loop, all inlined), split by model family so that they compile side by side: named first and
-# longest first, make -j starts them first and the other files fill the cores meanwhile.
+# loop, all inlined), one file per model family so that they compile side by side; named first,
+# longest first (CPU-s: shade_batch_ct 36-41, shade_batch_d3d9 21-22.5, shade_batch_d3d 3.5-3.8),
+# make -j starts them at once and the other files fill the cores. On an idle 2-core machine the
+# build takes half its CPU, 42 s, where the one file it was took 65 s (docs/render_time.md).
 SB_KERNEL_OBJ := $(BUILD)/render/shade_batch_ct.o $(BUILD)/render/shade_batch_d3d9.o $(BUILD)/render/shade_batch_d3d.o
 NIGHTLY_FIRST := $(foreach o,$(SB_KERNEL_OBJ),$(filter $(o),$(LIB_OBJ)))
 # Their line tables are enough (backtraces, profiles): full debug information of three clones of
-# every lane kernel cost 9.5 of their 34.7 CPU-s, for the same machine code (objdump -d equal).
+# every lane kernel cost 9.5 of the single file's 34.7 CPU-s, for the same machine code.
 $(SB_KERNEL_OBJ): CFLAGS += $(if $(DEBUG),,-g1)
 NIGHTLY_BUILD := $(CLI) $(OIIO_PLUGIN) $(KEY_SOURCES) $(BUILD)/examples/ggx/ggx.so
 nightly-build: $(NIGHTLY_FIRST) $(NIGHTLY_BUILD)
