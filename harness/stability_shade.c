@@ -172,7 +172,7 @@ void stab_sweep_shade(sweep *s)
 {
     static const char *mname[4] = {"shade_eval[d3d]", "shade_eval[d3d9client]", "shade_eval[ct walter smith F-exact]",
                                    "shade_eval[ct ct1982 vcavity schlick]"};
-    /* The SIMD batch kernels the shading loop runs (shade_batch.c), on the same inputs; the
+    /* The SIMD batch kernels the shading loop runs (shade_batch_*.c), on the same inputs; the
      * exact Smith G and Fresnel have none (shade_batch_ct_supported). */
     static const char *bname[4] = {"shade_eval_n[d3d]", "shade_eval_n[d3d9client]", NULL,
                                    "shade_eval_n[ct ct1982 vcavity schlick]"};
