@@ -234,13 +234,50 @@ static void test_duplicate_names_refused(void **state)
     assert_int_equal(run_argv(NULL, mk, err, sizeof err, ok), 0);
 }
 
+/* The POV-Ray jobs are in the group wait, every other job in cpu, and all holds both: the
+ * nightly runs `make cpu` and `make wait` side by side, each with its own slots. */
+static void test_povray_jobs_in_wait_group(void **state)
+{
+    (void)state;
+    char scene[512], out[256], err[2048], mk[256], line[600];
+    snprintf(out, sizeof out, "%s/run-groups", work);
+    snprintf(mk, sizeof mk, "%s/groups.mk", work);
+    scene_file("groups.yaml", "grp", scene, sizeof scene);
+    char *plan[] = {bin, "plan", scene, "--out", out, "--bin", bin, NULL};
+    assert_int_equal(run_argv(NULL, mk, err, sizeof err, plan), 0);
+    char *text = fileio_read_all(mk, NULL);
+    assert_non_null(text);
+    const char *want[] = {"all: %s/grp/povray-twin.json\n", "wait: %s/grp/povray-twin.json\n",
+                          "all: %s/grp/raster-twin.json\n", "cpu: %s/grp/raster-twin.json\n"};
+    for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
+        snprintf(line, sizeof line, want[k], out);
+        assert_non_null(strstr(text, line));
+    }
+    const char *never[] = {"cpu: %s/grp/povray-twin.json\n", "wait: %s/grp/raster-twin.json\n"};
+    for (size_t k = 0; k < sizeof never / sizeof never[0]; k++) {
+        snprintf(line, sizeof line, never[k], out);
+        assert_null(strstr(text, line));
+    }
+    free(text);
+    /* make runs the wait group alone: the POV-Ray job (the fake fails at once, but its record is
+     * written) and not the raster one. */
+    char dir[300];
+    snprintf(dir, sizeof dir, "%s/make", work);
+    char *mkwait[] = {"make", "-k", "-s", "-f", mk, "wait", NULL};
+    run_argv(dir, NULL, err, sizeof err, mkwait);
+    char rec[512];
+    snprintf(rec, sizeof rec, "%s/grp/povray-twin.json", out);
+    assert_int_equal(access(rec, F_OK), 0);
+    snprintf(rec, sizeof rec, "%s/grp/raster-twin.json", out);
+    assert_int_not_equal(access(rec, F_OK), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_scene_path_is_not_run),
-        cmocka_unit_test(test_dollar_quote_and_space_arrive_intact),
-        cmocka_unit_test(test_unsafe_names_refused),
-        cmocka_unit_test(test_duplicate_names_refused),
+        cmocka_unit_test(test_scene_path_is_not_run),     cmocka_unit_test(test_dollar_quote_and_space_arrive_intact),
+        cmocka_unit_test(test_unsafe_names_refused),      cmocka_unit_test(test_duplicate_names_refused),
+        cmocka_unit_test(test_povray_jobs_in_wait_group),
     };
     return cmocka_run_group_tests_name("plan", tests, setup, teardown);
 }
