@@ -340,7 +340,16 @@ if [ "$scheduler" = make ]; then
     grep -q -e "--renderer cycles " -e "--renderer eevee " "$run/jobs.mk" && command -v blender > /dev/null &&
         pool=(/usr/bin/python3 harness/renderers/cycles/worker_pool.py --workers "$jobs" --log-dir "$run"
             ${eevee_threads:+--eevee-threads "$eevee_threads"} --)
-    "${pool[@]}" make -k -j"$jobs" -f "$run/jobs.mk" all > "$run/renders.txt" 2>&1 &
+    # Two makes side by side, $jobs slots each: the plan's cpu jobs, and its wait jobs (POV-Ray,
+    # about 1 s a job asleep in its own timers for 0.03-0.8 CPU-s), which would otherwise hold a
+    # CPU slot while a core idles (as the sweep does, docs/sweep.md). Both append to renders.txt.
+    {
+        "${pool[@]}" make -k -j"$jobs" -f "$run/jobs.mk" cpu &
+        cpu_mk=$!
+        make -k -j"$jobs" -f "$run/jobs.mk" wait
+        wait_st=$?
+        wait "$cpu_mk" && exit $wait_st
+    } > "$run/renders.txt" 2>&1 &
     mk=$!
     progress watch "$run" --total "$n" --pid "$mk" --label renders
     wait "$mk" || { say "some render jobs failed; see $run/renders.txt and the job records"; rc=1; }
