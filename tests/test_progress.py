@@ -203,3 +203,46 @@ def test_each_names_a_command_that_cannot_start_and_goes_on(tmp_path):
     assert rc == 127
     failed = [x for x in out.getvalue().splitlines() if 'FAILED' in x]
     assert len(failed) == 2 and failed[0].startswith('fits: FAILED x: exit 127: cannot start')
+
+
+def test_each_starts_the_costliest_items_first_and_logs_in_item_order(tmp_path):
+    log, out, started = tmp_path / 'fit.txt', io.StringIO(), tmp_path / 'started'
+    cmd = ['/bin/sh', '-c', 'echo "$0" >> "$1"; echo "fit $0"', '{}', str(started)]
+    # One at a time, so the start order is the order the marks land in.
+    rc = progress.each(cmd, ['a', 'b', 'c', 'd'], 'fits', 10.0, log=str(log), poll=0.01, stream=out, costs=[1, 5, 3, 5])
+    assert rc == 0
+    assert started.read_text().split() == ['b', 'd', 'c', 'a']
+    assert log.read_text().splitlines() == ['fit a', 'fit b', 'fit c', 'fit d']
+    assert progress.start_order(3) == [0, 1, 2]
+
+
+def test_each_holds_a_slot_of_the_shared_fifo_while_an_item_runs(tmp_path):
+    fifo = tmp_path / 'slots'
+    os.mkfifo(fifo)
+    keep = os.open(fifo, os.O_RDWR | os.O_NONBLOCK)
+    os.write(keep, b'+')  # one slot for everyone, though each may run 2 items at a time
+    # Each item looks into the FIFO: the one token must be out of it (held for this item).
+    look = (
+        'import os, sys\n'
+        'fd = os.open(sys.argv[1], os.O_RDWR | os.O_NONBLOCK)\n'
+        'try:\n'
+        '    os.write(fd, os.read(fd, 1)); print(sys.argv[2], "saw a free slot")\n'
+        'except BlockingIOError:\n'
+        '    print(sys.argv[2], "held the slot")\n'
+    )
+    log, out = tmp_path / 'log.txt', io.StringIO()
+    rc = progress.each(
+        [sys.executable, '-c', look, str(fifo), '{}'],
+        ['a', 'b', 'c'],
+        'compare',
+        10.0,
+        log=str(log),
+        poll=0.01,
+        stream=out,
+        jobs=2,
+        slots=str(fifo),
+    )
+    assert rc == 0
+    assert log.read_text().splitlines() == ['a held the slot', 'b held the slot', 'c held the slot']
+    assert os.read(keep, 8) == b'+'  # handed back, once
+    os.close(keep)

@@ -10,9 +10,12 @@ Usage (Python 3 standard library only):
       Counts the job records (RUN/<scene>/<renderer>-<role>.json) as they appear until N are
       there or the watched process (--pid) ends; names each record whose status is not ok or
       skipped when it appears.
-  python3 tools/progress.py each --label fits [--jobs N] [--log FILE] [--expect S] -- CMD... ::: ITEM...
+  python3 tools/progress.py each --label fits [--jobs N] [--log FILE] [--expect S] [--costs FILE]
+          [--slots FIFO] -- CMD... ::: ITEM...
       Runs CMD once per ITEM, N at a time (default 1), with {} in CMD replaced by the item and
-      {1}, {2}, ... by its tab-separated fields. Each item's output (stdout and stderr) is held
+      {1}, {2}, ... by its tab-separated fields. --costs: one number an item (a line each); the
+      items start highest cost first. --slots: a FIFO holding one byte a free slot, shared with
+      other processes (bash ops/nightly.sh's compare): an item runs only while it holds one. Each item's output (stdout and stderr) is held
       until it ends and then appended whole to FILE, else to this stderr, in item order: the log
       reads the same whatever order the items end in. A failed item is named when it fails, with
       its exit status and its last line of output. Exit status: the highest of the items' (0
@@ -240,26 +243,76 @@ def start_one(argv, done, index):
     threading.Thread(target=waiter, daemon=True).start()
 
 
-def each(cmd, items, label, every, log=None, expected=None, poll=1.0, stream=None, jobs=1):
+class Slots:
+    """Tokens of a FIFO that several processes share (one byte a free slot, as make's jobserver):
+    ask() requests one, which a thread puts on QUEUE as (None, 0, None) once read; give() hands
+    one back. Without a path every ask is granted at once."""
+
+    def __init__(self, path, queue_):
+        self.queue = queue_
+        self.fd = os.open(path, os.O_RDWR) if path else None
+        self.want = threading.Semaphore(0)
+        if self.fd is not None:
+            threading.Thread(target=self._reader, daemon=True).start()
+
+    def _reader(self):
+        while True:
+            self.want.acquire()
+            if os.read(self.fd, 1):
+                self.queue.put((None, 0, None))
+
+    def ask(self):
+        if self.fd is None:
+            self.queue.put((None, 0, None))
+        else:
+            self.want.release()
+
+    def give(self):
+        if self.fd is not None:
+            os.write(self.fd, b'+')
+
+
+def start_order(n, costs=None):
+    """The items' indices in the order they start: by COSTS (one number an item) highest first,
+    ties in item order, so the longest items do not end the stage on one core; else item order."""
+    if costs is None:
+        return list(range(n))
+    if len(costs) != n:
+        raise ValueError(f'{len(costs)} costs for {n} items')
+    return sorted(range(n), key=lambda i: -costs[i])
+
+
+def each(cmd, items, label, every, log=None, expected=None, poll=1.0, stream=None, jobs=1, costs=None, slots=None):
     """Runs CMD once per item, JOBS at a time, with progress; a failed item is named when it ends.
-    Each item's output is held in its own file and appended whole to LOG (else this stderr) in
-    item order, so the log reads the same whatever order the items end in."""
+    Items start in start_order(COSTS); with SLOTS (a FIFO of tokens) each also holds a token
+    while it runs, so that processes sharing the FIFO share its slots. Each item's output is held
+    in its own file and appended whole to LOG (else this stderr) in item order, so the log reads
+    the same whatever order the items start and end in."""
     p = Progress(label, len(items), stream=stream, every=every, expected=expected)
     done = queue.Queue()
+    order = start_order(len(items), costs)
+    tokens = Slots(slots, done)
     outputs = [None] * len(items)
-    started = flushed = running = worst = 0
+    started = flushed = running = worst = held = asked = 0
     sink = open(log, 'ab') if log else None
     try:
         while flushed < len(items):
-            while running < max(1, jobs) and started < len(items):
-                start_one(substitute(cmd, items[started]), done, started)
-                started, running = started + 1, running + 1
+            while asked + held + running < max(1, jobs) and started + held + asked < len(items):
+                tokens.ask()
+                asked += 1
+            while held and started < len(items):
+                start_one(substitute(cmd, items[order[started]]), done, order[started])
+                started, running, held = started + 1, running + 1, held - 1
             try:
                 i, rc, out = done.get(timeout=poll)
             except queue.Empty:
                 p.tick()
                 continue
+            if i is None:  # a slot granted
+                asked, held = asked - 1, held + 1
+                continue
             running -= 1
+            tokens.give()
             out.seek(0)
             outputs[i] = out.read()
             out.close()
@@ -331,6 +384,8 @@ def main(argv=None):
     e.add_argument('--log', help="append the commands' output to this file")
     e.add_argument('--expect', type=float, help='seconds the stage is expected to take')
     e.add_argument('--jobs', type=int, default=1, help='items run at a time (default 1)')
+    e.add_argument('--costs', help='a file of one number an item: items start highest first')
+    e.add_argument('--slots', help='a FIFO of slot tokens shared with other processes')
     f = sub.add_parser('follow', help="show another process's progress lines from its log")
     f.add_argument('file')
     f.add_argument('--label', required=True)
@@ -348,7 +403,25 @@ def main(argv=None):
             print('progress.py each: give -- CMD... ::: ITEM... (see the docstring)', file=sys.stderr)
             return 2
         cut = rest.index(':::')
-        return each(rest[:cut], rest[cut + 1 :], a.label, a.every, a.log, a.expect, jobs=a.jobs)
+        items = rest[cut + 1 :]
+        costs = None
+        if a.costs:
+            try:
+                with open(a.costs, encoding='utf-8') as f:
+                    costs = [float(x) for x in f.read().split()]
+            except (OSError, ValueError) as e:
+                print(
+                    f'progress.py each: --costs {a.costs}: {e}; give one number a line, one line an item',
+                    file=sys.stderr,
+                )
+                return 2
+            if len(costs) != len(items):
+                print(
+                    f'progress.py each: --costs {a.costs}: {len(costs)} numbers for {len(items)} items; give one an item',
+                    file=sys.stderr,
+                )
+                return 2
+        return each(rest[:cut], items, a.label, a.every, a.log, a.expect, jobs=a.jobs, costs=costs, slots=a.slots)
     if a.cmd == 'follow':
         return follow(a.file, a.label, a.every, lambda: not alive(a.pid))
     watch(a.run, a.total, a.label, a.every, (lambda: not alive(a.pid)) if a.pid else None)
