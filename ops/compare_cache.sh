@@ -6,7 +6,9 @@
 #   prints what `BIN compare SCENE... --run RUN` prints (one summary line a scene, in the
 #   scenes' order; "FAIL ..." lines on stderr) and leaves RUN/<scene>/compare.json and view.js;
 #   the scenes whose inputs are unchanged come from CACHE/compare/<key>/, the others are
-#   compared and kept: in one call, or split over COMPARE_JOBS calls at a time (default 1).
+#   compared and kept: in one call, or split over COMPARE_JOBS calls at a time (default 1), or
+#   with COMPARE_SLOTS=FIFO one call a scene, each holding a slot (one byte) of that FIFO while it
+#   runs: the nightly's fits take slots from the same FIFO, so both share JOBS cores as one queue.
 #   Exit status: compare's (0 every comparison passed, warned or was skipped; 1 one failed or
 #   errored, or compare failed; 2 bad input), the worst of the calls.
 # The key (SHA-256) covers what compare reads: the scene file's bytes (its comparisons and
@@ -51,12 +53,28 @@ trap 'rm -rf "$out" "$errs" "$parts"' EXIT
 st=0
 calls=${COMPARE_JOBS:-1}
 [[ $calls =~ ^[1-9][0-9]*$ ]] || { echo "compare_cache.sh: COMPARE_JOBS '$calls': give a count >= 1" >&2; exit 2; }
+slots=${COMPARE_SLOTS:-}
+if [ -n "$slots" ]; then
+    [ -p "$slots" ] || { echo "compare_cache.sh: COMPARE_SLOTS '$slots' is not a FIFO; give the nightly's slot FIFO or unset it" >&2; exit 2; }
+    exec {slot_fd}<> "$slots" || exit 2
+    calls=${#todo[@]}
+fi
+# slot_run CMD...: CMD while holding one byte (a slot) of COMPARE_SLOTS, handed back after.
+slot_run() {
+    local tok st
+    [ -z "$slots" ] && { "$@"; return; }
+    read -r -N1 -u "$slot_fd" tok
+    "$@"
+    st=$?
+    printf '%s' "$tok" >&"$slot_fd"
+    return $st
+}
 if [ ${#todo[@]} -gt 0 ]; then
     pids=()
     for ((c = 0; c < calls && c < ${#todo[@]}; c++)); do
         part=()
         for ((i = c; i < ${#todo[@]}; i += calls)); do part+=("${todo[i]}"); done
-        "$bin" compare "${part[@]}" --run "$run" > "$parts/$c.out" 2> "$parts/$c.err" &
+        slot_run "$bin" compare "${part[@]}" --run "$run" > "$parts/$c.out" 2> "$parts/$c.err" &
         pids+=($!)
     done
     for c in "${!pids[@]}"; do
