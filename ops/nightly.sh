@@ -300,13 +300,20 @@ progress() { step /usr/bin/python3 tools/progress.py "$@"; }
 # included): on a shared machine wall time measures the others' load too, CPU time does not.
 # `times` runs in this shell (a $(...) subshell has no children of its own); its second line is
 # the children's "XmY.YYYs XmY.YYYs".
+# cpu_of FILE [LINES]: the seconds of `times` output lines LINES (an awk condition; default the
+# children's line).
+cpu_of() {
+    awk "${2:-NR == 2}"' { for (i = 1; i <= 2; i++) { split($i, t, "m"); s += t[1] * 60 + t[2] } } END { printf "%.1f", s }' "$1"
+}
 cpu_mark=0
+# stage_done NAME START [CPU]: NAME's line; CPU: seconds of a stage that ran beside it, already
+# written on its own line, left out of NAME's.
 stage_done() {
     local now
     times > "$run/.times"
-    now=$(awk 'NR == 2 { s = 0; for (i = 1; i <= 2; i++) { split($i, t, "m"); s += t[1] * 60 + t[2] } printf "%.1f", s }' "$run/.times")
+    now=$(cpu_of "$run/.times")
     rm -f "$run/.times"
-    printf '%s\t%s\t%s\n' "$1" "$(($(date +%s) - $2))" "$(awk -v a="$now" -v b="$cpu_mark" 'BEGIN { printf "%.1f", a - b }')" >> "$run/stages.tsv"
+    printf '%s\t%s\t%s\n' "$1" "$(($(date +%s) - $2))" "$(awk -v a="$now" -v b="$cpu_mark" -v c="${3:-0}" 'BEGIN { printf "%.1f", a - b - c }')" >> "$run/stages.tsv"
     cpu_mark=$now
 }
 expected() {
@@ -366,10 +373,7 @@ if [ "$scheduler" = make ]; then
             { echo "reflcheck nightly: sweep failed; see $run/sweep.txt" >&2; rc=1; }
         stage_done sweep "$t1"
     fi
-    # compare through CACHE/compare: a scene of unchanged renders and scene file is not
-    # measured again (ops/compare_cache.sh).
-    COMPARE_JOBS=$jobs step bash ops/compare_cache.sh "$cache" "$bin" "$run" "${scenes[@]}" > "$run/compare.txt"
-    st=$?
+    # compare runs with the fits, below: both need only the renders.
 else
     mkdir -p "$run/slurm"
     step bash "$run/submit.sh" > "$run/slurm/render_ids" 2> "$run/slurm/submit.err"
@@ -429,8 +433,11 @@ else
     fi
     st=$(cat "$run/compare.rc" 2>/dev/null || echo 1)
 fi
-cat "$run/compare.txt"
-[ $st -ne 0 ] && { echo "reflcheck nightly: comparisons failed or errored (compare exit $st)" >&2; rc=1; }
+# Under Slurm the compare job has run: its lines now. Locally compare runs beside the fits.
+if [ "$scheduler" = slurm ]; then
+    cat "$run/compare.txt"
+    [ $st -ne 0 ] && { echo "reflcheck nightly: comparisons failed or errored (compare exit $st)" >&2; rc=1; }
+fi
 # The best each approximation can do (harness/fit.h): its parameters fitted to every validate
 # reference, which the job cache hands back without rendering again, within the seeds' ranges
 # (RUN/<scene>/fit.json) and within wide ones (fit-wide.json). A fit of unchanged inputs comes
@@ -444,12 +451,46 @@ for bounds in seed wide; do
     for s in "${scenes[@]}"; do fits+=("$bounds"$'\t'"$s"); done
 done
 t2=$(date +%s)
+# The longest fits first (the last run's fit seconds, else an estimate from the scene file:
+# ops/fit_costs.py), so the stage does not end on one core; fit.txt keeps the items' order.
+costs=()
+/usr/bin/python3 ops/fit_costs.py "$latest" $small -- "${fits[@]}" > "$run/fit-costs.txt" 2> /dev/null &&
+    costs=(--costs "$run/fit-costs.txt")
+# Locally the compare (through CACHE/compare: a scene of unchanged renders and scene file is not
+# measured again, ops/compare_cache.sh), one scene a call, and the fits share JOBS slots: one
+# byte each in a FIFO that both take from (as make's jobserver), so neither waits for the
+# other's last item. The compare's CPU seconds are its subshell's `times`; stages.tsv gets a
+# compare line (its wall from this start to its last scene) and a fits line (to the last fit).
+slots=()
+if [ "$scheduler" = make ]; then
+    rm -f "$run/.slots" && mkfifo "$run/.slots" && exec {slot_fd}<> "$run/.slots" &&
+        printf "%${jobs}s" '' | tr ' ' + >&"$slot_fd" && slots=(--slots "$run/.slots")
+    (
+        COMPARE_SLOTS=${slots[1]:-} COMPARE_JOBS=$jobs bash ops/compare_cache.sh "$cache" "$bin" "$run" "${scenes[@]}" > "$run/compare.txt"
+        cst=$?
+        date +%s > "$run/.compare-end"
+        times > "$run/.compare-times"
+        exit $cst
+    ) &
+    compare_pid=$!
+fi
 # shellcheck disable=SC2046
-progress each --label fits --jobs "$jobs" --log "$run/fit.txt" $(expected fits) -- \
+progress each --label fits --jobs "$jobs" "${slots[@]}" "${costs[@]}" --log "$run/fit.txt" $(expected fits) -- \
     bash ops/fit_cache.sh "$cache" "$bin" '{2}' "$run" '{1}' $small ::: "${fits[@]}"
-st=$?
-[ $st -ne 0 ] && { echo "reflcheck nightly: a fit failed (exit $st); see $run/fit.txt" >&2; rc=1; }
-stage_done fits "$t2"
+fst=$?
+compare_cpu=0
+if [ "$scheduler" = make ]; then
+    wait "$compare_pid"
+    st=$?
+    compare_cpu=$(cpu_of "$run/.compare-times" 1)
+    printf 'compare\t%s\t%s\n' "$(($(cat "$run/.compare-end" 2> /dev/null || date +%s) - t2))" "$compare_cpu" >> "$run/stages.tsv"
+    [ -n "${slot_fd:-}" ] && exec {slot_fd}>&-
+    rm -f "$run/.slots" "$run/.compare-end" "$run/.compare-times"
+    cat "$run/compare.txt"
+    [ $st -ne 0 ] && { echo "reflcheck nightly: comparisons failed or errored (compare exit $st)" >&2; rc=1; }
+fi
+[ $fst -ne 0 ] && { echo "reflcheck nightly: a fit failed (exit $fst); see $run/fit.txt" >&2; rc=1; }
+stage_done fits "$t2" "$compare_cpu"
 cat "$run/fit.txt"
 t2=$(date +%s)
 : > "$run/stability.txt"
