@@ -29,7 +29,12 @@ declare -A dir key
 for s in "$@"; do
     d=$(grep -lF "\"scene_path\":	\"$s\"" "$run"/*/*.json 2> /dev/null | head -n1)
     d=${d%/*}
-    keys=$([ -n "$d" ] && grep -hoE '"(key|status)":[[:space:]]*"[^"]*"' "$d"/*.json 2> /dev/null | sort)
+    # The render records only: the fits (fit.json, fit-wide.json), which the nightly runs beside
+    # the compare, and the compare's own compare.json name keys and statuses too, and whether
+    # they are there yet must not change the key.
+    keys=$([ -n "$d" ] && for f in "$d"/*.json; do
+        case ${f##*/} in fit.json | fit-wide.json | compare.json | figure1.json) ;; *) grep -hoE '"(key|status)":[[:space:]]*"[^"]*"' "$f" ;; esac
+    done 2> /dev/null | sort)
     [ -z "$d" ] || [ -z "$keys" ] || [ ! -r "$s" ] && continue
     dir[$s]=$d
     key[$s]=$({
