@@ -213,6 +213,7 @@ static void cli_fit_record(cJSON *o, const scene *s, const char *id, const char 
     cJSON_AddNumberToObject(o, "renders", r->renders);
     cJSON_AddItemToObject(o, "global", cli_fit_global_json(r, s, p, n, opt));
     cJSON_AddNumberToObject(o, "seconds", r->seconds);
+    cJSON_AddNumberToObject(o, "cpu_seconds", r->cpu_seconds);
     cJSON_AddStringToObject(o, "stop", r->stop);
     cJSON_AddNumberToObject(o, "width", r->width);
     cJSON_AddNumberToObject(o, "height", r->height);

@@ -388,12 +388,14 @@ static const char *fit_stop_text(nlopt_result r)
     }
 }
 
-static double fit_now(void)
+static double fit_clock(clockid_t id)
 {
     struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
+    clock_gettime(id, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
+
+static double fit_now(void) { return fit_clock(CLOCK_MONOTONIC); }
 
 /* The best point's figures, the robust ones included, from its render kept by fit_objective,
  * or rendered at values when the best is still the authored point (whose values may differ
@@ -664,7 +666,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
                        s->height);
         return RC_ERR_RANGE;
     }
-    double t0 = fit_now();
+    double t0 = fit_now(), cpu0 = fit_clock(CLOCK_PROCESS_CPUTIME_ID);
     size_t np = (size_t)s->width * (size_t)s->height;
     fit_ctx c = {
         .m = m,
@@ -738,6 +740,7 @@ rc_status fit_run(const scene *s, const mesh *m, const env_map *env, const metri
     out->renders = c.renders;
     out->reshaded = fit_reshaded(c.keep);
     out->seconds = fit_now() - t0;
+    out->cpu_seconds = fit_clock(CLOCK_PROCESS_CPUTIME_ID) - cpu0;
     out->width = s->width;
     out->height = s->height;
     out->supersample = s->supersample;

@@ -139,13 +139,14 @@ typedef struct {
 
 typedef struct {
     fit_error authored, best;
-    int evaluations; /* objective values the optimiser asked for, the authored one included (the
-                        best point's figures and the curvature probes are not counted) */
-    int renders;     /* frames rendered in all: evaluations less those of a point rendered before,
-                        plus the best point's when it was not kept, plus the probes (fit.h top) */
-    int reshaded;    /* of those, frames shaded again from the authored render's kept frame
-                        (render/render.h, render_options.keep) instead of rasterized; 0 with fresh */
-    double seconds;  /* wall time of the fit, renders included */
+    int evaluations;    /* objective values the optimiser asked for, the authored one included (the
+                           best point's figures and the curvature probes are not counted) */
+    int renders;        /* frames rendered in all: evaluations less those of a point rendered before,
+                           plus the best point's when it was not kept, plus the probes (fit.h top) */
+    int reshaded;       /* of those, frames shaded again from the authored render's kept frame
+                           (render/render.h, render_options.keep) instead of rasterized; 0 with fresh */
+    double seconds;     /* wall time of the fit, renders included */
+    double cpu_seconds; /* CPU time of the fitting process over the same span, all its threads */
     int width, height, supersample;
     const char *stop;  /* why the optimiser stopped, in words: the budget, else the best run's stop */
     int screen_points; /* global stage: Halton points rendered (counted in evaluations) */
