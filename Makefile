@@ -249,10 +249,10 @@ test-slurm: $(CLI)
 
 # The report generator, the report opened in headless Chromium, the gates table (tools/gates.py:
 # every gate beside its figure, none loose without a stated reason) and the cost table
-# (tools/cost_table.py) on a run folder the test makes.
+# (tools/cost_table.py) on a run folder the test makes; the fits' expected costs (ops/fit_costs.py).
 test-report: $(CLI)
 	@REFLCHECK_BIN=$(CLI) /usr/bin/python3 -m pytest -q -p no:cacheprovider tests/test_report.py tests/test_sweep.py tests/test_progress.py tests/test_answer.py tests/test_gates_table.py \
-		tests/test_cost_table.py
+		tests/test_cost_table.py tests/test_fit_costs.py
 
 # Every canonical scene, small, in the real POV-Ray and Blender, gated on its thresholds; first
 # the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds),
