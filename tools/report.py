@@ -44,7 +44,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 try:
     from report import pages
-    from report.browser import TABS, Browser
+    from report.browser import TABS, WINDOW, Browser
     from report.figures import figures_md
     from report.history import append_history, failed_record, history_record, read_history, trend_history
     from report.load import load_run, verdict_counts
@@ -215,7 +215,7 @@ def check_in_browser(run, R, browser, extra):
         # and image loaded (report.js's markers); a page that fails is named. The index and
         # the first scene page are saved as screenshots from the check's own load of them.
         opened = ['index.html'] + extra + [sc['page'] for sc in R['scenes']]
-        shots = {'index.html': (os.path.join(run, 'screenshot.png'), (1400, 1000))}
+        shots = {'index.html': (os.path.join(run, 'screenshot.png'), WINDOW)}
         if R['scenes']:
             shots[R['scenes'][0]['page']] = (os.path.join(run, 'screenshot-scene.png'), (1400, 1400))
         bad = b.check_pages(run, opened, shots=shots)

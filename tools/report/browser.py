@@ -37,6 +37,9 @@ TABS = 3
 # Between two looks at a loading page: short beside a page's 0.1-0.3 s load, long enough that
 # the looks themselves cost nothing.
 POLL_S = 0.05
+# The window a page loads in (width, height), the index's screenshot's size: a page the check
+# loads for a screenshot of another size loads at that size instead.
+WINDOW = (1400, 1000)
 
 
 def chromium_exe():
@@ -183,7 +186,7 @@ class Browser:
         r = self.call('Runtime.evaluate', {'expression': expression, 'returnByValue': True}, session or self.session)
         return r.get('result', {}).get('value')
 
-    def navigate(self, page_path, size=(1400, 1000), session=None):
+    def navigate(self, page_path, size=WINDOW, session=None):
         """Starts loading the page in the tab at a window of size (width, height); settled()
         says when it is done."""
         session = session or self.session
@@ -217,7 +220,7 @@ class Browser:
             raise RuntimeError(f'{tab["path"]}: not loaded within {self.timeout:.0f} s')
         return False
 
-    def open(self, page_path, size=(1400, 1000)):
+    def open(self, page_path, size=WINDOW):
         """Loads the page in the first tab and waits until it has settled."""
         tab = self.navigate(page_path, size)
         while not self.settled(tab):
@@ -227,7 +230,7 @@ class Browser:
         self.open(page_path)
         return self.evaluate('document.documentElement.outerHTML') or ''
 
-    def screenshot(self, page_path, png, size=(1400, 1000)):
+    def screenshot(self, page_path, png, size=WINDOW):
         self.open(page_path, size)
         self._capture(page_path, png, self.session)
 
@@ -253,7 +256,7 @@ class Browser:
         while todo or busy:
             while todo and idle:
                 name = todo.pop(0)
-                size = shots[name][1] if name in shots else (1400, 1000)
+                size = shots[name][1] if name in shots else WINDOW
                 busy.append((name, self.navigate(os.path.join(run, name), size, idle.pop())))
             for name, tab in [b for b in busy if self.settled(b[1])]:
                 if name in shots:
@@ -279,7 +282,7 @@ def page_problem(name, dom):
     return None
 
 
-def screenshot(page_path, png, size='1400,1000'):
+def screenshot(page_path, png, size=f'{WINDOW[0]},{WINDOW[1]}'):
     """One screenshot, one Chromium (size 'W,H')."""
     with Browser() as b:
         b.screenshot(page_path, png, tuple(int(v) for v in size.split(',')))
