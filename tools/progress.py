@@ -409,15 +409,10 @@ def main(argv=None):
             try:
                 with open(a.costs, encoding='utf-8') as f:
                     costs = [float(x) for x in f.read().split()]
+                start_order(len(items), costs)  # the count checked here, before any item runs
             except (OSError, ValueError) as e:
                 print(
                     f'progress.py each: --costs {a.costs}: {e}; give one number a line, one line an item',
-                    file=sys.stderr,
-                )
-                return 2
-            if len(costs) != len(items):
-                print(
-                    f'progress.py each: --costs {a.costs}: {len(costs)} numbers for {len(items)} items; give one an item',
                     file=sys.stderr,
                 )
                 return 2
