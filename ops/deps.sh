@@ -21,6 +21,8 @@ pkgs+=(slurm-wlm munge)
 pkgs+=(xvfb xauth libgl1-mesa-dri)
 # reflcheck fit (harness/fit.c): NLopt's bounded derivative-free optimiser.
 pkgs+=(libnlopt-dev)
+# The nightly's fit order (ops/fit_costs.py reads the scene files) and its test.
+pkgs+=(python3-yaml)
 # The manual page's check in tests/install.sh (groff -man; tools/gen_man.c writes the page itself).
 pkgs+=(groff-base)
 # The renderers' packages come from their rows in the renderer table (.package = "..."), read
