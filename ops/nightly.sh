@@ -468,8 +468,11 @@ t2=$(date +%s)
 # The longest fits first (the last run's fit seconds, else an estimate from the scene file:
 # ops/fit_costs.py), so the stage does not end on one core; fit.txt keeps the items' order.
 costs=()
-/usr/bin/python3 ops/fit_costs.py "$latest" $small -- "${fits[@]}" > "$run/fit-costs.txt" 2> /dev/null &&
+if /usr/bin/python3 ops/fit_costs.py "$latest" $small -- "${fits[@]}" > "$run/fit-costs.txt"; then
     costs=(--costs "$run/fit-costs.txt")
+else
+    say "no fit costs (ops/fit_costs.py failed, above): the fits start in item order"
+fi
 # Locally the compare (through CACHE/compare: a scene of unchanged renders and scene file is not
 # measured again, ops/compare_cache.sh), one scene a call, and the fits share JOBS slots: one
 # byte each in a FIFO that both take from (as make's jobserver), so neither waits for the
