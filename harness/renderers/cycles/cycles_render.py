@@ -805,8 +805,17 @@ def render_job(job_path, out_path, threads=None):
     if not seeds:
         raise JobError("job: seeds is empty")
     render_s = []
+    # Only the seed changes between the seeds' renders: persistent data keeps Cycles' session
+    # (the environment image loaded, the world's importance map, the BVH, the compiled shaders)
+    # from one to the next, each seed's image bit-identical to a fresh Blender's
+    # (tests/cycles_persist.sh). A seed set from Python does not tag the scene, and the kept
+    # session would render the old seed again: update_tag makes it re-read the integrator.
+    # Loading the factory settings (the next job in a worker) frees the kept session.
+    sc = bpy.context.scene
+    sc.render.use_persistent_data = len(seeds) > 1
     for i, seed in enumerate(seeds):
-        bpy.context.scene.cycles.seed = int(seed)
+        sc.cycles.seed = int(seed)
+        sc.update_tag()
         t1 = time.monotonic()
         bpy.ops.render.render(write_still=False)
         render_s.append(time.monotonic() - t1)
