@@ -264,6 +264,7 @@ test-scenes: $(CLI)
 	@bash tests/angle_bins.sh $(BUILD)
 	@bash tests/cycles_auto.sh $(BUILD)
 	@bash tests/cycles_normals.sh $(BUILD)
+	@bash tests/cycles_setup.sh $(BUILD)
 	@bash tests/run_scenes.sh $(BUILD)
 
 # The nightly report: full-size renders in all renderers, metrics, plots, history.

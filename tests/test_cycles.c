@@ -1201,6 +1201,36 @@ static void test_thin_sheet_job(void **state)
     assert_non_null(strstr(err, "thin sheet"));
 }
 
+/* The importance map's width in the job: none by default (cycles_render.py takes the image's),
+ * options.env_detail when set (cycles_render_job's 4 N for an N x N cube map's conversion). */
+static void test_env_map_resolution_job(void **state)
+{
+    (void)state;
+    scene s;
+    mesh m;
+    fixture_mesh f;
+    base_scene(&s, 16, 8);
+    floor_mesh(&m, &f);
+    float px[4 * 2] = {0.5f, 1.0f, 2.0f, 3.0f, 0.25f, 0.5f, 1.5f, 2.5f};
+    exr_channel ch[3] = {{"R", px}, {"G", px}, {"B", px}};
+    char job[512], err[512];
+    snprintf(s.env.path, sizeof s.env.path, "%s/detail.exr", g_dir);
+    assert_int_equal(exr_write(s.env.path, 4, 2, ch, 3, NULL, 0, err, sizeof err), RC_OK);
+    s.env.kind = ENV_IMAGE;
+    s.env.radiance = v3s(1.0f);
+    snprintf(job, sizeof job, "%s/detail.json", g_dir);
+    cycles_options o = {0};
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    cJSON *doc = job_parse(job);
+    assert_null(cJSON_GetObjectItemCaseSensitive(job_at(doc, 1, "environment"), "map_resolution"));
+    cJSON_Delete(doc);
+    o.env_detail = 36;
+    assert_int_equal(cycles_write_job(&s, &m, &o, job, err, sizeof err), RC_OK);
+    doc = job_parse(job);
+    assert_int_equal((int)job_num(job_at(doc, 2, "environment", "map_resolution")), 36);
+    cJSON_Delete(doc);
+}
+
 static void test_ct_environment_term_job(void **state)
 {
     (void)state;
@@ -1280,6 +1310,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_job_contents_and_refusals),
         cmocka_unit_test(test_ct_environment_term_job),
+        cmocka_unit_test(test_env_map_resolution_job),
         cmocka_unit_test(test_script_failure_is_reported),
         cmocka_unit_test(test_point_samples),
         cmocka_unit_test(test_sun_lambert),

@@ -896,7 +896,9 @@ static void cycles_write_physics(jw *w, cJSON *doc, const scene *s, int twin)
     jw_put_int(w, phj, "bounces", twin ? 1 : ph->bounces);
 }
 
-static void cycles_write_environment(jw *w, cJSON *doc, const scene *s, const char *env_path)
+/* An image's "map_resolution" (options.env_detail, when set): the width of the world's importance
+ * map cycles_render.py builds, where the image's own width would over-resolve its detail. */
+static void cycles_write_environment(jw *w, cJSON *doc, const scene *s, const char *env_path, int detail)
 {
     cJSON *env = jw_obj(w, doc, "environment");
     switch (s->env.kind) {
@@ -910,6 +912,8 @@ static void cycles_write_environment(jw *w, cJSON *doc, const scene *s, const ch
         jw_put_str(w, env, "type", "image");
         jw_put_str(w, env, "path", env_path);
         jw_put_vec(w, env, "scale", "environment.radiance", s->env.radiance);
+        if (detail > 0)
+            jw_put_int(w, env, "map_resolution", detail);
         break;
     }
 }
@@ -957,7 +961,7 @@ static rc_status cycles_write_doc(jw *w, cJSON *doc, cycles_ctx *c, const cycles
     for (int i = 0; i < s->n_lights; i++)
         cycles_write_light(w, lights, &s->lights[i]);
     cycles_write_physics(w, doc, s, c->twin);
-    cycles_write_environment(w, doc, s, env_path);
+    cycles_write_environment(w, doc, s, env_path, c->o->env_detail);
     cJSON *materials = jw_arr(w, doc, "materials");
     cycles_usage u = {0};
     for (int mi = 0; mi < s->n_materials; mi++)
@@ -1434,6 +1438,11 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
      * approximation's sampling is part of. */
     if (o.role == ROLE_TWIN && o.supersample == 0)
         o.supersample = j->s->supersample;
+    /* A cube map reaches Blender as a conversion 16 texels wide per cube texel (harness/frame.c):
+     * its detail is the cube's, 4 N around the horizon, and a map that wide costs a 4096-wide
+     * one's 1/256th (docs/samples.md, "Where a Cycles job's CPU goes"). */
+    if (o.env_detail == 0 && j->env != NULL && j->env->kind == ENV_CUBE)
+        o.env_detail = 4 * j->env->width;
     o.left_out = r;
     if (j->tex != NULL) {
         if (renderer_write_textures(j, err, sizeof err) != RC_OK) {

@@ -79,6 +79,9 @@ typedef struct {
     const char *texture_dir;   /* folder holding tex<material>_<slot>.exr (renderer_write_textures);
                                   NULL with a textured material -> RC_ERR_RANGE */
     int supersample;           /* k > 1: sample the model's k x k positions (below); 0, 1 = the pixel */
+    int env_detail;            /* an environment image's texels around the horizon, for the width of
+                                  the world's importance map; 0 = the image's width (at most 4096).
+                                  cycles_render_job sets 4 N for an N x N cube map's conversion */
 } cycles_options;
 
 rc_status cycles_write_job(const scene *s, const mesh *m, const cycles_options *o, const char *job_json_path, char *err,

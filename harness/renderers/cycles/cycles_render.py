@@ -15,7 +15,8 @@ For every seed i in the job it renders once and writes the raw multilayer EXR OU
     background.RGBA      Env (the environment seen by camera rays; in no other layer)
     coverage.V           Alpha
     object.V             IndexOB - 1 (pass_index is object index + 1; background -1)
-and OUT.timing.json with the build and render times in seconds.
+and OUT.timing.json with the build and render times in seconds and the width of the world's
+importance map (world_map, 0 = none), which the log's last line repeats.
 Any failure prints one line "cycles_render.py: error: ..." to stderr and exits with status 1.
 
 Frame: the job is in reflcheck's canonical frame (right-handed, +Y up); Blender is Z-up,
@@ -231,9 +232,13 @@ def setup_world(job):
         # Nothing that samples lights can see the world (mirrors reach it by their bounce ray).
         w.cycles.sampling_method = 'NONE'
     elif kind == "image":
-        # One map texel per image texel; 'AUTOMATIC' builds a larger map at some cost.
+        # One map texel per texel of the image's detail: its width, or the job's map_resolution
+        # (a cube map's 4 N, whose 16 x wider conversion holds no more); 'AUTOMATIC' builds a
+        # larger map at some cost. The map is only the light-sampling pdf, which the estimate
+        # divides by (kernel/light/background.h), so its size moves the noise, not the mean.
         w.cycles.sampling_method = 'MANUAL'
-        w.cycles.sample_map_resolution = max(64, min(4096, int(img.size[0])))
+        detail = int(env.get("map_resolution", img.size[0]))
+        w.cycles.sample_map_resolution = max(64, min(4096, detail))
     else:
         w.cycles.sampling_method = 'MANUAL'
         w.cycles.sample_map_resolution = 64
@@ -808,7 +813,7 @@ def render_job(job_path, out_path, threads=None):
     # Only the seed changes between the seeds' renders: persistent data keeps Cycles' session
     # (the environment image loaded, the world's importance map, the BVH, the compiled shaders)
     # from one to the next, each seed's image bit-identical to a fresh Blender's
-    # (tests/cycles_persist.sh). A seed set from Python does not tag the scene, and the kept
+    # (tests/cycles_setup.sh). A seed set from Python does not tag the scene, and the kept
     # session would render the old seed again: update_tag makes it re-read the integrator.
     # Loading the factory settings (the next job in a worker) frees the kept session.
     sc = bpy.context.scene
@@ -823,6 +828,8 @@ def render_job(job_path, out_path, threads=None):
         if not os.path.isfile(written):
             raise JobError("the compositor wrote no file %s; check disk space and permissions" % written)
         os.replace(written, "%s.cyc%d.exr" % (stem, i))
+    wc = bpy.context.scene.world.cycles
+    world_map = wc.sample_map_resolution if wc.sampling_method == 'MANUAL' else 0
     timing = {
         "blender": bpy.app.version_string,
         "build_s": t_build,
@@ -830,10 +837,14 @@ def render_job(job_path, out_path, threads=None):
         "samples": job["samples"],
         "seeds": seeds,
         "threads": bpy.context.scene.render.threads,
+        "world_map": world_map,
     }
     with open(stem + ".timing.json", "w") as fh:
         json.dump(timing, fh)
-    print("reflcheck-cycles: build %.3f s, render %s s" % (t_build, " ".join("%.3f" % r for r in render_s)))
+    print(
+        "reflcheck-cycles: build %.3f s, render %s s, world map %d"
+        % (t_build, " ".join("%.3f" % r for r in render_s), world_map)
+    )
 
 
 def main():

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# A Cycles job's seeds share one session (cycles_render.py, persistent data), in the real Blender:
+# A Cycles job's set-up, in the real Blender (docs/samples.md, "Where a Cycles job's CPU goes").
+# The seeds share one session (cycles_render.py, persistent data):
 #  - the second seed's render reuses the first's set-up: the log builds the world's importance
 #    map and loads the environment once for two seeds (twice before);
 #  - each seed still renders its own seed: the two-seed image's mean and variance equal those
@@ -9,16 +10,18 @@
 #  - a worker's next job, after a job that kept its session, starts clean: its image equals a
 #    fresh Blender's in every pixel and channel, and it loads its environment itself.
 # The scene is ct_env's validate (the courtyard, light-sampled), small, 16 spp.
-# Usage: bash tests/cycles_persist.sh BUILD
+# The world's importance map is as wide as the environment's detail: ct_env's courtyard image's
+# width; ct_cube's 64 x 64 cube map's 4 x 64 = 256, not its 4096-wide conversion's.
+# Usage: bash tests/cycles_setup.sh BUILD
 set -uo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 bin=$build/reflcheck
 if ! command -v blender > /dev/null; then
-    echo "cycles_persist: SKIP (blender not installed)"
+    echo "cycles_setup: SKIP (blender not installed)"
     exit 0
 fi
-work=$(mktemp -d "${TMPDIR:-/tmp}/reflcheck-persist.XXXXXX") || exit 1
+work=$(mktemp -d "${TMPDIR:-/tmp}/reflcheck-setup.XXXXXX") || exit 1
 trap '[ -n "${KEEP:-}" ] || rm -rf "$work"' EXIT
 fails=0 passes=0
 ok() { passes=$((passes + 1)); echo "ok: $*"; }
@@ -86,5 +89,13 @@ PY
 else
     bad "the worker's job after a kept session differs from a fresh Blender's, or did not load its environment"
 fi
+# The importance map's width, from the log's last line.
+cw=$(oiiotool --info scenes/envs/courtyard.exr | sed -n 's/.*: *\([0-9]*\) x.*/\1/p')
+map=$(sed -n 's/^reflcheck-cycles: .*, world map \([0-9]*\)$/\1/p' "$(log two)")
+[ "$map" = "$cw" ] && ok "ct_env: world map $map, the image's width" || bad "ct_env: world map '$map', want $cw"
+"$bin" run scenes/ct_cube.yaml --renderer cycles --role validate --small --no-cache --threads 1 --samples 16 \
+    -o "$work/cube" > /dev/null 2>&1
+map=$(sed -n 's/^reflcheck-cycles: .*, world map \([0-9]*\)$/\1/p' "$work/cube/ct_cube/cycles-validate.log")
+[ "$map" = 256 ] && ok "ct_cube: world map 256, its cube's 4 x 64" || bad "ct_cube: world map '$map', want 256"
 echo "$passes passed, $fails failed"
 [ "$fails" -eq 0 ]
