@@ -6,7 +6,7 @@ Usage:
     (worker.py renders many jobs in one Blender that way)
 
 For every seed i in the job it renders once and writes the raw multilayer EXR OUT.cyc<i>.exr
-(32-bit float, ZIP) with these channels (harness/cycles.c renames them and averages the seeds):
+(32-bit float, uncompressed) with these channels (harness/cycles.c renames them and averages the seeds):
     R G B A              full image: surfaces + the environment seen by camera rays; A = coverage
     diffuse.RGBA         (DiffDir + DiffInd) * DiffCol
     specular.RGBA        glossy passes when the job routes glossy to "specular"
@@ -737,7 +737,7 @@ def route_glossy(job, mix, glossy):
 
 
 def write_layers(nt, o, mix, base_path, terms, extra):
-    """One 32-bit multilayer EXR at base_path: the beauty (Image plus the background, alpha the
+    """One 32-bit uncompressed multilayer EXR at base_path: the beauty (Image plus the background, alpha the
     coverage), the term layers, background and coverage, then the extra layers. Returns the
     File Output node; the Composite node it adds is what makes the compositor run in background
     mode."""
@@ -750,7 +750,10 @@ def write_layers(nt, o, mix, base_path, terms, extra):
     f = fo.format
     f.file_format = 'OPEN_EXR_MULTILAYER'
     f.color_depth = '32'
-    f.exr_codec = 'ZIP'
+    # Uncompressed: the file lives until reflcheck has read it (cycles_collect, eevee_collect),
+    # and ZIP's compression here and decompression there cost 1.3 CPU-s of a 5.7 CPU-s full-size
+    # twin (lambert_calibration) for the same floats.
+    f.exr_codec = 'NONE'
     fo.layer_slots.clear()
     layers = [("", seta.outputs[0])] + terms + [("background", o['Env']), ("coverage", o['Alpha'])] + extra
     for name, src in layers:

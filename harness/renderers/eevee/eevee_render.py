@@ -14,7 +14,7 @@ EEVEE and Cycles render one Blender scene and differ only in the engine. What is
   - the passes: EEVEE has Diffuse Light and Specular Light (direct and indirect in one) and
     their colours, Emission, Environment and shader AOVs; no object index.
 
-It writes OUT.eevee.exr (32-bit float multilayer, ZIP) with the channels
+It writes OUT.eevee.exr (32-bit float multilayer, uncompressed) with the channels
     R G B A              Combined + Environment; A = alpha (coverage)
     diffuse.RGBA         Diffuse Light * Diffuse Colour
     specular.RGBA        Specular Light * Specular Colour when the job routes glossy there
