@@ -258,7 +258,8 @@ test-report: $(CLI)
 # the crease rules of harness/crease.h shown by a ridge quad in the same renderers (seconds),
 # and where the error sits on two known-answer scenes against exact (angle bins, seconds), and
 # image.samples auto's refusals and its count from a pilot in Cycles (seconds), and Cycles
-# shading with our float normals, not Blender's 16-bit copy (mirror_sphere's twin, seconds).
+# shading with our float normals, not Blender's 16-bit copy (mirror_sphere's twin, seconds), and
+# a job's seeds in one Cycles session, each its own seed, and a cube map's importance map (~20 s).
 test-scenes: $(CLI)
 	@bash tests/crease_renderers.sh $(BUILD)
 	@bash tests/angle_bins.sh $(BUILD)
