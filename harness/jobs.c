@@ -632,6 +632,89 @@ static int job_entry_image_ok(const job_ctx *c, char *why, size_t whylen)
     return ok;
 }
 
+/* 1 when path holds a published conversion: its size is the one its writer kept in
+ * path.bytes. A conversion damaged after it was published (truncated, emptied) is written
+ * again; the rename that publishes it means a killed writer never leaves a half file. */
+static int job_env_cube_kept(const char *path)
+{
+    char sizes[1100];
+    snprintf(sizes, sizeof sizes, "%s.bytes", path);
+    char *text = fileio_read_all(sizes, NULL);
+    struct stat st;
+    int ok = text != NULL && stat(path, &st) == 0 && strtoll(text, NULL, 10) == (long long)st.st_size;
+    free(text);
+    return ok;
+}
+
+rc_status job_env_cube_file(const char *cache_dir, const env_map *cube, char *path, size_t len, char *err,
+                            size_t errlen)
+{
+    /* The key: the faces as loaded (whatever files and decoder gave them) and the code that
+     * converts and writes them, this program's bytes; FRAME_CUBE_EQUIRECT_PER_FACE is in them. */
+    uint64_t h = JOB_FNV_BASIS;
+    int dims[2] = {cube->width, cube->height};
+    h = job_key_field(h, "cube.size", dims, sizeof dims);
+    h = job_key_field(h, "cube.texels", cube->rgb,
+                      (size_t)6 * (size_t)cube->width * (size_t)cube->height * 3 * sizeof *cube->rgb);
+    rc_status st = job_key_file(&h, "binary", "/proc/self/exe", err, errlen);
+    char dir[1100], name[64], tmp[1200];
+    snprintf(dir, sizeof dir, "%s/env", cache_dir);
+    snprintf(name, sizeof name, "cube-%016" PRIx64, h);
+    if ((size_t)snprintf(path, len, "%s/%s.exr", dir, name) >= len) {
+        snprintf(err, errlen, "%s: the cache folder's path is too long for its environment files; use a shorter one",
+                 cache_dir);
+        return RC_ERR_RANGE;
+    }
+    char lockname[80];
+    snprintf(lockname, sizeof lockname, "%s.lock", name);
+    int fd = st == RC_OK && job_mkdirs(dir) == 0 ? job_lock(dir, lockname) : -1;
+    if (st == RC_OK && fd < 0) {
+        snprintf(err, errlen, "%s: cannot create or lock it: %s; check the cache folder and its space", dir,
+                 strerror(errno));
+        st = RC_ERR_IO;
+    }
+    if (st != RC_OK || job_env_cube_kept(path)) {
+        if (fd >= 0)
+            close(fd);
+        return st;
+    }
+    /* Under the lock: written once, then published by rename after its size. */
+    snprintf(tmp, sizeof tmp, "%s/%s.tmp.exr", dir, name);
+    st = frame_env_cube_write(tmp, cube, err, errlen);
+    struct stat fst;
+    if (st == RC_OK && stat(tmp, &fst) == 0) {
+        char sizes[1100], bytes[32];
+        snprintf(sizes, sizeof sizes, "%s.bytes", path);
+        snprintf(bytes, sizeof bytes, "%lld\n", (long long)fst.st_size);
+        st = fileio_write_atomic(sizes, bytes, err, errlen);
+        if (st == RC_OK && rename(tmp, path) != 0) {
+            snprintf(err, errlen, "%s: cannot publish it: %s; check the cache folder and its space", path,
+                     strerror(errno));
+            st = RC_ERR_IO;
+        }
+    } else if (st == RC_OK) {
+        snprintf(err, errlen, "%s: gone after it was written: %s; check the cache folder", tmp, strerror(errno));
+        st = RC_ERR_IO;
+    }
+    if (st != RC_OK)
+        unlink(tmp);
+    close(fd);
+    return st;
+}
+
+/* The cube map's equirectangular conversion for a renderer that reads it from a file, into
+ * path: the cache's copy (job_env_cube_file) with a cache, else a file in the work folder,
+ * which *remove asks the caller to delete after the render. */
+static rc_status job_env_cube(job_ctx *c, char *path, size_t len, int *remove, char *why, size_t whylen)
+{
+    *remove = 0;
+    if (c->j->cache_dir != NULL)
+        return job_env_cube_file(c->j->cache_dir, &c->env, path, len, why, whylen);
+    *remove = 1;
+    snprintf(path, len, "%s/environment-cube.exr", c->dir);
+    return frame_env_cube_write(path, &c->env, why, whylen);
+}
+
 /* The table row's render entry, the same one the renderers' tests call. */
 static void job_render(job_ctx *c, job_record *rec)
 {
@@ -639,8 +722,10 @@ static void job_render(job_ctx *c, job_record *rec)
      * written into its work folder. The cache key covers the original image, the threshold (the
      * scene file) and the code that splits it (scene/env.c, harness/frame.c). */
     char split[1100] = "";
+    int remove = 0;
     if (registry_row(c->j->renderer)->program != NULL && frame_sun_split(c->s)) {
         char why[600];
+        remove = 1;
         snprintf(split, sizeof split, "%s/environment-split.exr", c->dir);
         if (frame_env_write(split, &c->env, why, sizeof why) != RC_OK) {
             job_fail(rec, RUNNER_ERROR, "the split environment: %s; check the work folder and its space", why);
@@ -651,12 +736,11 @@ static void job_render(job_ctx *c, job_record *rec)
     /* A renderer that reads the environment from its file gets a cube map as its equirectangular
      * conversion (frame_env_cube_write), unless its row says it looks the cube up itself, as the
      * in-process ones do. The key covers the faces and the converting code (scene/env.c,
-     * harness/frame.c). */
+     * harness/frame.c). With a cache, every job of the same faces shares one conversion. */
     const renderer_row *row = registry_row(c->j->renderer);
     if (row->program != NULL && !row->cube_maps && c->s->env.kind == ENV_CUBE) {
         char why[600];
-        snprintf(split, sizeof split, "%s/environment-cube.exr", c->dir);
-        if (frame_env_cube_write(split, &c->env, why, sizeof why) != RC_OK) {
+        if (job_env_cube(c, split, sizeof split, &remove, why, sizeof why) != RC_OK) {
             job_fail(rec, RUNNER_ERROR, "the cube map's conversion: %s; check the work folder and its space", why);
             return;
         }
@@ -680,8 +764,9 @@ static void job_render(job_ctx *c, job_record *rec)
                        .version = c->version};
     memset(&c->res, 0, sizeof c->res);
     registry_row(c->j->renderer)->render(&rj, &c->res);
-    /* The split sky or converted cube served the render; a cache entry keeps only the render. */
-    if (split[0] != '\0')
+    /* The split sky or a work folder's converted cube served the render; a cache entry keeps
+     * only the render. */
+    if (remove)
         unlink(split);
     rec->status = c->res.status;
     snprintf(rec->message, sizeof rec->message, "%s", c->res.message);

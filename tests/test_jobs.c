@@ -26,6 +26,7 @@
 #include "cli_exec.h"
 #include "exr.h"
 #include "fileio.h"
+#include "frame.h"
 #include "jobs.h"
 
 static char saved_path[8192];
@@ -727,6 +728,128 @@ static void test_killed_run_without_cache(void **state)
     kill_run(SIGKILL, 0);
 }
 
+/* ---- The cube map's conversion, kept in the cache (job_env_cube_file) ---- */
+
+/* Six 4 x 4 faces, every texel and channel its own value (base + its index / 1000). */
+static float *cube_texels(float base)
+{
+    size_t n = 6 * 4 * 4 * 3;
+    float *rgb = malloc(n * sizeof *rgb);
+    assert_non_null(rgb);
+    for (size_t i = 0; i < n; i++)
+        rgb[i] = base + (float)i / 1000.0f;
+    return rgb;
+}
+
+static void file_id(const char *path, struct stat *st) { assert_int_equal(stat(path, st), 0); }
+
+/* The kept file is frame_env_cube_write's bytes, written once for the same faces, another file
+ * for other faces, and written again when damaged. */
+static void test_env_cube_file_kept_once(void **state)
+{
+    (void)state;
+    char cache[256], direct[256], p1[1200], p2[1200], again[1200], err[1024];
+    snprintf(cache, sizeof cache, "%s/envcache", work);
+    snprintf(direct, sizeof direct, "%s/direct-cube.exr", work);
+    float *rgb = cube_texels(0.25f);
+    env_map cube = {.kind = ENV_CUBE, .width = 4, .height = 4, .rgb = rgb, .scale = v3s(1)};
+    assert_int_equal(job_env_cube_file(cache, &cube, p1, sizeof p1, err, sizeof err), RC_OK);
+    assert_non_null(strstr(p1, "/envcache/env/cube-"));
+    assert_int_equal(frame_env_cube_write(direct, &cube, err, sizeof err), RC_OK);
+    assert_true(files_equal(p1, direct));
+
+    /* The same faces again: the same file, not written again (same inode and change time). */
+    struct stat a, b;
+    file_id(p1, &a);
+    assert_int_equal(job_env_cube_file(cache, &cube, again, sizeof again, err, sizeof err), RC_OK);
+    assert_string_equal(again, p1);
+    file_id(p1, &b);
+    assert_true(a.st_ino == b.st_ino && a.st_mtim.tv_sec == b.st_mtim.tv_sec && a.st_mtim.tv_nsec == b.st_mtim.tv_nsec);
+
+    /* One texel changed: another file, the new faces' conversion, never the old one. */
+    rgb[6 * 4 * 4 * 3 - 1] += 0.5f;
+    assert_int_equal(job_env_cube_file(cache, &cube, p2, sizeof p2, err, sizeof err), RC_OK);
+    assert_string_not_equal(p2, p1);
+    assert_int_equal(frame_env_cube_write(direct, &cube, err, sizeof err), RC_OK);
+    assert_true(files_equal(p2, direct));
+    assert_false(files_equal(p2, p1));
+
+    /* A kept file cut short is written again, whole. */
+    assert_int_equal(truncate(p2, 100), 0);
+    assert_int_equal(job_env_cube_file(cache, &cube, again, sizeof again, err, sizeof err), RC_OK);
+    assert_string_equal(again, p2);
+    assert_true(files_equal(p2, direct));
+    free(rgb);
+}
+
+/* A cube-map scene of the tiny triangle (six 4 x 4 faces beside it); returns its path. */
+static const char *cube_scene(void)
+{
+    static char path[256];
+    static const char *faces[6] = {"px", "nx", "py", "ny", "pz", "nz"};
+    char p[256], yaml[1400];
+    int n = snprintf(yaml, sizeof yaml,
+                     "name: cubey\nimage: {width: 8, height: 6, supersample: 1, timeout: 60}\n"
+                     "camera: {eye: [0, 0.5, 4], target: [0, 0.5, 0], hfov: 40}\nenvironment:\n  cube: {");
+    for (int f = 0; f < 6; f++) {
+        snprintf(p, sizeof p, "%s/face_%s.exr", work, faces[f]);
+        write_exr(p, 4, 4, 0.1f * (float)(f + 1));
+        n += snprintf(yaml + n, sizeof yaml - (size_t)n, "%s%s: face_%s.exr", f ? ", " : "", faces[f], faces[f]);
+    }
+    snprintf(yaml + n, sizeof yaml - (size_t)n,
+             "}\nlights:\n  - {type: point, position: [2, 4, 3], intensity: [30, 30, 30]}\n"
+             "materials:\n  white: {albedo: [0.8, 0.8, 0.8]}\n"
+             "objects:\n  - {shape: mesh, path: tri.obj, material: white}\n"
+             "comparisons:\n  - reference: cycles\n    role: twin\n"
+             "    thresholds: {rel_rms: {warn: 1e-3, fail: 2e-3, why: \"test\"}}\n");
+    snprintf(p, sizeof p, "%s/tri.obj", work);
+    write_text(p, tiny_obj);
+    snprintf(path, sizeof path, "%s/cubey.yaml", work);
+    write_text(path, yaml);
+    return path;
+}
+
+/* Cycles jobs of a cube-map scene: with a cache, every job gets the cache's one conversion;
+ * without, its own work folder's file (removed after), byte for byte the same. A fake Blender
+ * copies the environment its job names (seen-N.exr, its path in seen-N.path), then fails. */
+static void test_cycles_jobs_share_the_cube_conversion(void **state)
+{
+    (void)state;
+    const char *yaml = cube_scene();
+    char body[1024];
+    snprintf(body, sizeof body,
+             "for a in \"$@\"; do job=$prev; prev=$a; done\n"
+             "env=$(sed -n 's/.*\"path\":[[:space:]]*\"\\([^\"]*\\.exr\\)\".*/\\1/p' \"$job\" | head -n1)\n"
+             "n=$(ls %s | grep -c '^seen-.*\\.exr$')\n"
+             "cp \"$env\" %s/seen-$n.exr; echo \"$env\" > %s/seen-$n.path; exit 3",
+             work, work, work);
+    fake("blender", body);
+    char cache[256], err[1024];
+    snprintf(cache, sizeof cache, "%s/cubecache", work);
+    const char *opts[3] = {"--cache", "--cache", "--no-cache"};
+    const char *seeds[3] = {"1", "2", "1"};
+    for (int i = 0; i < 3; i++)
+        cli_exec(err, sizeof err, "run %s --renderer cycles --role twin --out %s/cube%d --seed %s %s %s", yaml, out_dir,
+                 i, seeds[i], opts[i], i < 2 ? cache : "");
+    char seen[3][256], *where[3];
+    for (int i = 0; i < 3; i++) {
+        char p[256];
+        snprintf(seen[i], sizeof seen[i], "%s/seen-%d.exr", work, i);
+        snprintf(p, sizeof p, "%s/seen-%d.path", work, i);
+        where[i] = fileio_read_all(p, NULL);
+        assert_non_null(where[i]);
+    }
+    assert_string_equal(where[0], where[1]);
+    assert_non_null(strstr(where[0], "/cubecache/env/cube-"));
+    assert_null(strstr(where[2], "/cubecache/"));
+    where[2][strcspn(where[2], "\n")] = '\0';
+    assert_int_not_equal(access(where[2], F_OK), 0); /* the work folder's copy is gone */
+    assert_true(files_equal(seen[0], seen[2]));
+    assert_true(files_equal(seen[1], seen[2]));
+    for (int i = 0; i < 3; i++)
+        free(where[i]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -749,6 +872,8 @@ int main(void)
         cmocka_unit_test(test_killed_run_sigkill),
         cmocka_unit_test(test_killed_run_sigterm),
         cmocka_unit_test(test_killed_run_without_cache),
+        cmocka_unit_test(test_env_cube_file_kept_once),
+        cmocka_unit_test(test_cycles_jobs_share_the_cube_conversion),
     };
     return cmocka_run_group_tests_name("jobs", tests, setup, teardown);
 }
