@@ -11,6 +11,8 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include <cJSON.h>
+
 #include "cli.h"
 #include "exr.h"
 #include "compare.h"
@@ -133,9 +135,9 @@ int cli_compare(int argc, char **argv)
 }
 
 /* A mask of another size than the test image is the mask's fault, not the pair's: name it, its
- * size and the size it must have. Images that cannot be read are left to compare_images, which
- * names them. */
-static int cli_diff_mask_size(const char *test, const char *mask)
+ * size and the size it must have (in msg). Images that cannot be read are left to
+ * compare_images, which names them. */
+static int cli_diff_mask_size(const char *test, const char *mask, char *msg, size_t msglen)
 {
     exr_image t, g;
     char err[1024];
@@ -144,10 +146,10 @@ static int cli_diff_mask_size(const char *test, const char *mask)
     int rc = CLI_OK;
     if (exr_read(mask, &g, err, sizeof err) == RC_OK) {
         if (g.width != t.width || g.height != t.height) {
-            fprintf(stderr,
-                    "reflcheck: diff: --mask %s is %dx%d, the test image %s is %dx%d; give a geometry render "
-                    "(coverage, object) of the same %dx%d\n",
-                    mask, g.width, g.height, test, t.width, t.height, t.width, t.height);
+            snprintf(msg, msglen,
+                     "diff: --mask %s is %dx%d, the test image %s is %dx%d; give a geometry render "
+                     "(coverage, object) of the same %dx%d",
+                     mask, g.width, g.height, test, t.width, t.height, t.width, t.height);
             rc = CLI_BAD_INPUT;
         }
         exr_image_free(&g);
@@ -156,11 +158,118 @@ static int cli_diff_mask_size(const char *test, const char *mask)
     return rc;
 }
 
+/* One pair's metrics written to out; returns the exit status diff gives for it, with the
+ * line it prints on stderr in msg (empty when none). */
+static int cli_diff_one(const char *test, const char *ref, const char *mask, const char *leave_out, FILE *out,
+                        char *msg, size_t msglen)
+{
+    char err[1024];
+    int gate_failed = 0;
+    msg[0] = '\0';
+    if (mask != NULL && cli_diff_mask_size(test, mask, msg, msglen) != CLI_OK)
+        return CLI_BAD_INPUT;
+    unsigned bits = 0;
+    char dir[256] = "", tpath[300], rpath[300];
+    rc_status st = leave_out != NULL ? diff_terms_parse(leave_out, &bits, err, sizeof err) : RC_OK;
+    if (st == RC_OK && bits != 0)
+        st = diff_terms_pair(test, ref, bits, dir, sizeof dir, err, sizeof err);
+    snprintf(tpath, sizeof tpath, "%s/test.exr", dir);
+    snprintf(rpath, sizeof rpath, "%s/ref.exr", dir);
+    if (st == RC_OK)
+        st = compare_images(bits ? tpath : test, bits ? rpath : ref, mask, out, &gate_failed, err, sizeof err);
+    diff_terms_names(err, sizeof err, dir, test, ref);
+    diff_terms_cleanup(dir);
+    if (st != RC_OK) {
+        /* Every image here is the user's input: one that cannot be read or does not match is
+         * bad input; only running out of memory is ours. */
+        snprintf(msg, msglen, "%s", err);
+        return st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
+    }
+    if (gate_failed) {
+        snprintf(msg, msglen, "diff %s %s: %s", test, ref, err);
+        return CLI_FAILED;
+    }
+    return CLI_OK;
+}
+
+/* A line of --pairs: TEST, REF, MASK and TERMS separated by tabs (MASK and TERMS may be empty or
+ * left off). 0 when the line has no TEST and REF. */
+static int cli_diff_split(char *line, char *field[4])
+{
+    line[strcspn(line, "\r\n")] = '\0';
+    for (int i = 0; i < 4; i++) {
+        field[i] = line;
+        line = line != NULL ? strchr(line, '\t') : NULL;
+        if (line != NULL)
+            *line++ = '\0';
+    }
+    for (int i = 2; i < 4; i++)
+        if (field[i] != NULL && field[i][0] == '\0')
+            field[i] = NULL;
+    return field[0] != NULL && field[0][0] != '\0' && field[1] != NULL && field[1][0] != '\0';
+}
+
+/* reflcheck diff --pairs FILE: every pair of FILE ("-": standard input) in one process, one
+ * answer each on standard output, in order: the metrics object diff prints for the pair, or
+ * {"error": LINE, "exit": N} with the line and exit status diff gives for it alone. A sweep
+ * diffs hundreds of small pairs; a process each cost more than the comparisons. Exit 0 once
+ * every answer is written (each pair's own status is in its answer), 2 when FILE cannot be
+ * read or a line has no TEST and REF. */
+static int cli_diff_pairs(const char *file)
+{
+    FILE *in = strcmp(file, "-") == 0 ? stdin : fopen(file, "r");
+    if (in == NULL) {
+        fprintf(stderr,
+                "reflcheck: diff: --pairs %s: %s; give a readable file of TEST<tab>REF<tab>MASK<tab>TERMS lines\n",
+                file, strerror(errno));
+        return CLI_BAD_INPUT;
+    }
+    char *line = NULL, *field[4];
+    size_t cap = 0;
+    int rc = CLI_OK;
+    for (long n = 1; rc == CLI_OK && getline(&line, &cap, in) != -1; n++) {
+        if (!cli_diff_split(line, field)) {
+            fprintf(stderr,
+                    "reflcheck: diff: --pairs %s: line %ld: no TEST and REF; give TEST<tab>REF<tab>MASK<tab>TERMS\n",
+                    file, n);
+            rc = CLI_BAD_INPUT;
+            break;
+        }
+        char *text = NULL, msg[2048];
+        size_t len = 0;
+        FILE *mem = open_memstream(&text, &len);
+        int st = mem != NULL ? cli_diff_one(field[0], field[1], field[2], field[3], mem, msg, sizeof msg) : CLI_FAILED;
+        if (mem != NULL)
+            fclose(mem);
+        if (st == CLI_OK) {
+            fwrite(text, 1, len, stdout);
+        } else {
+            cJSON *o = cJSON_CreateObject();
+            cJSON_AddStringToObject(o, "error", mem != NULL ? msg : "out of memory for the metrics");
+            cJSON_AddNumberToObject(o, "exit", st);
+            char *e = cJSON_PrintUnformatted(o);
+            printf("%s\n", e != NULL ? e : "{\"error\": \"out of memory\", \"exit\": 1}");
+            cJSON_free(e);
+            cJSON_Delete(o);
+        }
+        free(text);
+    }
+    free(line);
+    if (in != stdin)
+        fclose(in);
+    if (rc == CLI_OK && (fflush(stdout) != 0 || ferror(stdout))) {
+        fprintf(stderr, "reflcheck: diff: cannot write the metrics to standard output: %s\n", strerror(errno));
+        rc = CLI_FAILED;
+    }
+    return rc;
+}
+
 /* reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]: the metrics of one image
  * pair as JSON; --leave-out compares the terms a partial twin's sides both render
  * (harness/diff_terms.h). */
 static const struct option diff_longopts[] = {{"mask", required_argument, NULL, 'm'},
                                               {"leave-out", required_argument, NULL, 'l'},
+                                              {"pairs", required_argument, NULL, 'p'},
                                               {"help", no_argument, NULL, 'h'},
                                               {NULL, 0, NULL, 0}};
 static const cli_option_help diff_options_help[] = {
@@ -170,6 +279,10 @@ static const cli_option_help diff_options_help[] = {
     {"leave-out", "TERMS",
      "comma-separated terms (diffuse, specular, reflection, emission) taken off both "
      "images' RGB before comparing, as for a partial twin; default: none"},
+    {"pairs", "FILE",
+     "many pairs in one process, no operands: a line each of TEST, REF, MASK, TERMS separated by tabs "
+     "(MASK, TERMS may be empty) from FILE ('-': standard input); one answer a pair, in order: its "
+     "metrics or {\"error\": message, \"exit\": status}; default: the one pair of the operands"},
     {"help", NULL, "this help, then exit 0"},
     {NULL, NULL, NULL},
 };
@@ -190,7 +303,7 @@ const cli_command cli_diff_command = {
 
 int cli_diff(int argc, char **argv)
 {
-    const char *mask = NULL, *leave_out = NULL;
+    const char *mask = NULL, *leave_out = NULL, *pairs = NULL;
     int c;
     unsigned char seen[256] = {0};
     optind = 1;
@@ -200,45 +313,30 @@ int cli_diff(int argc, char **argv)
             return CLI_BAD_INPUT;
         if (c == 'h')
             return cli_help("diff");
-        if (c != 'm' && c != 'l') {
+        if (c != 'm' && c != 'l' && c != 'p') {
             return cli_bad_option("diff", argc, argv, "h", diff_longopts,
                                   "usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]");
         }
-        *(c == 'm' ? &mask : &leave_out) = optarg;
+        *(c == 'm' ? &mask : c == 'l' ? &leave_out : &pairs) = optarg;
     }
+    if (pairs != NULL && (optind != argc || mask != NULL || leave_out != NULL)) {
+        fprintf(stderr, "reflcheck: diff: --pairs takes each pair's images, mask and terms from its lines; give no "
+                        "operands, --mask or --leave-out with it\n");
+        return CLI_BAD_INPUT;
+    }
+    if (pairs != NULL)
+        return cli_diff_pairs(pairs);
     if (optind != argc - 2) {
         fprintf(stderr, "reflcheck: usage: reflcheck diff TEST.exr REF.exr [--mask GEO.exr] [--leave-out TERMS]\n");
         return CLI_BAD_INPUT;
     }
-    char err[1024];
-    int gate_failed = 0;
-    if (mask != NULL && cli_diff_mask_size(argv[optind], mask) != CLI_OK)
-        return CLI_BAD_INPUT;
-    unsigned bits = 0;
-    char dir[256] = "", tpath[300], rpath[300];
-    rc_status st = leave_out != NULL ? diff_terms_parse(leave_out, &bits, err, sizeof err) : RC_OK;
-    if (st == RC_OK && bits != 0)
-        st = diff_terms_pair(argv[optind], argv[optind + 1], bits, dir, sizeof dir, err, sizeof err);
-    snprintf(tpath, sizeof tpath, "%s/test.exr", dir);
-    snprintf(rpath, sizeof rpath, "%s/ref.exr", dir);
-    if (st == RC_OK)
-        st = compare_images(bits ? tpath : argv[optind], bits ? rpath : argv[optind + 1], mask, stdout, &gate_failed,
-                            err, sizeof err);
-    diff_terms_names(err, sizeof err, dir, argv[optind], argv[optind + 1]);
-    diff_terms_cleanup(dir);
-    if (st != RC_OK) {
-        /* Every image here is the user's input: one that cannot be read or does not match is
-         * bad input; only running out of memory is ours. */
-        fprintf(stderr, "reflcheck: %s\n", err);
-        return st == RC_ERR_NOMEM ? CLI_FAILED : CLI_BAD_INPUT;
-    }
-    if (fflush(stdout) != 0 || ferror(stdout)) {
+    char msg[2048];
+    int rc = cli_diff_one(argv[optind], argv[optind + 1], mask, leave_out, stdout, msg, sizeof msg);
+    if (msg[0] != '\0')
+        fprintf(stderr, "reflcheck: %s\n", msg);
+    if (rc == CLI_OK && (fflush(stdout) != 0 || ferror(stdout))) {
         fprintf(stderr, "reflcheck: diff: cannot write the metrics to standard output: %s\n", strerror(errno));
         return CLI_FAILED;
     }
-    if (gate_failed) {
-        fprintf(stderr, "reflcheck: diff %s %s: %s\n", argv[optind], argv[optind + 1], err);
-        return CLI_FAILED;
-    }
-    return CLI_OK;
+    return rc;
 }

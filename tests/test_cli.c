@@ -19,6 +19,7 @@
 
 #include "cli.h"
 #include "cli_exec.h"
+#include "fileio.h"
 #include "jsonio.h"
 #include "tmpdir.h"
 
@@ -141,6 +142,68 @@ static void test_diff_mask_size(void **state)
     assert_non_null(strstr(err, "16x12"));
     /* the same mask size passes */
     assert_int_equal(cli_exec(err, sizeof err, "diff %s/t.exr %s/t.exr --mask %s/t.exr", tmpdir, tmpdir, tmpdir), 0);
+}
+
+/* `diff --pairs`: one process gives, pair by pair and in order, the metrics `diff` alone gives
+ * (three renders of two scenes, one pair leaving a term out, one without a mask), and for a
+ * pair diff alone refuses, its message and exit status; a line without TEST and REF is exit 2. */
+static void test_diff_pairs_as_alone(void **state)
+{
+    (void)state;
+    char err[2048], path[400];
+    assert_int_equal(
+        cli_exec(err, sizeof err, "render scenes/d3d9_glass.yaml -o %s/pa.exr --width 16 --height 12 -q", tmpdir), 0);
+    assert_int_equal(
+        cli_exec(err, sizeof err, "render scenes/d3d_spot.yaml -o %s/pb.exr --width 16 --height 12 -q", tmpdir), 0);
+    assert_int_equal(
+        cli_exec(err, sizeof err, "render scenes/stiff_blinn.yaml -o %s/pc.exr --width 16 --height 12 -q", tmpdir), 0);
+    static const char *const pairs[][4] = {
+        {"pa", "pb", "pc", ""}, {"pb", "pa", "pa", "specular"}, {"pc", "pa", "", ""}, {"pa", "nosuch", "pa", ""}};
+    enum { N = sizeof pairs / sizeof pairs[0] };
+    snprintf(path, sizeof path, "%s/pairs.txt", tmpdir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    for (int i = 0; i < N; i++) {
+        char m[300] = "", lo[64] = "";
+        if (pairs[i][2][0] != '\0')
+            snprintf(m, sizeof m, " --mask %s/%s.exr", tmpdir, pairs[i][2]);
+        if (pairs[i][3][0] != '\0')
+            snprintf(lo, sizeof lo, " --leave-out %s", pairs[i][3]);
+        sh_exec(err, sizeof err, "%s diff %s/%s.exr %s/%s.exr%s%s > %s/alone%d.json", cli_bin(), tmpdir, pairs[i][0],
+                tmpdir, pairs[i][1], m, lo, tmpdir, i);
+        fprintf(f, "%s/%s.exr\t%s/%s.exr\t", tmpdir, pairs[i][0], tmpdir, pairs[i][1]);
+        if (pairs[i][2][0] != '\0')
+            fprintf(f, "%s/%s.exr", tmpdir, pairs[i][2]);
+        fprintf(f, "\t%s\n", pairs[i][3]);
+    }
+    fclose(f);
+    assert_int_equal(sh_exec(err, sizeof err, "%s diff --pairs %s > %s/pairs.out", cli_bin(), path, tmpdir), 0);
+    snprintf(path, sizeof path, "%s/pairs.out", tmpdir);
+    char *text = fileio_read_all(path, NULL);
+    assert_non_null(text);
+    const char *at = text;
+    for (int i = 0; i < N; i++) {
+        const char *end = NULL;
+        cJSON *got = cJSON_ParseWithOpts(at, &end, 0);
+        assert_non_null(got);
+        at = end;
+        if (i < N - 1) {
+            snprintf(path, sizeof path, "%s/alone%d.json", tmpdir, i);
+            char *want_text = fileio_read_all(path, NULL);
+            cJSON *want = cJSON_Parse(want_text);
+            assert_non_null(want);
+            assert_true(cJSON_Compare(got, want, 1));
+            cJSON_Delete(want);
+            free(want_text);
+        } else {
+            assert_non_null(strstr(cJSON_GetStringValue(cJSON_GetObjectItem(got, "error")), "nosuch.exr"));
+            assert_int_equal(cJSON_GetNumberValue(cJSON_GetObjectItem(got, "exit")), 2);
+        }
+        cJSON_Delete(got);
+    }
+    free(text);
+    int rc = sh_exec(err, sizeof err, "printf 'only-one\\n' | %s diff --pairs -", cli_bin());
+    expect_refused(err, rc, "line 1: no TEST and REF");
 }
 
 /* After "--" an option-like word is a file name, never the help option. */
@@ -395,6 +458,7 @@ int main(void)
         cmocka_unit_test(test_option_twice),
         cmocka_unit_test(test_numbers),
         cmocka_unit_test(test_diff_mask_size),
+        cmocka_unit_test(test_diff_pairs_as_alone),
         cmocka_unit_test(test_help_words_as_files),
         cmocka_unit_test(test_every_command_help),
         cmocka_unit_test(test_top_help),
