@@ -384,6 +384,9 @@ class _Runner:
         self.calls.append((test, tuple(leave_out)))
         return {'surface': {'nrmse': 0.0079 if 'specular' in leave_out else 0.0814}}
 
+    def diff_many(self, items):
+        return [self.diff(*it[:4], keys=it[4]) for it in items]
+
 
 def test_partial_twin_compares_the_shared_terms():
     """A partial twin (Cycles leaves the Blinn-Phong specular out, its record says so) is swept
@@ -867,6 +870,47 @@ def test_second_run_reads_repeats_and_diffs_from_the_cache(tmp_path):
     runner.diff('t.exr', 'r.exr', 'm.exr', [], keys=keys)
     runner.diff('t.exr', 'r.exr', 'm.exr', ['specular'])
     assert int(counter.read_text()) == n1 + 3
+
+
+def test_diffs_of_a_scene_in_one_process(tmp_path):
+    """A scene's diffs go to one `reflcheck diff --pairs` process: each answer equals what `diff`
+    alone gives for its pair (a partial twin's terms left out, a noise diff against the zero
+    image, a missing image's error in its own slot), and the cache keeps them as before."""
+    real = os.environ.get('REFLCHECK_BIN') or os.path.join(ROOT, 'build', 'reflcheck')
+    log = tmp_path / 'calls.log'
+    exe = tmp_path / 'reflcheck'
+    exe.write_text(f'#!/bin/sh\necho "$*" >> {str(log)!r}\nexec {os.path.abspath(real)!r} "$@"\n')
+    exe.chmod(0o755)
+    img = {}
+    for name, scene in (('a', 'd3d9_glass'), ('b', 'd3d_spot'), ('m', 'stiff_blinn')):
+        img[name] = str(tmp_path / f'{name}.exr')
+        subprocess.run(
+            [real, 'render', os.path.join(ROOT, 'scenes', scene + '.yaml'), '-o', img[name], '--width', '16']
+            + ['--height', '12', '-q'],
+            check=True,
+            cwd=ROOT,
+        )
+    keys = ('00000000000000a1', '00000000000000b2', '00000000000000c3')
+    items = [
+        (img['a'], img['b'], img['m'], ['specular'], keys),
+        (img['b'], img['a'], img['m'], (), None),
+        (img['a'], str(tmp_path / 'nosuch.exr'), img['m'], (), None),
+    ]
+    runner = sweep.Runner(_Args(str(tmp_path / 'cache'), str(exe)))
+    log.write_text('')
+    got = runner.diff_many(items)
+    assert log.read_text().count('diff --pairs') == 1 and len(log.read_text().splitlines()) == 1
+    for (test, ref, mask, left, _), answer in zip(items[:2], got):
+        cmd = [real, 'diff', test, ref, '--mask', mask] + (['--leave-out', ','.join(left)] if left else [])
+        assert answer == json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+    assert isinstance(got[2], RuntimeError) and 'nosuch.exr' in str(got[2])
+    alone = subprocess.run([real, 'diff', img['a'], items[2][1], '--mask', img['m']], capture_output=True, text=True)
+    assert str(got[2]) == f"reflcheck diff {img['a']} {items[2][1]}: " + alone.stderr.strip().splitlines()[-1]
+    # The keyed pair is kept: asked again, only the other two are diffed.
+    log.write_text('')
+    again = runner.diff_many(items)
+    assert again[0] == got[0] and log.read_text().count('diff --pairs') == 1
+    assert runner.diff(*items[0][:4], keys=keys) == got[0] and log.read_text().count('diff') == 1
 
 
 def test_missing_run_folder_is_one_line(tmp_path):

@@ -24,34 +24,45 @@ def scene_diffs(runner, jobs, recs, zero):
     """Every ok job's diff against the reference (masked by the raster as-is) and the Cycles
     points' own noise; returns (diffs, noises, terms left out). A partial twin is compared on the
     terms the reference renders, as compare.json compares it; the reference's own noise needs no
-    such care: its image holds no left-out term."""
+    such care: its image holds no left-out term. All of a scene's diffs go to the runner at
+    once (runner.diff_many: one process for those its cache does not answer)."""
     ref, mask = recs['reference']['exr'], recs['as_is']['exr']
     left = terms_left_out(recs['reference'])
-    diffs, noises = {}, {}
+    items, slots = [], []
     for j in jobs:
         if recs[j['key']].get('status') != 'ok':
             continue
         keys = (recs[j['key']].get('key'), recs['reference'].get('key'), recs['as_is'].get('key'))
-        try:
-            diffs[j['key']] = runner.diff(recs[j['key']]['exr'], ref, mask, left, keys=keys)
-        except (RuntimeError, ValueError) as e:
-            diffs[j['key'] + ':err'] = str(e)
-        if j['renderer'] == 'cycles':
+        items.append((recs[j['key']]['exr'], ref, mask, left, keys))
+        slots.append(('diff', j['key']))
+        if j['renderer'] == 'cycles' and zero is not None:
             # The zero image is made from the mask's render: 'zero-' and its key name it.
             zkeys = (f'zero-{keys[2]}', keys[0], keys[2]) if keys[0] and keys[2] else None
-            noises[j['key']] = noise_nrmse(runner, recs[j['key']]['exr'], mask, zero, zkeys)
+            items.append((zero, recs[j['key']]['exr'], mask, (), zkeys))
+            slots.append(('noise', j['key']))
+        elif j['renderer'] == 'cycles':
+            slots.append(('noise', j['key']))
+            items.append(None)
+    answers = runner.diff_many([it for it in items if it is not None])
+    diffs, noises, it = {}, {}, iter(answers)
+    for (kind, key), item in zip(slots, items):
+        d = next(it) if item is not None else None
+        if kind == 'diff':
+            if isinstance(d, Exception):
+                diffs[key + ':err'] = str(d)
+            else:
+                diffs[key] = d
+        else:
+            noises[key] = noise_of(d)
     return diffs, noises, left
 
 
-def noise_nrmse(runner, exr, mask, zero, keys=None):
-    """A render's own noise, as NRMSE (RMS of the var.* std-dev over the mean of the image):
-    `diff ZERO X` gives rmse = rms(X) and nrmse = rms/mean over the surface, and its
-    noise.ref_rel_rms = sqrt(sum var / sum X^2); so noise/mean = ref_rel_rms * nrmse."""
-    if zero is None:
-        return None
-    try:
-        d = runner.diff(zero, exr, mask, keys=keys)
-    except (RuntimeError, ValueError):
+def noise_of(d):
+    """A render's own noise, as NRMSE (RMS of the var.* std-dev over the mean of the image), from
+    `diff ZERO X` (None: no zero image, or that diff failed): it gives rmse = rms(X) and nrmse =
+    rms/mean over the surface, and its noise.ref_rel_rms = sqrt(sum var / sum X^2); so
+    noise/mean = ref_rel_rms * nrmse."""
+    if not isinstance(d, dict):
         return None
     rel = (d.get('noise') or {}).get('ref_rel_rms')
     nr = (d.get('surface') or {}).get('nrmse')
