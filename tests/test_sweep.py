@@ -939,10 +939,11 @@ def test_missing_run_folder_is_one_line(tmp_path):
     assert f'--run {missing}: no such folder' in p.stderr and not missing.exists()
 
 
-def test_zero_image_made_once_a_scene(monkeypatch):
-    """sweep_scene makes a scene's zero image (oiiotool) at its first analysis only: each later
-    stage's analysis takes the same image (its size is the as-is render's, which no stage
-    changes); another scene gets its own."""
+def test_zero_image_made_once_a_size(monkeypatch):
+    """sweep_scene makes a zero image (oiiotool) at the first analysis of its size only: each
+    later stage's analysis takes the same image (its size is the as-is render's, which no stage
+    changes), and so does another scene of that size; a scene whose size its record does not
+    give gets its own."""
     main_mod = sys.modules['sweep.main']
     made, used = [], []
     monkeypatch.setattr(main_mod, 'make_zero', lambda like, path: made.append(path) or path)
@@ -953,9 +954,17 @@ def test_zero_image_made_once_a_scene(monkeypatch):
         clock = 'wall'
 
     runner = sweep.Runner.__new__(sweep.Runner)
-    runner.renders, runner.roles, runner.zeros = '/r', {}, {}
+    runner.renders, runner.roles, runner.zeros, runner.zero_lock = '/r', {}, {}, threading.Lock()
     r = {'reference': {'status': 'ok'}, 'as_is': {'status': 'ok', 'exr': '/r/s/as_is.exr'}}
     for name in ('s', 's', 's', 't'):
         main_mod.sweep_scene(runner, _A(), name, [], r, 256, False)
     assert made == ['/r/s/zero.exr', '/r/t/zero.exr']
     assert used == ['/r/s/zero.exr'] * 3 + ['/r/t/zero.exr']
+    # With the size in the records: one zero image a size, whichever scene needs it first.
+    made.clear(), used.clear()
+    runner.zeros = {}
+    for name, w, h in (('s', 96, 48), ('t', 96, 48), ('u', 96, 72), ('s', 96, 48)):
+        r['as_is'].update(width=w, height=h, exr=f'/r/{name}/as_is.exr')
+        main_mod.sweep_scene(runner, _A(), name, [], r, 256, False)
+    assert made == ['/r/zero-96x48.exr', '/r/zero-96x72.exr']
+    assert used == ['/r/zero-96x48.exr'] * 2 + ['/r/zero-96x72.exr', '/r/zero-96x48.exr']

@@ -151,10 +151,19 @@ def sweep_scene(runner, args, name, jobs, r, ref_spp, nested, ref_seed=0):
     if r['reference'].get('status') != 'ok' or r['as_is'].get('status') != 'ok':
         bad = 'reference' if r['reference'].get('status') != 'ok' else 'as_is'
         return f'the {bad} render failed: {r[bad].get("message")}; see its log under {runner.renders}/{name}'
-    # The zero image has the as-is render's size, which no stage changes: made once a scene.
-    zero = runner.zeros.get(name)
-    if zero is None:
-        zero = runner.zeros[name] = make_zero(r['as_is']['exr'], os.path.join(runner.renders, name, 'zero.exr'))
+    # The zero image has the as-is render's size, which no stage changes: made once a size
+    # (an oiiotool run of ~0.26 CPU-s; the 26 swept scenes have a handful of sizes), under the
+    # runner's lock, since two scenes' analyses may run at once.
+    size = (r['as_is'].get('width'), r['as_is'].get('height'))
+    if None in size:
+        size = name
+    with runner.zero_lock:
+        zero = runner.zeros.get(size)
+        if zero is None:
+            path = os.path.join(runner.renders, name, 'zero.exr')
+            if size != name:
+                path = os.path.join(runner.renders, f'zero-{size[0]}x{size[1]}.exr')
+            zero = runner.zeros[size] = make_zero(r['as_is']['exr'], path)
     diffs, noises, left = scene_diffs(runner, jobs, r, zero)
     rec0 = r['as_is']
     return analyse(

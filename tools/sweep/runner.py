@@ -8,6 +8,7 @@ import math
 import os
 import re
 import subprocess
+import threading
 import time
 
 from .common import JOB_TIMEOUT_S, write_json
@@ -29,7 +30,10 @@ class Runner:
         self.renders = os.path.join(args.run, 'timing', 'renders')
         self.seed_opt = self.cli_has_seed()
         self.roles = {}  # scene name -> 'validate' or 'twin' (sweep_role)
-        self.zeros = {}  # scene name -> its all-zero image (analysis.make_zero), made once a run
+        # (width, height), or a scene name whose size is unknown -> its all-zero image
+        # (analysis.make_zero), made once a run
+        self.zeros = {}
+        self.zero_lock = threading.Lock()
 
     def cli_has_seed(self):
         """`reflcheck run --seed N` (first Cycles seed): lets sweep points avoid the reference's
