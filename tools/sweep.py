@@ -29,8 +29,9 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),
              k = 1, 2, 4, 8; tessellation 8, 16, 32, 64, 128 (every object); per-vertex shading.
-             Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times without the
-             cache and the fastest time is kept (the usual benchmark minimum: noise only adds).
+             Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times and the
+             fastest time is kept (the usual benchmark minimum: noise only adds): once through
+             the cache, then the rest in one `run --no-cache --repeats N` process.
   povray     k = 1, 2, 4 where POV-Ray can express the validate scene (a skipped job is listed).
   eevee      TAA samples 1, 16, on scenes whose comparisons name eevee (it is judged there):
              Blender's real-time engine on the same Blender scene as Cycles.
@@ -40,7 +41,8 @@ approximation's), else `twin` where they list Cycles twin (the converged render 
 model: raster error is sampling and harness error); scenes with neither are left out.
 Size: the scene's small variant (`reflcheck run --small`; 96 pixels wide unless the scene says
 otherwise), or the full size with --full-size (`reflcheck run` has no width/height option).
-Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region. A
+Errors: `reflcheck diff POINT.exr REFERENCE.exr --mask RASTER-AS-IS.exr`, surface region (a
+scene analysis sends all its pairs to one `reflcheck diff --pairs -` process). A
 partial twin (the reference's record lists `terms_left_out`: Cycles has no Blinn-Phong lobe, so
 its twin leaves the specular out) is compared as compare.json compares it: on the terms both
 sides render (`diff --leave-out TERMS` takes those layers off every image), so the error is the
