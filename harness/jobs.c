@@ -658,11 +658,16 @@ rc_status job_env_cube_file(const char *cache_dir, const env_map *cube, char *pa
                       (size_t)6 * (size_t)cube->width * (size_t)cube->height * 3 * sizeof *cube->rgb);
     rc_status st = job_key_file(&h, "binary", "/proc/self/exe", err, errlen);
     char dir[1100], name[64], tmp[1200];
-    snprintf(dir, sizeof dir, "%s/env", cache_dir);
+    /* REFLCHECK_ENV_CACHE: one folder for the conversions of several caches (the nightly's
+     * renders and its sweep keep separate job caches but convert the same cubes). */
+    const char *shared = getenv("REFLCHECK_ENV_CACHE");
+    if (shared != NULL && shared[0] != '\0')
+        snprintf(dir, sizeof dir, "%s", shared);
+    else
+        snprintf(dir, sizeof dir, "%s/env", cache_dir);
     snprintf(name, sizeof name, "cube-%016" PRIx64, h);
     if ((size_t)snprintf(path, len, "%s/%s.exr", dir, name) >= len) {
-        snprintf(err, errlen, "%s: the cache folder's path is too long for its environment files; use a shorter one",
-                 cache_dir);
+        snprintf(err, errlen, "%s: the folder's path is too long for the environment files; use a shorter one", dir);
         return RC_ERR_RANGE;
     }
     char lockname[80];

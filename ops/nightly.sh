@@ -26,7 +26,8 @@
 #
 # Cache: CACHE keeps what a second run with nothing changed takes back instead of doing it
 # again: the renders (the job cache), the sweep's renders, the measurements (CACHE/compare), the
-# fits, the stability table and the report's plots (CACHE/report); Blender workers start only
+# fits, the stability table and the report's plots (CACHE/report), a cube map's converted image
+# for the renders and the sweep (CACHE/env); Blender workers start only
 # for a job the cache cannot answer.
 #
 # Exit status: 0 when every job ran (or was skipped: renderer not installed, or it cannot
@@ -150,6 +151,9 @@ if ! { [ -f "$bin" ] && [ -x "$bin" ]; } && { [[ $bin == */* ]] || ! command -v 
 fi
 latest=${opt_latest:-${LATEST:-reports/latest}}
 cache=${opt_cache:-${CACHE:-reports/cache}}
+# A cube map's equirectangular conversion (harness/jobs.h job_env_cube_file) is kept once for the
+# renders and the sweep, whose job caches differ (CACHE and CACHE/sweep).
+export REFLCHECK_ENV_CACHE=${REFLCHECK_ENV_CACHE:-$cache/env}
 [ -n "${opt_small:-}" ] && SMALL=1
 [ -n "${opt_no_sweep:-}" ] && NO_SWEEP=1
 small=${SMALL:+--small} # SMALL=1: the test-size renders (used by the kill test)

@@ -774,6 +774,18 @@ static void test_env_cube_file_kept_once(void **state)
     assert_true(files_equal(p2, direct));
     assert_false(files_equal(p2, p1));
 
+    /* REFLCHECK_ENV_CACHE: another cache's job finds the same file there. */
+    char shared[256], other[256], s1[1200], s2[1200];
+    snprintf(shared, sizeof shared, "%s/envshared", work);
+    snprintf(other, sizeof other, "%s/othercache", work);
+    setenv("REFLCHECK_ENV_CACHE", shared, 1);
+    assert_int_equal(job_env_cube_file(cache, &cube, s1, sizeof s1, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(other, &cube, s2, sizeof s2, err, sizeof err), RC_OK);
+    unsetenv("REFLCHECK_ENV_CACHE");
+    assert_string_equal(s1, s2);
+    assert_int_equal(strncmp(s1, shared, strlen(shared)), 0);
+    assert_true(files_equal(s1, direct));
+
     /* A kept file cut short is written again, whole. */
     assert_int_equal(truncate(p2, 100), 0);
     assert_int_equal(job_env_cube_file(cache, &cube, again, sizeof again, err, sizeof err), RC_OK);
