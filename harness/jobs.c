@@ -646,17 +646,20 @@ static int job_env_cube_kept(const char *path)
     return ok;
 }
 
-rc_status job_env_cube_file(const char *cache_dir, const env_map *cube, char *path, size_t len, char *err,
+rc_status job_env_cube_file(const char *cache_dir, int renderer, const env_map *cube, char *path, size_t len, char *err,
                             size_t errlen)
 {
     /* The key: the faces as loaded (whatever files and decoder gave them) and the code that
-     * converts and writes them, this program's bytes; FRAME_CUBE_EQUIRECT_PER_FACE is in them. */
+     * converts and writes them, the renderer's key sources (job_key_code: scene/env.c,
+     * harness/frame.c, scene/exr.c are in them), so a rebuild that leaves them alone keeps the
+     * ~100 MB file instead of writing another beside it. */
     uint64_t h = JOB_FNV_BASIS;
     int dims[2] = {cube->width, cube->height};
     h = job_key_field(h, "cube.size", dims, sizeof dims);
     h = job_key_field(h, "cube.texels", cube->rgb,
                       (size_t)6 * (size_t)cube->width * (size_t)cube->height * 3 * sizeof *cube->rgb);
-    rc_status st = job_key_file(&h, "binary", "/proc/self/exe", err, errlen);
+    job_key_code(registry_row(renderer), &h);
+    rc_status st = RC_OK;
     char dir[1100], name[64], tmp[1200];
     /* REFLCHECK_ENV_CACHE: one folder for the conversions of several caches (the nightly's
      * renders and its sweep keep separate job caches but convert the same cubes). */
@@ -714,7 +717,7 @@ static rc_status job_env_cube(job_ctx *c, char *path, size_t len, int *remove, c
 {
     *remove = 0;
     if (c->j->cache_dir != NULL)
-        return job_env_cube_file(c->j->cache_dir, &c->env, path, len, why, whylen);
+        return job_env_cube_file(c->j->cache_dir, c->j->renderer, &c->env, path, len, why, whylen);
     *remove = 1;
     snprintf(path, len, "%s/environment-cube.exr", c->dir);
     return frame_env_cube_write(path, &c->env, why, whylen);

@@ -107,14 +107,15 @@ void job_output_path(const char *out_dir, const char *scene_name, int renderer, 
 void job_apply_overrides(scene *s, const job_spec *j);
 rc_status job_run(const job_spec *j, job_record *rec, char *err, size_t errlen);
 /* A cube map's equirectangular conversion (frame_env_cube_write's bytes) kept in the cache:
- * CACHE/env/cube-<key>.exr, keyed by the faces' texels and this program's bytes (the converting
- * and writing code), written once under the key's lock and published by rename, so every job of
- * the same faces reads one file instead of converting the cube again (64-texel faces: 4096 x
- * 2048 texels, ~100 MB, ~1.8 CPU-s). A kept file whose size is not the one written (path.bytes)
- * is written again. Its path goes to path (len bytes). The environment variable
- * REFLCHECK_ENV_CACHE, when set, names the folder instead of CACHE/env, so that jobs of several
- * caches share the conversions (the nightly points its renders and its sweep at CACHE/env). */
-rc_status job_env_cube_file(const char *cache_dir, const env_map *cube, char *path, size_t len, char *err,
+ * CACHE/env/cube-<key>.exr, keyed by the faces' texels and the renderer's key sources (the
+ * converting and writing code among them), written once under the key's lock and published by
+ * rename, so every job of the same faces reads one file instead of converting the cube again
+ * (64-texel faces: 4096 x 2048 texels, ~100 MB, ~1.8 CPU-s). A kept file whose size is not the
+ * one written (path.bytes) is written again. Its path goes to path (len bytes). The environment
+ * variable REFLCHECK_ENV_CACHE, when set, names the folder instead of CACHE/env, so that jobs of
+ * several caches share the conversions (the nightly points its renders and its sweep at
+ * CACHE/env). renderer: a row of the renderer table (registry_find). */
+rc_status job_env_cube_file(const char *cache_dir, int renderer, const env_map *cube, char *path, size_t len, char *err,
                             size_t errlen);
 /* mkdir -p: path and every missing parent (0755); 0, or -1 with errno set. */
 int job_mkdirs(const char *path);

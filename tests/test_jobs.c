@@ -753,7 +753,7 @@ static void test_env_cube_file_kept_once(void **state)
     snprintf(direct, sizeof direct, "%s/direct-cube.exr", work);
     float *rgb = cube_texels(0.25f);
     env_map cube = {.kind = ENV_CUBE, .width = 4, .height = 4, .rgb = rgb, .scale = v3s(1)};
-    assert_int_equal(job_env_cube_file(cache, &cube, p1, sizeof p1, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(cache, registry_find("cycles"), &cube, p1, sizeof p1, err, sizeof err), RC_OK);
     assert_non_null(strstr(p1, "/envcache/env/cube-"));
     assert_int_equal(frame_env_cube_write(direct, &cube, err, sizeof err), RC_OK);
     assert_true(files_equal(p1, direct));
@@ -761,14 +761,15 @@ static void test_env_cube_file_kept_once(void **state)
     /* The same faces again: the same file, not written again (same inode and change time). */
     struct stat a, b;
     file_id(p1, &a);
-    assert_int_equal(job_env_cube_file(cache, &cube, again, sizeof again, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(cache, registry_find("cycles"), &cube, again, sizeof again, err, sizeof err),
+                     RC_OK);
     assert_string_equal(again, p1);
     file_id(p1, &b);
     assert_true(a.st_ino == b.st_ino && a.st_mtim.tv_sec == b.st_mtim.tv_sec && a.st_mtim.tv_nsec == b.st_mtim.tv_nsec);
 
     /* One texel changed: another file, the new faces' conversion, never the old one. */
     rgb[6 * 4 * 4 * 3 - 1] += 0.5f;
-    assert_int_equal(job_env_cube_file(cache, &cube, p2, sizeof p2, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(cache, registry_find("cycles"), &cube, p2, sizeof p2, err, sizeof err), RC_OK);
     assert_string_not_equal(p2, p1);
     assert_int_equal(frame_env_cube_write(direct, &cube, err, sizeof err), RC_OK);
     assert_true(files_equal(p2, direct));
@@ -779,8 +780,8 @@ static void test_env_cube_file_kept_once(void **state)
     snprintf(shared, sizeof shared, "%s/envshared", work);
     snprintf(other, sizeof other, "%s/othercache", work);
     setenv("REFLCHECK_ENV_CACHE", shared, 1);
-    assert_int_equal(job_env_cube_file(cache, &cube, s1, sizeof s1, err, sizeof err), RC_OK);
-    assert_int_equal(job_env_cube_file(other, &cube, s2, sizeof s2, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(cache, registry_find("cycles"), &cube, s1, sizeof s1, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(other, registry_find("cycles"), &cube, s2, sizeof s2, err, sizeof err), RC_OK);
     unsetenv("REFLCHECK_ENV_CACHE");
     assert_string_equal(s1, s2);
     assert_int_equal(strncmp(s1, shared, strlen(shared)), 0);
@@ -788,7 +789,8 @@ static void test_env_cube_file_kept_once(void **state)
 
     /* A kept file cut short is written again, whole. */
     assert_int_equal(truncate(p2, 100), 0);
-    assert_int_equal(job_env_cube_file(cache, &cube, again, sizeof again, err, sizeof err), RC_OK);
+    assert_int_equal(job_env_cube_file(cache, registry_find("cycles"), &cube, again, sizeof again, err, sizeof err),
+                     RC_OK);
     assert_string_equal(again, p2);
     assert_true(files_equal(p2, direct));
     free(rgb);
