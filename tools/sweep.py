@@ -29,9 +29,8 @@ What it renders (in the scene's sweep role, below, through `reflcheck run --smal
   (CACHE/diffs/) are kept in the cache, so a run over a warm cache renders and diffs nothing new.
   raster     as-is (the scene's small-variant supersampling and tessellation, per-pixel),
              k = 1, 2, 4, 8; tessellation 8, 16, 32, 64, 128 (every object); per-vertex shading.
-             Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times and the
-             fastest time is kept (the usual benchmark minimum: noise only adds): once through
-             the cache, then the rest in one `run --no-cache --repeats N` process.
+             Raster jobs take milliseconds, so each is rendered RASTER_REPEATS times without the
+             cache and the fastest time is kept (the usual benchmark minimum: noise only adds).
   povray     k = 1, 2, 4 where POV-Ray can express the validate scene (a skipped job is listed).
   eevee      TAA samples 1, 16, on scenes whose comparisons name eevee (it is judged there):
              Blender's real-time engine on the same Blender scene as Cycles.
