@@ -363,17 +363,21 @@ static int job_slurm_id(const job_spec *j, char *buf, size_t len)
  * "reflcheck-samples:" line (harness/renderers/cycles/cycles_samples.h): "samples" becomes the
  * count rendered (image.samples auto picks it) and "noise" says the noise NRMSE reached and the
  * target its RMS gates set (0: none), the per-value noise quantile reached (pixel_q) and the
- * target its z-tests set (z_target, 0: none), and the gates. Lines from before the z-test rule
- * have no pixel_q. Returns the samples, or `samples` without a line. */
+ * target its z-tests set (z_target, 0: none), the gates, and the renderer's passes from the
+ * last "reflcheck-passes:" line. Lines from before the z-test rule have no pixel_q, logs from
+ * before the passes line no passes. Returns the samples, or `samples` without a line. */
 static int job_samples_from_log(const char *log, int samples, cJSON *o)
 {
     FILE *f = log[0] != '\0' ? fopen(log, "r") : NULL;
     if (f == NULL)
         return samples;
     char line[1024], last[1024] = "";
+    int passes = 0;
     while (fgets(line, sizeof line, f) != NULL)
         if (strncmp(line, "reflcheck-samples: ", 19) == 0)
             snprintf(last, sizeof last, "%s", line);
+        else if (strncmp(line, "reflcheck-passes: ", 18) == 0)
+            passes = atoi(line + 18);
     fclose(f);
     int n = 0, pilot = 0, at = 0, with_z = 1;
     double noise = 0.0, target = 0.0, pilot_noise = 0.0, pilot_q = 0.0, pixel_q = 0.0, z_target = 0.0;
@@ -401,6 +405,8 @@ static int job_samples_from_log(const char *log, int samples, cJSON *o)
     cJSON_AddBoolToObject(x, "reached", (target <= 0.0 || noise <= target) && (z_target <= 0.0 || pixel_q <= z_target));
     cJSON_AddStringToObject(x, "gate", last + at);
     cJSON_AddStringToObject(x, "samples_from", pilot > 0 ? "auto" : "image.samples");
+    if (passes > 0)
+        cJSON_AddNumberToObject(x, "passes", passes);
     if (pilot > 0) {
         cJSON_AddNumberToObject(x, "pilot_samples", pilot);
         cJSON_AddNumberToObject(x, "pilot_nrmse", pilot_noise);

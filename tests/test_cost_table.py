@@ -26,11 +26,11 @@ JOBS = [
 FITS = [1.0, 2.0, 3.0, 4.0]  # CPU s, in the nightly's order
 
 
-def make_run(tmp_path, pooled):
+def make_run(tmp_path, pooled, jobs=JOBS):
     run = tmp_path / ('pooled' if pooled else 'plain') / 'scenes-2'
     (run / 's').mkdir(parents=True)
     calls, plan = ['0.1\t0.1\t0.0\treflcheck plan s.yaml'], []
-    for renderer, role, call, cpu, extra in JOBS:
+    for renderer, role, call, cpu, extra in jobs:
         rec = run / 's' / f'{renderer}-{role}.json'
         rec.write_text(
             json.dumps(
@@ -91,6 +91,18 @@ def test_pooled_cycles_job_counts_its_worker_and_pays_blender_start_under_slurm(
     assert row(lines, '| 1 | 2 |') == '| 1 | 2 | 4.2 | 0.3 | 6.0 | 6.0 | 16.5 | 1.00x |'
     assert row(lines, '| 2 | 4 |') == '| 2 | 4 | 2.2 | 0.3 | 6.0 | 6.0 | 14.5 | 1.91x |'
     assert any('each of their 2 Blender passes' in x for x in lines)
+
+
+def test_a_job_that_stepped_twice_pays_blender_start_three_times(tmp_path):
+    # The record says 3 passes (a pilot of 16, then 64, then 256): the samples alone (256 > 16)
+    # would say 2. Slurm durations: 0.5, 1.2 + 3 x 0.5 = 2.7, 2.0, 2.0. On 2 CPUs: 0.5 | 2.7;
+    # the first povray at 0.5 (2.5), the second at 2.5 (4.5). On 4: 2.7 (4.5 / 2.7 = 1.67x).
+    stepped = {'samples': 256, 'noise': {'pilot_samples': 16, 'passes': 3}}
+    jobs = [j if j[0] != 'cycles' else j[:4] + (stepped,) for j in JOBS]
+    lines = table(make_run(tmp_path, pooled=True, jobs=jobs))
+    assert row(lines, '| 1 | 2 |') == '| 1 | 2 | 4.5 | 0.3 | 6.0 | 6.0 | 16.8 | 1.00x |'
+    assert row(lines, '| 2 | 4 |') == '| 2 | 4 | 2.7 | 0.3 | 6.0 | 6.0 | 15.0 | 1.67x |'
+    assert any('each of their 3 Blender passes' in x for x in lines)
 
 
 def test_without_a_pool_the_call_holds_the_render(tmp_path):

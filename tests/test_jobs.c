@@ -125,13 +125,16 @@ static cJSON *record_json(const char *path)
 }
 
 /* A stochastic render's record takes the samples and the noise from its log's last
- * reflcheck-samples line (cycles_samples.h): here a fake Blender prints two, then fails. */
+ * reflcheck-samples line (cycles_samples.h), the passes from its last reflcheck-passes line:
+ * here a fake Blender prints two of each, then fails. */
 static void test_record_samples_and_noise(void **state)
 {
     (void)state;
     fake("blender", "echo 'reflcheck-samples: samples 5 noise 1 target 0 pilot 0 pilot_noise 0 gate none'\n"
+                    "echo 'reflcheck-passes: 1'\n"
                     "echo 'reflcheck-samples: samples 77 noise 0.03 target 0.02 pilot 16 pilot_noise 0.066 gate "
-                    "comparisons[1] raster/validate nrmse fail 0.06'; exit 1");
+                    "comparisons[1] raster/validate nrmse fail 0.06'\n"
+                    "echo 'reflcheck-passes: 3'; exit 1");
     job_record r = run_job(registry_find("cycles"), 30);
     assert_int_equal(r.status, RUNNER_FAILED);
     cJSON *o = record_json(r.record);
@@ -144,6 +147,7 @@ static void test_record_samples_and_noise(void **state)
     assert_string_equal(cJSON_GetObjectItem(n, "gate")->valuestring, "comparisons[1] raster/validate nrmse fail 0.06");
     assert_string_equal(cJSON_GetObjectItem(n, "samples_from")->valuestring, "auto");
     assert_int_equal(cJSON_GetObjectItem(n, "pilot_samples")->valueint, 16);
+    assert_int_equal(cJSON_GetObjectItem(n, "passes")->valueint, 3);
     cJSON_Delete(o);
 }
 
@@ -163,6 +167,7 @@ static void test_record_ztest_noise(void **state)
     assert_true(cJSON_GetObjectItem(n, "pixel_q")->valuedouble == 0.03);
     assert_true(cJSON_GetObjectItem(n, "z_target")->valuedouble == 0.025);
     assert_true(cJSON_GetObjectItem(n, "pilot_pixel_q")->valuedouble == 0.05);
+    assert_null(cJSON_GetObjectItem(n, "passes")); /* a log from before the passes line */
     assert_true(cJSON_IsFalse(cJSON_GetObjectItem(n, "reached")));
     assert_string_equal(cJSON_GetObjectItem(n, "gate")->valuestring,
                         "comparisons[0] raster/twin z_fail_share bias 0.1 (image.samples bias)");

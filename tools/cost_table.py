@@ -97,9 +97,12 @@ def pooled(run):
 
 
 def blender_passes(rec):
-    """Blender passes of a Cycles job: a pilot and the main pass when image.samples auto asked
-    for more than the pilot's samples (cycles.c), else one."""
+    """Blender passes of a Cycles job: the record's noise.passes (a pilot and each step of
+    image.samples auto, cycles.c); a record from before it: a pilot and one more pass when the
+    samples exceed the pilot's (a lower bound: a job may step more than once), else one."""
     noise = rec.get('noise') or {}
+    if noise.get('passes'):
+        return int(noise['passes'])
     pilot = noise.get('pilot_samples') or 0
     return 2 if pilot and rec.get('samples', 0) > pilot else 1
 

@@ -1355,11 +1355,12 @@ static int cycles_pass(const renderer_job *j, const cycles_options *o, const cha
     return 0;
 }
 
-/* The log's last line says the samples, the noise reached against the RMS gates' target (nrmse,
+/* The log's last lines say the samples, the noise reached against the RMS gates' target (nrmse,
  * or trim1 where an nrmse_trim1 gate asks relatively less of it), the per-value noise against
- * the z-test's, and the gates they came from; the job record reads it (jobs.c). pilot 0: the
- * samples were a number. */
-static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int pilot,
+ * the z-test's, and the gates they came from, then the Blender passes the job took (a pilot and
+ * each step: tools/cost_table.py prices a Slurm task's Blender start-up per pass); the job
+ * record reads them (jobs.c). pilot 0: the samples were a number. */
+static void cycles_samples_line(const renderer_job *j, const cycles_options *o, int passes, int pilot,
                                 const cycles_noise *pilot_noise, const cycles_noise *reached,
                                 const cycles_noise_need *need)
 {
@@ -1384,6 +1385,7 @@ static void cycles_samples_line(const renderer_job *j, const cycles_options *o, 
             : need->zgate[0] != '\0' ? ""
                                      : "none",
             rms[0] != '\0' && need->zgate[0] != '\0' ? "; " : "", need->zgate, z);
+    fprintf(f, "reflcheck-passes: %d\n", passes);
     fclose(f);
 }
 
@@ -1409,11 +1411,13 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
         return;
     }
     reached = pilot;
+    int passes = 1;
     /* Steps of at most CYCLES_STEP x, each predicted from the last render's noise (a nearer
      * count predicts better: PMJ's noise falls faster than the rate assumed). */
     for (int n = cycles_samples_need(&pilot, n_pilot, positions, need); n > o->samples;
          n = cycles_samples_need(&reached, o->samples, positions, need)) {
         o->samples = cycles_samples_step(o->samples, n);
+        passes++;
         if (cycles_pass(j, o, job, r) != 0)
             return;
         if (cycles_exr_noise(j->exr, &reached, err, sizeof err) != RC_OK) {
@@ -1421,7 +1425,7 @@ static void cycles_auto_samples(const renderer_job *j, cycles_options *o, const 
             return;
         }
     }
-    cycles_samples_line(j, o, n_pilot, &pilot, &reached, need);
+    cycles_samples_line(j, o, passes, n_pilot, &pilot, &reached, need);
 }
 
 void cycles_render_job(const renderer_job *j, renderer_result *r)
@@ -1467,5 +1471,5 @@ void cycles_render_job(const renderer_job *j, renderer_result *r)
     cycles_noise reached;
     char err2[512];
     if (cycles_pass(j, &o, job, r) == 0 && cycles_exr_noise(j->exr, &reached, err2, sizeof err2) == RC_OK)
-        cycles_samples_line(j, &o, 0, &(cycles_noise){0}, &reached, &need);
+        cycles_samples_line(j, &o, 1, 0, &(cycles_noise){0}, &reached, &need);
 }
