@@ -178,6 +178,8 @@ void shade_user(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec
 /* The batch kernels (shade_batch_*.c), one per specialised path, that shade_plan_make installs;
  * shade_batch_scalar is shade_eval lane by lane (models without a kernel, unsafe lanes). */
 void shade_batch_scalar(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
+/* shade_user over a batch, bit for bit (shade.c). */
+void shade_batch_user(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);
 void shade_batch_d3d_diffuse(const shade_context *c, const shade_plan *p, const shade_batch_in *in,
                              shade_batch_out *out);
 void shade_batch_d3d_full(const shade_context *c, const shade_plan *p, const shade_batch_in *in, shade_batch_out *out);

@@ -52,7 +52,7 @@ void shade_plan_make(const shade_context *c, const material *m, shade_plan *p)
     case MODEL_USER:
         p->terms |= SHADE_TERM_SPECULAR;
         p->fn = shade_user;
-        p->batch = shade_batch_scalar;
+        p->batch = shade_batch_user;
         p->path = "user";
         break;
     }

@@ -57,6 +57,7 @@
 
 #include "env.h"
 #include "shade.h"
+#include "user_model.h"
 
 #define FLOOR_FRACTION      1e-2
 #define SPOT_FLOOR_FRACTION 0.2
@@ -980,6 +981,100 @@ static void test_batch_length_same_bits(void **state)
     assert_int_equal(failures, 0);
 }
 
+/* ---- the user model's batch: shade_user lane by lane, bit for bit ---- */
+
+/* FNV-1a over every byte of a model's input, as one of 4096 levels in [0, 1): a change in any bit
+ * of any input (a double's last bit included, which the float terms would round away) moves the
+ * level, by about a quarter on average. */
+static double probe_hash(const reflcheck_user_input *in)
+{
+    uint64_t h = 14695981039346656037ull;
+    const unsigned char *b = (const unsigned char *)in;
+    for (size_t i = 0; i < sizeof *in; i++) {
+        h ^= b[i];
+        h *= 1099511628211ull;
+    }
+    return (double)(h >> 52) / 4096.0;
+}
+
+/* A model whose output shows every bit of its input (probe_hash), per channel asymmetric. */
+static void probe_eval(const reflcheck_user_input *in, const double *p, reflcheck_user_output *out)
+{
+    const double level = probe_hash(in);
+    for (int c = 0; c < 3; c++) {
+        out->diffuse[c] = in->albedo[c] * (p[0] + in->n_v);
+        out->specular[c] = p[1] * (1.0 + level) * (1.0 + 0.5 * c) * in->n_h;
+    }
+}
+
+static const reflcheck_user_param probe_params[] = {{"base", 0.0, 2.0, 0.5, 0}, {"gloss", 0.0, 4.0, 1.0, 0}};
+static const reflcheck_user_model probe_model = {REFLCHECK_USER_ABI, "probe",   "test: reads every input", 2,
+                                                 probe_params,       probe_eval};
+
+/* shade_batch_user (shade_plan.c's kernel for MODEL_USER) against shade_user on the same lanes,
+ * every term compared bit for bit: the batch must be a rearrangement of the scalar arithmetic,
+ * not an approximation, or a fit's figures would change. Every light kind (the point light's
+ * range cuts some lanes), a point light sitting on one lane (the scalar path's double branch)
+ * and lanes that face away from the viewer or the lights, at full and partial batch lengths. */
+static void test_user_batch_same_bits(void **state)
+{
+    (void)state;
+    scene s;
+    base_scene(&s);
+    add_three_lights(&s, SPOT_D3D);
+    material *m = &s.materials[0];
+    m->model = MODEL_USER;
+    m->user.model = &probe_model;
+    m->user.params[0] = 0.7;
+    m->user.params[1] = 1.3;
+    m->albedo = v3(0.6f, 0.3f, 0.1f);
+    m->d3d.emissive = v3(0.02f, 0.0f, 0.01f);
+    env_map none = {.kind = ENV_NONE};
+    shade_context c;
+    shade_plan p;
+    int failures = 0, lit_lanes = 0;
+    const int lengths[] = {SHADE_BATCH, 37, 1};
+    for (int k = 0; k < 3; k++) {
+        rng_seed(1300 + (uint64_t)k);
+        shade_batch_in *in = &work.in[0];
+        shade_batch_out *out = &work.out[0];
+        const int n = lengths[k];
+        plan_for(&s, &none, &c, &p, shade_batch_user);
+        make_inputs(&c, m, n, in);
+        /* Lane 0 faces away from the viewer (user_model_eval's guard), lane 1 is lit from behind,
+         * lane 2 sits on a fourth light, a point light (distance 0: shade_light_incident's double
+         * branch gives it no light). */
+        if (n > 2) {
+            shade_lane_set(&in->nrm, 0, v3_neg(shade_lane_get(&in->v, 0)));
+            shade_lane_set(&in->nrm, 1, v3(0.0f, -1.0f, 0.0f));
+            s.n_lights = 3;
+            light *on = add_point(&s);
+            on->position = shade_lane_get(&in->x, 2);
+        }
+        plan_for(&s, &none, &c, &p, shade_batch_user);
+        fill_sentinel(out);
+        shade_eval_n(&c, &p, in, out);
+        for (int i = 0; i < n; i++) {
+            shade_terms t;
+            shade_user(&c, &p, shade_lane_get(&in->x, i), shade_lane_get(&in->nrm, i), shade_lane_get(&in->v, i), &t);
+            lit_lanes += v3_max_comp(t.specular) > 0.0f;
+            for (int term = 0; term < T_COUNT; term++) {
+                float a[3], b[3];
+                int nv = term_values(&t, term, a);
+                batch_values(out, i, term, b);
+                for (int j = 0; j < nv; j++)
+                    if (memcmp(&a[j], &b[j], sizeof a[j]) != 0 && failures++ < 5)
+                        print_error("user batch: lane %d of %d, %s[%d]: %a, shade_user %a\n", i, n, term_names[term], j,
+                                    (double)b[j], (double)a[j]);
+            }
+        }
+        s.n_lights = 3;
+    }
+    /* The comparison means something only where the model's lobe was reached. */
+    assert_true(lit_lanes > SHADE_BATCH / 4);
+    assert_int_equal(failures, 0);
+}
+
 /* ---- a lane outside the float-safe band: the whole batch from shade_eval, bit for bit ---- */
 
 static void unsafe_case(const char *name, const scene *s, const env_map *env, shade_batch_fn want, vec3 unsafe_x,
@@ -1282,6 +1377,7 @@ int main(void)
         cmocka_unit_test(test_partial_batches),
         cmocka_unit_test(test_batch_length_same_bits),
         cmocka_unit_test(test_unsafe_lane_fallback),
+        cmocka_unit_test(test_user_batch_same_bits),
         cmocka_unit_test(test_light_edit_between_batches),
         cmocka_unit_test(test_env_lookup_n),
         cmocka_unit_test(test_env_lookup_n_pole_negative_zero),
