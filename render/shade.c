@@ -251,8 +251,8 @@ void shade_ct_full(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, 
 }
 
 /* A user's model (model/user_model.h): its BRDF f per light, times E N.L, in double as the
- * interface passes it; scalar only (the batch runs it lane by lane: shade_batch_scalar). Lights
- * only: no environment term; the material's emissive colour as for every model. */
+ * interface passes it; shade_batch_user below is its batch form, to the bit. Lights only: no
+ * environment term; the material's emissive colour as for every model. */
 void shade_user(const shade_context *c, const shade_plan *p, vec3 x, vec3 n, vec3 v, shade_terms *out)
 {
     const material *m = p->mat;
