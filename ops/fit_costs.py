@@ -16,8 +16,10 @@ from its scene file: fits x evaluations x pixels x seconds per evaluated pixel, 
   free parameters: per material an object uses, 2 for d3d9client (p, r0) and for d3d with a
     specular colour (Vs, P), 1 for cook_torrance (m), a user model's declared parameters;
   pixels: width x height x supersample^2 of the image (image.small with --small);
-  seconds per evaluated pixel: 1.2e-8, a user model 6 times that (a call through its shared
-    object per sample): the medians of that run's 31 fits (1.0-2.1e-8, user_ggx 7.3-7.6e-8).
+  seconds per evaluated pixel: 1.2e-8, a user model 3.5 times that (a call through its shared
+    object per sample): the medians of that run's 31 fits (1.0-2.1e-8, user_ggx 7.3-7.6e-8),
+    user_ggx's then times 0.56, its fits' CPU after shade_batch_user (9.5-9.9 against 16.7-17.7
+    CPU-s, docs/fits.md): 4.1-4.3e-8.
 The order is all that is used: a wrong estimate costs at most a tail, never a result.
 """
 
@@ -29,7 +31,7 @@ import sys
 import yaml
 
 PIXEL_S = 1.2e-8
-USER_FACTOR = 6.0
+USER_FACTOR = 3.5
 EVALS_PER_PARAM = 60
 MAX_EVALS = 400
 
