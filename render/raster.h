@@ -12,7 +12,9 @@
  * Depth: the nearest (largest 1/w) wins; on an exact tie the lower triangle index wins.
  * Triangles are clipped against the near plane w = near and a guard band.
  * Each tile comes both as raster_sample structures and as planes (tri, b1, b2); a caller that
- * reads the planes only sets planes_only and saves the interleaving pass.
+ * reads the planes only sets planes_only and saves the interleaving pass and the clearing of
+ * b1, b2: with planes_only the weights of an empty sample (tri -1) are unspecified bits (what
+ * an earlier tile left there), so such a caller uses b1, b2 only where tri >= 0.
  * The callback gets each finished tile once, from any worker thread; tiles are disjoint,
  * so writing the tile's own pixels needs no locking and the result does not depend on
  * the thread count. Returns RC_OK, RC_ERR_NOMEM, or RC_ERR_RANGE for bad options.
@@ -36,7 +38,8 @@ typedef struct {
     int threads;       /* 0 = all cores */
     int tile;          /* tile edge in pixels, 0 = RASTER_TILE_DEFAULT */
     float near;        /* near plane in w, 0 = 1e-3 */
-    int planes_only;   /* 1: tiles carry the tri, b1, b2 planes only (samples NULL), 0: both */
+    int planes_only;   /* 1: tiles carry the tri, b1, b2 planes only (samples NULL; b1, b2
+                          unspecified where tri is -1), 0: both */
 } raster_options;
 
 /* One sample: the triangle that covers it (-1 for none) and the perspective-correct
