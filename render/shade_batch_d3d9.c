@@ -97,10 +97,10 @@ SB_INLINE int sb_d9_last(const d3d9client_params *d9, const sb_d9_consts *k, con
     for (int i = 0; i < n; i++) {
         const vec3 nn = shade_lane_get(&in->nrm, i);
         float sun_f = 1.0f;
-        bad[i] = 0;
         if (has_sun) {
             sb_incidence inc = sb_incident(sun, &b, shade_lane_get(&in->x, i), kind);
-            bad[i] = inc.bad;
+            if (kind != SB_SUN)
+                bad[i] = inc.bad;
             sun_f = formula_d3d9_sun_factor_v(sb_fresnel(d9, fp, whole, v3_dot(nn, inc.to_l)));
         }
         float R = sb_fresnel(d9, fp, whole, v3_dot(nn, shade_lane_get(&in->v, i)));
@@ -114,7 +114,9 @@ SB_INLINE int sb_d9_last(const d3d9client_params *d9, const sb_d9_consts *k, con
         float rn = formula_colour_norm_v(r_tot.x, r_tot.y, r_tot.z, w_max, w_r, w_g, w_b, w_euclid);
         out->alpha[i] = formula_d3d9_alpha_v(d_alpha, rn);
     }
-    return sb_any(bad, n);
+    /* Flags only where a distance was taken (a main light that is not a sun): otherwise they
+     * would all be 0, and clearing and or-ing them cost a memset and a pass a batch. */
+    return has_sun && kind != SB_SUN ? sb_any(bad, n) : 0;
 }
 
 /* shade.c's shade_d3d9client (docs/models.md §2, eqs. 3-8) over a batch; dissolve a constant. */

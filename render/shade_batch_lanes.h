@@ -176,7 +176,8 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
     for (int i = 0; i < n; i++) {
         vec3 nn = shade_lane_get(&in->nrm, i), v = shade_lane_get(&in->v, i);
         sb_incidence inc = sb_incident(l, &b, shade_lane_get(&in->x, i), kind);
-        bad[i] = inc.bad;
+        if (kind != SB_SUN)
+            bad[i] = inc.bad;
         float n_l = v3_dot(nn, inc.to_l), atten = inc.atten;
         /* atten >= 0 (a clamped positive denominator times a spot factor in [0, 1]), so where
          * the light gives nothing its products are 0 without a test. D3D lights nothing, not
@@ -192,7 +193,8 @@ SB_INLINE int sb_d3d_light(const shade_context *c, const d3d_params *d, const li
             shade_lane_set(&out->specular, i, v3_add(shade_lane_get(&out->specular, i), v3_scale(ks, atten * rs)));
         }
     }
-    return sb_any(bad, n);
+    /* A sun has no distance to leave the band: its flags would all be 0, so none are kept. */
+    return kind == SB_SUN ? 0 : sb_any(bad, n);
 }
 
 /* shade.c's shade_d3d_impl (docs/models.md §1) over a batch, up to the diffuse and specular
