@@ -421,6 +421,9 @@ static void render_scatter3(float (*restrict plane)[RENDER_PLANE], const float *
                             const float *restrict z, const uint16_t *restrict slot, int n)
 {
     float *restrict px = plane[0], *restrict py = plane[1], *restrict pz = plane[2];
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 4
+#endif
     for (int i = 0; i < n; i++) {
         const int q = slot[i];
         px[q] = x[i];
@@ -436,6 +439,11 @@ static void render_scatter_beauty(float (*restrict plane)[RENDER_PLANE], const s
 {
     float *restrict px = plane[RENDER_P_BEAUTY], *restrict py = plane[RENDER_P_BEAUTY + 1],
                     *restrict pz = plane[RENDER_P_BEAUTY + 2], *restrict pa = plane[RENDER_P_ALPHA];
+    /* Unrolled: the loop's own counter, compare and branch were a fifth of its instructions
+     * (-O2 does not unroll). */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 4
+#endif
     for (int i = 0; i < n; i++) {
         const int q = slot[i];
         px[q] = b->x[i];
