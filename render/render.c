@@ -716,6 +716,7 @@ static render_pix render_pix_at(const raster_tile *tile, int px, int py)
 typedef struct {
     int k, c, stride, span_px; /* c: the centre sample's row and column in its pixel */
     float offs[16];            /* a sample's offset in its pixel, ((float)s + 0.5f) / (float)k */
+    uint16_t slot_off[16];     /* 4 x 4 samples: sample (s, t)'s slot less the pixel's, (t k + s) span_px */
     int last_tri, obj, per_vertex;
     render_queue *qu;
 } render_queue_state;
@@ -795,6 +796,24 @@ RENDER_QUEUE_INLINE void render_queue_whole(render_queue *restrict qu, const ren
 {
     int n = qu->n;
     qu->centre[qu->n_centre++] = (uint8_t)(n + qs->c * k + qs->c);
+#if defined(__SSE2__)
+    /* 4 x 4: each row's four entries as one 16-byte store per array, the slots as two 8-lane
+     * 16-bit adds (the scalar (uint16_t) of the int sum is the same sum modulo 2^16). */
+    if (k == 4) {
+        const __m128i tv = _mm_set1_epi32(tri), pv = _mm_set1_epi16((short)pi);
+        for (int t = 0; t < 4; t++) {
+            const size_t o = (size_t)t * (size_t)qs->stride;
+            _mm_storeu_si128((__m128i *)(qu->tri + n + 4 * t), tv);
+            _mm_storeu_ps(qu->b1 + n + 4 * t, _mm_loadu_ps(pix.b1 + o));
+            _mm_storeu_ps(qu->b2 + n + 4 * t, _mm_loadu_ps(pix.b2 + o));
+        }
+        for (int h = 0; h < 2; h++)
+            _mm_storeu_si128((__m128i *)(qu->slot + n + 8 * h),
+                             _mm_add_epi16(_mm_loadu_si128((const __m128i *)(qs->slot_off + 8 * h)), pv));
+        qu->n = n + 16;
+        return;
+    }
+#endif
     for (int t = 0; t < k; t++) {
         const size_t o = (size_t)t * (size_t)qs->stride;
         const int q = t * k * qs->span_px + pi;
@@ -814,6 +833,23 @@ RENDER_QUEUE_INLINE void render_queue_background(render_scratch *restrict w, con
                                                  int px, int py, const int k)
 {
     int b = w->bg_n;
+#if defined(__SSE2__)
+    /* 4 x 4: a row's four screen points as one vector add (the same single rounding per
+     * sample as the scalar sums), the slots as in render_queue_whole. */
+    if (k == 4) {
+        const __m128 sx = _mm_add_ps(_mm_set1_ps((float)px), _mm_loadu_ps(qs->offs));
+        const __m128i pv = _mm_set1_epi16((short)pi);
+        for (int t = 0; t < 4; t++) {
+            _mm_storeu_ps(w->bg_sx + b + 4 * t, sx);
+            _mm_storeu_ps(w->bg_sy + b + 4 * t, _mm_set1_ps((float)py + qs->offs[t]));
+        }
+        for (int h = 0; h < 2; h++)
+            _mm_storeu_si128((__m128i *)(w->bg_slot + b + 8 * h),
+                             _mm_add_epi16(_mm_loadu_si128((const __m128i *)(qs->slot_off + 8 * h)), pv));
+        w->bg_n = b + 16;
+        return;
+    }
+#endif
     for (int t = 0; t < k; t++) {
         const float sy = (float)py + qs->offs[t];
         int q = t * k * qs->span_px + pi;
@@ -921,6 +957,9 @@ static void render_span_shade(const render_job *j, const raster_tile *tile, rend
     /* The offsets once per span instead of a division per background sample (same bits). */
     for (int s = 0; s < k; s++)
         qs.offs[s] = ((float)s + 0.5f) / (float)k;
+    if (k == 4)
+        for (int s = 0; s < 16; s++)
+            qs.slot_off[s] = (uint16_t)(s * span_px);
     if (k == 4)
         render_span_queue(j, tile, w, &qs, py0, py1, px0, px1, 4);
     else
