@@ -167,11 +167,10 @@ static void test_reuse_image(void **state)
  * times larger at one sample per pixel: the rasterizer puts both frames' samples at the same
  * fixed-point positions and the constant sky needs no ray, so the per-sample values are the
  * same and only the sums are formed here again (in double). Tolerance 1e-6 relative: float
- * sums of 9 terms in whatever order the resolve uses. Coverage and the centre sample's object,
+ * sums of k * k terms in whatever order the resolve uses. Coverage and the centre sample's object,
  * N.V and N.L are exact. */
-static void test_resolve_box_average(void **state)
+static void resolve_box_average_k(const int k)
 {
-    (void)state;
     scene *s = malloc(sizeof *s);
     assert_non_null(s);
     mesh m;
@@ -179,7 +178,7 @@ static void test_resolve_box_average(void **state)
     float *px = NULL;
     char err[1024];
     resolve_scene(s, &m, &env, &px);
-    const int k = 3, w = 48, h = 32;
+    const int w = 48, h = 32;
     render_image img, big;
     render_options o = {.threads = 2, .supersample = k, .width = w, .height = h};
     assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
@@ -226,6 +225,75 @@ static void test_resolve_box_average(void **state)
         }
     /* The frame has edges (mixed pixels), Gouraud pixels and open sky. */
     assert_true(partial > 20 && gouraud > 100 && sky > 100);
+    render_image_free(&img);
+    render_image_free(&big);
+    free(px);
+    mesh_free(&m);
+    free(s);
+}
+
+/* k = 3 takes the general queueing; k = 4 the 4 x 4 pixel's vector paths (render.c's
+ * render_pixel_uniform, render_queue_whole, render_queue_background), whose samples must land in
+ * the same slots with the same weights as the big frame's. */
+static void test_resolve_box_average(void **state)
+{
+    (void)state;
+    resolve_box_average_k(3);
+    resolve_box_average_k(4);
+}
+
+/* A per-pixel Blinn quad lit from close by, filling most of the view: its 4 x 4 pixels lie
+ * wholly inside a triangle and take render_queue_whole's vector stores, and every sample's
+ * value depends on its own weights (a swapped or shifted weight row moves 70 % of the pixels
+ * by more than 1e-6), so the frame must be the box average of the frame 4 times larger at one
+ * sample per pixel (render_queue_samples' scalar path) as in resolve_box_average_k. */
+static const char quad_text[] = "image: {width: 40, height: 28, supersample: 4}\n"
+                                "camera: {eye: [0.1, 1.5, 1.2], target: [0, 0, 0], hfov: 60}\n"
+                                "environment: {constant: [0.2, 0.3, 0.5]}\n"
+                                "lights:\n  - {type: point, position: [0.3, 0.4, 0.2], intensity: [3, 3, 3]}\n"
+                                "materials:\n"
+                                "  floor: {albedo: [0.6, 0.5, 0.4], model: d3d, d3d: {specular: [0.5, 0.5, 0.5], "
+                                "power: 20}}\n"
+                                "objects:\n  - {shape: quad, center: [0, 0, 0], size: [2, 2], material: floor}\n";
+
+static void test_queue_4x4_box_average(void **state)
+{
+    (void)state;
+    scene *s = malloc(sizeof *s);
+    assert_non_null(s);
+    char err[1024];
+    mesh m = {0};
+    assert_int_equal(scene_file_parse(quad_text, sizeof quad_text - 1, "quad.yaml", s, err, sizeof err), RC_OK);
+    assert_int_equal(mesh_build(s, &m, err, sizeof err), RC_OK);
+    env_map env;
+    float *px = NULL;
+    assert_int_equal(frame_env_load(s, &env, &px, err, sizeof err), RC_OK);
+    const int k = 4, w = 40, h = 28;
+    render_image img, big;
+    render_options o = {.threads = 2, .supersample = k, .width = w, .height = h};
+    assert_int_equal(render_scene(s, &m, &env, &o, &img, err, sizeof err), RC_OK);
+    render_options ob = {.threads = 2, .supersample = 1, .width = k * w, .height = k * h};
+    assert_int_equal(render_scene(s, &m, &env, &ob, &big, err, sizeof err), RC_OK);
+    int whole = 0;
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            const size_t p = (size_t)j * w + (size_t)i;
+            for (int c = RENDER_R; c <= RENDER_B; c++) {
+                double sum = 0.0;
+                for (int t = 0; t < k; t++)
+                    for (int u = 0; u < k; u++)
+                        sum += big.chan[c][(size_t)(k * j + t) * (size_t)(k * w) + (size_t)(k * i + u)];
+                close_rel(img.chan[c][p], sum / (k * k), 1e-6);
+            }
+            /* The angle channels come from the sample nearest the centre: each sample in its own
+             * slot, not just in its own pixel. */
+            const size_t centre = (size_t)(k * j + k / 2) * (size_t)(k * w) + (size_t)(k * i + k / 2);
+            assert_true(img.chan[RENDER_NDOTV][p] == big.chan[RENDER_NDOTV][centre]);
+            assert_true(img.chan[RENDER_NDOTL][p] == big.chan[RENDER_NDOTL][centre]);
+            whole += img.chan[RENDER_COVERAGE][p] == 1.0f;
+        }
+    /* Most pixels are covered whole (nearly all of them by one of the two triangles). */
+    assert_true(whole > w * h / 2);
     render_image_free(&img);
     render_image_free(&big);
     free(px);
@@ -530,13 +598,10 @@ static void test_keep_falls_back(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_profile_changes_nothing),
-        cmocka_unit_test(test_resolve_box_average),
-        cmocka_unit_test(test_resolve_invariance),
-        cmocka_unit_test(test_angle_channels),
-        cmocka_unit_test(test_reuse_image),
-        cmocka_unit_test(test_keep_reshades),
-        cmocka_unit_test(test_keep_falls_back),
+        cmocka_unit_test(test_profile_changes_nothing), cmocka_unit_test(test_resolve_box_average),
+        cmocka_unit_test(test_queue_4x4_box_average),   cmocka_unit_test(test_resolve_invariance),
+        cmocka_unit_test(test_angle_channels),          cmocka_unit_test(test_reuse_image),
+        cmocka_unit_test(test_keep_reshades),           cmocka_unit_test(test_keep_falls_back),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
