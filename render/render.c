@@ -511,7 +511,7 @@ SMATH_INLINE void render_centre_kernel(const light *l, vec3 to_sun, const render
         if (kind == 2) {
             const vec3 d = v3_sub(pos, x);
             const float d2 = v3_dot(d, d);
-            const int safe = (d2 > 1e-30f) & (d2 < 1e30f);
+            const int safe = (d2 > SHADE_D2_MIN) & (d2 < SHADE_D2_MAX);
             bad = !safe;
             to_l = v3_scale(d, 1.0f / sqrtf(safe ? d2 : 1.0f));
         }

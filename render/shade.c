@@ -101,9 +101,8 @@ int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, f
     *to_light = v3s(0.0f);
     *e_perp = v3s(0.0f);
     *atten = 0.0f;
-    /* In float, d^2 underflows below about 1e-19 m and overflows above 1.8e19 m, and the
-     * light would vanish at either end: there (only) the distance is taken in double. */
-    if (d2 > 1e-30f && d2 < 1e30f) {
+    /* Outside the float band (shade.h) the distance is taken in double. */
+    if (d2 > SHADE_D2_MIN && d2 < SHADE_D2_MAX) {
         fd = sqrtf(d2);
         *to_light = v3_scale(d, 1.0f / fd);
     } else {
@@ -405,7 +404,7 @@ static int shade_user_point(const light *l, const shade_vec3_n *x, int n, shade_
     for (int i = 0; i < n; i++) {
         const vec3 d = v3_sub(l->position, shade_lane_get(x, i));
         const float d2 = v3_dot(d, d);
-        const int in_range = d2 > 1e-30f && d2 < 1e30f;
+        const int in_range = d2 > SHADE_D2_MIN && d2 < SHADE_D2_MAX;
         const float fd = sqrtf(d2);
         const double dd = fd;
         const float atten = (float)formula_attenuation_d(l->a0, l->a1, l->a2, dd, dd * dd, l->range);

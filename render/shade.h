@@ -195,6 +195,13 @@ void shade_batch_ct_env(const shade_context *c, const shade_plan *p, const shade
  * index) stay on shade_eval, lane by lane. */
 int shade_batch_ct_supported(const ct_params *ct);
 
+/* The band of a light's squared distance d^2 within which every path takes the distance in
+ * float: below about 1e-19 m d^2 underflows and above 1.8e19 m it overflows, and the light
+ * would vanish at either end, so outside it the scalar path takes the distance in double and a
+ * lane loop hands the sample to that path (or flags it). */
+#define SHADE_D2_MIN 1e-30f
+#define SHADE_D2_MAX 1e30f
+
 /* Incident light i at x: unit direction to the light and the irradiance it would give at
  * normal incidence (I*A*spot for point/spot, E for a sun). Returns 0 when it gives nothing. */
 int shade_light_incident(const light *l, vec3 x, vec3 *to_light, vec3 *e_perp, float *atten);

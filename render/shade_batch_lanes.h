@@ -34,9 +34,6 @@
 #else
 #define SB_INLINE static inline
 #endif
-/* The float-safe band of a squared light distance (shade_light_incident's own band). */
-#define SB_D2_MIN 1e-30f
-#define SB_D2_MAX 1e30f
 
 static inline vec3 sb_min(vec3 a, vec3 b)
 {
@@ -112,7 +109,7 @@ SB_INLINE sb_incidence sb_incident(const light *l, const sb_light *b, vec3 x, co
         return r;
     vec3 d = v3_sub(sb_v3_load(&l->position), x);
     float d2 = v3_dot(d, d);
-    int safe = (d2 > SB_D2_MIN) & (d2 < SB_D2_MAX);
+    int safe = (d2 > SHADE_D2_MIN) & (d2 < SHADE_D2_MAX);
     r.bad = !safe;
     float inv = 1.0f / sqrtf(safe ? d2 : 1.0f);
     r.to_l = v3_scale(d, inv);
