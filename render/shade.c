@@ -302,7 +302,7 @@ static inline void shade_user_dv_set(shade_user_dv *a, int i, dvec3 v)
  * contracts no a*b+c and the vector forms of +, *, / and sqrt round as the scalar ones. */
 typedef struct {
     shade_user_dv nd, vd, ld, h, e;
-    double n_l[SHADE_BATCH], n_v[SHADE_BATCH], n_h[SHADE_BATCH], v_h[SHADE_BATCH];
+    double n_l[SHADE_BATCH], n_v[SHADE_BATCH];
     unsigned char go[SHADE_BATCH];
 } shade_user_geom;
 
@@ -314,11 +314,8 @@ static void shade_user_light_geom(shade_user_geom *g, const shade_vec3_n *to_l, 
         const dvec3 nd = shade_user_dv_get(&g->nd, i), vd = shade_user_dv_get(&g->vd, i);
         const dvec3 ld = dv3_norm(dv3_from(shade_lane_get(to_l, i)));
         const double n_l = dv3_dot(nd, ld), n_v = dv3_dot(nd, vd);
-        const dvec3 hs = dv3_add(ld, vd);
-        const double hl = dv3_len(hs);
-        const dvec3 h = hl > 0.0 ? dv3_scale(hs, 1.0 / hl) : nd;
         shade_user_dv_set(&g->ld, i, ld);
-        shade_user_dv_set(&g->h, i, h);
+        shade_user_dv_set(&g->h, i, user_model_half(nd, vd, ld));
         shade_user_dv_set(&g->e, i, dv3_scale(dv3_from(shade_lane_get(e_perp, i)), n_l));
         g->n_l[i] = n_l;
         g->n_v[i] = n_v;
@@ -326,15 +323,8 @@ static void shade_user_light_geom(shade_user_geom *g, const shade_vec3_n *to_l, 
     }
 }
 
-static inline void shade_user_put3(double *dst, dvec3 v)
-{
-    dst[0] = v.x;
-    dst[1] = v.y;
-    dst[2] = v.z;
-}
-
-/* user_model_eval's cosines clamped as it clamps them (fmin, fmax: libm's, as there), the input
- * filled as it fills it, and eval called for the lanes the guard lets through; o[i] zero else. */
+/* eval's input as user_model_eval makes it (user_model_input), eval called for the lanes the
+ * guard lets through; o[i] zero else. */
 static void shade_user_light_eval(const reflcheck_user_model *um, const double *params, dvec3 albedo,
                                   const shade_user_geom *g, int n, reflcheck_user_output *o)
 {
@@ -346,18 +336,8 @@ static void shade_user_light_eval(const reflcheck_user_model *um, const double *
     for (int i = 0; i < n; i++) {
         if (!g->go[i])
             continue;
-        in.n_l = fmin(g->n_l[i], 1.0);
-        in.n_v = fmin(g->n_v[i], 1.0);
-        const dvec3 nd = shade_user_dv_get(&g->nd, i), vd = shade_user_dv_get(&g->vd, i),
-                    ld = shade_user_dv_get(&g->ld, i), h = shade_user_dv_get(&g->h, i);
-        in.n_h = fmin(fmax(dv3_dot(nd, h), 0.0), 1.0);
-        in.v_h = fmin(fmax(dv3_dot(vd, h), 0.0), 1.0);
-        /* Element by element: user_model_eval's loop over {n, v, l, h}, written through a
-         * local array, stalled on store forwarding (a third of this function's time). */
-        shade_user_put3(in.n, nd);
-        shade_user_put3(in.v, vd);
-        shade_user_put3(in.l, ld);
-        shade_user_put3(in.h, h);
+        user_model_input(&in, shade_user_dv_get(&g->nd, i), shade_user_dv_get(&g->vd, i), shade_user_dv_get(&g->ld, i),
+                         shade_user_dv_get(&g->h, i), g->n_l[i], g->n_v[i]);
         um->eval(&in, params, &o[i]);
     }
 }

@@ -132,27 +132,11 @@ int user_model_eval(const reflcheck_user_model *m, const double *values, dvec3 n
                     reflcheck_user_output *out)
 {
     memset(out, 0, sizeof *out);
-    reflcheck_user_input in;
-    in.n_l = dv3_dot(n, l);
-    in.n_v = dv3_dot(n, v);
-    if (!(in.n_l > 0.0 && in.n_v > 0.0))
+    const double n_l = dv3_dot(n, l), n_v = dv3_dot(n, v);
+    if (!(n_l > 0.0 && n_v > 0.0))
         return 0;
-    dvec3 hs = dv3_add(l, v);
-    double hl = dv3_len(hs);
-    /* With N.L > 0 and N.V > 0, |L + V| > 0 unless both graze exactly; then H is N's limit. */
-    dvec3 h = hl > 0.0 ? dv3_scale(hs, 1.0 / hl) : n;
-    /* The cosines the header promises: rounding can leave [0, 1] by an ulp. */
-    in.n_l = fmin(in.n_l, 1.0);
-    in.n_v = fmin(in.n_v, 1.0);
-    in.n_h = fmin(fmax(dv3_dot(n, h), 0.0), 1.0);
-    in.v_h = fmin(fmax(dv3_dot(v, h), 0.0), 1.0);
-    const dvec3 vs[4] = {n, v, l, h};
-    double *dst[4] = {in.n, in.v, in.l, in.h};
-    for (int k = 0; k < 4; k++) {
-        dst[k][0] = vs[k].x;
-        dst[k][1] = vs[k].y;
-        dst[k][2] = vs[k].z;
-    }
+    reflcheck_user_input in;
+    user_model_input(&in, n, v, l, user_model_half(n, v, l), n_l, n_v);
     in.albedo[0] = albedo.x;
     in.albedo[1] = albedo.y;
     in.albedo[2] = albedo.z;

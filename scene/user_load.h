@@ -18,6 +18,7 @@
 #ifndef REFLCHECK_USER_LOAD_H
 #define REFLCHECK_USER_LOAD_H
 
+#include <math.h>
 #include <stddef.h>
 
 #include "status.h"
@@ -51,5 +52,34 @@ rc_status user_model_probe(const reflcheck_user_model *m, const char *path, cons
  * N.V <= 0 (eval is not called), else 1 with eval's output. */
 int user_model_eval(const reflcheck_user_model *m, const double *values, dvec3 n, dvec3 v, dvec3 l, dvec3 albedo,
                     reflcheck_user_output *out);
+
+/* user_model_eval's two steps on plain numbers, for a caller that takes the geometry over many
+ * samples at once (render/shade.c's batch form) and must give eval the same bits. */
+
+/* The unit half vector of unit l and v; with N.L > 0 and N.V > 0, |L + V| > 0 unless both graze
+ * exactly, and then H is N's limit. */
+static inline dvec3 user_model_half(dvec3 n, dvec3 v, dvec3 l)
+{
+    dvec3 hs = dv3_add(l, v);
+    double hl = dv3_len(hs);
+    return hl > 0.0 ? dv3_scale(hs, 1.0 / hl) : n;
+}
+
+/* eval's input but the albedo, from the unit vectors, h = user_model_half(n, v, l) and the
+ * cosines n_l = N.L > 0, n_v = N.V > 0: clamped to [0, 1] as the header promises (rounding can
+ * leave it by an ulp). Element by element: a loop over {n, v, l, h} through a local array
+ * stalled on store forwarding in the batch. */
+static inline void user_model_input(reflcheck_user_input *in, dvec3 n, dvec3 v, dvec3 l, dvec3 h, double n_l,
+                                    double n_v)
+{
+    in->n_l = fmin(n_l, 1.0);
+    in->n_v = fmin(n_v, 1.0);
+    in->n_h = fmin(fmax(dv3_dot(n, h), 0.0), 1.0);
+    in->v_h = fmin(fmax(dv3_dot(v, h), 0.0), 1.0);
+    in->n[0] = n.x, in->n[1] = n.y, in->n[2] = n.z;
+    in->v[0] = v.x, in->v[1] = v.y, in->v[2] = v.z;
+    in->l[0] = l.x, in->l[1] = l.y, in->l[2] = l.z;
+    in->h[0] = h.x, in->h[1] = h.y, in->h[2] = h.z;
+}
 
 #endif
