@@ -788,6 +788,18 @@ static int render_queue_samples(const render_job *j, render_scratch *w, render_q
     return covered;
 }
 
+#if defined(__SSE2__)
+/* A 4 x 4 pixel's 16 slots, pixel slot pi plus each sample's offset, as two 8-lane 16-bit adds:
+ * the scalar path's (uint16_t) of the int sum is the same sum modulo 2^16. */
+RENDER_QUEUE_INLINE void render_slots_4x4(uint16_t *dst, const render_queue_state *qs, int pi)
+{
+    const __m128i pv = _mm_set1_epi16((short)pi);
+    for (int h = 0; h < 2; h++)
+        _mm_storeu_si128((__m128i *)(dst + 8 * h),
+                         _mm_add_epi16(_mm_loadu_si128((const __m128i *)(qs->slot_off + 8 * h)), pv));
+}
+#endif
+
 /* A pixel whose k x k samples are all of triangle tri, with room for them all in its queue:
  * queued as render_queue_samples would queue them (same order, and the queue fills up at the
  * same sample), the count kept in a register instead of reloaded per sample. */
@@ -797,19 +809,17 @@ RENDER_QUEUE_INLINE void render_queue_whole(render_queue *restrict qu, const ren
     int n = qu->n;
     qu->centre[qu->n_centre++] = (uint8_t)(n + qs->c * k + qs->c);
 #if defined(__SSE2__)
-    /* 4 x 4: each row's four entries as one 16-byte store per array, the slots as two 8-lane
-     * 16-bit adds (the scalar (uint16_t) of the int sum is the same sum modulo 2^16). */
+    /* 4 x 4: each row's four entries as one 16-byte store per array, the slots by
+     * render_slots_4x4. */
     if (k == 4) {
-        const __m128i tv = _mm_set1_epi32(tri), pv = _mm_set1_epi16((short)pi);
+        const __m128i tv = _mm_set1_epi32(tri);
         for (int t = 0; t < 4; t++) {
             const size_t o = (size_t)t * (size_t)qs->stride;
             _mm_storeu_si128((__m128i *)(qu->tri + n + 4 * t), tv);
             _mm_storeu_ps(qu->b1 + n + 4 * t, _mm_loadu_ps(pix.b1 + o));
             _mm_storeu_ps(qu->b2 + n + 4 * t, _mm_loadu_ps(pix.b2 + o));
         }
-        for (int h = 0; h < 2; h++)
-            _mm_storeu_si128((__m128i *)(qu->slot + n + 8 * h),
-                             _mm_add_epi16(_mm_loadu_si128((const __m128i *)(qs->slot_off + 8 * h)), pv));
+        render_slots_4x4(qu->slot + n, qs, pi);
         qu->n = n + 16;
         return;
     }
@@ -838,14 +848,11 @@ RENDER_QUEUE_INLINE void render_queue_background(render_scratch *restrict w, con
      * sample as the scalar sums), the slots as in render_queue_whole. */
     if (k == 4) {
         const __m128 sx = _mm_add_ps(_mm_set1_ps((float)px), _mm_loadu_ps(qs->offs));
-        const __m128i pv = _mm_set1_epi16((short)pi);
         for (int t = 0; t < 4; t++) {
             _mm_storeu_ps(w->bg_sx + b + 4 * t, sx);
             _mm_storeu_ps(w->bg_sy + b + 4 * t, _mm_set1_ps((float)py + qs->offs[t]));
         }
-        for (int h = 0; h < 2; h++)
-            _mm_storeu_si128((__m128i *)(w->bg_slot + b + 8 * h),
-                             _mm_add_epi16(_mm_loadu_si128((const __m128i *)(qs->slot_off + 8 * h)), pv));
+        render_slots_4x4(w->bg_slot + b, qs, pi);
         w->bg_n = b + 16;
         return;
     }
